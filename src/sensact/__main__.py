@@ -1,0 +1,5 @@
+"""``python -m sensact`` is the ``sensact`` command."""
+
+from sensact.cli import main
+
+main()

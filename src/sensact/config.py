@@ -1,0 +1,171 @@
+"""Configuration dataclasses: JSON round trip, YAML files and ``--set name=value`` overrides.
+
+Every algorithm and simulator has a frozen config dataclass whose defaults are the thesis's constants.
+This module turns user text into such a dataclass with errors that name the field and the fix.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import types
+import typing
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any, TypeVar
+
+from sensact.errors import ConfigError
+
+C = TypeVar("C")
+
+
+def config_to_dict(config: Any) -> dict[str, Any]:
+    """A JSON-ready dict of a config dataclass (tuples become lists)."""
+    return json.loads(json.dumps(dataclasses.asdict(config)))
+
+
+def _coerce(value: Any, annotation: Any, name: str, source: str) -> Any:
+    """Convert a YAML/JSON/CLI value to the field's declared type, or raise ConfigError."""
+    origin = typing.get_origin(annotation)
+    args = typing.get_args(annotation)
+    if annotation is Any:
+        return value
+    if origin in (typing.Union, types.UnionType):
+        if value is None and type(None) in args:
+            return None
+        errors = []
+        for arg in args:
+            if arg is type(None):
+                continue
+            try:
+                return _coerce(value, arg, name, source)
+            except ConfigError as exc:
+                errors.append(exc.problem)
+        raise ConfigError(
+            f"cannot read {value!r} ({'; '.join(errors)}).",
+            file=source,
+            field=name,
+            fix=f"give a value of type {annotation}.",
+        )
+    if origin is typing.Literal:
+        if value not in args:
+            raise ConfigError(
+                f"{value!r} is not one of {list(args)}.",
+                file=source,
+                field=name,
+                fix=f"use one of {', '.join(map(str, args))}.",
+            )
+        return value
+    if origin is tuple:
+        if isinstance(value, str):
+            value = [v for v in value.replace("[", "").replace("]", "").split(",") if v.strip()]
+        if not isinstance(value, list | tuple):
+            raise ConfigError(
+                f"expected a list, got {value!r}.",
+                file=source,
+                field=name,
+                fix="give a list such as [1, 2, 3] or 1,2,3.",
+            )
+        if len(args) == 2 and args[1] is Ellipsis:
+            return tuple(_coerce(v, args[0], name, source) for v in value)
+        if len(args) != len(value):
+            raise ConfigError(
+                f"expected {len(args)} values, got {len(value)}.",
+                file=source,
+                field=name,
+                fix=f"give exactly {len(args)} values.",
+            )
+        return tuple(_coerce(v, a, name, source) for v, a in zip(value, args, strict=True))
+    if annotation is bool:
+        if isinstance(value, bool):
+            return value
+        if isinstance(value, str) and value.lower() in ("true", "yes", "1", "on", "false", "no", "0", "off"):
+            return value.lower() in ("true", "yes", "1", "on")
+        raise ConfigError(f"expected true or false, got {value!r}.", file=source, field=name, fix="use true or false.")
+    if annotation in (int, float, str):
+        try:
+            if annotation is int and isinstance(value, float) and not value.is_integer():
+                raise ValueError
+            return annotation(value)
+        except (TypeError, ValueError):
+            raise ConfigError(
+                f"expected {annotation.__name__}, got {value!r}.",
+                file=source,
+                field=name,
+                fix=f"give a {annotation.__name__}.",
+            ) from None
+    return value
+
+
+def config_from_dict(cls: type[C], data: Mapping[str, Any], *, source: str = "config") -> C:
+    """Build ``cls`` from a mapping; unknown keys are an error naming the closest valid fields."""
+    hints = typing.get_type_hints(cls)
+    fields = {f.name: f for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+    kwargs = {}
+    for key, value in data.items():
+        if key not in fields:
+            raise ConfigError(
+                f"unknown field {key!r} for {cls.__name__}.",
+                file=source,
+                field=key,
+                fix=f"valid fields are: {', '.join(sorted(fields))}.",
+            )
+        kwargs[key] = _coerce(value, hints[key], key, source)
+    try:
+        return cls(**kwargs)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(str(exc), file=source, fix="check the values against the documentation.") from None
+
+
+def parse_overrides(pairs: Iterable[str]) -> dict[str, Any]:
+    """``["a=1", "b=[1,2]"]`` -> ``{"a": 1, "b": [1, 2]}``; values are parsed as YAML scalars/lists."""
+    import yaml
+
+    out: dict[str, Any] = {}
+    for pair in pairs:
+        if "=" not in pair:
+            raise ConfigError(f"override {pair!r} has no '='.", field="--set", fix="write --set name=value.")
+        key, text = pair.split("=", 1)
+        try:
+            out[key.strip()] = yaml.safe_load(text)
+        except yaml.YAMLError:
+            out[key.strip()] = text
+    return out
+
+
+def load_yaml_mapping(path: str | Path) -> dict[str, Any]:
+    """Read a YAML file that must hold a mapping of field names to values."""
+    import yaml
+
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError("file not found.", file=path, fix="give the path of an existing YAML file.")
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise ConfigError(
+            f"not valid YAML ({exc.__class__.__name__}).", file=path, fix="check the indentation and quoting."
+        ) from None
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise ConfigError(
+            "the top level must be a mapping of field: value.", file=path, fix="write one 'field: value' per line."
+        )
+    return data
+
+
+def build_config(
+    cls: type[C], yaml_path: str | Path | None = None, overrides: Iterable[str] = (), base: Any = None
+) -> C:
+    """``base`` (or the defaults), then the YAML file, then ``--set`` overrides, in rising precedence."""
+    data: dict[str, Any] = config_to_dict(base) if base is not None else {}
+    sources = []
+    if yaml_path is not None:
+        data.update(load_yaml_mapping(yaml_path))
+        sources.append(str(yaml_path))
+    over = parse_overrides(overrides)
+    if over:
+        sources.append("--set")
+    data.update(over)
+    return config_from_dict(cls, data, source=" / ".join(sources) or "defaults")

@@ -1,0 +1,65 @@
+"""Reading numeric CSV tables with errors that name the file, the column or row, and the fix."""
+
+from __future__ import annotations
+
+import csv
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from sensact.errors import LogFormatError
+
+
+def read_numeric_csv(path: str | Path, required: Sequence[str] = (), *, what: str = "table") -> dict[str, np.ndarray]:
+    """All columns of a CSV with a header row, as float arrays keyed by column name.
+
+    Empty cells become NaN. A missing file, a missing required column, a short row or a non-numeric
+    cell raises ``LogFormatError`` naming where and what to do.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise LogFormatError(
+            f"{what} not found.",
+            file=path,
+            fix="check the path; a log folder holds meta.json, actions.csv and observations.csv.",
+        )
+    with path.open(newline="") as handle:
+        rows = list(csv.reader(handle))
+    if not rows:
+        raise LogFormatError("the file is empty.", file=path, fix="write a header row and at least one data row.")
+    header = [h.strip() for h in rows[0]]
+    missing = [c for c in required if c not in header]
+    if missing:
+        raise LogFormatError(
+            f"missing column(s) {', '.join(missing)}; found {', '.join(h or '<unnamed>' for h in header)}.",
+            file=path,
+            field=missing[0],
+            fix="rename the column or choose one that exists.",
+        )
+    body = [r for r in rows[1:] if any(cell.strip() for cell in r)]
+    if not body:
+        raise LogFormatError("no data rows.", file=path, fix="the file must have at least one row after the header.")
+    out = np.full((len(body), len(header)), np.nan)
+    for i, row in enumerate(body):
+        if len(row) != len(header):
+            raise LogFormatError(
+                f"row {i + 2} has {len(row)} cells but the header has {len(header)}.",
+                file=path,
+                field=f"row {i + 2}",
+                fix="make every row as long as the header.",
+            )
+        for j, cell in enumerate(row):
+            cell = cell.strip()
+            if cell == "":
+                continue
+            try:
+                out[i, j] = float(cell)
+            except ValueError:
+                raise LogFormatError(
+                    f"row {i + 2}: {cell!r} is not a number.",
+                    file=path,
+                    field=header[j] or f"column {j + 1}",
+                    fix="write numbers only (use an empty cell for a missing value).",
+                ) from None
+    return {name: out[:, j] for j, name in enumerate(header) if name}

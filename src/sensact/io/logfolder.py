@@ -1,0 +1,185 @@
+"""The native log folder (DESIGN.md, "Data layout of a log") for one-dimensional logs.
+
+::
+
+    run-001/
+      meta.json          platform, units, columns, simulator seed and true models if simulated
+      actions.csv        t_s, <command column>
+      observations.csv   t_s, <sensor column(s)>
+      groundtruth.csv    optional: t_s, <position column>, ...; used only for evaluation
+
+``read_track_log`` also accepts a Turtlebot CSV file (see ``sensact.io.turtlebot``).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sensact.errors import LogFormatError
+from sensact.io.atomic import write_json, write_text
+from sensact.io.csvtable import read_numeric_csv
+
+LOG_FORMAT = "sensact-log"
+LOG_VERSION = 1
+
+
+@dataclass(frozen=True)
+class TrackLog:
+    """A 1-D log on one time grid: the command in force from each step, and the observation at it."""
+
+    times_s: np.ndarray  # (T,) strictly increasing
+    commands: np.ndarray  # (T,) zero-order hold of the logged commands
+    observations: np.ndarray  # (T,) NaN where there is no observation
+    command_unit: str
+    observation_name: str
+    observation_unit: str
+    source: str
+    meta: dict[str, Any] = field(default_factory=dict)
+    true_position: np.ndarray | None = None  # (T,) only for evaluation
+    position_unit: str = ""
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.times_s[-1] - self.times_s[0])
+
+    @property
+    def n_observations(self) -> int:
+        return int(np.isfinite(self.observations).sum())
+
+
+def _fmt(x: np.ndarray) -> list[str]:
+    return ["" if not np.isfinite(v) else repr(float(v)) for v in x]
+
+
+def _write_csv(path: Path, columns: dict[str, np.ndarray]) -> None:
+    names = list(columns)
+    cols = [_fmt(np.asarray(columns[n], dtype=float)) for n in names]
+    lines = [",".join(names)] + [",".join(row) for row in zip(*cols, strict=True)]
+    write_text(path, "\n".join(lines) + "\n")
+
+
+def write_log_folder(
+    folder: str | Path,
+    *,
+    meta: dict[str, Any],
+    actions: dict[str, np.ndarray],
+    observations: dict[str, np.ndarray],
+    groundtruth: dict[str, np.ndarray] | None = None,
+) -> Path:
+    """Write a log folder. Each table's first column must be ``t_s``; observation rows with every
+    sensor value missing are left out. Every file is written atomically; meta.json goes last, so a
+    folder with meta.json is complete."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, table in (("actions", actions), ("observations", observations), ("groundtruth", groundtruth)):
+        if table is not None and next(iter(table)) != "t_s":
+            raise ValueError(f"{name}: the first column must be t_s")
+    keep = np.zeros(len(observations["t_s"]), dtype=bool)
+    for name, col in observations.items():
+        if name != "t_s":
+            keep |= np.isfinite(col)
+    _write_csv(folder / "actions.csv", actions)
+    _write_csv(folder / "observations.csv", {k: np.asarray(v)[keep] for k, v in observations.items()})
+    if groundtruth is not None:
+        _write_csv(folder / "groundtruth.csv", groundtruth)
+    write_json(folder / "meta.json", {"format": LOG_FORMAT, "version": LOG_VERSION, **meta})
+    return folder
+
+
+def read_meta(folder: str | Path) -> dict[str, Any]:
+    path = Path(folder) / "meta.json"
+    if not path.is_file():
+        raise LogFormatError(
+            "meta.json not found.",
+            file=path,
+            fix="a log folder needs meta.json; `sensact simulate track1d --out DIR` writes an example.",
+        )
+    try:
+        meta = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise LogFormatError(
+            f"not valid JSON (line {exc.lineno}).", file=path, fix="repair or rewrite meta.json."
+        ) from None
+    if not isinstance(meta, dict) or meta.get("format") != LOG_FORMAT:
+        raise LogFormatError(
+            f"'format' is not {LOG_FORMAT!r}.",
+            file=path,
+            field="format",
+            fix=f'add "format": "{LOG_FORMAT}" to meta.json.',
+        )
+    return meta
+
+
+def _column(meta: dict[str, Any], key: str, path: Path) -> tuple[str, str]:
+    try:
+        spec = meta[key]
+        return str(spec["column"]), str(spec.get("unit", ""))
+    except (KeyError, TypeError):
+        raise LogFormatError(
+            f"meta.json has no {key}.column.",
+            file=path / "meta.json",
+            field=key,
+            fix=f'add "{key}": {{"column": "<name in the csv>", "unit": "..."}}.',
+        ) from None
+
+
+def read_track_log(path: str | Path, sensor: str | None = None) -> TrackLog:
+    """Read a 1-D log folder, or a Turtlebot CSV file, onto one time grid.
+
+    ``sensor`` picks the observation column; by default the one meta.json names (or sonar1 for a
+    Turtlebot file).
+    """
+    path = Path(path)
+    if path.is_file() and path.suffix.lower() == ".csv":
+        from sensact.io.turtlebot import read_turtlebot_csv
+
+        return read_turtlebot_csv(path, sensor=sensor or "sonar1")
+    if not path.is_dir():
+        raise LogFormatError(
+            "not a log folder or CSV file.",
+            file=path,
+            fix="give a folder with meta.json, actions.csv and observations.csv, or a Turtlebot CSV.",
+        )
+    meta = read_meta(path)
+    cmd_col, cmd_unit = _column(meta, "action", path)
+    obs_col, obs_unit = _column(meta, "sensor", path)
+    if sensor is not None:
+        obs_col, obs_unit = sensor, meta.get("units", {}).get(sensor, "")
+    actions = read_numeric_csv(path / "actions.csv", ["t_s", cmd_col], what="actions.csv")
+    obs = read_numeric_csv(path / "observations.csv", ["t_s", obs_col], what="observations.csv")
+    t_a, c = actions["t_s"], actions[cmd_col]
+    if np.any(~np.isfinite(t_a)) or np.any(np.diff(t_a) <= 0):
+        raise LogFormatError(
+            "t_s must be finite and strictly increasing.",
+            file=path / "actions.csv",
+            field="t_s",
+            fix="sort the rows by time and remove duplicates.",
+        )
+    if np.any(~np.isfinite(c)):
+        bad = int(np.flatnonzero(~np.isfinite(c))[0]) + 2
+        raise LogFormatError(
+            f"row {bad} has no command.",
+            file=path / "actions.csv",
+            field=cmd_col,
+            fix="every action row needs a command value.",
+        )
+    t_o, o = obs["t_s"], obs[obs_col]
+    ok = np.isfinite(t_o) & np.isfinite(o) & (t_o >= t_a[0])
+    t_o, o = t_o[ok], o[ok]
+    times = np.union1d(t_a, t_o)
+    commands = c[np.searchsorted(t_a, times, side="right") - 1]
+    observations = np.full(len(times), np.nan)
+    observations[np.searchsorted(times, t_o)] = o
+    true_pos, pos_unit = None, ""
+    gt_spec = meta.get("groundtruth")
+    if gt_spec and (path / "groundtruth.csv").is_file():
+        col = gt_spec["column"]
+        gt = read_numeric_csv(path / "groundtruth.csv", ["t_s", col], what="groundtruth.csv")
+        true_pos = np.interp(times, gt["t_s"], gt[col])
+        pos_unit = gt_spec.get("unit", "")
+    return TrackLog(times, commands, observations, cmd_unit, obs_col, obs_unit, str(path), meta, true_pos, pos_unit)

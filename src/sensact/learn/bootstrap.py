@@ -1,0 +1,947 @@
+"""Chapter 3: online learning of the inverse sensor model S(o) and the action model A(c) from each other.
+
+Algorithm 1 (sec. 3.2.3) and its two halves (sec. 3.2.1 and 3.2.2) share one compiled step function,
+``_step``. The streaming learner (``BootstrapLearner.update``) calls it once per time step; the batch
+path (``learn_bootstrap``) calls it from a compiled loop over the whole log. Both paths therefore give
+bit-identical models.
+
+Conventions
+-----------
+* A step ``k`` has a time ``t_k``, the command ``c_k`` that is in force from ``t_k`` until ``t_{k+1}``,
+  and optionally an observation ``o_k`` taken at ``t_k``. The motion ``A(c_{k-1}) (t_k - t_{k-1})`` is
+  integrated before ``o_k`` is used, so that ``w_a`` and ``o_k`` describe the same instant.
+* Learned quantities have no absolute scale (sec. 3.1): ``S`` maps observations to positions in the
+  learner's own unit, ``A`` maps commands to velocities in that unit per second.
+* Regression inputs are normalized (``u = (o - center)/scale``, ``c / command_scale``, and eq. 3.2's
+  cumulative sums in units of ``time_scale_s``) for conditioning only; the fitted polynomials are the
+  same for any normalization up to the tiny ridge.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+from numba import njit
+
+from sensact.core.degree import N_STATS, should_raise_degree, stats_add, stats_reset
+from sensact.core.polyfit import renormalize
+from sensact.core.recursive import (
+    accumulate_poly,
+    accumulate_vector,
+    poly_eval,
+    shift_features,
+    solve_normal_equations,
+)
+from sensact.models.polynomial import Polynomial1D
+
+A0Kind = Literal["linear", "sign", "constant"]
+ProgressFn = Callable[[int, int], None]
+
+
+@dataclass(frozen=True)
+class BootstrapConfig:
+    """Algorithm 1's constants. Defaults are the thesis's (sec. 3.3.1 and 3.3.2)."""
+
+    gamma: float = 0.999  # discount of regression weights per observation, sec. 3.3.2
+    alpha: float = 1.0 / 30.0  # pull of w_a toward w_s per observation, sec. 3.3.2
+    t_start_s: float = 20.0  # length of each ramp-up phase, sec. 3.3.2
+    sensor_degree: int = 3  # cubic S, sec. 3.3.1
+    action_degree: int = 4  # quartic A, sec. 3.3.1
+    a0: A0Kind = "linear"  # starting action model A0(c) = c, sec. 3.3.2; sign and constant: sec. 3.3.3
+    # Regress on the mean of this many consecutive observations (and of w_a at the same instants).
+    # 1 is the thesis; the default averages 1 s at 20 Hz (errors-in-variables, see docs/bootstrap.md).
+    observation_window: int = 20
+    # Automatic degree of S (sec. 3.3.3); see sensact.core.degree for the rule.
+    auto_sensor_degree: bool = False
+    degree_start: int = 1  # "we start by fitting a first degree (linear) polynomial", sec. 3.3.3
+    degree_max: int = 6
+    degree_warmup_s: float = 40.0  # residuals are scored only after the fit has seen this much data
+    degree_eval_s: float = 40.0  # ... and the ratio is tested only after this much more
+    degree_threshold: float = 1.3  # raise the degree when global/local error ratio exceeds this
+    # Input validity window: observations outside [min, max] are treated as missing (not in the thesis).
+    observation_min: float | None = None
+    observation_max: float | None = None
+    # Outlier gate (not in the thesis; off by default): skip an observation whose |S(o) - w_a| exceeds
+    # this many running RMS innovations. For sensors with gross outliers, such as the HC-SR04 sonar.
+    outlier_gate: float | None = None
+    # Normalization, for conditioning only. None: derived from the data (batch) or the first samples.
+    command_scale: float | None = None
+    observation_center: float | None = None
+    observation_scale: float | None = None
+    time_scale_s: float = 50.0  # ~ the regression memory, 1/(1-gamma) observations at 20 Hz
+    ridge: float = 1e-10  # relative Tikhonov term, used only when a solve is numerically singular
+    divergence_factor: float = 1e4  # |w| beyond this many times its ramp-up magnitude = runaway
+    history_interval_s: float = 1.0  # model snapshots for learning curves (batch path)
+
+    def __post_init__(self) -> None:
+        checks = {
+            "gamma must be in (0, 1]": 0.0 < self.gamma <= 1.0,
+            "alpha must be in [0, 1]": 0.0 <= self.alpha <= 1.0,
+            "t_start_s must be >= 0": self.t_start_s >= 0.0,
+            "sensor_degree and action_degree must be >= 0": min(self.sensor_degree, self.action_degree) >= 0,
+            "need 0 <= degree_start <= degree_max": 0 <= self.degree_start <= self.degree_max,
+            "time_scale_s must be > 0": self.time_scale_s > 0,
+            "observation_window must be >= 1": self.observation_window >= 1,
+            "history_interval_s must be > 0": self.history_interval_s > 0,
+            "outlier_gate must be > 0 (or null for off)": self.outlier_gate is None or self.outlier_gate > 0,
+        }
+        bad = [msg for msg, ok in checks.items() if not ok]
+        if bad:
+            raise ValueError("; ".join(bad))
+
+
+# ---- compiled state layout ----------------------------------------------------------------------------
+# scalar state
+(
+    W_A,
+    W_S,
+    T0,
+    T_PREV,
+    C_PREV,
+    A0_PREV,
+    HAS_PREV,
+    N_OBS,
+    N_S,
+    DEG_S,
+    STATUS,
+    T_DIVERGED,
+    N_GATED,
+    GATE_SUM,
+    GATE_W,
+    S_READY,
+    A_READY,
+    W_REF,
+    N_A,
+    T_RESTART,
+    RESTARTED,
+    N_STEPS,
+    BUF_I,
+    BUF_N,
+) = range(24)
+N_SCAL = 24
+# float parameters
+(
+    P_GAMMA,
+    P_ALPHA,
+    P_T_START,
+    P_CMD_SCALE,
+    P_OBS_CENTER,
+    P_OBS_SCALE,
+    P_TIME_SCALE,
+    P_RIDGE,
+    P_DIV,
+    P_REBASE,
+    P_DEG_THRESHOLD,
+    P_OBS_MIN,
+    P_OBS_MAX,
+    P_GATE,
+    P_DEG_WARMUP,
+    P_DEG_EVAL,
+) = range(16)
+N_PRM = 16
+# integer parameters
+I_LEARN_S, I_LEARN_A, I_AUTO, I_DEG_MAX, I_P, I_Q, I_WINDOW = range(7)
+N_IPRM = 7
+# _step return codes
+NO_OBS, OBS_WITH_WS, OBS_EARLY, OBS_GATED, DIVERGED, STOPPED = range(6)
+STATUS_OK, STATUS_DIVERGED = 0, 1
+
+
+@njit(cache=True)
+def _finite_all(a, n):
+    for i in range(n):
+        if not np.isfinite(a[i]):
+            return False
+    return True
+
+
+@njit(cache=True)
+def _step(
+    Gs,
+    hs,
+    cs,
+    cs_prev,
+    Ls,
+    Ga,
+    ha,
+    ca,
+    ca_prev,
+    La,
+    xa,
+    xbar,
+    stats,
+    ring,
+    buf_o,
+    buf_w,
+    buf_x,
+    fixed_s,
+    fixed_a,
+    sc,
+    prm,
+    iprm,
+    t,
+    c,
+    a0c,
+    o,
+):
+    """One time step of Algorithm 1 (or of a half-method, by ``iprm``). Returns a code (see above)."""
+    if sc[STATUS] != STATUS_OK:
+        return STOPPED
+    P = iprm[I_P]
+    Q = iprm[I_Q]
+    na = Q - 1
+    gamma = prm[P_GAMMA]
+    ts = prm[P_TIME_SCALE]
+    learn_s = iprm[I_LEARN_S] == 1
+    learn_a = iprm[I_LEARN_A] == 1
+    sc[N_STEPS] += 1.0
+
+    # ---- motion since the previous step (Algorithm 1, lines 3-7) ----
+    if sc[HAS_PREV] == 0.0:
+        sc[T0] = t
+        sc[HAS_PREV] = 1.0
+    else:
+        dt = t - sc[T_PREV]
+        u = sc[C_PREV] / prm[P_CMD_SCALE]
+        if learn_a:
+            if sc[T_PREV] - sc[T0] < 2.0 * prm[P_T_START] or sc[A_READY] == 0.0:
+                v = sc[A0_PREV]  # line 4: the fixed starting model A0 for t < 2 t_start
+            else:
+                v = poly_eval(ca[1:], u, na) / ts  # line 6: the current estimate A_t
+        else:
+            v = poly_eval(fixed_a, u, na)
+        sc[W_A] += v * dt
+        # eq. 3.2 regressors: dt * sum_{i<t} c_i^j, kept near zero by exact re-basing
+        pw = 1.0
+        rebase = False
+        for j in range(na):
+            xa[j + 1] += pw * dt / ts
+            pw *= u
+            if abs(xa[j + 1]) > prm[P_REBASE]:
+                rebase = True
+        if rebase:
+            shift_features(Ga, ha, xa, Q)
+            for j in range(1, Q):
+                for i in range(buf_x.shape[0]):
+                    buf_x[i, j] -= xa[j]
+                xa[j] = 0.0
+    sc[T_PREV] = t
+    sc[C_PREV] = c
+    sc[A0_PREV] = a0c
+    tr = t - sc[T0]
+    if tr <= 2.0 * prm[P_T_START]:
+        sc[W_REF] = max(sc[W_REF], abs(sc[W_A]))
+
+    # ---- observation (lines 8-15) ----
+    if not (o == o) or o < prm[P_OBS_MIN] or o > prm[P_OBS_MAX]:
+        return NO_OBS
+    sc[N_OBS] += 1.0
+    uo = (o - prm[P_OBS_CENTER]) / prm[P_OBS_SCALE]
+    code = OBS_EARLY
+    s_active = (not learn_s) or (tr > prm[P_T_START] and sc[S_READY] == 1.0)  # line 9
+    if learn_s and s_active and prm[P_GATE] > 0.0:
+        e = poly_eval(cs, uo, P) - sc[W_A]
+        cap = prm[P_GATE] ** 2 * sc[GATE_SUM] / sc[GATE_W] if sc[GATE_W] > 0.0 else np.inf
+        # winsorized scale: a rejected innovation still counts, clipped at the gate, so a long run of
+        # rejections widens the gate instead of locking the learner out
+        sc[GATE_SUM] = gamma * sc[GATE_SUM] + min(e * e, cap)
+        sc[GATE_W] = gamma * sc[GATE_W] + 1.0
+        if sc[GATE_W] >= 20.0 and e * e > cap:
+            sc[N_GATED] += 1.0
+            return OBS_GATED
+    # Errors-in-variables guard (not in the thesis): regress on the mean of the last `window`
+    # observations and the mean of w_a and eq. 3.2's regressors at the same instants. window = 1 is
+    # exactly Algorithm 1.
+    win = iprm[I_WINDOW]
+    bi = int(sc[BUF_I])
+    buf_o[bi] = uo
+    buf_w[bi] = sc[W_A]
+    for j in range(Q):
+        buf_x[bi, j] = xa[j]
+    sc[BUF_I] = (bi + 1) % win
+    nb = int(min(sc[BUF_N] + 1.0, win))
+    sc[BUF_N] = nb
+    ub = 0.0
+    wb = 0.0
+    for i in range(nb):
+        ub += buf_o[i]
+        wb += buf_w[i]
+    ub /= nb
+    wb /= nb
+    for j in range(Q):
+        acc = 0.0
+        for i in range(nb):
+            acc += buf_x[i, j]
+        xbar[j] = acc / nb
+    target = wb
+    if s_active:
+        ws = poly_eval(cs if learn_s else fixed_s, ub, P)  # line 10: w_s = S_t(o_t)
+        sc[W_S] = ws
+        code = OBS_WITH_WS
+        if learn_a:
+            accumulate_vector(Ga, ha, xbar, ws, gamma, Q)  # line 11: UPDATE A_t (eq. 3.2)
+            sc[N_A] += 1.0
+            if sc[N_A] >= Q:
+                for i in range(Q):
+                    ca_prev[i] = ca[i]
+                if solve_normal_equations(Ga, ha, Q, prm[P_RIDGE], La, ca):
+                    sc[A_READY] = 1.0
+        if learn_s and learn_a:
+            delta = prm[P_ALPHA] * (ws - wb)  # line 12: w_a <- (1 - alpha) w_a + alpha w_s
+            sc[W_A] += delta
+            for i in range(nb):
+                buf_w[i] += delta
+            target = wb + delta
+    if learn_s:
+        # line 14: UPDATE S_t from (o_t, w_a)
+        p = int(sc[DEG_S]) + 1
+        auto = iprm[I_AUTO] == 1
+        if auto and sc[S_READY] == 1.0 and tr - sc[T_RESTART] >= prm[P_DEG_WARMUP]:
+            stats_add(stats, ring, win, target - poly_eval(cs, ub, P), gamma)
+        accumulate_poly(Gs, hs, ub, target, gamma, p)
+        sc[N_S] += 1.0
+        # after a degree restart, keep using the old S until the new fit has a t_start of data
+        if sc[N_S] >= p and (sc[RESTARTED] == 0.0 or tr - sc[T_RESTART] >= prm[P_T_START]):
+            for i in range(P):
+                cs_prev[i] = cs[i]
+            if solve_normal_equations(Gs, hs, p, prm[P_RIDGE], Ls, cs):
+                for i in range(p, P):
+                    cs[i] = 0.0
+                sc[S_READY] = 1.0
+        if (
+            auto
+            and p - 1 < iprm[I_DEG_MAX]
+            and tr - sc[T_RESTART] >= prm[P_DEG_WARMUP] + prm[P_DEG_EVAL]
+            and should_raise_degree(stats, 1.0, prm[P_DEG_THRESHOLD])
+        ):
+            sc[DEG_S] += 1.0  # sec. 3.3.3: raise the degree and restart the regression
+            for i in range(P):
+                hs[i] = 0.0
+                for j in range(P):
+                    Gs[i, j] = 0.0
+            stats_reset(stats)
+            sc[N_S] = 0.0
+            sc[T_RESTART] = tr
+            sc[RESTARTED] = 1.0
+
+    # ---- divergence: non-finite or runaway estimates end the run with the last good models ----
+    bad = not (np.isfinite(sc[W_A]) and np.isfinite(sc[W_S]))
+    bad = bad or not _finite_all(cs, P) or not _finite_all(ca, Q)
+    if learn_s and learn_a and sc[W_REF] > 0.0 and tr > 2.0 * prm[P_T_START]:  # once A_t drives w_a
+        lim = prm[P_DIV] * sc[W_REF]
+        bad = bad or abs(sc[W_A]) > lim or abs(sc[W_S]) > lim
+    if bad:
+        sc[STATUS] = STATUS_DIVERGED
+        sc[T_DIVERGED] = tr
+        for i in range(P):
+            cs[i] = cs_prev[i]
+        for i in range(Q):
+            ca[i] = ca_prev[i]
+        return DIVERGED
+    return code
+
+
+@njit(cache=True)
+def _run(
+    Gs,
+    hs,
+    cs,
+    cs_prev,
+    Ls,
+    Ga,
+    ha,
+    ca,
+    ca_prev,
+    La,
+    xa,
+    xbar,
+    stats,
+    ring,
+    buf_o,
+    buf_w,
+    buf_x,
+    fixed_s,
+    fixed_a,
+    sc,
+    prm,
+    iprm,
+    times,
+    commands,
+    a0v,
+    obs,
+    k0,
+    k1,
+    w_a_out,
+    w_s_out,
+    snap_t,
+    snap_s,
+    snap_a,
+    snap_deg,
+    n_snap,
+    snap_interval,
+):
+    """The batch path: ``_step`` over steps ``k0..k1-1``, recording w_a, w_s and model snapshots."""
+    ns = n_snap[0]
+    for k in range(k0, k1):
+        code = _step(
+            Gs,
+            hs,
+            cs,
+            cs_prev,
+            Ls,
+            Ga,
+            ha,
+            ca,
+            ca_prev,
+            La,
+            xa,
+            xbar,
+            stats,
+            ring,
+            buf_o,
+            buf_w,
+            buf_x,
+            fixed_s,
+            fixed_a,
+            sc,
+            prm,
+            iprm,
+            times[k],
+            commands[k],
+            a0v[k],
+            obs[k],
+        )
+        if code == STOPPED:
+            break
+        w_a_out[k] = sc[W_A]
+        w_s_out[k] = sc[W_S] if code == OBS_WITH_WS else np.nan
+        tr = times[k] - sc[T0]
+        if ns < snap_t.shape[0] and (
+            ns == 0 or tr >= snap_t[ns - 1] + snap_interval or k == times.shape[0] - 1 or code == DIVERGED
+        ):
+            snap_t[ns] = tr
+            for i in range(cs.shape[0]):
+                snap_s[ns, i] = cs[i] if sc[S_READY] == 1.0 else np.nan
+            for i in range(ca.shape[0] - 1):
+                snap_a[ns, i] = ca[i + 1] / prm[P_TIME_SCALE] if sc[A_READY] == 1.0 else np.nan
+            snap_deg[ns] = sc[DEG_S]
+            ns += 1
+        if code == DIVERGED:
+            break
+    n_snap[0] = ns
+
+
+# ---- Python side ----------------------------------------------------------------------------------------
+
+
+def a0_function(a0: A0Kind | Callable[[float], float]) -> Callable[[float], float]:
+    """The starting action model A0 (sec. 3.3.2 and 3.3.3) as a scalar function."""
+    if callable(a0):
+        return lambda c: float(a0(c))
+    if a0 == "linear":
+        return float
+    if a0 == "sign":
+        return lambda c: float((c > 0) - (c < 0))
+    if a0 == "constant":
+        return lambda c: 1.0
+    raise ValueError(f"unknown A0 {a0!r}: use linear, sign, constant or a callable")
+
+
+def _a0_vector(a0: A0Kind | Callable[[float], float], commands: np.ndarray) -> np.ndarray:
+    if a0 == "linear":
+        return commands.astype(float).copy()
+    if a0 == "sign":
+        return np.sign(commands).astype(float)
+    if a0 == "constant":
+        return np.ones_like(commands, dtype=float)
+    f = a0_function(a0)
+    return np.array([f(c) for c in commands], dtype=float)
+
+
+@dataclass(frozen=True)
+class Normalization:
+    """Input scales used inside the regressions (conditioning only)."""
+
+    command_scale: float
+    observation_center: float
+    observation_scale: float
+
+    @classmethod
+    def from_data(cls, commands: np.ndarray, observations: np.ndarray, config: BootstrapConfig) -> Normalization:
+        c = np.asarray(commands, dtype=float)
+        o = np.asarray(observations, dtype=float)
+        o = o[np.isfinite(o)]
+        if config.observation_min is not None:
+            o = o[o >= config.observation_min]
+        if config.observation_max is not None:
+            o = o[o <= config.observation_max]
+        cmax = float(np.max(np.abs(c))) if c.size else 0.0
+        lo, hi = (float(o.min()), float(o.max())) if o.size else (0.0, 1.0)
+        return cls(
+            command_scale=config.command_scale or (cmax if cmax > 0 else 1.0),
+            observation_center=(
+                config.observation_center if config.observation_center is not None else 0.5 * (lo + hi)
+            ),
+            observation_scale=config.observation_scale or (0.5 * (hi - lo) if hi > lo else max(abs(lo), 1.0)),
+        )
+
+
+@dataclass(frozen=True)
+class BootstrapHistory:
+    """What the batch path records: per-step location estimates and periodic model snapshots."""
+
+    times_s: np.ndarray  # (T,)
+    w_a: np.ndarray  # (T,) action-based location estimate after each step
+    w_s: np.ndarray  # (T,) sensor-based estimate, NaN where no observation was used
+    snapshot_t_s: np.ndarray  # (K,) time since the start of the log
+    snapshot_sensor_coef: np.ndarray  # (K, P) in the result's sensor normalization; NaN before ready
+    snapshot_action_coef: np.ndarray  # (K, d+1) in the result's action normalization
+    snapshot_sensor_degree: np.ndarray  # (K,)
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        return {k: getattr(self, k) for k in self.__dataclass_fields__}
+
+
+@dataclass(frozen=True)
+class BootstrapResult:
+    """Learned models, how the run ended, and (batch path) its history."""
+
+    sensor: Polynomial1D
+    action: Polynomial1D
+    status: Literal["ok", "diverged"]
+    diverged_at_s: float | None
+    sensor_degree: int
+    n_steps: int
+    n_observations: int
+    n_gated: int
+    mode: str
+    config: BootstrapConfig
+    normalization: Normalization
+    history: BootstrapHistory | None = field(default=None, repr=False)
+
+    def sensor_at(self, k: int) -> Polynomial1D | None:
+        """The sensor model of history snapshot ``k`` (None if not yet learned)."""
+        assert self.history is not None
+        coef = self.history.snapshot_sensor_coef[k]
+        deg = int(self.history.snapshot_sensor_degree[k])
+        if not np.all(np.isfinite(coef[: deg + 1])):
+            return None
+        return Polynomial1D(
+            tuple(coef[: deg + 1]),
+            self.sensor.center,
+            self.sensor.scale,
+            self.sensor.input_name,
+            self.sensor.input_unit,
+            self.sensor.output_unit,
+        )
+
+    def action_at(self, k: int) -> Polynomial1D | None:
+        assert self.history is not None
+        coef = self.history.snapshot_action_coef[k]
+        if not np.all(np.isfinite(coef)):
+            return None
+        return Polynomial1D(
+            tuple(coef),
+            self.action.center,
+            self.action.scale,
+            self.action.input_name,
+            self.action.input_unit,
+            self.action.output_unit,
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        from sensact.config import config_to_dict
+
+        return {
+            "kind": "bootstrap_result",
+            "mode": self.mode,
+            "status": self.status,
+            "diverged_at_s": self.diverged_at_s,
+            "sensor_degree": self.sensor_degree,
+            "n_steps": self.n_steps,
+            "n_observations": self.n_observations,
+            "n_gated": self.n_gated,
+            "sensor": self.sensor.to_dict(),
+            "action": self.action.to_dict(),
+            "normalization": dict(self.normalization.__dict__),
+            "config": config_to_dict(self.config),
+        }
+
+
+class _Engine:
+    """The compiled learner's arrays and their conversion to models."""
+
+    def __init__(
+        self,
+        config: BootstrapConfig,
+        norm: Normalization,
+        *,
+        learn_sensor: bool,
+        learn_action: bool,
+        fixed_sensor: Polynomial1D | None,
+        fixed_action: Polynomial1D | None,
+        units: tuple[str, str, str],
+    ) -> None:
+        self.config, self.norm = config, norm
+        self.learn_sensor, self.learn_action = learn_sensor, learn_action
+        self.units = units  # (command unit, observation unit, location unit)
+        if learn_sensor:
+            P = (config.degree_max if config.auto_sensor_degree else config.sensor_degree) + 1
+        else:
+            assert fixed_sensor is not None
+            P = fixed_sensor.degree + 1
+        Q = (config.action_degree if learn_action else fixed_action.degree) + 2  # type: ignore[union-attr]
+        self.P, self.Q = P, Q
+        self.Gs, self.hs, self.cs, self.cs_prev, self.Ls = (
+            np.zeros((P, P)),
+            np.zeros(P),
+            np.zeros(P),
+            np.zeros(P),
+            np.zeros((P, P)),
+        )
+        self.Ga, self.ha, self.ca, self.ca_prev, self.La = (
+            np.zeros((Q, Q)),
+            np.zeros(Q),
+            np.zeros(Q),
+            np.zeros(Q),
+            np.zeros((Q, Q)),
+        )
+        self.xa = np.zeros(Q)
+        self.xa[0] = 1.0  # intercept w_0 of eq. 3.2
+        self.xbar = np.zeros(Q)
+        win = config.observation_window
+        self.buf_o, self.buf_w, self.buf_x = np.zeros(win), np.zeros(win), np.zeros((win, Q))
+        self.stats, self.ring = np.zeros(N_STATS), np.zeros(win)
+        self.fixed_s = np.zeros(P)
+        self.fixed_a = np.zeros(Q - 1)
+        if fixed_sensor is not None:
+            self.fixed_s[:] = renormalize(
+                np.asarray(fixed_sensor.coef),
+                fixed_sensor.center,
+                fixed_sensor.scale,
+                norm.observation_center,
+                norm.observation_scale,
+            )
+        if fixed_action is not None:
+            self.fixed_a[:] = renormalize(
+                np.asarray(fixed_action.coef), fixed_action.center, fixed_action.scale, 0.0, norm.command_scale
+            )
+        self.sc = np.zeros(N_SCAL)
+        self.sc[DEG_S] = config.degree_start if config.auto_sensor_degree else config.sensor_degree
+        self.prm = np.zeros(N_PRM)
+        self.prm[
+            [
+                P_GAMMA,
+                P_ALPHA,
+                P_T_START,
+                P_CMD_SCALE,
+                P_OBS_CENTER,
+                P_OBS_SCALE,
+                P_TIME_SCALE,
+                P_RIDGE,
+                P_DIV,
+                P_REBASE,
+                P_DEG_THRESHOLD,
+                P_OBS_MIN,
+                P_OBS_MAX,
+                P_GATE,
+                P_DEG_WARMUP,
+                P_DEG_EVAL,
+            ]
+        ] = [
+            config.gamma,
+            config.alpha,
+            config.t_start_s,
+            norm.command_scale,
+            norm.observation_center,
+            norm.observation_scale,
+            config.time_scale_s,
+            config.ridge,
+            config.divergence_factor,
+            4.0,
+            config.degree_threshold,
+            -np.inf if config.observation_min is None else config.observation_min,
+            np.inf if config.observation_max is None else config.observation_max,
+            config.outlier_gate or 0.0,
+            config.degree_warmup_s,
+            config.degree_eval_s,
+        ]
+        self.iprm = np.array(
+            [int(learn_sensor), int(learn_action), int(config.auto_sensor_degree), config.degree_max, P, Q, win],
+            dtype=np.int64,
+        )
+        self.fixed_sensor, self.fixed_action = fixed_sensor, fixed_action
+
+    def arrays(self) -> tuple[np.ndarray, ...]:
+        return (
+            self.Gs,
+            self.hs,
+            self.cs,
+            self.cs_prev,
+            self.Ls,
+            self.Ga,
+            self.ha,
+            self.ca,
+            self.ca_prev,
+            self.La,
+            self.xa,
+            self.xbar,
+            self.stats,
+            self.ring,
+            self.buf_o,
+            self.buf_w,
+            self.buf_x,
+            self.fixed_s,
+            self.fixed_a,
+            self.sc,
+            self.prm,
+            self.iprm,
+        )
+
+    @property
+    def mode(self) -> str:
+        if self.learn_sensor and self.learn_action:
+            return "both"
+        return "sensor_from_action" if self.learn_sensor else "action_from_sensor"
+
+    def sensor_model(self) -> Polynomial1D:
+        if not self.learn_sensor:
+            return self.fixed_sensor  # type: ignore[return-value]
+        deg = int(self.sc[DEG_S])
+        coef = self.cs[: deg + 1] if self.sc[S_READY] == 1.0 else np.full(deg + 1, np.nan)
+        return Polynomial1D(
+            tuple(coef), self.norm.observation_center, self.norm.observation_scale, "o", self.units[1], self.units[2]
+        )
+
+    def action_model(self) -> Polynomial1D:
+        if not self.learn_action:
+            return self.fixed_action  # type: ignore[return-value]
+        coef = self.ca[1:] / self.config.time_scale_s if self.sc[A_READY] == 1.0 else np.full(self.Q - 1, np.nan)
+        return Polynomial1D(tuple(coef), 0.0, self.norm.command_scale, "c", self.units[0], f"{self.units[2]}/s")
+
+    def result(self, history: BootstrapHistory | None) -> BootstrapResult:
+        diverged = self.sc[STATUS] == STATUS_DIVERGED
+        return BootstrapResult(
+            sensor=self.sensor_model(),
+            action=self.action_model(),
+            status="diverged" if diverged else "ok",
+            diverged_at_s=float(self.sc[T_DIVERGED]) if diverged else None,
+            sensor_degree=int(self.sc[DEG_S]) if self.learn_sensor else self.P - 1,
+            n_steps=int(self.sc[N_STEPS]),
+            n_observations=int(self.sc[N_OBS]),
+            n_gated=int(self.sc[N_GATED]),
+            mode=self.mode,
+            config=self.config,
+            normalization=self.norm,
+            history=history,
+        )
+
+
+class BootstrapLearner:
+    """The streaming form of Algorithm 1: call ``update(t, command, observation_or_None)`` per step.
+
+    Normalization (conditioning only) comes from ``normalization`` or the config; when neither gives it,
+    it is taken from the first non-zero command and the first observation.
+    """
+
+    def __init__(
+        self,
+        config: BootstrapConfig | None = None,
+        *,
+        a0: A0Kind | Callable[[float], float] | None = None,
+        normalization: Normalization | None = None,
+        units: tuple[str, str, str] = ("", "", "w"),
+    ) -> None:
+        self.config = config or BootstrapConfig()
+        self._a0 = a0_function(a0 if a0 is not None else self.config.a0)
+        cfg = self.config
+        self._pending_cmd = normalization is None and cfg.command_scale is None
+        self._pending_obs = normalization is None and (cfg.observation_center is None or cfg.observation_scale is None)
+        norm = normalization or Normalization(
+            cfg.command_scale or 1.0, cfg.observation_center or 0.0, cfg.observation_scale or 1.0
+        )
+        self._engine = _Engine(
+            cfg, norm, learn_sensor=True, learn_action=True, fixed_sensor=None, fixed_action=None, units=units
+        )
+        self._arrays = self._engine.arrays()
+
+    def update(self, t: float, command: float, observation: float | None = None) -> None:
+        o = math.nan if observation is None else float(observation)
+        if self._pending_cmd and command != 0.0:
+            self._set_norm(command_scale=abs(float(command)))
+        if self._pending_obs and o == o:
+            self._set_norm(observation_center=o, observation_scale=abs(o) if o != 0.0 else 1.0)
+        _step(*self._arrays, float(t), float(command), self._a0(command), o)
+
+    def _set_norm(self, **kw: float) -> None:
+        e = self._engine
+        e.norm = Normalization(**{**e.norm.__dict__, **kw})
+        e.prm[P_CMD_SCALE] = e.norm.command_scale
+        e.prm[P_OBS_CENTER] = e.norm.observation_center
+        e.prm[P_OBS_SCALE] = e.norm.observation_scale
+        if "command_scale" in kw:
+            self._pending_cmd = False
+        if "observation_center" in kw:
+            self._pending_obs = False
+
+    @property
+    def sensor_model(self) -> Polynomial1D:
+        return self._engine.sensor_model()
+
+    @property
+    def action_model(self) -> Polynomial1D:
+        return self._engine.action_model()
+
+    @property
+    def w_a(self) -> float:
+        return float(self._engine.sc[W_A])
+
+    @property
+    def w_s(self) -> float:
+        return float(self._engine.sc[W_S])
+
+    @property
+    def status(self) -> str:
+        return "diverged" if self._engine.sc[STATUS] == STATUS_DIVERGED else "ok"
+
+    def result(self) -> BootstrapResult:
+        return self._engine.result(None)
+
+
+def _check_arrays(times: np.ndarray, commands: np.ndarray, observations: np.ndarray) -> tuple[np.ndarray, ...]:
+    t = np.ascontiguousarray(times, dtype=float)
+    c = np.ascontiguousarray(commands, dtype=float)
+    o = np.ascontiguousarray(observations, dtype=float)
+    if not (t.ndim == c.ndim == o.ndim == 1 and len(t) == len(c) == len(o)):
+        raise ValueError("times, commands and observations must be 1-D arrays of one length")
+    if len(t) < 2:
+        raise ValueError("a log needs at least two steps")
+    if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+        raise ValueError("times must be finite and strictly increasing")
+    if not np.all(np.isfinite(c)):
+        raise ValueError("commands must be finite")
+    return t, c, o
+
+
+def _run_engine(
+    engine: _Engine,
+    t: np.ndarray,
+    c: np.ndarray,
+    a0v: np.ndarray,
+    o: np.ndarray,
+    progress: ProgressFn | None,
+    chunk: int = 200_000,
+) -> BootstrapResult:
+    T = len(t)
+    n_snap_max = int((t[-1] - t[0]) / engine.config.history_interval_s) + 3
+    w_a = np.full(T, np.nan)
+    w_s = np.full(T, np.nan)
+    snap_t = np.full(n_snap_max, np.nan)
+    snap_s = np.full((n_snap_max, engine.P), np.nan)
+    snap_a = np.full((n_snap_max, engine.Q - 1), np.nan)
+    snap_deg = np.zeros(n_snap_max)
+    n_snap = np.zeros(1, dtype=np.int64)
+    for k0 in range(0, T, chunk):
+        k1 = min(T, k0 + chunk)
+        _run(
+            *engine.arrays(),
+            t,
+            c,
+            a0v,
+            o,
+            k0,
+            k1,
+            w_a,
+            w_s,
+            snap_t,
+            snap_s,
+            snap_a,
+            snap_deg,
+            n_snap,
+            engine.config.history_interval_s,
+        )
+        if progress is not None:
+            progress(k1, T)
+        if engine.sc[STATUS] != STATUS_OK:
+            break
+    K = int(n_snap[0])
+    hist = BootstrapHistory(t, w_a, w_s, snap_t[:K], snap_s[:K], snap_a[:K], snap_deg[:K].astype(np.int64))
+    return engine.result(hist)
+
+
+def learn_bootstrap(
+    times_s: np.ndarray,
+    commands: np.ndarray,
+    observations: np.ndarray,
+    config: BootstrapConfig | None = None,
+    *,
+    a0: A0Kind | Callable[[float], float] | None = None,
+    normalization: Normalization | None = None,
+    units: tuple[str, str, str] = ("", "", "w"),
+    progress: ProgressFn | None = None,
+) -> BootstrapResult:
+    """Algorithm 1 over a whole log (the compiled batch path). ``observations`` is NaN where none."""
+    config = config or BootstrapConfig()
+    t, c, o = _check_arrays(times_s, commands, observations)
+    norm = normalization or Normalization.from_data(c, o, config)
+    engine = _Engine(
+        config, norm, learn_sensor=True, learn_action=True, fixed_sensor=None, fixed_action=None, units=units
+    )
+    return _run_engine(engine, t, c, _a0_vector(a0 if a0 is not None else config.a0, c), o, progress)
+
+
+def learn_sensor_from_action(
+    times_s: np.ndarray,
+    commands: np.ndarray,
+    observations: np.ndarray,
+    action: Polynomial1D | None = None,
+    config: BootstrapConfig | None = None,
+    *,
+    units: tuple[str, str, str] = ("", "", "w"),
+    progress: ProgressFn | None = None,
+) -> BootstrapResult:
+    """Sec. 3.2.1: regress ``(o_t, w_a,t)`` with ``w_a`` integrated from a given action model.
+
+    With ``action=None`` the action is taken as constant (A = 1), which fits ``(o_t, t)``: the thesis's
+    sensor model from a constant action of unknown speed. With ``config.auto_sensor_degree`` the degree is
+    chosen online (sec. 3.3.3).
+    """
+    config = config or BootstrapConfig()
+    t, c, o = _check_arrays(times_s, commands, observations)
+    norm = Normalization.from_data(c, o, config)
+    fixed = (
+        action if action is not None else Polynomial1D((1.0,), 0.0, norm.command_scale, "c", units[0], f"{units[2]}/s")
+    )
+    engine = _Engine(
+        config, norm, learn_sensor=True, learn_action=False, fixed_sensor=None, fixed_action=fixed, units=units
+    )
+    return _run_engine(engine, t, c, np.zeros_like(c), o, progress)
+
+
+def learn_action_from_sensor(
+    times_s: np.ndarray,
+    commands: np.ndarray,
+    observations: np.ndarray,
+    sensor: Polynomial1D,
+    config: BootstrapConfig | None = None,
+    *,
+    units: tuple[str, str, str] = ("", "", "w"),
+    progress: ProgressFn | None = None,
+) -> BootstrapResult:
+    """Sec. 3.2.2: fit ``A`` so that ``w_0 + sum_j a_j dt sum_{i<t} c_i^j`` matches ``S(o_t)`` (eq. 3.2)."""
+    config = config or BootstrapConfig()
+    t, c, o = _check_arrays(times_s, commands, observations)
+    engine = _Engine(
+        config,
+        Normalization.from_data(c, o, config),
+        learn_sensor=False,
+        learn_action=True,
+        fixed_sensor=sensor,
+        fixed_action=None,
+        units=units,
+    )
+    return _run_engine(engine, t, c, np.zeros_like(c), o, progress)

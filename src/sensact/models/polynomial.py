@@ -1,0 +1,95 @@
+"""A one-dimensional polynomial model: the chapter-3 sensor model ``S(o)`` and action model ``A(c)``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from sensact.core.polyfit import affine_basis_matrix, polyval
+from sensact.errors import ModelFormatError
+
+
+@dataclass(frozen=True)
+class Polynomial1D:
+    """``p(x) = sum_i coef[i] * u**i`` with ``u = (x - center) / scale``.
+
+    The normalized variable keeps the fit well conditioned; ``power_coefficients()`` gives the same
+    polynomial in plain powers of ``x`` for people and other tools.
+    """
+
+    coef: tuple[float, ...]
+    center: float = 0.0
+    scale: float = 1.0
+    input_name: str = "x"
+    input_unit: str = ""
+    output_unit: str = ""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "coef", tuple(float(c) for c in self.coef))
+        if len(self.coef) == 0:
+            raise ValueError("a polynomial needs at least one coefficient")
+        if not self.scale > 0:
+            raise ValueError("scale must be > 0")
+
+    @property
+    def degree(self) -> int:
+        return len(self.coef) - 1
+
+    def __call__(self, x: np.ndarray | float) -> np.ndarray:
+        return polyval(np.asarray(self.coef), (np.asarray(x, dtype=float) - self.center) / self.scale)
+
+    def power_coefficients(self) -> np.ndarray:
+        """Ascending coefficients of the same polynomial in powers of ``x`` itself."""
+        M = affine_basis_matrix(self.degree, 1.0 / self.scale, -self.center / self.scale)
+        return M.T @ np.asarray(self.coef)
+
+    def is_finite(self) -> bool:
+        return bool(np.all(np.isfinite(self.coef)))
+
+    def describe(self, name: str = "p", digits: int = 6) -> str:
+        """``p(x) = a0 + a1 x + ...`` in plain powers."""
+        terms = []
+        for i, c in enumerate(self.power_coefficients()):
+            v = f"{c:.{digits}g}"
+            terms.append(v if i == 0 else f"{v}·{self.input_name}" + (f"^{i}" if i > 1 else ""))
+        return f"{name}({self.input_name}) = " + " + ".join(terms).replace("+ -", "- ")
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "kind": "polynomial1d",
+            "coef": list(self.coef),
+            "center": self.center,
+            "scale": self.scale,
+            "input_name": self.input_name,
+            "input_unit": self.input_unit,
+            "output_unit": self.output_unit,
+            "power_coefficients": self.power_coefficients().tolist(),
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any], *, source: str = "model") -> Polynomial1D:
+        if not isinstance(data, dict) or data.get("kind") != "polynomial1d":
+            raise ModelFormatError(
+                "not a polynomial1d model.",
+                file=source,
+                field="kind",
+                fix="give a JSON object written by sensact with kind 'polynomial1d'.",
+            )
+        try:
+            return cls(
+                coef=tuple(float(c) for c in data["coef"]),
+                center=float(data.get("center", 0.0)),
+                scale=float(data.get("scale", 1.0)),
+                input_name=str(data.get("input_name", "x")),
+                input_unit=str(data.get("input_unit", "")),
+                output_unit=str(data.get("output_unit", "")),
+            )
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ModelFormatError(
+                f"bad polynomial ({exc}).",
+                file=source,
+                field="coef",
+                fix="coef must be a non-empty list of numbers and scale > 0.",
+            ) from None

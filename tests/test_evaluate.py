@@ -1,0 +1,69 @@
+"""evaluate: the optimal-scale comparisons of sec. 3.3.2 and the measured models of real logs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sensact.evaluate.measured import measure_action, measure_sensor
+from sensact.evaluate.scaled import consistency, fit_scale, fit_scale_offset, score_models
+from sensact.evaluate.track1d import COMMAND_GRID_MM_S, DISTANCE_GRID_MM
+from sensact.models.polynomial import Polynomial1D
+
+
+def test_thesis_grids():
+    assert len(COMMAND_GRID_MM_S) == 31 and COMMAND_GRID_MM_S[0] == -300 and COMMAND_GRID_MM_S[-1] == 300
+    assert len(DISTANCE_GRID_MM) == 13 and DISTANCE_GRID_MM[0] == 1200 and DISTANCE_GRID_MM[-1] == 3600
+
+
+def test_scale_fits_are_exact_and_scale_free():
+    rng = np.random.default_rng(0)
+    p = rng.normal(size=50)
+    m = 3.0 * p + rng.normal(0, 0.1, 50)
+    f = fit_scale(p, m)
+    assert f.scale == pytest.approx(3.0, abs=0.05)
+    # a learned model in another unit scores the same
+    g = fit_scale(p / 7.0, m)
+    assert g.rms == pytest.approx(f.rms, rel=1e-12) and g.scale == pytest.approx(7 * f.scale, rel=1e-12)
+    h = fit_scale_offset(-0.2 * p + 5.0, m)
+    assert h.rms == pytest.approx(fit_scale_offset(p, m).rms, rel=1e-10)
+    assert fit_scale_offset(2 * p + 1, p).rms < 1e-12
+
+
+def test_consistency():
+    assert consistency(2.0, -2.0) == 0.0
+    assert consistency(1.1, 1.0) == pytest.approx(0.1)
+    assert consistency(1.0, 0.0) == np.inf
+
+
+def test_perfect_models_score_their_best_fit():
+    c = np.linspace(-300, 300, 31)
+    v = 0.8 * c
+    o = np.linspace(10, 30, 13)
+    d = 40000.0 / o
+    A = Polynomial1D((0.0, 1.0))  # A(c) = c
+    S = Polynomial1D(tuple(np.polynomial.polynomial.polyfit((o - 20) / 10, -d / 5, 3)), 20.0, 10.0)
+    sc = score_models(S, A, observations=o, distances=d, commands=c, velocities=v)
+    assert sc.action_rms < 1e-9 and sc.action_scale_k == pytest.approx(0.8)
+    assert sc.sensor_rms == pytest.approx(sc.sensor_best_rms, rel=1e-6)
+    assert sc.consistency == pytest.approx(abs(0.8 / 5.0 - 1.0), rel=1e-6)
+
+
+def test_measure_action_times_each_held_command():
+    t = np.arange(0, 60, 0.05)
+    c = np.where(t < 20, 0.2, np.where(t < 40, -0.1, 0.3))
+    v = 0.9 * c
+    x = np.cumsum(v * 0.05)
+    ma = measure_action(t, c, x)
+    np.testing.assert_allclose(ma.commands, [-0.1, 0.2, 0.3])
+    np.testing.assert_allclose(ma.velocities, [-0.09, 0.18, 0.27], rtol=1e-6)
+
+
+def test_measure_sensor_uses_medians_and_drops_non_invertible_bins():
+    rng = np.random.default_rng(1)
+    x = rng.uniform(0.1, 3.0, 20000)
+    o = 2 * x + rng.normal(0, 0.01, x.size)
+    o[rng.random(x.size) < 0.1] = 8.0  # outliers: the median ignores them
+    ms = measure_sensor(o, x, bin_width=0.1, window=(0.0, 5.0))
+    np.testing.assert_allclose(ms.observations, 2 * ms.positions, atol=0.02)
+    assert ms.positions.max() < 2.5  # bins whose median is above 5.0 are left out

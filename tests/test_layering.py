@@ -1,0 +1,81 @@
+"""DESIGN.md layering: imports only go downward, and the numerical layers never pull in a UI library."""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+SRC = Path(__file__).resolve().parents[1] / "src" / "sensact"
+# rank of each top-level part; a module may import only parts of lower rank (or its own part)
+RANK = {
+    "errors": 0,
+    "config": 1,
+    "core": 1,
+    "models": 2,
+    "learn": 3,
+    "sim": 3,
+    "io": 3,
+    "evaluate": 4,
+    "report": 5,
+    "experiments": 6,
+    "cli": 7,
+}
+UI_LIBS = {"matplotlib", "typer", "rich", "tqdm"}
+NUMERIC_PARTS = ("core", "models", "learn", "sim")
+
+
+def _imports(path: Path) -> list[str]:
+    tree = ast.parse(path.read_text())
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out += [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            out.append(node.module)
+    return out
+
+
+def _part(path: Path) -> str:
+    rel = path.relative_to(SRC)
+    return rel.parts[0].removesuffix(".py")
+
+
+def test_every_part_has_a_rank():
+    parts = {_part(p) for p in SRC.rglob("*.py") if p.name != "__init__.py" or p.parent != SRC}
+    assert parts <= set(RANK), parts - set(RANK)
+
+
+def test_imports_only_go_downward():
+    bad = []
+    for path in SRC.rglob("*.py"):
+        if path.parent == SRC and path.name == "__init__.py":
+            continue
+        me = _part(path)
+        for mod in _imports(path):
+            if mod.startswith("sensact."):
+                other = mod.split(".")[1]
+                if other != me and RANK[other] >= RANK[me]:
+                    bad.append(f"{path.relative_to(SRC)} imports {mod}")
+    assert not bad, "\n".join(bad)
+
+
+def test_numeric_layers_name_no_ui_library():
+    bad = []
+    for part in NUMERIC_PARTS:
+        for path in (SRC / part).rglob("*.py"):
+            for mod in _imports(path):
+                if mod.split(".")[0] in UI_LIBS:
+                    bad.append(f"{path.relative_to(SRC)} imports {mod}")
+    assert not bad, "\n".join(bad)
+
+
+def test_numeric_layers_load_no_ui_library_at_runtime():
+    code = (
+        "import sys, sensact.core.recursive, sensact.core.degree, sensact.models.polynomial, "
+        "sensact.learn.bootstrap, sensact.sim.track1d; "
+        f"print(sorted(m for m in {sorted(UI_LIBS)!r} if m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
+    assert out == "[]"
