@@ -21,6 +21,7 @@ RANK = {
     "report": 5,
     "experiments": 6,
     "cli": 7,
+    "__main__": 8,
 }
 UI_LIBS = {"matplotlib", "typer", "rich", "tqdm"}
 NUMERIC_PARTS = ("core", "models", "learn", "sim")
