@@ -34,8 +34,9 @@ learn_app = typer.Typer(help="Learn models from a log.", no_args_is_help=True)
 app.add_typer(simulate_app, name="simulate")
 app.add_typer(learn_app, name="learn")
 
-console = Console()
-err_console = Console(stderr=True)
+# rich falls back to 80 columns when output is not a terminal; the result tables need more
+console = Console(width=None if sys.stdout.isatty() else 160)
+err_console = Console(stderr=True, width=None if sys.stderr.isatty() else 160)
 _state = {"debug": False}
 F = TypeVar("F", bound=Callable[..., Any])
 
