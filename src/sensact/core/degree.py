@@ -45,6 +45,16 @@ def stats_add(stats, ring, lag, r, gamma):
 
 
 @njit(cache=True)
+def restart_fit(G, h, stats):
+    """Sec. 3.3.3: after raising the degree the regression starts again from no data."""
+    for i in range(G.shape[0]):
+        h[i] = 0.0
+        for j in range(G.shape[1]):
+            G[i, j] = 0.0
+    stats_reset(stats)
+
+
+@njit(cache=True)
 def misfit_ratio(stats):
     """``E_g / E_l``; 1 for white residuals, larger when the polynomial misses structure."""
     if stats[SUM_DR2] <= 0.0:
@@ -91,10 +101,8 @@ def select_degree(
         solve_normal_equations(G, h, p, 1e-12, L, coef)
         if degree < max_degree and since >= n_warmup + n_eval and should_raise_degree(stats, 1, threshold):
             degree += 1
-            G[:] = 0.0
-            h[:] = 0.0
+            restart_fit(G, h, stats)
             coef[:] = 0.0
-            stats_reset(stats)
             since = 0
         out[n] = degree
     return degree, out

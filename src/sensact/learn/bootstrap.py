@@ -13,8 +13,8 @@ Conventions
 * Learned quantities have no absolute scale (sec. 3.1): ``S`` maps observations to positions in the
   learner's own unit, ``A`` maps commands to velocities in that unit per second.
 * Regression inputs are normalized (``u = (o - center)/scale``, ``c / command_scale``, and eq. 3.2's
-  cumulative sums in units of ``time_scale_s``) for conditioning only; the fitted polynomials are the
-  same for any normalization up to the tiny ridge.
+  cumulative sums in units of ``time_scale_s``) for conditioning only; the fitted polynomials do not
+  depend on it (the ridge is used only when a solve is numerically singular).
 """
 
 from __future__ import annotations

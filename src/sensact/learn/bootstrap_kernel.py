@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from sensact.core.degree import should_raise_degree, stats_add, stats_reset
+from sensact.core.degree import restart_fit, should_raise_degree, stats_add
 from sensact.core.recursive import (
     accumulate_poly,
     accumulate_vector,
@@ -190,11 +190,7 @@ def step_kernel(state, t, c, a0c, o):
             and should_raise_degree(stats, 1.0, prm[P_DEG_THRESHOLD])
         ):
             sc[DEG_S] += 1.0  # sec. 3.3.3: raise the degree and restart the regression
-            for i in range(P):
-                hs[i] = 0.0
-                for j in range(P):
-                    Gs[i, j] = 0.0
-            stats_reset(stats)
+            restart_fit(Gs, hs, stats)
             sc[N_S] = 0.0
             sc[T_RESTART] = tr
             sc[RESTARTED] = 1.0
