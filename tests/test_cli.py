@@ -13,7 +13,17 @@ runner = CliRunner()
 
 
 @pytest.mark.parametrize(
-    "args", [[], ["simulate"], ["learn"], ["simulate", "track1d"], ["learn", "bootstrap"], ["reproduce"]]
+    "args",
+    [
+        [],
+        ["simulate"],
+        ["learn"],
+        ["simulate", "track1d"],
+        ["simulate", "field2d"],
+        ["learn", "bootstrap"],
+        ["learn", "em"],
+        ["reproduce"],
+    ],
 )
 def test_every_command_has_help(args):
     res = runner.invoke(app, [*args, "--help"])
@@ -58,6 +68,9 @@ def test_simulate_then_learn(tmp_path):
         (["learn", "bootstrap", ".", "--a0", "cubic"], "--a0"),
         (["simulate", "track1d", "--out", "x", "--set", "gamma=0.5"], "unknown field 'gamma'"),
         (["reproduce", "nothing"], "unknown experiment"),
+        (["simulate", "field2d", "--out", "x", "--setting", "mars"], "unknown setting"),
+        (["learn", "em", "/nonexistent/log"], "EM reads a log folder"),
+        (["learn", "em", ".", "--set", "patience=0"], "patience"),
     ],
 )
 def test_bad_input_is_one_line_without_traceback(args, needle):
@@ -92,3 +105,89 @@ def test_reproduce_track1d_writes_the_documented_shape(tmp_path):
     for fig in ("fig3_7_location_estimates.png", "fig3_8_learned_vs_measured.png", "fig3_9_learning_curves.png"):
         assert (tmp_path / fig).stat().st_size > 10_000
     assert "Table 3.1" in (tmp_path / "track1d.md").read_text()
+
+
+def test_simulate_field2d_then_learn_em(tmp_path):
+    log = tmp_path / "field"
+    res = runner.invoke(app, ["simulate", "field2d", "--seconds", "120", "--seed", "3", "--out", str(log)])
+    assert res.exit_code == 0, res.output
+    assert "40 actions" in res.output
+    model = tmp_path / "model.json"
+    res = runner.invoke(
+        app,
+        ["learn", "em", str(log), "--out", str(model), "--set", "max_iterations=40", "--set", "prune_rad_per_step=0"],
+    )
+    assert res.exit_code == 0, res.output
+    assert "f(d) =" in res.output and "vs truth" in res.output and "sigma_2" in res.output
+    out = json.loads(model.read_text())
+    assert out["model"]["kind"] == "em_model" and len(out["model"]["action"]["velocities"]) == 40
+    assert out["summary"]["iterations"] <= 40 and out["evaluation"]["vtheta_rms_rad_s"] < 0.5
+    from sensact.models.em_model import EMModel
+
+    assert EMModel.from_dict(out["model"]).geometry == "planar"
+    import numpy as np
+
+    with np.load(tmp_path / "model.history.npz", allow_pickle=False) as h:
+        assert h["loglik"].size == out["summary"]["iterations"] and h["velocities"].shape[1:] == (40, 3)
+
+
+def test_reproduce_em1d_and_field2d_write_the_documented_keys(tmp_path):
+    res = runner.invoke(
+        app,
+        [
+            "reproduce",
+            "em1d",
+            "--out",
+            str(tmp_path),
+            "--set",
+            "seconds=240",
+            "--set",
+            "change_at_s=120",
+            "--set",
+            "max_iterations=60",
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    out = json.loads((tmp_path / "em1d.json").read_text())
+    keys = {"sensor_rms_px", "sensor_rms_pct", "action_rms_mm_s", "action_rms_pct", "scale_ratio", "iterations"}
+    assert keys <= set(out["ours"]) and keys <= set(out["thesis"])
+    for k in ("change_before_on_before", "change_after_on_after", "change_before_on_after", "change_after_on_before"):
+        assert {"action_rms_mm_s", "scale_ratio"} <= set(out["ours"][k])
+    assert (tmp_path / "fig4_6_em1d_learned.png").stat().st_size > 10_000
+    assert (tmp_path / "fig4_7_em1d_relearned.png").stat().st_size > 10_000
+    res = runner.invoke(
+        app,
+        [
+            "reproduce",
+            "field2d",
+            "--trials",
+            "1",
+            "--out",
+            str(tmp_path),
+            "--set",
+            "seconds=60",
+            "--set",
+            "max_iterations=20",
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    out = json.loads((tmp_path / "field2d.json").read_text())
+    keys = {
+        "vx_rms_mm_s",
+        "vy_rms_mm_s",
+        "vtheta_rms_rad_s",
+        "sigma1_learned",
+        "sigma1_true",
+        "sigma2_learned",
+        "sigma2_true",
+        "iterations",
+        "loglik_start",
+        "loglik_best",
+        "seconds",
+    }
+    assert keys <= set(out["ours"]) and keys - {"loglik_best"} <= set(out["thesis"])
+    assert out["config"]["simulator"]["seconds"] == 60 and out["config"]["learner"]["max_iterations"] == 20
+    assert out["config"]["learner"]["prune_rad_per_step"] == 0.0  # the simulation default survives --set
+    for fig in ("fig4_4_field2d_learning.png", "fig4_5_field2d_sensor.png", "fig4_2_real_robot_learning.png"):
+        assert (tmp_path / fig).stat().st_size > 10_000
+    assert "real-robot setting" in (tmp_path / "field2d.md").read_text()

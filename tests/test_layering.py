@@ -14,6 +14,7 @@ RANK = {
     "config": 1,
     "core": 1,
     "models": 2,
+    "logs": 2,
     "learn": 3,
     "sim": 3,
     "io": 3,
@@ -24,7 +25,7 @@ RANK = {
     "__main__": 8,
 }
 UI_LIBS = {"matplotlib", "typer", "rich", "tqdm"}
-NUMERIC_PARTS = ("core", "models", "learn", "sim")
+NUMERIC_PARTS = ("core", "models", "logs", "learn", "sim")
 
 
 def _imports(path: Path) -> list[str]:
@@ -75,7 +76,8 @@ def test_numeric_layers_name_no_ui_library():
 def test_numeric_layers_load_no_ui_library_at_runtime():
     code = (
         "import sys, sensact.core.recursive, sensact.core.degree, sensact.models.polynomial, "
-        "sensact.learn.bootstrap, sensact.sim.track1d; "
+        "sensact.learn.bootstrap, sensact.sim.track1d, sensact.learn.em, sensact.sim.field2d, "
+        "sensact.core.ekf_smoother, sensact.models.em_model; "
         f"print(sorted(m for m in {sorted(UI_LIBS)!r} if m in sys.modules))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()

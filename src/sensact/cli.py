@@ -108,6 +108,17 @@ def _print_tables(tables: list[tuple[str, list[str], list[list[str]]]]) -> None:
         console.print(t)
 
 
+def _write_results(out: Path, name: str, res: dict[str, Any], tables: list[Any]) -> None:
+    """``out/<name>.json`` and ``out/<name>.md``, and the tables on the console."""
+    from sensact.io.atomic import write_json, write_text
+    from sensact.report.tables import to_markdown
+
+    out.mkdir(parents=True, exist_ok=True)
+    write_json(out / f"{name}.json", res)
+    write_text(out / f"{name}.md", to_markdown(tables))
+    _print_tables(tables)
+
+
 def _config(cls: type, config: Path | None, sets: list[str] | None, base: Any = None, **flags: Any) -> Any:
     """``base`` or defaults < ``--config`` YAML < ``--set`` < explicit flags."""
     import dataclasses
@@ -142,6 +153,34 @@ def simulate_track1d(
     console.print(
         f"wrote {out}: {len(run.times_s)} steps, {n_obs} observations, "
         f"distance {run.distance_mm.min():.0f}-{run.distance_mm.max():.0f} mm (seed {cfg.seed})"
+    )
+
+
+@simulate_app.command("field2d")
+@_friendly
+def simulate_field2d(
+    out: Annotated[Path, typer.Option("--out", help="Log folder to write.")],
+    seconds: Annotated[float | None, typer.Option(help="Length of the log (default 900).")] = None,
+    seed: Annotated[int | None, typer.Option(help="Random seed (default 0).")] = None,
+    setting: Annotated[
+        str, typer.Option(help="simulation (0.05 s steps, sec. 4.4.2) or real_robot (30 Hz, sec. 4.4.1).")
+    ] = "simulation",
+    set_: SetOpt = None,
+    config: ConfigOpt = None,
+) -> None:
+    """Simulate the chapter-4 Aibo walking among four beacons with 40 actions (secs. 4.4.1-4.4.2)."""
+    from sensact.errors import ConfigError
+    from sensact.io.logfolder import write_log_folder
+    from sensact.sim.field2d import Field2DConfig, log_tables, simulate_field
+
+    if setting not in ("simulation", "real_robot"):
+        raise ConfigError(f"unknown setting {setting!r}.", field="--setting", fix="use simulation or real_robot.")
+    cfg = _config(Field2DConfig, config, set_, base=Field2DConfig.preset(setting), seconds=seconds, seed=seed)
+    run = simulate_field(cfg)
+    write_log_folder(out, **log_tables(run))
+    console.print(
+        f"wrote {out}: {len(run.times_s)} steps of {cfg.dt_s:.4g} s, {run.obs_step.size} observations "
+        f"({int(run.obs_false.sum())} false positives), 40 actions (seed {cfg.seed})"
     )
 
 
@@ -211,6 +250,109 @@ def learn_bootstrap_cmd(
         console.print(f"wrote {out} and {out.with_suffix('.history.npz')}")
 
 
+@learn_app.command("em")
+@_friendly
+def learn_em_cmd(
+    log: Annotated[Path, typer.Argument(help="A log folder: planar (field2d) or a 1-D track.")],
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", help="Write the learned model here (JSON) and the learning history beside it (.npz)."),
+    ] = None,
+    bins: Annotated[int, typer.Option(help="Actions to bin continuous 1-D commands into.")] = 21,
+    set_: SetOpt = None,
+    config: ConfigOpt = None,
+) -> None:
+    """Learn the action table, sensor function f and noise sigmas by EM (ch. 4). Ctrl-C stops early and
+    still writes the most likely model so far."""
+    from sensact.io.atomic import write_json, write_npz
+    from sensact.io.landmark_log import read_landmark_log
+    from sensact.learn.em import EMConfig, fit_em, initial_model
+
+    cfg = _config(EMConfig, config, set_)
+    lf = read_landmark_log(log, command_bins=bins)
+    data = lf.data
+    console.print(
+        f"{data.source}: {data.geometry} log, {data.n_steps} steps of {data.dt_s:.4g} s, "
+        f"{data.n_observations} observations, {data.n_actions} actions" + (f" ({lf.note})" if lf.note else "")
+    )
+    start = initial_model(data, cfg)
+    with _progress() as progress:
+        res = fit_em(
+            data,
+            start,
+            cfg,
+            progress=lambda it, ll, best, since: progress(
+                f"EM: log-likelihood {ll:.1f} (best {best:.1f}, {since} since)", it + 1, cfg.max_iterations
+            ),
+        )
+    m = res.model
+    console.print(
+        f"stopped: [bold]{res.stop_reason}[/] after {res.iterations} iterations ({res.seconds:.1f} s); "
+        f"best log-likelihood {res.loglik_best:.1f} at iteration {res.best_iteration}"
+        + (f"; {res.n_pruned} observations pruned" if res.n_pruned else "")
+    )
+    console.print("  " + m.sensor.height.describe("f"))
+    sb = m.sensor.sigma_bearing_rad
+    console.print(f"  sigma_1 = {m.sensor.sigma_height_px:.4g} px" + (f", sigma_2 = {sb:.4g} rad" if sb else ""))
+    t = Table(title="learned velocity of each action", title_justify="left")
+    for name in (*m.action.command_names, *m.action.velocity_names):
+        t.add_column(name)
+    for c, v in zip(m.action.commands, m.action.velocities, strict=True):
+        t.add_row(*(f"{x:.3g}" for x in c), *(f"{x:.4g}" for x in v))
+    console.print(t)
+    evaluation = _evaluate_em(lf, m)
+    if out is not None:
+        write_json(
+            out,
+            {"model": m.to_dict(), "summary": res.summary(), "log": data.source, "evaluation": evaluation},
+        )
+        write_npz(
+            out.with_suffix(".history.npz"),
+            loglik=res.loglik_history,
+            velocities=res.velocity_history,
+            sigmas=res.sigma_history,
+        )
+        console.print(f"wrote {out} and {out.with_suffix('.history.npz')}")
+
+
+def _evaluate_em(lf: Any, model: Any) -> dict[str, Any] | None:
+    """Errors against the truth a simulated log carries (never used for learning)."""
+    truth = lf.meta.get("truth")
+    if not truth:
+        return None
+    import numpy as np
+
+    if lf.data.geometry == "planar" and "velocities" in truth:
+        from sensact.evaluate.em import score_planar
+        from sensact.sim.track1d import TrackTruth
+
+        s = truth["sensor"]
+        height = TrackTruth(sensor_k_px_mm=s["k_px_mm"], sensor_d0_mm=s["d0_mm"], sensor_h0_px=s["h0_px"]).height_px
+        sc = score_planar(
+            model, np.asarray(truth["velocities"]), height, truth["sigma_height_px"], truth["sigma_bearing_rad"]
+        )
+        console.print(
+            f"vs truth: v_x {sc['vx_rms_mm_s']:.1f} mm/s, v_y {sc['vy_rms_mm_s']:.1f} mm/s, "
+            f"v_theta {sc['vtheta_rms_rad_s']:.3f} rad/s RMS; sigma_1 {sc['sigma1_error_pct']:.1f} % off, "
+            f"sigma_2 {sc['sigma2_error_pct']:.1f} % off; f {sc['sensor_rms_px']:.2f} px RMS"
+        )
+        return sc
+    if lf.data.geometry == "track" and "action" in truth:
+        from sensact.evaluate.em import score_track
+        from sensact.evaluate.track1d import DISTANCE_GRID_MM
+        from sensact.sim.track1d import TrackTruth
+
+        tt = TrackTruth.from_dict(truth)
+        sc = score_track(model, tt.velocity_mm_s(lf.data.action_commands[:, 0]), tt.height_px, DISTANCE_GRID_MM)
+        console.print(
+            f"vs truth (optimal scale): sensor {sc['sensor_rms_px']:.2f} px ({sc['sensor_rms_pct']:.2f} %), "
+            f"action {sc['action_rms_mm_s']:.1f} mm/s ({sc['action_rms_pct']:.2f} %), "
+            f"scale ratio {sc['scale_ratio']:.3f}"
+        )
+        return sc
+    return None
+
+
 def _evaluate_log(data: Any, res: Any, cfg: Any) -> dict[str, Any] | None:
     """Scaled errors against the log's ground truth, if it has any (never used for learning)."""
     if "truth" in data.meta:
@@ -240,7 +382,7 @@ def _evaluate_log(data: Any, res: Any, cfg: Any) -> dict[str, Any] | None:
 
 # ---- reproduce ------------------------------------------------------------------------------------------
 
-EXPERIMENTS = ("track1d", "turtlebot")
+EXPERIMENTS = ("track1d", "turtlebot", "field2d", "em1d")
 
 
 def _data_dir(data: Path | None) -> Path:
@@ -255,7 +397,10 @@ def _data_dir(data: Path | None) -> Path:
 def reproduce(
     experiment: Annotated[str | None, typer.Argument(help=f"One of {', '.join(EXPERIMENTS)}; default: all.")] = None,
     out: Annotated[Path, typer.Option("--out", help="Results folder.")] = Path("results"),
-    trials: Annotated[int, typer.Option(help="Trials per row (the thesis used 15).")] = 15,
+    trials: Annotated[
+        int | None,
+        typer.Option(help="Trials: per Table 3.1 row (default 15) or field2d seeds (default 5)."),
+    ] = None,
     seed: Annotated[int, typer.Option(help="Seed of the first trial.")] = 0,
     data: Annotated[
         Path | None, typer.Option(help="Real-data folder (default $SENSACT_DATA or ../shared/data).")
@@ -274,7 +419,7 @@ def reproduce(
         )
     todo = [experiment] if experiment else list(EXPERIMENTS)
     if "track1d" in todo:
-        _reproduce_track1d(out, trials, seed, set_, config)
+        _reproduce_track1d(out, trials or 15, seed, set_, config)
     if "turtlebot" in todo:
         csv = _data_dir(data) / "turtlebot1d" / "training1.csv"
         if not csv.is_file():
@@ -287,15 +432,136 @@ def reproduce(
             console.print(f"skipping turtlebot: {csv} not found (pass --data DIR to include it)")
         else:
             _reproduce_turtlebot(out, csv)
+    if "field2d" in todo:
+        _reproduce_field2d(out, trials or 5, seed, set_, config)
+    if "em1d" in todo:
+        _reproduce_em1d(out, seed, set_, config)
+
+
+def _split_fields(set_: list[str] | None, config: Path | None, learner_cls: type) -> tuple[dict, dict]:
+    """--set / --config fields go to the learner or the simulator, whichever has the field."""
+    from sensact.config import load_yaml_mapping, parse_overrides
+
+    fields = {**(load_yaml_mapping(config) if config else {}), **parse_overrides(set_ or [])}
+    learner = {k: v for k, v in fields.items() if k in learner_cls.__dataclass_fields__}
+    return learner, {k: v for k, v in fields.items() if k not in learner}
+
+
+def _merged(cls: type, base: Any, fields: dict[str, Any]) -> Any:
+    """``base`` with the given fields replaced, validated like any config."""
+    from sensact.config import config_from_dict, config_to_dict
+
+    return config_from_dict(cls, {**config_to_dict(base), **fields}, source="--set/--config") if fields else base
+
+
+def _reproduce_field2d(out: Path, trials: int, seed: int, set_: list[str] | None, config: Path | None) -> None:
+    from sensact.config import config_from_dict
+    from sensact.experiments.field2d import Field2DExperiment, run_field2d, velocity_rms_history
+    from sensact.io.atomic import write_npz
+    from sensact.learn.em import EMConfig
+    from sensact.report import figures_em
+    from sensact.report.tables import field2d_tables
+    from sensact.sim.field2d import Field2DConfig
+
+    base = Field2DExperiment()
+    learner_f, sim_f = _split_fields(set_, config, EMConfig)
+    exp = Field2DExperiment(
+        trials=trials,
+        seed=seed,
+        simulator=config_from_dict(Field2DConfig, sim_f, source="--set/--config"),
+        learner=_merged(EMConfig, base.learner, learner_f),
+    )
+    with _progress() as progress:
+        res, art = run_field2d(exp, progress)
+    _write_results(out, "field2d", res, field2d_tables(res))
+    first = art["trials"][0]
+    vr = velocity_rms_history(first)
+    figures_em.figure_learning_curve(
+        first, vr, out / "fig4_4_field2d_learning.png", f"simulation, seed {first.run.config.seed}", res["thesis"]
+    )
+    start = first.result.config
+    from sensact.learn.em import initial_model
+    from sensact.sim.field2d import to_landmark_log
+
+    f0 = initial_model(to_landmark_log(first.run), start).sensor.height
+    figures_em.figure_sensor(
+        f0,
+        first.result.model.sensor.height,
+        first.run.config.height_px,
+        out / "fig4_5_field2d_sensor.png",
+        "sensor model f (simulation)",
+    )
+    arrays = {"loglik": first.result.loglik_history, "velocity_rms": vr}
+    if "real" in art:
+        real = art["real"]
+        figures_em.figure_learning_curve(real, None, out / "fig4_2_real_robot_learning.png", "real-robot setting")
+        figures_em.figure_sensor(
+            f0,
+            real.result.model.sensor.height,
+            real.run.config.height_px,
+            out / "fig4_3_real_robot_sensor.png",
+            "sensor model f (real-robot setting)",
+        )
+        arrays["real_loglik"] = real.result.loglik_history
+    write_npz(out / "field2d_curves.npz", **arrays)
+    o = res["ours"]
+    console.print(
+        f"bars (v_x <= 23.06, v_y <= 18.34 mm/s, v_theta <= 0.086 rad/s, sigmas within 5 %) cleared in every trial: "
+        f"[bold]{o['clears_bars_every_trial']}[/]"
+    )
+    console.print(f"wrote {out / 'field2d.json'}, {out / 'field2d.md'} and figures in {out} ({res['seconds']:.1f} s)")
+
+
+def _reproduce_em1d(out: Path, seed: int, set_: list[str] | None, config: Path | None) -> None:
+    from sensact.experiments.em1d import EM1D_TRACK, EM1DExperiment, run_em1d
+    from sensact.learn.em import EMConfig
+    from sensact.report import figures_em
+    from sensact.report.tables import em1d_tables
+    from sensact.sim.track1d import Track1DConfig
+
+    base = EM1DExperiment()
+    learner_f, sim_f = _split_fields(set_, config, EMConfig)
+    exp = EM1DExperiment(
+        seed=seed,
+        simulator=_merged(Track1DConfig, EM1D_TRACK, sim_f),
+        learner=_merged(EMConfig, base.learner, learner_f),
+    )
+    with _progress() as progress:
+        res, art = run_em1d(exp, progress)
+    _write_results(out, "em1d", res, em1d_tables(res))
+    sim = art["simulator"]
+    levels = sim.levels_mm_s() / sim.command_max_mm_s
+    h = art["halves"]
+    figures_em.figure_track(
+        h["before"].result.model,
+        h["before"].true_velocities,
+        sim.truth().height_px,
+        levels,
+        out / "fig4_6_em1d_learned.png",
+        "before the change",
+    )
+    figures_em.figure_track(
+        h["after"].result.model,
+        h["after"].true_velocities,
+        sim.truth().height_px,
+        levels,
+        out / "fig4_7_em1d_relearned.png",
+        "after the change",
+        stale=h["before"].result.model,
+    )
+    console.print(
+        f"relearned models beat the stale ones: [bold]{res['ours']['relearning_beats_stale']}[/]; "
+        f"wrote {out / 'em1d.json'}, {out / 'em1d.md'} and figures in {out} ({res['seconds']:.1f} s)"
+    )
 
 
 def _reproduce_track1d(out: Path, trials: int, seed: int, set_: list[str] | None, config: Path | None) -> None:
     from sensact.config import config_from_dict, load_yaml_mapping, parse_overrides
     from sensact.experiments.track1d import Track1DExperiment, run_track1d
-    from sensact.io.atomic import write_json, write_npz, write_text
+    from sensact.io.atomic import write_npz
     from sensact.learn.bootstrap import BootstrapConfig
     from sensact.report import figures1d
-    from sensact.report.tables import to_markdown, track1d_tables
+    from sensact.report.tables import track1d_tables
     from sensact.sim.track1d import Track1DConfig
 
     # --set / --config fields go to the learner or the simulator, whichever has the field
@@ -311,11 +577,7 @@ def _reproduce_track1d(out: Path, trials: int, seed: int, set_: list[str] | None
     )
     with _progress() as progress:
         res, art = run_track1d(exp, progress)
-    out.mkdir(parents=True, exist_ok=True)
-    write_json(out / "track1d.json", res)
-    tables = track1d_tables(res)
-    write_text(out / "track1d.md", to_markdown(tables))
-    _print_tables(tables)
+    _write_results(out, "track1d", res, track1d_tables(res))
     linear = art["trials"].get("linear") or next(iter(art["trials"].values()))
     figures1d.figure_3_7(linear[0], out / "fig3_7_location_estimates.png")
     figures1d.figure_3_8(linear[0], out / "fig3_8_learned_vs_measured.png")
@@ -339,16 +601,11 @@ def _reproduce_track1d(out: Path, trials: int, seed: int, set_: list[str] | None
 
 def _reproduce_turtlebot(out: Path, csv: Path) -> None:
     from sensact.experiments.turtlebot import run_turtlebot
-    from sensact.io.atomic import write_json, write_text
     from sensact.report.figures1d import figure_real
-    from sensact.report.tables import to_markdown, turtlebot_tables
+    from sensact.report.tables import turtlebot_tables
 
     res, runs = run_turtlebot(csv)
-    out.mkdir(parents=True, exist_ok=True)
-    write_json(out / "turtlebot.json", res)
-    tables = turtlebot_tables(res)
-    write_text(out / "turtlebot.md", to_markdown(tables))
-    _print_tables(tables)
+    _write_results(out, "turtlebot", res, turtlebot_tables(res))
     figure_real(runs, out / "turtlebot_models.png")
     console.print(f"wrote {out / 'turtlebot.json'} and {out / 'turtlebot_models.png'}")
 

@@ -20,6 +20,8 @@ from typing import Any
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
+from sensact.logs.landmark_log import LandmarkLog
+
 # A curve with the shape of Figure 3.8a: a small dead band (|c| <= 25 mm/s), near-unit gain at low speed,
 # and saturation near 175 mm/s, slightly faster forward than backward. Chosen so that the measured-model
 # reference errors match the real Aibo's (sec. 3.3.2): taking A0(c) = c as the model is 41.7 mm/s off after
@@ -110,6 +112,9 @@ class Track1DConfig:
     observation_noise_px: float = 1.5
     observation_dropout: float = 0.0  # probability that a frame misses the beacon
     min_distance_mm: float = 300.0  # the robot never walks into the beacon
+    command_levels: int = 0  # 0: commands uniform in the range; N: N evenly spaced levels (sec. 4.4.3 uses 21)
+    change_at_s: float | None = None  # from this time on the robot walks slower (sec. 4.4.3) ...
+    change_factor: float = 0.75  # ... as if the attempted velocity were multiplied by this
 
     def __post_init__(self) -> None:
         problems = []
@@ -125,6 +130,8 @@ class Track1DConfig:
             problems.append("observation_dropout must be in [0, 1)")
         if self.turn_filter_n < 1:
             problems.append("turn_filter_n must be >= 1")
+        if self.command_levels < 0 or self.command_levels == 1:
+            problems.append("command_levels must be 0 (continuous) or >= 2")
         if problems:
             raise ValueError("; ".join(problems))
         self.truth()  # validates the knots and the sensor
@@ -137,6 +144,12 @@ class Track1DConfig:
             self.sensor_d0_mm,
             self.sensor_h0_px,
         )
+
+    def levels_mm_s(self) -> np.ndarray:
+        """The discrete command levels (empty when commands are continuous)."""
+        if self.command_levels == 0:
+            return np.zeros(0)
+        return np.linspace(-self.command_max_mm_s, self.command_max_mm_s, self.command_levels)
 
     def thresholds_px(self) -> tuple[float, float]:
         truth = self.truth()
@@ -173,6 +186,7 @@ def simulate_track(config: Track1DConfig | None = None) -> TrackRun:
     times = np.arange(T) * cfg.dt_s
     obs_every = max(1, round(1.0 / (cfg.observation_rate_hz * cfg.dt_s)))
     near_px, far_px = cfg.thresholds_px()
+    levels = cfg.levels_mm_s()
 
     motion_noise = rng_motion.normal(0.0, cfg.motion_noise_mm_s, T)
     obs_noise = rng_obs.normal(0.0, cfg.observation_noise_px, T)
@@ -203,8 +217,14 @@ def simulate_track(config: Track1DConfig | None = None) -> TrackRun:
                 direction, hold_left = 1.0, 0.0
                 recent.clear()
         if hold_left <= 1e-9:
-            c = direction * rng.uniform(0.0, cfg.command_max_mm_s)
-            v_cmd = float(truth.velocity_mm_s(c)) * (1.0 + cfg.speed_jitter_frac * rng.normal())
+            if levels.size:
+                allowed = levels[levels * direction >= 0]
+                c = float(allowed[rng.integers(allowed.size)])
+            else:
+                c = direction * rng.uniform(0.0, cfg.command_max_mm_s)
+            changed = cfg.change_at_s is not None and times[k] >= cfg.change_at_s
+            factor = cfg.change_factor if changed else 1.0
+            v_cmd = float(truth.velocity_mm_s(factor * c)) * (1.0 + cfg.speed_jitter_frac * rng.normal())
             hold_left = cfg.command_hold_s
         hold_left -= cfg.dt_s
         commands[k] = c
@@ -236,3 +256,15 @@ def log_tables(run: TrackRun) -> dict[str, Any]:
         "observations": {"t_s": run.times_s, "height_px": run.heights_px},
         "groundtruth": {"t_s": run.times_s, "distance_mm": run.distance_mm, "velocity_mm_s": run.velocity_mm_s},
     }
+
+
+def to_landmark_log(run: TrackRun) -> LandmarkLog:
+    """A run with discrete command levels as EM's input (sec. 4.4.3): one action per level, no truth."""
+    levels = run.config.levels_mm_s()
+    if levels.size == 0:
+        raise ValueError("EM needs discrete actions: simulate with command_levels > 0 (sec. 4.4.3 uses 21)")
+    actions = np.abs(run.commands_mm_s[:, None] - levels[None]).argmin(axis=1)
+    seen = np.flatnonzero(np.isfinite(run.heights_px))
+    levels_a_y = levels / run.config.command_max_mm_s
+    source = f"track1d(seed={run.config.seed})"
+    return LandmarkLog.track(run.config.dt_s, actions, levels_a_y, "a_y", seen, run.heights_px[seen], source)

@@ -1,0 +1,19 @@
+"""Angle utilities. Differences of angles are wrapped to [-pi, pi) throughout (thesis ch. 4, footnote 3)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+TWO_PI = 2.0 * np.pi
+
+
+def wrap_angle(a: np.ndarray | float) -> np.ndarray:
+    """Map angles to [-pi, pi)."""
+    return np.mod(np.asarray(a, dtype=float) + np.pi, TWO_PI) - np.pi
+
+
+@njit(cache=True)
+def wrap(a):
+    """Scalar ``wrap_angle`` for compiled loops."""
+    return (a + np.pi) % TWO_PI - np.pi

@@ -1,0 +1,346 @@
+"""The E-step's compiled passes (sec. 4.2): an EKF forward, a two-filter smoother backward.
+
+One call runs, over ``T`` steps:
+
+* **forward (alpha):** the EKF of sec. 2.4. Each observation's channels (beacon height, then bearing)
+  are scalar measurement updates in Joseph form, so the covariance stays symmetric positive definite;
+  bearing innovations are wrapped to [-pi, pi). The log-likelihood ``log P(O | C, lambda)`` is summed
+  from the innovations (eq. 4.14). Frames without an observation get only the time update (eq. 2.28).
+* **backward (beta, eq. 4.4)** in information form ``beta_t(w) ∝ exp(-e'Y e / 2 + z'e)``,
+  ``e = w - mu_alpha,t``. It starts from ``Y = 0``: the thesis's "infinite covariance", exactly.
+  Its linearizations use the forward means; the thesis's backward EKF would linearize at its own mean,
+  which does not exist while ``Y`` is singular.
+* **gamma** (eqs. 4.9, 4.10): alpha times beta.
+* **xi** (eqs. 4.11, 4.12): the joint of ``(w_t, w_t+1)`` from ``alpha_t``, ``delta_t+1 = beta_t+1 P(o_t+1 | w_t+1)``
+  and the pseudo-measurement ``D(w_t, w_t+1) ~ N(A(c_t) dt, Sigma_m)``, linearized at the smoothed
+  means. It is solved in information form because ``delta``'s covariance may be infinite.
+
+Exact for a linear-Gaussian model: the forward pass is then the Kalman filter, gamma the RTS smoother's
+marginals and xi the exact pairwise posterior (tests/test_estep.py checks all three against dense
+Gaussian conditioning).
+
+Angles inside the passes are not wrapped, so that theta is one continuous coordinate for the
+information-form algebra; only differences and innovations are wrapped.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from sensact.core.angles import wrap
+from sensact.core.pose_models import (
+    displacement,
+    motion_covariance,
+    observe_bearing,
+    observe_height,
+    predict,
+)
+from sensact.core.smallmat import (
+    add_sandwich,
+    cholesky,
+    cholesky_inverse,
+    cholesky_solve_vec,
+    forward_substitute,
+    lu_solve_inplace,
+    symmetrize,
+)
+
+OK = 0
+NOT_POSITIVE_DEFINITE = 1
+SINGULAR = 2
+
+
+@njit(cache=True)
+def _scalar_update(m, P, H, nu, r, n, PH, K, A, tmp, tmp2):
+    """Joseph-form scalar measurement update (eqs. 2.17-2.19); returns the innovation's log density."""
+    S = r
+    for i in range(n):
+        s = 0.0
+        for j in range(n):
+            s += P[i, j] * H[j]
+        PH[i] = s
+        S += H[i] * s
+    for i in range(n):
+        K[i] = PH[i] / S
+        m[i] += K[i] * nu
+    for i in range(n):
+        for j in range(n):
+            A[i, j] = (1.0 if i == j else 0.0) - K[i] * H[j]
+    # P <- A P A' + r K K', into tmp2 then back (P is read while the product is formed)
+    for i in range(n):
+        for j in range(n):
+            tmp2[i, j] = r * K[i] * K[j]
+    add_sandwich(A, P, tmp2, tmp, n)
+    for i in range(n):
+        for j in range(n):
+            P[i, j] = tmp2[i, j]
+    symmetrize(P, n)
+    return -0.5 * (nu * nu / S + np.log(2.0 * np.pi * S))
+
+
+@njit(cache=True)
+def ekf_smoother(
+    mode,
+    dt,
+    actions,
+    velocities,
+    motion_var,
+    prior_mean,
+    prior_cov,
+    obs_ptr,
+    obs_landmark,
+    obs_height,
+    obs_bearing,
+    obs_use,
+    landmarks,
+    coef,
+    center,
+    scale,
+    var_height,
+    var_bearing,
+    prune_rad_per_step,
+    mu_a,
+    P_a,
+    mu_g,
+    P_g,
+    d_mu,
+    d_P,
+):
+    """Run the E-step passes; fill ``mu_a, P_a`` (alpha), ``mu_g, P_g`` (gamma) and ``d_mu, d_P``
+    (mean and covariance of ``D(w_t, w_t+1)`` under xi). Returns ``(status, loglik, n_used)``.
+
+    ``actions[t]`` indexes ``velocities`` (a negative index means no motion). Observation rows
+    ``obs_ptr[t]:obs_ptr[t+1]`` belong to step ``t``; a NaN height or bearing is a missing channel.
+    With ``prune_rad_per_step > 0`` an observation whose bearing innovation exceeds that times the
+    steps since the previous observation is marked unused in ``obs_use`` (sec. 4.4.1).
+    """
+    T = mu_a.shape[0]
+    n = mu_a.shape[1]
+    n2 = 2 * n
+    m = prior_mean.copy()
+    P = prior_cov.copy()
+    H = np.zeros(n)
+    PH = np.zeros(n)
+    K = np.zeros(n)
+    A = np.zeros((n, n))
+    tmp = np.zeros((n, n))
+    tmp2 = np.zeros((n, n))
+    F = np.zeros((n, n))
+    Q = np.zeros((n, n))
+    gm = np.zeros(n)
+    disp = np.zeros(n)
+    loglik = 0.0
+    n_used = 0
+    last_obs = -1
+
+    # ---------------- forward: alpha_t (eq. 4.3) and the likelihood (eq. 4.14)
+    for t in range(T):
+        for k in range(obs_ptr[t], obs_ptr[t + 1]):
+            if not obs_use[k]:
+                continue
+            lx = landmarks[obs_landmark[k], 0]
+            ly = landmarks[obs_landmark[k], 1]
+            has_b = mode == 0 and np.isfinite(obs_bearing[k])
+            if prune_rad_per_step > 0.0 and has_b:
+                nu = wrap(obs_bearing[k] - observe_bearing(m, lx, ly, H))
+                steps = t - last_obs if last_obs >= 0 else t + 1
+                if abs(nu) > prune_rad_per_step * steps:
+                    obs_use[k] = False
+                    continue
+            last_obs = t
+            n_used += 1
+            if np.isfinite(obs_height[k]):
+                nu = obs_height[k] - observe_height(mode, m, lx, ly, coef, center, scale, H)
+                loglik += _scalar_update(m, P, H, nu, var_height, n, PH, K, A, tmp, tmp2)
+            if has_b:
+                nu = wrap(obs_bearing[k] - observe_bearing(m, lx, ly, H))
+                loglik += _scalar_update(m, P, H, nu, var_bearing, n, PH, K, A, tmp, tmp2)
+        for i in range(n):
+            mu_a[t, i] = m[i]
+            for j in range(n):
+                P_a[t, i, j] = P[i, j]
+        if t == T - 1:
+            break
+        # time update (eqs. 2.20, 2.21 with the Jacobian of eq. 2.28)
+        c = actions[t]
+        for i in range(n):
+            disp[i] = velocities[c, i] * dt if c >= 0 else 0.0
+        predict(mode, m, disp, gm, F)
+        motion_covariance(mode, m[n - 1], motion_var, Q)
+        add_sandwich(F, P, Q, tmp, n)  # Q <- F P F' + Q
+        for i in range(n):
+            m[i] = gm[i]
+            for j in range(n):
+                P[i, j] = Q[i, j]
+        symmetrize(P, n)
+
+    # ---------------- backward: beta_t (eq. 4.4), gamma_t (4.9, 4.10), xi_t (4.11, 4.12)
+    Y = np.zeros((n, n))
+    z = np.zeros(n)
+    Yd = np.zeros((n, n))
+    zd = np.zeros(n)
+    Mx = np.zeros((n, n))
+    RHS = np.zeros((n, n + 1))
+    J = np.zeros((n, n))
+    jv = np.zeros(n)
+    b = np.zeros(n)
+    Lam = np.zeros((n2, n2))
+    L2 = np.zeros((n2, n2))
+    Wt = np.zeros((n2, n))
+    eta = np.zeros(n2)
+    Lp = np.zeros((n, n))
+    Pinv = np.zeros((n, n))
+    colp = np.zeros(n)
+    D = np.zeros(n)
+    G = np.zeros((n, n2))
+    wbar1 = np.zeros(n)
+    wbar2 = np.zeros(n)
+    r = np.zeros(n)
+    mx1 = np.zeros(n)
+    mx2 = np.zeros(n)
+    Dm = np.zeros(n)
+    Gm = np.zeros((n, n2))
+    for i in range(n):
+        mu_g[T - 1, i] = mu_a[T - 1, i]
+        for j in range(n):
+            P_g[T - 1, i, j] = P_a[T - 1, i, j]
+    for t in range(T - 2, -1, -1):
+        # delta_t+1 = beta_t+1 x P(o_t+1 | w_t+1), linearized at mu_alpha,t+1
+        for i in range(n):
+            zd[i] = z[i]
+            for j in range(n):
+                Yd[i, j] = Y[i, j]
+        mref = mu_a[t + 1]
+        for k in range(obs_ptr[t + 1], obs_ptr[t + 2]):
+            if not obs_use[k]:
+                continue
+            lx = landmarks[obs_landmark[k], 0]
+            ly = landmarks[obs_landmark[k], 1]
+            if np.isfinite(obs_height[k]):
+                nu = obs_height[k] - observe_height(mode, mref, lx, ly, coef, center, scale, H)
+                for i in range(n):
+                    zd[i] += H[i] * nu / var_height
+                    for j in range(n):
+                        Yd[i, j] += H[i] * H[j] / var_height
+            if mode == 0 and np.isfinite(obs_bearing[k]):
+                nu = wrap(obs_bearing[k] - observe_bearing(mref, lx, ly, H))
+                for i in range(n):
+                    zd[i] += H[i] * nu / var_bearing
+                    for j in range(n):
+                        Yd[i, j] += H[i] * H[j] / var_bearing
+        # backward time update through w_t+1 = g(w_t) + q, linearized at mu_alpha,t
+        c = actions[t]
+        for i in range(n):
+            disp[i] = velocities[c, i] * dt if c >= 0 else 0.0
+        predict(mode, mu_a[t], disp, gm, F)
+        motion_covariance(mode, mu_a[t, n - 1], motion_var, Q)
+        for i in range(n):
+            b[i] = gm[i] - mu_a[t + 1, i]
+        # J = (I + Yd Q)^-1 Yd, j = (I + Yd Q)^-1 zd
+        for i in range(n):
+            for j in range(n):
+                s = 1.0 if i == j else 0.0
+                for k in range(n):
+                    s += Yd[i, k] * Q[k, j]
+                Mx[i, j] = s
+                RHS[i, j] = Yd[i, j]
+            RHS[i, n] = zd[i]
+        if not lu_solve_inplace(Mx, RHS, n, n + 1):
+            return SINGULAR, loglik, n_used
+        for i in range(n):
+            jv[i] = RHS[i, n]
+            for j in range(n):
+                J[i, j] = RHS[i, j]
+        symmetrize(J, n)
+        # Y = F' J F, z = F'(j - J b)
+        for i in range(n):
+            s = jv[i]
+            for k in range(n):
+                s -= J[i, k] * b[k]
+            colp[i] = s
+        for i in range(n):
+            s = 0.0
+            for k in range(n):
+                s += F[k, i] * colp[k]
+            z[i] = s
+            for j in range(n):
+                Y[i, j] = 0.0
+        add_sandwich(F.T, J, Y, tmp, n)
+        symmetrize(Y, n)
+        # gamma_t: Sigma = (I + P Y)^-1 P, mu = mu_alpha + (I + P Y)^-1 P z
+        Pa = P_a[t]
+        for i in range(n):
+            s = 0.0
+            for k in range(n):
+                s += Pa[i, k] * z[k]
+            RHS[i, n] = s
+            for j in range(n):
+                s = 1.0 if i == j else 0.0
+                for k in range(n):
+                    s += Pa[i, k] * Y[k, j]
+                Mx[i, j] = s
+                RHS[i, j] = Pa[i, j]
+        if not lu_solve_inplace(Mx, RHS, n, n + 1):
+            return SINGULAR, loglik, n_used
+        for i in range(n):
+            mu_g[t, i] = mu_a[t, i] + RHS[i, n]
+            for j in range(n):
+                P_g[t, i, j] = RHS[i, j]
+        symmetrize(P_g[t], n)
+        # xi_t in information form over e = (w_t - mu_alpha,t, w_t+1 - mu_alpha,t+1)
+        if not cholesky(Pa, Lp, n):
+            return NOT_POSITIVE_DEFINITE, loglik, n_used
+        cholesky_inverse(Lp, Pinv, colp, n)
+        for i in range(n2):
+            eta[i] = 0.0
+            for j in range(n2):
+                Lam[i, j] = 0.0
+        for i in range(n):
+            eta[n + i] = zd[i]
+            for j in range(n):
+                Lam[i, j] = Pinv[i, j]
+                Lam[n + i, n + j] = Yd[i, j]
+        for i in range(n):
+            wbar1[i] = mu_g[t, i]
+            wbar2[i] = mu_g[t + 1, i]
+        displacement(mode, wbar1, wbar2, D, G)
+        for i in range(n):
+            s = disp[i] - D[i]
+            if mode == 0 and i == 2:
+                s = wrap(s)
+            for j in range(n):
+                s += G[i, j] * (wbar1[j] - mu_a[t, j]) + G[i, n + j] * (wbar2[j] - mu_a[t + 1, j])
+            r[i] = s / motion_var[i]
+        for i in range(n2):
+            s = 0.0
+            for k in range(n):
+                s += G[k, i] * r[k]
+            eta[i] += s
+            for j in range(n2):
+                s = 0.0
+                for k in range(n):
+                    s += G[k, i] * G[k, j] / motion_var[k]
+                Lam[i, j] += s
+        if not cholesky(Lam, L2, n2):
+            return NOT_POSITIVE_DEFINITE, loglik, n_used
+        cholesky_solve_vec(L2, eta, eta, n2)
+        for i in range(n):
+            mx1[i] = mu_a[t, i] + eta[i]
+            mx2[i] = mu_a[t + 1, i] + eta[n + i]
+        displacement(mode, mx1, mx2, Dm, Gm)
+        for i in range(n):
+            d_mu[t, i] = Dm[i]  # D(mu_xi,t): eq. 4.18 with D linearized, as the thesis does
+        # Cov[D] = G Lam^-1 G' = W'W with W = L2^-1 G'
+        for i in range(n2):
+            for j in range(n):
+                Wt[i, j] = Gm[j, i]
+        forward_substitute(L2, Wt, n2, n)
+        for i in range(n):
+            for j in range(n):
+                s = 0.0
+                for k in range(n2):
+                    s += Wt[k, i] * Wt[k, j]
+                d_P[t, i, j] = s
+        symmetrize(d_P[t], n)
+    return OK, loglik, n_used

@@ -1,0 +1,184 @@
+"""Motion and landmark-observation geometry for the EM robots (sec. 2.5.1, eqs. 2.28 and 4.19).
+
+Two state spaces share one set of functions, picked by ``mode``:
+
+* ``PLANAR`` (chapter 4): the pose ``w = (x, y, theta)`` in the world frame. The robot frame has x to
+  the robot's right and y forward (sec. 2.5.1); ``theta = 0`` means the robot faces world +y. A velocity
+  ``(v_x, v_y, v_theta)`` is given in the robot frame and moves the pose by ``R(theta) v dt`` (eq. 2.28).
+  A landmark's bearing is its angle counterclockwise from the robot's forward axis, wrapped to [-pi, pi).
+* ``TRACK`` (sec. 4.4.3): the state is the distance to the beacon; a forward velocity shortens it.
+
+The compiled functions fill caller-owned arrays so that the E-step's loops allocate nothing; the numpy
+functions are their vectorized twins for simulators and the M-step.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from sensact.core.angles import wrap, wrap_angle
+
+PLANAR = 0
+TRACK = 1
+STATE_DIM = (3, 1)  # by mode
+
+
+def state_dim(mode: int) -> int:
+    return STATE_DIM[mode]
+
+
+# ---------------------------------------------------------------- numpy (vectorized) forms
+
+
+def landmark_distance(poses: np.ndarray, landmark_xy: np.ndarray, mode: int = PLANAR) -> np.ndarray:
+    """Distance from each pose (rows) to its landmark (rows of ``landmark_xy``, or one landmark)."""
+    poses = np.atleast_2d(poses)
+    if mode == TRACK:
+        return poses[:, 0].copy()
+    d = np.asarray(landmark_xy, dtype=float) - poses[:, :2]
+    return np.hypot(d[..., 0], d[..., 1])
+
+
+def landmark_bearing(poses: np.ndarray, landmark_xy: np.ndarray) -> np.ndarray:
+    """Bearing of the landmark from each planar pose, counterclockwise from the forward axis."""
+    poses = np.atleast_2d(poses)
+    d = np.asarray(landmark_xy, dtype=float) - poses[:, :2]
+    return wrap_angle(np.arctan2(d[..., 1], d[..., 0]) - poses[:, 2] - 0.5 * np.pi)
+
+
+def relative_displacement(w1: np.ndarray, w2: np.ndarray, mode: int = PLANAR) -> np.ndarray:
+    """``D(w_t, w_t+1) = R(-theta_t)(w_t+1 - w_t)`` with the angle difference wrapped (sec. 4.2)."""
+    w1 = np.atleast_2d(w1)
+    w2 = np.atleast_2d(w2)
+    if mode == TRACK:
+        return w1 - w2
+    dx, dy = w2[:, 0] - w1[:, 0], w2[:, 1] - w1[:, 1]
+    c, s = np.cos(w1[:, 2]), np.sin(w1[:, 2])
+    return np.column_stack([c * dx + s * dy, -s * dx + c * dy, wrap_angle(w2[:, 2] - w1[:, 2])])
+
+
+def apply_displacement(w: np.ndarray, disp: np.ndarray, mode: int = PLANAR) -> np.ndarray:
+    """``w + R(theta) disp`` (eq. 2.28 without noise); the inverse of ``relative_displacement``."""
+    w = np.atleast_2d(w)
+    disp = np.atleast_2d(disp)
+    if mode == TRACK:
+        return w - disp
+    c, s = np.cos(w[:, 2]), np.sin(w[:, 2])
+    return np.column_stack(
+        [w[:, 0] + c * disp[:, 0] - s * disp[:, 1], w[:, 1] + s * disp[:, 0] + c * disp[:, 1], w[:, 2] + disp[:, 2]]
+    )
+
+
+# ---------------------------------------------------------------- compiled forms
+
+
+@njit(cache=True)
+def poly_value_slope(coef, center, scale, x):
+    """``f(x)`` and ``f'(x)`` for ascending coefficients in ``u = (x - center) / scale``."""
+    u = (x - center) / scale
+    v = 0.0
+    dv = 0.0
+    for i in range(coef.shape[0] - 1, -1, -1):
+        dv = dv * u + v
+        v = v * u + coef[i]
+    return v, dv / scale
+
+
+@njit(cache=True)
+def predict(mode, w, disp, out, F):
+    """``out = w + R(theta) disp`` and its Jacobian ``F`` with respect to ``w`` (eqs. 2.24, 2.26)."""
+    if mode == TRACK:
+        out[0] = w[0] - disp[0]
+        F[0, 0] = 1.0
+        return
+    c = np.cos(w[2])
+    s = np.sin(w[2])
+    out[0] = w[0] + c * disp[0] - s * disp[1]
+    out[1] = w[1] + s * disp[0] + c * disp[1]
+    out[2] = w[2] + disp[2]
+    for i in range(3):
+        for j in range(3):
+            F[i, j] = 1.0 if i == j else 0.0
+    F[0, 2] = -s * disp[0] - c * disp[1]
+    F[1, 2] = c * disp[0] - s * disp[1]
+
+
+@njit(cache=True)
+def motion_covariance(mode, theta, var_robot, Q):
+    """The motion noise ``Sigma_m`` (robot frame, diagonal) rotated into the world frame."""
+    if mode == TRACK:
+        Q[0, 0] = var_robot[0]
+        return
+    c = np.cos(theta)
+    s = np.sin(theta)
+    Q[0, 0] = c * c * var_robot[0] + s * s * var_robot[1]
+    Q[1, 1] = s * s * var_robot[0] + c * c * var_robot[1]
+    Q[0, 1] = c * s * (var_robot[0] - var_robot[1])
+    Q[1, 0] = Q[0, 1]
+    Q[0, 2] = 0.0
+    Q[2, 0] = 0.0
+    Q[1, 2] = 0.0
+    Q[2, 1] = 0.0
+    Q[2, 2] = var_robot[2]
+
+
+@njit(cache=True)
+def displacement(mode, w1, w2, D, G):
+    """``D(w1, w2)`` into ``D`` and its Jacobian ``G = [dD/dw1, dD/dw2]`` (n x 2n) into ``G``."""
+    if mode == TRACK:
+        D[0] = w1[0] - w2[0]
+        G[0, 0] = 1.0
+        G[0, 1] = -1.0
+        return
+    dx = w2[0] - w1[0]
+    dy = w2[1] - w1[1]
+    c = np.cos(w1[2])
+    s = np.sin(w1[2])
+    D[0] = c * dx + s * dy
+    D[1] = -s * dx + c * dy
+    D[2] = wrap(w2[2] - w1[2])
+    for i in range(3):
+        for j in range(6):
+            G[i, j] = 0.0
+    G[0, 0] = -c
+    G[0, 1] = -s
+    G[1, 0] = s
+    G[1, 1] = -c
+    G[0, 2] = -s * dx + c * dy
+    G[1, 2] = -c * dx - s * dy
+    G[2, 2] = -1.0
+    G[0, 3] = c
+    G[0, 4] = s
+    G[1, 3] = -s
+    G[1, 4] = c
+    G[2, 5] = 1.0
+
+
+@njit(cache=True)
+def observe_height(mode, w, lx, ly, coef, center, scale, H):
+    """Predicted beacon height ``f(dist(w))`` and its gradient ``H`` (eq. 4.19, first component)."""
+    if mode == TRACK:
+        v, dv = poly_value_slope(coef, center, scale, w[0])
+        H[0] = dv
+        return v
+    dx = lx - w[0]
+    dy = ly - w[1]
+    r = (dx * dx + dy * dy) ** 0.5
+    v, dv = poly_value_slope(coef, center, scale, r)
+    H[0] = -dv * dx / r
+    H[1] = -dv * dy / r
+    H[2] = 0.0
+    return v
+
+
+@njit(cache=True)
+def observe_bearing(w, lx, ly, H):
+    """Predicted bearing ``ang(w)`` (wrapped) and its gradient ``H`` (eq. 4.19, second component)."""
+    dx = lx - w[0]
+    dy = ly - w[1]
+    r2 = dx * dx + dy * dy
+    H[0] = dy / r2
+    H[1] = -dx / r2
+    H[2] = -1.0
+    return wrap(np.arctan2(dy, dx) - w[2] - 0.5 * np.pi)

@@ -1,0 +1,93 @@
+"""Log folders for EM: round trips and one-line errors that name the file, the field and the fix."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from sensact.errors import LogFormatError
+from sensact.io.landmark_log import read_landmark_log
+from sensact.io.logfolder import write_log_folder
+from sensact.sim import field2d, track1d
+
+
+@pytest.fixture(scope="module")
+def field_log(tmp_path_factory):
+    run = field2d.simulate_field(field2d.Field2DConfig(seconds=20.0, seed=2))
+    folder = tmp_path_factory.mktemp("logs") / "field"
+    write_log_folder(folder, **field2d.log_tables(run))
+    return folder, run
+
+
+def test_planar_round_trip(field_log):
+    folder, run = field_log
+    lf = read_landmark_log(folder)
+    ref = field2d.to_landmark_log(run)
+    for name in ("actions", "obs_step", "obs_landmark", "action_commands", "landmarks_xy"):
+        np.testing.assert_array_equal(getattr(lf.data, name), getattr(ref, name), err_msg=name)
+    np.testing.assert_allclose(lf.data.obs_height_px, ref.obs_height_px)
+    np.testing.assert_allclose(lf.data.obs_bearing_rad, ref.obs_bearing_rad)
+    assert lf.data.dt_s == pytest.approx(ref.dt_s)
+    np.testing.assert_allclose(lf.groundtruth["x_mm"], run.poses[:, 0])
+
+
+def test_track_round_trip_with_levels(tmp_path):
+    cfg = track1d.Track1DConfig(seconds=30.0, seed=1, command_levels=21)
+    run = track1d.simulate_track(cfg)
+    write_log_folder(tmp_path / "t", **track1d.log_tables(run))
+    lf = read_landmark_log(tmp_path / "t")
+    ref = track1d.to_landmark_log(run)
+    used = np.unique(ref.actions)
+    # the folder knows only the levels that were used, one action each
+    np.testing.assert_allclose(lf.data.action_commands[:, 0], cfg.levels_mm_s()[used])
+    np.testing.assert_array_equal(used[lf.data.actions], ref.actions)
+    np.testing.assert_allclose(lf.data.obs_height_px, ref.obs_height_px)
+
+
+def test_continuous_track_commands_are_binned(tmp_path):
+    run = track1d.simulate_track(track1d.Track1DConfig(seconds=300.0, seed=1))  # 100 distinct commands
+    write_log_folder(tmp_path / "t", **track1d.log_tables(run))
+    lf = read_landmark_log(tmp_path / "t", command_bins=9)
+    assert lf.data.n_actions == 9 and "binned" in lf.note
+
+
+def _copy(folder, tmp_path):
+    import shutil
+
+    dst = tmp_path / "copy"
+    shutil.copytree(folder, dst)
+    return dst
+
+
+def test_bad_action_index(field_log, tmp_path):
+    folder = _copy(field_log[0], tmp_path)
+    lines = (folder / "actions.csv").read_text().splitlines()
+    lines[3] = lines[3].split(",")[0] + ",57.0"
+    (folder / "actions.csv").write_text("\n".join(lines) + "\n")
+    with pytest.raises(LogFormatError, match=r"actions.csv: action_id: row 4: 57.0 is not an action index"):
+        read_landmark_log(folder)
+
+
+def test_off_grid_time_and_unknown_landmark(field_log, tmp_path):
+    folder = _copy(field_log[0], tmp_path)
+    lines = (folder / "observations.csv").read_text().splitlines()
+    cells = lines[1].split(",")
+    lines[1] = ",".join([str(float(cells[0]) + 0.013), *cells[1:]])
+    (folder / "observations.csv").write_text("\n".join(lines) + "\n")
+    with pytest.raises(LogFormatError, match=r"not on the 0\.05 s step grid.*Fix: resample"):
+        read_landmark_log(folder)
+    lines[1] = ",".join([cells[0], "9.0", *cells[2:]])
+    (folder / "observations.csv").write_text("\n".join(lines) + "\n")
+    with pytest.raises(LogFormatError, match=r"landmark id 9 is not in meta\.json's landmarks"):
+        read_landmark_log(folder)
+
+
+def test_meta_without_landmarks(field_log, tmp_path):
+    folder = _copy(field_log[0], tmp_path)
+    meta = json.loads((folder / "meta.json").read_text())
+    del meta["landmarks"]
+    (folder / "meta.json").write_text(json.dumps(meta))
+    with pytest.raises(LogFormatError, match=r"meta\.json: landmarks: a planar log needs"):
+        read_landmark_log(folder)

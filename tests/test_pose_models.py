@@ -1,0 +1,90 @@
+"""The motion and observation geometry of ch. 4: Jacobians against finite differences, and inverses."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sensact.core.pose_models import (
+    PLANAR,
+    TRACK,
+    apply_displacement,
+    displacement,
+    landmark_bearing,
+    landmark_distance,
+    observe_bearing,
+    observe_height,
+    predict,
+    relative_displacement,
+)
+
+COEF = np.array([14.0, -6.0, 2.0, -0.5])
+CENTER, SCALE = 2500.0, 900.0
+
+
+def _num_jac(f, x, eps=1e-6):
+    y0 = np.atleast_1d(f(x))
+    J = np.zeros((y0.size, x.size))
+    for j in range(x.size):
+        d = np.zeros_like(x)
+        d[j] = eps * max(1.0, abs(x[j]))
+        J[:, j] = (np.atleast_1d(f(x + d)) - np.atleast_1d(f(x - d))) / (2 * d[j])
+    return J
+
+
+def test_predict_jacobian_and_inverse():
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        w = np.array([*rng.uniform(-2000, 2000, 2), rng.uniform(-np.pi, np.pi)])
+        u = np.array([*rng.uniform(-30, 30, 2), rng.uniform(-0.1, 0.1)])
+        out, F = np.zeros(3), np.zeros((3, 3))
+        predict(PLANAR, w, u, out, F)
+
+        def g(x, u=u):
+            o = np.zeros(3)
+            predict(PLANAR, x, u, o, np.zeros((3, 3)))
+            return o
+
+        np.testing.assert_allclose(F, _num_jac(g, w), atol=1e-6)
+        np.testing.assert_allclose(apply_displacement(w, u)[0], out)
+        np.testing.assert_allclose(relative_displacement(w, out)[0], u, atol=1e-9)
+
+
+def test_displacement_jacobian():
+    rng = np.random.default_rng(1)
+    w1 = np.array([100.0, -300.0, 0.7])
+    w2 = w1 + np.array([25.0, -10.0, 0.05])
+    D, G = np.zeros(3), np.zeros((3, 6))
+    displacement(PLANAR, w1, w2, D, G)
+
+    def d(x):
+        o = np.zeros(3)
+        displacement(PLANAR, x[:3], x[3:], o, np.zeros((3, 6)))
+        return o
+
+    np.testing.assert_allclose(G, _num_jac(d, np.r_[w1, w2]), atol=1e-6)
+    np.testing.assert_allclose(D, relative_displacement(w1, w2)[0])
+    # the track: D is the distance walked toward the beacon
+    D1, G1 = np.zeros(1), np.zeros((1, 2))
+    displacement(TRACK, np.array([2000.0]), np.array([1990.0]), D1, G1)
+    assert D1[0] == pytest.approx(10.0) and list(G1[0]) == [1.0, -1.0]
+    assert rng is not None
+
+
+def test_observation_jacobians_and_convention():
+    w = np.array([300.0, -200.0, 0.4])
+    lx, ly = 1350.0, 1950.0
+    H = np.zeros(3)
+    h = observe_height(PLANAR, w, lx, ly, COEF, CENTER, SCALE, H)
+    Hn = _num_jac(lambda x: observe_height(PLANAR, x, lx, ly, COEF, CENTER, SCALE, np.zeros(3)), w)
+    np.testing.assert_allclose(H, Hn[0], rtol=1e-6, atol=1e-9)
+    r = landmark_distance(w, np.array([lx, ly]))[0]
+    u = (r - CENTER) / SCALE
+    assert h == pytest.approx(np.polyval(COEF[::-1], u))
+    b = observe_bearing(w, lx, ly, H)
+    Hn = _num_jac(lambda x: observe_bearing(x, lx, ly, np.zeros(3)), w)
+    np.testing.assert_allclose(H, Hn[0], rtol=1e-6, atol=1e-12)
+    assert b == pytest.approx(landmark_bearing(w, np.array([lx, ly]))[0])
+    # theta = 0 faces +y: a landmark straight ahead has bearing 0, one to the left +pi/2
+    assert landmark_bearing(np.zeros(3), np.array([0.0, 1000.0]))[0] == pytest.approx(0.0)
+    assert landmark_bearing(np.zeros(3), np.array([-1000.0, 0.0]))[0] == pytest.approx(np.pi / 2)
