@@ -177,6 +177,7 @@ def ekf_smoother(
 
     # ---------------- backward: beta_t (eq. 4.4), gamma_t (4.9, 4.10), xi_t (4.11, 4.12)
     Y = np.zeros((n, n))
+    Ft = np.zeros((n, n))
     z = np.zeros(n)
     Yd = np.zeros((n, n))
     zd = np.zeros(n)
@@ -266,7 +267,10 @@ def ekf_smoother(
             z[i] = s
             for j in range(n):
                 Y[i, j] = 0.0
-        add_sandwich(F.T, J, Y, tmp, n)
+        for i in range(n):
+            for j in range(n):
+                Ft[i, j] = F[j, i]
+        add_sandwich(Ft, J, Y, tmp, n)
         symmetrize(Y, n)
         # gamma_t: Sigma = (I + P Y)^-1 P, mu = mu_alpha + (I + P Y)^-1 P z
         Pa = P_a[t]

@@ -54,13 +54,15 @@ THESIS = {
 
 # The 2-D walk of ch. 4 driven straight (a_x = a_theta = 0): a_y in {-1.0, -0.9, ..., 1.0} maps to an
 # attempted 400 mm/s at full speed, and the true velocities span about 800 mm/s like sec. 4.4.3's
-# (22.1 mm/s is 2.80 % of the range there). Slower than attempted near full speed, with a dead band.
+# (22.1 mm/s is 2.80 % of the range there). Like the Aibo's measured walk (Figure 3.8a) it has a dead
+# band and saturates near full speed, so slowing the robot to 3/4 changes the curve's shape, not just
+# its scale.
 EM1D_TRACK = Track1DConfig(
     seconds=960.0,
     command_levels=21,
     command_max_mm_s=400.0,
-    action_knots_c_mm_s=(-400.0, -300.0, -200.0, -100.0, -40.0, 0.0, 40.0, 100.0, 200.0, 300.0, 400.0),
-    action_knots_v_mm_s=(-390.0, -325.0, -222.0, -108.0, -30.0, 0.0, 34.0, 112.0, 228.0, 338.0, 405.0),
+    action_knots_c_mm_s=(-400.0, -300.0, -200.0, -120.0, -60.0, -20.0, 0.0, 20.0, 60.0, 120.0, 200.0, 300.0, 400.0),
+    action_knots_v_mm_s=(-400.0, -385.0, -330.0, -200.0, -80.0, 0.0, 0.0, 0.0, 90.0, 215.0, 345.0, 400.0, 410.0),
     change_at_s=480.0,
     change_factor=0.75,
 )
