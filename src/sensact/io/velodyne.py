@@ -1,0 +1,312 @@
+"""Velodyne UDP packet captures (pcap): decode HDL-64E, HDL-32E and VLP-16 data packets, and write
+HDL-64E packets the way the sensor does (sec. 2.5.2).
+
+A data packet is a 1206-byte UDP payload on port 2368: 12 blocks of 100 bytes, each a 2-byte block id
+(0xEEFF upper, 0xDDFF lower on the HDL-64E), a 2-byte rotation in 0.01° and 32 returns of a uint16
+distance in 2 mm units and a uint8 intensity; then a 4-byte timestamp (µs past the hour) and two status
+bytes (on the HDL-32E and VLP-16: return mode and product id, 0x21 and 0x22). Multi-byte values are
+little-endian. Position packets (port 8308, 512 bytes) and anything else are skipped.
+
+Decoding is vectorized: a small compiled walk finds each record's offset, then the payloads are read as
+one numpy structured array.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numba import njit
+
+from sensact.errors import LogFormatError
+from sensact.io.atomic import write_bytes
+
+PAYLOAD_BYTES = 1206
+DATA_PORT = 2368
+UPPER, LOWER = 0xEEFF, 0xDDFF
+PRODUCT_IDS = {0x21: "HDL-32E", 0x22: "VLP-16"}
+DISTANCE_UNIT_M = 0.002
+HDL64_FIRINGS_PER_PACKET = 6
+
+BLOCK = np.dtype([("id", "<u2"), ("rotation", "<u2"), ("distance", "<u2", 32), ("intensity", "u1", 32)])
+_RETURN = np.dtype([("distance", "<u2"), ("intensity", "u1")])
+_BLOCK_RAW = np.dtype([("id", "<u2"), ("rotation", "<u2"), ("returns", _RETURN, 32)])
+PACKET = np.dtype([("blocks", _BLOCK_RAW, 12), ("timestamp_us", "<u4"), ("status_type", "u1"), ("status_value", "u1")])
+assert PACKET.itemsize == PAYLOAD_BYTES
+
+_MAGIC = {0xA1B2C3D4: ("<", 1e-6), 0xD4C3B2A1: (">", 1e-6), 0xA1B23C4D: ("<", 1e-9), 0x4D3CB2A1: (">", 1e-9)}
+
+
+@dataclass(frozen=True, eq=False)
+class VelodyneReturns:
+    """One row per return (including empty ones, ``distance_m == 0``), in packet order."""
+
+    model: str
+    time_s: np.ndarray  # capture time of the packet plus the firing's offset within it
+    laser: np.ndarray  # laser id as the calibration file numbers it
+    rotation_deg: np.ndarray  # theta_r, the unit's reported rotation
+    distance_m: np.ndarray  # 0 where nothing was hit
+    intensity: np.ndarray
+    firing: np.ndarray  # index of the firing (all lasers fired together) across the file
+    n_packets: int
+    n_skipped: int  # records that were not data packets (position packets, other ports)
+
+    @property
+    def valid(self) -> np.ndarray:
+        return self.distance_m > 0
+
+
+@njit(cache=True)
+def _records(buf, big_endian):
+    """Offsets and captured lengths of every pcap record after the 24-byte global header."""
+    n = buf.shape[0]
+    offs = np.empty(n // 16 + 1, np.int64)
+    lens = np.empty(n // 16 + 1, np.int64)
+    secs = np.empty(n // 16 + 1, np.int64)
+    frac = np.empty(n // 16 + 1, np.int64)
+    k = 0
+    pos = 24
+    while pos + 16 <= n:
+        vals = np.empty(4, np.int64)
+        for j in range(4):
+            b = buf[pos + 4 * j : pos + 4 * j + 4]
+            if big_endian:
+                vals[j] = (b[0] << 24) | (b[1] << 16) | (b[2] << 8) | b[3]
+            else:
+                vals[j] = (b[3] << 24) | (b[2] << 16) | (b[1] << 8) | b[0]
+        incl = vals[2]
+        if incl < 0 or pos + 16 + incl > n:
+            return offs[:k], lens[:k], secs[:k], frac[:k], pos
+        secs[k] = vals[0]
+        frac[k] = vals[1]
+        offs[k] = pos + 16
+        lens[k] = incl
+        k += 1
+        pos += 16 + incl
+    return offs[:k], lens[:k], secs[:k], frac[:k], pos
+
+
+def read_pcap_payloads(path: str | Path, port: int = DATA_PORT) -> tuple[np.ndarray, np.ndarray, int]:
+    """``(capture_time_s, payloads (P, 1206) uint8, n_skipped)`` of the Velodyne data packets in a pcap."""
+    path = Path(path)
+    if not path.is_file():
+        raise LogFormatError("pcap file not found.", file=path, fix="check the path.")
+    buf = np.fromfile(path, dtype=np.uint8)
+    if buf.size < 24:
+        raise LogFormatError("too short for a pcap file.", file=path, fix="give a complete .pcap capture.")
+    magic = int.from_bytes(buf[:4].tobytes(), "little")
+    if magic not in _MAGIC:
+        hint = " (this looks like pcapng: convert it with `editcap -F pcap`)" if magic == 0x0A0D0D0A else ""
+        raise LogFormatError(
+            f"not a pcap file: magic number {magic:#010x}{hint}.",
+            file=path,
+            fix="give a classic libpcap capture (.pcap).",
+        )
+    order, frac_unit = _MAGIC[magic]
+    link = int(np.frombuffer(buf[20:24].tobytes(), dtype=f"{order}u4")[0])
+    offs, lens, secs, frac, end = _records(buf, order == ">")
+    if end != buf.size:
+        raise LogFormatError(
+            f"truncated or corrupt: a record at byte {end} runs past the end of the file ({buf.size} bytes).",
+            file=path,
+            fix="re-capture, or cut the file at the last complete packet.",
+        )
+    link_header = {1: 14, 0: 4, 101: 0, 113: 16}.get(link)
+    if link_header is None:
+        raise LogFormatError(f"unsupported link type {link}.", file=path, fix="capture on Ethernet (link type 1).")
+    ip = offs + link_header
+    ok = lens >= link_header + 28
+    if link == 1:
+        ok &= (buf[np.minimum(offs + 12, buf.size - 1)] == 0x08) & (buf[np.minimum(offs + 13, buf.size - 1)] == 0x00)
+    ipc = np.minimum(ip, buf.size - 28)
+    ihl = (buf[ipc] & 0x0F).astype(np.int64) * 4
+    ok &= ((buf[ipc] >> 4) == 4) & (buf[ipc + 9] == 17)
+    udp = np.minimum(ip + ihl, buf.size - 8)
+    dport = buf[udp + 2].astype(np.int64) * 256 + buf[udp + 3]
+    ulen = buf[udp + 4].astype(np.int64) * 256 + buf[udp + 5]
+    ok &= (dport == port) & (ulen == PAYLOAD_BYTES + 8) & (lens >= (udp - offs) + 8 + PAYLOAD_BYTES)
+    start = udp[ok] + 8
+    payloads = (
+        buf[start[:, None] + np.arange(PAYLOAD_BYTES)[None, :]] if ok.any() else np.zeros((0, PAYLOAD_BYTES), np.uint8)
+    )
+    times = secs[ok] + frac[ok] * frac_unit
+    return times.astype(float), payloads, int((~ok).sum())
+
+
+def _model_of(packets: np.ndarray) -> str:
+    """HDL-64E if any block is a lower block; otherwise the packet period tells the 32E (12 firings of
+    46.08 µs: 0.55 ms) from the VLP-16 (24 firings of 55.296 µs: 1.33 ms). Some VLP-16 firmware reports
+    the HDL-32E product id, so the id byte alone is not trusted."""
+    if np.any(packets["blocks"]["id"] == LOWER):
+        return "HDL-64E"
+    ts = packets["timestamp_us"].astype(np.int64)
+    steps = np.diff(ts)
+    steps = steps[(steps > 0) & (steps < 10_000)]
+    if steps.size:
+        return "VLP-16" if np.median(steps) > 940 else "HDL-32E"
+    product = int(np.bincount(packets["status_value"]).argmax()) if len(packets) else 0
+    return PRODUCT_IDS.get(product, "HDL-32E")
+
+
+def decode_packets(times_s: np.ndarray, payloads: np.ndarray, model: str = "auto", firing_rate_hz: float | None = None):
+    """Per-return arrays from raw payloads. ``firing_rate_hz`` spaces the firings inside a packet in time
+    (defaults: HDL-64E the thesis's 7800 Hz per laser, HDL-32E 1/46.08 µs, VLP-16 1/55.296 µs)."""
+    packets = np.ascontiguousarray(payloads).view(PACKET).reshape(-1)
+    bad = ~np.isin(packets["blocks"]["id"], (UPPER, LOWER))
+    if bad.any():
+        p, b = np.argwhere(bad)[0]
+        raise LogFormatError(
+            f"packet {p}, block {b}: block id {packets['blocks']['id'][p, b]:#06x} is neither 0xEEFF nor 0xDDFF.",
+            field="block id",
+            fix="the capture is corrupt or not from a Velodyne; check the port and the file.",
+        )
+    if model == "auto":
+        model = _model_of(packets)
+    P = len(packets)
+    # packet times on the sensor's clock (µs past the hour, unwrapped), anchored at the first capture time:
+    # capture times carry the host's jitter
+    ts = packets["timestamp_us"].astype(np.int64)
+    step = np.diff(ts)
+    step[step < -1_800_000_000] += 3_600_000_000
+    times_s = float(times_s[0]) + np.concatenate([[0], np.cumsum(step)]) * 1e-6 if P else np.zeros(0)
+    blocks = packets["blocks"]
+    dist = blocks["returns"]["distance"].astype(float) * DISTANCE_UNIT_M  # (P, 12, 32)
+    inten = blocks["returns"]["intensity"]
+    rot = blocks["rotation"].astype(float) / 100.0  # (P, 12)
+    if model == "HDL-64E":
+        rate = firing_rate_hz or 7800.0
+        lower = blocks["id"] == LOWER
+        laser = np.where(lower[..., None], 32, 0) + np.arange(32)[None, None, :]
+        # an upper block and the lower block after it fire together: firing = packet * 6 + block // 2
+        fire_in_packet = np.broadcast_to(np.arange(12)[None, :] // 2, (P, 12))
+        firing = np.arange(P)[:, None] * 6 + fire_in_packet
+        t = times_s[:, None] + fire_in_packet / rate
+        shape = (P, 12, 32)
+        t = np.broadcast_to(t[..., None], shape)
+        firing = np.broadcast_to(firing[..., None], shape)
+        rot3 = np.broadcast_to(rot[..., None], shape)
+    elif model == "HDL-32E":
+        period = 1.0 / firing_rate_hz if firing_rate_hz else 46.08e-6
+        laser = np.broadcast_to(np.arange(32)[None, None, :], (P, 12, 32))
+        firing = np.broadcast_to((np.arange(P)[:, None] * 12 + np.arange(12)[None, :])[..., None], (P, 12, 32))
+        t = np.broadcast_to((times_s[:, None] + np.arange(12)[None, :] * period)[..., None], (P, 12, 32))
+        rot3 = np.broadcast_to(rot[..., None], (P, 12, 32))
+    elif model == "VLP-16":
+        period = 1.0 / firing_rate_hz if firing_rate_hz else 55.296e-6
+        laser = np.broadcast_to((np.arange(32) % 16)[None, None, :], (P, 12, 32))
+        seq = np.arange(12)[:, None] * 2 + (np.arange(32) // 16)[None, :]  # (12, 32) firing sequence
+        firing = np.arange(P)[:, None, None] * 24 + seq[None]
+        t = times_s[:, None, None] + seq[None] * period
+        # the second sequence's rotation is halfway to the next block's
+        step = np.diff(rot, axis=1, append=rot[:, -1:] + (rot[:, -1:] - rot[:, -2:-1]))
+        step = np.mod(step, 360.0)
+        rot3 = np.mod(rot[..., None] + (np.arange(32) // 16)[None, None, :] * 0.5 * step[..., None], 360.0)
+    else:
+        raise LogFormatError(f"unknown model {model!r}.", field="model", fix="use HDL-64E, HDL-32E, VLP-16 or auto.")
+    return VelodyneReturns(
+        model,
+        np.asarray(t, dtype=float).reshape(-1),
+        np.asarray(laser, dtype=np.int16).reshape(-1),
+        np.asarray(rot3, dtype=float).reshape(-1),
+        dist.reshape(-1),
+        np.asarray(inten).reshape(-1),
+        np.asarray(firing, dtype=np.int64).reshape(-1),
+        P,
+        0,
+    )
+
+
+def read_velodyne_pcap(path: str | Path, *, model: str = "auto", port: int = DATA_PORT) -> VelodyneReturns:
+    """Decode every data packet of a Velodyne pcap into per-return arrays."""
+    times, payloads, skipped = read_pcap_payloads(path, port)
+    if len(payloads) == 0:
+        raise LogFormatError(
+            f"no Velodyne data packets (1206-byte UDP payloads on port {port}).",
+            file=path,
+            fix="check the port (--port) or the capture.",
+        )
+    try:
+        out = decode_packets(times, payloads, model)
+    except LogFormatError as exc:
+        raise LogFormatError(exc.problem, file=path, field=exc.field, fix=exc.fix) from None
+    return VelodyneReturns(**{**out.__dict__, "n_skipped": skipped})
+
+
+# ------------------------------------------------------------------ writing
+
+
+def encode_hdl64e(
+    rotation_deg: np.ndarray, distance_m: np.ndarray, intensity: np.ndarray, timestamp_us: np.ndarray
+) -> np.ndarray:
+    """HDL-64E payloads from ``F`` firings (a multiple of 6): rotation (F,), distances and intensities
+    (F, 64) indexed by laser id, and one timestamp per packet (F // 6,). Returns (F // 6, 1206) uint8."""
+    F = len(rotation_deg)
+    if F % HDL64_FIRINGS_PER_PACKET:
+        raise ValueError("the number of firings must be a multiple of 6")
+    P = F // HDL64_FIRINGS_PER_PACKET
+    pk = np.zeros(P, dtype=PACKET)
+    rot = np.mod(np.rint(np.asarray(rotation_deg) * 100.0), 36000).astype(np.uint16).reshape(P, 6)
+    d = np.clip(np.rint(np.asarray(distance_m) / DISTANCE_UNIT_M), 0, 65535).astype(np.uint16).reshape(P, 6, 64)
+    it = np.asarray(intensity, dtype=np.uint8).reshape(P, 6, 64)
+    blocks = pk["blocks"]
+    blocks["id"][:, 0::2] = UPPER
+    blocks["id"][:, 1::2] = LOWER
+    blocks["rotation"][:, 0::2] = rot
+    blocks["rotation"][:, 1::2] = rot
+    blocks["returns"]["distance"][:, 0::2] = d[:, :, :32]
+    blocks["returns"]["distance"][:, 1::2] = d[:, :, 32:]
+    blocks["returns"]["intensity"][:, 0::2] = it[:, :, :32]
+    blocks["returns"]["intensity"][:, 1::2] = it[:, :, 32:]
+    pk["timestamp_us"] = np.asarray(timestamp_us, dtype=np.uint32)
+    return pk.view(np.uint8).reshape(P, PAYLOAD_BYTES)
+
+
+def _ip_checksum(header: np.ndarray) -> np.ndarray:
+    """RFC 791 checksums of (P, 20) IPv4 headers whose checksum field is zero."""
+    words = header[:, 0::2].astype(np.uint32) * 256 + header[:, 1::2]
+    s = words.sum(axis=1)
+    while np.any(s >> 16):
+        s = (s & 0xFFFF) + (s >> 16)
+    return (~s) & 0xFFFF
+
+
+def pcap_bytes(payloads: np.ndarray, capture_time_s: np.ndarray, port: int = DATA_PORT) -> bytes:
+    """A classic pcap (Ethernet, IPv4, UDP from 192.168.3.43 to port ``port``) holding the payloads."""
+    payloads = np.ascontiguousarray(payloads, dtype=np.uint8)
+    P, n = payloads.shape
+    frame = 42 + n
+    rec = np.zeros((P, 16 + frame), np.uint8)
+    t = np.asarray(capture_time_s, dtype=float)
+    sec = np.floor(t).astype(np.uint32)
+    usec = np.minimum(np.rint((t - sec) * 1e6), 999999).astype(np.uint32)
+    rec[:, 0:16] = (
+        np.column_stack([sec, usec, np.full(P, frame, np.uint32), np.full(P, frame, np.uint32)])
+        .astype("<u4")
+        .view(np.uint8)
+    )
+    eth = rec[:, 16:30]
+    eth[:, 0:6] = 0xFF
+    eth[:, 6:12] = (0x60, 0x76, 0x88, 0x00, 0x00, 0x00)
+    eth[:, 12:14] = (0x08, 0x00)
+    ip = rec[:, 30:50]
+    total = 20 + 8 + n
+    ip[:, 0], ip[:, 2], ip[:, 3] = 0x45, total >> 8, total & 0xFF
+    ip[:, 8], ip[:, 9] = 64, 17
+    ip[:, 12:16] = (192, 168, 3, 43)
+    ip[:, 16:20] = (255, 255, 255, 255)
+    cs = _ip_checksum(ip)
+    ip[:, 10], ip[:, 11] = cs >> 8, cs & 0xFF
+    udp = rec[:, 50:58]
+    udp[:, 0], udp[:, 1] = 0x01, 0xBB  # source port 443, as the sensor uses
+    udp[:, 2], udp[:, 3] = port >> 8, port & 0xFF
+    udp[:, 4], udp[:, 5] = (n + 8) >> 8, (n + 8) & 0xFF
+    rec[:, 58:] = payloads
+    # magic, version 2.4, zone 0, sigfigs 0, snaplen, link type 1 (Ethernet)
+    header = np.array([0xA1B2C3D4, 2 | (4 << 16), 0, 0, 65535, 1], dtype="<u4")
+    return header.tobytes() + rec.tobytes()
+
+
+def write_pcap(path: str | Path, payloads: np.ndarray, capture_time_s: np.ndarray, port: int = DATA_PORT) -> Path:
+    """Write payloads as a pcap file, atomically."""
+    return write_bytes(path, pcap_bytes(payloads, capture_time_s, port))

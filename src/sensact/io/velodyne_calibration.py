@@ -1,0 +1,75 @@
+"""ROS velodyne calibration YAML (the format of ``64e_utexas.yaml``): read it into ``LaserIntrinsics``
+and write learned angles back as ``rot_correction`` so that the standard driver can use them."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from sensact.errors import LogFormatError
+from sensact.io.atomic import write_text
+from sensact.models.laser_intrinsics import LaserIntrinsics
+
+
+def read_calibration(path: str | Path) -> LaserIntrinsics:
+    path = Path(path)
+    if not path.is_file():
+        raise LogFormatError("calibration file not found.", file=path, fix="check the path.")
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise LogFormatError(f"not valid YAML ({exc.__class__.__name__}).", file=path, fix="repair the file.") from None
+    lasers = data.get("lasers") if isinstance(data, dict) else None
+    if not isinstance(lasers, list) or not lasers:
+        raise LogFormatError(
+            "no 'lasers' list.", file=path, field="lasers", fix="give a ROS velodyne calibration file."
+        )
+    rows: dict[int, dict[str, Any]] = {}
+    for i, entry in enumerate(lasers):
+        try:
+            lid = int(entry["laser_id"])
+            float(entry["rot_correction"]), float(entry["vert_correction"])
+        except (KeyError, TypeError, ValueError):
+            raise LogFormatError(
+                f"laser entry {i} lacks a numeric laser_id, rot_correction or vert_correction.",
+                file=path,
+                field=f"lasers[{i}]",
+                fix="every laser needs laser_id, rot_correction and vert_correction (radians).",
+            ) from None
+        rows[lid] = dict(entry)
+    n = int(data.get("num_lasers", len(rows)))
+    if sorted(rows) != list(range(n)):
+        raise LogFormatError(
+            f"laser ids are not 0..{n - 1}.", file=path, field="laser_id", fix="number the lasers 0 to num_lasers-1."
+        )
+    ordered = [rows[i] for i in range(n)]
+    return LaserIntrinsics(
+        np.array([float(r["vert_correction"]) for r in ordered]),
+        np.array([float(r["rot_correction"]) for r in ordered]),
+        float(data.get("distance_resolution", 0.002)),
+        tuple({k: v for k, v in r.items() if k not in ("rot_correction", "vert_correction")} for r in ordered),
+    )
+
+
+def calibration_yaml(intrinsics: LaserIntrinsics) -> str:
+    lasers = []
+    for i in range(intrinsics.n_lasers):
+        extra = dict(intrinsics.extra[i]) if intrinsics.extra else {"laser_id": i}
+        extra["laser_id"] = i
+        extra["rot_correction"] = float(intrinsics.horizontal_rad[i])
+        extra["vert_correction"] = float(intrinsics.vertical_rad[i])
+        lasers.append(dict(sorted(extra.items())))
+    doc = {
+        "distance_resolution": intrinsics.distance_resolution_m,
+        "lasers": lasers,
+        "num_lasers": intrinsics.n_lasers,
+    }
+    return yaml.safe_dump(doc, sort_keys=False, default_flow_style=False)
+
+
+def write_calibration(path: str | Path, intrinsics: LaserIntrinsics) -> Path:
+    """Write a ROS velodyne calibration YAML, atomically."""
+    return write_text(path, calibration_yaml(intrinsics))

@@ -1,0 +1,124 @@
+"""Velodyne pcap and calibration IO on real captures and calibrations (../shared/data/velodyne)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import DATA, require
+from sensact.errors import LogFormatError
+from sensact.io.velodyne import (
+    LOWER,
+    PACKET,
+    UPPER,
+    decode_packets,
+    encode_hdl64e,
+    pcap_bytes,
+    read_pcap_payloads,
+    read_velodyne_pcap,
+    write_pcap,
+)
+from sensact.io.velodyne_calibration import calibration_yaml, read_calibration, write_calibration
+
+VELO = DATA / "velodyne"
+
+
+@pytest.mark.parametrize(
+    "name,model,packets,skipped",
+    [
+        ("hdl32_example.pcap", "HDL-32E", 876, 100),
+        ("velodyne_vlp32.pcap", "HDL-32E", 91, 9),
+        ("velodyne_vlp16.pcap", "VLP-16", 84, 16),
+        ("velodyne_example.pcap", "VLP-16", 84, 0),
+    ],
+)
+def test_real_captures_decode(name, model, packets, skipped):
+    r = read_velodyne_pcap(require(VELO / name))
+    assert (r.model, r.n_packets, r.n_skipped) == (model, packets, skipped)
+    assert r.distance_m.size == packets * 384
+    _, payloads, _ = read_pcap_payloads(VELO / name)
+    ids = payloads.view(PACKET).reshape(-1)["blocks"]["id"]
+    assert np.all(ids == UPPER)  # 32E and VLP-16 use upper blocks only
+    v = r.valid
+    assert v.mean() > 0.5 and np.percentile(r.distance_m[v], 99) < 130.0 and r.distance_m[v].min() > 0.5
+    # the rotation advances by small steps within a revolution and wraps once per revolution
+    rot = r.rotation_deg[r.laser == 0]
+    step = np.mod(np.diff(rot), 360.0)
+    assert np.all(step < 2.0) and np.median(step) > 0
+    assert np.all(np.diff(r.time_s[::32]) >= -1e-9)
+
+
+def test_an_independent_decoder_agrees():
+    """velodyne-decoder (a C++ decoder, test-only) finds the same returns in a VLP-16 capture."""
+    vd = pytest.importorskip("velodyne_decoder")
+    path = require(VELO / "velodyne_example.pcap")
+    pts = np.concatenate([p for _, p in vd.read_pcap(str(path), vd.Config(model=vd.Model.VLP16), as_pcl_structs=True)])
+    r = read_velodyne_pcap(path)
+    v = r.valid
+    assert v.sum() == len(pts)
+    cal = read_calibration(require(VELO / "calibration" / "VLP16db.yaml"))
+    ring_of_laser = np.argsort(cal.vertical_order())  # their ring = rank of the vertical angle
+    ours = np.bincount(ring_of_laser[r.laser[v]], minlength=16)
+    np.testing.assert_array_equal(ours, np.bincount(pts["ring"], minlength=16))
+    theirs = np.sort(np.sqrt(pts["x"] ** 2 + pts["y"] ** 2 + pts["z"] ** 2))
+    np.testing.assert_allclose(np.sort(r.distance_m[v]), theirs, atol=0.01)
+
+
+def test_hdl64e_write_then_read_round_trip(tmp_path):
+    rng = np.random.default_rng(0)
+    F = 60
+    rot = np.mod(np.arange(F) * 0.4615, 360.0)
+    dist = np.round(rng.uniform(0, 120, (F, 64)) / 0.002) * 0.002
+    dist[rng.random((F, 64)) < 0.1] = 0.0
+    inten = rng.integers(0, 256, (F, 64))
+    payloads = encode_hdl64e(rot, dist, inten, np.arange(F // 6) * 769)
+    ids = payloads.view(PACKET).reshape(-1)["blocks"]["id"]
+    assert np.all(ids[:, 0::2] == UPPER) and np.all(ids[:, 1::2] == LOWER)
+    path = write_pcap(tmp_path / "v.pcap", payloads, 1000.0 + np.arange(F // 6) / 1300.0)
+    r = read_velodyne_pcap(path)
+    assert r.model == "HDL-64E" and r.n_packets == F // 6 and r.n_skipped == 0
+    back = np.zeros((F, 64))
+    back[r.firing, r.laser] = r.distance_m
+    np.testing.assert_allclose(back, dist, atol=1e-9)
+    rot_back = np.zeros(F)
+    rot_back[r.firing] = r.rotation_deg
+    np.testing.assert_allclose(rot_back, np.round(rot * 100) / 100, atol=1e-9)
+    assert np.allclose(np.diff(r.time_s[r.laser == 0]), 1 / 7800.0, atol=1e-3)
+
+
+def test_bad_files_are_rejected_clearly(tmp_path):
+    with pytest.raises(LogFormatError, match="not found"):
+        read_velodyne_pcap(tmp_path / "none.pcap")
+    (tmp_path / "junk.pcap").write_bytes(b"\x0a\x0d\x0d\x0a" + bytes(60))
+    with pytest.raises(LogFormatError, match="pcapng"):
+        read_velodyne_pcap(tmp_path / "junk.pcap")
+    payloads = encode_hdl64e(np.zeros(6), np.ones((6, 64)), np.zeros((6, 64)), [0])
+    data = pcap_bytes(payloads, [0.0])
+    (tmp_path / "cut.pcap").write_bytes(data[:-100])
+    with pytest.raises(LogFormatError, match="truncated or corrupt"):
+        read_velodyne_pcap(tmp_path / "cut.pcap")
+    bad = payloads.copy()
+    bad[0, 0:2] = 0
+    with pytest.raises(LogFormatError, match="block id"):
+        decode_packets(np.zeros(1), bad)
+    (tmp_path / "empty.pcap").write_bytes(data[:24])
+    with pytest.raises(LogFormatError, match="no Velodyne data packets"):
+        read_velodyne_pcap(tmp_path / "empty.pcap")
+
+
+def test_calibration_yaml_round_trip(tmp_path):
+    cal = read_calibration(require(VELO / "calibration" / "64e_utexas.yaml"))
+    h = np.degrees(cal.horizontal_rad)
+    v = np.degrees(cal.vertical_rad)
+    assert cal.n_lasers == 64
+    assert h.min() == pytest.approx(-8.0, abs=0.01) and h.max() == pytest.approx(10.0, abs=0.01)  # the 18° range
+    assert v.min() == pytest.approx(-24.7, abs=0.05) and v.max() == pytest.approx(2.0, abs=0.05)
+    learned = cal.with_horizontal(cal.horizontal_rad + 0.01)
+    back = read_calibration(write_calibration(tmp_path / "out.yaml", learned))
+    np.testing.assert_allclose(back.horizontal_rad, cal.horizontal_rad + 0.01)
+    np.testing.assert_array_equal(back.vertical_rad, cal.vertical_rad)
+    assert back.extra[5]["dist_correction"] == cal.extra[5]["dist_correction"]
+    assert "rot_correction" in calibration_yaml(cal)
+    (tmp_path / "bad.yaml").write_text("lasers:\n- {laser_id: 0}\n")
+    with pytest.raises(LogFormatError, match=r"lasers\[0\]"):
+        read_calibration(tmp_path / "bad.yaml")
