@@ -29,6 +29,11 @@ def _atomic(path: str | Path, mode: str, write: Callable[[IO[Any]], None]) -> Pa
     return path
 
 
+def write_stream(path: str | Path, write: Callable[[IO[Any]], None]) -> Path:
+    """Write a large binary file in pieces (``write(handle)``), atomically."""
+    return _atomic(path, "wb", write)
+
+
 def write_text(path: str | Path, text: str) -> Path:
     return _atomic(path, "w", lambda h: h.write(text))
 

@@ -262,6 +262,23 @@ def encode_hdl64e(
     return pk.view(np.uint8).reshape(P, PAYLOAD_BYTES)
 
 
+def hdl64e_firings(payloads: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """HDL-64E payloads as ``(rotation_deg (F,), distance_m (F, 64) float32)``, one row per firing and one
+    column per laser id: the compact form the angle learner reads (100 million returns fit in 400 MB)."""
+    pk = np.ascontiguousarray(payloads).view(PACKET).reshape(-1)
+    blocks = pk["blocks"]
+    if not (np.all(blocks["id"][:, 0::2] == UPPER) and np.all(blocks["id"][:, 1::2] == LOWER)):
+        raise LogFormatError(
+            "not HDL-64E packets: blocks must alternate upper (0xEEFF) and lower (0xDDFF).",
+            field="block id",
+            fix="give an HDL-64E capture.",
+        )
+    P = len(pk)
+    d = blocks["returns"]["distance"].reshape(P, 6, 2, 32).reshape(P * 6, 64)
+    rot = blocks["rotation"][:, 0::2].reshape(-1).astype(float) / 100.0
+    return rot, (d.astype(np.float32) * np.float32(DISTANCE_UNIT_M))
+
+
 def _ip_checksum(header: np.ndarray) -> np.ndarray:
     """RFC 791 checksums of (P, 20) IPv4 headers whose checksum field is zero."""
     words = header[:, 0::2].astype(np.uint32) * 256 + header[:, 1::2]
@@ -271,8 +288,11 @@ def _ip_checksum(header: np.ndarray) -> np.ndarray:
     return (~s) & 0xFFFF
 
 
-def pcap_bytes(payloads: np.ndarray, capture_time_s: np.ndarray, port: int = DATA_PORT) -> bytes:
-    """A classic pcap (Ethernet, IPv4, UDP from 192.168.3.43 to port ``port``) holding the payloads."""
+PCAP_HEADER = np.array([0xA1B2C3D4, 2 | (4 << 16), 0, 0, 65535, 1], dtype="<u4").tobytes()  # v2.4, Ethernet
+
+
+def pcap_records(payloads: np.ndarray, capture_time_s: np.ndarray, port: int = DATA_PORT) -> bytes:
+    """The pcap records (no global header) of UDP packets from 192.168.3.43 to ``port``."""
     payloads = np.ascontiguousarray(payloads, dtype=np.uint8)
     P, n = payloads.shape
     frame = 42 + n
@@ -302,9 +322,12 @@ def pcap_bytes(payloads: np.ndarray, capture_time_s: np.ndarray, port: int = DAT
     udp[:, 2], udp[:, 3] = port >> 8, port & 0xFF
     udp[:, 4], udp[:, 5] = (n + 8) >> 8, (n + 8) & 0xFF
     rec[:, 58:] = payloads
-    # magic, version 2.4, zone 0, sigfigs 0, snaplen, link type 1 (Ethernet)
-    header = np.array([0xA1B2C3D4, 2 | (4 << 16), 0, 0, 65535, 1], dtype="<u4")
-    return header.tobytes() + rec.tobytes()
+    return rec.tobytes()
+
+
+def pcap_bytes(payloads: np.ndarray, capture_time_s: np.ndarray, port: int = DATA_PORT) -> bytes:
+    """A classic pcap file's bytes holding the payloads."""
+    return PCAP_HEADER + pcap_records(payloads, capture_time_s, port)
 
 
 def write_pcap(path: str | Path, payloads: np.ndarray, capture_time_s: np.ndarray, port: int = DATA_PORT) -> Path:
