@@ -20,6 +20,8 @@ runner = CliRunner()
         ["learn"],
         ["simulate", "track1d"],
         ["simulate", "field2d"],
+        ["simulate", "car"],
+        ["learn", "car"],
         ["learn", "bootstrap"],
         ["learn", "em"],
         ["reproduce"],
@@ -191,3 +193,41 @@ def test_reproduce_em1d_and_field2d_write_the_documented_keys(tmp_path):
     for fig in ("fig4_4_field2d_learning.png", "fig4_5_field2d_sensor.png", "fig4_2_real_robot_learning.png"):
         assert (tmp_path / fig).stat().st_size > 10_000
     assert "real-robot setting" in (tmp_path / "field2d.md").read_text()
+
+
+def test_simulate_car_then_learn_car_with_ros_export(tmp_path):
+    log = tmp_path / "car"
+    res = runner.invoke(
+        app,
+        [
+            "simulate",
+            "car",
+            "--seconds",
+            "20",
+            "--seed",
+            "4",
+            "--out",
+            str(log),
+            "--set",
+            "turn_times_s=[8]",
+            "--set",
+            "stop_times_s=[15]",
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    assert (log / "velodyne.pcap").stat().st_size > 10_000_000
+    out, yml = tmp_path / "car.json", tmp_path / "learned.yaml"
+    res = runner.invoke(app, ["learn", "car", str(log), "--out", str(out), "--calibration-yaml", str(yml)])
+    assert res.exit_code == 0, res.output
+    assert "omega =" in res.output and "vs truth: laser angles" in res.output
+    model = json.loads(out.read_text())
+    assert len(model["laser_angles_deg"]) == 64 and model["car_dynamics"]["kind"] == "car_dynamics"
+    assert model["evaluation"]["laser_angle_rms_deg"] < 1.0  # 20 s: C rests on a few fast intervals
+    import numpy as np
+
+    from sensact.io.velodyne_calibration import read_calibration
+
+    cal = read_calibration(yml)
+    np.testing.assert_allclose(np.degrees(cal.horizontal_rad) + 90.0, model["laser_angles_deg"], atol=1e-9)
+    res = runner.invoke(app, ["learn", "car", str(tmp_path)])
+    assert res.exit_code == 2 and "meta.json" in res.output

@@ -184,6 +184,30 @@ def simulate_field2d(
     )
 
 
+@simulate_app.command("car")
+@_friendly
+def simulate_car(
+    out: Annotated[Path, typer.Option("--out", help="Log folder to write (velodyne.pcap, actions.csv, ...).")],
+    seconds: Annotated[float | None, typer.Option(help="Length of the drive (default 200).")] = None,
+    seed: Annotated[int | None, typer.Option(help="Random seed (default 0).")] = None,
+    set_: SetOpt = None,
+    config: ConfigOpt = None,
+) -> None:
+    """Simulate the chapter-5 car with a Velodyne HDL-64E driving through a town (secs. 2.5.2, 5.4)."""
+    from sensact.experiments.car import simulate_car_log
+    from sensact.sim.car import CarConfig, log_summary
+
+    cfg = _config(CarConfig, config, set_, seconds=seconds, seed=seed)
+    with _progress() as progress:
+        run = simulate_car_log(cfg, out, progress)
+    s = log_summary(run)
+    console.print(
+        f"wrote {out}: {s['seconds']:.0f} s drive, top speed {s['max_speed_m_s']:.2f} m/s, turned "
+        f"{s['turned_deg']:.0f}°, {s['obstacles']} obstacles; velodyne.pcap holds "
+        f"{int(cfg.seconds * cfg.firing_hz) // 6} HDL-64E packets (seed {cfg.seed})"
+    )
+
+
 # ---- learn ----------------------------------------------------------------------------------------------
 
 
@@ -315,6 +339,82 @@ def learn_em_cmd(
         console.print(f"wrote {out} and {out.with_suffix('.history.npz')}")
 
 
+@learn_app.command("car")
+@_friendly
+def learn_car_cmd(
+    log: Annotated[Path, typer.Argument(help="A car log folder (velodyne.pcap, actions.csv, meta.json).")],
+    out: Annotated[Path | None, typer.Option("--out", help="Write the learned models here (JSON).")] = None,
+    calibration_yaml: Annotated[
+        Path | None,
+        typer.Option("--calibration-yaml", help="Also write the learned angles as a ROS velodyne calibration."),
+    ] = None,
+    set_: SetOpt = None,
+    config: ConfigOpt = None,
+) -> None:
+    """Learn the lidar's laser angles, the scan-matching odometry and the car dynamics (Algorithm 3)."""
+    import numpy as np
+
+    from sensact.io.atomic import write_json
+    from sensact.io.car_log import read_car_log
+    from sensact.io.velodyne_calibration import write_calibration
+    from sensact.learn.car_dynamics import CarLearningConfig, learn_car
+    from sensact.models.laser_intrinsics import LaserIntrinsics
+
+    cfg = _config(CarLearningConfig, config, set_)
+    data = read_car_log(log)
+    console.print(
+        f"{log}: {data.distance_m.shape[0]} firings of {data.distance_m.shape[1]} lasers "
+        f"({data.distance_m.shape[0] / data.firing_hz:.1f} s), {len(data.actions)} action rows"
+    )
+    with _progress() as progress:
+        res = learn_car(
+            data.rotation_rad,
+            data.distance_m,
+            data.vertical_rad,
+            data.firing_hz,
+            data.omega_rad_s,
+            data.action_times_s,
+            data.actions,
+            cfg,
+            progress,
+        )
+    m = res.model
+    console.print(f"converged after {res.iterations} iterations; C = {np.degrees(res.offset_rad):.3f}°")
+    console.print(f"  a = {m.C5:.4g} + {m.C6:.4g} g + {m.C7:.4g} v + {m.C8:.4g} v b   (eq. 5.3)")
+    console.print(f"  omega = {m.C9:.4g} v + {m.C10:.4g} v s   (eq. 5.4)")
+    evaluation = None
+    if "truth" in data.meta and data.groundtruth is not None:
+        from sensact.experiments.car import evaluate_run
+
+        evaluation, _ = evaluate_run(data.meta["truth"], data.groundtruth, res, cfg.odometry.dt_s)
+        console.print(
+            f"vs truth: laser angles {evaluation['laser_angle_rms_deg']:.3f}° RMS; accel "
+            f"{evaluation['accel_rms']:.3f} m/s² (from truth {evaluation['accel_rms_from_truth']:.3f}), forward "
+            f"velocity {evaluation['fwd_vel_rms']:.3f} m/s ({evaluation['fwd_vel_rms_from_truth']:.3f}), angular "
+            f"velocity {evaluation['ang_vel_rms']:.4f} rad/s ({evaluation['ang_vel_rms_from_truth']:.4f})"
+        )
+    if out is not None:
+        write_json(
+            out,
+            {
+                "laser_angles_deg": np.degrees(res.laser_angles_rad).tolist(),
+                "offset_C_deg": float(np.degrees(res.offset_rad)),
+                "car_dynamics": m.to_dict(),
+                "iterations": res.iterations,
+                "history": res.history,
+                "seconds_by_stage": res.seconds_by_stage,
+                "config": __import__("dataclasses").asdict(cfg),
+                "evaluation": evaluation,
+            },
+        )
+        console.print(f"wrote {out}")
+    if calibration_yaml is not None:
+        # ROS's driver puts a point at azimuth (rotation - rot_correction) clockwise from forward, which is
+        # eq. 2.35 with theta_b = 90°: rot_correction = theta_hat_l - 90° puts points in the car's frame
+        write_calibration(calibration_yaml, LaserIntrinsics(data.vertical_rad, res.laser_angles_rad - np.pi / 2))
+        console.print(f"wrote {calibration_yaml} (rot_correction = learned angle - 90°)")
+
+
 def _evaluate_em(lf: Any, model: Any) -> dict[str, Any] | None:
     """Errors against the truth a simulated log carries (never used for learning)."""
     truth = lf.meta.get("truth")
@@ -382,7 +482,7 @@ def _evaluate_log(data: Any, res: Any, cfg: Any) -> dict[str, Any] | None:
 
 # ---- reproduce ------------------------------------------------------------------------------------------
 
-EXPERIMENTS = ("track1d", "turtlebot", "field2d", "em1d")
+EXPERIMENTS = ("track1d", "turtlebot", "field2d", "em1d", "car")
 
 
 def _data_dir(data: Path | None) -> Path:
@@ -436,6 +536,46 @@ def reproduce(
         _reproduce_field2d(out, trials or 5, seed, set_, config)
     if "em1d" in todo:
         _reproduce_em1d(out, seed, set_, config)
+    if "car" in todo:
+        _reproduce_car(out, seed, set_, config)
+
+
+def _reproduce_car(out: Path, seed: int, set_: list[str] | None, config: Path | None) -> None:
+    import numpy as np
+
+    from sensact.experiments.car import CarExperiment, run_car
+    from sensact.learn.car_dynamics import CarLearningConfig
+    from sensact.report import figures_car
+    from sensact.report.tables import car_tables
+    from sensact.sim.car import CarConfig
+
+    learner_f, sim_f = _split_fields(set_, config, CarLearningConfig)
+    base = CarExperiment()
+    exp = CarExperiment(
+        simulator=_merged(CarConfig, base.simulator, {**sim_f, "seed": seed}),
+        learner=_merged(CarLearningConfig, base.learner, learner_f),
+    )
+    with _progress() as progress:
+        res, art = run_car(exp, out / "car_log", progress)
+    _write_results(out, "car", res, car_tables(res))
+    log, r = art["log"], art["result"]
+    figures_car.figure_5_2(log, r.intrinsics.relative_rad, 40.0, 0.5, out / "fig5_2_scans.png")
+    figures_car.figure_5_3(
+        r.laser_angles_rad,
+        np.asarray(log.meta["truth"]["laser_angles_rad"]),
+        log.vertical_rad,
+        out / "fig5_3_laser_angles.png",
+    )
+    K = len(r.actions) - 1
+    pred = r.model.predict(r.actions[:K], r.speed_m_s[0], exp.learner.odometry.dt_s)
+    v, w, a = art["truth"]
+    t = r.interval_times_s[:K]
+    figures_car.figure_5_4_5(t, (v[:K], w[:K], a[:K]), pred, out / "fig5_4_5_dynamics.png", (60.0, 85.0))
+    ok = res["bars_cleared"]
+    console.print(
+        f"bars cleared: {', '.join(f'{k} {v}' for k, v in ok.items())}; wrote {out / 'car.json'}, "
+        f"{out / 'car.md'}, figures and the log in {out / 'car_log'} ({res['seconds']:.1f} s)"
+    )
 
 
 def _split_fields(set_: list[str] | None, config: Path | None, learner_cls: type) -> tuple[dict, dict]:

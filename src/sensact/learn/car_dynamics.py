@@ -1,0 +1,160 @@
+"""Sec. 5.3 and Algorithm 3: learn the car's action model, and with it better scan matching.
+
+1. The laser angles up to an offset (sec. 5.1, ``lidar_intrinsics``).
+2. Repeat: scan matching (sec. 5.2), seeded by the action model's predicted motion once there is one;
+   ``C`` from the motion; ``v``, ``omega`` and ``a`` per interval; C5..C10 by regression on eqs. 5.3-5.4;
+   until the coefficients stop changing.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from sensact.core.angles import wrap_angle
+from sensact.learn.lidar_intrinsics import IntrinsicsConfig, IntrinsicsResult, learn_relative_angles
+from sensact.learn.scan_odometry import Odometry, OdometryConfig, offset_from_motion, scan_odometry
+from sensact.models.car_dynamics import CarDynamics, fit_car_dynamics
+
+
+@dataclass(frozen=True)
+class CarLearningConfig:
+    """Every setting of Algorithm 3, flat so that ``--set name=value`` reaches each one."""
+
+    max_iterations: int = 10
+    tolerance: float = 1e-3  # stop when no coefficient moves by more than this fraction of its size
+    # sec. 5.1
+    max_difference_deg: float | None = None  # the thesis's optional 23° bound
+    subsample_peak: bool = True
+    min_pairs: int = 1000
+    # sec. 5.2
+    dt_s: float = 0.5
+    drop_below_m: float = 1.0
+    outlier_m: float = 7.0
+    icp_max_iterations: int = 50
+    icp_tolerance: float = 1e-5
+    min_speed_m_s: float = 2.0
+    voxel_m: float = 0.2  # thin D1 to one point per 0.2 m cell: 4x faster ICP, same accuracy (docs/car.md)
+
+    @property
+    def intrinsics(self) -> IntrinsicsConfig:
+        return IntrinsicsConfig(self.max_difference_deg, self.subsample_peak, self.min_pairs)
+
+    @property
+    def odometry(self) -> OdometryConfig:
+        return OdometryConfig(
+            self.dt_s,
+            self.drop_below_m,
+            self.outlier_m,
+            self.icp_max_iterations,
+            self.icp_tolerance,
+            self.min_speed_m_s,
+            self.voxel_m,
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class CarLearningResult:
+    laser_angles_rad: np.ndarray  # theta_hat_l = theta'_l + C, by laser id
+    offset_rad: float  # C
+    intrinsics: IntrinsicsResult
+    model: CarDynamics
+    odometry: Odometry
+    interval_times_s: np.ndarray  # (K,)
+    actions: np.ndarray  # (K, 3) averaged g, b, s
+    speed_m_s: np.ndarray  # (K,) from scan matching
+    omega_rad_s: np.ndarray
+    accel_m_s2: np.ndarray
+    history: list[dict[str, float]]  # coefficients and C per iteration
+    seconds_by_stage: dict[str, float]
+
+    @property
+    def iterations(self) -> int:
+        return len(self.history)
+
+
+def average_actions(times_s: np.ndarray, actions: np.ndarray, starts_s: np.ndarray, dt_s: float) -> np.ndarray:
+    """Mean of each action column over ``[start, start + dt)`` (sec. 5.4)."""
+    idx = np.searchsorted(starts_s, times_s, side="right") - 1
+    ok = (idx >= 0) & (times_s < starts_s[-1] + dt_s)
+    out = np.zeros((len(starts_s), actions.shape[1]))
+    n = np.bincount(idx[ok], minlength=len(starts_s)).astype(float)
+    for j in range(actions.shape[1]):
+        out[:, j] = np.bincount(idx[ok], weights=actions[ok, j], minlength=len(starts_s)) / np.maximum(n, 1)
+    return out
+
+
+def regression_actions(times_s: np.ndarray, actions: np.ndarray, starts_s: np.ndarray, dt_s: float) -> np.ndarray:
+    """(K, 3) actions per interval for eqs. 5.3-5.4. ``v_t`` is the mean speed over interval t, so
+    ``a_t = (v_t+1 - v_t) / dt`` spans from the middle of interval t to the middle of t+1: throttle and brake
+    are averaged over that span, the steering over interval t itself (``omega_t`` is its mean turn rate)."""
+    shifted = average_actions(times_s, actions, starts_s + 0.5 * dt_s, dt_s)
+    own = average_actions(times_s, actions, starts_s, dt_s)
+    return np.column_stack([shifted[:, 0], shifted[:, 1], own[:, 2]])
+
+
+def motion_to_velocities(motion: np.ndarray, offset_rad: float, dt_s: float):
+    """v (the component along the car's forward axis, at pi/2 - C in (x_C, y_C)), omega and a (sec. 5.3)."""
+    fwd = np.array([np.cos(np.pi / 2 - offset_rad), np.sin(np.pi / 2 - offset_rad)])
+    v = motion[:, :2] @ fwd / dt_s
+    w = motion[:, 2] / dt_s
+    a = np.r_[np.diff(v), 0.0] / dt_s  # a_t = (v_t+1 - v_t) / dt; the last has no successor
+    return v, w, a
+
+
+def learn_car(
+    rot_rad: np.ndarray,
+    dist: np.ndarray,
+    vertical_rad: np.ndarray,
+    firing_hz: float,
+    omega_rad_s: float,
+    action_times_s: np.ndarray,
+    actions: np.ndarray,
+    config: CarLearningConfig | None = None,
+    progress: Callable[[str, int, int], None] | None = None,
+) -> CarLearningResult:
+    """Algorithm 3 on one drive: firings (F,) rotations and (F, 64) distances, actions (M, 3) = (g, b, s)."""
+    cfg = config or CarLearningConfig()
+    dt = cfg.odometry.dt_s
+    stages: dict[str, float] = {}
+    t0 = time.perf_counter()
+    rel = learn_relative_angles(dist, vertical_rad, firing_hz, omega_rad_s, cfg.intrinsics, progress)
+    stages["laser_angles"] = time.perf_counter() - t0
+    guess = None
+    model = None
+    history: list[dict[str, float]] = []
+    stages["scan_matching"] = 0.0
+    stages["regression"] = 0.0
+    for it in range(cfg.max_iterations):
+        t1 = time.perf_counter()
+        odo = scan_odometry(
+            rot_rad, dist, vertical_rad, rel.relative_rad, firing_hz, omega_rad_s, guess, cfg.odometry, progress
+        )
+        t2 = time.perf_counter()
+        C = offset_from_motion(odo.motion, dt, cfg.odometry.min_speed_m_s)
+        v, w, a = motion_to_velocities(odo.motion, C, dt)
+        # the interval runs between the middles of two revolutions
+        mid = odo.times_s + 0.5 * (2 * np.pi / omega_rad_s)
+        act = regression_actions(action_times_s, actions, mid, dt)
+        K = len(v) - 1  # a is defined up to the last-but-one interval
+        new = fit_car_dynamics(v[:K], a[:K], w[:K], act[:K])
+        stages["scan_matching"] += t2 - t1
+        stages["regression"] += time.perf_counter() - t2
+        history.append({**new.to_dict(), "C_rad": C, "iteration": it + 1})
+        history[-1].pop("kind")
+        done = model is not None and np.all(
+            np.abs(new.as_array() - model.as_array()) <= cfg.tolerance * np.maximum(np.abs(model.as_array()), 1e-3)
+        )
+        model = new
+        if done:
+            break
+        # the model's motion, in (x_C, y_C), seeds the next scan matching (sec. 5.3)
+        pv, _, pw = model.predict(act, v[0], dt)
+        fwd = np.array([np.cos(np.pi / 2 - C), np.sin(np.pi / 2 - C)])
+        guess = np.column_stack([pv * dt * fwd[0], pv * dt * fwd[1], pw * dt])
+    assert model is not None
+    angles = wrap_angle(rel.relative_rad + C)
+    return CarLearningResult(angles, C, rel, model, odo, mid, act, v, w, a, history, stages)

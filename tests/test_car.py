@@ -1,0 +1,187 @@
+"""Chapter 5: ray casting, the simulator's pcap, the laser-angle learner, ICP and Algorithm 3."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from sensact.core.raycast import BOX, CYLINDER, _hit_box, _hit_cylinder, build_grid, cast_firings
+from sensact.experiments.car import simulate_car_log
+from sensact.learn.car_dynamics import CarLearningConfig, learn_car, regression_actions
+from sensact.learn.lidar_intrinsics import learn_relative_angles, masked_ncc
+from sensact.learn.scan_odometry import OdometryConfig, angle_median, icp, invert, offset_from_motion
+from sensact.models.car_dynamics import CarDynamics, fit_car_dynamics
+from sensact.sim.car import CarConfig, nominal_intrinsics
+
+
+def test_grid_ray_casting_equals_brute_force():
+    rng = np.random.default_rng(0)
+    kinds, params = [], []
+    for _ in range(150):
+        x, y = rng.uniform(-100, 100, 2)
+        if rng.random() < 0.5:
+            kinds.append(BOX)
+            params.append((x, y, x + rng.uniform(2, 20), y + rng.uniform(2, 20), rng.uniform(1, 15)))
+        else:
+            kinds.append(CYLINDER)
+            params.append((x, y, rng.uniform(0.1, 1.0), rng.uniform(1, 8), 0.0))
+    kind, params = np.array(kinds), np.array(params)
+    origin, cell, shape, start, items = build_grid(kind, params, 7.0)
+    intr = nominal_intrinsics()
+    F = 300
+    poses = np.column_stack([rng.uniform(-50, 50, F), rng.uniform(-50, 50, F), rng.uniform(-3, 3, F)])
+    rot = rng.uniform(0, 2 * np.pi, F)
+    out = np.zeros((F, 64))
+    cast_firings(
+        poses,
+        2.0,
+        rot,
+        intr.vertical_rad,
+        intr.horizontal_rad,
+        1.5,
+        120.0,
+        kind,
+        params,
+        origin,
+        cell,
+        shape[0],
+        shape[1],
+        start,
+        items,
+        out,
+    )
+    for f in range(0, F, 7):
+        c, s = np.cos(poses[f, 2]), np.sin(poses[f, 2])
+        for lid in range(0, 64, 5):
+            a = intr.horizontal_rad[lid] + rot[f] + 1.5
+            cv = np.cos(intr.vertical_rad[lid])
+            ex, ey, ez = cv * np.cos(a), cv * np.sin(a), np.sin(intr.vertical_rad[lid])
+            d = (c * ex - s * ey, s * ex + c * ey, ez)
+            best = -2.0 / d[2] if d[2] < 0 else 120.0
+            for k in range(len(kind)):
+                fn = _hit_box if kind[k] == BOX else _hit_cylinder
+                best = min(best, fn(poses[f, 0], poses[f, 1], 2.0, *d, params[k]))
+            assert out[f, lid] == pytest.approx(best if best < 120.0 else 0.0, abs=1e-9)
+
+
+def test_masked_ncc_equals_the_direct_sum():
+    rng = np.random.default_rng(1)
+    n = 600
+    base = np.cumsum(rng.normal(size=n + 40))
+    a = base[20 : 20 + n] + 10
+    b = base[27 : 27 + n] + 10 + rng.normal(size=n) * 0.1
+    a[rng.random(n) < 0.1] = 0
+    b[rng.random(n) < 0.1] = 0
+    K = masked_ncc(a, b, 15)
+    direct = np.full(31, np.nan)
+    for i, k in enumerate(range(-15, 16)):
+        idx = np.arange(max(0, k), min(n, n + k))
+        x, y = a[idx], b[idx - k]
+        ok = (x > 0) & (y > 0)
+        direct[i] = np.corrcoef(x[ok], y[ok])[0, 1]
+    np.testing.assert_allclose(K, direct, atol=1e-9)
+    assert np.nanargmax(K) - 15 == 7  # a[i] = b[i - 7]: the peak is at k = 7
+
+
+@pytest.fixture(scope="module")
+def short_drive(tmp_path_factory):
+    cfg = CarConfig(seconds=30.0, seed=3, turn_times_s=(12.0,), stop_times_s=(24.0,))
+    folder = tmp_path_factory.mktemp("car") / "log"
+    run = simulate_car_log(cfg, folder)
+    from sensact.io.car_log import read_car_log
+
+    return run, read_car_log(folder)
+
+
+def test_simulated_pcap_decodes_as_an_hdl64e(short_drive):
+    _, log = short_drive
+
+    assert log.meta["lidar"]["file"] == "velodyne.pcap"
+    assert log.distance_m.shape == ((30 * 7800) // 6 * 6, 64)
+    valid = log.distance_m > 0
+    assert 0.5 < valid.mean() < 0.999 and log.distance_m[valid].max() <= 120.0
+    # the rotation advances by omega / f per firing
+    step = np.mod(np.diff(log.rotation_rad), 2 * np.pi)
+    np.testing.assert_allclose(step, 20 * np.pi / 7800, atol=2e-4)
+    assert log.actions.shape[1] == 3 and log.groundtruth is not None
+
+
+def test_relative_angles_recover_the_true_differences(short_drive):
+    run, log = short_drive
+    res = learn_relative_angles(log.distance_m, log.vertical_rad, log.firing_hz, log.omega_rad_s)
+    err = res.relative_rad - run.true_laser_angles_rad
+    err -= err.mean()
+    assert np.degrees(np.sqrt(np.mean(err**2))) < 0.3
+
+
+def test_icp_recovers_a_known_motion():
+    """Walls in three directions and a round kiosk, densely sampled: ICP finds the transform to the
+    sampling's resolution."""
+    from scipy.spatial import cKDTree
+
+    u = np.linspace(-30, 30, 3000)
+    ang = np.linspace(0, 2 * np.pi, 600)
+    pts = np.concatenate(
+        [
+            np.column_stack([u, np.full(u.size, 12.0)]),
+            np.column_stack([np.full(u.size, -15.0), u]),
+            np.column_stack([u, 0.6 * u - 20.0]),
+            np.column_stack([5 + 3 * np.cos(ang), -4 + 3 * np.sin(ang)]),
+        ]
+    )
+    T = np.array([0.8, 2.5, 0.04])
+    c, s = np.cos(T[2]), np.sin(T[2])
+    moved = pts @ np.array([[c, s], [-s, c]]) + T[:2]
+    est, _, _ = icp(pts[::3], cKDTree(moved), moved, np.zeros(3), OdometryConfig())
+    np.testing.assert_allclose(est, T, atol=0.02)
+    np.testing.assert_allclose(invert(invert(T)), T)
+
+
+def test_angle_median_and_offset():
+    a = np.array([3.1, -3.1, 3.05, 0.2])
+    assert abs(angle_median(a)) > 3.0  # the wrap-around cluster wins
+    motion = np.array([[np.cos(1.2), np.sin(1.2), 0.0]] * 5 + [[0.01, 0.0, 0.0]])
+    assert offset_from_motion(motion * 2.0, 0.5) == pytest.approx(np.pi / 2 - 1.2)
+
+
+def test_regression_recovers_the_coefficients_exactly():
+    rng = np.random.default_rng(3)
+    true = CarDynamics(0.1, 3.5, -0.4, -0.5, 0.002, 0.11)
+    K = 300
+    act = np.column_stack([rng.uniform(0, 1, K), rng.uniform(0, 1, K), rng.uniform(-1, 1, K)])
+    v = rng.uniform(0, 7, K)
+    fit = fit_car_dynamics(v, true.accel(v, act[:, 0], act[:, 1]), true.omega(v, act[:, 2]), act)
+    np.testing.assert_allclose(fit.as_array(), true.as_array(), atol=1e-10)
+    assert CarDynamics.from_dict(fit.to_dict()) == fit
+
+
+def test_regression_actions_align_with_the_acceleration():
+    t = np.arange(0, 10, 0.05)
+    acts = np.column_stack([t, 2 * t, 3 * t])
+    out = regression_actions(t, acts, np.array([0.0, 0.5, 1.0]), 0.5)
+    np.testing.assert_allclose(out[:, 0], [0.475, 0.975, 1.475])  # throttle over [t + dt/2, t + 3dt/2)
+    np.testing.assert_allclose(out[:, 2], 3 * np.array([0.225, 0.725, 1.225]))  # steering over [t, t + dt)
+
+
+def test_algorithm_3_on_a_short_drive(short_drive):
+    run, log = short_drive
+    res = learn_car(
+        log.rotation_rad,
+        log.distance_m,
+        log.vertical_rad,
+        log.firing_hz,
+        log.omega_rad_s,
+        log.action_times_s,
+        log.actions,
+        CarLearningConfig(),
+    )
+    from sensact.evaluate.car import laser_angle_error
+
+    assert laser_angle_error(res.laser_angles_rad, run.true_laser_angles_rad)["laser_angle_rms_deg"] < 0.3
+    assert 1 <= res.iterations <= 10
+    true = run.config.true_coefficients()
+    assert res.model.C10 == pytest.approx(true["C10"], rel=0.3)
+    assert res.model.C6 > 0 and res.model.C8 < 0
+    assert dataclasses.asdict(CarLearningConfig())["voxel_m"] == 0.2
