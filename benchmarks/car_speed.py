@@ -16,9 +16,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from sensact.experiments.car import simulate_car_log
+from sensact.experiments.car import learn_from_log, simulate_car_log
 from sensact.io.car_log import read_car_log
-from sensact.learn.car_dynamics import CarLearningConfig, learn_car
+from sensact.learn.car_dynamics import CarLearningConfig
 from sensact.learn.lidar_intrinsics import IntrinsicsConfig, learn_relative_angles
 from sensact.sim.car import CarConfig
 
@@ -45,16 +45,7 @@ def main() -> None:
         log.distance_m, log.vertical_rad, log.firing_hz, log.omega_rad_s, IntrinsicsConfig(max_difference_deg=23.0)
     )
     bounded_s = time.perf_counter() - t0
-    res = learn_car(
-        log.rotation_rad,
-        log.distance_m,
-        log.vertical_rad,
-        log.firing_hz,
-        log.omega_rad_s,
-        log.action_times_s,
-        log.actions,
-        CarLearningConfig(),
-    )
+    res = learn_from_log(log, CarLearningConfig())
     st = res.seconds_by_stage
     total = sum(st.values())
     per_it = (st["scan_matching"] + st["regression"]) / res.iterations

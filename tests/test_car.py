@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from sensact.core.raycast import BOX, CYLINDER, _hit_box, _hit_cylinder, build_grid, cast_firings
-from sensact.experiments.car import simulate_car_log
-from sensact.learn.car_dynamics import CarLearningConfig, learn_car, regression_actions
+from sensact.experiments.car import learn_from_log, simulate_car_log
+from sensact.learn.car_dynamics import CarLearningConfig, regression_actions
 from sensact.learn.lidar_intrinsics import learn_relative_angles, masked_ncc
 from sensact.learn.scan_odometry import OdometryConfig, angle_median, icp, invert, offset_from_motion
 from sensact.models.car_dynamics import CarDynamics, fit_car_dynamics
@@ -167,16 +167,7 @@ def test_regression_actions_align_with_the_acceleration():
 
 def test_algorithm_3_on_a_short_drive(short_drive):
     run, log = short_drive
-    res = learn_car(
-        log.rotation_rad,
-        log.distance_m,
-        log.vertical_rad,
-        log.firing_hz,
-        log.omega_rad_s,
-        log.action_times_s,
-        log.actions,
-        CarLearningConfig(),
-    )
+    res = learn_from_log(log, CarLearningConfig())
     from sensact.evaluate.car import laser_angle_error
 
     assert laser_angle_error(res.laser_angles_rad, run.true_laser_angles_rad)["laser_angle_rms_deg"] < 0.3

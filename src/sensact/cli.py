@@ -354,10 +354,11 @@ def learn_car_cmd(
     """Learn the lidar's laser angles, the scan-matching odometry and the car dynamics (Algorithm 3)."""
     import numpy as np
 
+    from sensact.experiments.car import learn_from_log
     from sensact.io.atomic import write_json
     from sensact.io.car_log import read_car_log
     from sensact.io.velodyne_calibration import write_calibration
-    from sensact.learn.car_dynamics import CarLearningConfig, learn_car
+    from sensact.learn.car_dynamics import CarLearningConfig
     from sensact.models.laser_intrinsics import LaserIntrinsics
 
     cfg = _config(CarLearningConfig, config, set_)
@@ -367,17 +368,7 @@ def learn_car_cmd(
         f"({data.distance_m.shape[0] / data.firing_hz:.1f} s), {len(data.actions)} action rows"
     )
     with _progress() as progress:
-        res = learn_car(
-            data.rotation_rad,
-            data.distance_m,
-            data.vertical_rad,
-            data.firing_hz,
-            data.omega_rad_s,
-            data.action_times_s,
-            data.actions,
-            cfg,
-            progress,
-        )
+        res = learn_from_log(data, cfg, progress)
     m = res.model
     console.print(f"converged after {res.iterations} iterations; C = {np.degrees(res.offset_rad):.3f}°")
     console.print(f"  a = {m.C5:.4g} + {m.C6:.4g} g + {m.C7:.4g} v + {m.C8:.4g} v b   (eq. 5.3)")

@@ -14,7 +14,7 @@ import numpy as np
 
 from sensact.config import config_to_dict
 from sensact.evaluate.car import laser_angle_error, table_5_1, truth_motion
-from sensact.io.car_log import read_car_log, write_car_log
+from sensact.io.car_log import CarLog, read_car_log, write_car_log
 from sensact.io.velodyne_calibration import read_calibration
 from sensact.learn.car_dynamics import CarLearningConfig, CarLearningResult, learn_car
 from sensact.models.laser_intrinsics import LaserIntrinsics
@@ -62,6 +62,14 @@ def simulate_car_log(cfg: CarConfig, folder: str | Path, progress: ProgressFn | 
     return run
 
 
+def learn_from_log(
+    log: CarLog, config: CarLearningConfig | None = None, progress: ProgressFn | None = None
+) -> CarLearningResult:
+    """Algorithm 3 on a car log read by ``sensact.io.car_log.read_car_log``."""
+    fields = (log.rotation_rad, log.distance_m, log.vertical_rad, log.firing_hz, log.omega_rad_s)
+    return learn_car(*fields, log.action_times_s, log.actions, config, progress)
+
+
 @dataclass(frozen=True)
 class CarExperiment:
     simulator: CarConfig = field(default_factory=CarConfig)
@@ -88,17 +96,7 @@ def run_car(
     t1 = time.perf_counter()
     log = read_car_log(log_dir)
     stages["read_pcap"] = time.perf_counter() - t1
-    res = learn_car(
-        log.rotation_rad,
-        log.distance_m,
-        log.vertical_rad,
-        log.firing_hz,
-        log.omega_rad_s,
-        log.action_times_s,
-        log.actions,
-        exp.learner,
-        progress,
-    )
+    res = learn_from_log(log, exp.learner, progress)
     stages.update(res.seconds_by_stage)
     assert log.groundtruth is not None
     scores, truth = evaluate_run(log.meta["truth"], log.groundtruth, res, exp.learner.odometry.dt_s)
