@@ -561,7 +561,7 @@ def _reproduce_car(out: Path, seed: int, set_: list[str] | None, config: Path | 
     pred = r.model.predict(r.actions[:K], r.speed_m_s[0], exp.learner.odometry.dt_s)
     v, w, a = art["truth"]
     t = r.interval_times_s[:K]
-    figures_car.figure_5_4_5(t, (v[:K], w[:K], a[:K]), pred, out / "fig5_4_5_dynamics.png", (60.0, 85.0))
+    figures_car.figure_5_4_5(t, (v[:K], w[:K], a[:K]), pred, out / "fig5_4_5_dynamics.png", (85.0, 110.0))
     ok = res["bars_cleared"]
     console.print(
         f"bars cleared: {', '.join(f'{k} {v}' for k, v in ok.items())}; wrote {out / 'car.json'}, "

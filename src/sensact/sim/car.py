@@ -65,7 +65,7 @@ class CarConfig:
     cruise_m_s: float = 6.2
     turn_m_s: float = 3.5
     turn_times_s: tuple[float, ...] = (35.0, 95.0, 150.0)
-    stop_times_s: tuple[float, ...] = (70.0, 125.0, 185.0)
+    stop_times_s: tuple[float, ...] = (30.0, 90.0, 145.0, 185.0)  # each turn starts from a stop, as in Fig. 5.4
     stop_hold_s: float = 4.0
     # the town along the route
     street_half_width_m: float = 7.0
