@@ -176,3 +176,17 @@ def test_algorithm_3_on_a_short_drive(short_drive):
     assert res.model.C10 == pytest.approx(true["C10"], rel=0.3)
     assert res.model.C6 > 0 and res.model.C8 < 0
     assert dataclasses.asdict(CarLearningConfig())["voxel_m"] == 0.2
+
+
+def test_a_standard_decoder_reads_the_simulated_pcap(short_drive, tmp_path_factory):
+    """velodyne-decoder (test-only), reading the simulator's HDL-64E pcap with its true calibration,
+    finds every return that sensact's reader finds."""
+    vd = pytest.importorskip("velodyne_decoder")
+    _, log = short_drive
+    folder = tmp_path_factory.getbasetemp()
+    pcap = next(folder.rglob("velodyne.pcap"))
+    conf = vd.Config(
+        model=vd.Model.HDL64E_S1, calibration=vd.Calibration.read(str(pcap.parent / "calibration_true.yaml"))
+    )
+    n = sum(len(p) for _, p in vd.read_pcap(str(pcap), conf, as_pcl_structs=True))
+    assert n == int((log.distance_m > 0).sum())
