@@ -80,6 +80,21 @@ def _scalar_update(m, P, H, nu, r, n, PH, K, A, tmp, tmp2):
 
 
 @njit(cache=True)
+def _resolvent(A, B, w, Mx, RHS, n):
+    """Solve ``(I + A B) [X | x] = [A | w]`` into ``RHS``; the form of both the backward time update and
+    the alpha-beta combination. Returns False if ``I + A B`` is singular."""
+    for i in range(n):
+        for j in range(n):
+            s = 1.0 if i == j else 0.0
+            for k in range(n):
+                s += A[i, k] * B[k, j]
+            Mx[i, j] = s
+            RHS[i, j] = A[i, j]
+        RHS[i, n] = w[i]
+    return lu_solve_inplace(Mx, RHS, n, n + 1)
+
+
+@njit(cache=True)
 def ekf_smoother(
     mode,
     dt,
@@ -239,15 +254,7 @@ def ekf_smoother(
         for i in range(n):
             b[i] = gm[i] - mu_a[t + 1, i]
         # J = (I + Yd Q)^-1 Yd, j = (I + Yd Q)^-1 zd
-        for i in range(n):
-            for j in range(n):
-                s = 1.0 if i == j else 0.0
-                for k in range(n):
-                    s += Yd[i, k] * Q[k, j]
-                Mx[i, j] = s
-                RHS[i, j] = Yd[i, j]
-            RHS[i, n] = zd[i]
-        if not lu_solve_inplace(Mx, RHS, n, n + 1):
+        if not _resolvent(Yd, Q, zd, Mx, RHS, n):
             return SINGULAR, loglik, n_used
         for i in range(n):
             jv[i] = RHS[i, n]
@@ -278,14 +285,8 @@ def ekf_smoother(
             s = 0.0
             for k in range(n):
                 s += Pa[i, k] * z[k]
-            RHS[i, n] = s
-            for j in range(n):
-                s = 1.0 if i == j else 0.0
-                for k in range(n):
-                    s += Pa[i, k] * Y[k, j]
-                Mx[i, j] = s
-                RHS[i, j] = Pa[i, j]
-        if not lu_solve_inplace(Mx, RHS, n, n + 1):
+            colp[i] = s
+        if not _resolvent(Pa, Y, colp, Mx, RHS, n):
             return SINGULAR, loglik, n_used
         for i in range(n):
             mu_g[t, i] = mu_a[t, i] + RHS[i, n]

@@ -11,6 +11,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from sensact.core.smallmat import cholesky_shifted, cholesky_solve_vec
+
 
 @njit(cache=True)
 def accumulate_poly(G, h, u, y, gamma, p):
@@ -45,32 +47,10 @@ def solve_spd(G, h, p, ridge, L, out):
     tr = 0.0
     for i in range(p):
         tr += G[i, i]
-    lam = ridge * tr / p
-    for j in range(p):
-        s = G[j, j] + lam
-        for k in range(j):
-            s -= L[j, k] * L[j, k]
-        if not (s > 1e-300 * (tr + 1.0)) or not np.isfinite(s):
-            return False
-        d = np.sqrt(s)
-        L[j, j] = d
-        for i in range(j + 1, p):
-            s = G[i, j]
-            for k in range(j):
-                s -= L[i, k] * L[j, k]
-            L[i, j] = s / d
-    # forward then back substitution; store z in L's diagonal-free scratch via out after checks
+    if not cholesky_shifted(G, ridge * tr / p, L, p, 1e-300 * (tr + 1.0)):
+        return False
     z0 = np.empty(p)
-    for i in range(p):
-        s = h[i]
-        for k in range(i):
-            s -= L[i, k] * z0[k]
-        z0[i] = s / L[i, i]
-    for i in range(p - 1, -1, -1):
-        s = z0[i]
-        for k in range(i + 1, p):
-            s -= L[k, i] * z0[k]
-        z0[i] = s / L[i, i]
+    cholesky_solve_vec(L, h, z0, p)
     for i in range(p):
         if not np.isfinite(z0[i]):
             return False

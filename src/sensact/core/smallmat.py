@@ -7,17 +7,19 @@ its arguments and allocates nothing.
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
 
 @njit(cache=True)
-def cholesky(A, L, n):
-    """Lower-triangular ``L`` with ``L L' = A[:n, :n]``. Returns False if ``A`` is not positive definite."""
+def cholesky_shifted(A, shift, L, n, floor):
+    """Lower-triangular ``L`` with ``L L' = A[:n, :n] + shift I``. Returns False if a pivot is not finite
+    and above ``floor`` (the matrix is not numerically positive definite)."""
     for j in range(n):
-        s = A[j, j]
+        s = A[j, j] + shift
         for k in range(j):
             s -= L[j, k] * L[j, k]
-        if not s > 0.0:
+        if not (s > floor) or not np.isfinite(s):
             return False
         d = s**0.5
         L[j, j] = d
@@ -29,6 +31,12 @@ def cholesky(A, L, n):
         for i in range(j):
             L[i, j] = 0.0
     return True
+
+
+@njit(cache=True)
+def cholesky(A, L, n):
+    """Lower-triangular ``L`` with ``L L' = A[:n, :n]``. Returns False if ``A`` is not positive definite."""
+    return cholesky_shifted(A, 0.0, L, n, 0.0)
 
 
 @njit(cache=True)
