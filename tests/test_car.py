@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
 
@@ -175,7 +173,6 @@ def test_algorithm_3_on_a_short_drive(short_drive):
     true = run.config.true_coefficients()
     assert res.model.C10 == pytest.approx(true["C10"], rel=0.3)
     assert res.model.C6 > 0 and res.model.C8 < 0
-    assert dataclasses.asdict(CarLearningConfig())["voxel_m"] == 0.2
 
 
 def test_a_standard_decoder_reads_the_simulated_pcap(short_drive, tmp_path_factory):

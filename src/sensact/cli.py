@@ -354,6 +354,7 @@ def learn_car_cmd(
     """Learn the lidar's laser angles, the scan-matching odometry and the car dynamics (Algorithm 3)."""
     import numpy as np
 
+    from sensact.config import config_to_dict
     from sensact.experiments.car import learn_from_log
     from sensact.io.atomic import write_json
     from sensact.io.car_log import read_car_log
@@ -394,7 +395,7 @@ def learn_car_cmd(
                 "iterations": res.iterations,
                 "history": res.history,
                 "seconds_by_stage": res.seconds_by_stage,
-                "config": __import__("dataclasses").asdict(cfg),
+                "config": config_to_dict(cfg),
                 "evaluation": evaluation,
             },
         )
@@ -610,11 +611,9 @@ def _reproduce_field2d(out: Path, trials: int, seed: int, set_: list[str] | None
     figures_em.figure_learning_curve(
         first, vr, out / "fig4_4_field2d_learning.png", f"simulation, seed {first.run.config.seed}", res["thesis"]
     )
-    start = first.result.config
-    from sensact.learn.em import initial_model
-    from sensact.sim.field2d import to_landmark_log
+    from sensact.learn.em.fit import starting_height
 
-    f0 = initial_model(to_landmark_log(first.run), start).sensor.height
+    f0 = starting_height(first.result.config)
     figures_em.figure_sensor(
         f0,
         first.result.model.sensor.height,

@@ -13,6 +13,7 @@ one numpy structured array.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -67,8 +68,8 @@ def _records(buf, big_endian):
     frac = np.empty(n // 16 + 1, np.int64)
     k = 0
     pos = 24
+    vals = np.empty(4, np.int64)
     while pos + 16 <= n:
-        vals = np.empty(4, np.int64)
         for j in range(4):
             b = buf[pos + 4 * j : pos + 4 * j + 4]
             if big_endian:
@@ -230,7 +231,7 @@ def read_velodyne_pcap(path: str | Path, *, model: str = "auto", port: int = DAT
         out = decode_packets(times, payloads, model)
     except LogFormatError as exc:
         raise LogFormatError(exc.problem, file=path, field=exc.field, fix=exc.fix) from None
-    return VelodyneReturns(**{**out.__dict__, "n_skipped": skipped})
+    return dataclasses.replace(out, n_skipped=skipped)
 
 
 # ------------------------------------------------------------------ writing

@@ -31,19 +31,25 @@ PLANAR_VELOCITY_NAMES = ("v_x_mm_s", "v_y_mm_s", "v_theta_rad_s")
 TRACK_VELOCITY_NAMES = ("v_mm_s",)
 
 
-def initial_model(data: LandmarkLog, config: EMConfig) -> EMModel:
-    """The starting model of sec. 4.4.1: every action has no effect, f is a poor line, wide sigmas."""
-    n = 3 if data.geometry == "planar" else 1
-    names = PLANAR_VELOCITY_NAMES if n == 3 else TRACK_VELOCITY_NAMES
-    table = ActionTable(data.action_commands, np.zeros((data.n_actions, n)), data.command_names, names)
-    f = Polynomial1D(
+def starting_height(config: EMConfig) -> Polynomial1D:
+    """The poor straight line f starts from (sec. 4.4.1)."""
+    return Polynomial1D(
         (config.start_height_intercept_px, config.start_height_slope_px_per_mm),
         input_name="d",
         input_unit="mm",
         output_unit="px",
     )
+
+
+def initial_model(data: LandmarkLog, config: EMConfig) -> EMModel:
+    """The starting model of sec. 4.4.1: every action has no effect, f is a poor line, wide sigmas."""
+    n = 3 if data.geometry == "planar" else 1
+    names = PLANAR_VELOCITY_NAMES if n == 3 else TRACK_VELOCITY_NAMES
+    table = ActionTable(data.action_commands, np.zeros((data.n_actions, n)), data.command_names, names)
     sensor = LandmarkSensor(
-        f, config.start_sigma_height_px, config.start_sigma_bearing_rad if data.geometry == "planar" else None
+        starting_height(config),
+        config.start_sigma_height_px,
+        config.start_sigma_bearing_rad if data.geometry == "planar" else None,
     )
     mean = np.asarray(config.start_prior_mean[:n], dtype=float)
     cov = np.diag(np.asarray(config.start_prior_sd[:n], dtype=float) ** 2)
