@@ -45,7 +45,7 @@ def _linear_track(T=40, seed=1):
     m0 = initial_model(data, EMConfig(motion_sd_mm=SM))
     model = m0.replace(
         action=m0.action.with_velocities(vel),
-        sensor=LandmarkSensor(f, 1.5, None),
+        sensor=LandmarkSensor.single(f, 1.5, None),
         prior_mean=np.array([2000.0]),
         prior_cov=np.array([[100.0**2]]),
     )
@@ -100,7 +100,7 @@ def _planar_case(T=300, seed=3):
     m0 = initial_model(data, EMConfig())
     model = m0.replace(
         action=m0.action.with_velocities(run.true_velocities),
-        sensor=LandmarkSensor(Polynomial1D(tuple(coef), 2700.0, 1000.0), 1.0, 0.5),
+        sensor=LandmarkSensor.single(Polynomial1D(tuple(coef), 2700.0, 1000.0), 1.0, 0.5),
         prior_cov=np.diag([50.0**2, 50.0**2, 0.05**2]),
     )
     return run, data, model
@@ -183,7 +183,7 @@ def test_bearing_innovations_are_wrapped():
             "planar", 0.05, [0, 0], [[0.0, 0.0, 0.0]], ("a_x", "a_y", "a_theta"), [1], [0], [15.0], [obs], lm
         )
         m0 = initial_model(data, EMConfig())
-        model = m0.replace(sensor=LandmarkSensor(f, 1.0, 0.05), prior_cov=np.diag([1.0, 1.0, 1e-4]))
+        model = m0.replace(sensor=LandmarkSensor.single(f, 1.0, 0.05), prior_cov=np.diag([1.0, 1.0, 1e-4]))
         post = e_step(model, data, np.array([1.0, 1.0, 1e-4]))
         rows[obs] = post
         assert landmark_bearing(np.zeros(3), lm[0])[0] == pytest.approx(-np.pi)
@@ -202,7 +202,7 @@ def test_first_iteration_pruning_drops_false_positives():
     _, _, model = _planar_case()
     model = model.replace(
         action=model.action.with_velocities(run.true_velocities),
-        sensor=LandmarkSensor(model.sensor.height, cfg.sigma_height_px, cfg.sigma_bearing_rad),
+        sensor=LandmarkSensor.single(model.sensor.height, cfg.sigma_height_px, cfg.sigma_bearing_rad),
     )
     post = e_step(model, data, np.array([100.0, 100.0, 0.01]), prune_rad_per_step=0.6)
     dropped = ~post.obs_used

@@ -26,7 +26,7 @@ def _track_model(k: float, b: float, velocities: np.ndarray) -> EMModel:
     coef = np.polyfit((x - center) / scale, _true_height((x - b) / k), 3)[::-1]
     f = Polynomial1D(tuple(coef), center, scale)
     table = ActionTable(np.linspace(-1, 1, len(velocities))[:, None], velocities[:, None], ("a_y",), ("v_mm_s",))
-    return EMModel("track", table, LandmarkSensor(f, 1.0), np.zeros(1), np.eye(1))
+    return EMModel("track", table, LandmarkSensor.single(f, 1.0), np.zeros(1), np.eye(1))
 
 
 def test_distance_map_recovers_a_known_affine_map():
@@ -58,7 +58,7 @@ def test_planar_score_of_the_truth_is_zero():
     d = np.linspace(1000, 4500, 200)
     coef = np.polyfit((d - 2700) / 1000, _true_height(d), 3)[::-1]
     m = EMModel(
-        "planar", table, LandmarkSensor(Polynomial1D(tuple(coef), 2700, 1000), 1.0, 0.5), np.zeros(3), np.eye(3)
+        "planar", table, LandmarkSensor.single(Polynomial1D(tuple(coef), 2700, 1000), 1.0, 0.5), np.zeros(3), np.eye(3)
     )
     sc = score_planar(m, tv, _true_height, 1.0, 0.5)
     assert sc["vx_rms_mm_s"] == 0 and sc["sigma1_error_pct"] == 0 and sc["sigma2_error_pct"] == 0

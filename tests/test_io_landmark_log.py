@@ -89,5 +89,5 @@ def test_meta_without_landmarks(field_log, tmp_path):
     meta = json.loads((folder / "meta.json").read_text())
     del meta["landmarks"]
     (folder / "meta.json").write_text(json.dumps(meta))
-    with pytest.raises(LogFormatError, match=r"meta\.json: landmarks: a planar log needs"):
+    with pytest.raises(LogFormatError, match=r"meta\.json: landmarks: a landmark log needs"):
         read_landmark_log(folder)

@@ -17,7 +17,8 @@ def _post(mean, cov, disp=None, used=None):
     T, n = mean.shape
     disp = np.zeros((T - 1, n)) if disp is None else disp
     used = np.ones(0, bool) if used is None else used
-    return Posteriors(0.0, True, mean, cov, mean, cov, disp, np.zeros((T - 1, n, n)), used, int(used.sum()))
+    weights = np.ones((used.size, 2))  # one reading channel and the bearing, all used at full weight
+    return Posteriors(0.0, True, mean, cov, mean, cov, disp, np.zeros((T - 1, n, n)), used, int(used.sum()), weights)
 
 
 def test_action_table_is_the_mean_displacement_over_q_a():
@@ -50,7 +51,7 @@ def test_sensor_model_recovers_f_and_sigmas_from_certain_poses():
         "planar", 0.05, np.zeros(T, int), [[0.0, 0.0, 0.0]], ("a", "b", "c"), np.arange(T), which, h, b, lm
     )
     post = _post(poses, np.tile(np.eye(3) * 1e-10, (T, 1, 1)), used=np.ones(T, bool))
-    prev = LandmarkSensor(Polynomial1D((0.0, 0.0)), 10.0, 0.2)
+    prev = LandmarkSensor.single(Polynomial1D((0.0, 0.0)), 10.0, 0.2)
     s = sensor_model(post, data, 3, 1, np.random.default_rng(2), prev)
     np.testing.assert_allclose(s.height(d), np.polyval(np.polyfit(d, h, 3), d), atol=1e-6)
     assert s.sigma_height_px == pytest.approx(np.sqrt(np.mean((s.height(d) - h) ** 2)), rel=1e-6)

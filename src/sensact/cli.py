@@ -33,6 +33,10 @@ simulate_app = typer.Typer(help="Write a simulated log folder (with its ground t
 learn_app = typer.Typer(help="Learn models from a log.", no_args_is_help=True)
 app.add_typer(simulate_app, name="simulate")
 app.add_typer(learn_app, name="learn")
+convert_app = typer.Typer(help="Turn a dataset into a sensact log folder.", no_args_is_help=True)
+evaluate_app = typer.Typer(help="Score a learned model against a dataset's ground truth.", no_args_is_help=True)
+app.add_typer(convert_app, name="convert")
+app.add_typer(evaluate_app, name="evaluate")
 
 # rich falls back to 80 columns when output is not a terminal; the result tables need more
 console = Console(width=None if sys.stdout.isatty() else 160)
@@ -315,20 +319,18 @@ def learn_em_cmd(
         f"best log-likelihood {res.loglik_best:.1f} at iteration {res.best_iteration}"
         + (f"; {res.n_pruned} observations pruned" if res.n_pruned else "")
     )
-    console.print("  " + m.sensor.height.describe("f"))
-    sb = m.sensor.sigma_bearing_rad
-    console.print(f"  sigma_1 = {m.sensor.sigma_height_px:.4g} px" + (f", sigma_2 = {sb:.4g} rad" if sb else ""))
-    t = Table(title="learned velocity of each action", title_justify="left")
-    for name in (*m.action.command_names, *m.action.velocity_names):
-        t.add_column(name)
-    for c, v in zip(m.action.commands, m.action.velocities, strict=True):
-        t.add_row(*(f"{x:.3g}" for x in c), *(f"{x:.4g}" for x in v))
-    console.print(t)
+    _print_em_model(m)
     evaluation = _evaluate_em(lf, m)
     if out is not None:
         write_json(
             out,
-            {"model": m.to_dict(), "summary": res.summary(), "log": data.source, "evaluation": evaluation},
+            {
+                "model": m.to_dict(),
+                "summary": res.summary(),
+                "log": data.source,
+                "dt_s": data.dt_s,
+                "evaluation": evaluation,
+            },
         )
         write_npz(
             out.with_suffix(".history.npz"),
@@ -407,12 +409,86 @@ def learn_car_cmd(
         console.print(f"wrote {calibration_yaml} (rot_correction = learned angle - 90°)")
 
 
+def _print_em_model(m: Any) -> None:
+    from sensact.models.action_table import ActionTable
+
+    for ch in m.sensor.channels:
+        console.print(f"  {ch.name}: " + ch.function.describe("f") + f", sigma = {ch.sigma:.4g}")
+    sb = m.sensor.sigma_bearing_rad
+    if sb:
+        console.print(f"  bearing sigma_2 = {sb:.4g} rad")
+    console.print("  Sigma_m (sd per step): " + "; ".join(", ".join(f"{x:.4g}" for x in row) for row in m.motion_sd))
+    a = m.action
+    if isinstance(a, ActionTable):
+        t = Table(title="learned velocity of each action", title_justify="left")
+        for name in (*a.command_names, *a.velocity_names):
+            t.add_column(name)
+        for c, v in zip(a.commands, a.velocities, strict=True):
+            t.add_row(*(f"{x:.3g}" for x in c), *(f"{x:.4g}" for x in v))
+    else:
+        from sensact.models.linear_action import feature_names
+
+        t = Table(title=f"learned A(c) = Phi(c) beta ({a.basis}; delay {a.delay_steps} steps)", title_justify="left")
+        t.add_column("feature")
+        for name in a.velocity_names:
+            t.add_column(name)
+        for fname, row in zip(feature_names(a.basis, a.degree, a.command_names), a.coefficients, strict=True):
+            t.add_row(fname, *(f"{x:.4g}" for x in row))
+    console.print(t)
+
+
+def _print_truth_score(sc: dict[str, Any]) -> None:
+    a, r, b = sc["action"], sc["range"], sc["bearing"]
+    t = Table(title=f"against ground truth ({sc['windows_scored']} windows of {sc['window_s']:.2g} s)")
+    for col in ("quantity", "learned", "From-Truth", "ratio / bar"):
+        t.add_column(col)
+    la, fa = a["learned"], a["from_truth"]
+    t.add_row(
+        "translation RMS (mm/s)",
+        f"{la['translation_rms_mm_s']:.1f}",
+        f"{fa['translation_rms_mm_s']:.1f}",
+        f"{a['ratio_translation']:.2f}",
+    )
+    t.add_row(
+        "rotation RMS (rad/s)",
+        f"{la['rotation_rms_rad_s']:.4f}",
+        f"{fa['rotation_rms_rad_s']:.4f}",
+        f"{a['ratio_rotation']:.2f}",
+    )
+    t.add_row("command delay (s)", f"{a['learned_delay_s']:.3f}", f"{a['from_truth_delay_s']:.3f}", "")
+    t.add_row(
+        "range residual RMS (mm)",
+        f"{r['learned_residual_rms_mm']:.1f}",
+        f"{r['from_truth_residual_rms_mm']:.1f}",
+        f"f gap {r['learned_vs_from_truth_rms_mm']:.1f} mm",
+    )
+    t.add_row(
+        "range sigma (mm)", f"{r['sigma_learned_mm']:.1f}", f"{r['sigma_truth_mm']:.1f}", f"{r['sigma_ratio']:.2f}"
+    )
+    t.add_row(
+        "bearing sigma (rad)", f"{b['sigma_learned_rad']:.4f}", f"{b['sigma_truth_rad']:.4f}", f"{b['sigma_ratio']:.2f}"
+    )
+    console.print(t)
+    if "bars" in sc:
+        console.print("bars: " + ", ".join(f"{k} {'pass' if v else 'FAIL'}" for k, v in sc["bars"].items()))
+
+
 def _evaluate_em(lf: Any, model: Any) -> dict[str, Any] | None:
     """Errors against the truth a simulated log carries (never used for learning)."""
+    import numpy as np
+
+    gt = lf.groundtruth
+    if gt is not None and lf.data.is_continuous and {"x_mm", "y_mm", "theta_rad"} <= set(gt):
+        from sensact.evaluate.landmark_truth import score_against_truth
+
+        poses = np.column_stack([gt["x_mm"], gt["y_mm"], gt["theta_rad"]])
+        valid = gt["valid"] > 0.5 if "valid" in gt else np.ones(len(poses), dtype=bool)
+        sc = score_against_truth(model, lf.data, poses, valid)
+        _print_truth_score(sc)
+        return sc
     truth = lf.meta.get("truth")
     if not truth:
         return None
-    import numpy as np
 
     if lf.data.geometry == "planar" and "velocities" in truth:
         from sensact.evaluate.em import score_planar
@@ -472,9 +548,71 @@ def _evaluate_log(data: Any, res: Any, cfg: Any) -> dict[str, Any] | None:
     return None
 
 
+# ---- convert and evaluate -------------------------------------------------------------------------------
+
+
+@convert_app.command("mrclam")
+@_friendly
+def convert_mrclam(
+    dataset: Annotated[Path, typer.Argument(help="An MRCLAM dataset folder, e.g. .../MRCLAM_Dataset6.")],
+    robot: Annotated[int, typer.Option(help="Robot 1-5.")] = 1,
+    out: Annotated[Path, typer.Option("--out", help="The log folder to write.")] = Path("mrclam_log"),
+    dt: Annotated[float, typer.Option(help="Step (s); commands are held between their rows.")] = 1.0 / 30.0,
+) -> None:
+    """Write one MRCLAM robot as an EM log folder: commands resampled with a zero-order hold, landmark
+    sightings only (range in mm and bearing), the landmark map, and Vicon in groundtruth.csv (for
+    `sensact learn em` to score against; it is never learned from)."""
+    from sensact.io.landmark_log import write_landmark_log
+    from sensact.io.mrclam import read_mrclam
+
+    ml = read_mrclam(dataset, robot, dt_s=dt)
+    console.print(ml.summary_line())
+    write_landmark_log(
+        out,
+        ml.data,
+        t0_s=0.0,
+        groundtruth=ml.groundtruth,
+        meta_extra={"source": {"dataset": str(dataset), "robot": robot, "t0_s": ml.t0_s, "rows": ml.summary}},
+    )
+    console.print(f"wrote {out}; learn with `sensact learn em {out} --config mrclam.yaml` (docs/em-real.md)")
+
+
+@evaluate_app.command("mrclam")
+@_friendly
+def evaluate_mrclam_cmd(
+    dataset: Annotated[Path, typer.Argument(help="An MRCLAM dataset folder, e.g. .../MRCLAM_Dataset6.")],
+    model: Annotated[Path, typer.Option("--model", help="A model.json written by `sensact learn em`.")],
+    robot: Annotated[int, typer.Option(help="Robot 1-5.")] = 1,
+    out: Annotated[Path | None, typer.Option("--out", help="Write the scores here (JSON).")] = None,
+) -> None:
+    """Score a learned continuous-command model against Vicon, next to From-Truth: the same model
+    families fitted directly to the ground truth."""
+    import json
+
+    import numpy as np
+
+    from sensact.errors import ModelFormatError
+    from sensact.evaluate.landmark_truth import score_against_truth
+    from sensact.io.atomic import write_json
+    from sensact.io.mrclam import read_mrclam
+    from sensact.models.em_model import EMModel
+
+    if not model.is_file():
+        raise ModelFormatError("file not found.", file=model, fix="give the model.json `sensact learn em` wrote.")
+    doc = json.loads(model.read_text())
+    m = EMModel.from_dict(doc.get("model", doc), source=str(model))
+    ml = read_mrclam(dataset, robot, dt_s=float(doc.get("dt_s", 1.0 / 30.0)))
+    gt = ml.groundtruth
+    sc = score_against_truth(m, ml.data, np.column_stack([gt["x_mm"], gt["y_mm"], gt["theta_rad"]]), gt["valid"] > 0)
+    _print_truth_score(sc)
+    if out is not None:
+        write_json(out, sc)
+        console.print(f"wrote {out}")
+
+
 # ---- reproduce ------------------------------------------------------------------------------------------
 
-EXPERIMENTS = ("track1d", "turtlebot", "field2d", "em1d", "car")
+EXPERIMENTS = ("track1d", "turtlebot", "field2d", "em1d", "car", "real")
 
 
 def _data_dir(data: Path | None) -> Path:
@@ -530,6 +668,28 @@ def reproduce(
         _reproduce_em1d(out, seed, set_, config)
     if "car" in todo:
         _reproduce_car(out, seed, set_, config)
+    if "real" in todo:
+        _reproduce_real(out, _data_dir(data), required=experiment == "real")
+
+
+def _reproduce_real(out: Path, root: Path, required: bool) -> None:
+    from sensact.experiments.real import run_real
+    from sensact.report import figures_real
+    from sensact.report.tables import real_tables
+
+    if not root.is_dir():
+        if required:
+            raise SensactError(
+                "real-data folder not found.", file=root, fix="pass --data DIR (holding mrclam/ and turtlebot1d/)."
+            )
+        console.print(f"skipping real: {root} not found (pass --data DIR to include it)")
+        return
+    with console.status("EM on real robots") as status:
+        res, art = run_real(root, progress=lambda msg: status.update(f"EM on real robots: {msg}"))
+    for line in res["skipped"]:
+        console.print(f"skipped {line}")
+    _write_results(out, "real", res, real_tables(res))
+    figures_real.write_all(art, res, out)
 
 
 def _reproduce_car(out: Path, seed: int, set_: list[str] | None, config: Path | None) -> None:

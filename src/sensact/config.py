@@ -30,6 +30,17 @@ def _coerce(value: Any, annotation: Any, name: str, source: str) -> Any:
     args = typing.get_args(annotation)
     if annotation is Any:
         return value
+    if dataclasses.is_dataclass(annotation) and isinstance(annotation, type):
+        if isinstance(value, annotation):
+            return value
+        if not isinstance(value, Mapping):
+            raise ConfigError(
+                f"expected a mapping of {annotation.__name__} fields, got {value!r}.",
+                file=source,
+                field=name,
+                fix="give a mapping such as {name: x, degree: 3}.",
+            )
+        return config_from_dict(annotation, value, source=f"{source}: {name}")
     if origin in (typing.Union, types.UnionType):
         if value is None and type(None) in args:
             return None

@@ -2,10 +2,14 @@
 
 One call runs, over ``T`` steps:
 
-* **forward (alpha):** the EKF of sec. 2.4. Each observation's channels (beacon height, then bearing)
-  are scalar measurement updates in Joseph form, so the covariance stays symmetric positive definite;
-  bearing innovations are wrapped to [-pi, pi). The log-likelihood ``log P(O | C, lambda)`` is summed
-  from the innovations (eq. 4.14). Frames without an observation get only the time update (eq. 2.28).
+* **forward (alpha):** the EKF of sec. 2.4. Each observation's channels (every reading channel
+  ``f_i(dist)``, then the bearing) are scalar measurement updates in Joseph form, so the covariance
+  stays symmetric positive definite; bearing innovations are wrapped to [-pi, pi). The forward pass also
+  decides, once, how much each reading counts: 0 when it is missing, outside its channel's distance
+  window or gated, the Student-t weight when the channel is robust, else 1. Every later pass reuses
+  those weights, so that alpha, beta and xi describe the same model. The log-likelihood
+  ``log P(O | C, lambda)`` is summed from the innovations (eq. 4.14). Frames without an observation
+  get only the time update (eq. 2.28).
 * **backward (beta, eq. 4.4)** in information form ``beta_t(w) ∝ exp(-e'Y e / 2 + z'e)``,
   ``e = w - mu_alpha,t``. It starts from ``Y = 0``: the thesis's "infinite covariance", exactly.
   Its linearizations use the forward means; the thesis's backward EKF would linearize at its own mean,
@@ -19,11 +23,18 @@ Exact for a linear-Gaussian model: the forward pass is then the Kalman filter, g
 marginals and xi the exact pairwise posterior (tests/test_estep.py checks all three against dense
 Gaussian conditioning).
 
+Robust channels (an extension beyond the thesis, ``docs/em-real.md``): a Student-t channel updates with
+variance ``r / w``, ``w = (nu + 1) / (nu + e^2 / S)`` from the innovation ``e`` and its variance ``S``,
+and adds the Student-t log density; a gated channel drops a reading beyond ``gate`` innovation sigmas
+and adds the Gaussian log density at the gate, so that the likelihood cannot grow by gating more.
+
 Angles inside the passes are not wrapped, so that theta is one continuous coordinate for the
 information-form algebra; only differences and innovations are wrapped.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from numba import njit
@@ -31,6 +42,7 @@ from numba import njit
 from sensact.core.angles import wrap
 from sensact.core.pose_models import (
     displacement,
+    landmark_range,
     motion_covariance,
     observe_bearing,
     observe_height,
@@ -49,6 +61,39 @@ from sensact.core.smallmat import (
 OK = 0
 NOT_POSITIVE_DEFINITE = 1
 SINGULAR = 2
+
+GAUSSIAN = 0
+STUDENT_T = 1
+GATE = 2
+
+
+@njit(cache=True)
+def _hph(P, H, n):
+    s = 0.0
+    for i in range(n):
+        for j in range(n):
+            s += H[i] * P[i, j] * H[j]
+    return s
+
+
+@njit(cache=True)
+def _reading_weight(kind, param, nu, S):
+    """How much a reading with innovation ``nu`` (variance ``S``) counts, and its log density."""
+    if kind == STUDENT_T:
+        q = nu * nu / S
+        w = (param + 1.0) / (param + q)
+        ld = (
+            math.lgamma(0.5 * (param + 1.0))
+            - math.lgamma(0.5 * param)
+            - 0.5 * np.log(param * np.pi * S)
+            - 0.5 * (param + 1.0) * np.log1p(q / param)
+        )
+        return w, ld
+    if kind == GATE:
+        q = nu * nu / S
+        if q > param * param:
+            return 0.0, -0.5 * (param * param + np.log(2.0 * np.pi * S))
+    return 1.0, -0.5 * (nu * nu / S + np.log(2.0 * np.pi * S))
 
 
 @njit(cache=True)
@@ -98,23 +143,27 @@ def _resolvent(A, B, w, Mx, RHS, n):
 def ekf_smoother(
     mode,
     dt,
-    actions,
-    velocities,
-    motion_var,
+    step_velocity,
+    step_motion_var,
     prior_mean,
     prior_cov,
     obs_ptr,
     obs_landmark,
-    obs_height,
+    obs_readings,
     obs_bearing,
     obs_use,
     landmarks,
-    coef,
-    center,
-    scale,
-    var_height,
+    coefs,
+    centers,
+    scales,
+    reading_var,
+    window_lo,
+    window_hi,
     var_bearing,
+    robust_kind,
+    robust_param,
     prune_rad_per_step,
+    weights,
     mu_a,
     P_a,
     mu_g,
@@ -125,8 +174,13 @@ def ekf_smoother(
     """Run the E-step passes; fill ``mu_a, P_a`` (alpha), ``mu_g, P_g`` (gamma) and ``d_mu, d_P``
     (mean and covariance of ``D(w_t, w_t+1)`` under xi). Returns ``(status, loglik, n_used)``.
 
-    ``actions[t]`` indexes ``velocities`` (a negative index means no motion). Observation rows
-    ``obs_ptr[t]:obs_ptr[t+1]`` belong to step ``t``; a NaN height or bearing is a missing channel.
+    ``step_velocity[t]`` and ``step_motion_var[t]`` (robot frame, diagonal) are the action model's mean
+    velocity and the motion noise from step ``t`` to ``t+1``. Observation rows ``obs_ptr[t]:obs_ptr[t+1]``
+    belong to step ``t``; reading channel ``c`` of row ``k`` is ``obs_readings[k, c]`` with the
+    polynomial ``coefs[c]`` in ``(d - centers[c]) / scales[c]``, variance ``reading_var[c]`` and
+    distance window ``[window_lo[c], window_hi[c]]``; a NaN reading or bearing is a missing channel.
+    ``robust_kind[c]``/``robust_param[c]`` pick each channel's likelihood (the last entry is the
+    bearing's). ``weights[k, c]`` receives each reading's weight (0 = not used).
     With ``prune_rad_per_step > 0`` an observation whose bearing innovation exceeds that times the
     steps since the previous observation is marked unused in ``obs_use`` (sec. 4.4.1).
     """
@@ -150,8 +204,11 @@ def ekf_smoother(
     last_obs = -1
 
     # ---------------- forward: alpha_t (eq. 4.3) and the likelihood (eq. 4.14)
+    C = obs_readings.shape[1]
     for t in range(T):
         for k in range(obs_ptr[t], obs_ptr[t + 1]):
+            for c in range(C + 1):
+                weights[k, c] = 0.0
             if not obs_use[k]:
                 continue
             lx = landmarks[obs_landmark[k], 0]
@@ -165,12 +222,23 @@ def ekf_smoother(
                     continue
             last_obs = t
             n_used += 1
-            if np.isfinite(obs_height[k]):
-                nu = obs_height[k] - observe_height(mode, m, lx, ly, coef, center, scale, H)
-                loglik += _scalar_update(m, P, H, nu, var_height, n, PH, K, A, tmp, tmp2)
+            dist = landmark_range(mode, m, lx, ly)  # the windows are judged once, at the prediction
+            for c in range(C):
+                if not np.isfinite(obs_readings[k, c]) or dist < window_lo[c] or dist > window_hi[c]:
+                    continue
+                nu = obs_readings[k, c] - observe_height(mode, m, lx, ly, coefs[c], centers[c], scales[c], H)
+                w, ld = _reading_weight(robust_kind[c], robust_param[c], nu, _hph(P, H, n) + reading_var[c])
+                loglik += ld
+                if w > 0.0:
+                    weights[k, c] = w
+                    _scalar_update(m, P, H, nu, reading_var[c] / w, n, PH, K, A, tmp, tmp2)
             if has_b:
                 nu = wrap(obs_bearing[k] - observe_bearing(m, lx, ly, H))
-                loglik += _scalar_update(m, P, H, nu, var_bearing, n, PH, K, A, tmp, tmp2)
+                w, ld = _reading_weight(robust_kind[C], robust_param[C], nu, _hph(P, H, n) + var_bearing)
+                loglik += ld
+                if w > 0.0:
+                    weights[k, C] = w
+                    _scalar_update(m, P, H, nu, var_bearing / w, n, PH, K, A, tmp, tmp2)
         for i in range(n):
             mu_a[t, i] = m[i]
             for j in range(n):
@@ -178,11 +246,10 @@ def ekf_smoother(
         if t == T - 1:
             break
         # time update (eqs. 2.20, 2.21 with the Jacobian of eq. 2.28)
-        c = actions[t]
         for i in range(n):
-            disp[i] = velocities[c, i] * dt if c >= 0 else 0.0
+            disp[i] = step_velocity[t, i] * dt
         predict(mode, m, disp, gm, F)
-        motion_covariance(mode, m[n - 1], motion_var, Q)
+        motion_covariance(mode, m[n - 1], step_motion_var[t], Q)
         add_sandwich(F, P, Q, tmp, n)  # Q <- F P F' + Q
         for i in range(n):
             m[i] = gm[i]
@@ -212,7 +279,7 @@ def ekf_smoother(
     G = np.zeros((n, n2))
     wbar1 = np.zeros(n)
     wbar2 = np.zeros(n)
-    r = np.zeros(n)
+    rv = np.zeros(n)
     mx1 = np.zeros(n)
     mx2 = np.zeros(n)
     Dm = np.zeros(n)
@@ -233,24 +300,24 @@ def ekf_smoother(
                 continue
             lx = landmarks[obs_landmark[k], 0]
             ly = landmarks[obs_landmark[k], 1]
-            if np.isfinite(obs_height[k]):
-                nu = obs_height[k] - observe_height(mode, mref, lx, ly, coef, center, scale, H)
+            for c in range(C + 1):
+                if weights[k, c] <= 0.0:
+                    continue
+                if c < C:
+                    nu = obs_readings[k, c] - observe_height(mode, mref, lx, ly, coefs[c], centers[c], scales[c], H)
+                    r = reading_var[c] / weights[k, c]
+                else:
+                    nu = wrap(obs_bearing[k] - observe_bearing(mref, lx, ly, H))
+                    r = var_bearing / weights[k, c]
                 for i in range(n):
-                    zd[i] += H[i] * nu / var_height
+                    zd[i] += H[i] * nu / r
                     for j in range(n):
-                        Yd[i, j] += H[i] * H[j] / var_height
-            if mode == 0 and np.isfinite(obs_bearing[k]):
-                nu = wrap(obs_bearing[k] - observe_bearing(mref, lx, ly, H))
-                for i in range(n):
-                    zd[i] += H[i] * nu / var_bearing
-                    for j in range(n):
-                        Yd[i, j] += H[i] * H[j] / var_bearing
+                        Yd[i, j] += H[i] * H[j] / r
         # backward time update through w_t+1 = g(w_t) + q, linearized at mu_alpha,t
-        c = actions[t]
         for i in range(n):
-            disp[i] = velocities[c, i] * dt if c >= 0 else 0.0
+            disp[i] = step_velocity[t, i] * dt
         predict(mode, mu_a[t], disp, gm, F)
-        motion_covariance(mode, mu_a[t, n - 1], motion_var, Q)
+        motion_covariance(mode, mu_a[t, n - 1], step_motion_var[t], Q)
         for i in range(n):
             b[i] = gm[i] - mu_a[t + 1, i]
         # J = (I + Yd Q)^-1 Yd, j = (I + Yd Q)^-1 zd
@@ -316,16 +383,16 @@ def ekf_smoother(
                 s = wrap(s)
             for j in range(n):
                 s += G[i, j] * (wbar1[j] - mu_a[t, j]) + G[i, n + j] * (wbar2[j] - mu_a[t + 1, j])
-            r[i] = s / motion_var[i]
+            rv[i] = s / step_motion_var[t, i]
         for i in range(n2):
             s = 0.0
             for k in range(n):
-                s += G[k, i] * r[k]
+                s += G[k, i] * rv[k]
             eta[i] += s
             for j in range(n2):
                 s = 0.0
                 for k in range(n):
-                    s += G[k, i] * G[k, j] / motion_var[k]
+                    s += G[k, i] * G[k, j] / step_motion_var[t, k]
                 Lam[i, j] += s
         if not cholesky(Lam, L2, n2):
             return NOT_POSITIVE_DEFINITE, loglik, n_used

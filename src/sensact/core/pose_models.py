@@ -156,6 +156,14 @@ def displacement(mode, w1, w2, D, G):
 
 
 @njit(cache=True)
+def landmark_range(mode, w, lx, ly):
+    """Distance from the state ``w`` to the landmark (on a track, the state itself)."""
+    if mode == TRACK:
+        return w[0]
+    return ((lx - w[0]) ** 2 + (ly - w[1]) ** 2) ** 0.5
+
+
+@njit(cache=True)
 def observe_height(mode, w, lx, ly, coef, center, scale, H):
     """Predicted beacon height ``f(dist(w))`` and its gradient ``H`` (eq. 4.19, first component)."""
     if mode == TRACK:

@@ -2,10 +2,12 @@
 
 Two kinds of folder are understood:
 
-* **planar** (``meta.json`` has ``"geometry": "planar"``, as ``sensact simulate field2d`` writes): a fixed
-  step ``dt_s``; ``actions.csv`` holds ``t_s`` and an action index into ``meta.actions.table``;
-  ``observations.csv`` holds ``t_s``, a landmark id from ``meta.landmarks``, the beacon height and
-  (optionally) the bearing, under the column names ``meta.observations`` gives.
+* **landmark logs** (``meta.json`` has ``"geometry": "planar"`` or ``"track"``, as ``sensact simulate
+  field2d`` and ``sensact convert mrclam`` write): a fixed step ``dt_s``; ``actions.csv`` holds ``t_s``
+  and either an action index into ``meta.actions.table`` or, with ``meta.actions.columns``, continuous
+  command columns (held until the next row); ``observations.csv`` holds ``t_s``, a landmark id from
+  ``meta.landmarks``, one column per reading channel (``meta.observations.readings``, or the single
+  ``height``) and optionally the bearing, under the column names ``meta.observations`` gives.
 * **track** (``"platform": "track1d"``, as ``sensact simulate track1d`` writes): commands are numbers. When
   there are few distinct commands each becomes one action; otherwise they are binned into
   ``command_bins`` equal-width actions (EM learns a velocity per action, sec. 4.4.3).
@@ -23,7 +25,7 @@ import numpy as np
 
 from sensact.errors import LogFormatError
 from sensact.io.csvtable import read_numeric_csv
-from sensact.io.logfolder import read_meta, read_track_log
+from sensact.io.logfolder import read_meta, read_track_log, write_log_folder
 from sensact.logs.landmark_log import LandmarkLog
 
 MAX_DISTINCT_COMMANDS = 64
@@ -50,27 +52,13 @@ def _steps(t: np.ndarray, t0: float, dt: float, path: Path, what: str) -> np.nda
     return k.astype(np.int64)
 
 
-def _planar(path: Path, meta: dict[str, Any]) -> LandmarkLogFile:
-    mpath = path / "meta.json"
-    try:
-        dt = float(meta["dt_s"])
-        act = meta["actions"]
-        table = np.asarray(act["table"], dtype=float)
-        names = tuple(act.get("names") or [f"c{j}" for j in range(table.shape[1])])
-        marks = meta["landmarks"]
-        ids = [int(m["id"]) for m in marks]
-        xy = np.array([[float(m["x_mm"]), float(m["y_mm"])] for m in marks])
-        cols = meta.get("observations", {})
-    except (KeyError, TypeError, ValueError, IndexError) as exc:
-        raise LogFormatError(
-            f"a planar log needs dt_s, actions.table and landmarks ({exc!r} is missing or malformed).",
-            file=mpath,
-            field=str(exc).strip("'"),
-            fix='see docs/commands.md, "Log folders for EM"; `sensact simulate field2d --out DIR` writes an example.',
-        ) from None
-    a_col = act.get("column", "action_id")
-    lm_col, h_col, b_col = cols.get("landmark", "landmark_id"), cols.get("height", "height_px"), cols.get("bearing")
-    actions = read_numeric_csv(path / "actions.csv", ["t_s", a_col], what="actions.csv")
+def _commands_on_grid(
+    path: Path, act: dict[str, Any], dt: float, n_table: int
+) -> tuple[np.ndarray, np.ndarray | None, float, int]:
+    """Action indices (discrete) or command rows (continuous) on the step grid, held until the next row."""
+    continuous = "columns" in act
+    cols = list(act["columns"]) if continuous else [act.get("column", "action_id")]
+    actions = read_numeric_csv(path / "actions.csv", ["t_s", *cols], what="actions.csv")
     t_a = actions["t_s"]
     if np.any(np.diff(t_a) <= 0):
         raise LogFormatError(
@@ -78,26 +66,67 @@ def _planar(path: Path, meta: dict[str, Any]) -> LandmarkLogFile:
         )
     steps_a = _steps(t_a, t_a[0], dt, path, "actions.csv")
     T = int(steps_a[-1]) + 1
-    a_ids = actions[a_col]
-    if np.any(~np.isfinite(a_ids)) or np.any((a_ids < 0) | (a_ids >= len(table))) or np.any(a_ids != np.rint(a_ids)):
-        bad = int(
-            np.flatnonzero(~np.isfinite(a_ids) | (a_ids < 0) | (a_ids >= len(table)) | (a_ids != np.rint(a_ids)))[0]
-        )
+    filled = np.zeros(T, dtype=bool)
+    filled[steps_a] = True
+    last = np.maximum.accumulate(np.where(filled, np.arange(T), 0))  # zero-order hold between rows
+    rows = np.searchsorted(steps_a, last)
+    if continuous:
+        values = np.column_stack([actions[c] for c in cols])
+        bad = np.flatnonzero(~np.all(np.isfinite(values), axis=1))
+        if bad.size:
+            raise LogFormatError(
+                f"row {bad[0] + 2}: a command is empty or not finite.",
+                file=path / "actions.csv",
+                field=cols[int(np.flatnonzero(~np.isfinite(values[bad[0]]))[0])],
+                fix="every row needs a value in each command column.",
+            )
+        return np.full(T, -1, dtype=np.int64), values[rows], float(t_a[0]), T
+    a_ids = actions[cols[0]]
+    wrong = ~np.isfinite(a_ids) | (a_ids < 0) | (a_ids >= n_table) | (a_ids != np.rint(a_ids))
+    if wrong.any():
+        bad = int(np.flatnonzero(wrong)[0])
         raise LogFormatError(
-            f"row {bad + 2}: {a_ids[bad]} is not an action index 0..{len(table) - 1}.",
+            f"row {bad + 2}: {a_ids[bad]} is not an action index 0..{n_table - 1}.",
             file=path / "actions.csv",
-            field=a_col,
+            field=cols[0],
             fix="each row's action must index meta.json's actions.table.",
         )
-    act_grid = np.full(T, -1, dtype=np.int64)
-    act_grid[steps_a] = a_ids.astype(np.int64)
-    last = np.maximum.accumulate(np.where(act_grid >= 0, np.arange(T), 0))  # zero-order hold between rows
-    act_grid = act_grid[last]
-    need = ["t_s", lm_col, h_col] + ([b_col] if b_col else [])
+    return a_ids.astype(np.int64)[rows], None, float(t_a[0]), T
+
+
+def _planar(path: Path, meta: dict[str, Any]) -> LandmarkLogFile:
+    """A landmark log folder (planar, or a track declared with ``"geometry": "track"``)."""
+    mpath = path / "meta.json"
+    geometry = meta.get("geometry", "planar")
+    try:
+        dt = float(meta["dt_s"])
+        act = meta["actions"]
+        if "columns" in act:
+            table = np.zeros((0, len(act["columns"])))
+            names = tuple(str(c) for c in act["columns"])
+        else:
+            table = np.asarray(act["table"], dtype=float)
+            names = tuple(act.get("names") or [f"c{j}" for j in range(table.shape[1])])
+        marks = meta["landmarks"] if geometry == "planar" else meta.get("landmarks", [{"id": 0, "x_mm": 0, "y_mm": 0}])
+        ids = [int(m["id"]) for m in marks]
+        xy = np.array([[float(m["x_mm"]), float(m["y_mm"])] for m in marks])
+        cols = meta.get("observations", {})
+    except (KeyError, TypeError, ValueError, IndexError) as exc:
+        raise LogFormatError(
+            "a landmark log needs dt_s, actions (a table or command columns) and landmarks "
+            f"({exc!r} is missing or malformed).",
+            file=mpath,
+            field=str(exc).strip("'"),
+            fix='see docs/commands.md, "Log folders for EM"; `sensact simulate field2d --out DIR` writes an example.',
+        ) from None
+    act_grid, cmd_grid, t0, T = _commands_on_grid(path, act, dt, len(table))
+    lm_col, b_col = cols.get("landmark", "landmark_id"), cols.get("bearing")
+    readings = list(cols.get("readings") or [cols.get("height", "height_px")])
+    need = ["t_s", *readings] + ([b_col] if b_col else []) + ([lm_col] if geometry == "planar" else [])
     obs = read_numeric_csv(path / "observations.csv", need, what="observations.csv")
-    steps_o = _steps(obs["t_s"], t_a[0], dt, path, "observations.csv")
+    steps_o = _steps(obs["t_s"], t0, dt, path, "observations.csv")
     keep = (steps_o >= 0) & (steps_o < T)
-    lm_raw = obs[lm_col]
+    lm_raw = obs[lm_col] if lm_col in obs else np.full(steps_o.size, float(ids[0]))
     id_to_row = {v: j for j, v in enumerate(ids)}
     unknown = [x for x in np.unique(lm_raw[keep]) if x not in id_to_row]
     if unknown:
@@ -109,23 +138,25 @@ def _planar(path: Path, meta: dict[str, Any]) -> LandmarkLogFile:
         )
     order = np.argsort(steps_o[keep], kind="stable")
     data = LandmarkLog(
-        "planar",
+        geometry,
         dt,
         act_grid,
         table,
         names,
         steps_o[keep][order],
         np.array([id_to_row[x] for x in lm_raw[keep][order]], dtype=np.int64),
-        obs[h_col][keep][order],
+        np.column_stack([obs[r][keep][order] for r in readings]),
         obs[b_col][keep][order] if b_col else np.full(int(keep.sum()), np.nan),
         xy,
         tuple(str(m.get("name", m["id"])) for m in marks),
         str(path),
+        tuple(readings),
+        cmd_grid,
     )
     gt = None
     if (path / "groundtruth.csv").is_file():
         g = read_numeric_csv(path / "groundtruth.csv", ["t_s"], what="groundtruth.csv")
-        gt = {k: np.interp(np.arange(T) * dt + t_a[0], g["t_s"], v) for k, v in g.items() if k != "t_s"}
+        gt = {k: np.interp(np.arange(T) * dt + t0, g["t_s"], v) for k, v in g.items() if k != "t_s"}
     return LandmarkLogFile(data, meta, gt)
 
 
@@ -164,7 +195,7 @@ def read_landmark_log(path: str | Path, *, command_bins: int = 21) -> LandmarkLo
             "EM reads a log folder.", file=path, fix="give a folder with meta.json, actions.csv and observations.csv."
         )
     meta = read_meta(path)
-    if meta.get("geometry") == "planar" or meta.get("platform") == "field2d":
+    if meta.get("geometry") in ("planar", "track") or meta.get("platform") == "field2d":
         return _planar(path, meta)
     if meta.get("platform") == "track1d" or "action" in meta:
         return _track(path, command_bins)
@@ -174,3 +205,47 @@ def read_landmark_log(path: str | Path, *, command_bins: int = 21) -> LandmarkLo
         field="geometry",
         fix='add "geometry": "planar" with actions.table and landmarks (docs/commands.md).',
     )
+
+
+def write_landmark_log(
+    folder: str | Path,
+    data: LandmarkLog,
+    *,
+    t0_s: float = 0.0,
+    groundtruth: dict[str, np.ndarray] | None = None,
+    meta_extra: dict[str, Any] | None = None,
+) -> Path:
+    """Write ``data`` as a landmark log folder that ``read_landmark_log`` reads back exactly.
+
+    ``groundtruth`` columns (on the step grid) go to groundtruth.csv, for evaluation only.
+    """
+    times = t0_s + np.arange(data.n_steps) * data.dt_s
+    if data.is_continuous:
+        act_meta: dict[str, Any] = {
+            "columns": list(data.command_names),
+            "meaning": "continuous commands, in force until the next row",
+        }
+        actions = {"t_s": times, **{c: data.step_commands[:, j] for j, c in enumerate(data.command_names)}}
+    else:
+        act_meta = {"column": "action_id", "names": list(data.command_names), "table": data.action_commands.tolist()}
+        actions = {"t_s": times, "action_id": data.actions.astype(float)}
+    obs: dict[str, np.ndarray] = {"t_s": times[data.obs_step], "landmark_id": data.obs_landmark.astype(float)}
+    obs.update({r: data.obs_readings[:, j] for j, r in enumerate(data.reading_names)})
+    cols: dict[str, Any] = {"landmark": "landmark_id", "readings": list(data.reading_names)}
+    if data.geometry == "planar":
+        obs["bearing_rad"] = data.obs_bearing_rad
+        cols["bearing"] = "bearing_rad"
+    names = data.landmark_names or tuple(str(j) for j in range(len(data.landmarks_xy)))
+    meta = {
+        "geometry": data.geometry,
+        "dt_s": data.dt_s,
+        "actions": act_meta,
+        "landmarks": [
+            {"id": j, "name": name, "x_mm": float(x), "y_mm": float(y)}
+            for j, (name, (x, y)) in enumerate(zip(names, data.landmarks_xy, strict=True))
+        ],
+        "observations": cols,
+        **(meta_extra or {}),
+    }
+    gt = None if groundtruth is None else {"t_s": times, **groundtruth}
+    return write_log_folder(folder, meta=meta, actions=actions, observations=obs, groundtruth=gt)

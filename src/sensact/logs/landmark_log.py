@@ -1,7 +1,9 @@
 """An in-memory log of a robot among known landmarks: what EM learns from (sec. 4.1).
 
-``actions[t]`` is the discrete action in force from step ``t`` to ``t+1``; each observation row names its
-step, its landmark, the beacon height and (planar only) the bearing. ``sensact.io.landmark_log`` reads
+``actions[t]`` is the discrete action in force from step ``t`` to ``t+1``; a robot driven by continuous
+commands has ``step_commands[t]`` instead (and ``actions`` all -1). Each observation row names its step,
+its landmark, one value per reading channel (the thesis's single channel is the beacon height; NaN when
+a channel did not read) and, planar only, the bearing. ``sensact.io.landmark_log`` reads
 it from a log folder; simulators and experiments build it directly.
 """
 
@@ -18,16 +20,18 @@ from sensact.core.pose_models import PLANAR, TRACK
 class LandmarkLog:
     geometry: str  # "planar" or "track"
     dt_s: float
-    actions: np.ndarray  # (T,) int, index into action_commands; -1 = no motion
-    action_commands: np.ndarray  # (A, k) attempted command of each action
+    actions: np.ndarray  # (T,) int, index into action_commands; -1 = no discrete action
+    action_commands: np.ndarray  # (A, k) attempted command of each action; (0, k) for continuous logs
     command_names: tuple[str, ...]
     obs_step: np.ndarray  # (K,) int, non-decreasing
     obs_landmark: np.ndarray  # (K,) int, index into landmarks_xy
-    obs_height_px: np.ndarray  # (K,)
+    obs_readings: np.ndarray  # (K, C) or (K,) for one channel (the beacon height)
     obs_bearing_rad: np.ndarray  # (K,) NaN when not measured
     landmarks_xy: np.ndarray  # (L, 2); unused on a track
     landmark_names: tuple[str, ...] = ()
     source: str = ""
+    reading_names: tuple[str, ...] = ("height_px",)
+    step_commands: np.ndarray | None = None  # (T, k) continuous commands; None = action_commands[actions]
     obs_ptr: np.ndarray = field(init=False)
 
     def __post_init__(self) -> None:
@@ -38,13 +42,20 @@ class LandmarkLog:
             "obs_step": np.int64,
             "obs_landmark": np.int64,
             "action_commands": float,
-            "obs_height_px": float,
+            "obs_readings": float,
             "obs_bearing_rad": float,
             "landmarks_xy": float,
         }
         for name, dtype in conv.items():
             object.__setattr__(self, name, np.ascontiguousarray(getattr(self, name), dtype=dtype))
-        object.__setattr__(self, "action_commands", np.atleast_2d(self.action_commands))
+        if self.action_commands.ndim == 1:
+            object.__setattr__(self, "action_commands", self.action_commands.reshape(-1, len(self.command_names)))
+        if self.obs_readings.ndim == 1:
+            object.__setattr__(self, "obs_readings", self.obs_readings.reshape(-1, 1))
+        object.__setattr__(self, "reading_names", tuple(self.reading_names))
+        if self.step_commands is not None:
+            sc = np.ascontiguousarray(self.step_commands, dtype=float)
+            object.__setattr__(self, "step_commands", sc.reshape(len(self.actions), -1))
         object.__setattr__(self, "landmarks_xy", self.landmarks_xy.reshape(-1, 2))
         T, K = self.actions.size, self.obs_step.size
         problems = []
@@ -54,9 +65,20 @@ class LandmarkLog:
             problems.append("dt_s must be > 0")
         if self.actions.max(initial=-1) >= len(self.action_commands):
             problems.append("an action index is past the action list")
-        for name in ("obs_landmark", "obs_height_px", "obs_bearing_rad"):
+        for name in ("obs_landmark", "obs_bearing_rad"):
             if getattr(self, name).shape != (K,):
                 problems.append(f"{name} needs one entry per observation")
+        if self.obs_readings.shape != (K, len(self.reading_names)):
+            problems.append("obs_readings needs one row per observation and one column per reading name")
+        if self.action_commands.shape[1] != len(self.command_names):
+            problems.append("one command name per command column")
+        if self.step_commands is not None:
+            if self.step_commands.shape[1] != len(self.command_names):
+                problems.append("step_commands needs one column per command name")
+            if not np.all(np.isfinite(self.step_commands)):
+                problems.append("step_commands must be finite")
+        elif self.n_actions == 0:
+            problems.append("a log without discrete actions needs step_commands")
         if K and (self.obs_step.min() < 0 or self.obs_step.max() >= T or np.any(np.diff(self.obs_step) < 0)):
             problems.append("obs_step must be sorted step indices within the log")
         if K and (self.obs_landmark.min() < 0 or self.obs_landmark.max() >= max(1, len(self.landmarks_xy))):
@@ -98,6 +120,28 @@ class LandmarkLog:
         return PLANAR if self.geometry == "planar" else TRACK
 
     @property
+    def obs_height_px(self) -> np.ndarray:
+        """The first reading channel: the thesis's beacon height."""
+        return self.obs_readings[:, 0]
+
+    @property
+    def n_channels(self) -> int:
+        return self.obs_readings.shape[1]
+
+    @property
+    def is_continuous(self) -> bool:
+        return self.step_commands is not None
+
+    def commands_per_step(self) -> np.ndarray:
+        """``(T, k)``: the command in force at each step (NaN where no action ran)."""
+        if self.step_commands is not None:
+            return self.step_commands
+        out = np.full((self.n_steps, len(self.command_names)), np.nan)
+        ok = self.actions >= 0
+        out[ok] = self.action_commands[self.actions[ok]]
+        return out
+
+    @property
     def n_steps(self) -> int:
         return int(self.actions.size)
 
@@ -124,9 +168,11 @@ class LandmarkLog:
             self.command_names,
             self.obs_step[keep] - start,
             self.obs_landmark[keep],
-            self.obs_height_px[keep],
+            self.obs_readings[keep],
             self.obs_bearing_rad[keep],
             self.landmarks_xy,
             self.landmark_names,
             f"{self.source}[{start}:{stop}]",
+            self.reading_names,
+            None if self.step_commands is None else self.step_commands[start:stop],
         )

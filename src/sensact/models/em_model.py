@@ -1,5 +1,10 @@
-"""Everything chapter 4's EM learns, ``lambda`` (sec. 4.1): action table, sensor model and the prior
-``pi(w_0)`` over the first state."""
+"""Everything chapter 4's EM learns, ``lambda`` (sec. 4.1): action model, sensor model, the prior
+``pi(w_0)`` over the first state and the motion noise ``Sigma_m``.
+
+The thesis holds ``Sigma_m`` fixed; here it is part of the model so that it can be learned (the future
+work of sec. 4.4.1). ``motion_sd`` has one row (shared) or one row per action (per-action noise), each
+the robot-frame standard deviations per time step.
+"""
 
 from __future__ import annotations
 
@@ -11,17 +16,28 @@ import numpy as np
 from sensact.errors import ModelFormatError
 from sensact.models.action_table import ActionTable
 from sensact.models.landmark_sensor import LandmarkSensor
+from sensact.models.linear_action import LinearActionModel
 
 Geometry = Literal["planar", "track"]
+ActionModel = ActionTable | LinearActionModel
+# the thesis's fixed Sigma_m per step (sec. 4.4.1: 10 mm, 10 mm, 0.1 rad)
+THESIS_MOTION_SD = {"planar": (10.0, 10.0, 0.1), "track": (10.0,)}
+
+
+def action_from_dict(data: dict[str, Any], *, source: str) -> ActionModel:
+    if isinstance(data, dict) and data.get("kind") == "linear_action_model":
+        return LinearActionModel.from_dict(data, source=source)
+    return ActionTable.from_dict(data, source=source)
 
 
 @dataclass(frozen=True, eq=False)
 class EMModel:
     geometry: Geometry  # "planar": w = (x, y, theta); "track": w = distance to the beacon
-    action: ActionTable
+    action: ActionModel
     sensor: LandmarkSensor
     prior_mean: np.ndarray  # (n,)
     prior_cov: np.ndarray  # (n, n)
+    motion_sd: np.ndarray | None = None  # (1, n) shared or (A, n) per action; None = the thesis's
 
     def __post_init__(self) -> None:
         n = 3 if self.geometry == "planar" else 1
@@ -29,11 +45,22 @@ class EMModel:
         P = np.asarray(self.prior_cov, dtype=float).reshape(n, n)
         object.__setattr__(self, "prior_mean", m)
         object.__setattr__(self, "prior_cov", P)
-        if self.action.velocities.shape[1] != n:
+        if len(self.action.velocity_names) != n:
             raise ValueError(f"a {self.geometry} model needs {n} velocity components per action")
+        sd = THESIS_MOTION_SD[self.geometry] if self.motion_sd is None else self.motion_sd
+        sd = np.atleast_2d(np.asarray(sd, dtype=float))
+        if sd.shape[1] != n or not np.all(sd > 0):
+            raise ValueError(f"motion_sd needs rows of {n} positive standard deviations")
+        if sd.shape[0] != 1 and not (isinstance(self.action, ActionTable) and sd.shape[0] == self.action.n_actions):
+            raise ValueError("motion_sd needs one row (shared) or one row per action of the table")
+        object.__setattr__(self, "motion_sd", sd)
+
+    @property
+    def per_action_noise(self) -> bool:
+        return self.motion_sd.shape[0] > 1
 
     def replace(self, **changes: Any) -> EMModel:
-        fields = {k: getattr(self, k) for k in ("geometry", "action", "sensor", "prior_mean", "prior_cov")}
+        fields = {k: getattr(self, k) for k in ("geometry", "action", "sensor", "prior_mean", "prior_cov", "motion_sd")}
         fields.update(changes)
         return EMModel(**fields)
 
@@ -45,6 +72,7 @@ class EMModel:
             "sensor": self.sensor.to_dict(),
             "prior_mean": self.prior_mean.tolist(),
             "prior_cov": self.prior_cov.tolist(),
+            "motion_sd": self.motion_sd.tolist(),
         }
 
     @classmethod
@@ -56,10 +84,11 @@ class EMModel:
         try:
             return cls(
                 data["geometry"],
-                ActionTable.from_dict(data["action"], source=source),
+                action_from_dict(data["action"], source=source),
                 LandmarkSensor.from_dict(data["sensor"], source=source),
                 np.asarray(data["prior_mean"], dtype=float),
                 np.asarray(data["prior_cov"], dtype=float),
+                None if data.get("motion_sd") is None else np.asarray(data["motion_sd"], dtype=float),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise ModelFormatError(

@@ -1,33 +1,114 @@
-"""The landmark sensor model of eq. 4.19: beacon height ``f(dist) + N(0, sigma_1^2)`` and bearing
-``ang + N(0, sigma_2^2)``."""
+"""The landmark sensor model of eq. 4.19, with several reading channels.
+
+The thesis has one reading, the beacon height ``f(dist) + N(0, sigma_1^2)``, and the bearing
+``ang + N(0, sigma_2^2)``. A real robot may carry several range-like sensors: each is a
+``ReadingChannel`` with its own polynomial ``f_i(dist)``, its own ``sigma_i``, a distance window outside
+which its readings say nothing (an IR sensor's curve folds back below its minimum range), and a choice
+of likelihood for outliers. Channel 0 of a one-channel sensor is the thesis's model exactly.
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, replace
 from typing import Any
 
 from sensact.errors import ModelFormatError
 from sensact.models.polynomial import Polynomial1D
 
+ROBUST_KINDS = ("none", "student_t", "gate")
+
+
+def check_robust(kind: str, param: float, what: str) -> None:
+    if kind not in ROBUST_KINDS:
+        raise ValueError(f"{what}: robust must be one of {ROBUST_KINDS}, not {kind!r}")
+    if kind != "none" and not param > 0:
+        raise ValueError(f"{what}: robust_param (Student-t degrees of freedom or gate in sigmas) must be > 0")
+
+
+@dataclass(frozen=True)
+class ReadingChannel:
+    name: str
+    function: Polynomial1D  # f_i: distance -> reading
+    sigma: float
+    valid_min: float = -math.inf  # the reading is used only while the predicted distance is in this window
+    valid_max: float = math.inf
+    robust: str = "none"  # "none" (Gaussian, the thesis), "student_t" or "gate"
+    robust_param: float = 0.0  # degrees of freedom, or the gate in innovation sigmas
+
+    def __post_init__(self) -> None:
+        if not self.sigma > 0:
+            raise ValueError(f"channel {self.name}: sigma must be > 0")
+        if not self.valid_min < self.valid_max:
+            raise ValueError(f"channel {self.name}: valid_min must be below valid_max")
+        check_robust(self.robust, self.robust_param, f"channel {self.name}")
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "name": self.name,
+            "function": self.function.to_dict(),
+            "sigma": self.sigma,
+            "valid_min": self.valid_min if math.isfinite(self.valid_min) else None,
+            "valid_max": self.valid_max if math.isfinite(self.valid_max) else None,
+            "robust": self.robust,
+            "robust_param": self.robust_param,
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any], *, source: str = "model") -> ReadingChannel:
+        lo, hi = data.get("valid_min"), data.get("valid_max")
+        return cls(
+            str(data["name"]),
+            Polynomial1D.from_dict(data["function"], source=source),
+            float(data["sigma"]),
+            -math.inf if lo is None else float(lo),
+            math.inf if hi is None else float(hi),
+            str(data.get("robust", "none")),
+            float(data.get("robust_param", 0.0)),
+        )
+
 
 @dataclass(frozen=True)
 class LandmarkSensor:
-    height: Polynomial1D  # f: distance -> beacon height in px
-    sigma_height_px: float
+    channels: tuple[ReadingChannel, ...]
     sigma_bearing_rad: float | None = None  # None when the sensor reports no bearing (1-D)
+    bearing_robust: str = "none"
+    bearing_robust_param: float = 0.0
 
     def __post_init__(self) -> None:
-        if not self.sigma_height_px > 0:
-            raise ValueError("sigma_height_px must be > 0")
+        object.__setattr__(self, "channels", tuple(self.channels))
+        if not self.channels:
+            raise ValueError("a landmark sensor needs at least one reading channel")
         if self.sigma_bearing_rad is not None and not self.sigma_bearing_rad > 0:
             raise ValueError("sigma_bearing_rad must be > 0")
+        check_robust(self.bearing_robust, self.bearing_robust_param, "bearing")
+
+    @classmethod
+    def single(cls, height: Polynomial1D, sigma_height_px: float, sigma_bearing_rad: float | None = None):
+        """The thesis's sensor (eq. 4.19): one beacon-height channel and, in 2-D, the bearing."""
+        return cls((ReadingChannel("height_px", height, sigma_height_px),), sigma_bearing_rad)
+
+    @property
+    def height(self) -> Polynomial1D:
+        """f of the first channel (the thesis's beacon height)."""
+        return self.channels[0].function
+
+    @property
+    def sigma_height_px(self) -> float:
+        return self.channels[0].sigma
+
+    def with_fits(self, fits: list[tuple[Polynomial1D, float]], sigma_bearing_rad: float | None) -> LandmarkSensor:
+        """The same channels with new functions and sigmas (the M-step's output)."""
+        chans = tuple(replace(ch, function=f, sigma=s) for ch, (f, s) in zip(self.channels, fits, strict=True))
+        return replace(self, channels=chans, sigma_bearing_rad=sigma_bearing_rad)
 
     def to_dict(self) -> dict[str, Any]:
         return {
             "kind": "landmark_sensor",
-            "height": self.height.to_dict(),
-            "sigma_height_px": self.sigma_height_px,
+            "channels": [c.to_dict() for c in self.channels],
             "sigma_bearing_rad": self.sigma_bearing_rad,
+            "bearing_robust": self.bearing_robust,
+            "bearing_robust_param": self.bearing_robust_param,
         }
 
     @classmethod
@@ -38,12 +119,21 @@ class LandmarkSensor:
             )
         try:
             sb = data.get("sigma_bearing_rad")
+            sb = None if sb is None else float(sb)
+            if "channels" not in data:  # written before channels existed: the thesis's one height channel
+                return cls.single(
+                    Polynomial1D.from_dict(data["height"], source=source), float(data["sigma_height_px"]), sb
+                )
             return cls(
-                Polynomial1D.from_dict(data["height"], source=source),
-                float(data["sigma_height_px"]),
-                None if sb is None else float(sb),
+                tuple(ReadingChannel.from_dict(c, source=source) for c in data["channels"]),
+                sb,
+                str(data.get("bearing_robust", "none")),
+                float(data.get("bearing_robust_param", 0.0)),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise ModelFormatError(
-                f"bad landmark sensor ({exc}).", file=source, field="sigma_height_px", fix="sigmas must be > 0."
+                f"bad landmark sensor ({exc}).",
+                file=source,
+                field="channels",
+                fix="rewrite it with `sensact learn em`.",
             ) from None

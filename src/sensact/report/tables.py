@@ -260,3 +260,57 @@ def to_markdown(tables: list[Table]) -> str:
         out.extend("| " + " | ".join(r) + " |" for r in rows)
         out.append("")
     return "\n".join(out)
+
+
+def real_tables(res: dict[str, Any]) -> list[Table]:
+    """MRCLAM robots (learned against From-Truth) and the Turtlebot (EM beside chapter 3)."""
+    tables: list[Table] = []
+    rows = []
+    for name, r in res.get("mrclam", {}).items():
+        a, rg, b = r["score"]["action"], r["score"]["range"], r["score"]["bearing"]
+        la, fa = a["learned"], a["from_truth"]
+        rows.append(
+            [
+                name,
+                f"{la['translation_rms_mm_s']:.1f} / {fa['translation_rms_mm_s']:.1f} ({a['ratio_translation']:.2f})",
+                f"{la['rotation_rms_rad_s']:.4f} / {fa['rotation_rms_rad_s']:.4f} ({a['ratio_rotation']:.2f})",
+                f"{rg['learned_residual_rms_mm']:.0f} / {rg['from_truth_residual_rms_mm']:.0f}",
+                f"{rg['sigma_learned_mm']:.0f} / {rg['sigma_truth_mm']:.0f} ({rg['sigma_ratio']:.2f})",
+                f"{b['sigma_learned_rad']:.4f} / {b['sigma_truth_rad']:.4f} ({b['sigma_ratio']:.2f})",
+                ", ".join(k for k, v in r["score"]["bars"].items() if not v) or "all pass",
+            ]
+        )
+    if rows:
+        tables.append(
+            (
+                "MRCLAM Dataset 6: learned / From-Truth (ratio)",
+                [
+                    "robot",
+                    "translation RMS mm/s",
+                    "rotation RMS rad/s",
+                    "range residual RMS mm",
+                    "range sigma mm",
+                    "bearing sigma rad",
+                    "bars failed",
+                ],
+                rows,
+            )
+        )
+    tb = res.get("turtlebot")
+    if tb:
+        sc, ch3 = tb["score"], tb.get("chapter3_sonar1", {})
+        trows = [
+            [
+                "action gain (after the optimal scale)",
+                f"{sc['gain_learned']:.4f} (truth {sc['gain_true']:.4f}, {sc['gain_error_pct']:.2f} % off)",
+                f"{ch3.get('learned_gain', float('nan')):.4f} ({ch3.get('gain_error_pct', float('nan')):.2f} % off)",
+            ],
+            ["learned command delay", f"{sc['delay_s']:.3f} s", "-"],
+        ]
+        for name, s in sc["sensors"].items():
+            c3 = f"{ch3['sensor_rms_pct']:.2f} %" if name == "sonar1" and ch3 else "-"
+            trows.append([f"{name} error, % of its span", f"{s['rms_pct_of_span']:.2f} % ({s['span_mm']:.0f} mm)", c3])
+        tables.append(
+            ("Turtlebot training1.csv: EM in 1-D against the chapter-3 learner", ["quantity", "EM", "chapter 3"], trows)
+        )
+    return tables

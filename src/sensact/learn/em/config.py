@@ -1,14 +1,49 @@
-"""EM's settings. Defaults are the thesis's constants (ch. 4), with their source."""
+"""EM's settings. Defaults are the thesis's constants (ch. 4), with their source.
+
+The fields after the thesis's block extend it to real robots (``docs/em-real.md``); each one's default
+leaves the thesis's algorithm unchanged.
+"""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+
+from sensact.models.landmark_sensor import check_robust
+from sensact.models.linear_action import BASES
+
+ACTION_BASES = ("table", *BASES)
+MOTION_NOISE = ("fixed", "shared", "per_action")
+
+
+@dataclass(frozen=True)
+class ChannelConfig:
+    """One reading channel: its polynomial, its starting straight line and where it can be trusted."""
+
+    name: str  # a column of the log's readings
+    degree: int = 3
+    start_intercept: float = 20.0
+    start_slope: float = -0.002
+    start_sigma: float = 10.0
+    valid_min: float = -math.inf  # distance window (mm): readings are used only while the robot is predicted inside it
+    valid_max: float = math.inf
+    robust: str = "none"  # "none", "student_t" or "gate"
+    robust_param: float = 0.0  # Student-t degrees of freedom, or the gate in innovation sigmas
+
+    def __post_init__(self) -> None:
+        if self.degree < 1:
+            raise ValueError(f"channel {self.name}: degree must be >= 1")
+        if not self.start_sigma > 0:
+            raise ValueError(f"channel {self.name}: start_sigma must be > 0")
+        if not self.valid_min < self.valid_max:
+            raise ValueError(f"channel {self.name}: valid_min must be below valid_max")
+        check_robust(self.robust, self.robust_param, f"channel {self.name}")
 
 
 @dataclass(frozen=True)
 class EMConfig:
     # the fixed motion noise Sigma_m, per time step (sec. 4.4.1: 10 mm, 10 mm, 0.1 rad at 30 Hz;
-    # sec. 4.4.3: 10 mm on the track)
+    # sec. 4.4.3: 10 mm on the track); the starting value when it is learned
     motion_sd_mm: float = 10.0
     motion_sd_rad: float = 0.1
     sensor_degree: int = 3  # f is a cubic, sec. 4.1
@@ -27,6 +62,24 @@ class EMConfig:
     start_prior_sd: tuple[float, float, float] = (300.0, 300.0, 0.3)
     prior_floor_sd: tuple[float, float] = (1.0, 1e-3)  # keeps pi = gamma_0 from collapsing (mm, rad)
 
+    # ---- beyond the thesis (docs/em-real.md)
+    # "table": one velocity per discrete action (eq. 4.18); "affine", "cross", "polynomial": A(c) = Phi(c) beta
+    action_basis: str = "table"
+    action_degree: int = 2  # of the polynomial basis
+    action_delay_max_s: float = 0.0  # learn a command delay up to this long (continuous models; 0 = none)
+    # Sigma_m: "fixed" (the thesis), or learned "shared" or "per_action", never below the floor
+    motion_noise: str = "fixed"
+    motion_sd_floor_mm: float = 0.05
+    motion_sd_floor_rad: float = 5e-4
+    # reading channels; empty = the thesis's one beacon-height channel from the start_height_* fields
+    channels: tuple[ChannelConfig, ...] = ()
+    bearing_robust: str = "none"
+    bearing_robust_param: float = 0.0
+    # choose pi(w_0) among a grid of poses by the forward likelihood of the first seconds (0 = off);
+    # for a log with no idea where the robot starts (planar, with a landmark map)
+    start_search_s: float = 0.0
+    start_search_grid_mm: float = 500.0
+
     def __post_init__(self) -> None:
         problems = []
         if not (self.motion_sd_mm > 0 and self.motion_sd_rad > 0):
@@ -41,5 +94,42 @@ class EMConfig:
             problems.append("start sigmas must be > 0")
         if min(self.start_prior_sd) <= 0:
             problems.append("start_prior_sd must be > 0")
+        if self.action_basis not in ACTION_BASES:
+            problems.append(f"action_basis must be one of {ACTION_BASES}")
+        if self.action_delay_max_s < 0:
+            problems.append("action_delay_max_s must be >= 0")
+        if self.action_degree < 1:
+            problems.append("action_degree must be >= 1")
+        if self.motion_noise not in MOTION_NOISE:
+            problems.append(f"motion_noise must be one of {MOTION_NOISE}")
+        if self.motion_noise == "per_action" and self.action_basis != "table":
+            problems.append("motion_noise=per_action needs action_basis=table (continuous commands have no actions)")
+        if not (self.motion_sd_floor_mm > 0 and self.motion_sd_floor_rad > 0):
+            problems.append("motion_sd_floor_mm and motion_sd_floor_rad must be > 0")
+        if len({c.name for c in self.channels}) != len(self.channels):
+            problems.append("channel names must be distinct")
+        if self.start_search_s < 0 or self.start_search_grid_mm <= 0:
+            problems.append("start_search_s must be >= 0 and start_search_grid_mm > 0")
+        try:
+            check_robust(self.bearing_robust, self.bearing_robust_param, "bearing")
+        except ValueError as exc:
+            problems.append(str(exc))
         if problems:
             raise ValueError("; ".join(problems))
+
+    def channel_configs(self, reading_names: tuple[str, ...]) -> tuple[ChannelConfig, ...]:
+        """The configured channels, or the thesis's single height channel for the log's first reading."""
+        if not self.channels:
+            return (
+                ChannelConfig(
+                    reading_names[0],
+                    self.sensor_degree,
+                    self.start_height_intercept_px,
+                    self.start_height_slope_px_per_mm,
+                    self.start_sigma_height_px,
+                ),
+            )
+        missing = [c.name for c in self.channels if c.name not in reading_names]
+        if missing:
+            raise ValueError(f"channels {missing} are not readings of this log (it has {list(reading_names)})")
+        return self.channels

@@ -2,7 +2,7 @@
 
 ``e_step(model, data)`` runs the compiled forward EKF and two-filter smoother of
 ``sensact.core.ekf_smoother`` and returns ``Posteriors``: alpha, gamma, the displacement moments under
-xi, and ``log P(O | C, lambda)`` (eq. 4.14).
+xi, each reading's weight, and ``log P(O | C, lambda)`` (eq. 4.14).
 """
 
 from __future__ import annotations
@@ -11,9 +11,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sensact.core.ekf_smoother import OK, ekf_smoother
+from sensact.core.ekf_smoother import GATE, GAUSSIAN, OK, STUDENT_T, ekf_smoother
+from sensact.learn.em.actions import step_motion_var, step_velocity
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
+from sensact.models.landmark_sensor import LandmarkSensor
+
+ROBUST_CODES = {"none": GAUSSIAN, "student_t": STUDENT_T, "gate": GATE}
 
 
 @dataclass(frozen=True, eq=False)
@@ -28,6 +32,7 @@ class Posteriors:
     disp_cov: np.ndarray  # (T-1, n, n) covariance of the linearized D under xi_t
     obs_used: np.ndarray  # (K,) bool; False for pruned observations
     n_used: int
+    weights: np.ndarray  # (K, C+1) each reading channel's weight, then the bearing's; 0 = not used
 
 
 def motion_variance(geometry: str, motion_sd_mm: float, motion_sd_rad: float) -> np.ndarray:
@@ -37,48 +42,79 @@ def motion_variance(geometry: str, motion_sd_mm: float, motion_sd_rad: float) ->
     return np.array([motion_sd_mm**2, motion_sd_mm**2, motion_sd_rad**2])
 
 
+def channel_columns(sensor: LandmarkSensor, data: LandmarkLog) -> list[int]:
+    """The log's reading column of each of the sensor's channels, matched by name."""
+    names = [c.name for c in sensor.channels]
+    if len(names) == 1 and names[0] not in data.reading_names:
+        return [0]  # a one-channel model reads the log's first reading, whatever it is called
+    missing = [x for x in names if x not in data.reading_names]
+    if missing:
+        raise ValueError(f"the log {data.source} has no reading {missing[0]!r} (it has {list(data.reading_names)})")
+    return [data.reading_names.index(x) for x in names]
+
+
 def e_step(
     model: EMModel,
     data: LandmarkLog,
-    motion_var: np.ndarray,
+    motion_var: np.ndarray | None = None,
     *,
     obs_use: np.ndarray | None = None,
     prune_rad_per_step: float = 0.0,
 ) -> Posteriors:
-    """Alpha, gamma and xi for ``model`` on ``data``. ``obs_use`` masks observations (a copy is pruned)."""
+    """Alpha, gamma and xi for ``model`` on ``data``. ``obs_use`` masks observations (a copy is pruned).
+
+    ``motion_var`` overrides the model's Sigma_m with one shared diagonal.
+    """
     if model.geometry != data.geometry:
         raise ValueError(f"a {model.geometry} model cannot run on a {data.geometry} log")
     T = data.n_steps
     n = model.prior_mean.size
     use = np.ones(data.n_observations, dtype=np.bool_) if obs_use is None else np.array(obs_use, dtype=np.bool_)
-    f = model.sensor.height
-    sb = model.sensor.sigma_bearing_rad
+    sensor = model.sensor
+    chans = sensor.channels
+    C = len(chans)
+    P = max(c.function.degree for c in chans) + 1
+    coefs = np.zeros((C, P))
+    for i, ch in enumerate(chans):
+        coefs[i, : ch.function.degree + 1] = ch.function.coef
+    kinds = np.array([ROBUST_CODES[c.robust] for c in chans] + [ROBUST_CODES[sensor.bearing_robust]], dtype=np.int64)
+    params = np.array([c.robust_param for c in chans] + [sensor.bearing_robust_param], dtype=float)
+    if motion_var is None:
+        var_steps = step_motion_var(model, data)
+    else:
+        var_steps = np.repeat(np.asarray(motion_var, dtype=float).reshape(1, n), T, axis=0)
+    sb = sensor.sigma_bearing_rad
     mu_a = np.empty((T, n))
     P_a = np.empty((T, n, n))
     mu_g = np.empty((T, n))
     P_g = np.empty((T, n, n))
     d_mu = np.full((T - 1, n), np.nan)
     d_P = np.full((T - 1, n, n), np.nan)
+    weights = np.zeros((data.n_observations, C + 1))
     status, loglik, n_used = ekf_smoother(
         data.mode,
         data.dt_s,
-        data.actions,
-        np.ascontiguousarray(model.action.velocities),
-        np.ascontiguousarray(motion_var, dtype=float),
+        np.ascontiguousarray(step_velocity(model.action, data)),
+        np.ascontiguousarray(var_steps),
         model.prior_mean.copy(),
         model.prior_cov.copy(),
         data.obs_ptr,
         data.obs_landmark,
-        data.obs_height_px,
+        np.ascontiguousarray(data.obs_readings[:, channel_columns(sensor, data)]),
         data.obs_bearing_rad,
         use,
         data.landmarks_xy if len(data.landmarks_xy) else np.zeros((1, 2)),
-        np.asarray(f.coef, dtype=float),
-        f.center,
-        f.scale,
-        model.sensor.sigma_height_px**2,
+        coefs,
+        np.array([c.function.center for c in chans], dtype=float),
+        np.array([c.function.scale for c in chans], dtype=float),
+        np.array([c.sigma**2 for c in chans], dtype=float),
+        np.array([c.valid_min for c in chans], dtype=float),
+        np.array([c.valid_max for c in chans], dtype=float),
         (sb if sb is not None else 1.0) ** 2,
+        kinds,
+        params,
         float(prune_rad_per_step),
+        weights,
         mu_a,
         P_a,
         mu_g,
@@ -87,4 +123,4 @@ def e_step(
         d_P,
     )
     ok = status == OK and np.isfinite(loglik)
-    return Posteriors(float(loglik), bool(ok), mu_a, P_a, mu_g, P_g, d_mu, d_P, use, int(n_used))
+    return Posteriors(float(loglik), bool(ok), mu_a, P_a, mu_g, P_g, d_mu, d_P, use, int(n_used), weights)

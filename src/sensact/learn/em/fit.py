@@ -16,12 +16,14 @@ from typing import Any
 import numpy as np
 
 from sensact.learn.em.config import EMConfig
-from sensact.learn.em.estep import Posteriors, e_step, motion_variance
+from sensact.learn.em.estep import Posteriors, e_step
 from sensact.learn.em.mstep import m_step
+from sensact.learn.em.start import search_start
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.action_table import ActionTable
 from sensact.models.em_model import EMModel
-from sensact.models.landmark_sensor import LandmarkSensor
+from sensact.models.landmark_sensor import LandmarkSensor, ReadingChannel
+from sensact.models.linear_action import LinearActionModel
 from sensact.models.polynomial import Polynomial1D
 
 # (iteration, loglik, best loglik, iterations since the best) -> None
@@ -41,33 +43,67 @@ def starting_height(config: EMConfig) -> Polynomial1D:
     )
 
 
+def starting_sensor(data: LandmarkLog, config: EMConfig) -> LandmarkSensor:
+    """Every channel starts from its poor straight line (sec. 4.4.1); the bearing from 0.2 rad."""
+    channels = []
+    for cc in config.channel_configs(data.reading_names):
+        f = Polynomial1D((cc.start_intercept, cc.start_slope), input_name="d", input_unit="mm", output_unit="")
+        if cc.degree > 1:  # the M-step keeps each configured channel's degree
+            f = Polynomial1D(
+                (cc.start_intercept, cc.start_slope) + (0.0,) * (cc.degree - 1), input_name="d", input_unit="mm"
+            )
+        channels.append(
+            ReadingChannel(cc.name, f, cc.start_sigma, cc.valid_min, cc.valid_max, cc.robust, cc.robust_param)
+        )
+    if not config.channels:
+        channels[0] = ReadingChannel(channels[0].name, starting_height(config), config.start_sigma_height_px)
+    sigma_b = config.start_sigma_bearing_rad if data.geometry == "planar" else None
+    return LandmarkSensor(tuple(channels), sigma_b, config.bearing_robust, config.bearing_robust_param)
+
+
 def initial_model(data: LandmarkLog, config: EMConfig) -> EMModel:
     """The starting model of sec. 4.4.1: every action has no effect, f is a poor line, wide sigmas."""
     n = 3 if data.geometry == "planar" else 1
     names = PLANAR_VELOCITY_NAMES if n == 3 else TRACK_VELOCITY_NAMES
-    table = ActionTable(data.action_commands, np.zeros((data.n_actions, n)), data.command_names, names)
-    sensor = LandmarkSensor(
-        starting_height(config),
-        config.start_sigma_height_px,
-        config.start_sigma_bearing_rad if data.geometry == "planar" else None,
-    )
+    if config.action_basis == "table":
+        if data.n_actions == 0:
+            raise ValueError(f"{data.source} has continuous commands: set action_basis to affine, cross or polynomial")
+        action = ActionTable(data.action_commands, np.zeros((data.n_actions, n)), data.command_names, names)
+    else:
+        if data.step_commands is None:
+            raise ValueError(f"{data.source} has discrete actions only: use action_basis=table")
+        action = LinearActionModel.zero(config.action_basis, config.action_degree, data.command_names, names)
+    sensor = starting_sensor(data, config)
     mean = np.asarray(config.start_prior_mean[:n], dtype=float)
     cov = np.diag(np.asarray(config.start_prior_sd[:n], dtype=float) ** 2)
-    if data.geometry == "track" and data.n_observations:
+    first = sensor.channels[0]
+    col = data.reading_names.index(first.name) if first.name in data.reading_names else 0
+    slope = first.function.coef[1] / first.function.scale if first.function.degree >= 1 else 0.0
+    if data.geometry == "track" and data.n_observations and np.isfinite(data.obs_readings[0, col]) and slope:
         # a track has no landmark map to anchor the start: invert the starting f on the first sighting,
         # with the distance spread that one sighting implies
-        slope = config.start_height_slope_px_per_mm
-        mean = np.array([(data.obs_height_px[0] - config.start_height_intercept_px) / slope])
-        cov = np.array([[(config.start_sigma_height_px / slope) ** 2]])
-    return EMModel(data.geometry, table, sensor, mean, cov)
+        f0 = first.function(0.0)
+        mean = np.array([(data.obs_readings[0, col] - f0) / slope])
+        cov = np.array([[(first.sigma / slope) ** 2]])
+    sd = motion_sd_start(config, n)
+    motion_sd = np.repeat(sd, data.n_actions, axis=0) if config.motion_noise == "per_action" else sd
+    return EMModel(data.geometry, action, sensor, mean, cov, motion_sd)
+
+
+def motion_sd_start(config: EMConfig, n: int) -> np.ndarray:
+    return np.array([[config.motion_sd_mm] * min(n, 2) + ([config.motion_sd_rad] if n == 3 else [])])
+
+
+def motion_sd_floor(config: EMConfig, n: int) -> np.ndarray:
+    return np.array([config.motion_sd_floor_mm] * min(n, 2) + ([config.motion_sd_floor_rad] if n == 3 else []))
 
 
 @dataclass(frozen=True, eq=False)
 class EMResult:
     model: EMModel  # the model with the highest likelihood
     loglik_history: np.ndarray  # log P(O | C, lambda_i) for every iteration i
-    velocity_history: np.ndarray  # (iterations, A, n) the action table of every lambda_i
-    sigma_history: np.ndarray  # (iterations, 2) sigma_1, sigma_2 of every lambda_i
+    velocity_history: np.ndarray  # (iterations, A, n) the action table (or beta) of every lambda_i
+    sigma_history: np.ndarray  # (iterations, C+1) each channel's sigma, then sigma_2, of every lambda_i
     best_iteration: int
     stop_reason: str  # "converged", "max_iterations", "diverged" or "interrupted"
     n_observations: int
@@ -75,6 +111,8 @@ class EMResult:
     seconds: float
     config: EMConfig
     posteriors: Posteriors | None = field(default=None, repr=False)  # of the best model
+    motion_sd_history: np.ndarray | None = None  # (iterations, G, n) Sigma_m's standard deviations
+    start_search: dict[str, Any] | None = None  # what the start search tried and chose
 
     @property
     def iterations(self) -> int:
@@ -94,6 +132,7 @@ class EMResult:
             "n_observations": self.n_observations,
             "n_pruned": self.n_pruned,
             "seconds": self.seconds,
+            "start_search": self.start_search,
             "config": asdict(self.config),
         }
 
@@ -109,12 +148,17 @@ def fit_em(
     cfg = config or EMConfig()
     model = initial or initial_model(data, cfg)
     rng = np.random.default_rng(cfg.seed)
-    motion_var = motion_variance(data.geometry, cfg.motion_sd_mm, cfg.motion_sd_rad)
     n = model.prior_mean.size
+    if cfg.motion_noise == "fixed":  # the thesis: Sigma_m is the configured constant, whatever the start says
+        model = model.replace(motion_sd=motion_sd_start(cfg, n))
+    start_info = None
+    if cfg.start_search_s > 0 and data.geometry == "planar":
+        model, start_info = search_start(data, model, cfg)
     floor = np.array([cfg.prior_floor_sd[0] ** 2] * min(n, 2) + ([cfg.prior_floor_sd[1] ** 2] if n == 3 else []))
     logliks: list[float] = []
     velocities: list[np.ndarray] = []
-    sigmas: list[tuple[float, float]] = []
+    sigmas: list[list[float]] = []
+    motion_sds: list[np.ndarray] = []
     best_ll, best_it, best_model, best_post = -np.inf, -1, model, None
     obs_use = None
     reason = "max_iterations"
@@ -124,18 +168,23 @@ def fit_em(
             post = e_step(
                 model,
                 data,
-                motion_var,
                 obs_use=obs_use,
                 prune_rad_per_step=cfg.prune_rad_per_step if it == 0 else 0.0,
             )
             if it == 0:
                 obs_use = post.obs_used
+                if data.n_observations and not post.weights.any():
+                    raise ValueError(
+                        f"{data.source}: the starting model uses no reading at all; check each channel's "
+                        "valid_min/valid_max (in the state's unit) against its starting line"
+                    )
             if not post.ok:
                 reason = "diverged"
                 break
             logliks.append(post.loglik)
-            velocities.append(model.action.velocities.copy())
-            sigmas.append((model.sensor.sigma_height_px, model.sensor.sigma_bearing_rad or np.nan))
+            velocities.append(_action_parameters(model).copy())
+            sigmas.append([c.sigma for c in model.sensor.channels] + [model.sensor.sigma_bearing_rad or np.nan])
+            motion_sds.append(model.motion_sd.copy())
             if post.loglik > best_ll:
                 best_ll, best_it, best_model, best_post = post.loglik, it, model, post
             if progress is not None:
@@ -151,16 +200,19 @@ def fit_em(
                 n_samples=cfg.samples_per_frame,
                 floor_var=floor,
                 rng=rng,
+                learn_motion_noise=cfg.motion_noise != "fixed",
+                motion_floor_sd=motion_sd_floor(cfg, n),
+                max_delay_steps=round(cfg.action_delay_max_s / data.dt_s),
             )
     except KeyboardInterrupt:
         reason = "interrupted"
     n_pruned = 0 if obs_use is None else int(data.n_observations - obs_use.sum())
-    A = data.n_actions
+    shape = _action_parameters(model).shape
     return EMResult(
         best_model,
         np.asarray(logliks, dtype=float),
-        np.asarray(velocities, dtype=float).reshape(-1, A, n),
-        np.asarray(sigmas, dtype=float).reshape(-1, 2),
+        np.asarray(velocities, dtype=float).reshape(-1, *shape),
+        np.asarray(sigmas, dtype=float).reshape(-1, len(model.sensor.channels) + 1),
         max(best_it, 0),
         reason,
         data.n_observations,
@@ -168,4 +220,11 @@ def fit_em(
         time.perf_counter() - start,
         cfg,
         best_post,
+        np.asarray(motion_sds, dtype=float).reshape(-1, *model.motion_sd.shape),
+        start_info,
     )
+
+
+def _action_parameters(model: EMModel) -> np.ndarray:
+    a = model.action
+    return a.velocities if isinstance(a, ActionTable) else a.coefficients

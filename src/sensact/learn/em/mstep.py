@@ -1,4 +1,5 @@
-"""The M-step (sec. 4.3): new action table, sensor model and prior from the E-step's posteriors."""
+"""The M-step (sec. 4.3): a new action model, sensor model, prior and (optionally) Sigma_m from the
+E-step's posteriors. ``learn/em/actions.py`` holds the action and motion-noise updates."""
 
 from __future__ import annotations
 
@@ -7,27 +8,18 @@ import numpy as np
 from sensact.core.angles import wrap_angle
 from sensact.core.polyfit import weighted_polyfit
 from sensact.core.pose_models import landmark_bearing, landmark_distance
-from sensact.learn.em.estep import Posteriors
+from sensact.learn.em.actions import linear_action_update, motion_noise, step_velocity, table_velocities
+from sensact.learn.em.estep import Posteriors, channel_columns
 from sensact.logs.landmark_log import LandmarkLog
+from sensact.models.action_table import ActionTable
 from sensact.models.em_model import EMModel
 from sensact.models.landmark_sensor import LandmarkSensor
 from sensact.models.polynomial import Polynomial1D
 
 
 def action_velocities(post: Posteriors, data: LandmarkLog, previous: np.ndarray) -> np.ndarray:
-    """Eq. 4.18: mu_a is the mean of D(mu_xi,t) over Q(a) = {t : c_t = a}, divided by dt.
-
-    An action that never ran keeps its previous velocity.
-    """
-    a = data.actions[:-1]
-    valid = a >= 0
-    counts = np.bincount(a[valid], minlength=data.n_actions).astype(float)
-    out = np.array(previous, dtype=float, copy=True)
-    seen = counts > 0
-    for i in range(out.shape[1]):
-        sums = np.bincount(a[valid], weights=post.disp_mean[valid, i], minlength=data.n_actions)
-        out[seen, i] = sums[seen] / counts[seen] / data.dt_s
-    return out
+    """Eq. 4.18 for the action table (see ``actions.table_velocities``)."""
+    return table_velocities(post.disp_mean, data, previous)
 
 
 def sample_gamma(post: Posteriors, steps: np.ndarray, n_samples: int, rng: np.random.Generator) -> np.ndarray:
@@ -47,32 +39,47 @@ def sample_gamma(post: Posteriors, steps: np.ndarray, n_samples: int, rng: np.ra
 def sensor_model(
     post: Posteriors, data: LandmarkLog, degree: int, n_samples: int, rng: np.random.Generator, previous: LandmarkSensor
 ) -> LandmarkSensor:
-    """Eq. 4.25 (f by regression on sampled distances), eq. 4.27 (sigma_1) and eq. 4.28 (sigma_2).
+    """Eq. 4.25 (each f_i by regression on sampled distances), eq. 4.27 (each sigma_i) and eq. 4.28
+    (sigma_2), over the readings the E-step used.
 
-    Frames without an observation, and pruned observations, take no part (sec. 4.4.1).
+    A reading counts with its E-step weight: 1 for a Gaussian channel, the Student-t weight for a
+    robust one (the t-distribution's EM update of location and scale), 0 if it was missing, outside
+    its window, gated or pruned. ``degree`` is the thesis's single channel's; configured channels keep
+    the degree of their polynomial.
     """
-    has_h = np.isfinite(data.obs_height_px)
-    has_b = np.isfinite(data.obs_bearing_rad) if data.geometry == "planar" else np.zeros_like(has_h)
-    rows = np.flatnonzero(post.obs_used & (has_h | has_b))
-    if has_h[rows].sum() <= degree + 1:
+    weights = post.weights * post.obs_used[:, None]
+    rows = np.flatnonzero(weights.any(axis=1))
+    if rows.size == 0:
         return previous
-    w = sample_gamma(post, data.obs_step[rows], n_samples, rng)  # (S, R, n)
+    poses = sample_gamma(post, data.obs_step[rows], n_samples, rng)  # (S, R, n)
     lm = data.landmarks_xy[data.obs_landmark[rows]]
-    h_rows = has_h[rows]
-    dist = np.concatenate([landmark_distance(w[s], lm, data.mode)[h_rows] for s in range(n_samples)])
-    height = np.tile(data.obs_height_px[rows][h_rows], n_samples)
-    center, scale = float(dist.mean()), float(dist.std()) or 1.0
-    coef = weighted_polyfit(dist, height, degree, center=center, scale=scale)
-    prev = previous.height
-    f = Polynomial1D(tuple(coef), center, scale, prev.input_name, prev.input_unit, prev.output_unit)
-    sigma_h = float(np.sqrt(np.mean((f(dist) - height) ** 2)))
+    dist = np.stack([landmark_distance(poses[s], lm, data.mode) for s in range(n_samples)])  # (S, R)
+    readings = data.obs_readings[rows][:, channel_columns(previous, data)]
+    fits = []
+    for c, ch in enumerate(previous.channels):
+        w = weights[rows, c]
+        use = w > 0
+        deg = degree if len(previous.channels) == 1 else ch.function.degree
+        if use.sum() <= deg + 1:
+            fits.append((ch.function, ch.sigma))
+            continue
+        d = dist[:, use].ravel()
+        y = np.tile(readings[use, c], n_samples)
+        ww = np.tile(w[use], n_samples)
+        center, scale = float(d.mean()), float(d.std()) or 1.0
+        coef = weighted_polyfit(d, y, deg, ww, center=center, scale=scale)
+        prev = ch.function
+        f = Polynomial1D(tuple(coef), center, scale, prev.input_name, prev.input_unit, prev.output_unit)
+        sigma = float(np.sqrt(np.sum(ww * (f(d) - y) ** 2) / d.size))
+        fits.append((f, max(sigma, 1e-9)))
     sigma_b = previous.sigma_bearing_rad
-    b_rows = has_b[rows]
-    if b_rows.any():
-        ob = data.obs_bearing_rad[rows][b_rows]
-        err = np.concatenate([wrap_angle(landmark_bearing(w[s][b_rows], lm[b_rows]) - ob) for s in range(n_samples)])
-        sigma_b = float(np.sqrt(np.mean(err**2)))
-    return LandmarkSensor(f, max(sigma_h, 1e-9), None if sigma_b is None else max(sigma_b, 1e-9))
+    wb = weights[rows, -1]
+    if data.geometry == "planar" and sigma_b is not None and (wb > 0).any():
+        b = wb > 0
+        ob = data.obs_bearing_rad[rows][b]
+        err = np.concatenate([wrap_angle(landmark_bearing(poses[s][b], lm[b]) - ob) for s in range(n_samples)])
+        sigma_b = max(float(np.sqrt(np.sum(np.tile(wb[b], n_samples) * err**2) / err.size)), 1e-9)
+    return previous.with_fits(fits, sigma_b)
 
 
 def prior(post: Posteriors, floor_var: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -91,10 +98,23 @@ def m_step(
     n_samples: int,
     floor_var: np.ndarray,
     rng: np.random.Generator,
+    learn_motion_noise: bool = False,
+    motion_floor_sd: np.ndarray | None = None,
+    max_delay_steps: int = 0,
 ) -> EMModel:
-    velocities = action_velocities(post, data, model.action.velocities)
+    """Every update of sec. 4.3, plus Sigma_m when ``learn_motion_noise`` (shared or per action, as the
+    model's ``motion_sd`` has one row or one per action)."""
+    if isinstance(model.action, ActionTable):
+        action = model.action.with_velocities(action_velocities(post, data, model.action.velocities))
+    else:
+        var = np.broadcast_to((model.motion_sd**2)[0], post.disp_mean.shape)
+        action = linear_action_update(model.action, data, post.disp_mean, var, max_delay_steps)
+    motion_sd = model.motion_sd
+    if learn_motion_noise:
+        floor = np.zeros(model.prior_mean.size) if motion_floor_sd is None else motion_floor_sd
+        groups = data.actions[:-1] if model.per_action_noise else None
+        mean_disp = step_velocity(action, data)[:-1] * data.dt_s
+        motion_sd = motion_noise(post.disp_mean, post.disp_cov, mean_disp, groups, motion_sd.shape[0], floor, motion_sd)
     sensor = sensor_model(post, data, degree, n_samples, rng, model.sensor)
     mean0, cov0 = prior(post, floor_var)
-    return model.replace(
-        action=model.action.with_velocities(velocities), sensor=sensor, prior_mean=mean0, prior_cov=cov0
-    )
+    return model.replace(action=action, sensor=sensor, prior_mean=mean0, prior_cov=cov0, motion_sd=motion_sd)

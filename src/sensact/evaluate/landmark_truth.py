@@ -1,0 +1,179 @@
+"""Scoring a model learned on a real planar robot against its ground truth (Vicon), with From-Truth.
+
+From-Truth fits the *same model families* directly to the truth, so it is the best those families can
+do on that data; the learned model is judged next to it:
+
+* **action model:** judged over windows of ``window`` steps (default 1 s, half-overlapping) with valid
+  truth, so over the commands actually used. In each window the model's velocities ``A(c_t)`` are
+  integrated (eq. 2.28) into a displacement and compared with the true ``D(w_start, w_end)``; the error
+  over the window length is a velocity error. Windows, not single steps, because a real robot's motion
+  lags its commands (about 0.17 s on MRCLAM) and Vicon noise over one 1/30 s step is several mm/s: both
+  would otherwise dominate every model's error. Each model's error is the RMS over windows,
+  translational (mm/s, v_x and v_y together) and rotational (rad/s). From-Truth is the least-squares
+  fit of the true window displacements on the window sums of ``Phi(c_t) dt`` (exact for windows
+  without turning; it is scored the same way as the learned model), with the command delay (up to
+  ``max_delay_steps``) that fits best.
+* **range function:** From-Truth is the polynomial of the learned degree fitted to (true distance,
+  reading) after outlier trimming. Each model's error is the RMS residual ``reading - f(d_true)`` over
+  the trimmed sightings; the learned f's gap to From-Truth's is reported too.
+* **sigmas:** the truth residual sigma is the RMS of the trimmed residuals (range: about From-Truth's f;
+  bearing: about zero, as eq. 4.28 has no bearing bias). Trimming drops residuals beyond
+  ``trim`` robust sigmas (1.4826 MAD) of the median, repeated until nothing changes.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from sensact.core.angles import wrap_angle
+from sensact.core.polyfit import weighted_polyfit
+from sensact.core.pose_models import landmark_bearing, landmark_distance, relative_displacement
+from sensact.learn.em.actions import linear_coefficients
+from sensact.logs.landmark_log import LandmarkLog
+from sensact.models.em_model import EMModel
+from sensact.models.linear_action import LinearActionModel
+from sensact.models.polynomial import Polynomial1D
+
+
+def window_starts(valid: np.ndarray, window: int) -> np.ndarray:
+    """Start steps of the half-overlapping windows of ``window`` steps whose truth is valid throughout."""
+    T = len(valid)
+    starts = np.arange(0, T - window, max(window // 2, 1))
+    bad = np.concatenate([[0], np.cumsum(~np.asarray(valid, dtype=bool))])
+    return starts[bad[starts + window + 1] - bad[starts] == 0]
+
+
+def dead_reckon(velocities: np.ndarray, dt: float) -> np.ndarray:
+    """``D(w_start, w_end)`` after integrating eq. 2.28 (no noise) over each row of ``(N, W, 3)`` velocities."""
+    theta = np.cumsum(velocities[:, :, 2] * dt, axis=1)
+    before = np.concatenate([np.zeros((len(theta), 1)), theta[:, :-1]], axis=1)  # heading during each step
+    c, s = np.cos(before), np.sin(before)
+    dx = np.sum((c * velocities[:, :, 0] - s * velocities[:, :, 1]) * dt, axis=1)
+    dy = np.sum((s * velocities[:, :, 0] + c * velocities[:, :, 1]) * dt, axis=1)
+    return np.column_stack([dx, dy, theta[:, -1]])
+
+
+def trimmed(residuals: np.ndarray, trim: float = 3.0) -> np.ndarray:
+    """A mask of the residuals within ``trim`` robust sigmas of their median (iterated)."""
+    keep = np.isfinite(residuals)
+    for _ in range(20):
+        r = residuals[keep]
+        med = np.median(r)
+        sd = 1.4826 * np.median(np.abs(r - med))
+        new = np.isfinite(residuals) & (np.abs(residuals - med) <= trim * max(sd, 1e-12))
+        if np.array_equal(new, keep):
+            break
+        keep = new
+    return keep
+
+
+def _rms(x: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.square(x))))
+
+
+def _action_errors(v_model: np.ndarray, v_true: np.ndarray) -> dict[str, float]:
+    e = v_model - v_true
+    return {"translation_rms_mm_s": _rms(np.hypot(e[:, 0], e[:, 1])), "rotation_rms_rad_s": _rms(e[:, 2])}
+
+
+def score_against_truth(
+    model: EMModel,
+    data: LandmarkLog,
+    truth_poses: np.ndarray,
+    truth_valid: np.ndarray,
+    *,
+    window: int = 30,
+    trim: float = 3.0,
+    max_delay_steps: int = 15,
+) -> dict[str, Any]:
+    """Learned and From-Truth errors of ``model`` on ``data`` (see the module docstring)."""
+    if not isinstance(model.action, LinearActionModel) or data.step_commands is None:
+        raise ValueError("scoring against truth needs a continuous action model and per-step commands")
+    starts = window_starts(truth_valid, window)
+    if starts.size == 0:
+        raise ValueError(f"no window of {window} steps has valid truth throughout")
+    idx = starts[:, None] + np.arange(window)  # (N, W)
+    D_true = relative_displacement(truth_poses[starts], truth_poses[starts + window])
+    act = model.action
+
+    def window_features(delay: int) -> np.ndarray:
+        return act.step_features(data.step_commands, delay)[idx.ravel()].reshape(len(starts), window, -1)
+
+    def errors(beta: np.ndarray, Phi: np.ndarray) -> dict[str, float]:
+        e = dead_reckon(Phi @ beta, data.dt_s) - D_true
+        e[:, 2] = wrap_angle(e[:, 2])
+        return _action_errors(e / (window * data.dt_s), np.zeros_like(e))
+
+    # From-Truth: the same family, its command delay included, fitted to the truth windows
+    ft = None
+    for delay in range(max_delay_steps + 1):
+        Phi = window_features(delay)
+        beta = linear_coefficients(
+            Phi.sum(axis=1), D_true, np.ones_like(D_true), data.dt_s, np.zeros_like(act.coefficients)
+        )
+        sse = float(np.sum((Phi.sum(axis=1) @ beta * data.dt_s - D_true) ** 2 / D_true.var(axis=0)))
+        if ft is None or sse < ft[0]:
+            ft = (sse, delay, beta, Phi)
+    _, delay_ft, beta_ft, Phi_ft = ft
+    learned = errors(act.coefficients, window_features(act.delay_steps))
+    from_truth = errors(beta_ft, Phi_ft)
+
+    # sensor: the sightings at steps with valid truth
+    rows = np.flatnonzero(truth_valid[data.obs_step] > 0)
+    poses = truth_poses[data.obs_step[rows]]
+    lm = data.landmarks_xy[data.obs_landmark[rows]]
+    d = landmark_distance(poses, lm)
+    reading = data.obs_readings[rows, 0]
+    chan = model.sensor.channels[0]
+    deg = chan.function.degree
+    has = np.isfinite(reading)
+    keep = has.copy()
+    for _ in range(20):  # trim about the From-Truth f, refitted on what is kept
+        coef = weighted_polyfit(d[keep], reading[keep], deg, center=float(d.mean()), scale=float(d.std()) or 1.0)
+        f_ft = Polynomial1D(tuple(coef), float(d.mean()), float(d.std()) or 1.0)
+        resid = np.where(has, reading - f_ft(d), np.nan)
+        new = trimmed(resid, trim)
+        if np.array_equal(new, keep):
+            break
+        keep = new
+    r_ft = reading[keep] - f_ft(d[keep])
+    r_learned = reading[keep] - chan.function(d[keep])
+    b_res = wrap_angle(data.obs_bearing_rad[rows] - landmark_bearing(poses, lm))
+    b_keep = trimmed(b_res, trim)
+    sb_true = _rms(b_res[b_keep])
+    sr_true = _rms(r_ft)
+    sb = model.sensor.sigma_bearing_rad or float("nan")
+    return {
+        "windows_scored": int(starts.size),
+        "window_s": window * data.dt_s,
+        "action": {
+            "learned": learned,
+            "from_truth": from_truth,
+            "ratio_translation": learned["translation_rms_mm_s"] / from_truth["translation_rms_mm_s"],
+            "ratio_rotation": learned["rotation_rms_rad_s"] / from_truth["rotation_rms_rad_s"],
+            "learned_coefficients": model.action.coefficients.tolist(),
+            "from_truth_coefficients": beta_ft.tolist(),
+            "learned_delay_s": act.delay_steps * data.dt_s,
+            "from_truth_delay_s": delay_ft * data.dt_s,
+        },
+        "range": {
+            "sightings_scored": int(keep.sum()),
+            "sightings_trimmed": int(has.sum() - keep.sum()),
+            "learned_residual_rms_mm": _rms(r_learned),
+            "from_truth_residual_rms_mm": sr_true,
+            "learned_vs_from_truth_rms_mm": _rms(chan.function(d[keep]) - f_ft(d[keep])),
+            "sigma_learned_mm": chan.sigma,
+            "sigma_truth_mm": sr_true,
+            "sigma_ratio": chan.sigma / sr_true,
+            "from_truth_function": f_ft.to_dict(),
+        },
+        "bearing": {
+            "sightings_trimmed": int(np.isfinite(b_res).sum() - b_keep.sum()),
+            "sigma_learned_rad": sb,
+            "sigma_truth_rad": sb_true,
+            "sigma_ratio": sb / sb_true,
+            "truth_median_rad": float(np.median(b_res[b_keep])),
+        },
+    }

@@ -1,0 +1,127 @@
+"""The action side of EM: per-step means and motion noise for the E-step, and their M-step.
+
+* ``step_velocity`` / ``step_motion_var``: what the E-step needs at every step, from either action model.
+* ``table_velocities``: eq. 4.18, the mean of ``D(mu_xi,t)`` over the steps of each action, over dt.
+* ``linear_coefficients``: the continuous model ``A(c) = Phi(c) beta``. The motion term of the expected
+  complete-data log-likelihood (sec. 4.3.1) is ``-1/2 sum_t E[(D_t - Phi_t beta dt)' Sigma_t^-1 (...)]``;
+  with ``D`` linearized under xi_t this is ``(Dbar_t - Phi_t beta dt)' Sigma_t^-1 (...)`` plus terms free of
+  beta, so beta is the weighted least-squares fit of ``Dbar_t`` on ``Phi_t dt``, one column per velocity
+  component (Sigma_m is diagonal). With a one-hot Phi it is eq. 4.18 exactly.
+* ``motion_noise``: the same expectation maximized over a diagonal ``Sigma_m`` gives
+  ``Sigma_m = mean_t [(Dbar_t - A(c_t) dt)^2 + Var_xi(D_t)]`` per component (the expected squared
+  deviation of the linearized D, using the xi covariances), over all steps (shared) or each action's.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sensact.logs.landmark_log import LandmarkLog
+from sensact.models.em_model import ActionModel, EMModel
+from sensact.models.linear_action import LinearActionModel
+
+
+def step_velocity(action: ActionModel, data: LandmarkLog) -> np.ndarray:
+    """``(T, n)``: the model's mean robot-frame velocity in force from each step to the next."""
+    if isinstance(action, LinearActionModel):
+        if data.step_commands is None:
+            raise ValueError("a continuous action model needs a log with per-step commands")
+        return action.step_features(data.step_commands) @ action.coefficients
+    if data.n_actions != action.n_actions:
+        raise ValueError(f"the action table has {action.n_actions} actions but the log has {data.n_actions}")
+    out = np.zeros((data.n_steps, action.velocities.shape[1]))
+    ok = data.actions >= 0
+    out[ok] = action.velocities[data.actions[ok]]
+    return out
+
+
+def step_motion_var(model: EMModel, data: LandmarkLog) -> np.ndarray:
+    """``(T, n)``: the diagonal of Sigma_m at each step (per action when the model has one row each)."""
+    var = model.motion_sd**2
+    if var.shape[0] == 1:
+        return np.repeat(var, data.n_steps, axis=0)
+    out = np.repeat(var.mean(axis=0, keepdims=True), data.n_steps, axis=0)
+    ok = data.actions >= 0
+    out[ok] = var[data.actions[ok]]
+    return out
+
+
+def table_velocities(disp_mean: np.ndarray, data: LandmarkLog, previous: np.ndarray) -> np.ndarray:
+    """Eq. 4.18: mu_a is the mean of D(mu_xi,t) over Q(a) = {t : c_t = a}, divided by dt.
+
+    An action that never ran keeps its previous velocity.
+    """
+    a = data.actions[:-1]
+    valid = a >= 0
+    counts = np.bincount(a[valid], minlength=data.n_actions).astype(float)
+    out = np.array(previous, dtype=float, copy=True)
+    seen = counts > 0
+    for i in range(out.shape[1]):
+        sums = np.bincount(a[valid], weights=disp_mean[valid, i], minlength=data.n_actions)
+        out[seen, i] = sums[seen] / counts[seen] / data.dt_s
+    return out
+
+
+def linear_coefficients(
+    features: np.ndarray, disp_mean: np.ndarray, var: np.ndarray, dt: float, previous: np.ndarray
+) -> np.ndarray:
+    """beta minimizing ``sum_t (Dbar_t,i - Phi_t beta_i dt)^2 / var_t,i`` for each component i.
+
+    ``features`` is ``(T-1, F)``, ``disp_mean`` and ``var`` ``(T-1, n)``. Features that never vary keep
+    their previous coefficients: they are zero at every step, so the log says nothing about them.
+    """
+    beta = np.array(previous, dtype=float, copy=True)
+    used = np.any(features != 0.0, axis=0)
+    X = features[:, used] * dt
+    for i in range(disp_mean.shape[1]):
+        sw = 1.0 / np.sqrt(var[:, i])
+        sol, *_ = np.linalg.lstsq(X * sw[:, None], disp_mean[:, i] * sw, rcond=None)
+        beta[used, i] = sol
+    return beta
+
+
+def linear_action_update(
+    action: LinearActionModel, data: LandmarkLog, disp_mean: np.ndarray, var: np.ndarray, max_delay: int
+) -> LinearActionModel:
+    """The M-step of ``A(c) = Phi(c) beta`` with its command delay: for each delay in ``0..max_delay``
+    the weighted least-squares beta, and of those the pair with the least weighted squared error (the
+    same expected log-likelihood, maximized over a discrete parameter too)."""
+    best = (np.inf, action)
+    for delay in range(max_delay + 1) if max_delay > 0 else [action.delay_steps]:
+        Phi = action.step_features(data.step_commands, delay)[:-1]
+        beta = linear_coefficients(Phi, disp_mean, var, data.dt_s, action.coefficients)
+        sse = float(np.sum((disp_mean - Phi @ beta * data.dt_s) ** 2 / var))
+        if sse < best[0]:
+            best = (sse, action.with_coefficients(beta, delay))
+    return best[1]
+
+
+def motion_noise(
+    disp_mean: np.ndarray,
+    disp_cov: np.ndarray,
+    mean_disp: np.ndarray,
+    groups: np.ndarray | None,
+    n_groups: int,
+    floor_sd: np.ndarray,
+    previous: np.ndarray,
+) -> np.ndarray:
+    """Sigma_m (as standard deviations, rows per group) from the xi moments; see the module docstring.
+
+    ``mean_disp`` is ``A(c_t) dt`` at each step; ``groups[t]`` is the action of step t (None = shared).
+    The angle component's deviation is wrapped.
+    """
+    dev = disp_mean - mean_disp
+    if dev.shape[1] == 3:
+        dev[:, 2] = np.mod(dev[:, 2] + np.pi, 2 * np.pi) - np.pi
+    second = dev**2 + np.diagonal(disp_cov, axis1=1, axis2=2)
+    out = np.array(previous, dtype=float, copy=True)
+    if groups is None:
+        out = np.sqrt(second.mean(axis=0, keepdims=True))
+    else:
+        ok = groups >= 0
+        counts = np.bincount(groups[ok], minlength=n_groups)
+        for i in range(second.shape[1]):
+            sums = np.bincount(groups[ok], weights=second[ok, i], minlength=n_groups)
+            seen = counts > 0
+            out[seen, i] = np.sqrt(sums[seen] / counts[seen])
+    return np.maximum(out, floor_sd)

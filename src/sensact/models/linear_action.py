@@ -1,0 +1,142 @@
+"""A continuous-command action model, linear in its parameters: ``A(c) = Phi(c) beta``.
+
+Beyond the thesis, whose robots had 40 discrete actions (sec. 4.1): a real robot is commanded with
+continuous velocities. The basis ``Phi`` is chosen by name:
+
+* ``affine``: ``(1, c_1, ..., c_k)``;
+* ``cross``: affine plus every product ``c_i c_j`` (i < j), so a turn can change the forward speed;
+* ``polynomial``: every monomial of total degree ``<= degree``.
+
+A real robot's motion also lags its commands; ``delay_steps`` makes step ``t`` move by
+``A(c_{t - delay})`` (0, the thesis's assumption, by default).
+
+The discrete action table is the same model with a one-hot basis (``one_hot``), which is how the
+M-step's weighted least squares reduces to eq. 4.18.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from itertools import combinations_with_replacement
+from typing import Any
+
+import numpy as np
+
+from sensact.errors import ModelFormatError
+
+BASES = ("affine", "cross", "polynomial")
+
+
+def _monomials(basis: str, k: int, degree: int) -> list[tuple[int, ...]]:
+    """Each feature as the tuple of command indices it multiplies (``()`` is the constant)."""
+    if basis == "affine":
+        return [()] + [(i,) for i in range(k)]
+    if basis == "cross":
+        return [()] + [(i,) for i in range(k)] + [(i, j) for i in range(k) for j in range(i + 1, k)]
+    if basis == "polynomial":
+        return [m for d in range(degree + 1) for m in combinations_with_replacement(range(k), d)]
+    raise ValueError(f"basis must be one of {BASES}, not {basis!r}")
+
+
+def command_features(basis: str, degree: int, commands: np.ndarray) -> np.ndarray:
+    """``Phi(c)`` for each row of ``commands`` (T, k): shape (T, n_features)."""
+    c = np.atleast_2d(np.asarray(commands, dtype=float))
+    cols = [np.prod(c[:, list(m)], axis=1) if m else np.ones(len(c)) for m in _monomials(basis, c.shape[1], degree)]
+    return np.column_stack(cols)
+
+
+def one_hot(actions: np.ndarray, n_actions: int) -> np.ndarray:
+    """The discrete table's basis: row t is e_{a_t} (all zero where no action ran)."""
+    a = np.asarray(actions)
+    out = np.zeros((a.size, n_actions))
+    ok = a >= 0
+    out[np.flatnonzero(ok), a[ok]] = 1.0
+    return out
+
+
+def delayed(step_commands: np.ndarray, delay_steps: int) -> np.ndarray:
+    """Row t is the command of step ``t - delay_steps`` (row 0 before the log's start)."""
+    c = np.asarray(step_commands, dtype=float)
+    if delay_steps == 0:
+        return c
+    return np.concatenate([np.repeat(c[:1], delay_steps, axis=0), c[:-delay_steps]])[: len(c)]
+
+
+def feature_names(basis: str, degree: int, command_names: tuple[str, ...]) -> list[str]:
+    return ["*".join(command_names[i] for i in m) or "1" for m in _monomials(basis, len(command_names), degree)]
+
+
+@dataclass(frozen=True, eq=False)
+class LinearActionModel:
+    basis: str
+    degree: int  # used by the polynomial basis
+    coefficients: np.ndarray  # (n_features, n): beta
+    command_names: tuple[str, ...]
+    velocity_names: tuple[str, ...]
+    delay_steps: int = 0  # the command in force at step t acts from step t + delay_steps
+
+    def __post_init__(self) -> None:
+        if self.delay_steps < 0:
+            raise ValueError("delay_steps must be >= 0")
+        beta = np.atleast_2d(np.asarray(self.coefficients, dtype=float))
+        object.__setattr__(self, "coefficients", beta)
+        object.__setattr__(self, "command_names", tuple(self.command_names))
+        object.__setattr__(self, "velocity_names", tuple(self.velocity_names))
+        if self.basis == "polynomial" and self.degree < 1:
+            raise ValueError("a polynomial action basis needs degree >= 1")
+        nf = len(_monomials(self.basis, len(self.command_names), self.degree))
+        if beta.shape != (nf, len(self.velocity_names)):
+            raise ValueError(f"coefficients must be ({nf}, {len(self.velocity_names)}) for this basis")
+
+    @classmethod
+    def zero(cls, basis: str, degree: int, command_names, velocity_names) -> LinearActionModel:
+        """The thesis's starting point (sec. 4.4.1): no command has any effect."""
+        nf = len(_monomials(basis, len(command_names), degree))
+        return cls(basis, degree, np.zeros((nf, len(velocity_names))), command_names, velocity_names)
+
+    def features(self, commands: np.ndarray) -> np.ndarray:
+        return command_features(self.basis, self.degree, commands)
+
+    def velocities_at(self, commands: np.ndarray) -> np.ndarray:
+        """Mean robot-frame velocity for each row of ``commands``: ``Phi(c) beta``."""
+        return self.features(commands) @ self.coefficients
+
+    def step_features(self, step_commands: np.ndarray, delay_steps: int | None = None) -> np.ndarray:
+        """``Phi`` of the command acting at each step of a log, after the delay (the first command
+        stands in before it)."""
+        return self.features(delayed(step_commands, self.delay_steps if delay_steps is None else delay_steps))
+
+    def with_coefficients(self, beta: np.ndarray, delay_steps: int | None = None) -> LinearActionModel:
+        delay = self.delay_steps if delay_steps is None else delay_steps
+        return LinearActionModel(self.basis, self.degree, beta, self.command_names, self.velocity_names, delay)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "kind": "linear_action_model",
+            "basis": self.basis,
+            "degree": self.degree,
+            "command_names": list(self.command_names),
+            "velocity_names": list(self.velocity_names),
+            "feature_names": feature_names(self.basis, self.degree, self.command_names),
+            "coefficients": self.coefficients.tolist(),
+            "delay_steps": self.delay_steps,
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any], *, source: str = "model") -> LinearActionModel:
+        try:
+            return cls(
+                str(data["basis"]),
+                int(data.get("degree", 1)),
+                np.asarray(data["coefficients"], dtype=float),
+                tuple(data["command_names"]),
+                tuple(data["velocity_names"]),
+                int(data.get("delay_steps", 0)),
+            )
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ModelFormatError(
+                f"bad linear action model ({exc}).",
+                file=source,
+                field="coefficients",
+                fix="one row per basis feature and one column per velocity; rewrite it with `sensact learn em`.",
+            ) from None

@@ -1,0 +1,97 @@
+"""Figures for EM on real robots: action curves against Vicon, the range function over the residual
+scatter, and the log-likelihood per iteration."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+
+from sensact.core.pose_models import landmark_distance
+from sensact.models.polynomial import Polynomial1D
+from sensact.report.figures1d import _save
+
+
+def figure_action_curves(ml: Any, res: Any, score: dict[str, Any], path: Path, title: str) -> Path:
+    """Forward speed against commanded v (omega = 0) and turn rate against commanded omega (v at its
+    median), learned and From-Truth, over the commands the robot used."""
+    act = res.model.action
+    beta_ft = np.asarray(score["action"]["from_truth_coefficients"])
+    c = ml.data.step_commands
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    v = np.linspace(c[:, 0].min(), c[:, 0].max(), 50)
+    grid = np.column_stack([v, np.zeros_like(v)])
+    axes[0].plot(v, act.features(grid) @ act.coefficients[:, 1], label="learned (EM)")
+    axes[0].plot(v, act.features(grid) @ beta_ft[:, 1], "--", label="From-Truth (Vicon)")
+    axes[0].plot(v, v, ":", color="0.5", label="command")
+    axes[0].set(xlabel="commanded v (mm/s)", ylabel="forward velocity v_y (mm/s)", title=f"{title}: forward")
+    w = np.linspace(c[:, 1].min(), c[:, 1].max(), 50)
+    grid = np.column_stack([np.full_like(w, np.median(c[:, 0])), w])
+    axes[1].plot(w, act.features(grid) @ act.coefficients[:, 2], label="learned (EM)")
+    axes[1].plot(w, act.features(grid) @ beta_ft[:, 2], "--", label="From-Truth (Vicon)")
+    axes[1].plot(w, w, ":", color="0.5", label="command")
+    axes[1].set(xlabel="commanded omega (rad/s)", ylabel="turn rate v_theta (rad/s)", title=f"{title}: turning")
+    for ax in axes:
+        ax.legend(fontsize=8)
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def figure_range_function(ml: Any, res: Any, score: dict[str, Any], path: Path, title: str) -> Path:
+    """Readings against the Vicon distance, with the learned and From-Truth range functions."""
+    d = ml.data
+    gt = ml.groundtruth
+    poses = np.column_stack([gt["x_mm"], gt["y_mm"], gt["theta_rad"]])[d.obs_step]
+    ok = gt["valid"][d.obs_step] > 0
+    dist = landmark_distance(poses[ok], d.landmarks_xy[d.obs_landmark[ok]])
+    reading = d.obs_readings[ok, 0]
+    f = res.model.sensor.channels[0].function
+    f_ft = Polynomial1D.from_dict(score["range"]["from_truth_function"])
+    x = np.linspace(dist.min(), dist.max(), 200)
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    ax.scatter(dist, reading, s=3, alpha=0.25, color="0.4", label="sightings (Vicon distance)")
+    ax.plot(x, f(x), lw=2, label="learned f (EM)")
+    ax.plot(x, f_ft(x), "--", lw=2, label="From-Truth f")
+    ax.set(xlabel="true distance (mm)", ylabel="range reading (mm)", title=f"{title}: range function")
+    ax.set_ylim(0, np.percentile(reading, 99.5) * 1.1)
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def figure_loglik(results: dict[str, Any], path: Path) -> Path:
+    """log P(O | C, lambda) against the iteration, one line per run."""
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for name, res in results.items():
+        ll = res.loglik_history
+        ax.plot(np.arange(ll.size), ll - ll.max(), lw=1, label=name)
+    ax.set_yscale("symlog", linthresh=10)
+    ax.set(xlabel="EM iteration", ylabel="log-likelihood minus its best", title="EM on real robots")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def write_all(art: dict[str, Any], res: dict[str, Any], out: Path) -> list[Path]:
+    paths = []
+    runs = {}
+    for robot, (ml, r) in art.get("mrclam", {}).items():
+        score = res["mrclam"][f"robot{robot}"]["score"]
+        paths.append(
+            figure_action_curves(ml, r, score, out / f"real_mrclam_robot{robot}_actions.png", f"robot {robot}")
+        )
+        paths.append(figure_range_function(ml, r, score, out / f"real_mrclam_robot{robot}_range.png", f"robot {robot}"))
+        runs[f"MRCLAM robot {robot}"] = r
+    if "turtlebot" in art:
+        runs["Turtlebot"] = art["turtlebot"]
+    if runs:
+        paths.append(figure_loglik(runs, out / "real_loglik.png"))
+    return paths

@@ -1,0 +1,242 @@
+"""EM beyond the thesis: continuous-command action models, learned Sigma_m, several reading channels,
+robust observations, and the real datasets (MRCLAM, Turtlebot)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sensact.config import config_from_dict
+from sensact.core.pose_models import apply_displacement, landmark_bearing, landmark_distance
+from sensact.learn.em import EMConfig, e_step, fit_em
+from sensact.learn.em.actions import linear_coefficients, table_velocities
+from sensact.learn.em.config import ChannelConfig
+from sensact.logs.landmark_log import LandmarkLog
+from sensact.models.em_model import EMModel
+from sensact.models.linear_action import LinearActionModel, command_features, one_hot
+
+DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+MRCLAM = DATA / "mrclam" / "MRCLAM_Dataset6"
+TURTLEBOT = DATA / "turtlebot1d" / "training1.csv"
+
+TRUE_BETA = np.array([[5.0, 20.0, 0.02], [0.0, 0.9, 0.0], [30.0, 0.0, 0.8]])  # rows 1, v, omega
+TRUE_SD = np.array([4.0, 5.0, 0.02])  # per step
+LANDMARKS = np.array([[0.0, 2500.0], [3000.0, 0.0], [0.0, -2500.0], [-3000.0, 0.0], [2000.0, 2000.0]])
+
+
+def _simulate(seed: int, T: int = 9000, outlier_frac: float = 0.0):
+    """A differential-drive robot on continuous commands among five landmarks, range and bearing."""
+    rng = np.random.default_rng(seed)
+    dt = 1 / 30
+    seg = rng.integers(30, 120, T // 30)
+    levels = np.column_stack([rng.uniform(0, 300, seg.size), rng.uniform(-0.6, 0.6, seg.size)])
+    commands = np.repeat(levels, seg, axis=0)[:T]
+    v = command_features("affine", 1, commands) @ TRUE_BETA
+    poses = np.zeros((T, 3))
+    for t in range(T - 1):
+        # steer back toward the middle, so the robot stays among the landmarks
+        if np.hypot(*poses[t, :2]) > 1500:
+            commands[t, 1] = 0.6
+            v[t] = command_features("affine", 1, commands[t : t + 1]) @ TRUE_BETA
+        poses[t + 1] = apply_displacement(poses[t], (v[t] + rng.normal(size=3) * TRUE_SD / dt) * dt)[0]
+    steps = np.arange(0, T, 6)
+    which = rng.integers(0, len(LANDMARKS), steps.size)
+    d = landmark_distance(poses[steps], LANDMARKS[which])
+    rng_mm = 1.05 * d + 40.0 + rng.normal(size=d.size) * 30.0
+    bearing = landmark_bearing(poses[steps], LANDMARKS[which]) + rng.normal(size=d.size) * 0.02
+    bad = rng.random(d.size) < outlier_frac
+    rng_mm[bad] = rng.uniform(200, 8000, bad.sum())
+    data = LandmarkLog(
+        "planar",
+        dt,
+        np.full(T, -1),
+        np.zeros((0, 2)),
+        ("v_mm_s", "omega_rad_s"),
+        steps,
+        which,
+        rng_mm,
+        bearing,
+        LANDMARKS,
+        reading_names=("range_mm",),
+        step_commands=commands,
+    )
+    return data, poses
+
+
+def _config(**kw) -> EMConfig:
+    base = dict(
+        action_basis="affine",
+        motion_noise="shared",
+        motion_sd_mm=10.0,
+        motion_sd_rad=0.05,
+        channels=(ChannelConfig("range_mm", 1, 0.0, 0.8, 300.0),),
+        start_prior_sd=(100.0, 100.0, 0.1),
+        prune_rad_per_step=0.0,
+        max_iterations=300,
+    )
+    base.update(kw)
+    return EMConfig(**base)
+
+
+@pytest.fixture(scope="module")
+def continuous_fit():
+    data, poses = _simulate(1)
+    return data, poses, fit_em(data, None, _config())
+
+
+def test_one_hot_basis_is_the_action_table():
+    """Eq. 4.18 is the weighted least squares of D on a one-hot Phi (any weights constant per action)."""
+    rng = np.random.default_rng(0)
+    T, A, dt = 400, 5, 0.05
+    actions = rng.integers(-1, A, T)
+    disp = rng.normal(size=(T - 1, 3))
+    data = LandmarkLog("planar", dt, actions, np.eye(A, 3), ("a", "b", "c"), [], [], [], [], np.zeros((1, 2)))
+    table = table_velocities(disp, data, np.zeros((A, 3)))
+    Phi = one_hot(actions[:-1], A)
+    var = np.ones((T - 1, 3)) * rng.uniform(0.5, 2.0, A + 1)[actions[:-1], None]
+    np.testing.assert_allclose(linear_coefficients(Phi, disp, var, dt, np.zeros((A, 3))), table, atol=1e-12)
+
+
+def test_continuous_model_and_motion_noise_are_recovered(continuous_fit):
+    """Seeded recovery: beta, the range function and a known Sigma_m (within 15 %) from no motion."""
+    _data, _poses, res = continuous_fit
+    m = res.model
+    np.testing.assert_allclose(m.motion_sd[0], TRUE_SD, rtol=0.15)
+    assert m.action.coefficients[1, 1] == pytest.approx(0.9, rel=0.05)  # forward gain
+    assert m.action.coefficients[2, 2] == pytest.approx(0.8, rel=0.05)  # turn gain
+    x = np.linspace(800, 4500, 20)
+    np.testing.assert_allclose(m.sensor.channels[0].function(x), 1.05 * x + 40, atol=25)
+    assert m.sensor.channels[0].sigma == pytest.approx(30.0, rel=0.15)
+    # sigma_2 is learned high here (about 0.027): heading noise of 0.02 rad a step is as large as the
+    # bearing noise, and the linearized smoother gives part of it to the bearings
+    assert m.sensor.sigma_bearing_rad == pytest.approx(0.02, rel=0.4)
+
+
+def test_model_json_round_trip(continuous_fit):
+    m = continuous_fit[2].model
+    again = EMModel.from_dict(m.to_dict())
+    np.testing.assert_array_equal(again.action.coefficients, m.action.coefficients)
+    np.testing.assert_array_equal(again.motion_sd, m.motion_sd)
+    assert again.sensor == m.sensor and isinstance(again.action, LinearActionModel)
+
+
+def test_per_action_noise_learns_one_row_per_action():
+    from sensact.sim.field2d import Field2DConfig, simulate_field, to_landmark_log
+
+    data = to_landmark_log(simulate_field(Field2DConfig(seconds=120.0, seed=2)))
+    res = fit_em(data, None, EMConfig(motion_noise="per_action", prune_rad_per_step=0.0, max_iterations=30))
+    sd = res.model.motion_sd
+    assert sd.shape == (data.n_actions, 3) and np.all(sd >= [0.05, 0.05, 5e-4])
+    assert np.ptp(sd[:, 0]) > 0  # the rows are learned separately
+
+
+def test_student_t_makes_outliers_harmless():
+    """With 10 % gross range outliers a Gaussian channel's sigma balloons; Student-t keeps the inliers'."""
+    data, _ = _simulate(3, T=6000, outlier_frac=0.1)
+    ch = ChannelConfig("range_mm", 1, 0.0, 0.8, 300.0)
+    gauss = fit_em(data, None, _config(channels=(ch,), max_iterations=120))
+    robust_ch = ChannelConfig("range_mm", 1, 0.0, 0.8, 300.0, robust="student_t", robust_param=4.0)
+    robust = fit_em(data, None, _config(channels=(robust_ch,), max_iterations=120))
+    assert gauss.model.sensor.channels[0].sigma > 300
+    assert robust.model.sensor.channels[0].sigma < 80  # a fifth of the Gaussian one; true inlier sigma 30
+    x = np.linspace(800, 4500, 20)
+    np.testing.assert_allclose(robust.model.sensor.channels[0].function(x), 1.05 * x + 40, atol=40)
+    w = robust.posteriors.weights[:, 0]
+    assert w.min() < 0.05 and np.median(w) > 0.8  # outliers count for little, inliers nearly fully
+
+
+def test_gate_and_window_decide_which_readings_count(continuous_fit):
+    data, poses, res = continuous_fit
+    d = landmark_distance(poses[data.obs_step], LANDMARKS[data.obs_landmark])
+    ch = res.model.sensor.channels[0]
+    import dataclasses
+
+    windowed = res.model.replace(
+        sensor=dataclasses.replace(
+            res.model.sensor, channels=(dataclasses.replace(ch, valid_min=1500, valid_max=3000),)
+        )
+    )
+    w = e_step(windowed, data).weights[:, 0]
+    clear = (d < 1300) | (d > 3200)
+    assert np.all(w[clear] == 0) and np.all(w[(d > 1700) & (d < 2800)] == 1)
+    junk = data.obs_readings.copy()
+    junk[::10] += 5000.0
+    bad = LandmarkLog(
+        **{
+            **{
+                f: getattr(data, f)
+                for f in (
+                    "geometry",
+                    "dt_s",
+                    "actions",
+                    "action_commands",
+                    "command_names",
+                    "obs_step",
+                    "obs_landmark",
+                    "obs_bearing_rad",
+                    "landmarks_xy",
+                    "reading_names",
+                    "step_commands",
+                )
+            },
+            "obs_readings": junk,
+        }
+    )
+    gated = res.model.replace(
+        sensor=dataclasses.replace(
+            res.model.sensor, channels=(dataclasses.replace(ch, robust="gate", robust_param=4.0),)
+        )
+    )
+    post = e_step(gated, bad)
+    assert np.all(post.weights[::10, 0] == 0) and (post.weights[:, 0] > 0).mean() > 0.85
+
+
+def test_channels_parse_from_a_config_mapping():
+    cfg = config_from_dict(
+        EMConfig,
+        {
+            "action_basis": "cross",
+            "channels": [{"name": "ir", "valid_min": 150, "valid_max": 1500, "robust": "gate", "robust_param": 3}],
+        },
+    )
+    assert cfg.channels[0].valid_max == 1500 and cfg.channels[0].robust == "gate"
+    assert math.isinf(ChannelConfig("x").valid_max)
+    with pytest.raises(ValueError, match="per_action"):
+        EMConfig(action_basis="affine", motion_noise="per_action")
+
+
+@pytest.mark.skipif(not MRCLAM.is_dir(), reason=f"MRCLAM data not found at {MRCLAM}")
+def test_mrclam_reader_and_log_folder_round_trip(tmp_path):
+    from sensact.io.landmark_log import read_landmark_log, write_landmark_log
+    from sensact.io.mrclam import read_mrclam
+
+    ml = read_mrclam(MRCLAM, 1)
+    s = ml.summary
+    assert (
+        s["kept"] + s["dropped_robot"] + s["dropped_unknown_barcode"] + s["dropped_outside_time"]
+        == s["measurement_rows"]
+    )
+    assert s["kept"] == ml.data.n_observations and s["dropped_robot"] > 0
+    # zero-order hold: each step's command is the last odometry row at or before it
+    odo = np.loadtxt(MRCLAM / "Robot1_Odometry.dat", comments="#")
+    t = ml.t0_s + 500 * ml.data.dt_s
+    np.testing.assert_allclose(ml.data.step_commands[500], odo[odo[:, 0] <= t + 1e-9][-1, 1:] * [1000.0, 1.0])
+    assert np.all(ml.data.obs_readings > 0)
+    write_landmark_log(tmp_path / "log", ml.data, groundtruth=ml.groundtruth)
+    back = read_landmark_log(tmp_path / "log")
+    np.testing.assert_allclose(back.data.step_commands, ml.data.step_commands)
+    np.testing.assert_allclose(back.data.obs_readings, ml.data.obs_readings)
+    np.testing.assert_array_equal(back.data.obs_step, ml.data.obs_step)
+    np.testing.assert_allclose(back.groundtruth["x_mm"], ml.groundtruth["x_mm"], rtol=1e-9)
+
+
+@pytest.mark.skipif(not TURTLEBOT.is_file(), reason=f"Turtlebot data not found at {TURTLEBOT}")
+def test_turtlebot_em_clears_its_bars():
+    from sensact.experiments.turtlebot_em import run_turtlebot_em
+
+    summary, _ = run_turtlebot_em(TURTLEBOT)
+    assert summary["score"]["gain_error_pct"] < 5.0
+    assert summary["score"]["sensors"]["sonar1"]["rms_pct_of_span"] < 3.0
