@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import functools
 import logging
-import os
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -616,10 +615,9 @@ EXPERIMENTS = ("track1d", "turtlebot", "field2d", "em1d", "car", "real")
 
 
 def _data_dir(data: Path | None) -> Path:
-    if data is not None:
-        return data
-    env = os.environ.get("SENSACT_DATA")
-    return Path(env) if env else Path("..") / "shared" / "data"
+    from sensact.experiments.shared_data import data_root
+
+    return data if data is not None else data_root()
 
 
 @app.command()

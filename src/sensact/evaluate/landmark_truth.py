@@ -33,7 +33,7 @@ from sensact.core.pose_models import landmark_bearing, landmark_distance, relati
 from sensact.learn.em.actions import linear_coefficients
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
-from sensact.models.linear_action import LinearActionModel
+from sensact.models.linear_action import LinearActionModel, delayed
 from sensact.models.polynomial import Polynomial1D
 
 
@@ -98,8 +98,10 @@ def score_against_truth(
     D_true = relative_displacement(truth_poses[starts], truth_poses[starts + window])
     act = model.action
 
+    Phi0 = act.step_features(data.step_commands, 0)
+
     def window_features(delay: int) -> np.ndarray:
-        return act.step_features(data.step_commands, delay)[idx.ravel()].reshape(len(starts), window, -1)
+        return delayed(Phi0, delay)[idx.ravel()].reshape(len(starts), window, -1)
 
     def errors(beta: np.ndarray, Phi: np.ndarray) -> dict[str, float]:
         e = dead_reckon(Phi @ beta, data.dt_s) - D_true

@@ -3,7 +3,6 @@ the files (Algorithm 3), and score it against the truth: the laser angles and Ta
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -41,8 +40,9 @@ THESIS = {
 
 
 def default_calibration_path() -> Path:
-    data = Path(os.environ.get("SENSACT_DATA", Path("..") / "shared" / "data"))
-    return data / "velodyne" / "calibration" / "64e_utexas.yaml"
+    from sensact.experiments.shared_data import data_root
+
+    return data_root() / "velodyne" / "calibration" / "64e_utexas.yaml"
 
 
 def true_intrinsics(cfg: CarConfig) -> LaserIntrinsics:

@@ -13,7 +13,6 @@ camera, not fits to Dataset 6:
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -23,6 +22,7 @@ import numpy as np
 
 from sensact.config import config_to_dict
 from sensact.evaluate.landmark_truth import score_against_truth
+from sensact.experiments.shared_data import data_root
 from sensact.io.mrclam import MrclamLog, read_mrclam
 from sensact.learn.em import EMConfig, EMResult, fit_em
 from sensact.learn.em.config import ChannelConfig
@@ -44,12 +44,6 @@ def mrclam_config() -> EMConfig:
         start_search_s=30.0,
         max_iterations=300,
     )
-
-
-def data_root() -> Path:
-    """``$SENSACT_DATA``, or ``../shared/data`` relative to the working directory (as every command)."""
-    env = os.environ.get("SENSACT_DATA")
-    return Path(env) if env else Path("..") / "shared" / "data"
 
 
 def mrclam_folder(root: Path | None = None) -> Path:

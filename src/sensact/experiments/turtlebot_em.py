@@ -26,14 +26,10 @@ from typing import Any
 import numpy as np
 
 from sensact.config import config_to_dict
-from sensact.io.csvtable import read_numeric_csv
-from sensact.io.turtlebot import SPEC_RANGE_M
+from sensact.io.turtlebot import EM_READINGS, SPEC_RANGE_M, read_turtlebot_landmark_log
 from sensact.learn.em import EMConfig, EMResult, fit_em
 from sensact.learn.em.config import ChannelConfig
 from sensact.logs.landmark_log import LandmarkLog
-
-READINGS = ("sonar1", "raw_ir1", "raw_ir2", "raw_ir3", "raw_ir4")
-SCALE = {"sonar1": 1000.0}  # sonar m -> mm; the IR readings stay in volts
 
 
 def turtlebot_em_config() -> EMConfig:
@@ -44,7 +40,7 @@ def turtlebot_em_config() -> EMConfig:
         # state is in mm and the IR windows mean what the datasheets say
         ChannelConfig("sonar1", 3, 100.0, 0.8, 300.0, robust="student_t", robust_param=4.0),
     ]
-    for name in READINGS[1:]:
+    for name in EM_READINGS[1:]:
         lo, hi = SPEC_RANGE_M[name]
         chans.append(ChannelConfig(name, 3, 1.5, -0.0002, 1.0, lo * 1000.0, hi * 1000.0))
     return EMConfig(
@@ -54,38 +50,6 @@ def turtlebot_em_config() -> EMConfig:
         channels=tuple(chans),
         max_iterations=1000,
     )
-
-
-def read_turtlebot_em(path: str | Path, dt_s: float | None = None) -> tuple[LandmarkLog, np.ndarray]:
-    """The CSV on a fixed step (its median spacing): commands held, each row's readings at the nearest
-    step. Returns the log and the true range (mm) per step, for evaluation only."""
-    cols = read_numeric_csv(path, ["time", "velocity_command", *READINGS], what="Turtlebot CSV")
-    t = cols["time"]
-    dt = float(np.median(np.diff(t))) if dt_s is None else dt_s
-    T = int(np.floor((t[-1] - t[0]) / dt)) + 1
-    grid = t[0] + np.arange(T) * dt
-    held = np.clip(np.searchsorted(t, grid + 1e-9, side="right") - 1, 0, len(t) - 1)
-    commands = (cols["velocity_command"][held] * 1000.0).reshape(-1, 1)
-    steps = np.clip(np.rint((t - t[0]) / dt).astype(np.int64), 0, T - 1)
-    readings = np.column_stack([cols[r] * SCALE.get(r, 1.0) for r in READINGS])
-    truth = np.interp(grid, t, cols["range"]) * 1000.0 if "range" in cols else np.full(T, np.nan)
-    data = LandmarkLog(
-        "track",
-        dt,
-        np.full(T, -1, dtype=np.int64),
-        np.zeros((0, 1)),
-        ("v_cmd_mm_s",),
-        steps,
-        np.zeros(len(steps), dtype=np.int64),
-        readings,
-        np.full(len(steps), np.nan),
-        np.zeros((1, 2)),
-        ("wall",),
-        str(path),
-        READINGS,
-        commands,
-    )
-    return data, truth
 
 
 def _windowed_velocity(x: np.ndarray, dt: float, window: int) -> tuple[np.ndarray, np.ndarray]:
@@ -146,7 +110,7 @@ def score_turtlebot_em(res: EMResult, data: LandmarkLog, truth_mm: np.ndarray) -
 def run_turtlebot_em(csv_path: str | Path, config: EMConfig | None = None) -> tuple[dict[str, Any], EMResult]:
     t0 = time.perf_counter()
     cfg = config or turtlebot_em_config()
-    data, truth = read_turtlebot_em(csv_path)
+    data, truth = read_turtlebot_landmark_log(csv_path)
     res = fit_em(data, None, cfg)
     score = score_turtlebot_em(res, data, truth)
     best = min(v["rms_pct_of_span"] for v in score["sensors"].values() if np.isfinite(v["rms_pct_of_span"]))

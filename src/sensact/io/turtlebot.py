@@ -14,6 +14,7 @@ import numpy as np
 from sensact.errors import LogFormatError
 from sensact.io.csvtable import read_numeric_csv
 from sensact.io.logfolder import TrackLog
+from sensact.logs.landmark_log import LandmarkLog
 
 UNITS = {"sonar1": "m", "sonar2": "m", "raw_ir1": "V", "raw_ir2": "V", "raw_ir3": "V", "raw_ir4": "V"}
 
@@ -36,6 +37,42 @@ LEARNER_SETTINGS: dict[str, dict[str, Any]] = {
     "raw_ir3": {"observation_min": 0.55, "observation_max": 2.5},
     "raw_ir4": {"observation_min": 1.6, "observation_max": 3.3},
 }
+
+
+EM_READINGS = ("sonar1", "raw_ir1", "raw_ir2", "raw_ir3", "raw_ir4")
+EM_SCALE = {"sonar1": 1000.0}  # sonar m -> mm; the IR readings stay in volts
+
+
+def read_turtlebot_landmark_log(path: str | Path, dt_s: float | None = None) -> tuple[LandmarkLog, np.ndarray]:
+    """The CSV on a fixed step (its median spacing): commands held, each row's readings at the nearest
+    step. Returns the log and the true range (mm) per step, for evaluation only."""
+    cols = read_numeric_csv(path, ["time", "velocity_command", *EM_READINGS], what="Turtlebot CSV")
+    t = cols["time"]
+    dt = float(np.median(np.diff(t))) if dt_s is None else dt_s
+    T = int(np.floor((t[-1] - t[0]) / dt)) + 1
+    grid = t[0] + np.arange(T) * dt
+    held = np.clip(np.searchsorted(t, grid + 1e-9, side="right") - 1, 0, len(t) - 1)
+    commands = (cols["velocity_command"][held] * 1000.0).reshape(-1, 1)
+    steps = np.clip(np.rint((t - t[0]) / dt).astype(np.int64), 0, T - 1)
+    readings = np.column_stack([cols[r] * EM_SCALE.get(r, 1.0) for r in EM_READINGS])
+    truth = np.interp(grid, t, cols["range"]) * 1000.0 if "range" in cols else np.full(T, np.nan)
+    data = LandmarkLog(
+        "track",
+        dt,
+        np.full(T, -1, dtype=np.int64),
+        np.zeros((0, 1)),
+        ("v_cmd_mm_s",),
+        steps,
+        np.zeros(len(steps), dtype=np.int64),
+        readings,
+        np.full(len(steps), np.nan),
+        np.zeros((1, 2)),
+        ("wall",),
+        str(path),
+        EM_READINGS,
+        commands,
+    )
+    return data, truth
 
 
 def read_turtlebot_csv(path: str | Path, sensor: str = "sonar1") -> TrackLog:

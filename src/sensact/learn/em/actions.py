@@ -18,7 +18,7 @@ import numpy as np
 
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import ActionModel, EMModel
-from sensact.models.linear_action import LinearActionModel
+from sensact.models.linear_action import LinearActionModel, delayed
 
 
 def step_velocity(action: ActionModel, data: LandmarkLog) -> np.ndarray:
@@ -87,8 +87,9 @@ def linear_action_update(
     the weighted least-squares beta, and of those the pair with the least weighted squared error (the
     same expected log-likelihood, maximized over a discrete parameter too)."""
     best = (np.inf, action)
+    Phi0 = action.step_features(data.step_commands, 0)  # a delay shifts rows of Phi; compute it once
     for delay in range(max_delay + 1) if max_delay > 0 else [action.delay_steps]:
-        Phi = action.step_features(data.step_commands, delay)[:-1]
+        Phi = delayed(Phi0, delay)[:-1]
         beta = linear_coefficients(Phi, disp_mean, var, data.dt_s, action.coefficients)
         sse = float(np.sum((disp_mean - Phi @ beta * data.dt_s) ** 2 / var))
         if sse < best[0]:

@@ -46,17 +46,14 @@ def starting_height(config: EMConfig) -> Polynomial1D:
 def starting_sensor(data: LandmarkLog, config: EMConfig) -> LandmarkSensor:
     """Every channel starts from its poor straight line (sec. 4.4.1); the bearing from 0.2 rad."""
     channels = []
+    unit = "" if config.channels else "px"
     for cc in config.channel_configs(data.reading_names):
-        f = Polynomial1D((cc.start_intercept, cc.start_slope), input_name="d", input_unit="mm", output_unit="")
-        if cc.degree > 1:  # the M-step keeps each configured channel's degree
-            f = Polynomial1D(
-                (cc.start_intercept, cc.start_slope) + (0.0,) * (cc.degree - 1), input_name="d", input_unit="mm"
-            )
+        # the line padded with zero higher coefficients: the same function, of the degree the M-step fits
+        coef = (cc.start_intercept, cc.start_slope) + (0.0,) * (cc.degree - 1)
+        f = Polynomial1D(coef, input_name="d", input_unit="mm", output_unit=unit)
         channels.append(
             ReadingChannel(cc.name, f, cc.start_sigma, cc.valid_min, cc.valid_max, cc.robust, cc.robust_param)
         )
-    if not config.channels:
-        channels[0] = ReadingChannel(channels[0].name, starting_height(config), config.start_sigma_height_px)
     sigma_b = config.start_sigma_bearing_rad if data.geometry == "planar" else None
     return LandmarkSensor(tuple(channels), sigma_b, config.bearing_robust, config.bearing_robust_param)
 
@@ -196,7 +193,6 @@ def fit_em(
                 post,
                 data,
                 model,
-                degree=cfg.sensor_degree,
                 n_samples=cfg.samples_per_frame,
                 floor_var=floor,
                 rng=rng,

@@ -37,15 +37,15 @@ def sample_gamma(post: Posteriors, steps: np.ndarray, n_samples: int, rng: np.ra
 
 
 def sensor_model(
-    post: Posteriors, data: LandmarkLog, degree: int, n_samples: int, rng: np.random.Generator, previous: LandmarkSensor
+    post: Posteriors, data: LandmarkLog, n_samples: int, rng: np.random.Generator, previous: LandmarkSensor
 ) -> LandmarkSensor:
     """Eq. 4.25 (each f_i by regression on sampled distances), eq. 4.27 (each sigma_i) and eq. 4.28
     (sigma_2), over the readings the E-step used.
 
     A reading counts with its E-step weight: 1 for a Gaussian channel, the Student-t weight for a
     robust one (the t-distribution's EM update of location and scale), 0 if it was missing, outside
-    its window, gated or pruned. ``degree`` is the thesis's single channel's; configured channels keep
-    the degree of their polynomial.
+    its window, gated or pruned. Each f_i keeps the degree of ``previous``'s polynomial (the starting
+    model sets it: a cubic in the thesis).
     """
     weights = post.weights * post.obs_used[:, None]
     rows = np.flatnonzero(weights.any(axis=1))
@@ -59,7 +59,7 @@ def sensor_model(
     for c, ch in enumerate(previous.channels):
         w = weights[rows, c]
         use = w > 0
-        deg = degree if len(previous.channels) == 1 else ch.function.degree
+        deg = ch.function.degree
         if use.sum() <= deg + 1:
             fits.append((ch.function, ch.sigma))
             continue
@@ -94,7 +94,6 @@ def m_step(
     data: LandmarkLog,
     model: EMModel,
     *,
-    degree: int,
     n_samples: int,
     floor_var: np.ndarray,
     rng: np.random.Generator,
@@ -115,6 +114,6 @@ def m_step(
         groups = data.actions[:-1] if model.per_action_noise else None
         mean_disp = step_velocity(action, data)[:-1] * data.dt_s
         motion_sd = motion_noise(post.disp_mean, post.disp_cov, mean_disp, groups, motion_sd.shape[0], floor, motion_sd)
-    sensor = sensor_model(post, data, degree, n_samples, rng, model.sensor)
+    sensor = sensor_model(post, data, n_samples, rng, model.sensor)
     mean0, cov0 = prior(post, floor_var)
     return model.replace(action=action, sensor=sensor, prior_mean=mean0, prior_cov=cov0, motion_sd=motion_sd)
