@@ -34,7 +34,6 @@ def main() -> None:
     post = e_step(model, data)  # compile outside the timing
     rng = np.random.default_rng(0)
     kw = dict(
-        degree=3,
         n_samples=1,
         floor_var=np.ones(3) * 1e-6,
         rng=rng,

@@ -27,26 +27,29 @@ TRUE_SD = np.array([4.0, 5.0, 0.02])  # per step
 LANDMARKS = np.array([[0.0, 2500.0], [3000.0, 0.0], [0.0, -2500.0], [-3000.0, 0.0], [2000.0, 2000.0]])
 
 
-def _simulate(seed: int, T: int = 9000, outlier_frac: float = 0.0):
-    """A differential-drive robot on continuous commands among five landmarks, range and bearing."""
+def _simulate(seed: int, T: int = 9000, outlier_frac: float = 0.0, beta=TRUE_BETA, bearing_terms=(0.0, 0.0)):
+    """A robot on continuous commands among five landmarks, range and bearing. The range reads
+    ``1.05 d + 40 + d (a_1 b + a_2 b^2)`` with ``bearing_terms`` (a_1, a_2) at the measured bearing b."""
     rng = np.random.default_rng(seed)
     dt = 1 / 30
     seg = rng.integers(30, 120, T // 30)
     levels = np.column_stack([rng.uniform(0, 300, seg.size), rng.uniform(-0.6, 0.6, seg.size)])
     commands = np.repeat(levels, seg, axis=0)[:T]
-    v = command_features("affine", 1, commands) @ TRUE_BETA
+    v = command_features("affine", 1, commands) @ beta
     poses = np.zeros((T, 3))
     for t in range(T - 1):
         # steer back toward the middle, so the robot stays among the landmarks
         if np.hypot(*poses[t, :2]) > 1500:
             commands[t, 1] = 0.6
-            v[t] = command_features("affine", 1, commands[t : t + 1]) @ TRUE_BETA
+            v[t] = command_features("affine", 1, commands[t : t + 1]) @ beta
         poses[t + 1] = apply_displacement(poses[t], (v[t] + rng.normal(size=3) * TRUE_SD / dt) * dt)[0]
     steps = np.arange(0, T, 6)
     which = rng.integers(0, len(LANDMARKS), steps.size)
     d = landmark_distance(poses[steps], LANDMARKS[which])
     rng_mm = 1.05 * d + 40.0 + rng.normal(size=d.size) * 30.0
     bearing = landmark_bearing(poses[steps], LANDMARKS[which]) + rng.normal(size=d.size) * 0.02
+    a1, a2 = bearing_terms
+    rng_mm += d * (a1 * bearing + a2 * bearing**2)
     bad = rng.random(d.size) < outlier_frac
     rng_mm[bad] = rng.uniform(200, 8000, bad.sum())
     data = LandmarkLog(
@@ -76,6 +79,7 @@ def _config(**kw) -> EMConfig:
         start_prior_sd=(100.0, 100.0, 0.1),
         prune_rad_per_step=0.0,
         max_iterations=300,
+        refine_from=0,  # a near start: no need to hold Sigma_m and the bearing terms first
     )
     base.update(kw)
     return EMConfig(**base)
@@ -115,6 +119,49 @@ def test_continuous_model_and_motion_noise_are_recovered(continuous_fit):
     assert m.sensor.sigma_bearing_rad == pytest.approx(0.02, rel=0.4)
 
 
+def test_bearing_terms_and_a_held_lateral_velocity_are_recovered():
+    """Seeded recovery: a differential drive (no sideways motion) whose range is distorted with the
+    bearing, learned from no motion and a plain line."""
+    beta = TRUE_BETA.copy()
+    beta[:, 0] = 0.0
+    data, _ = _simulate(4, beta=beta, bearing_terms=(0.01, -0.02))
+    ch = ChannelConfig("range_mm", 1, 0.0, 0.8, 300.0, bearing_degree=2)
+    res = fit_em(data, None, _config(channels=(ch,), action_zero_mean=("v_x_mm_s",)))
+    m = res.model
+    assert np.all(m.action.coefficients[:, 0] == 0.0)  # held, not fitted
+    assert m.action.coefficients[1, 1] == pytest.approx(0.9, rel=0.05)
+    assert m.action.coefficients[2, 2] == pytest.approx(0.8, rel=0.05)
+    chan = m.sensor.channels[0]
+    np.testing.assert_allclose(chan.bearing_terms, (0.01, -0.02), atol=0.004)
+    assert chan.sigma == pytest.approx(30.0, rel=0.15)
+    # the thesis's f(d) alone cannot read this sensor: its sigma is several times larger
+    plain = fit_em(data, None, _config(channels=(ChannelConfig("range_mm", 1, 0.0, 0.8, 300.0),), max_iterations=150))
+    assert plain.model.sensor.channels[0].sigma > 2 * chan.sigma
+
+
+def test_sigma_m_and_bearing_terms_are_held_until_refine_from():
+    data, _ = _simulate(4, T=3000, bearing_terms=(0.01, -0.02))
+    ch = ChannelConfig("range_mm", 1, 0.0, 0.8, 300.0, bearing_degree=2)
+    res = fit_em(data, None, _config(channels=(ch,), refine_from=8, max_iterations=12, patience=50))
+    sd = res.motion_sd_history[:, 0]
+    np.testing.assert_array_equal(sd[:9], np.repeat(sd[:1], 9, axis=0))  # lambda_0..8: the start's
+    assert np.all(sd[9] != sd[0])  # the M-step after iteration 8 learns Sigma_m
+    assert res.model.sensor.channels[0].bearing_terms != (0.0, 0.0)
+
+
+def test_zero_bearing_terms_are_the_thesis_sensor(continuous_fit):
+    """Exact reduction: bearing terms of zero change neither the E-step nor the prediction."""
+    data, _poses, res = continuous_fit
+    m = res.model
+    ch = m.sensor.channels[0]
+    held = m.replace(sensor=m.sensor.with_fits([(ch.function, ch.sigma, (0.0, 0.0))], m.sensor.sigma_bearing_rad))
+    a, b = e_step(m, data), e_step(held, data)
+    assert a.loglik == b.loglik
+    np.testing.assert_array_equal(a.mean_gamma, b.mean_gamma)
+    d = np.linspace(500, 4000, 7)
+    np.testing.assert_array_equal(held.sensor.channels[0].predict(d, np.full(7, 0.3)), ch.function(d))
+
+
 def test_model_json_round_trip(continuous_fit):
     m = continuous_fit[2].model
     again = EMModel.from_dict(m.to_dict())
@@ -127,7 +174,8 @@ def test_per_action_noise_learns_one_row_per_action():
     from sensact.sim.field2d import Field2DConfig, simulate_field, to_landmark_log
 
     data = to_landmark_log(simulate_field(Field2DConfig(seconds=120.0, seed=2)))
-    res = fit_em(data, None, EMConfig(motion_noise="per_action", prune_rad_per_step=0.0, max_iterations=30))
+    cfg = EMConfig(motion_noise="per_action", prune_rad_per_step=0.0, max_iterations=30, refine_from=0)
+    res = fit_em(data, None, cfg)
     sd = res.model.motion_sd
     assert sd.shape == (data.n_actions, 3) and np.all(sd >= [0.05, 0.05, 5e-4])
     assert np.ptp(sd[:, 0]) > 0  # the rows are learned separately

@@ -75,12 +75,13 @@ def test_observation_jacobians_and_convention():
     w = np.array([300.0, -200.0, 0.4])
     lx, ly = 1350.0, 1950.0
     H = np.zeros(3)
-    h = observe_height(PLANAR, w, lx, ly, COEF, CENTER, SCALE, H)
-    Hn = _num_jac(lambda x: observe_height(PLANAR, x, lx, ly, COEF, CENTER, SCALE, np.zeros(3)), w)
-    np.testing.assert_allclose(H, Hn[0], rtol=1e-6, atol=1e-9)
     r = landmark_distance(w, np.array([lx, ly]))[0]
     u = (r - CENTER) / SCALE
-    assert h == pytest.approx(np.polyval(COEF[::-1], u))
+    for gain in (0.0, -0.03):  # a bearing term adds gain * d to the reading
+        h = observe_height(PLANAR, w, lx, ly, COEF, CENTER, SCALE, gain, H)
+        Hn = _num_jac(lambda x, g=gain: observe_height(PLANAR, x, lx, ly, COEF, CENTER, SCALE, g, np.zeros(3)), w)
+        np.testing.assert_allclose(H, Hn[0], rtol=1e-6, atol=1e-9)
+        assert h == pytest.approx(np.polyval(COEF[::-1], u) + gain * r)
     b = observe_bearing(w, lx, ly, H)
     Hn = _num_jac(lambda x: observe_bearing(x, lx, ly, np.zeros(3)), w)
     np.testing.assert_allclose(H, Hn[0], rtol=1e-6, atol=1e-12)

@@ -150,6 +150,7 @@ def ekf_smoother(
     obs_ptr,
     obs_landmark,
     obs_readings,
+    obs_gain,
     obs_bearing,
     obs_use,
     landmarks,
@@ -179,6 +180,7 @@ def ekf_smoother(
     belong to step ``t``; reading channel ``c`` of row ``k`` is ``obs_readings[k, c]`` with the
     polynomial ``coefs[c]`` in ``(d - centers[c]) / scales[c]``, variance ``reading_var[c]`` and
     distance window ``[window_lo[c], window_hi[c]]``; a NaN reading or bearing is a missing channel.
+    ``obs_gain[k, c]`` adds ``gain * d`` to channel c's prediction (its bearing terms, 0 in the thesis).
     ``robust_kind[c]``/``robust_param[c]`` pick each channel's likelihood (the last entry is the
     bearing's). ``weights[k, c]`` receives each reading's weight (0 = not used).
     With ``prune_rad_per_step > 0`` an observation whose bearing innovation exceeds that times the
@@ -226,7 +228,8 @@ def ekf_smoother(
             for c in range(C):
                 if not np.isfinite(obs_readings[k, c]) or dist < window_lo[c] or dist > window_hi[c]:
                     continue
-                nu = obs_readings[k, c] - observe_height(mode, m, lx, ly, coefs[c], centers[c], scales[c], H)
+                f_c = observe_height(mode, m, lx, ly, coefs[c], centers[c], scales[c], obs_gain[k, c], H)
+                nu = obs_readings[k, c] - f_c
                 w, ld = _reading_weight(robust_kind[c], robust_param[c], nu, _hph(P, H, n) + reading_var[c])
                 loglik += ld
                 if w > 0.0:
@@ -304,7 +307,9 @@ def ekf_smoother(
                 if weights[k, c] <= 0.0:
                     continue
                 if c < C:
-                    nu = obs_readings[k, c] - observe_height(mode, mref, lx, ly, coefs[c], centers[c], scales[c], H)
+                    nu = obs_readings[k, c] - observe_height(
+                        mode, mref, lx, ly, coefs[c], centers[c], scales[c], obs_gain[k, c], H
+                    )
                     r = reading_var[c] / weights[k, c]
                 else:
                     nu = wrap(obs_bearing[k] - observe_bearing(mref, lx, ly, H))

@@ -42,8 +42,12 @@ def weighted_polyfit(
     ``X'DX`` explicitly.
     """
     u = (np.asarray(x, dtype=float) - center) / scale
+    return weighted_lstsq(vander(u, degree), y, weights)
+
+
+def weighted_lstsq(X: np.ndarray, y: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
+    """Minimize ``sum_i w_i (y_i - X_i c)**2`` by ``lstsq`` on rows scaled by ``sqrt(w)``."""
     y = np.asarray(y, dtype=float)
-    X = vander(u, degree)
     if weights is not None:
         sw = np.sqrt(np.asarray(weights, dtype=float))
         X = X * sw[:, None]

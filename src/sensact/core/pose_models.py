@@ -164,20 +164,22 @@ def landmark_range(mode, w, lx, ly):
 
 
 @njit(cache=True)
-def observe_height(mode, w, lx, ly, coef, center, scale, H):
-    """Predicted beacon height ``f(dist(w))`` and its gradient ``H`` (eq. 4.19, first component)."""
+def observe_height(mode, w, lx, ly, coef, center, scale, gain, H):
+    """Predicted reading ``f(dist(w)) + gain * dist(w)`` and its gradient ``H`` (eq. 4.19, first
+    component; ``gain`` is the channel's bearing term at the measured bearing, 0 in the thesis)."""
     if mode == TRACK:
         v, dv = poly_value_slope(coef, center, scale, w[0])
-        H[0] = dv
-        return v
+        H[0] = dv + gain
+        return v + gain * w[0]
     dx = lx - w[0]
     dy = ly - w[1]
     r = (dx * dx + dy * dy) ** 0.5
     v, dv = poly_value_slope(coef, center, scale, r)
+    dv += gain
     H[0] = -dv * dx / r
     H[1] = -dv * dy / r
     H[2] = 0.0
-    return v
+    return v + gain * r
 
 
 @njit(cache=True)

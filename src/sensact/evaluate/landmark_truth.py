@@ -13,9 +13,10 @@ do on that data; the learned model is judged next to it:
   fit of the true window displacements on the window sums of ``Phi(c_t) dt`` (exact for windows
   without turning; it is scored the same way as the learned model), with the command delay (up to
   ``max_delay_steps``) that fits best.
-* **range function:** From-Truth is the polynomial of the learned degree fitted to (true distance,
-  reading) after outlier trimming. Each model's error is the RMS residual ``reading - f(d_true)`` over
-  the trimmed sightings; the learned f's gap to From-Truth's is reported too.
+* **range function:** From-Truth is the function of the learned family (the polynomial's degree and the
+  number of bearing terms) fitted to (true distance, measured bearing, reading) after outlier trimming.
+  Each model's error is the RMS residual ``reading - f(d_true) - d_true g(b)`` over the trimmed
+  sightings; the learned function's gap to From-Truth's is reported too.
 * **sigmas:** the truth residual sigma is the RMS of the trimmed residuals (range: about From-Truth's f;
   bearing: about zero, as eq. 4.28 has no bearing bias). Trimming drops residuals beyond
   ``trim`` robust sigmas (1.4826 MAD) of the median, repeated until nothing changes.
@@ -23,12 +24,13 @@ do on that data; the learned model is judged next to it:
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
 from sensact.core.angles import wrap_angle
-from sensact.core.polyfit import weighted_polyfit
+from sensact.core.polyfit import vander, weighted_lstsq
 from sensact.core.pose_models import landmark_bearing, landmark_distance, relative_displacement
 from sensact.learn.em.actions import linear_coefficients
 from sensact.logs.landmark_log import LandmarkLog
@@ -113,7 +115,7 @@ def score_against_truth(
     for delay in range(max_delay_steps + 1):
         Phi = window_features(delay)
         beta = linear_coefficients(
-            Phi.sum(axis=1), D_true, np.ones_like(D_true), data.dt_s, np.zeros_like(act.coefficients)
+            Phi.sum(axis=1), D_true, np.ones_like(D_true), data.dt_s, np.zeros_like(act.coefficients), act.free_columns
         )
         sse = float(np.sum((Phi.sum(axis=1) @ beta * data.dt_s - D_true) ** 2 / D_true.var(axis=0)))
         if ft is None or sse < ft[0]:
@@ -128,20 +130,24 @@ def score_against_truth(
     lm = data.landmarks_xy[data.obs_landmark[rows]]
     d = landmark_distance(poses, lm)
     reading = data.obs_readings[rows, 0]
+    bearing = data.obs_bearing_rad[rows]
     chan = model.sensor.channels[0]
-    deg = chan.function.degree
-    has = np.isfinite(reading)
+    deg, m = chan.function.degree, len(chan.bearing_terms)
+    center, scale = float(d.mean()), float(d.std()) or 1.0
+    X = np.column_stack([vander((d - center) / scale, deg)] + [d * bearing**k for k in range(1, m + 1)])
+    has = np.isfinite(reading) & np.all(np.isfinite(X), axis=1)
     keep = has.copy()
-    for _ in range(20):  # trim about the From-Truth f, refitted on what is kept
-        coef = weighted_polyfit(d[keep], reading[keep], deg, center=float(d.mean()), scale=float(d.std()) or 1.0)
-        f_ft = Polynomial1D(tuple(coef), float(d.mean()), float(d.std()) or 1.0)
-        resid = np.where(has, reading - f_ft(d), np.nan)
+    for _ in range(20):  # trim about the From-Truth function, refitted on what is kept
+        sol = weighted_lstsq(X[keep], reading[keep])
+        ft = replace(chan, function=Polynomial1D(tuple(sol[: deg + 1]), center, scale), bearing_terms=sol[deg + 1 :])
+        resid = np.where(has, reading - np.where(has[:, None], X, 0.0) @ sol, np.nan)
         new = trimmed(resid, trim)
         if np.array_equal(new, keep):
             break
         keep = new
-    r_ft = reading[keep] - f_ft(d[keep])
-    r_learned = reading[keep] - chan.function(d[keep])
+    r_ft = reading[keep] - ft.predict(d[keep], bearing[keep])
+    learned_keep = chan.predict(d[keep], bearing[keep])
+    r_learned = reading[keep] - learned_keep
     b_res = wrap_angle(data.obs_bearing_rad[rows] - landmark_bearing(poses, lm))
     b_keep = trimmed(b_res, trim)
     sb_true = _rms(b_res[b_keep])
@@ -165,11 +171,12 @@ def score_against_truth(
             "sightings_trimmed": int(has.sum() - keep.sum()),
             "learned_residual_rms_mm": _rms(r_learned),
             "from_truth_residual_rms_mm": sr_true,
-            "learned_vs_from_truth_rms_mm": _rms(chan.function(d[keep]) - f_ft(d[keep])),
+            "learned_vs_from_truth_rms_mm": _rms(learned_keep - reading[keep] + r_ft),
             "sigma_learned_mm": chan.sigma,
             "sigma_truth_mm": sr_true,
             "sigma_ratio": chan.sigma / sr_true,
-            "from_truth_function": f_ft.to_dict(),
+            "from_truth_function": ft.function.to_dict(),
+            "from_truth_bearing_terms": list(ft.bearing_terms),
         },
         "bearing": {
             "sightings_trimmed": int(np.isfinite(b_res).sum() - b_keep.sum()),

@@ -5,13 +5,27 @@ The thesis has one reading, the beacon height ``f(dist) + N(0, sigma_1^2)``, and
 ``ReadingChannel`` with its own polynomial ``f_i(dist)``, its own ``sigma_i``, a distance window outside
 which its readings say nothing (an IR sensor's curve folds back below its minimum range), and a choice
 of likelihood for outliers. Channel 0 of a one-channel sensor is the thesis's model exactly.
+
+A camera that reads range from a landmark's apparent size is distorted away from the image centre: its
+reading depends on where in the image the landmark is, not on the distance alone. ``bearing_terms``
+``(a_1, .., a_m)`` model that as a relative error that grows with the measured bearing ``b``::
+
+    reading = f(d) + d * (a_1 b + a_2 b^2 + .. + a_m b^m)
+
+which is still linear in every parameter, so the M-step stays a weighted least squares. On MRCLAM it
+takes the range residual about the truth from 60-185 mm down to 15-25 mm. The measured bearing is
+used, not the predicted one: it is 10x more precise than the bearing changes that matter, and it keeps
+the channels independent given the pose. No terms (the default) is the thesis's ``f(d)``.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any
+
+import numpy as np
 
 from sensact.errors import ModelFormatError
 from sensact.models.polynomial import Polynomial1D
@@ -35,13 +49,32 @@ class ReadingChannel:
     valid_max: float = math.inf
     robust: str = "none"  # "none" (Gaussian, the thesis), "student_t" or "gate"
     robust_param: float = 0.0  # degrees of freedom, or the gate in innovation sigmas
+    bearing_terms: tuple[float, ...] = ()  # a_1..a_m of the relative error d * sum_k a_k b^k
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "bearing_terms", tuple(float(a) for a in self.bearing_terms))
         if not self.sigma > 0:
             raise ValueError(f"channel {self.name}: sigma must be > 0")
         if not self.valid_min < self.valid_max:
             raise ValueError(f"channel {self.name}: valid_min must be below valid_max")
         check_robust(self.robust, self.robust_param, f"channel {self.name}")
+
+    def bearing_gain(self, bearing: np.ndarray) -> np.ndarray:
+        """``sum_k a_k b^k`` for each measured bearing (0 without bearing terms)."""
+        b = np.asarray(bearing, dtype=float)
+        out = np.zeros_like(b)
+        for a in reversed(self.bearing_terms):
+            out = (out + a) * b
+        return out
+
+    def predict(self, dist: np.ndarray, bearing: np.ndarray | None = None) -> np.ndarray:
+        """The mean reading at ``dist``, seen at the measured ``bearing`` when the channel has terms."""
+        d = np.asarray(dist, dtype=float)
+        if not self.bearing_terms:
+            return self.function(d)
+        if bearing is None:
+            raise ValueError(f"channel {self.name} has bearing terms: give the measured bearings")
+        return self.function(d) + d * self.bearing_gain(bearing)
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -52,6 +85,7 @@ class ReadingChannel:
             "valid_max": self.valid_max if math.isfinite(self.valid_max) else None,
             "robust": self.robust,
             "robust_param": self.robust_param,
+            "bearing_terms": list(self.bearing_terms),
         }
 
     @classmethod
@@ -65,6 +99,7 @@ class ReadingChannel:
             math.inf if hi is None else float(hi),
             str(data.get("robust", "none")),
             float(data.get("robust_param", 0.0)),
+            tuple(data.get("bearing_terms", ())),
         )
 
 
@@ -97,9 +132,13 @@ class LandmarkSensor:
     def sigma_height_px(self) -> float:
         return self.channels[0].sigma
 
-    def with_fits(self, fits: list[tuple[Polynomial1D, float]], sigma_bearing_rad: float | None) -> LandmarkSensor:
-        """The same channels with new functions and sigmas (the M-step's output)."""
-        chans = tuple(replace(ch, function=f, sigma=s) for ch, (f, s) in zip(self.channels, fits, strict=True))
+    def with_fits(
+        self, fits: Sequence[tuple[Polynomial1D, float, tuple[float, ...]]], sigma_bearing_rad: float | None
+    ) -> LandmarkSensor:
+        """The same channels with new functions, sigmas and bearing terms (the M-step's output)."""
+        chans = tuple(
+            replace(ch, function=f, sigma=s, bearing_terms=a) for ch, (f, s, a) in zip(self.channels, fits, strict=True)
+        )
         return replace(self, channels=chans, sigma_bearing_rad=sigma_bearing_rad)
 
     def to_dict(self) -> dict[str, Any]:

@@ -10,6 +10,10 @@ continuous velocities. The basis ``Phi`` is chosen by name:
 A real robot's motion also lags its commands; ``delay_steps`` makes step ``t`` move by
 ``A(c_{t - delay})`` (0, the thesis's assumption, by default).
 
+``zero_mean`` names velocity components whose mean is held at zero: a differential-drive robot cannot
+move sideways, and a free lateral column would let EM explain sensor error as sideways motion (Sigma_m
+still allows some). The thesis's Aibo could side-step, so nothing is held by default.
+
 The discrete action table is the same model with a one-hot basis (``one_hot``), which is how the
 M-step's weighted least squares reduces to eq. 4.18.
 """
@@ -74,8 +78,13 @@ class LinearActionModel:
     command_names: tuple[str, ...]
     velocity_names: tuple[str, ...]
     delay_steps: int = 0  # the command in force at step t acts from step t + delay_steps
+    zero_mean: tuple[str, ...] = ()  # velocity components whose mean is held at 0 (no sideways motion)
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "zero_mean", tuple(self.zero_mean))
+        unknown = [v for v in self.zero_mean if v not in self.velocity_names]
+        if unknown:
+            raise ValueError(f"zero_mean names {unknown[0]!r}, not one of {list(self.velocity_names)}")
         if self.delay_steps < 0:
             raise ValueError("delay_steps must be >= 0")
         beta = np.atleast_2d(np.asarray(self.coefficients, dtype=float))
@@ -89,10 +98,15 @@ class LinearActionModel:
             raise ValueError(f"coefficients must be ({nf}, {len(self.velocity_names)}) for this basis")
 
     @classmethod
-    def zero(cls, basis: str, degree: int, command_names, velocity_names) -> LinearActionModel:
+    def zero(cls, basis: str, degree: int, command_names, velocity_names, zero_mean=()) -> LinearActionModel:
         """The thesis's starting point (sec. 4.4.1): no command has any effect."""
         nf = len(_monomials(basis, len(command_names), degree))
-        return cls(basis, degree, np.zeros((nf, len(velocity_names))), command_names, velocity_names)
+        return cls(basis, degree, np.zeros((nf, len(velocity_names))), command_names, velocity_names, 0, zero_mean)
+
+    @property
+    def free_columns(self) -> np.ndarray:
+        """(n,) bool: the velocity components the M-step fits (the rest stay zero)."""
+        return np.array([v not in self.zero_mean for v in self.velocity_names])
 
     def features(self, commands: np.ndarray) -> np.ndarray:
         return command_features(self.basis, self.degree, commands)
@@ -108,7 +122,9 @@ class LinearActionModel:
 
     def with_coefficients(self, beta: np.ndarray, delay_steps: int | None = None) -> LinearActionModel:
         delay = self.delay_steps if delay_steps is None else delay_steps
-        return LinearActionModel(self.basis, self.degree, beta, self.command_names, self.velocity_names, delay)
+        return LinearActionModel(
+            self.basis, self.degree, beta, self.command_names, self.velocity_names, delay, self.zero_mean
+        )
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -120,6 +136,7 @@ class LinearActionModel:
             "feature_names": feature_names(self.basis, self.degree, self.command_names),
             "coefficients": self.coefficients.tolist(),
             "delay_steps": self.delay_steps,
+            "zero_mean": list(self.zero_mean),
         }
 
     @classmethod
@@ -132,6 +149,7 @@ class LinearActionModel:
                 tuple(data["command_names"]),
                 tuple(data["velocity_names"]),
                 int(data.get("delay_steps", 0)),
+                tuple(data.get("zero_mean", ())),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise ModelFormatError(

@@ -44,18 +44,22 @@ def figure_action_curves(ml: Any, res: Any, score: dict[str, Any], path: Path, t
 
 
 def figure_range_function(ml: Any, res: Any, score: dict[str, Any], path: Path, title: str) -> Path:
-    """Readings against the Vicon distance, with the learned and From-Truth range functions."""
+    """Readings against the Vicon distance, with the learned and From-Truth range functions. With bearing
+    terms the readings are shown with the learned terms taken out, ``reading - d g(b)``, so that they
+    scatter about f(d)."""
     d = ml.data
     gt = ml.groundtruth
     poses = np.column_stack([gt["x_mm"], gt["y_mm"], gt["theta_rad"]])[d.obs_step]
     ok = gt["valid"][d.obs_step] > 0
     dist = landmark_distance(poses[ok], d.landmarks_xy[d.obs_landmark[ok]])
-    reading = d.obs_readings[ok, 0]
-    f = res.model.sensor.channels[0].function
+    chan = res.model.sensor.channels[0]
+    reading = d.obs_readings[ok, 0] - dist * chan.bearing_gain(d.obs_bearing_rad[ok])
+    f = chan.function
     f_ft = Polynomial1D.from_dict(score["range"]["from_truth_function"])
     x = np.linspace(dist.min(), dist.max(), 200)
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
-    ax.scatter(dist, reading, s=3, alpha=0.25, color="0.4", label="sightings (Vicon distance)")
+    what = "sightings, learned bearing terms removed" if chan.bearing_terms else "sightings"
+    ax.scatter(dist, reading, s=3, alpha=0.25, color="0.4", label=f"{what} (Vicon distance)")
     ax.plot(x, f(x), lw=2, label="learned f (EM)")
     ax.plot(x, f_ft(x), "--", lw=2, label="From-Truth f")
     ax.set(xlabel="true distance (mm)", ylabel="range reading (mm)", title=f"{title}: range function")

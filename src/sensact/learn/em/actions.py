@@ -63,17 +63,26 @@ def table_velocities(disp_mean: np.ndarray, data: LandmarkLog, previous: np.ndar
 
 
 def linear_coefficients(
-    features: np.ndarray, disp_mean: np.ndarray, var: np.ndarray, dt: float, previous: np.ndarray
+    features: np.ndarray,
+    disp_mean: np.ndarray,
+    var: np.ndarray,
+    dt: float,
+    previous: np.ndarray,
+    free: np.ndarray | None = None,
 ) -> np.ndarray:
     """beta minimizing ``sum_t (Dbar_t,i - Phi_t beta_i dt)^2 / var_t,i`` for each component i.
 
     ``features`` is ``(T-1, F)``, ``disp_mean`` and ``var`` ``(T-1, n)``. Features that never vary keep
     their previous coefficients: they are zero at every step, so the log says nothing about them.
+    Components not ``free`` have a mean held at zero (the other columns do not depend on them).
     """
     beta = np.array(previous, dtype=float, copy=True)
     used = np.any(features != 0.0, axis=0)
     X = features[:, used] * dt
     for i in range(disp_mean.shape[1]):
+        if free is not None and not free[i]:
+            beta[:, i] = 0.0
+            continue
         sw = 1.0 / np.sqrt(var[:, i])
         sol, *_ = np.linalg.lstsq(X * sw[:, None], disp_mean[:, i] * sw, rcond=None)
         beta[used, i] = sol
@@ -90,7 +99,7 @@ def linear_action_update(
     Phi0 = action.step_features(data.step_commands, 0)  # a delay shifts rows of Phi; compute it once
     for delay in range(max_delay + 1) if max_delay > 0 else [action.delay_steps]:
         Phi = delayed(Phi0, delay)[:-1]
-        beta = linear_coefficients(Phi, disp_mean, var, data.dt_s, action.coefficients)
+        beta = linear_coefficients(Phi, disp_mean, var, data.dt_s, action.coefficients, action.free_columns)
         sse = float(np.sum((disp_mean - Phi @ beta * data.dt_s) ** 2 / var))
         if sse < best[0]:
             best = (sse, action.with_coefficients(beta, delay))

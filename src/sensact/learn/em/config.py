@@ -29,8 +29,12 @@ class ChannelConfig:
     valid_max: float = math.inf
     robust: str = "none"  # "none", "student_t" or "gate"
     robust_param: float = 0.0  # Student-t degrees of freedom, or the gate in innovation sigmas
+    # m of the camera's bearing terms d * (a_1 b + .. + a_m b^m), learned from 0 (0 = the thesis's f(d))
+    bearing_degree: int = 0
 
     def __post_init__(self) -> None:
+        if self.bearing_degree < 0:
+            raise ValueError(f"channel {self.name}: bearing_degree must be >= 0")
         if self.degree < 1:
             raise ValueError(f"channel {self.name}: degree must be >= 1")
         if not self.start_sigma > 0:
@@ -67,6 +71,8 @@ class EMConfig:
     action_basis: str = "table"
     action_degree: int = 2  # of the polynomial basis
     action_delay_max_s: float = 0.0  # learn a command delay up to this long (continuous models; 0 = none)
+    # velocity components whose mean is held at 0, e.g. ("v_x_mm_s",): a differential drive cannot side-step
+    action_zero_mean: tuple[str, ...] = ()
     # Sigma_m: "fixed" (the thesis), or learned "shared" or "per_action", never below the floor
     motion_noise: str = "fixed"
     motion_sd_floor_mm: float = 0.05
@@ -75,6 +81,11 @@ class EMConfig:
     channels: tuple[ChannelConfig, ...] = ()
     bearing_robust: str = "none"
     bearing_robust_param: float = 0.0
+    # a learned Sigma_m and the channels' bearing terms are held at their start before this iteration, or
+    # until EM has converged without them: learned from a poor start, both let EM settle on a trajectory
+    # shifted behind the robot (a wide Sigma_m lets the shifted point slide sideways in turns; the terms
+    # absorb the range change), so the thesis's fixed-Sigma_m model pins the trajectory first
+    refine_from: int = 100
     # choose pi(w_0) among a grid of poses by the forward likelihood of the first seconds (0 = off);
     # for a log with no idea where the robot starts (planar, with a landmark map)
     start_search_s: float = 0.0
@@ -100,6 +111,8 @@ class EMConfig:
             problems.append("action_delay_max_s must be >= 0")
         if self.action_degree < 1:
             problems.append("action_degree must be >= 1")
+        if self.action_zero_mean and self.action_basis == "table":
+            problems.append("action_zero_mean needs a continuous action_basis (affine, cross or polynomial)")
         if self.motion_noise not in MOTION_NOISE:
             problems.append(f"motion_noise must be one of {MOTION_NOISE}")
         if self.motion_noise == "per_action" and self.action_basis != "table":
@@ -108,6 +121,8 @@ class EMConfig:
             problems.append("motion_sd_floor_mm and motion_sd_floor_rad must be > 0")
         if len({c.name for c in self.channels}) != len(self.channels):
             problems.append("channel names must be distinct")
+        if self.refine_from < 0:
+            problems.append("refine_from must be >= 0")
         if self.start_search_s < 0 or self.start_search_grid_mm <= 0:
             problems.append("start_search_s must be >= 0 and start_search_grid_mm > 0")
         try:

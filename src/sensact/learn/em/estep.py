@@ -53,6 +53,25 @@ def channel_columns(sensor: LandmarkSensor, data: LandmarkLog) -> list[int]:
     return [data.reading_names.index(x) for x in names]
 
 
+def channel_inputs(sensor: LandmarkSensor, data: LandmarkLog) -> tuple[np.ndarray, np.ndarray]:
+    """Each channel's readings ``(K, C)`` and bearing gain ``sum_k a_k b^k`` at the measured bearing.
+
+    A channel with bearing terms cannot predict a reading whose bearing is missing: that reading counts
+    as missing too.
+    """
+    readings = np.array(data.obs_readings[:, channel_columns(sensor, data)], dtype=float)
+    gain = np.zeros_like(readings)
+    for c, ch in enumerate(sensor.channels):
+        if not ch.bearing_terms:
+            continue
+        if data.geometry != "planar":
+            raise ValueError(f"channel {ch.name} has bearing terms but the log {data.source} has no bearings")
+        g = ch.bearing_gain(data.obs_bearing_rad)
+        readings[~np.isfinite(g), c] = np.nan
+        gain[:, c] = np.nan_to_num(g)
+    return readings, gain
+
+
 def e_step(
     model: EMModel,
     data: LandmarkLog,
@@ -91,6 +110,7 @@ def e_step(
     d_mu = np.full((T - 1, n), np.nan)
     d_P = np.full((T - 1, n, n), np.nan)
     weights = np.zeros((data.n_observations, C + 1))
+    readings, gain = channel_inputs(sensor, data)
     status, loglik, n_used = ekf_smoother(
         data.mode,
         data.dt_s,
@@ -100,7 +120,8 @@ def e_step(
         model.prior_cov.copy(),
         data.obs_ptr,
         data.obs_landmark,
-        np.ascontiguousarray(data.obs_readings[:, channel_columns(sensor, data)]),
+        readings,
+        gain,
         data.obs_bearing_rad,
         use,
         data.landmarks_xy if len(data.landmarks_xy) else np.zeros((1, 2)),

@@ -52,7 +52,16 @@ def starting_sensor(data: LandmarkLog, config: EMConfig) -> LandmarkSensor:
         coef = (cc.start_intercept, cc.start_slope) + (0.0,) * (cc.degree - 1)
         f = Polynomial1D(coef, input_name="d", input_unit="mm", output_unit=unit)
         channels.append(
-            ReadingChannel(cc.name, f, cc.start_sigma, cc.valid_min, cc.valid_max, cc.robust, cc.robust_param)
+            ReadingChannel(
+                cc.name,
+                f,
+                cc.start_sigma,
+                cc.valid_min,
+                cc.valid_max,
+                cc.robust,
+                cc.robust_param,
+                (0.0,) * cc.bearing_degree,
+            )
         )
     sigma_b = config.start_sigma_bearing_rad if data.geometry == "planar" else None
     return LandmarkSensor(tuple(channels), sigma_b, config.bearing_robust, config.bearing_robust_param)
@@ -69,7 +78,9 @@ def initial_model(data: LandmarkLog, config: EMConfig) -> EMModel:
     else:
         if data.step_commands is None:
             raise ValueError(f"{data.source} has discrete actions only: use action_basis=table")
-        action = LinearActionModel.zero(config.action_basis, config.action_degree, data.command_names, names)
+        action = LinearActionModel.zero(
+            config.action_basis, config.action_degree, data.command_names, names, config.action_zero_mean
+        )
     sensor = starting_sensor(data, config)
     mean = np.asarray(config.start_prior_mean[:n], dtype=float)
     cov = np.diag(np.asarray(config.start_prior_sd[:n], dtype=float) ** 2)
@@ -159,6 +170,9 @@ def fit_em(
     best_ll, best_it, best_model, best_post = -np.inf, -1, model, None
     obs_use = None
     reason = "max_iterations"
+    learns_sigma_m = cfg.motion_noise != "fixed"
+    refining = not (learns_sigma_m or any(c.bearing_terms for c in model.sensor.channels)) or cfg.refine_from <= 0
+    freed_at = -1
     start = time.perf_counter()
     try:
         for it in range(cfg.max_iterations):
@@ -186,7 +200,9 @@ def fit_em(
                 best_ll, best_it, best_model, best_post = post.loglik, it, model, post
             if progress is not None:
                 progress(it, post.loglik, best_ll, it - best_it)
-            if it - best_it >= cfg.patience:
+            if not refining and (it >= cfg.refine_from or it - best_it >= cfg.patience):
+                refining, freed_at = True, it  # converged with Sigma_m and the terms held: free them
+            if it - max(best_it, freed_at) >= cfg.patience:
                 reason = "converged"
                 break
             model = m_step(
@@ -196,9 +212,10 @@ def fit_em(
                 n_samples=cfg.samples_per_frame,
                 floor_var=floor,
                 rng=rng,
-                learn_motion_noise=cfg.motion_noise != "fixed",
+                learn_motion_noise=learns_sigma_m and refining,
                 motion_floor_sd=motion_sd_floor(cfg, n),
                 max_delay_steps=round(cfg.action_delay_max_s / data.dt_s),
+                fit_bearing_terms=refining,
             )
     except KeyboardInterrupt:
         reason = "interrupted"

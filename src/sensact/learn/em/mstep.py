@@ -3,13 +3,15 @@ E-step's posteriors. ``learn/em/actions.py`` holds the action and motion-noise u
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from sensact.core.angles import wrap_angle
-from sensact.core.polyfit import weighted_polyfit
+from sensact.core.polyfit import vander, weighted_lstsq
 from sensact.core.pose_models import landmark_bearing, landmark_distance
 from sensact.learn.em.actions import linear_action_update, motion_noise, step_velocity, table_velocities
-from sensact.learn.em.estep import Posteriors, channel_columns
+from sensact.learn.em.estep import Posteriors, channel_inputs
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.action_table import ActionTable
 from sensact.models.em_model import EMModel
@@ -37,7 +39,12 @@ def sample_gamma(post: Posteriors, steps: np.ndarray, n_samples: int, rng: np.ra
 
 
 def sensor_model(
-    post: Posteriors, data: LandmarkLog, n_samples: int, rng: np.random.Generator, previous: LandmarkSensor
+    post: Posteriors,
+    data: LandmarkLog,
+    n_samples: int,
+    rng: np.random.Generator,
+    previous: LandmarkSensor,
+    fit_bearing_terms: bool = True,
 ) -> LandmarkSensor:
     """Eq. 4.25 (each f_i by regression on sampled distances), eq. 4.27 (each sigma_i) and eq. 4.28
     (sigma_2), over the readings the E-step used.
@@ -45,7 +52,7 @@ def sensor_model(
     A reading counts with its E-step weight: 1 for a Gaussian channel, the Student-t weight for a
     robust one (the t-distribution's EM update of location and scale), 0 if it was missing, outside
     its window, gated or pruned. Each f_i keeps the degree of ``previous``'s polynomial (the starting
-    model sets it: a cubic in the thesis).
+    model sets it: a cubic in the thesis). Without ``fit_bearing_terms`` the bearing terms are held.
     """
     weights = post.weights * post.obs_used[:, None]
     rows = np.flatnonzero(weights.any(axis=1))
@@ -54,24 +61,30 @@ def sensor_model(
     poses = sample_gamma(post, data.obs_step[rows], n_samples, rng)  # (S, R, n)
     lm = data.landmarks_xy[data.obs_landmark[rows]]
     dist = np.stack([landmark_distance(poses[s], lm, data.mode) for s in range(n_samples)])  # (S, R)
-    readings = data.obs_readings[rows][:, channel_columns(previous, data)]
+    readings = channel_inputs(previous, data)[0][rows]
+    bearings = data.obs_bearing_rad[rows]
     fits = []
     for c, ch in enumerate(previous.channels):
         w = weights[rows, c]
         use = w > 0
-        deg = ch.function.degree
-        if use.sum() <= deg + 1:
-            fits.append((ch.function, ch.sigma))
+        deg, m = ch.function.degree, len(ch.bearing_terms) if fit_bearing_terms else 0
+        if use.sum() <= deg + m + 1:
+            fits.append((ch.function, ch.sigma, ch.bearing_terms))
             continue
         d = dist[:, use].ravel()
         y = np.tile(readings[use, c], n_samples)
         ww = np.tile(w[use], n_samples)
+        b = np.tile(bearings[use], n_samples)
+        held = 0.0 if m else d * ch.bearing_gain(b)  # held terms: f is fitted to what they leave
         center, scale = float(d.mean()), float(d.std()) or 1.0
-        coef = weighted_polyfit(d, y, deg, ww, center=center, scale=scale)
+        # eq. 4.25, with the bearing terms' columns d b^k beside f's (they enter linearly too)
+        X = np.column_stack([vander((d - center) / scale, deg)] + [d * b**k for k in range(1, m + 1)])
+        sol = weighted_lstsq(X, y - held, ww)
         prev = ch.function
-        f = Polynomial1D(tuple(coef), center, scale, prev.input_name, prev.input_unit, prev.output_unit)
-        sigma = float(np.sqrt(np.sum(ww * (f(d) - y) ** 2) / d.size))
-        fits.append((f, max(sigma, 1e-9)))
+        f = Polynomial1D(tuple(sol[: deg + 1]), center, scale, prev.input_name, prev.input_unit, prev.output_unit)
+        fitted = replace(ch, function=f, bearing_terms=tuple(sol[deg + 1 :]) if m else ch.bearing_terms)
+        sigma = float(np.sqrt(np.sum(ww * (fitted.predict(d, b) - y) ** 2) / d.size))  # eq. 4.27
+        fits.append((f, max(sigma, 1e-9), fitted.bearing_terms))
     sigma_b = previous.sigma_bearing_rad
     wb = weights[rows, -1]
     if data.geometry == "planar" and sigma_b is not None and (wb > 0).any():
@@ -100,6 +113,7 @@ def m_step(
     learn_motion_noise: bool = False,
     motion_floor_sd: np.ndarray | None = None,
     max_delay_steps: int = 0,
+    fit_bearing_terms: bool = True,
 ) -> EMModel:
     """Every update of sec. 4.3, plus Sigma_m when ``learn_motion_noise`` (shared or per action, as the
     model's ``motion_sd`` has one row or one per action)."""
@@ -114,6 +128,6 @@ def m_step(
         groups = data.actions[:-1] if model.per_action_noise else None
         mean_disp = step_velocity(action, data)[:-1] * data.dt_s
         motion_sd = motion_noise(post.disp_mean, post.disp_cov, mean_disp, groups, motion_sd.shape[0], floor, motion_sd)
-    sensor = sensor_model(post, data, n_samples, rng, model.sensor)
+    sensor = sensor_model(post, data, n_samples, rng, model.sensor, fit_bearing_terms)
     mean0, cov0 = prior(post, floor_var)
     return model.replace(action=action, sensor=sensor, prior_mean=mean0, prior_cov=cov0, motion_sd=motion_sd)

@@ -43,7 +43,8 @@ def search_start(data: LandmarkLog, model: EMModel, config: EMConfig) -> tuple[E
     cov = np.diag([g**2, g**2, 0.3**2])
     # the starting f is a guess, so the search trusts the bearings alone: the readings get a spread
     # that makes them uninformative
-    vague = model.sensor.with_fits([(c.function, 1e9) for c in model.sensor.channels], model.sensor.sigma_bearing_rad)
+    chans = model.sensor.channels
+    vague = model.sensor.with_fits([(c.function, 1e9, c.bearing_terms) for c in chans], model.sensor.sigma_bearing_rad)
     scorer = model.replace(sensor=vague)
     best = (-np.inf, None)
     tried = 0
