@@ -24,19 +24,18 @@ do on that data; the learned model is judged next to it:
 
 from __future__ import annotations
 
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
 from sensact.core.angles import wrap_angle
-from sensact.core.polyfit import vander, weighted_lstsq
+from sensact.core.polyfit import weighted_lstsq
 from sensact.core.pose_models import landmark_bearing, landmark_distance, relative_displacement
 from sensact.learn.em.actions import linear_coefficients
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
+from sensact.models.landmark_sensor import reading_features
 from sensact.models.linear_action import LinearActionModel, delayed
-from sensact.models.polynomial import Polynomial1D
 
 
 def window_starts(valid: np.ndarray, window: int) -> np.ndarray:
@@ -134,18 +133,19 @@ def score_against_truth(
     chan = model.sensor.channels[0]
     deg, m = chan.function.degree, len(chan.bearing_terms)
     center, scale = float(d.mean()), float(d.std()) or 1.0
-    X = np.column_stack([vander((d - center) / scale, deg)] + [d * bearing**k for k in range(1, m + 1)])
+    X = reading_features(d, bearing, deg, m, center, scale)
     has = np.isfinite(reading) & np.all(np.isfinite(X), axis=1)
+    X[~has] = 0.0
     keep = has.copy()
     for _ in range(20):  # trim about the From-Truth function, refitted on what is kept
         sol = weighted_lstsq(X[keep], reading[keep])
-        ft = replace(chan, function=Polynomial1D(tuple(sol[: deg + 1]), center, scale), bearing_terms=sol[deg + 1 :])
-        resid = np.where(has, reading - np.where(has[:, None], X, 0.0) @ sol, np.nan)
-        new = trimmed(resid, trim)
+        pred_ft = X @ sol
+        new = trimmed(np.where(has, reading - pred_ft, np.nan), trim)
         if np.array_equal(new, keep):
             break
         keep = new
-    r_ft = reading[keep] - ft.predict(d[keep], bearing[keep])
+    ft = chan.with_solution(sol, center, scale, m)
+    r_ft = reading[keep] - pred_ft[keep]
     learned_keep = chan.predict(d[keep], bearing[keep])
     r_learned = reading[keep] - learned_keep
     b_res = wrap_angle(data.obs_bearing_rad[rows] - landmark_bearing(poses, lm))
@@ -171,7 +171,7 @@ def score_against_truth(
             "sightings_trimmed": int(has.sum() - keep.sum()),
             "learned_residual_rms_mm": _rms(r_learned),
             "from_truth_residual_rms_mm": sr_true,
-            "learned_vs_from_truth_rms_mm": _rms(learned_keep - reading[keep] + r_ft),
+            "learned_vs_from_truth_rms_mm": _rms(learned_keep - pred_ft[keep]),
             "sigma_learned_mm": chan.sigma,
             "sigma_truth_mm": sr_true,
             "sigma_ratio": chan.sigma / sr_true,

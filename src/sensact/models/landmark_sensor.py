@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from sensact.core.polyfit import vander
 from sensact.errors import ModelFormatError
 from sensact.models.polynomial import Polynomial1D
 
@@ -38,6 +39,16 @@ def check_robust(kind: str, param: float, what: str) -> None:
         raise ValueError(f"{what}: robust must be one of {ROBUST_KINDS}, not {kind!r}")
     if kind != "none" and not param > 0:
         raise ValueError(f"{what}: robust_param (Student-t degrees of freedom or gate in sigmas) must be > 0")
+
+
+def reading_features(
+    dist: np.ndarray, bearing: np.ndarray, degree: int, n_terms: int, center: float, scale: float
+) -> np.ndarray:
+    """The columns a reading is linear in: ``u^0..u^degree`` of ``u = (d - center) / scale`` (f's), then
+    ``d b^1..d b^n_terms`` (the bearing terms'). The M-step and From-Truth both regress on these."""
+    d = np.asarray(dist, dtype=float)
+    b = np.asarray(bearing, dtype=float)
+    return np.column_stack([vander((d - center) / scale, degree)] + [d * b**k for k in range(1, n_terms + 1)])
 
 
 @dataclass(frozen=True)
@@ -75,6 +86,14 @@ class ReadingChannel:
         if bearing is None:
             raise ValueError(f"channel {self.name} has bearing terms: give the measured bearings")
         return self.function(d) + d * self.bearing_gain(bearing)
+
+    def with_solution(self, sol: np.ndarray, center: float, scale: float, n_terms: int) -> ReadingChannel:
+        """The channel whose f (in ``(d - center) / scale``, same units) and, when ``n_terms``, bearing
+        terms are the coefficients ``sol`` of ``reading_features``."""
+        deg = len(sol) - 1 - n_terms
+        f = self.function
+        f = Polynomial1D(tuple(sol[: deg + 1]), center, scale, f.input_name, f.input_unit, f.output_unit)
+        return replace(self, function=f, bearing_terms=tuple(sol[deg + 1 :]) if n_terms else self.bearing_terms)
 
     def to_dict(self) -> dict[str, Any]:
         return {

@@ -3,20 +3,17 @@ E-step's posteriors. ``learn/em/actions.py`` holds the action and motion-noise u
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 
 from sensact.core.angles import wrap_angle
-from sensact.core.polyfit import vander, weighted_lstsq
+from sensact.core.polyfit import weighted_lstsq
 from sensact.core.pose_models import landmark_bearing, landmark_distance
 from sensact.learn.em.actions import linear_action_update, motion_noise, step_velocity, table_velocities
 from sensact.learn.em.estep import Posteriors, channel_inputs
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.action_table import ActionTable
 from sensact.models.em_model import EMModel
-from sensact.models.landmark_sensor import LandmarkSensor
-from sensact.models.polynomial import Polynomial1D
+from sensact.models.landmark_sensor import LandmarkSensor, reading_features
 
 
 def action_velocities(post: Posteriors, data: LandmarkLog, previous: np.ndarray) -> np.ndarray:
@@ -78,13 +75,10 @@ def sensor_model(
         held = 0.0 if m else d * ch.bearing_gain(b)  # held terms: f is fitted to what they leave
         center, scale = float(d.mean()), float(d.std()) or 1.0
         # eq. 4.25, with the bearing terms' columns d b^k beside f's (they enter linearly too)
-        X = np.column_stack([vander((d - center) / scale, deg)] + [d * b**k for k in range(1, m + 1)])
-        sol = weighted_lstsq(X, y - held, ww)
-        prev = ch.function
-        f = Polynomial1D(tuple(sol[: deg + 1]), center, scale, prev.input_name, prev.input_unit, prev.output_unit)
-        fitted = replace(ch, function=f, bearing_terms=tuple(sol[deg + 1 :]) if m else ch.bearing_terms)
+        sol = weighted_lstsq(reading_features(d, b, deg, m, center, scale), y - held, ww)
+        fitted = ch.with_solution(sol, center, scale, m)
         sigma = float(np.sqrt(np.sum(ww * (fitted.predict(d, b) - y) ** 2) / d.size))  # eq. 4.27
-        fits.append((f, max(sigma, 1e-9), fitted.bearing_terms))
+        fits.append((fitted.function, max(sigma, 1e-9), fitted.bearing_terms))
     sigma_b = previous.sigma_bearing_rad
     wb = weights[rows, -1]
     if data.geometry == "planar" and sigma_b is not None and (wb > 0).any():
