@@ -11,9 +11,10 @@ import pytest
 
 from sensact.config import config_from_dict
 from sensact.core.pose_models import apply_displacement, landmark_bearing, landmark_distance
-from sensact.learn.em import EMConfig, e_step, fit_em
+from sensact.learn.em import EMConfig, e_step, fit_em, initial_model
 from sensact.learn.em.actions import linear_coefficients, table_velocities
 from sensact.learn.em.config import ChannelConfig
+from sensact.learn.em.start import race_starts, start_candidates
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 from sensact.models.linear_action import LinearActionModel, command_features, one_hot
@@ -160,6 +161,59 @@ def test_zero_bearing_terms_are_the_thesis_sensor(continuous_fit):
     np.testing.assert_array_equal(a.mean_gamma, b.mean_gamma)
     d = np.linspace(500, 4000, 7)
     np.testing.assert_array_equal(held.sensor.channels[0].predict(d, np.full(7, 0.3)), ch.function(d))
+
+
+def test_robust_readings_start_gaussian_until_refine_from():
+    """Graduated robustness: before refine_from the E-step is the thesis's Gaussian one (every used
+    reading has weight 1); after it the Student-t weights discount the outliers."""
+    data, _ = _simulate(3, T=3000, outlier_frac=0.1)
+    ch = ChannelConfig("range_mm", 1, 0.0, 0.8, 300.0, robust="student_t", robust_param=4.0)
+    held = fit_em(data, None, _config(channels=(ch,), refine_from=1000, max_iterations=10))
+    w = held.posteriors.weights[:, 0]
+    assert set(np.unique(w[w > 0])) == {1.0}
+    freed = fit_em(data, None, _config(channels=(ch,), refine_from=5, max_iterations=15, patience=50))
+    w = freed.posteriors.weights[:, 0]
+    assert freed.best_iteration > 5 and w.min() < 0.05  # the best model is one scored by the robust likelihood
+
+
+def test_start_race_halves_the_field_on_the_held_gaussian_likelihood():
+    """The race's bookkeeping with a scripted EM: six candidates, then three, then two, then the best;
+    every trial runs the held, Gaussian, unpruned stage so that their likelihoods compare."""
+    data, _ = _simulate(6, T=600)
+    cfg = _config(start_search_s=10.0, refine_from=100, prune_rad_per_step=0.6)
+    start = initial_model(data, cfg)
+    quality = [3.0, 1.0, 6.0, 2.0, 5.0, 4.0]  # candidate 2 is best; 4 second
+    cands = [start.replace(prior_mean=np.array([q, 0.0, 0.0])) for q in quality]
+    seen = []
+
+    class Trial:  # what fit_em returns, as far as the race reads it
+        def __init__(self, model, cfg):
+            self.model, self.iterations = model, cfg.max_iterations
+            self.loglik_best = 100.0 * model.prior_mean[0] - model.prior_mean[1]
+
+    def run(data, model, trial_cfg):
+        seen.append(trial_cfg)
+        return Trial(model.replace(prior_mean=model.prior_mean + np.array([0.0, 1.0, 0.0])), trial_cfg)
+
+    model, spent, info = race_starts(data, cands, cfg, run)
+    assert [len(r) for r in info["rounds"]] == [6, 3, 2] and info["winner"] == 2
+    assert set(info["rounds"][1]) == {"2", "4", "5"} and set(info["rounds"][2]) == {"2", "4"}
+    assert model.prior_mean[0] == 6.0 and model.prior_mean[1] == 3.0  # the winner's model after 3 rounds
+    assert spent == 3 * cfg.start_trial_iterations
+    for t in seen:
+        assert t.max_iterations == cfg.start_trial_iterations and t.prune_rad_per_step == 0.0
+        assert t.refine_from > t.max_iterations and t.patience > t.max_iterations and t.start_search_s == 0.0
+
+
+def test_start_search_candidates_are_distinct_and_one_is_near_the_start():
+    data, poses = _simulate(6, T=4500)
+    cfg = _config(start_search_s=20.0, start_candidates=6)
+    cands, info = start_candidates(data, initial_model(data, cfg), cfg)
+    means = np.array([c.prior_mean for c in cands])
+    assert len(cands) == 6 == len(info["candidates"])
+    gaps = np.hypot(*(means[:, None, :2] - means[None, :, :2]).transpose(2, 0, 1))
+    assert gaps[~np.eye(6, dtype=bool)].min() >= 2.5 * cfg.start_search_grid_mm
+    assert np.hypot(*(means[:, :2] - poses[0, :2]).T).min() <= math.sqrt(2) * cfg.start_search_grid_mm  # a cell
 
 
 def test_model_json_round_trip(continuous_fit):

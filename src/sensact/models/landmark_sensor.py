@@ -160,6 +160,15 @@ class LandmarkSensor:
         )
         return replace(self, channels=chans, sigma_bearing_rad=sigma_bearing_rad)
 
+    @property
+    def is_robust(self) -> bool:
+        return self.bearing_robust != "none" or any(c.robust != "none" for c in self.channels)
+
+    def gaussian(self) -> LandmarkSensor:
+        """The same sensor with every reading Gaussian (the thesis's observation model)."""
+        chans = tuple(replace(c, robust="none", robust_param=0.0) for c in self.channels)
+        return replace(self, channels=chans, bearing_robust="none", bearing_robust_param=0.0)
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "kind": "landmark_sensor",

@@ -90,6 +90,10 @@ class EMConfig:
     # for a log with no idea where the robot starts (planar, with a landmark map)
     start_search_s: float = 0.0
     start_search_grid_mm: float = 500.0
+    # the best few distinct grid poses race: EM from each on the whole log, the better half kept every
+    # start_trial_iterations held iterations, until one is left (1 = the grid's best, no race)
+    start_candidates: int = 6
+    start_trial_iterations: int = 20
 
     def __post_init__(self) -> None:
         problems = []
@@ -125,6 +129,8 @@ class EMConfig:
             problems.append("refine_from must be >= 0")
         if self.start_search_s < 0 or self.start_search_grid_mm <= 0:
             problems.append("start_search_s must be >= 0 and start_search_grid_mm > 0")
+        if self.start_candidates < 1 or self.start_trial_iterations < 1:
+            problems.append("start_candidates and start_trial_iterations must be >= 1")
         try:
             check_robust(self.bearing_robust, self.bearing_robust_param, "bearing")
         except ValueError as exc:

@@ -18,7 +18,7 @@ import numpy as np
 from sensact.learn.em.config import EMConfig
 from sensact.learn.em.estep import Posteriors, e_step
 from sensact.learn.em.mstep import m_step
-from sensact.learn.em.start import search_start
+from sensact.learn.em.start import race_starts, start_candidates
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.action_table import ActionTable
 from sensact.models.em_model import EMModel
@@ -160,8 +160,13 @@ def fit_em(
     if cfg.motion_noise == "fixed":  # the thesis: Sigma_m is the configured constant, whatever the start says
         model = model.replace(motion_sd=motion_sd_start(cfg, n))
     start_info = None
+    spent = 0  # held iterations the start race has already given the model
     if cfg.start_search_s > 0 and data.geometry == "planar":
-        model, start_info = search_start(data, model, cfg)
+        candidates, start_info = start_candidates(data, model, cfg)
+        model = candidates[0]
+        if len(candidates) > 1:
+            model, spent, start_info["race"] = race_starts(data, candidates, cfg, fit_em)
+        start_info["prior_mean"] = model.prior_mean.tolist()
     floor = np.array([cfg.prior_floor_sd[0] ** 2] * min(n, 2) + ([cfg.prior_floor_sd[1] ** 2] if n == 3 else []))
     logliks: list[float] = []
     velocities: list[np.ndarray] = []
@@ -171,13 +176,15 @@ def fit_em(
     obs_use = None
     reason = "max_iterations"
     learns_sigma_m = cfg.motion_noise != "fixed"
-    refining = not (learns_sigma_m or any(c.bearing_terms for c in model.sensor.channels)) or cfg.refine_from <= 0
+    staged = learns_sigma_m or model.sensor.is_robust or any(c.bearing_terms for c in model.sensor.channels)
+    refine_from = cfg.refine_from - spent
+    refining = not staged or refine_from <= 0
     freed_at = -1
     start = time.perf_counter()
     try:
         for it in range(cfg.max_iterations):
             post = e_step(
-                model,
+                model if refining else model.replace(sensor=model.sensor.gaussian()),
                 data,
                 obs_use=obs_use,
                 prune_rad_per_step=cfg.prune_rad_per_step if it == 0 else 0.0,
@@ -200,8 +207,10 @@ def fit_em(
                 best_ll, best_it, best_model, best_post = post.loglik, it, model, post
             if progress is not None:
                 progress(it, post.loglik, best_ll, it - best_it)
-            if not refining and (it >= cfg.refine_from or it - best_it >= cfg.patience):
+            if not refining and (it >= refine_from or it - best_it >= cfg.patience):
                 refining, freed_at = True, it  # converged with Sigma_m and the terms held: free them
+                if model.sensor.is_robust:
+                    best_ll = -np.inf  # the robust likelihood is another function: its own best from here
             if it - max(best_it, freed_at) >= cfg.patience:
                 reason = "converged"
                 break

@@ -1,15 +1,26 @@
 """Where the robot starts, when nobody says (beyond the thesis, whose robots started at a known pose).
 
 A real log begins wherever the robot happened to be. With a landmark map and bearings, the EKF can
-only lock on from a start near the truth, so ``search_start`` tries a grid of starting positions over
-the mapped area. At each position the heading is the one that makes the first bearing exact, so only
-positions need a grid. Each candidate prior is scored by ``log P(O | C, lambda)`` of the first
-``start_search_s`` seconds under the starting model, the E-step's own likelihood; the best one
-becomes ``pi(w_0)``.
+only lock on from a start near the truth, so the start is chosen in two rounds:
+
+1. ``start_candidates`` scores a grid of starting positions over the mapped area by
+   ``log P(O | C, lambda)`` of the first ``start_search_s`` seconds under the starting model, the
+   E-step's own likelihood. At each position the heading is the one that makes the first bearing
+   exact, so only positions need a grid. The best few, each at least a few grid cells from the others,
+   go on. A window's likelihood alone cannot choose among them: under the starting model the robot does
+   not move, and a robot that drives toward the landmarks it sees changes their bearings hardly at all.
+2. ``race_starts`` runs EM from each candidate on the whole log, in rounds of
+   ``start_trial_iterations`` held iterations (Sigma_m and the bearing terms fixed, Gaussian readings,
+   no pruning, so every candidate is scored on the same observations by the same likelihood), and
+   keeps the better half after each round. A start that lost the robot stays thousands of log-units
+   below one that found it, so the rounds are decisive; the winner's EM goes on where it stopped.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -21,10 +32,11 @@ from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 
 MIN_OBSERVATIONS = 10  # the window grows until it holds this many sightings
+DISTINCT_CELLS = 2.5  # candidates closer than this many grid cells are one candidate
 
 
-def search_start(data: LandmarkLog, model: EMModel, config: EMConfig) -> tuple[EMModel, dict[str, Any]]:
-    """The model with ``pi(w_0)`` replaced by the most likely grid candidate, and a summary."""
+def start_candidates(data: LandmarkLog, model: EMModel, config: EMConfig) -> tuple[list[EMModel], dict[str, Any]]:
+    """Up to ``config.start_candidates`` models with distinct ``pi(w_0)``, best window likelihood first."""
     first = np.flatnonzero(np.isfinite(data.obs_bearing_rad))
     if data.geometry != "planar" or first.size == 0 or len(data.landmarks_xy) == 0:
         raise ValueError("the start search needs a planar log with bearings to mapped landmarks")
@@ -32,7 +44,6 @@ def search_start(data: LandmarkLog, model: EMModel, config: EMConfig) -> tuple[E
     stop = max(stop, int(data.obs_step[min(MIN_OBSERVATIONS, data.n_observations) - 1]) + 2)
     window = data.slice_steps(0, min(stop, data.n_steps))
     k0 = first[0]
-    t0 = data.obs_step[k0]
     lm = data.landmarks_xy
     g = config.start_search_grid_mm
     lo = lm.min(axis=0) - 4 * g
@@ -42,12 +53,14 @@ def search_start(data: LandmarkLog, model: EMModel, config: EMConfig) -> tuple[E
     target = lm[data.obs_landmark[k0]]
     cov = np.diag([g**2, g**2, 0.3**2])
     # the starting f is a guess, so the search trusts the bearings alone: the readings get a spread
-    # that makes them uninformative
+    # that makes them uninformative; Gaussian bearings, so that no candidate can discount the sightings
+    # that contradict it
     chans = model.sensor.channels
-    vague = model.sensor.with_fits([(c.function, 1e9, c.bearing_terms) for c in chans], model.sensor.sigma_bearing_rad)
+    vague = model.sensor.gaussian().with_fits(
+        [(c.function, 1e9, c.bearing_terms) for c in chans], model.sensor.sigma_bearing_rad
+    )
     scorer = model.replace(sensor=vague)
-    best = (-np.inf, None)
-    tried = 0
+    scored: list[tuple[float, np.ndarray]] = []
     for x in xs:
         for y in ys:
             d = target - (x, y)
@@ -59,17 +72,60 @@ def search_start(data: LandmarkLog, model: EMModel, config: EMConfig) -> tuple[E
             theta = float(wrap_angle(np.arctan2(d[1], d[0]) - 0.5 * np.pi - data.obs_bearing_rad[k0]))
             prior_mean = np.array([x, y, theta])
             post = e_step(scorer.replace(prior_mean=prior_mean, prior_cov=cov), window)
-            tried += 1
-            if post.ok and post.loglik > best[0]:
-                best = (post.loglik, model.replace(prior_mean=prior_mean, prior_cov=cov))
-    if best[1] is None:
+            if post.ok and np.isfinite(post.loglik):
+                scored.append((post.loglik, prior_mean))
+    if not scored:
         raise ValueError(f"{data.source}: no start candidate gave a finite likelihood; set start_prior_mean by hand")
-    chosen = best[1]
+    scored.sort(key=lambda s: -s[0])
+    chosen: list[tuple[float, np.ndarray]] = []
+    for ll, mean in scored:
+        if all(np.hypot(*(mean[:2] - m[:2])) >= DISTINCT_CELLS * g for _, m in chosen):
+            chosen.append((ll, mean))
+        if len(chosen) == config.start_candidates:
+            break
     info = {
-        "candidates": tried,
+        "grid_points": len(scored),
         "window_steps": window.n_steps,
-        "first_sighting_step": int(t0),
-        "loglik": float(best[0]),
-        "prior_mean": chosen.prior_mean.tolist(),
+        "first_sighting_step": int(data.obs_step[k0]),
+        "candidates": [{"prior_mean": m.tolist(), "window_loglik": float(ll)} for ll, m in chosen],
     }
-    return chosen, info
+    return [model.replace(prior_mean=m, prior_cov=cov) for _, m in chosen], info
+
+
+# (data, starting model, config) -> an EMResult; fit_em, passed in to keep the layers one-way
+RunEM = Callable[[LandmarkLog, EMModel, EMConfig], Any]
+
+
+def race_starts(
+    data: LandmarkLog, candidates: list[EMModel], config: EMConfig, run: RunEM
+) -> tuple[EMModel, int, dict[str, Any]]:
+    """The candidate whose held EM reaches the highest whole-log likelihood, its model after the
+    race, and how many iterations it has had; halves the field every ``start_trial_iterations``."""
+    trial = replace(
+        config,
+        start_search_s=0.0,
+        max_iterations=config.start_trial_iterations,
+        refine_from=10**9,  # the held, Gaussian stage only: one likelihood for every candidate
+        patience=10**9,
+        prune_rad_per_step=0.0,
+    )
+    alive = list(range(len(candidates)))
+    models = list(candidates)
+    spent = [0] * len(candidates)
+    rounds: list[dict[str, Any]] = []
+    while True:
+        scores = {}
+        for i in alive:
+            res = run(data, models[i], trial)
+            models[i] = res.model
+            spent[i] += res.iterations
+            scores[i] = res.loglik_best if res.iterations else -math.inf
+        rounds.append({str(i): float(s) for i, s in scores.items()})
+        ranked = sorted(alive, key=lambda i: -scores[i])
+        if len(ranked) <= 1 or scores[ranked[0]] == -math.inf:
+            break
+        alive = ranked[: max(1, math.ceil(len(ranked) / 2))] if len(ranked) > 2 else ranked[:1]
+        if len(alive) == 1:
+            break
+    winner = ranked[0]
+    return models[winner], spent[winner], {"rounds": rounds, "winner": winner}
