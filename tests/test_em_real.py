@@ -173,6 +173,7 @@ def test_robust_readings_start_gaussian_until_refine_from():
     assert set(np.unique(w[w > 0])) == {1.0}
     freed = fit_em(data, None, _config(channels=(ch,), refine_from=5, max_iterations=15, patience=50))
     w = freed.posteriors.weights[:, 0]
+    assert held.freed_at == -1 and freed.freed_at == 5
     assert freed.best_iteration > 5 and w.min() < 0.05  # the best model is one scored by the robust likelihood
 
 

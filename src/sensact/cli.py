@@ -303,6 +303,12 @@ def learn_em_cmd(
         f"{data.n_observations} observations, {data.n_actions} actions" + (f" ({lf.note})" if lf.note else "")
     )
     start = initial_model(data, cfg)
+    if cfg.start_search_s > 0 and data.geometry == "planar":
+        console.print(
+            f"finding the start pose: a {cfg.start_search_grid_mm:g} mm grid scored on the first "
+            f"{cfg.start_search_s:g} s, then EM from its {cfg.start_candidates} best, the better half kept every "
+            f"{cfg.start_trial_iterations} iterations (no bar until one is left)"
+        )
     with _progress() as progress:
         res = fit_em(
             data,
@@ -318,6 +324,11 @@ def learn_em_cmd(
         f"best log-likelihood {res.loglik_best:.1f} at iteration {res.best_iteration}"
         + (f"; {res.n_pruned} observations pruned" if res.n_pruned else "")
     )
+    if res.start_search:
+        x, y, th = res.start_search["prior_mean"]
+        race = res.start_search.get("race")
+        which = f" (candidate {race['winner']} of {len(race['rounds'][0])} won the race)" if race else ""
+        console.print(f"start pose chosen: x {x:.0f} mm, y {y:.0f} mm, heading {th:.3f} rad{which}")
     _print_em_model(m)
     evaluation = _evaluate_em(lf, m)
     if out is not None:

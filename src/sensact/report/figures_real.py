@@ -71,13 +71,20 @@ def figure_range_function(ml: Any, res: Any, score: dict[str, Any], path: Path, 
 
 
 def figure_loglik(results: dict[str, Any], path: Path) -> Path:
-    """log P(O | C, lambda) against the iteration, one line per run."""
+    """log P(O | C, lambda) against the iteration, one line per run; a dot where the held stage ends
+    (from there the likelihood is the robust one, with Sigma_m and the bearing terms learned)."""
     fig, ax = plt.subplots(figsize=(7, 4))
     for name, res in results.items():
         ll = res.loglik_history
-        ax.plot(np.arange(ll.size), ll - ll.max(), lw=1, label=name)
+        (line,) = ax.plot(np.arange(ll.size), ll - ll.max(), lw=1, label=name)
+        if 0 <= res.freed_at < ll.size:
+            ax.plot(res.freed_at, ll[res.freed_at] - ll.max(), "o", ms=4, color=line.get_color())
     ax.set_yscale("symlog", linthresh=10)
-    ax.set(xlabel="EM iteration", ylabel="log-likelihood minus its best", title="EM on real robots")
+    ax.set(
+        xlabel="EM iteration after the start race (dot: held stage ends)",
+        ylabel="log-likelihood minus its best",
+        title="EM on real robots",
+    )
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()

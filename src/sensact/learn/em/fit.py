@@ -121,6 +121,7 @@ class EMResult:
     posteriors: Posteriors | None = field(default=None, repr=False)  # of the best model
     motion_sd_history: np.ndarray | None = None  # (iterations, G, n) Sigma_m's standard deviations
     start_search: dict[str, Any] | None = None  # what the start search tried and chose
+    freed_at: int = -1  # the iteration after which Sigma_m, the terms and robust readings were freed (-1: never held)
 
     @property
     def iterations(self) -> int:
@@ -141,6 +142,7 @@ class EMResult:
             "n_pruned": self.n_pruned,
             "seconds": self.seconds,
             "start_search": self.start_search,
+            "freed_at": self.freed_at,
             "config": asdict(self.config),
         }
 
@@ -166,6 +168,7 @@ def fit_em(
         model = candidates[0]
         if len(candidates) > 1:
             model, spent, start_info["race"] = race_starts(data, candidates, cfg, fit_em)
+            start_info["race"]["winner_iterations"] = spent  # before this fit's history begins
         start_info["prior_mean"] = model.prior_mean.tolist()
     floor = np.array([cfg.prior_floor_sd[0] ** 2] * min(n, 2) + ([cfg.prior_floor_sd[1] ** 2] if n == 3 else []))
     logliks: list[float] = []
@@ -182,7 +185,7 @@ def fit_em(
     freed_at = -1
     start = time.perf_counter()
     try:
-        for it in range(cfg.max_iterations):
+        for it in range(max(cfg.max_iterations - spent, 1)):  # the race's iterations count
             post = e_step(
                 model if refining else model.replace(sensor=model.sensor.gaussian()),
                 data,
@@ -244,6 +247,7 @@ def fit_em(
         best_post,
         np.asarray(motion_sds, dtype=float).reshape(-1, *model.motion_sd.shape),
         start_info,
+        freed_at,
     )
 
 
