@@ -343,3 +343,18 @@ def test_turtlebot_em_clears_its_bars():
     summary, _ = run_turtlebot_em(TURTLEBOT)
     assert summary["score"]["gain_error_pct"] < 5.0
     assert summary["score"]["sensors"]["sonar1"]["rms_pct_of_span"] < 3.0
+
+
+@pytest.mark.skipif(not MRCLAM.is_dir(), reason=f"MRCLAM data not found at {MRCLAM}")
+def test_mrclam_robot1_clears_its_bars_from_an_unknown_start():
+    """Real data, end to end: robot 1 is lost without the start race and graduated robustness (its
+    window score is flat across the grid; Student-t bearings from the start lose it even from the
+    true pose)."""
+    from sensact.experiments.real import mrclam_folder, run_mrclam_robot, truth_poses
+
+    row, ml, res = run_mrclam_robot(mrclam_folder(DATA), 1)
+    assert all(row["score"]["bars"].values()), row["score"]["bars"]
+    assert len(res.start_search["race"]["rounds"][0]) == 6
+    poses, valid = truth_poses(ml)
+    err = np.hypot(*(res.posteriors.mean_gamma[valid, :2] - poses[valid, :2]).T)
+    assert np.median(err) < 500
