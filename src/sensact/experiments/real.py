@@ -11,8 +11,8 @@ camera, not fits to Dataset 6:
 * a range channel with two bearing terms (a camera reads range from apparent size, distorted away from
   the image centre: the range error about the truth is 90 % a function of the bearing);
 * a poor straight-line start for the range function (0.6 d + 500 mm, sigma 1 m), Student-t range and
-  bearing (4 degrees of freedom: the dataset has gross outliers), and the start-pose search over the
-  first 30 s.
+  bearing (4 degrees of freedom: the dataset has gross outliers; Gaussian until ``refine_from``), and
+  the start-pose search over the first 30 s with its race of 6 candidates on the whole log.
 """
 
 from __future__ import annotations
