@@ -196,11 +196,11 @@ def test_start_race_halves_the_field_on_the_held_gaussian_likelihood():
         seen.append(trial_cfg)
         return Trial(model.replace(prior_mean=model.prior_mean + np.array([0.0, 1.0, 0.0])), trial_cfg)
 
-    model, spent, info = race_starts(data, cands, cfg, run)
+    model, info = race_starts(data, cands, cfg, run)
     assert [len(r) for r in info["rounds"]] == [6, 3, 2] and info["winner"] == 2
     assert set(info["rounds"][1]) == {"2", "4", "5"} and set(info["rounds"][2]) == {"2", "4"}
     assert model.prior_mean[0] == 6.0 and model.prior_mean[1] == 3.0  # the winner's model after 3 rounds
-    assert spent == 3 * cfg.start_trial_iterations
+    assert info["winner_iterations"] == 3 * cfg.start_trial_iterations
     for t in seen:
         assert t.max_iterations == cfg.start_trial_iterations and t.prune_rad_per_step == 0.0
         assert t.refine_from > t.max_iterations and t.patience > t.max_iterations and t.start_search_s == 0.0

@@ -5,7 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sensact.core.polyfit import affine_basis_matrix, best_fit_rms, polyval, renormalize, vander, weighted_polyfit
+from sensact.core.polyfit import (
+    affine_basis_matrix,
+    best_fit_rms,
+    polyval,
+    renormalize,
+    vander,
+    weighted_lstsq,
+    weighted_lstsq_fast,
+    weighted_polyfit,
+)
 from sensact.core.recursive import RecursivePolyFit, accumulate_vector, shift_features, solve_spd
 
 
@@ -18,6 +27,17 @@ def test_weighted_polyfit_matches_numpy_polyfit():
     # numpy weights multiply the residuals, so they are sqrt of ours; it returns descending powers
     ref = np.polyfit(x, y, 3, w=np.sqrt(w))[::-1]
     np.testing.assert_allclose(ours, ref, rtol=1e-9, atol=1e-12)
+
+
+def test_fast_weighted_lstsq_matches_the_svd_one_and_falls_back_when_singular():
+    rng = np.random.default_rng(3)
+    # columns of very different size (an intercept, mm/s, rad/s), as in the action M-step
+    X = np.column_stack([np.ones(5000), rng.uniform(0, 300, 5000), rng.uniform(-1, 1, 5000)])
+    y = X @ [5.0, 0.9, 30.0] + rng.normal(size=5000)
+    w = rng.uniform(0.1, 2.0, 5000)
+    np.testing.assert_allclose(weighted_lstsq_fast(X, y, w), weighted_lstsq(X, y, w), rtol=1e-9)
+    singular = np.column_stack([X, 2 * X[:, 1]])  # the minimum-norm solution, as lstsq gives
+    np.testing.assert_allclose(weighted_lstsq_fast(singular, y, w), weighted_lstsq(singular, y, w), rtol=1e-9)
 
 
 def test_affine_basis_matrix_is_exact():

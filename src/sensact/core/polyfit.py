@@ -56,6 +56,20 @@ def weighted_lstsq(X: np.ndarray, y: np.ndarray, weights: np.ndarray | None = No
     return coef
 
 
+def weighted_lstsq_fast(X: np.ndarray, y: np.ndarray, weights: np.ndarray, max_cond: float = 1e10) -> np.ndarray:
+    """``weighted_lstsq`` by the normal equations, the columns scaled to unit norm first: about three
+    times faster for a few columns and tens of thousands of rows (EM's action M-step solves one per
+    command delay, every iteration). Falls back to ``weighted_lstsq`` when the scaled system is
+    ill-conditioned, where forming ``X'WX`` would lose digits."""
+    Xw = X * weights[:, None]
+    scale = np.sqrt(np.einsum("ij,ij->j", X, Xw))
+    scale[scale == 0] = 1.0
+    G = (X.T @ Xw) / np.outer(scale, scale)
+    if np.linalg.cond(G) < max_cond:
+        return np.linalg.solve(G, (Xw.T @ y) / scale) / scale
+    return weighted_lstsq(X, y, weights)
+
+
 def affine_basis_matrix(degree: int, a: float, b: float) -> np.ndarray:
     """``M`` with ``vander(a*u + b) == vander(u) @ M.T`` for every ``u``.
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from sensact.core.polyfit import weighted_lstsq_fast
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import ActionModel, EMModel
 from sensact.models.linear_action import LinearActionModel, delayed
@@ -83,26 +84,8 @@ def linear_coefficients(
         if free is not None and not free[i]:
             beta[:, i] = 0.0
             continue
-        beta[used, i] = _weighted_solve(X, disp_mean[:, i], 1.0 / var[:, i])
+        beta[used, i] = weighted_lstsq_fast(X, disp_mean[:, i], 1.0 / var[:, i])
     return beta
-
-
-def _weighted_solve(X: np.ndarray, y: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """Weighted least squares by the normal equations, columns scaled to unit norm first (a few columns
-    and tens of thousands of rows: three times faster than an SVD, which the M-step runs per delay);
-    an SVD when they are singular."""
-    Xw = X * w[:, None]
-    G = X.T @ Xw
-    scale = np.sqrt(np.diag(G))
-    scale[scale == 0] = 1.0
-    try:
-        c = np.linalg.solve(G / np.outer(scale, scale), (Xw.T @ y) / scale)
-        if np.all(np.isfinite(c)) and np.linalg.cond(G / np.outer(scale, scale)) < 1e10:
-            return c / scale
-    except np.linalg.LinAlgError:
-        pass
-    sw = np.sqrt(w)
-    return np.linalg.lstsq(X * sw[:, None], y * sw, rcond=None)[0]
 
 
 def linear_action_update(

@@ -167,8 +167,8 @@ def fit_em(
         candidates, start_info = start_candidates(data, model, cfg)
         model = candidates[0]
         if len(candidates) > 1:
-            model, spent, start_info["race"] = race_starts(data, candidates, cfg, fit_em)
-            start_info["race"]["winner_iterations"] = spent  # before this fit's history begins
+            model, start_info["race"] = race_starts(data, candidates, cfg, fit_em)
+            spent = start_info["race"]["winner_iterations"]  # before this fit's history begins
         start_info["prior_mean"] = model.prior_mean.tolist()
     floor = np.array([cfg.prior_floor_sd[0] ** 2] * min(n, 2) + ([cfg.prior_floor_sd[1] ** 2] if n == 3 else []))
     logliks: list[float] = []

@@ -98,9 +98,10 @@ RunEM = Callable[[LandmarkLog, EMModel, EMConfig], Any]
 
 def race_starts(
     data: LandmarkLog, candidates: list[EMModel], config: EMConfig, run: RunEM
-) -> tuple[EMModel, int, dict[str, Any]]:
-    """The candidate whose held EM reaches the highest whole-log likelihood, its model after the
-    race, and how many iterations it has had; halves the field every ``start_trial_iterations``."""
+) -> tuple[EMModel, dict[str, Any]]:
+    """The candidate whose held EM reaches the highest whole-log likelihood, as its model after the
+    race, and the race: each round's scores, the winner and its iterations. The field is halved every
+    ``start_trial_iterations`` until two are left, and the better of those wins."""
     trial = replace(
         config,
         start_search_s=0.0,
@@ -112,7 +113,7 @@ def race_starts(
     alive = list(range(len(candidates)))
     models = list(candidates)
     spent = [0] * len(candidates)
-    rounds: list[dict[str, Any]] = []
+    rounds: list[dict[str, float]] = []
     while True:
         scores = {}
         for i in alive:
@@ -122,10 +123,8 @@ def race_starts(
             scores[i] = res.loglik_best if res.iterations else -math.inf
         rounds.append({str(i): float(s) for i, s in scores.items()})
         ranked = sorted(alive, key=lambda i: -scores[i])
-        if len(ranked) <= 1 or scores[ranked[0]] == -math.inf:
+        if len(ranked) <= 2 or scores[ranked[0]] == -math.inf:
             break
-        alive = ranked[: max(1, math.ceil(len(ranked) / 2))] if len(ranked) > 2 else ranked[:1]
-        if len(alive) == 1:
-            break
+        alive = ranked[: math.ceil(len(ranked) / 2)]
     winner = ranked[0]
-    return models[winner], spent[winner], {"rounds": rounds, "winner": winner}
+    return models[winner], {"rounds": rounds, "winner": winner, "winner_iterations": spent[winner]}
