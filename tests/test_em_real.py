@@ -336,6 +336,37 @@ def test_mrclam_reader_and_log_folder_round_trip(tmp_path):
     np.testing.assert_allclose(back.groundtruth["x_mm"], ml.groundtruth["x_mm"], rtol=1e-9)
 
 
+def test_truth_noise_structure_recovers_turn_dependent_drift_and_frame_correlation():
+    """Seeded recovery: windows whose heading drift has variance a + b |turn|, and bearing residuals
+    that are independent (correlation about 0) or carry a slow common error (correlation near 1)."""
+    from sensact.evaluate.landmark_truth import truth_noise_structure
+
+    rng = np.random.default_rng(3)
+    N, W, dt = 4000, 30, 1 / 30
+    turn = rng.uniform(0.0, 0.5, N)
+    v = np.zeros((N, W, 3))
+    v[:, :, 2] = turn[:, None] * rng.choice([-1.0, 1.0], N)[:, None]
+    D_true = dead_reckon_windows(v, dt)
+    a, b = 0.01**2, 0.06**2  # rad^2, rad^2 per rad/s
+    D_true[:, 2] += rng.normal(size=N) * np.sqrt(a + b * turn)
+    frames = np.sort(rng.choice(200_000, 6000, replace=False))
+    independent = rng.normal(0.0, 0.01, frames.size)
+    slow = np.interp(frames, np.arange(0, 200_000, 300), rng.normal(0.0, 0.01, 667)) + 0.001 * independent
+    out = truth_noise_structure(v, D_true, dt, independent, frames, W)
+    busy = np.percentile(turn, 90)
+    assert out["turning_rad_s"] == pytest.approx(busy)
+    assert out["heading_drift_rms_at_rest_rad"] == pytest.approx(0.01, rel=0.2)
+    assert out["heading_drift_rms_turning_rad"] == pytest.approx(math.sqrt(a + b * busy), rel=0.1)
+    assert abs(out["bearing_frame_correlation"]) < 0.1
+    assert truth_noise_structure(v, D_true, dt, slow, frames, W)["bearing_frame_correlation"] > 0.8
+
+
+def dead_reckon_windows(v: np.ndarray, dt: float) -> np.ndarray:
+    from sensact.evaluate.landmark_truth import dead_reckon
+
+    return dead_reckon(v, dt)
+
+
 @pytest.mark.skipif(not TURTLEBOT.is_file(), reason=f"Turtlebot data not found at {TURTLEBOT}")
 def test_turtlebot_em_clears_its_bars():
     from sensact.experiments.turtlebot_em import run_turtlebot_em

@@ -479,6 +479,15 @@ def _print_truth_score(sc: dict[str, Any]) -> None:
         "bearing sigma (rad)", f"{b['sigma_learned_rad']:.4f}", f"{b['sigma_truth_rad']:.4f}", f"{b['sigma_ratio']:.2f}"
     )
     console.print(t)
+    n = sc.get("truth_noise")
+    if n:
+        console.print(
+            f"truth's noise: heading drift per {sc['window_s']:.2g} s "
+            f"{n['heading_drift_rms_at_rest_rad']:.4f} rad at rest, "
+            f"{n['heading_drift_rms_turning_rad']:.4f} rad turning at {n['turning_rad_s']:.2f} rad/s; "
+            f"bearing residuals of frames 1-5 windows apart correlate at {n['bearing_frame_correlation']:.2f} "
+            "(docs/em-real.md, Known limits)"
+        )
     if "bars" in sc:
         console.print("bars: " + ", ".join(f"{k} {'pass' if v else 'FAIL'}" for k, v in sc["bars"].items()))
 

@@ -20,6 +20,9 @@ do on that data; the learned model is judged next to it:
 * **sigmas:** the truth residual sigma is the RMS of the trimmed residuals (range: about From-Truth's f;
   bearing: about zero, as eq. 4.28 has no bearing bias). Trimming drops residuals beyond
   ``trim`` robust sigmas (1.4826 MAD) of the median, repeated until nothing changes.
+* **the truth's noise** (``truth_noise_structure``): how much the heading drifts at rest and while
+  turning, and whether the bearing residuals of nearby frames are correlated; the two things a constant
+  Sigma_m and eq. 4.28's independent bearings cannot express, which bear on the sigma ratios.
 """
 
 from __future__ import annotations
@@ -77,6 +80,41 @@ def _rms(x: np.ndarray) -> float:
 def _action_errors(v_model: np.ndarray, v_true: np.ndarray) -> dict[str, float]:
     e = v_model - v_true
     return {"translation_rms_mm_s": _rms(np.hypot(e[:, 0], e[:, 1])), "rotation_rms_rad_s": _rms(e[:, 2])}
+
+
+def truth_noise_structure(
+    v_ft: np.ndarray, D_true: np.ndarray, dt: float, bearing_res: np.ndarray, frames: np.ndarray, window: int
+) -> dict[str, float]:
+    """What the truth says about the noise that a constant Sigma_m and eq. 4.28 assume away.
+
+    * The heading drift of From-Truth's windows (``v_ft``: ``(N, W, 3)`` velocities) as ``a + b |turn|``
+      in variance (iteratively reweighted least squares on the squared drifts), ``|turn|`` the
+      window's mean predicted turn rate: its RMS at rest and at the 90th percentile of turning. A
+      constant Sigma_m has them equal.
+    * The correlation of the mean truth bearing residual of sighting frames 1 to 5 windows apart.
+      Eq. 4.28's independent bearings have 0; a correlated error is one the smoother can only explain
+      as heading, so the learned bearing sigma leaves it out while the truth residual sigma counts it.
+    """
+    e = dead_reckon(v_ft, dt) - D_true
+    drift = wrap_angle(e[:, 2])
+    turn = np.abs(v_ft[:, :, 2]).mean(axis=1)
+    X = np.column_stack([np.ones_like(turn), turn])
+    a, b = drift.var(), 0.0
+    for _ in range(5):  # a squared residual's sd is proportional to its variance: weights 1 / variance^2
+        fitted = np.maximum(a + b * turn, 1e-3 * drift.var())
+        (a, b) = weighted_lstsq(X, drift**2, fitted**-2)
+    busy = float(np.percentile(turn, 90))
+    uniq, inv = np.unique(frames, return_inverse=True)
+    mean_res = np.bincount(inv, weights=bearing_res) / np.bincount(inv)
+    nxt = np.searchsorted(uniq, uniq + window)  # the first frame at least one window later
+    ok = (nxt < len(uniq)) & (uniq[np.minimum(nxt, len(uniq) - 1)] - uniq <= 5 * window)
+    corr = float(np.corrcoef(mean_res[ok], mean_res[nxt[ok]])[0, 1]) if ok.sum() > 2 else float("nan")
+    return {
+        "heading_drift_rms_at_rest_rad": float(np.sqrt(max(a, 0.0))),
+        "heading_drift_rms_turning_rad": float(np.sqrt(max(a + b * busy, 0.0))),
+        "turning_rad_s": busy,
+        "bearing_frame_correlation": corr,
+    }
 
 
 def score_against_truth(
@@ -153,6 +191,9 @@ def score_against_truth(
     sb_true = _rms(b_res[b_keep])
     sr_true = _rms(r_ft)
     sb = model.sensor.sigma_bearing_rad or float("nan")
+    structure = truth_noise_structure(
+        Phi_ft @ beta_ft, D_true, data.dt_s, b_res[b_keep], data.obs_step[rows][b_keep], window
+    )
     return {
         "windows_scored": int(starts.size),
         "window_s": window * data.dt_s,
@@ -185,4 +226,5 @@ def score_against_truth(
             "sigma_ratio": sb / sb_true,
             "truth_median_rad": float(np.median(b_res[b_keep])),
         },
+        "truth_noise": structure,
     }

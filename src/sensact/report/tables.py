@@ -296,6 +296,31 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
                 rows,
             )
         )
+    noise = [(name, r["score"].get("truth_noise")) for name, r in res.get("mrclam", {}).items()]
+    if any(n for _, n in noise):
+        tables.append(
+            (
+                "MRCLAM Dataset 6: what the truth says about the noise (see docs/em-real.md, Known limits)",
+                [
+                    "robot",
+                    "heading drift per 1 s window at rest rad",
+                    "while turning (90th percentile) rad",
+                    "turn rate rad/s",
+                    "bearing residual correlation, frames 1-5 s apart",
+                ],
+                [
+                    [
+                        name,
+                        f"{n['heading_drift_rms_at_rest_rad']:.4f}",
+                        f"{n['heading_drift_rms_turning_rad']:.4f}",
+                        f"{n['turning_rad_s']:.3f}",
+                        f"{n['bearing_frame_correlation']:.2f}",
+                    ]
+                    for name, n in noise
+                    if n
+                ],
+            )
+        )
     tb = res.get("turtlebot")
     if tb:
         sc, ch3 = tb["score"], tb.get("chapter3_sonar1", {})
