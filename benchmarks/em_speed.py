@@ -18,50 +18,21 @@ from __future__ import annotations
 import argparse
 import json
 import platform
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
 from sensact.learn.em import EMConfig, e_step, fit_em, initial_model, m_step, motion_variance
 from sensact.sim.field2d import Field2DConfig, simulate_field, to_landmark_log
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from reference_ekf import reference_ekf  # the test suite's reference is the baseline
+
 THESIS_REAL_S_PER_ITERATION = 600.0 / 152
 THESIS_SIM_CONVERGENCE_S = 3600.0
 THESIS_SIM_ITERATIONS = 959
-
-
-def _python_forward(model, data, var, steps):
-    """The plain per-step EKF of tests/test_estep.py, over the first ``steps`` steps."""
-    from sensact.core.angles import wrap_angle
-    from sensact.core.pose_models import landmark_bearing
-
-    m, P = model.prior_mean.copy(), model.prior_cov.copy()
-    f = model.sensor.height
-    for t in range(steps):
-        for k in range(data.obs_ptr[t], data.obs_ptr[t + 1]):
-            L = data.landmarks_xy[data.obs_landmark[k]]
-            for channel in (0, 1):
-                dx, dy = L - m[:2]
-                r = np.hypot(dx, dy)
-                if channel == 0:
-                    slope = (f(r + 1e-3) - f(r - 1e-3)) / 2e-3
-                    H = np.array([-slope * dx / r, -slope * dy / r, 0.0])
-                    nu, rv = data.obs_height_px[k] - f(r), model.sensor.sigma_height_px**2
-                else:
-                    H = np.array([dy / r**2, -dx / r**2, -1.0])
-                    nu = wrap_angle(data.obs_bearing_rad[k] - landmark_bearing(m, L)[0])
-                    rv = model.sensor.sigma_bearing_rad**2
-                S = H @ P @ H + rv
-                K = P @ H / S
-                m = m + K * nu
-                P = P - np.outer(K, H @ P)
-        v = model.action.velocities[data.actions[t]] * data.dt_s
-        c, s = np.cos(m[2]), np.sin(m[2])
-        F = np.eye(3)
-        F[0, 2], F[1, 2] = -s * v[0] - c * v[1], c * v[0] - s * v[1]
-        R = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
-        m = m + R @ v
-        P = F @ P @ F.T + R @ np.diag(var) @ R.T
 
 
 def main() -> None:
@@ -91,7 +62,7 @@ def main() -> None:
 
     base_steps = 2000
     t0 = time.perf_counter()
-    _python_forward(model, real, var, base_steps)
+    reference_ekf(model, real, var, base_steps)
     py_forward_ms = 1e3 * (time.perf_counter() - t0) * real.n_steps / base_steps
 
     sim = to_landmark_log(simulate_field(Field2DConfig(seed=0)))

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.stats import multivariate_normal
 
-from sensact.core.angles import wrap_angle
+from reference_ekf import reference_ekf
 from sensact.core.pose_models import landmark_bearing, landmark_distance
 from sensact.learn.em import e_step, initial_model
 from sensact.learn.em.config import EMConfig
@@ -106,52 +106,11 @@ def _planar_case(T=300, seed=3):
     return run, data, model
 
 
-def _reference_ekf(model, data, var):
-    """A plain, loop-by-loop EKF (sec. 2.4) written independently of the compiled kernel."""
-    m = model.prior_mean.copy()
-    P = model.prior_cov.copy()
-    f = model.sensor.height
-    ll = 0.0
-    means = []
-    for t in range(data.n_steps):
-        for k in np.flatnonzero(data.obs_step == t):
-            L = data.landmarks_xy[data.obs_landmark[k]]
-            for channel in ("height", "bearing"):
-                dx, dy = L - m[:2]
-                r = np.hypot(dx, dy)
-                if channel == "height":
-                    eps = 1e-3
-                    slope = (f(r + eps) - f(r - eps)) / (2 * eps)
-                    Hr = np.array([-slope * dx / r, -slope * dy / r, 0.0])
-                    nu = data.obs_height_px[k] - f(r)
-                    rvar = model.sensor.sigma_height_px**2
-                else:
-                    Hr = np.array([dy / r**2, -dx / r**2, -1.0])
-                    nu = wrap_angle(data.obs_bearing_rad[k] - landmark_bearing(m, L)[0])
-                    rvar = model.sensor.sigma_bearing_rad**2
-                S = Hr @ P @ Hr + rvar
-                K = P @ Hr / S
-                m = m + K * nu
-                P = P - np.outer(K, Hr @ P)
-                ll += -0.5 * (nu**2 / S + np.log(2 * np.pi * S))
-        means.append(m.copy())
-        if t < data.n_steps - 1:
-            v = model.action.velocities[data.actions[t]] * data.dt_s
-            c, s = np.cos(m[2]), np.sin(m[2])
-            F = np.eye(3)
-            F[0, 2] = -s * v[0] - c * v[1]
-            F[1, 2] = c * v[0] - s * v[1]
-            Rm = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
-            m = m + Rm @ v
-            P = F @ P @ F.T + Rm @ np.diag(var) @ Rm.T
-    return np.array(means), ll
-
-
 def test_planar_forward_pass_matches_an_independent_ekf():
     _run, data, model = _planar_case()
     var = np.array([100.0, 100.0, 0.01])
     post = e_step(model, data, var)
-    means, ll = _reference_ekf(model, data, var)
+    means, ll = reference_ekf(model, data, var)
     np.testing.assert_allclose(post.mean_alpha, means, atol=1e-4)
     assert post.loglik == pytest.approx(ll, rel=1e-8)
 
