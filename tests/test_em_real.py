@@ -105,6 +105,39 @@ def test_one_hot_basis_is_the_action_table():
     np.testing.assert_allclose(linear_coefficients(Phi, disp, var, dt, np.zeros((A, 3))), table, atol=1e-12)
 
 
+def test_action_inputs_fit_each_velocity_on_its_own_commands():
+    """Independent reference: with ``inputs`` each component is the weighted least squares on its own
+    columns (numpy's lstsq), and the coefficients it may not use are exactly zero."""
+    rng = np.random.default_rng(3)
+    act = LinearActionModel.zero(
+        "cross", 1, ("v_mm_s", "omega_rad_s"), ("v_x_mm_s", "v_y_mm_s", "v_theta_rad_s"),
+        zero_mean=("v_x_mm_s",), inputs=("v_y_mm_s:v_mm_s",),
+    )  # fmt: skip
+    free = act.free_coefficients  # features 1, v, omega, v*omega
+    np.testing.assert_array_equal(free[:, 0], [False] * 4)
+    np.testing.assert_array_equal(free[:, 1], [True, True, False, False])
+    np.testing.assert_array_equal(free[:, 2], [True] * 4)
+    Phi = command_features("cross", 1, rng.normal(size=(400, 2)))
+    disp = rng.normal(size=(400, 3))
+    var = rng.uniform(0.5, 2.0, size=(400, 3))
+    dt = 0.1
+    beta = linear_coefficients(Phi, disp, var, dt, np.ones((4, 3)), free)
+    assert np.all(beta[~free] == 0.0)
+    for i in (1, 2):
+        sw = 1.0 / np.sqrt(var[:, i])
+        ref = np.linalg.lstsq(Phi[:, free[:, i]] * dt * sw[:, None], disp[:, i] * sw, rcond=None)[0]
+        np.testing.assert_allclose(beta[free[:, i], i], ref, rtol=1e-9)
+    again = LinearActionModel.from_dict(act.to_dict())
+    assert again.inputs == act.inputs
+    np.testing.assert_array_equal(again.free_coefficients, free)
+    cfg = config_from_dict(EMConfig, {"action_basis": "affine", "action_inputs": "v_y_mm_s:v_mm_s"})
+    assert cfg.action_inputs == ("v_y_mm_s:v_mm_s",)
+    with pytest.raises(ValueError, match="'omega'"):
+        LinearActionModel.zero("affine", 1, ("v", "w"), ("a",), inputs=("a:omega",))
+    with pytest.raises(ValueError, match="action_inputs"):
+        EMConfig(action_inputs=("v_y_mm_s:v_mm_s",))  # the table basis has no commands to restrict
+
+
 def test_continuous_model_and_motion_noise_are_recovered(continuous_fit):
     """Seeded recovery: beta, the range function and a known Sigma_m (within 15 %) from no motion."""
     _data, _poses, res = continuous_fit
@@ -127,9 +160,12 @@ def test_bearing_terms_and_a_held_lateral_velocity_are_recovered():
     beta[:, 0] = 0.0
     data, _ = _simulate(4, beta=beta, bearing_terms=(0.01, -0.02))
     ch = ChannelConfig("range_mm", 1, 0.0, 0.8, 300.0, bearing_degree=2)
-    res = fit_em(data, None, _config(channels=(ch,), action_zero_mean=("v_x_mm_s",)))
+    cfg = _config(channels=(ch,), action_zero_mean=("v_x_mm_s",), action_inputs=("v_y_mm_s:v_mm_s",))
+    res = fit_em(data, None, cfg)
     m = res.model
     assert np.all(m.action.coefficients[:, 0] == 0.0)  # held, not fitted
+    assert m.action.coefficients[2, 1] == 0.0  # the turn command cannot drive the axle forward
+    assert m.action.coefficients[0, 1] == pytest.approx(20.0, abs=3.0)  # the forward constant is still fitted
     assert m.action.coefficients[1, 1] == pytest.approx(0.9, rel=0.05)
     assert m.action.coefficients[2, 2] == pytest.approx(0.8, rel=0.05)
     chan = m.sensor.channels[0]

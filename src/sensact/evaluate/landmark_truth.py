@@ -152,7 +152,12 @@ def score_against_truth(
     for delay in range(max_delay_steps + 1):
         Phi = window_features(delay)
         beta = linear_coefficients(
-            Phi.sum(axis=1), D_true, np.ones_like(D_true), data.dt_s, np.zeros_like(act.coefficients), act.free_columns
+            Phi.sum(axis=1),
+            D_true,
+            np.ones_like(D_true),
+            data.dt_s,
+            np.zeros_like(act.coefficients),
+            act.free_coefficients,
         )
         sse = float(np.sum((Phi.sum(axis=1) @ beta * data.dt_s - D_true) ** 2 / D_true.var(axis=0)))
         if ft is None or sse < ft[0]:

@@ -39,7 +39,8 @@ def mrclam_config() -> EMConfig:
     return EMConfig(
         action_basis="affine",
         action_delay_max_s=0.5,
-        action_zero_mean=("v_x_mm_s",),
+        action_zero_mean=("v_x_mm_s",),  # a differential drive cannot side-step
+        action_inputs=("v_y_mm_s:v_mm_s",),  # ... nor drive its axle forward by turning (models/linear_action.py)
         motion_noise="shared",
         motion_sd_mm=3.0,
         motion_sd_rad=0.01,

@@ -14,6 +14,14 @@ A real robot's motion also lags its commands; ``delay_steps`` makes step ``t`` m
 move sideways, and a free lateral column would let EM explain sensor error as sideways motion (Sigma_m
 still allows some). The thesis's Aibo could side-step, so nothing is held by default.
 
+``inputs`` restricts which commands a velocity component may depend on: ``"v_y_mm_s:v_mm_s"`` fits the
+forward speed from the forward command alone (its constant always stays). A differential drive's forward
+speed is the wheels' mean and its turn rate their difference, so a turn command moves the axle's centre
+forward only through a wheel mismatch, a few mm/s per rad/s for a 0.25-m axle. Left free, that column
+lets EM track a point off the axle: the point is carried forward or back as the robot turns (MRCLAM
+robot 4 learned 117 mm/s per rad/s; its Vicon-derived value is 0.9). Components not named use every
+command.
+
 The discrete action table is the same model with a one-hot basis (``one_hot``), which is how the
 M-step's weighted least squares reduces to eq. 4.18.
 """
@@ -66,6 +74,26 @@ def delayed(step_commands: np.ndarray, delay_steps: int) -> np.ndarray:
     return np.concatenate([np.repeat(c[:1], delay_steps, axis=0), c[:-delay_steps]])[: len(c)]
 
 
+def parse_inputs(
+    inputs: tuple[str, ...], command_names: tuple[str, ...], velocity_names: tuple[str, ...]
+) -> dict[str, set[int]]:
+    """``{velocity: indices of the commands it may use}`` from ``("velocity:command+command", ...)``."""
+    out: dict[str, set[int]] = {}
+    for entry in inputs:
+        velocity, sep, commands = str(entry).partition(":")
+        names = [c.strip() for c in commands.split("+") if c.strip()]
+        if not sep or velocity.strip() not in velocity_names or velocity.strip() in out:
+            raise ValueError(
+                f"inputs entry {entry!r} must be 'velocity:command+command' with one of {list(velocity_names)}, "
+                "each velocity named once"
+            )
+        bad = [c for c in names if c not in command_names]
+        if bad:
+            raise ValueError(f"inputs entry {entry!r} names {bad[0]!r}, not one of {list(command_names)}")
+        out[velocity.strip()] = {command_names.index(c) for c in names}
+    return out
+
+
 def feature_names(basis: str, degree: int, command_names: tuple[str, ...]) -> list[str]:
     return ["*".join(command_names[i] for i in m) or "1" for m in _monomials(basis, len(command_names), degree)]
 
@@ -79,12 +107,15 @@ class LinearActionModel:
     velocity_names: tuple[str, ...]
     delay_steps: int = 0  # the command in force at step t acts from step t + delay_steps
     zero_mean: tuple[str, ...] = ()  # velocity components whose mean is held at 0 (no sideways motion)
+    inputs: tuple[str, ...] = ()  # "velocity:command+command": the only commands that velocity depends on
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "zero_mean", tuple(self.zero_mean))
+        object.__setattr__(self, "inputs", tuple(self.inputs))
         unknown = [v for v in self.zero_mean if v not in self.velocity_names]
         if unknown:
             raise ValueError(f"zero_mean names {unknown[0]!r}, not one of {list(self.velocity_names)}")
+        parse_inputs(self.inputs, tuple(self.command_names), tuple(self.velocity_names))
         if self.delay_steps < 0:
             raise ValueError("delay_steps must be >= 0")
         beta = np.atleast_2d(np.asarray(self.coefficients, dtype=float))
@@ -98,15 +129,25 @@ class LinearActionModel:
             raise ValueError(f"coefficients must be ({nf}, {len(self.velocity_names)}) for this basis")
 
     @classmethod
-    def zero(cls, basis: str, degree: int, command_names, velocity_names, zero_mean=()) -> LinearActionModel:
+    def zero(cls, basis: str, degree: int, command_names, velocity_names, zero_mean=(), inputs=()) -> LinearActionModel:
         """The thesis's starting point (sec. 4.4.1): no command has any effect."""
         nf = len(_monomials(basis, len(command_names), degree))
-        return cls(basis, degree, np.zeros((nf, len(velocity_names))), command_names, velocity_names, 0, zero_mean)
+        beta = np.zeros((nf, len(velocity_names)))
+        return cls(basis, degree, beta, command_names, velocity_names, 0, zero_mean, inputs)
 
     @property
-    def free_columns(self) -> np.ndarray:
-        """(n,) bool: the velocity components the M-step fits (the rest stay zero)."""
-        return np.array([v not in self.zero_mean for v in self.velocity_names])
+    def free_coefficients(self) -> np.ndarray:
+        """(n_features, n) bool: the coefficients the M-step fits; the rest stay zero (``zero_mean``
+        components have none, an ``inputs`` restriction drops the features of other commands)."""
+        allowed = parse_inputs(self.inputs, self.command_names, self.velocity_names)
+        monomials = _monomials(self.basis, len(self.command_names), self.degree)
+        free = np.ones((len(monomials), len(self.velocity_names)), dtype=bool)
+        for i, v in enumerate(self.velocity_names):
+            if v in self.zero_mean:
+                free[:, i] = False
+            elif v in allowed:
+                free[:, i] = [all(c in allowed[v] for c in m) for m in monomials]
+        return free
 
     def features(self, commands: np.ndarray) -> np.ndarray:
         return command_features(self.basis, self.degree, commands)
@@ -123,7 +164,7 @@ class LinearActionModel:
     def with_coefficients(self, beta: np.ndarray, delay_steps: int | None = None) -> LinearActionModel:
         delay = self.delay_steps if delay_steps is None else delay_steps
         return LinearActionModel(
-            self.basis, self.degree, beta, self.command_names, self.velocity_names, delay, self.zero_mean
+            self.basis, self.degree, beta, self.command_names, self.velocity_names, delay, self.zero_mean, self.inputs
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -137,6 +178,7 @@ class LinearActionModel:
             "coefficients": self.coefficients.tolist(),
             "delay_steps": self.delay_steps,
             "zero_mean": list(self.zero_mean),
+            "inputs": list(self.inputs),
         }
 
     @classmethod
@@ -150,6 +192,7 @@ class LinearActionModel:
                 tuple(data["velocity_names"]),
                 int(data.get("delay_steps", 0)),
                 tuple(data.get("zero_mean", ())),
+                tuple(data.get("inputs", ())),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise ModelFormatError(

@@ -75,16 +75,17 @@ def linear_coefficients(
 
     ``features`` is ``(T-1, F)``, ``disp_mean`` and ``var`` ``(T-1, n)``. Features that never vary keep
     their previous coefficients: they are zero at every step, so the log says nothing about them.
-    Components not ``free`` have a mean held at zero (the other columns do not depend on them).
+    Coefficients not ``free`` (``(F, n)`` bool, as ``LinearActionModel.free_coefficients``) are held at
+    zero; each component is fitted on its free columns only (the components are independent).
     """
     beta = np.array(previous, dtype=float, copy=True)
     used = np.any(features != 0.0, axis=0)
-    X = features[:, used] * dt
     for i in range(disp_mean.shape[1]):
-        if free is not None and not free[i]:
-            beta[:, i] = 0.0
-            continue
-        beta[used, i] = weighted_lstsq_fast(X, disp_mean[:, i], 1.0 / var[:, i])
+        cols = used if free is None else used & free[:, i]
+        if free is not None:
+            beta[~free[:, i], i] = 0.0
+        if cols.any():
+            beta[cols, i] = weighted_lstsq_fast(features[:, cols] * dt, disp_mean[:, i], 1.0 / var[:, i])
     return beta
 
 
@@ -98,7 +99,7 @@ def linear_action_update(
     Phi0 = action.step_features(data.step_commands, 0)  # a delay shifts rows of Phi; compute it once
     for delay in range(max_delay + 1) if max_delay > 0 else [action.delay_steps]:
         Phi = delayed(Phi0, delay)[:-1]
-        beta = linear_coefficients(Phi, disp_mean, var, data.dt_s, action.coefficients, action.free_columns)
+        beta = linear_coefficients(Phi, disp_mean, var, data.dt_s, action.coefficients, action.free_coefficients)
         sse = float(np.sum((disp_mean - Phi @ beta * data.dt_s) ** 2 / var))
         if sse < best[0]:
             best = (sse, action.with_coefficients(beta, delay))

@@ -73,6 +73,9 @@ class EMConfig:
     action_delay_max_s: float = 0.0  # learn a command delay up to this long (continuous models; 0 = none)
     # velocity components whose mean is held at 0, e.g. ("v_x_mm_s",): a differential drive cannot side-step
     action_zero_mean: tuple[str, ...] = ()
+    # "velocity:command+command" entries: that velocity depends on those commands only, e.g.
+    # ("v_y_mm_s:v_mm_s", "v_theta_rad_s:omega_rad_s") for a differential drive (models/linear_action.py)
+    action_inputs: tuple[str, ...] = ()
     # Sigma_m: "fixed" (the thesis), or learned "shared" or "per_action", never below the floor
     motion_noise: str = "fixed"
     motion_sd_floor_mm: float = 0.05
@@ -115,8 +118,10 @@ class EMConfig:
             problems.append("action_delay_max_s must be >= 0")
         if self.action_degree < 1:
             problems.append("action_degree must be >= 1")
-        if self.action_zero_mean and self.action_basis == "table":
-            problems.append("action_zero_mean needs a continuous action_basis (affine, cross or polynomial)")
+        if (self.action_zero_mean or self.action_inputs) and self.action_basis == "table":
+            problems.append(
+                "action_zero_mean and action_inputs need a continuous action_basis (affine, cross or polynomial)"
+            )
         if self.motion_noise not in MOTION_NOISE:
             problems.append(f"motion_noise must be one of {MOTION_NOISE}")
         if self.motion_noise == "per_action" and self.action_basis != "table":

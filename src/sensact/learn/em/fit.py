@@ -78,9 +78,17 @@ def initial_model(data: LandmarkLog, config: EMConfig) -> EMModel:
     else:
         if data.step_commands is None:
             raise ValueError(f"{data.source} has discrete actions only: use action_basis=table")
-        action = LinearActionModel.zero(
-            config.action_basis, config.action_degree, data.command_names, names, config.action_zero_mean
-        )
+        try:
+            action = LinearActionModel.zero(
+                config.action_basis,
+                config.action_degree,
+                data.command_names,
+                names,
+                config.action_zero_mean,
+                config.action_inputs,
+            )
+        except ValueError as exc:
+            raise ValueError(f"{data.source}: action model config: {exc}") from None
     sensor = starting_sensor(data, config)
     mean = np.asarray(config.start_prior_mean[:n], dtype=float)
     cov = np.diag(np.asarray(config.start_prior_sd[:n], dtype=float) ** 2)
