@@ -97,9 +97,10 @@ def linear_action_update(
     same expected log-likelihood, maximized over a discrete parameter too)."""
     best = (np.inf, action)
     Phi0 = action.step_features(data.step_commands, 0)  # a delay shifts rows of Phi; compute it once
+    free = action.free_coefficients
     for delay in range(max_delay + 1) if max_delay > 0 else [action.delay_steps]:
         Phi = delayed(Phi0, delay)[:-1]
-        beta = linear_coefficients(Phi, disp_mean, var, data.dt_s, action.coefficients, action.free_coefficients)
+        beta = linear_coefficients(Phi, disp_mean, var, data.dt_s, action.coefficients, free)
         sse = float(np.sum((disp_mean - Phi @ beta * data.dt_s) ** 2 / var))
         if sse < best[0]:
             best = (sse, action.with_coefficients(beta, delay))
