@@ -70,6 +70,8 @@ def test_simulate_then_learn(tmp_path):
         (["learn", "bootstrap", ".", "--a0", "cubic"], "--a0"),
         (["simulate", "track1d", "--out", "x", "--set", "gamma=0.5"], "unknown field 'gamma'"),
         (["reproduce", "nothing"], "unknown experiment"),
+        (["reproduce", "real", "--data", "/nonexistent", "--set", "seconds=3"], "seconds is not an EM setting"),
+        (["reproduce", "real", "--data", "/nonexistent", "--set", "motion_noise=wobbly"], "motion_noise must be"),
         (["simulate", "field2d", "--out", "x", "--setting", "mars"], "unknown setting"),
         (["learn", "em", "/nonexistent/log"], "EM reads a log folder"),
         (["learn", "em", ".", "--set", "patience=0"], "patience"),

@@ -12,7 +12,7 @@ import pytest
 from sensact.config import config_from_dict
 from sensact.core.pose_models import apply_displacement, landmark_bearing, landmark_distance
 from sensact.learn.em import EMConfig, e_step, fit_em, initial_model
-from sensact.learn.em.actions import linear_coefficients, table_velocities
+from sensact.learn.em.actions import linear_coefficients, step_motion_var, table_velocities
 from sensact.learn.em.config import ChannelConfig
 from sensact.learn.em.start import race_starts, start_candidates
 from sensact.logs.landmark_log import LandmarkLog
@@ -28,9 +28,18 @@ TRUE_SD = np.array([4.0, 5.0, 0.02])  # per step
 LANDMARKS = np.array([[0.0, 2500.0], [3000.0, 0.0], [0.0, -2500.0], [-3000.0, 0.0], [2000.0, 2000.0]])
 
 
-def _simulate(seed: int, T: int = 9000, outlier_frac: float = 0.0, beta=TRUE_BETA, bearing_terms=(0.0, 0.0)):
+def _simulate(
+    seed: int,
+    T: int = 9000,
+    outlier_frac: float = 0.0,
+    beta=TRUE_BETA,
+    bearing_terms=(0.0, 0.0),
+    sd=TRUE_SD,
+    turn_var: float = 0.0,
+):
     """A robot on continuous commands among five landmarks, range and bearing. The range reads
-    ``1.05 d + 40 + d (a_1 b + a_2 b^2)`` with ``bearing_terms`` (a_1, a_2) at the measured bearing b."""
+    ``1.05 d + 40 + d (a_1 b + a_2 b^2)`` with ``bearing_terms`` (a_1, a_2) at the measured bearing b.
+    The heading's motion variance per step is ``sd[2]^2 + turn_var |omega_t|``."""
     rng = np.random.default_rng(seed)
     dt = 1 / 30
     seg = rng.integers(30, 120, T // 30)
@@ -43,7 +52,8 @@ def _simulate(seed: int, T: int = 9000, outlier_frac: float = 0.0, beta=TRUE_BET
         if np.hypot(*poses[t, :2]) > 1500:
             commands[t, 1] = 0.6
             v[t] = command_features("affine", 1, commands[t : t + 1]) @ beta
-        poses[t + 1] = apply_displacement(poses[t], (v[t] + rng.normal(size=3) * TRUE_SD / dt) * dt)[0]
+        step_sd = np.array([sd[0], sd[1], math.sqrt(sd[2] ** 2 + turn_var * abs(v[t, 2]))])
+        poses[t + 1] = apply_displacement(poses[t], (v[t] + rng.normal(size=3) * step_sd / dt) * dt)[0]
     steps = np.arange(0, T, 6)
     which = rng.integers(0, len(LANDMARKS), steps.size)
     d = landmark_distance(poses[steps], LANDMARKS[which])
@@ -261,6 +271,81 @@ def test_model_json_round_trip(continuous_fit):
     assert again.sensor == m.sensor and isinstance(again.action, LinearActionModel)
 
 
+def test_turning_variance_is_the_maximum_likelihood_fit():
+    """Independent reference: scipy's bounded minimization of the Gaussian negative log-likelihood
+    ``sum log v_t + s_t / v_t`` with ``v_t = a + b |turn_t|``; and the two bounds."""
+    from scipy.optimize import minimize
+
+    from sensact.learn.em.actions import turning_variance
+
+    rng = np.random.default_rng(5)
+    turn = rng.uniform(-0.6, 0.6, 4000)
+    second = (1e-4 + 2e-3 * np.abs(turn)) * rng.chisquare(1, turn.size)
+    a, b = turning_variance(second, turn, 1e-8, (second.mean(), 0.0))
+
+    def nll(p):
+        v = p[0] + p[1] * np.abs(turn)
+        return float(np.sum(np.log(v) + second / v))
+
+    ref = minimize(nll, [second.mean(), 0.0], bounds=[(1e-8, None), (0.0, None)], method="L-BFGS-B", tol=1e-14)
+    np.testing.assert_allclose([a, b], ref.x, rtol=1e-3)
+    assert nll([a, b]) <= ref.fun + 1e-6
+    assert a == pytest.approx(1e-4, rel=0.2) and b == pytest.approx(2e-3, rel=0.1)
+    # no turning in the log: b stays 0 and a is the plain mean (the shared Sigma_m's update)
+    assert turning_variance(second, np.zeros_like(turn), 1e-8, (1e-3, 0.0)) == pytest.approx((second.mean(), 0.0))
+    # more noise when still than turning cannot make b negative; a floor holds a up
+    a0, b0 = turning_variance(1e-3 / (1 + 10 * np.abs(turn)) * rng.chisquare(1, turn.size), turn, 1e-8, (1e-3, 0.0))
+    assert b0 == 0.0 and a0 > 0
+    assert turning_variance(np.full(turn.size, 1e-9), turn, 1e-6, (1e-3, 0.0))[0] == 1e-6
+
+
+def test_turning_noise_is_recovered_and_zero_turning_is_the_shared_model(continuous_fit):
+    """Seeded recovery of a heading noise that grows with turning (within 20 %), from a constant start;
+    and the exact reduction: turn_var 0 gives the shared model's E-step, to the last bit."""
+    beta = TRUE_BETA.copy()
+    beta[:, 0] = 0.0
+    sd = np.array([4.0, 5.0, 0.01])  # rad a step at rest; 0.025 turning at 0.25 rad/s
+    data, _ = _simulate(6, beta=beta, sd=sd, turn_var=2e-3)
+    res = fit_em(data, None, _config(motion_noise="turning", action_zero_mean=("v_x_mm_s",)))
+    m = res.model
+    assert m.turn_var == pytest.approx(2e-3, rel=0.2)
+    assert m.motion_sd[0, 2] == pytest.approx(0.01, rel=0.2)
+    np.testing.assert_allclose(m.motion_sd[0, :2], sd[:2], rtol=0.2)
+    shared = fit_em(data, None, _config(action_zero_mean=("v_x_mm_s",), max_iterations=150))
+    assert res.loglik_best > shared.loglik_best + 20  # the data tell the two apply
+
+    data0, _, fitted = continuous_fit
+    plain = fitted.model
+    zero = plain.replace(turn_var=0.0)
+    np.testing.assert_array_equal(step_motion_var(zero, data0), step_motion_var(plain, data0))
+    assert e_step(zero, data0).loglik == e_step(plain, data0).loglik
+    again = EMModel.from_dict(m.to_dict())
+    assert again.turn_var == m.turn_var and plain.to_dict()["turn_var"] is None
+
+
+def test_turning_noise_needs_a_planar_shared_model():
+    track = LandmarkLog(
+        "track",
+        0.1,
+        np.zeros(5, dtype=int),
+        np.zeros((1, 1)),
+        ("v",),
+        np.array([0]),
+        np.array([0]),
+        np.array([100.0]),
+        np.array([np.nan]),
+        np.zeros((1, 2)),
+        source="t.csv",
+    )
+    with pytest.raises(ValueError, match="motion_noise=turning needs a planar log"):
+        initial_model(track, EMConfig(motion_noise="turning"))
+    data, _ = _simulate(1, T=300)
+    m = initial_model(data, _config(motion_noise="turning"))
+    assert m.turn_var == 0.0
+    with pytest.raises(ValueError, match="turn_var must be >= 0"):
+        m.replace(turn_var=-1.0)
+
+
 def test_per_action_noise_learns_one_row_per_action():
     from sensact.sim.field2d import Field2DConfig, simulate_field, to_landmark_log
 
@@ -395,6 +480,36 @@ def test_truth_noise_structure_recovers_turn_dependent_drift_and_frame_correlati
     assert out["heading_drift_rms_turning_rad"] == pytest.approx(math.sqrt(a + b * busy), rel=0.1)
     assert abs(out["bearing_frame_correlation"]) < 0.1
     assert truth_noise_structure(v, D_true, dt, slow, frames, W)["bearing_frame_correlation"] > 0.8
+
+
+def test_truth_bearing_residual_splits_into_a_constant_and_the_sd_about_it():
+    """Seeded recovery and an exact identity: a camera yawed 0.03 rad against the truth's heading adds
+    a constant to every bearing residual; the report recovers it and the 0.02-rad noise about it, and
+    the bar's RMS about zero is exactly their root sum of squares."""
+    from sensact.evaluate.landmark_truth import score_against_truth
+
+    data, poses = _simulate(2, T=6000)
+    data = LandmarkLog(
+        "planar",
+        data.dt_s,
+        data.actions,
+        data.action_commands,
+        data.command_names,
+        data.obs_step,
+        data.obs_landmark,
+        data.obs_readings,
+        data.obs_bearing_rad + 0.03,
+        data.landmarks_xy,
+        reading_names=data.reading_names,
+        step_commands=data.step_commands,
+    )
+    model = initial_model(data, _config())
+    b = score_against_truth(model, data, poses, np.ones(len(poses), dtype=bool))["bearing"]
+    assert b["truth_mean_rad"] == pytest.approx(0.03, abs=0.002)
+    assert b["sigma_truth_about_mean_rad"] == pytest.approx(0.02, rel=0.05)
+    assert b["sigma_truth_rad"] ** 2 == pytest.approx(b["truth_mean_rad"] ** 2 + b["sigma_truth_about_mean_rad"] ** 2)
+    sd = b["sigma_truth_about_mean_rad"]
+    assert b["sigma_ratio_about_mean"] == pytest.approx(model.sensor.sigma_bearing_rad / sd)
 
 
 def dead_reckon_windows(v: np.ndarray, dt: float) -> np.ndarray:

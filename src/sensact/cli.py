@@ -428,6 +428,8 @@ def _print_em_model(m: Any) -> None:
     if sb:
         console.print(f"  bearing sigma_2 = {sb:.4g} rad")
     console.print("  Sigma_m (sd per step): " + "; ".join(", ".join(f"{x:.4g}" for x in row) for row in m.motion_sd))
+    if m.turn_var is not None:
+        console.print(f"  heading variance per step grows by {m.turn_var:.4g} rad^2 per rad/s of turning")
     a = m.action
     if isinstance(a, ActionTable):
         t = Table(title="learned velocity of each action", title_justify="left")
@@ -483,10 +485,13 @@ def _print_truth_score(sc: dict[str, Any]) -> None:
     if n:
         console.print(
             f"truth's noise: heading drift per {sc['window_s']:.2g} s "
-            f"{n['heading_drift_rms_at_rest_rad']:.4f} rad at rest, "
-            f"{n['heading_drift_rms_turning_rad']:.4f} rad turning at {n['turning_rad_s']:.2f} rad/s; "
-            f"bearing residuals of frames 1-5 windows apart correlate at {n['bearing_frame_correlation']:.2f} "
-            "(docs/em-real.md, Known limits)"
+            f"{n['heading_drift_rms_at_rest_rad']:.4f} rad at rest (Sigma_m: "
+            f"{n['learned_heading_drift_at_rest_rad']:.4f}), "
+            f"{n['heading_drift_rms_turning_rad']:.4f} rad turning at {n['turning_rad_s']:.2f} rad/s (Sigma_m: "
+            f"{n['learned_heading_drift_turning_rad']:.4f}); "
+            f"bearing residuals of frames 1-5 windows apart correlate at {n['bearing_frame_correlation']:.2f}; "
+            f"their mean is {b['truth_mean_rad']:+.4f} rad and their sd about it {b['sigma_truth_about_mean_rad']:.4f} "
+            f"(learned sigma / sd {b['sigma_ratio_about_mean']:.2f}; docs/em-real.md, Known limits)"
         )
     if "bars" in sc:
         console.print("bars: " + ", ".join(f"{k} {'pass' if v else 'FAIL'}" for k, v in sc["bars"].items()))
@@ -687,13 +692,26 @@ def reproduce(
     if "car" in todo:
         _reproduce_car(out, seed, set_, config)
     if "real" in todo:
-        _reproduce_real(out, _data_dir(data), required=experiment == "real")
+        _reproduce_real(out, _data_dir(data), experiment == "real", set_, config)
 
 
-def _reproduce_real(out: Path, root: Path, required: bool) -> None:
-    from sensact.experiments.real import run_real
+def _reproduce_real(out: Path, root: Path, required: bool, set_: list[str] | None, config: Path | None) -> None:
+    """MRCLAM's EM settings are ``mrclam_config()``, changed by the EM fields of ``--config``/``--set``
+    (e.g. ``--set motion_noise=turning``); the Turtlebot's are fixed."""
+    from sensact.errors import ConfigError
+    from sensact.experiments.real import mrclam_config, run_real
+    from sensact.learn.em import EMConfig
     from sensact.report import figures_real
     from sensact.report.tables import real_tables
+
+    learner_f, other = _split_fields(set_, config, EMConfig)
+    if required and other:
+        raise ConfigError(
+            f"{', '.join(sorted(other))} is not an EM setting.",
+            field="--set/--config",
+            fix="give fields of the EM config (docs/em-real.md), e.g. --set motion_noise=turning.",
+        )
+    cfg = _merged(EMConfig, mrclam_config(), learner_f)
 
     if not root.is_dir():
         if required:
@@ -703,7 +721,7 @@ def _reproduce_real(out: Path, root: Path, required: bool) -> None:
         console.print(f"skipping real: {root} not found (pass --data DIR to include it)")
         return
     with console.status("EM on real robots") as status:
-        res, art = run_real(root, progress=lambda msg: status.update(f"EM on real robots: {msg}"))
+        res, art = run_real(root, progress=lambda msg: status.update(f"EM on real robots: {msg}"), config=cfg)
     for line in res["skipped"]:
         console.print(f"skipped {line}")
     _write_results(out, "real", res, real_tables(res))

@@ -91,6 +91,7 @@ def run_mrclam_robot(
         "learned": {
             "action": res.model.action.to_dict(),
             "motion_sd": res.model.motion_sd.tolist(),
+            "turn_var": res.model.turn_var,
             "range_sigma_mm": res.model.sensor.channels[0].sigma,
             "bearing_sigma_rad": res.model.sensor.sigma_bearing_rad,
         },
@@ -100,9 +101,13 @@ def run_mrclam_robot(
 
 
 def run_real(
-    root: Path | None = None, robots: tuple[int, ...] = ROBOTS, progress: Callable[[str], None] | None = None
+    root: Path | None = None,
+    robots: tuple[int, ...] = ROBOTS,
+    progress: Callable[[str], None] | None = None,
+    config: EMConfig | None = None,
 ) -> tuple[dict[str, Any], dict[str, Any]]:
-    """Every robot of MRCLAM Dataset 6 and the Turtlebot; skips a dataset whose folder is missing."""
+    """Every robot of MRCLAM Dataset 6 (with ``config``, default ``mrclam_config()``) and the Turtlebot;
+    skips a dataset whose folder is missing."""
     from sensact.experiments.turtlebot_em import run_turtlebot_em
 
     t0 = time.perf_counter()
@@ -111,11 +116,12 @@ def run_real(
     artifacts: dict[str, Any] = {"mrclam": {}}
     folder = mrclam_folder(root)
     if folder.is_dir():
-        out["mrclam_config"] = config_to_dict(mrclam_config())
+        cfg = config or mrclam_config()
+        out["mrclam_config"] = config_to_dict(cfg)
         for robot in robots:
             if progress:
                 progress(f"MRCLAM robot {robot}")
-            row, ml, res = run_mrclam_robot(folder, robot)
+            row, ml, res = run_mrclam_robot(folder, robot, cfg)
             out["mrclam"][f"robot{robot}"] = row
             artifacts["mrclam"][robot] = (ml, res)
     else:

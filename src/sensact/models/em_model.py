@@ -3,7 +3,9 @@
 
 The thesis holds ``Sigma_m`` fixed; here it is part of the model so that it can be learned (the future
 work of sec. 4.4.1). ``motion_sd`` has one row (shared) or one row per action (per-action noise), each
-the robot-frame standard deviations per time step.
+the robot-frame standard deviations per time step. ``turn_var`` lets a shared Sigma_m's heading
+variance grow with the turn rate: wheels slip in turns, and MRCLAM's Vicon shows a heading that drifts
+4-9 times more while turning than at rest.
 """
 
 from __future__ import annotations
@@ -38,6 +40,9 @@ class EMModel:
     prior_mean: np.ndarray  # (n,)
     prior_cov: np.ndarray  # (n, n)
     motion_sd: np.ndarray | None = None  # (1, n) shared or (A, n) per action; None = the thesis's
+    # heading variance per step added per rad/s of the model's own turn rate |A(c_t)_theta|, on top of
+    # motion_sd's (planar, shared Sigma_m); None = Sigma_m does not depend on turning (the thesis)
+    turn_var: float | None = None
 
     def __post_init__(self) -> None:
         n = 3 if self.geometry == "planar" else 1
@@ -54,13 +59,20 @@ class EMModel:
         if sd.shape[0] != 1 and not (isinstance(self.action, ActionTable) and sd.shape[0] == self.action.n_actions):
             raise ValueError("motion_sd needs one row (shared) or one row per action of the table")
         object.__setattr__(self, "motion_sd", sd)
+        if self.turn_var is not None:
+            if self.geometry != "planar" or sd.shape[0] != 1:
+                raise ValueError("turn_var needs a planar model with one shared motion_sd row")
+            if not (np.isfinite(self.turn_var) and self.turn_var >= 0):
+                raise ValueError("turn_var must be >= 0")
+            object.__setattr__(self, "turn_var", float(self.turn_var))
 
     @property
     def per_action_noise(self) -> bool:
         return self.motion_sd.shape[0] > 1
 
     def replace(self, **changes: Any) -> EMModel:
-        fields = {k: getattr(self, k) for k in ("geometry", "action", "sensor", "prior_mean", "prior_cov", "motion_sd")}
+        names = ("geometry", "action", "sensor", "prior_mean", "prior_cov", "motion_sd", "turn_var")
+        fields = {k: getattr(self, k) for k in names}
         fields.update(changes)
         return EMModel(**fields)
 
@@ -73,6 +85,7 @@ class EMModel:
             "prior_mean": self.prior_mean.tolist(),
             "prior_cov": self.prior_cov.tolist(),
             "motion_sd": self.motion_sd.tolist(),
+            "turn_var": self.turn_var,
         }
 
     @classmethod
@@ -89,6 +102,7 @@ class EMModel:
                 np.asarray(data["prior_mean"], dtype=float),
                 np.asarray(data["prior_cov"], dtype=float),
                 None if data.get("motion_sd") is None else np.asarray(data["motion_sd"], dtype=float),
+                None if data.get("turn_var") is None else float(data["turn_var"]),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise ModelFormatError(

@@ -262,6 +262,18 @@ def to_markdown(tables: list[Table]) -> str:
     return "\n".join(out)
 
 
+def _drift_cell(n: dict[str, Any], when: str) -> str:
+    learned = n.get(f"learned_heading_drift_{when}_rad")
+    truth = f"{n[f'heading_drift_rms_{when}_rad']:.4f}"
+    return truth if learned is None else f"{truth} / {learned:.4f}"
+
+
+def _bearing_mean_cell(b: dict[str, Any]) -> str:
+    if "truth_mean_rad" not in b:  # results written before the mean was reported
+        return "-"
+    return f"{b['truth_mean_rad']:+.4f}; {b['sigma_truth_about_mean_rad']:.4f} ({b['sigma_ratio_about_mean']:.2f})"
+
+
 def real_tables(res: dict[str, Any]) -> list[Table]:
     """MRCLAM robots (learned against From-Truth) and the Turtlebot (EM beside chapter 3)."""
     tables: list[Table] = []
@@ -303,18 +315,20 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
                 "MRCLAM Dataset 6: what the truth says about the noise (see docs/em-real.md, Known limits)",
                 [
                     "robot",
-                    "heading drift per 1 s window at rest rad",
-                    "while turning (90th percentile) rad",
+                    "heading drift per 1 s at rest rad, truth / Sigma_m",
+                    "while turning (90th percentile), truth / Sigma_m",
                     "turn rate rad/s",
                     "bearing residual correlation, frames 1-5 s apart",
+                    "bearing residual mean rad; sd about it (learned sigma / sd)",
                 ],
                 [
                     [
                         name,
-                        f"{n['heading_drift_rms_at_rest_rad']:.4f}",
-                        f"{n['heading_drift_rms_turning_rad']:.4f}",
+                        _drift_cell(n, "at_rest"),
+                        _drift_cell(n, "turning"),
                         f"{n['turning_rad_s']:.3f}",
                         f"{n['bearing_frame_correlation']:.2f}",
+                        _bearing_mean_cell(res["mrclam"][name]["score"]["bearing"]),
                     ]
                     for name, n in noise
                     if n

@@ -13,7 +13,7 @@ from sensact.models.landmark_sensor import check_robust
 from sensact.models.linear_action import BASES
 
 ACTION_BASES = ("table", *BASES)
-MOTION_NOISE = ("fixed", "shared", "per_action")
+MOTION_NOISE = ("fixed", "shared", "per_action", "turning")
 
 
 @dataclass(frozen=True)
@@ -76,7 +76,8 @@ class EMConfig:
     # "velocity:command+command" entries: that velocity depends on those commands only, e.g.
     # ("v_y_mm_s:v_mm_s", "v_theta_rad_s:omega_rad_s") for a differential drive (models/linear_action.py)
     action_inputs: tuple[str, ...] = ()
-    # Sigma_m: "fixed" (the thesis), or learned "shared" or "per_action", never below the floor
+    # Sigma_m: "fixed" (the thesis), or learned "shared" or "per_action", or "turning" (shared, with a
+    # heading variance a + b |turn rate|: EMModel.turn_var), never below the floor
     motion_noise: str = "fixed"
     motion_sd_floor_mm: float = 0.05
     motion_sd_floor_rad: float = 5e-4

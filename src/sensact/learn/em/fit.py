@@ -103,7 +103,12 @@ def initial_model(data: LandmarkLog, config: EMConfig) -> EMModel:
         cov = np.array([[(first.sigma / slope) ** 2]])
     sd = motion_sd_start(config, n)
     motion_sd = np.repeat(sd, data.n_actions, axis=0) if config.motion_noise == "per_action" else sd
-    return EMModel(data.geometry, action, sensor, mean, cov, motion_sd)
+    turn_var = None
+    if config.motion_noise == "turning":
+        if data.geometry != "planar":
+            raise ValueError(f"{data.source}: motion_noise=turning needs a planar log (a heading); use shared")
+        turn_var = 0.0  # the start: no turn dependence, the M-step learns it once Sigma_m is freed
+    return EMModel(data.geometry, action, sensor, mean, cov, motion_sd, turn_var)
 
 
 def motion_sd_start(config: EMConfig, n: int) -> np.ndarray:

@@ -8,7 +8,15 @@ import numpy as np
 from sensact.core.angles import wrap_angle
 from sensact.core.polyfit import weighted_lstsq
 from sensact.core.pose_models import landmark_bearing, landmark_distance
-from sensact.learn.em.actions import linear_action_update, motion_noise, step_velocity, table_velocities
+from sensact.learn.em.actions import (
+    linear_action_update,
+    motion_noise,
+    motion_second_moments,
+    step_motion_var,
+    step_velocity,
+    table_velocities,
+    turning_variance,
+)
 from sensact.learn.em.estep import Posteriors, channel_inputs
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.action_table import ActionTable
@@ -114,14 +122,25 @@ def m_step(
     if isinstance(model.action, ActionTable):
         action = model.action.with_velocities(action_velocities(post, data, model.action.velocities))
     else:
-        var = np.broadcast_to((model.motion_sd**2)[0], post.disp_mean.shape)
+        if model.turn_var is None:
+            var = np.broadcast_to((model.motion_sd**2)[0], post.disp_mean.shape)
+        else:  # the steps' own variances: a turn's heading counts for less
+            var = step_motion_var(model, data)[:-1]
         action = linear_action_update(model.action, data, post.disp_mean, var, max_delay_steps)
-    motion_sd = model.motion_sd
+    motion_sd, turn_var = model.motion_sd, model.turn_var
     if learn_motion_noise:
         floor = np.zeros(model.prior_mean.size) if motion_floor_sd is None else motion_floor_sd
         groups = data.actions[:-1] if model.per_action_noise else None
         mean_disp = step_velocity(action, data)[:-1] * data.dt_s
         motion_sd = motion_noise(post.disp_mean, post.disp_cov, mean_disp, groups, motion_sd.shape[0], floor, motion_sd)
+        if turn_var is not None:
+            second = motion_second_moments(post.disp_mean, post.disp_cov, mean_disp)[:, 2]
+            turn = mean_disp[:, 2] / data.dt_s
+            a, turn_var = turning_variance(second, turn, floor[2] ** 2, (model.motion_sd[0, 2] ** 2, turn_var))
+            motion_sd = motion_sd.copy()
+            motion_sd[0, 2] = np.sqrt(a)
     sensor = sensor_model(post, data, n_samples, rng, model.sensor, fit_bearing_terms)
     mean0, cov0 = prior(post, floor_var)
-    return model.replace(action=action, sensor=sensor, prior_mean=mean0, prior_cov=cov0, motion_sd=motion_sd)
+    return model.replace(
+        action=action, sensor=sensor, prior_mean=mean0, prior_cov=cov0, motion_sd=motion_sd, turn_var=turn_var
+    )
