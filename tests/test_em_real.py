@@ -512,6 +512,21 @@ def test_truth_bearing_residual_splits_into_a_constant_and_the_sd_about_it():
     assert b["sigma_ratio_about_mean"] == pytest.approx(model.sensor.sigma_bearing_rad / sd)
 
 
+def test_heading_drift_of_windows_that_dead_reckon_to_the_truth_is_zero():
+    """Exact reduction: velocities that integrate to the true displacement leave no drift, and a
+    known heading error comes back as the drift; the turn rate is the window's mean |v_theta|."""
+    from sensact.evaluate.landmark_truth import heading_drift
+
+    rng = np.random.default_rng(8)
+    v = rng.normal(size=(50, 30, 3)) * [20.0, 200.0, 0.3]
+    D = dead_reckon_windows(v, 1 / 30)
+    turn, drift = heading_drift(v, D, 1 / 30)
+    np.testing.assert_array_equal(drift, np.zeros(50))
+    np.testing.assert_allclose(turn, np.abs(v[:, :, 2]).mean(axis=1))
+    D[:, 2] -= 0.01
+    np.testing.assert_allclose(heading_drift(v, D, 1 / 30)[1], 0.01, rtol=1e-9)
+
+
 def dead_reckon_windows(v: np.ndarray, dt: float) -> np.ndarray:
     from sensact.evaluate.landmark_truth import dead_reckon
 

@@ -29,6 +29,7 @@ do on that data; the learned model is judged next to it:
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -97,9 +98,7 @@ def truth_noise_structure(
       Eq. 4.28's independent bearings have 0; a correlated error is one the smoother can only explain
       as heading, so the learned bearing sigma leaves it out while the truth residual sigma counts it.
     """
-    e = dead_reckon(v_ft, dt) - D_true
-    drift = wrap_angle(e[:, 2])
-    turn = np.abs(v_ft[:, :, 2]).mean(axis=1)
+    turn, drift = heading_drift(v_ft, D_true, dt)
     # the fit EM's "turning" Sigma_m makes of its steps, here on whole windows
     a, b = turning_variance(drift**2, turn, 1e-6 * drift.var(), (drift.var(), 0.0))
     busy = float(np.percentile(turn, 90))
@@ -113,7 +112,33 @@ def truth_noise_structure(
         "heading_drift_rms_turning_rad": float(np.sqrt(max(a + b * busy, 0.0))),
         "turning_rad_s": busy,
         "bearing_frame_correlation": corr,
+        "heading_drift_variance_fit": [float(a), float(b)],
     }
+
+
+def heading_drift(v_ft: np.ndarray, D_true: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Each window's mean predicted turn rate ``|turn|`` (rad/s) and the truth's heading drift from
+    the dead-reckoned ``v_ft`` (rad)."""
+    drift = wrap_angle(dead_reckon(v_ft, dt)[:, 2] - D_true[:, 2])
+    return np.abs(v_ft[:, :, 2]).mean(axis=1), drift
+
+
+def from_truth_windows(
+    data: LandmarkLog, truth_poses: np.ndarray, truth_valid: np.ndarray, action: LinearActionModel, window: int
+) -> tuple[np.ndarray, np.ndarray, Callable[[int], np.ndarray]]:
+    """The window starts with valid truth, the true ``D`` over each, and ``features(delay)``: the
+    ``(N, window, F)`` features of ``action``'s family over the windows with that command delay."""
+    starts = window_starts(truth_valid, window)
+    if starts.size == 0:
+        raise ValueError(f"no window of {window} steps has valid truth throughout")
+    idx = starts[:, None] + np.arange(window)  # (N, W)
+    D_true = relative_displacement(truth_poses[starts], truth_poses[starts + window])
+    Phi0 = action.step_features(data.step_commands, 0)
+
+    def features(delay: int) -> np.ndarray:
+        return delayed(Phi0, delay)[idx.ravel()].reshape(len(starts), window, -1)
+
+    return starts, D_true, features
 
 
 def score_against_truth(
@@ -129,17 +154,8 @@ def score_against_truth(
     """Learned and From-Truth errors of ``model`` on ``data`` (see the module docstring)."""
     if not isinstance(model.action, LinearActionModel) or data.step_commands is None:
         raise ValueError("scoring against truth needs a continuous action model and per-step commands")
-    starts = window_starts(truth_valid, window)
-    if starts.size == 0:
-        raise ValueError(f"no window of {window} steps has valid truth throughout")
-    idx = starts[:, None] + np.arange(window)  # (N, W)
-    D_true = relative_displacement(truth_poses[starts], truth_poses[starts + window])
     act = model.action
-
-    Phi0 = act.step_features(data.step_commands, 0)
-
-    def window_features(delay: int) -> np.ndarray:
-        return delayed(Phi0, delay)[idx.ravel()].reshape(len(starts), window, -1)
+    starts, D_true, window_features = from_truth_windows(data, truth_poses, truth_valid, act, window)
 
     def errors(beta: np.ndarray, Phi: np.ndarray) -> dict[str, float]:
         e = dead_reckon(Phi @ beta, data.dt_s) - D_true

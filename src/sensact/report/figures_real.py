@@ -1,5 +1,5 @@
 """Figures for EM on real robots: action curves against Vicon, the range function over the residual
-scatter, and the log-likelihood per iteration."""
+scatter, the heading noise against Vicon's, and the log-likelihood per iteration."""
 
 from __future__ import annotations
 
@@ -70,6 +70,45 @@ def figure_range_function(ml: Any, res: Any, score: dict[str, Any], path: Path, 
     return _save(fig, path)
 
 
+def figure_heading_noise(ml: Any, res: Any, score: dict[str, Any], path: Path, title: str) -> Path:
+    """The truth's heading drift over each 1-s window against the window's turn rate, its RMS in bins,
+    the truth's ``a + b |turn|`` fit, and the drift the learned Sigma_m allows over the same window."""
+    from sensact.evaluate.landmark_truth import from_truth_windows, heading_drift
+
+    d, gt = ml.data, ml.groundtruth
+    poses = np.column_stack([gt["x_mm"], gt["y_mm"], gt["theta_rad"]])
+    window = round(score["window_s"] / d.dt_s)
+    act = res.model.action
+    _, D_true, features = from_truth_windows(d, poses, gt["valid"] > 0, act, window)
+    beta = np.asarray(score["action"]["from_truth_coefficients"])
+    turn, drift = heading_drift(features(round(score["action"]["from_truth_delay_s"] / d.dt_s)) @ beta, D_true, d.dt_s)
+    a, b = score["truth_noise"]["heading_drift_variance_fit"]
+    a_m = float(np.mean(res.model.motion_sd[:, 2] ** 2))
+    b_m = res.model.turn_var or 0.0
+    x = np.linspace(0.0, np.percentile(turn, 99), 100)
+    edges = np.quantile(turn, np.linspace(0, 1, 11))
+    which = np.clip(np.searchsorted(edges, turn, side="right") - 1, 0, 9)
+    rms = [np.sqrt(np.mean(drift[which == k] ** 2)) for k in range(10)]
+    mid = [np.median(turn[which == k]) for k in range(10)]
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    ax.scatter(turn, np.abs(drift), s=3, alpha=0.2, color="0.5", label="|heading drift| per window (Vicon)")
+    ax.plot(mid, rms, "o", color="k", label="its RMS in tenths of the windows")
+    ax.plot(x, np.sqrt(np.maximum(a + b * x, 0.0)), "--", lw=2, label="Vicon: variance a + b |turn|")
+    kind = "turning" if res.model.turn_var is not None else "shared"
+    ax.plot(x, np.sqrt(window * (a_m + b_m * x)), lw=2, label=f"learned Sigma_m ({kind})")
+    ax.set(
+        xlabel="window's mean turn rate (rad/s)",
+        ylabel=f"heading drift over {score['window_s']:.2g} s (rad)",
+        title=f"{title}: heading noise",
+    )
+    ax.set_xlim(0, x[-1])
+    ax.set_ylim(0, 3 * max(rms))
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
 def figure_loglik(results: dict[str, Any], path: Path) -> Path:
     """log P(O | C, lambda) against the iteration, one line per run; a dot where the held stage ends
     (from there the likelihood is the robust one, with Sigma_m and the bearing terms learned)."""
@@ -100,6 +139,9 @@ def write_all(art: dict[str, Any], res: dict[str, Any], out: Path) -> list[Path]
             figure_action_curves(ml, r, score, out / f"real_mrclam_robot{robot}_actions.png", f"robot {robot}")
         )
         paths.append(figure_range_function(ml, r, score, out / f"real_mrclam_robot{robot}_range.png", f"robot {robot}"))
+        paths.append(
+            figure_heading_noise(ml, r, score, out / f"real_mrclam_robot{robot}_heading_noise.png", f"robot {robot}")
+        )
         runs[f"MRCLAM robot {robot}"] = r
     if "turtlebot" in art:
         runs["Turtlebot"] = art["turtlebot"]
