@@ -547,11 +547,11 @@ def test_mrclam_robot1_clears_its_bars_from_an_unknown_start():
     """Real data, end to end: robot 1 is lost without the start race and graduated robustness (its
     window score is flat across the grid; Student-t bearings from the start lose it even from the
     true pose)."""
-    from sensact.experiments.real import mrclam_folder, run_mrclam_robot, truth_poses
+    from sensact.experiments.real import mrclam_folder, run_mrclam_robot
 
     row, ml, res = run_mrclam_robot(mrclam_folder(DATA), 1)
     assert all(row["score"]["bars"].values()), row["score"]["bars"]
     assert len(res.start_search["race"]["rounds"][0]) == 6
-    poses, valid = truth_poses(ml)
+    poses, valid = ml.truth_poses()
     err = np.hypot(*(res.posteriors.mean_gamma[valid, :2] - poses[valid, :2]).T)
     assert np.median(err) < 500

@@ -613,8 +613,6 @@ def evaluate_mrclam_cmd(
     families fitted directly to the ground truth."""
     import json
 
-    import numpy as np
-
     from sensact.errors import ModelFormatError
     from sensact.evaluate.landmark_truth import score_against_truth
     from sensact.io.atomic import write_json
@@ -626,8 +624,7 @@ def evaluate_mrclam_cmd(
     doc = json.loads(model.read_text())
     m = EMModel.from_dict(doc.get("model", doc), source=str(model))
     ml = read_mrclam(dataset, robot, dt_s=float(doc.get("dt_s", 1.0 / 30.0)))
-    gt = ml.groundtruth
-    sc = score_against_truth(m, ml.data, np.column_stack([gt["x_mm"], gt["y_mm"], gt["theta_rad"]]), gt["valid"] > 0)
+    sc = score_against_truth(m, ml.data, *ml.truth_poses())
     _print_truth_score(sc)
     if out is not None:
         write_json(out, sc)

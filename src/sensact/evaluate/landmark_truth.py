@@ -80,8 +80,8 @@ def _rms(x: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.square(x))))
 
 
-def _action_errors(v_model: np.ndarray, v_true: np.ndarray) -> dict[str, float]:
-    e = v_model - v_true
+def _action_errors(e: np.ndarray) -> dict[str, float]:
+    """RMS of the velocity errors ``e`` (N, 3): translational (x and y together) and rotational."""
     return {"translation_rms_mm_s": _rms(np.hypot(e[:, 0], e[:, 1])), "rotation_rms_rad_s": _rms(e[:, 2])}
 
 
@@ -160,21 +160,22 @@ def score_against_truth(
     def errors(beta: np.ndarray, Phi: np.ndarray) -> dict[str, float]:
         e = dead_reckon(Phi @ beta, data.dt_s) - D_true
         e[:, 2] = wrap_angle(e[:, 2])
-        return _action_errors(e / (window * data.dt_s), np.zeros_like(e))
+        return _action_errors(e / (window * data.dt_s))
 
     # From-Truth: the same family, its command delay included, fitted to the truth windows
     ft = None
     for delay in range(max_delay_steps + 1):
         Phi = window_features(delay)
+        sums = Phi.sum(axis=1)
         beta = linear_coefficients(
-            Phi.sum(axis=1),
+            sums,
             D_true,
             np.ones_like(D_true),
             data.dt_s,
             np.zeros_like(act.coefficients),
             act.free_coefficients,
         )
-        sse = float(np.sum((Phi.sum(axis=1) @ beta * data.dt_s - D_true) ** 2 / D_true.var(axis=0)))
+        sse = float(np.sum((sums @ beta * data.dt_s - D_true) ** 2 / D_true.var(axis=0)))
         if ft is None or sse < ft[0]:
             ft = (sse, delay, beta, Phi)
     _, delay_ft, beta_ft, Phi_ft = ft

@@ -22,8 +22,6 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from sensact.config import config_to_dict
 from sensact.evaluate.landmark_truth import score_against_truth
 from sensact.experiments.shared_data import data_root
@@ -58,13 +56,8 @@ def mrclam_folder(root: Path | None = None) -> Path:
     return (root or data_root()) / "mrclam" / "MRCLAM_Dataset6"
 
 
-def truth_poses(ml: MrclamLog) -> tuple[np.ndarray, np.ndarray]:
-    gt = ml.groundtruth
-    return np.column_stack([gt["x_mm"], gt["y_mm"], gt["theta_rad"]]), gt["valid"] > 0
-
-
 def evaluate_mrclam(ml: MrclamLog, res: EMResult) -> dict[str, Any]:
-    poses, valid = truth_poses(ml)
+    poses, valid = ml.truth_poses()
     sc = score_against_truth(res.model, ml.data, poses, valid)
     a, r, b = sc["action"], sc["range"], sc["bearing"]
     f = BARS["sigma_factor"]

@@ -39,6 +39,11 @@ class MrclamLog:
     groundtruth: dict[str, np.ndarray]  # x_mm, y_mm, theta_rad (sensact frame) and valid, on the step grid
     summary: dict[str, int]  # rows kept and dropped, by reason
 
+    def truth_poses(self) -> tuple[np.ndarray, np.ndarray]:
+        """Vicon's ``(T, 3)`` poses on the step grid and where they are valid."""
+        gt = self.groundtruth
+        return np.column_stack([gt["x_mm"], gt["y_mm"], gt["theta_rad"]]), gt["valid"] > 0
+
     def summary_line(self) -> str:
         s = self.summary
         return (

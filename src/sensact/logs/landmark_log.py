@@ -125,21 +125,8 @@ class LandmarkLog:
         return self.obs_readings[:, 0]
 
     @property
-    def n_channels(self) -> int:
-        return self.obs_readings.shape[1]
-
-    @property
     def is_continuous(self) -> bool:
         return self.step_commands is not None
-
-    def commands_per_step(self) -> np.ndarray:
-        """``(T, k)``: the command in force at each step (NaN where no action ran)."""
-        if self.step_commands is not None:
-            return self.step_commands
-        out = np.full((self.n_steps, len(self.command_names)), np.nan)
-        ok = self.actions >= 0
-        out[ok] = self.action_commands[self.actions[ok]]
-        return out
 
     @property
     def n_steps(self) -> int:

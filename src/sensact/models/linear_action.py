@@ -28,7 +28,7 @@ M-step's weighted least squares reduces to eq. 4.18.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from itertools import combinations_with_replacement
 from typing import Any
 
@@ -152,10 +152,6 @@ class LinearActionModel:
     def features(self, commands: np.ndarray) -> np.ndarray:
         return command_features(self.basis, self.degree, commands)
 
-    def velocities_at(self, commands: np.ndarray) -> np.ndarray:
-        """Mean robot-frame velocity for each row of ``commands``: ``Phi(c) beta``."""
-        return self.features(commands) @ self.coefficients
-
     def step_features(self, step_commands: np.ndarray, delay_steps: int | None = None) -> np.ndarray:
         """``Phi`` of the command acting at each step of a log, after the delay (the first command
         stands in before it)."""
@@ -163,9 +159,7 @@ class LinearActionModel:
 
     def with_coefficients(self, beta: np.ndarray, delay_steps: int | None = None) -> LinearActionModel:
         delay = self.delay_steps if delay_steps is None else delay_steps
-        return LinearActionModel(
-            self.basis, self.degree, beta, self.command_names, self.velocity_names, delay, self.zero_mean, self.inputs
-        )
+        return replace(self, coefficients=beta, delay_steps=delay)
 
     def to_dict(self) -> dict[str, Any]:
         return {

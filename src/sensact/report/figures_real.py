@@ -48,9 +48,8 @@ def figure_range_function(ml: Any, res: Any, score: dict[str, Any], path: Path, 
     terms the readings are shown with the learned terms taken out, ``reading - d g(b)``, so that they
     scatter about f(d)."""
     d = ml.data
-    gt = ml.groundtruth
-    poses = np.column_stack([gt["x_mm"], gt["y_mm"], gt["theta_rad"]])[d.obs_step]
-    ok = gt["valid"][d.obs_step] > 0
+    poses, valid = ml.truth_poses()
+    poses, ok = poses[d.obs_step], valid[d.obs_step]
     dist = landmark_distance(poses[ok], d.landmarks_xy[d.obs_landmark[ok]])
     chan = res.model.sensor.channels[0]
     reading = d.obs_readings[ok, 0] - dist * chan.bearing_gain(d.obs_bearing_rad[ok])
@@ -75,11 +74,9 @@ def figure_heading_noise(ml: Any, res: Any, score: dict[str, Any], path: Path, t
     the truth's ``a + b |turn|`` fit, and the drift the learned Sigma_m allows over the same window."""
     from sensact.evaluate.landmark_truth import from_truth_windows, heading_drift
 
-    d, gt = ml.data, ml.groundtruth
-    poses = np.column_stack([gt["x_mm"], gt["y_mm"], gt["theta_rad"]])
+    d = ml.data
     window = round(score["window_s"] / d.dt_s)
-    act = res.model.action
-    _, D_true, features = from_truth_windows(d, poses, gt["valid"] > 0, act, window)
+    _, D_true, features = from_truth_windows(d, *ml.truth_poses(), res.model.action, window)
     beta = np.asarray(score["action"]["from_truth_coefficients"])
     turn, drift = heading_drift(features(round(score["action"]["from_truth_delay_s"] / d.dt_s)) @ beta, D_true, d.dt_s)
     a, b = score["truth_noise"]["heading_drift_variance_fit"]

@@ -9,7 +9,9 @@
   component (Sigma_m is diagonal). With a one-hot Phi it is eq. 4.18 exactly.
 * ``motion_noise``: the same expectation maximized over a diagonal ``Sigma_m`` gives
   ``Sigma_m = mean_t [(Dbar_t - A(c_t) dt)^2 + Var_xi(D_t)]`` per component (the expected squared
-  deviation of the linearized D, using the xi covariances), over all steps (shared) or each action's.
+  deviation of the linearized D, using the xi covariances: ``motion_second_moments``), over all steps
+  (shared) or each action's.
+* ``turning_variance``: the heading's share of that expectation when its variance is ``a + b |turn_t|``.
 """
 
 from __future__ import annotations
@@ -36,14 +38,16 @@ def step_velocity(action: ActionModel, data: LandmarkLog) -> np.ndarray:
     return out
 
 
-def step_motion_var(model: EMModel, data: LandmarkLog) -> np.ndarray:
+def step_motion_var(model: EMModel, data: LandmarkLog, velocity: np.ndarray | None = None) -> np.ndarray:
     """``(T, n)``: the diagonal of Sigma_m at each step (per action when the model has one row each;
-    with ``turn_var``, the heading's grows by ``turn_var |A(c_t)_theta|``)."""
+    with ``turn_var``, the heading's grows by ``turn_var |A(c_t)_theta|``, from ``velocity`` when the
+    caller has ``step_velocity`` already)."""
     var = model.motion_sd**2
     if var.shape[0] == 1:
         out = np.repeat(var, data.n_steps, axis=0)
         if model.turn_var is not None:
-            out[:, 2] += model.turn_var * np.abs(step_velocity(model.action, data)[:, 2])
+            v = step_velocity(model.action, data) if velocity is None else velocity
+            out[:, 2] += model.turn_var * np.abs(v[:, 2])
         return out
     out = np.repeat(var.mean(axis=0, keepdims=True), data.n_steps, axis=0)
     ok = data.actions >= 0
@@ -112,20 +116,10 @@ def linear_action_update(
 
 
 def motion_noise(
-    disp_mean: np.ndarray,
-    disp_cov: np.ndarray,
-    mean_disp: np.ndarray,
-    groups: np.ndarray | None,
-    n_groups: int,
-    floor_sd: np.ndarray,
-    previous: np.ndarray,
+    second: np.ndarray, groups: np.ndarray | None, n_groups: int, floor_sd: np.ndarray, previous: np.ndarray
 ) -> np.ndarray:
-    """Sigma_m (as standard deviations, rows per group) from the xi moments; see the module docstring.
-
-    ``mean_disp`` is ``A(c_t) dt`` at each step; ``groups[t]`` is the action of step t (None = shared).
-    The angle component's deviation is wrapped.
-    """
-    second = motion_second_moments(disp_mean, disp_cov, mean_disp)
+    """Sigma_m (as standard deviations, rows per group) from the steps' ``motion_second_moments``; see
+    the module docstring. ``groups[t]`` is the action of step t (None = shared)."""
     out = np.array(previous, dtype=float, copy=True)
     if groups is None:
         out = np.sqrt(second.mean(axis=0, keepdims=True))

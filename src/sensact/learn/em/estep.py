@@ -98,8 +98,9 @@ def e_step(
         coefs[i, : ch.function.degree + 1] = ch.function.coef
     kinds = np.array([ROBUST_CODES[c.robust] for c in chans] + [ROBUST_CODES[sensor.bearing_robust]], dtype=np.int64)
     params = np.array([c.robust_param for c in chans] + [sensor.bearing_robust_param], dtype=float)
+    velocity = step_velocity(model.action, data)
     if motion_var is None:
-        var_steps = step_motion_var(model, data)
+        var_steps = step_motion_var(model, data, velocity)
     else:
         var_steps = np.repeat(np.asarray(motion_var, dtype=float).reshape(1, n), T, axis=0)
     sb = sensor.sigma_bearing_rad
@@ -114,7 +115,7 @@ def e_step(
     status, loglik, n_used = ekf_smoother(
         data.mode,
         data.dt_s,
-        np.ascontiguousarray(step_velocity(model.action, data)),
+        np.ascontiguousarray(velocity),
         np.ascontiguousarray(var_steps),
         model.prior_mean.copy(),
         model.prior_cov.copy(),

@@ -132,11 +132,11 @@ def m_step(
         floor = np.zeros(model.prior_mean.size) if motion_floor_sd is None else motion_floor_sd
         groups = data.actions[:-1] if model.per_action_noise else None
         mean_disp = step_velocity(action, data)[:-1] * data.dt_s
-        motion_sd = motion_noise(post.disp_mean, post.disp_cov, mean_disp, groups, motion_sd.shape[0], floor, motion_sd)
+        second = motion_second_moments(post.disp_mean, post.disp_cov, mean_disp)
+        motion_sd = motion_noise(second, groups, motion_sd.shape[0], floor, motion_sd)
         if turn_var is not None:
-            second = motion_second_moments(post.disp_mean, post.disp_cov, mean_disp)[:, 2]
             turn = mean_disp[:, 2] / data.dt_s
-            a, turn_var = turning_variance(second, turn, floor[2] ** 2, (model.motion_sd[0, 2] ** 2, turn_var))
+            a, turn_var = turning_variance(second[:, 2], turn, floor[2] ** 2, (model.motion_sd[0, 2] ** 2, turn_var))
             motion_sd = motion_sd.copy()
             motion_sd[0, 2] = np.sqrt(a)
     sensor = sensor_model(post, data, n_samples, rng, model.sensor, fit_bearing_terms)
