@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from sensact import cli
 from sensact.config import config_from_dict
 from sensact.core.pose_models import apply_displacement, landmark_bearing, landmark_distance
 from sensact.learn.em import EMConfig, e_step, fit_em, initial_model
@@ -482,14 +483,13 @@ def test_truth_noise_structure_recovers_turn_dependent_drift_and_frame_correlati
     assert truth_noise_structure(v, D_true, dt, slow, frames, W)["bearing_frame_correlation"] > 0.8
 
 
-def test_truth_bearing_residual_splits_into_a_constant_and_the_sd_about_it():
-    """Seeded recovery and an exact identity: a camera yawed 0.03 rad against the truth's heading adds
-    a constant to every bearing residual; the report recovers it and the 0.02-rad noise about it, and
-    the bar's RMS about zero is exactly their root sum of squares."""
-    from sensact.evaluate.landmark_truth import score_against_truth
-
-    data, poses = _simulate(2, T=6000)
-    data = LandmarkLog(
+def _seen_from(data: LandmarkLog, sensor_poses: np.ndarray, seed: int) -> LandmarkLog:
+    """``data`` with its range (1.05 d + 40, sd 30 mm) and bearing (sd 0.02 rad) read from ``sensor_poses``."""
+    rng = np.random.default_rng(seed)
+    at = sensor_poses[data.obs_step]
+    lm = data.landmarks_xy[data.obs_landmark]
+    d = landmark_distance(at, lm)
+    return LandmarkLog(
         "planar",
         data.dt_s,
         data.actions,
@@ -497,19 +497,71 @@ def test_truth_bearing_residual_splits_into_a_constant_and_the_sd_about_it():
         data.command_names,
         data.obs_step,
         data.obs_landmark,
-        data.obs_readings,
-        data.obs_bearing_rad + 0.03,
+        1.05 * d + 40.0 + rng.normal(size=d.size) * 30.0,
+        landmark_bearing(at, lm) + rng.normal(size=d.size) * 0.02,
         data.landmarks_xy,
         reading_names=data.reading_names,
         step_commands=data.step_commands,
     )
+
+
+def test_sensor_mount_is_fitted_from_the_bearings():
+    """Exact reduction and seeded recovery: bearings read exactly at the truth's poses give no mount;
+    a camera 120 mm ahead, 30 mm aside and yawed 0.02 rad, with 0.01-rad noise, is found."""
+    from sensact.evaluate.landmark_truth import at_sensor, fit_sensor_mount
+
+    data, poses = _simulate(2, T=6000)
+    at, lm = poses[data.obs_step], data.landmarks_xy[data.obs_landmark]
+    assert np.allclose(fit_sensor_mount(at, lm, landmark_bearing(at, lm)), 0.0, atol=1e-6)
+    mount = np.array([30.0, 120.0, 0.02])
+    noisy = landmark_bearing(at_sensor(at, mount), lm) + np.random.default_rng(3).normal(size=len(at)) * 0.01
+    noisy[::50] += 0.5  # outliers the trimming drops
+    got = fit_sensor_mount(at, lm, noisy)
+    assert got[:2] == pytest.approx(mount[:2], abs=8.0)
+    assert got[2] == pytest.approx(mount[2], abs=0.002)
+
+
+def test_truth_residuals_are_taken_at_the_sensor():
+    """Seeded recovery: a camera mounted ahead of the truth's origin and yawed reads 0.02-rad bearings
+    and 30-mm ranges from where it is; the score finds its mount and those sigmas, while at the truth's
+    origin the bearing residual is several times larger. Exact reduction: without the fit, the sensor's
+    residuals are the origin's."""
+    from sensact.evaluate.landmark_truth import at_sensor, score_against_truth
+
+    data, poses = _simulate(2, T=6000)
+    mount = np.array([-20.0, 150.0, 0.03])
+    data = _seen_from(data, at_sensor(poses, mount), seed=4)
     model = initial_model(data, _config())
-    b = score_against_truth(model, data, poses, np.ones(len(poses), dtype=bool))["bearing"]
-    assert b["truth_mean_rad"] == pytest.approx(0.03, abs=0.002)
-    assert b["sigma_truth_about_mean_rad"] == pytest.approx(0.02, rel=0.05)
-    assert b["sigma_truth_rad"] ** 2 == pytest.approx(b["truth_mean_rad"] ** 2 + b["sigma_truth_about_mean_rad"] ** 2)
-    sd = b["sigma_truth_about_mean_rad"]
-    assert b["sigma_ratio_about_mean"] == pytest.approx(model.sensor.sigma_bearing_rad / sd)
+    valid = np.ones(len(poses), dtype=bool)
+    sc = score_against_truth(model, data, poses, valid)
+    m, b = sc["sensor_mount"], sc["bearing"]
+    assert [m["lateral_mm"], m["forward_mm"]] == pytest.approx(mount[:2], abs=8.0)
+    assert m["yaw_rad"] == pytest.approx(mount[2], abs=0.002)
+    assert b["sigma_truth_rad"] == pytest.approx(0.02, rel=0.05)
+    assert sc["range"]["sigma_truth_mm"] == pytest.approx(30.0, rel=0.05)
+    assert b["truth_origin_sigma_rad"] > 2 * b["sigma_truth_rad"]
+    assert b["truth_origin_sigma_ratio"] == pytest.approx(model.sensor.sigma_bearing_rad / b["truth_origin_sigma_rad"])
+    plain = score_against_truth(model, data, poses, valid, fit_mount=False)
+    assert plain["bearing"]["sigma_truth_rad"] == plain["bearing"]["truth_origin_sigma_rad"]
+    assert plain["sensor_mount"] == {"lateral_mm": 0.0, "forward_mm": 0.0, "yaw_rad": 0.0}
+    with cli.console.capture() as out:  # what `learn em` and `evaluate mrclam` print of it
+        cli._print_truth_score(sc)
+    assert f"sensor pose on the robot, fitted to the truth: {m['forward_mm']:.0f} mm forward" in out.get()
+
+
+def test_frame_shared_bearing_error_splits_a_frames_residuals():
+    """Seeded recovery: an error every sighting of a frame shares (sd 0.006) plus each sighting's own
+    (sd 0.004), three sightings a frame, is split into the own sd and the shared fraction 0.36/0.52;
+    frames of one sighting cannot be split."""
+    from sensact.evaluate.landmark_truth import frame_shared_bearing_error
+
+    rng = np.random.default_rng(5)
+    frames = np.repeat(np.arange(4000) * 7, 3)
+    res = rng.normal(size=4000).repeat(3) * 0.006 + rng.normal(size=frames.size) * 0.004
+    within, shared = frame_shared_bearing_error(res, frames)
+    assert within == pytest.approx(0.004, rel=0.03)
+    assert shared == pytest.approx(0.36 / 0.52, abs=0.03)
+    assert all(math.isnan(x) for x in frame_shared_bearing_error(res[:10], np.arange(10)))
 
 
 def test_heading_drift_of_windows_that_dead_reckon_to_the_truth_is_zero():

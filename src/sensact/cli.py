@@ -490,8 +490,17 @@ def _print_truth_score(sc: dict[str, Any]) -> None:
             f"{n['heading_drift_rms_turning_rad']:.4f} rad turning at {n['turning_rad_s']:.2f} rad/s (Sigma_m: "
             f"{n['learned_heading_drift_turning_rad']:.4f}); "
             f"bearing residuals of frames 1-5 windows apart correlate at {n['bearing_frame_correlation']:.2f}; "
-            f"their mean is {b['truth_mean_rad']:+.4f} rad and their sd about it {b['sigma_truth_about_mean_rad']:.4f} "
-            f"(learned sigma / sd {b['sigma_ratio_about_mean']:.2f}; docs/em-real.md, Known limits)"
+            f"a frame's sightings share {n['bearing_frame_shared_fraction']:.0%} of their residual's variance, "
+            f"and vary about their frame's mean by {n['bearing_within_frame_sd_rad']:.4f} rad (docs/em-real.md, "
+            "Known limits)"
+        )
+    m = sc.get("sensor_mount")
+    if m:
+        console.print(
+            f"sensor pose on the robot, fitted to the truth: {m['forward_mm']:.0f} mm forward, "
+            f"{m['lateral_mm']:.0f} mm to the right, yaw {m['yaw_rad']:+.4f} rad (counterclockwise); "
+            f"at the truth's origin instead the bearing residual is {b['truth_origin_sigma_rad']:.4f} rad RMS "
+            f"(mean {b['truth_origin_mean_rad']:+.4f}; learned sigma / it {b['truth_origin_sigma_ratio']:.2f})"
         )
     if "bars" in sc:
         console.print("bars: " + ", ".join(f"{k} {'pass' if v else 'FAIL'}" for k, v in sc["bars"].items()))

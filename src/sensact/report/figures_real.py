@@ -47,10 +47,14 @@ def figure_range_function(ml: Any, res: Any, score: dict[str, Any], path: Path, 
     """Readings against the Vicon distance, with the learned and From-Truth range functions. With bearing
     terms the readings are shown with the learned terms taken out, ``reading - d g(b)``, so that they
     scatter about f(d)."""
+    from sensact.evaluate.landmark_truth import at_sensor
+
     d = ml.data
     poses, valid = ml.truth_poses()
     poses, ok = poses[d.obs_step], valid[d.obs_step]
-    dist = landmark_distance(poses[ok], d.landmarks_xy[d.obs_landmark[ok]])
+    m = score.get("sensor_mount", {})
+    mount = [m.get("lateral_mm", 0.0), m.get("forward_mm", 0.0), m.get("yaw_rad", 0.0)]
+    dist = landmark_distance(at_sensor(poses[ok], mount), d.landmarks_xy[d.obs_landmark[ok]])
     chan = res.model.sensor.channels[0]
     reading = d.obs_readings[ok, 0] - dist * chan.bearing_gain(d.obs_bearing_rad[ok])
     f = chan.function
@@ -58,7 +62,7 @@ def figure_range_function(ml: Any, res: Any, score: dict[str, Any], path: Path, 
     x = np.linspace(dist.min(), dist.max(), 200)
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     what = "sightings, learned bearing terms removed" if chan.bearing_terms else "sightings"
-    ax.scatter(dist, reading, s=3, alpha=0.25, color="0.4", label=f"{what} (Vicon distance)")
+    ax.scatter(dist, reading, s=3, alpha=0.25, color="0.4", label=f"{what} (Vicon, at the fitted sensor pose)")
     ax.plot(x, f(x), lw=2, label="learned f (EM)")
     ax.plot(x, f_ft(x), "--", lw=2, label="From-Truth f")
     ax.set(xlabel="true distance (mm)", ylabel="range reading (mm)", title=f"{title}: range function")

@@ -268,10 +268,20 @@ def _drift_cell(n: dict[str, Any], when: str) -> str:
     return truth if learned is None else f"{truth} / {learned:.4f}"
 
 
-def _bearing_mean_cell(b: dict[str, Any]) -> str:
-    if "truth_mean_rad" not in b:  # results written before the mean was reported
+def _mount_cell(score: dict[str, Any]) -> str:
+    m, b = score.get("sensor_mount"), score["bearing"]
+    if m is None:  # results written before the sensor's pose was fitted
         return "-"
-    return f"{b['truth_mean_rad']:+.4f}; {b['sigma_truth_about_mean_rad']:.4f} ({b['sigma_ratio_about_mean']:.2f})"
+    return (
+        f"{m['forward_mm']:.0f} / {m['lateral_mm']:.0f} / {m['yaw_rad']:+.4f}; "
+        f"{b['truth_origin_sigma_rad']:.4f} ({b['truth_origin_sigma_ratio']:.2f})"
+    )
+
+
+def _shared_cell(n: dict[str, Any]) -> str:
+    if "bearing_within_frame_sd_rad" not in n:
+        return "-"
+    return f"{n['bearing_within_frame_sd_rad']:.4f}; {n['bearing_frame_shared_fraction']:.0%}"
 
 
 def real_tables(res: dict[str, Any]) -> list[Table]:
@@ -319,7 +329,9 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
                     "while turning (90th percentile), truth / Sigma_m",
                     "turn rate rad/s",
                     "bearing residual correlation, frames 1-5 s apart",
-                    "bearing residual mean rad; sd about it (learned sigma / sd)",
+                    "bearing residual about its frame's mean, sd rad; frame-shared variance",
+                    "sensor on the robot, forward mm / right mm / yaw rad; "
+                    "bearing residual at the truth's origin rad (learned sigma / it)",
                 ],
                 [
                     [
@@ -328,7 +340,8 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
                         _drift_cell(n, "turning"),
                         f"{n['turning_rad_s']:.3f}",
                         f"{n['bearing_frame_correlation']:.2f}",
-                        _bearing_mean_cell(res["mrclam"][name]["score"]["bearing"]),
+                        _shared_cell(n),
+                        _mount_cell(res["mrclam"][name]["score"]),
                     ]
                     for name, n in noise
                     if n
