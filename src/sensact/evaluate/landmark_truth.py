@@ -153,6 +153,8 @@ def truth_noise_structure(
     * The correlation of the mean truth bearing residual of sighting frames 1 to 5 windows apart.
       Eq. 4.28's independent bearings have 0; a correlated error is one the smoother can only explain
       as heading, so the learned bearing sigma leaves it out while the truth residual sigma counts it.
+    * The same within a frame (``frame_shared_bearing_error``): a sighting's sd about its frame's mean,
+      and the share of the variance that a frame's sightings have in common.
     """
     turn, drift = heading_drift(v_ft, D_true, dt)
     # the fit EM's "turning" Sigma_m makes of its steps, here on whole windows
@@ -163,11 +165,14 @@ def truth_noise_structure(
     nxt = np.searchsorted(uniq, uniq + window)  # the first frame at least one window later
     ok = (nxt < len(uniq)) & (uniq[np.minimum(nxt, len(uniq) - 1)] - uniq <= 5 * window)
     corr = float(np.corrcoef(mean_res[ok], mean_res[nxt[ok]])[0, 1]) if ok.sum() > 2 else float("nan")
+    within_sd, shared = frame_shared_bearing_error(bearing_res, frames)
     return {
         "heading_drift_rms_at_rest_rad": float(np.sqrt(max(a, 0.0))),
         "heading_drift_rms_turning_rad": float(np.sqrt(max(a + b * busy, 0.0))),
         "turning_rad_s": busy,
         "bearing_frame_correlation": corr,
+        "bearing_within_frame_sd_rad": within_sd,
+        "bearing_frame_shared_fraction": shared,
         "heading_drift_variance_fit": [float(a), float(b)],
     }
 
@@ -275,11 +280,9 @@ def score_against_truth(
     sb_origin = _rms(b_res0[b_keep0])
     sr_true = _rms(r_ft)
     sb = model.sensor.sigma_bearing_rad or float("nan")
-    frames = data.obs_step[rows][b_keep]
-    structure = truth_noise_structure(Phi_ft @ beta_ft, D_true, data.dt_s, b_res[b_keep], frames, window)
-    within_sd, shared = frame_shared_bearing_error(b_res[b_keep], frames)
-    structure["bearing_within_frame_sd_rad"] = within_sd
-    structure["bearing_frame_shared_fraction"] = shared
+    structure = truth_noise_structure(
+        Phi_ft @ beta_ft, D_true, data.dt_s, b_res[b_keep], data.obs_step[rows][b_keep], window
+    )
     # the learned Sigma_m's drift over the same windows: window * (a + b |turn|) in variance
     a_step = float(np.mean(model.motion_sd[:, 2] ** 2))
     b_step = model.turn_var or 0.0
