@@ -564,6 +564,48 @@ def test_frame_shared_bearing_error_splits_a_frames_residuals():
     assert all(math.isnan(x) for x in frame_shared_bearing_error(res[:10], np.arange(10)))
 
 
+def test_sighting_motion_labels_still_straight_and_turning_truth():
+    """Exact reduction: a truth path that stands, then drives straight at 200 mm/s, then turns on the
+    spot at 0.3 rad/s labels the sightings in the middle of each part still, straight and turning."""
+    from sensact.evaluate.landmark_truth import MOTIONS, sighting_motion
+
+    dt, n = 1 / 30, 120
+    poses = np.zeros((3 * n, 3))
+    poses[n:, 1] = np.minimum(np.arange(2 * n), n) * 200.0 * dt  # drive along the heading (y at theta 0)
+    poses[2 * n :, 2] = np.arange(n) * 0.3 * dt
+    got = sighting_motion(poses, np.array([n // 2, n + n // 2, 2 * n + n // 2]), dt, 30)
+    assert [MOTIONS[i] for i in got] == ["still", "straight", "turning"]
+
+
+def test_frame_shared_fraction_is_split_by_the_robots_motion():
+    """Seeded recovery: frames taken still carry only each sighting's own error, frames taken turning
+    also a shared one (sd 0.006 with own 0.004); the split gives about 0 and 0.36/0.52, the whole log
+    a share in between."""
+    from sensact.evaluate.landmark_truth import truth_noise_structure
+    from sensact.report.tables import shared_by_motion
+
+    rng = np.random.default_rng(8)
+    nf = 3000
+    frames = np.repeat(np.arange(nf) * 7, 3)
+    motion = np.repeat(rng.choice([0, 2], nf), 3)
+    shared = rng.normal(size=nf).repeat(3) * 0.006 * (motion == 2)
+    res = shared + rng.normal(size=frames.size) * 0.004
+    v = np.zeros((50, 30, 3))
+    D_true = np.zeros((50, 3))
+    D_true[:, 2] = rng.normal(size=50) * 0.01
+    out = truth_noise_structure(v, D_true, 1 / 30, res, frames, 30, motion)
+    split = out["bearing_frame_shared_by_motion"]
+    assert split["still"]["shared_fraction"] == pytest.approx(0.0, abs=0.05)
+    assert split["turning"]["shared_fraction"] == pytest.approx(0.36 / 0.52, abs=0.04)
+    assert split["straight"]["sightings"] == 0 and math.isnan(split["straight"]["shared_fraction"])
+    assert 0.1 < out["bearing_frame_shared_fraction"] < split["turning"]["shared_fraction"]
+    # what `evaluate mrclam` prints of it: a share per motion, '-' where no frame could be split
+    assert shared_by_motion(out) == (
+        f" (still {split['still']['shared_fraction']:.0%}, straight -, "
+        f"turning {split['turning']['shared_fraction']:.0%})"
+    )
+
+
 def test_heading_drift_of_windows_that_dead_reckon_to_the_truth_is_zero():
     """Exact reduction: velocities that integrate to the true displacement leave no drift, and a
     known heading error comes back as the drift; the turn rate is the window's mean |v_theta|."""

@@ -450,6 +450,8 @@ def _print_em_model(m: Any) -> None:
 
 
 def _print_truth_score(sc: dict[str, Any]) -> None:
+    from sensact.report.tables import shared_by_motion
+
     a, r, b = sc["action"], sc["range"], sc["bearing"]
     t = Table(title=f"against ground truth ({sc['windows_scored']} windows of {sc['window_s']:.2g} s)")
     for col in ("quantity", "learned", "From-Truth", "ratio / bar"):
@@ -490,7 +492,8 @@ def _print_truth_score(sc: dict[str, Any]) -> None:
             f"{n['heading_drift_rms_turning_rad']:.4f} rad turning at {n['turning_rad_s']:.2f} rad/s (Sigma_m: "
             f"{n['learned_heading_drift_turning_rad']:.4f}); "
             f"bearing residuals of frames 1-5 windows apart correlate at {n['bearing_frame_correlation']:.2f}; "
-            f"a frame's sightings share {n['bearing_frame_shared_fraction']:.0%} of their residual's variance, "
+            f"a frame's sightings share {n['bearing_frame_shared_fraction']:.0%} of their residual's variance"
+            f"{shared_by_motion(n)}, "
             f"and vary about their frame's mean by {n['bearing_within_frame_sd_rad']:.4f} rad (docs/em-real.md, "
             "Known limits)"
         )

@@ -132,6 +132,30 @@ def frame_shared_bearing_error(residuals: np.ndarray, frames: np.ndarray) -> tup
     return float(np.sqrt(within)), float(1.0 - within / residuals[multi].var())
 
 
+# What the robot does around a sighting, by the truth over the window centred on it. "still" is
+# below what Vicon's own jitter and a creeping robot give over 1 s; "turning" is where the truth's
+# heading drift has grown well past its value at rest (the report's turning percentile is 0.2-0.3 rad/s).
+STILL_TURN_RAD_S = 0.01
+STILL_SPEED_MM_S = 5.0
+TURNING_RAD_S = 0.1
+MOTIONS = ("still", "straight", "turning")
+
+
+def sighting_motion(truth_poses: np.ndarray, steps: np.ndarray, dt: float, window: int) -> np.ndarray:
+    """Each sighting's motion, an index into ``MOTIONS``: the truth's mean speed and turn rate over the
+    ``window`` steps centred on its step."""
+    last = len(truth_poses) - 1
+    lo = np.clip(steps - window // 2, 0, last)
+    hi = np.clip(steps + window // 2, 0, last)
+    span = np.maximum(hi - lo, 1) * dt
+    turn = np.abs(wrap_angle(truth_poses[hi, 2] - truth_poses[lo, 2])) / span
+    speed = np.hypot(*(truth_poses[hi, :2] - truth_poses[lo, :2]).T) / span
+    motion = np.ones(len(steps), dtype=np.int64)
+    motion[(turn < STILL_TURN_RAD_S) & (speed < STILL_SPEED_MM_S)] = 0
+    motion[turn >= TURNING_RAD_S] = 2
+    return motion
+
+
 def _rms(x: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.square(x))))
 
@@ -142,8 +166,14 @@ def _action_errors(e: np.ndarray) -> dict[str, float]:
 
 
 def truth_noise_structure(
-    v_ft: np.ndarray, D_true: np.ndarray, dt: float, bearing_res: np.ndarray, frames: np.ndarray, window: int
-) -> dict[str, float]:
+    v_ft: np.ndarray,
+    D_true: np.ndarray,
+    dt: float,
+    bearing_res: np.ndarray,
+    frames: np.ndarray,
+    window: int,
+    motion: np.ndarray | None = None,
+) -> dict[str, Any]:
     """What the truth says about the noise that a constant Sigma_m and eq. 4.28 assume away.
 
     * The heading drift of From-Truth's windows (``v_ft``: ``(N, W, 3)`` velocities) as ``a + b |turn|``
@@ -154,7 +184,10 @@ def truth_noise_structure(
       Eq. 4.28's independent bearings have 0; a correlated error is one the smoother can only explain
       as heading, so the learned bearing sigma leaves it out while the truth residual sigma counts it.
     * The same within a frame (``frame_shared_bearing_error``): a sighting's sd about its frame's mean,
-      and the share of the variance that a frame's sightings have in common.
+      and the share of the variance that a frame's sightings have in common; with ``motion``
+      (``sighting_motion``), that share again for the sightings taken still, driving straight and
+      turning. A shared part that only motion brings is a heading error between sensor and truth
+      in motion (camera timing, body sway), not the landmark map or the camera's own noise.
     """
     turn, drift = heading_drift(v_ft, D_true, dt)
     # the fit EM's "turning" Sigma_m makes of its steps, here on whole windows
@@ -166,6 +199,14 @@ def truth_noise_structure(
     ok = (nxt < len(uniq)) & (uniq[np.minimum(nxt, len(uniq) - 1)] - uniq <= 5 * window)
     corr = float(np.corrcoef(mean_res[ok], mean_res[nxt[ok]])[0, 1]) if ok.sum() > 2 else float("nan")
     within_sd, shared = frame_shared_bearing_error(bearing_res, frames)
+    by_motion = {}
+    if motion is not None:
+        for i, name in enumerate(MOTIONS):
+            m = motion == i
+            by_motion[name] = {
+                "sightings": int(m.sum()),
+                "shared_fraction": frame_shared_bearing_error(bearing_res[m], frames[m])[1],
+            }
     return {
         "heading_drift_rms_at_rest_rad": float(np.sqrt(max(a, 0.0))),
         "heading_drift_rms_turning_rad": float(np.sqrt(max(a + b * busy, 0.0))),
@@ -173,6 +214,7 @@ def truth_noise_structure(
         "bearing_frame_correlation": corr,
         "bearing_within_frame_sd_rad": within_sd,
         "bearing_frame_shared_fraction": shared,
+        "bearing_frame_shared_by_motion": by_motion,
         "heading_drift_variance_fit": [float(a), float(b)],
     }
 
@@ -280,8 +322,15 @@ def score_against_truth(
     sb_origin = _rms(b_res0[b_keep0])
     sr_true = _rms(r_ft)
     sb = model.sensor.sigma_bearing_rad or float("nan")
+    b_steps = data.obs_step[rows][b_keep]
     structure = truth_noise_structure(
-        Phi_ft @ beta_ft, D_true, data.dt_s, b_res[b_keep], data.obs_step[rows][b_keep], window
+        Phi_ft @ beta_ft,
+        D_true,
+        data.dt_s,
+        b_res[b_keep],
+        b_steps,
+        window,
+        sighting_motion(truth_poses, b_steps, data.dt_s, window),
     )
     # the learned Sigma_m's drift over the same windows: window * (a + b |turn|) in variance
     a_step = float(np.mean(model.motion_sd[:, 2] ** 2))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 Table = tuple[str, list[str], list[list[str]]]  # title, headers, rows
@@ -278,10 +279,23 @@ def _mount_cell(score: dict[str, Any]) -> str:
     )
 
 
+def shared_by_motion(n: dict[str, Any]) -> str:
+    """' (still 0%, straight 49%, turning 75%)': the truth's frame-shared bearing variance by the
+    robot's motion, '-' where no frame could be split; empty for results written before it."""
+    split = n.get("bearing_frame_shared_by_motion")
+    if not split:
+        return ""
+    parts = [
+        f"{name} {'-' if math.isnan(v['shared_fraction']) else format(v['shared_fraction'], '.0%')}"
+        for name, v in split.items()
+    ]
+    return " (" + ", ".join(parts) + ")"
+
+
 def _shared_cell(n: dict[str, Any]) -> str:
     if "bearing_within_frame_sd_rad" not in n:
         return "-"
-    return f"{n['bearing_within_frame_sd_rad']:.4f}; {n['bearing_frame_shared_fraction']:.0%}"
+    return f"{n['bearing_within_frame_sd_rad']:.4f}; {n['bearing_frame_shared_fraction']:.0%}{shared_by_motion(n)}"
 
 
 def real_tables(res: dict[str, Any]) -> list[Table]:
@@ -329,7 +343,7 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
                     "while turning (90th percentile), truth / Sigma_m",
                     "turn rate rad/s",
                     "bearing residual correlation, frames 1-5 s apart",
-                    "bearing residual about its frame's mean, sd rad; frame-shared variance",
+                    "bearing residual about its frame's mean, sd rad; frame-shared variance (by motion)",
                     "sensor on the robot, forward mm / right mm / yaw rad; "
                     "bearing residual at the truth's origin rad (learned sigma / it)",
                 ],
