@@ -148,8 +148,9 @@ def sighting_motion(truth_poses: np.ndarray, steps: np.ndarray, dt: float, windo
     lo = np.clip(steps - window // 2, 0, last)
     hi = np.clip(steps + window // 2, 0, last)
     span = np.maximum(hi - lo, 1) * dt
-    turn = np.abs(wrap_angle(truth_poses[hi, 2] - truth_poses[lo, 2])) / span
-    speed = np.hypot(*(truth_poses[hi, :2] - truth_poses[lo, :2]).T) / span
+    D = relative_displacement(truth_poses[lo], truth_poses[hi])
+    turn = np.abs(D[:, 2]) / span
+    speed = np.hypot(D[:, 0], D[:, 1]) / span
     motion = np.ones(len(steps), dtype=np.int64)
     motion[(turn < STILL_TURN_RAD_S) & (speed < STILL_SPEED_MM_S)] = 0
     motion[turn >= TURNING_RAD_S] = 2
