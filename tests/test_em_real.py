@@ -637,7 +637,7 @@ def test_turtlebot_em_clears_its_bars():
 
 
 @pytest.mark.skipif(not MRCLAM.is_dir(), reason=f"MRCLAM data not found at {MRCLAM}")
-def test_mrclam_robot1_clears_its_bars_from_an_unknown_start():
+def test_mrclam_robot1_clears_its_bars_from_an_unknown_start(tmp_path):
     """Real data, end to end: robot 1 is lost without the start race and graduated robustness (its
     window score is flat across the grid; Student-t bearings from the start lose it even from the
     true pose)."""
@@ -649,3 +649,9 @@ def test_mrclam_robot1_clears_its_bars_from_an_unknown_start():
     poses, valid = ml.truth_poses()
     err = np.hypot(*(res.posteriors.mean_gamma[valid, :2] - poses[valid, :2]).T)
     assert np.median(err) < 500
+    # the report's heading-noise figure draws the learned Sigma_m the score describes
+    from sensact.report.figures_real import figure_heading_noise
+
+    a, b = row["score"]["truth_noise"]["learned_heading_variance_per_step"]
+    assert a == pytest.approx(res.model.motion_sd[0, 2] ** 2) and b == (res.model.turn_var or 0.0)
+    assert figure_heading_noise(ml, res, row["score"], tmp_path / "h.png", "robot 1").stat().st_size > 0

@@ -336,6 +336,7 @@ def score_against_truth(
     # the learned Sigma_m's drift over the same windows: window * (a + b |turn|) in variance
     a_step = float(np.mean(model.motion_sd[:, 2] ** 2))
     b_step = model.turn_var or 0.0
+    structure["learned_heading_variance_per_step"] = [a_step, float(b_step)]  # a, b of a + b |turn|
     structure["learned_heading_drift_at_rest_rad"] = float(np.sqrt(window * a_step))
     structure["learned_heading_drift_turning_rad"] = float(
         np.sqrt(window * (a_step + b_step * structure["turning_rad_s"]))

@@ -84,8 +84,7 @@ def figure_heading_noise(ml: Any, res: Any, score: dict[str, Any], path: Path, t
     beta = np.asarray(score["action"]["from_truth_coefficients"])
     turn, drift = heading_drift(features(round(score["action"]["from_truth_delay_s"] / d.dt_s)) @ beta, D_true, d.dt_s)
     a, b = score["truth_noise"]["heading_drift_variance_fit"]
-    a_m = float(np.mean(res.model.motion_sd[:, 2] ** 2))
-    b_m = res.model.turn_var or 0.0
+    a_m, b_m = score["truth_noise"]["learned_heading_variance_per_step"]
     x = np.linspace(0.0, np.percentile(turn, 99), 100)
     edges = np.quantile(turn, np.linspace(0, 1, 11))
     which = np.clip(np.searchsorted(edges, turn, side="right") - 1, 0, 9)
