@@ -669,6 +669,14 @@ def reproduce(
     ] = None,
     set_: SetOpt = None,
     config: ConfigOpt = None,
+    truth_restart: Annotated[
+        bool,
+        typer.Option(
+            "--truth-restart",
+            help="real: also run each MRCLAM robot's EM again from the truth's range function and start pose "
+            "(a local-optimum check; about doubles the time).",
+        ),
+    ] = False,
 ) -> None:
     """Run the thesis's experiments and write RESULTS/<experiment>.json, tables and figures."""
     from sensact.errors import ConfigError
@@ -701,12 +709,15 @@ def reproduce(
     if "car" in todo:
         _reproduce_car(out, seed, set_, config)
     if "real" in todo:
-        _reproduce_real(out, _data_dir(data), experiment == "real", set_, config)
+        _reproduce_real(out, _data_dir(data), experiment == "real", set_, config, truth_restart)
 
 
-def _reproduce_real(out: Path, root: Path, required: bool, set_: list[str] | None, config: Path | None) -> None:
+def _reproduce_real(
+    out: Path, root: Path, required: bool, set_: list[str] | None, config: Path | None, truth_restart: bool = False
+) -> None:
     """MRCLAM's EM settings are ``mrclam_config()``, changed by the EM fields of ``--config``/``--set``
-    (e.g. ``--set motion_noise=turning``); the Turtlebot's are fixed."""
+    (e.g. ``--set motion_noise=turning``); the Turtlebot's are fixed. ``truth_restart``: see
+    ``experiments.real.restart_from_truth``."""
     from sensact.errors import ConfigError
     from sensact.experiments.real import mrclam_config, run_real
     from sensact.learn.em import EMConfig
@@ -730,7 +741,12 @@ def _reproduce_real(out: Path, root: Path, required: bool, set_: list[str] | Non
         console.print(f"skipping real: {root} not found (pass --data DIR to include it)")
         return
     with console.status("EM on real robots") as status:
-        res, art = run_real(root, progress=lambda msg: status.update(f"EM on real robots: {msg}"), config=cfg)
+        res, art = run_real(
+            root,
+            progress=lambda msg: status.update(f"EM on real robots: {msg}"),
+            config=cfg,
+            truth_restart=truth_restart,
+        )
     for line in res["skipped"]:
         console.print(f"skipped {line}")
     _write_results(out, "real", res, real_tables(res))

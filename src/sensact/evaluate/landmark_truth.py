@@ -28,6 +28,10 @@ do on that data; the learned model is judged next to it:
   bearing: about zero at the sensor's pose, as eq. 4.28 has no bearing bias). Trimming drops
   residuals beyond ``trim`` robust sigmas (1.4826 MAD) of the median, repeated until nothing
   changes.
+* **the path** (``path_offset``): how far EM's smoothed path is from the truth, in the truth's robot
+  frame. On MRCLAM the camera looks forward, so a path shifted back along the view and a range
+  function with a larger constant explain the ranges almost equally well; the forward offset shows
+  which basin a run ended in.
 * **the truth's noise** (``truth_noise_structure``): how much the heading drifts at rest and while
   turning, whether the bearing residuals of nearby frames are correlated, and how much of a frame's
   bearing residual its sightings share; the things a constant Sigma_m and eq. 4.28's independent
@@ -88,6 +92,22 @@ def at_sensor(poses: np.ndarray, mount: np.ndarray) -> np.ndarray:
     """The sensor's poses when it sits at ``mount`` (lateral mm, forward mm, yaw rad) on robots at ``poses``."""
     poses = np.atleast_2d(poses)
     return apply_displacement(poses, np.broadcast_to(np.asarray(mount, dtype=float), poses.shape))
+
+
+def path_offset(path: np.ndarray, truth_poses: np.ndarray, truth_valid: np.ndarray) -> dict[str, float]:
+    """How far a learned ``path`` (one pose per step) is from the truth, at the steps with valid truth:
+    the median distance, and the median offset in the truth's robot frame (right and forward, sec.
+    2.5.1). A path that stays behind the robot by a fixed distance has taken the range function's
+    constant (the forward axis is where the camera looks, so distance and offset trade off there)."""
+    ok = np.asarray(truth_valid, dtype=bool)
+    if not ok.any():
+        return {"median_mm": float("nan"), "right_median_mm": float("nan"), "forward_median_mm": float("nan")}
+    off = relative_displacement(truth_poses[ok], path[ok])  # the path's pose in the truth's robot frame
+    return {
+        "median_mm": float(np.median(np.hypot(off[:, 0], off[:, 1]))),
+        "right_median_mm": float(np.median(off[:, 0])),
+        "forward_median_mm": float(np.median(off[:, 1])),
+    }
 
 
 def fit_sensor_mount(

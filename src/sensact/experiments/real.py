@@ -19,15 +19,20 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from sensact.config import config_to_dict
-from sensact.evaluate.landmark_truth import score_against_truth
+from sensact.evaluate.landmark_truth import path_offset, score_against_truth
 from sensact.experiments.shared_data import data_root
 from sensact.io.mrclam import MrclamLog, read_mrclam
 from sensact.learn.em import EMConfig, EMResult, fit_em
 from sensact.learn.em.config import ChannelConfig
+from sensact.models.em_model import EMModel
+from sensact.models.polynomial import Polynomial1D
 
 ROBOTS = (1, 2, 3, 4, 5)
 BARS = {"action_ratio_max": 1.5, "action_translation_max_mm_s": 50.0, "sigma_factor": 1.5}
@@ -59,6 +64,7 @@ def mrclam_folder(root: Path | None = None) -> Path:
 def evaluate_mrclam(ml: MrclamLog, res: EMResult) -> dict[str, Any]:
     poses, valid = ml.truth_poses()
     sc = score_against_truth(res.model, ml.data, poses, valid)
+    sc["path"] = path_offset(res.posteriors.mean_gamma, poses, valid)
     a, r, b = sc["action"], sc["range"], sc["bearing"]
     f = BARS["sigma_factor"]
     sc["bars"] = {
@@ -71,9 +77,57 @@ def evaluate_mrclam(ml: MrclamLog, res: EMResult) -> dict[str, Any]:
     return sc
 
 
+# how far the truth-informed restart's start may be from the truth's first pose
+RESTART_PRIOR_SD = (50.0, 50.0, 0.05)
+
+
+def truth_informed_start(
+    model: EMModel, range_from_truth: dict[str, Any], start_pose: np.ndarray, prior_sd: tuple = RESTART_PRIOR_SD
+) -> EMModel:
+    """``model`` with its range function and bearing terms replaced by From-Truth's and its prior on the
+    truth's start pose: EM's own answer moved into the truth's basin, where it only differs in what a
+    poor start could have got wrong (the range function's constant trades with a path shifted along
+    the camera's view, ``path_offset``)."""
+    ch = model.sensor.channels[0]
+    f = Polynomial1D.from_dict(range_from_truth["from_truth_function"], source="From-Truth")
+    terms = tuple(range_from_truth["from_truth_bearing_terms"])
+    rest = [(c.function, c.sigma, c.bearing_terms) for c in model.sensor.channels[1:]]
+    sensor = model.sensor.with_fits([(f, ch.sigma, terms), *rest], model.sensor.sigma_bearing_rad)
+    return model.replace(
+        sensor=sensor, prior_mean=np.asarray(start_pose, dtype=float), prior_cov=np.diag(np.square(prior_sd))
+    )
+
+
+def restart_from_truth(ml: MrclamLog, res: EMResult, score: dict[str, Any], config: EMConfig) -> dict[str, Any]:
+    """A diagnostic that needs the truth: EM again from ``truth_informed_start``, nothing held. If it
+    ends at a higher likelihood than the run from the poor start, that run stopped in a local optimum,
+    and its scores are those of the wrong basin."""
+    poses, valid = ml.truth_poses()
+    first = int(np.flatnonzero(valid)[0])
+    start = truth_informed_start(res.model, score["range"], poses[first])
+    cfg = replace(config, start_search_s=0.0, refine_from=0)
+    again = fit_em(ml.data, start, cfg)
+    sc = evaluate_mrclam(ml, again)
+    return {
+        "truth_start_step": first,
+        "loglik_best": again.loglik_best,
+        "loglik_poor_start": res.loglik_best,
+        "sightings_used": int(again.posteriors.obs_used.sum()),
+        "sightings_used_poor_start": int(res.posteriors.obs_used.sum()),
+        "em": again.summary(),
+        "score": sc,
+    }
+
+
 def run_mrclam_robot(
-    folder: Path, robot: int, config: EMConfig | None = None, progress: Callable | None = None
+    folder: Path,
+    robot: int,
+    config: EMConfig | None = None,
+    progress: Callable | None = None,
+    truth_restart: bool = False,
 ) -> tuple[dict[str, Any], MrclamLog, EMResult]:
+    """EM on one robot from the poor start, scored against Vicon; with ``truth_restart`` also
+    ``restart_from_truth`` (row ``truth_restart``)."""
     cfg = config or mrclam_config()
     ml = read_mrclam(folder, robot)
     res = fit_em(ml.data, None, cfg, progress=progress)
@@ -90,6 +144,8 @@ def run_mrclam_robot(
         },
         "score": evaluate_mrclam(ml, res),
     }
+    if truth_restart:
+        row["truth_restart"] = restart_from_truth(ml, res, row["score"], cfg)
     return row, ml, res
 
 
@@ -98,9 +154,10 @@ def run_real(
     robots: tuple[int, ...] = ROBOTS,
     progress: Callable[[str], None] | None = None,
     config: EMConfig | None = None,
+    truth_restart: bool = False,
 ) -> tuple[dict[str, Any], dict[str, Any]]:
     """Every robot of MRCLAM Dataset 6 (with ``config``, default ``mrclam_config()``) and the Turtlebot;
-    skips a dataset whose folder is missing."""
+    skips a dataset whose folder is missing. ``truth_restart`` adds ``restart_from_truth`` per robot."""
     from sensact.experiments.turtlebot_em import run_turtlebot_em
 
     t0 = time.perf_counter()
@@ -113,8 +170,8 @@ def run_real(
         out["mrclam_config"] = config_to_dict(cfg)
         for robot in robots:
             if progress:
-                progress(f"MRCLAM robot {robot}")
-            row, ml, res = run_mrclam_robot(folder, robot, cfg)
+                progress(f"MRCLAM robot {robot}" + (" (and its restart from the truth)" if truth_restart else ""))
+            row, ml, res = run_mrclam_robot(folder, robot, cfg, truth_restart=truth_restart)
             out["mrclam"][f"robot{robot}"] = row
             artifacts["mrclam"][robot] = (ml, res)
     else:

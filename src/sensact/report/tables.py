@@ -298,6 +298,11 @@ def _shared_cell(n: dict[str, Any]) -> str:
     return f"{n['bearing_within_frame_sd_rad']:.4f}; {n['bearing_frame_shared_fraction']:.0%}{shared_by_motion(n)}"
 
 
+def _path_cell(score: dict[str, Any]) -> str:
+    p = score.get("path")
+    return "-" if not p else f"{p['median_mm']:.0f} ({p['forward_median_mm']:+.0f})"
+
+
 def real_tables(res: dict[str, Any]) -> list[Table]:
     """MRCLAM robots (learned against From-Truth) and the Turtlebot (EM beside chapter 3)."""
     tables: list[Table] = []
@@ -313,6 +318,7 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
                 f"{rg['learned_residual_rms_mm']:.0f} / {rg['from_truth_residual_rms_mm']:.0f}",
                 f"{rg['sigma_learned_mm']:.0f} / {rg['sigma_truth_mm']:.0f} ({rg['sigma_ratio']:.2f})",
                 f"{b['sigma_learned_rad']:.4f} / {b['sigma_truth_rad']:.4f} ({b['sigma_ratio']:.2f})",
+                _path_cell(r["score"]),
                 ", ".join(k for k, v in r["score"]["bars"].items() if not v) or "all pass",
             ]
         )
@@ -327,9 +333,39 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
                     "range residual RMS mm",
                     "range sigma mm",
                     "bearing sigma rad",
+                    "path off Vicon mm, median (forward)",
                     "bars failed",
                 ],
                 rows,
+            )
+        )
+    restarts = [(name, r, r["truth_restart"]) for name, r in res.get("mrclam", {}).items() if "truth_restart" in r]
+    if restarts:
+        tables.append(
+            (
+                "MRCLAM Dataset 6: poor start / EM again from the truth's range function and start pose "
+                "(a higher likelihood after the restart means the poor start stopped in a local optimum)",
+                [
+                    "robot",
+                    "log-likelihood",
+                    "path off Vicon mm, median (forward)",
+                    "range f to From-Truth's, RMS mm",
+                    "bearing sigma ratio",
+                    "bars failed after the restart",
+                ],
+                [
+                    [
+                        name,
+                        f"{t['loglik_poor_start']:.1f} / {t['loglik_best']:.1f}"
+                        + ("" if t["sightings_used"] == t["sightings_used_poor_start"] else " (other sightings)"),
+                        f"{_path_cell(r['score'])} / {_path_cell(t['score'])}",
+                        f"{r['score']['range']['learned_vs_from_truth_rms_mm']:.0f} / "
+                        f"{t['score']['range']['learned_vs_from_truth_rms_mm']:.0f}",
+                        f"{r['score']['bearing']['sigma_ratio']:.2f} / {t['score']['bearing']['sigma_ratio']:.2f}",
+                        ", ".join(k for k, v in t["score"]["bars"].items() if not v) or "all pass",
+                    ]
+                    for name, r, t in restarts
+                ],
             )
         )
     noise = [(name, r["score"].get("truth_noise")) for name, r in res.get("mrclam", {}).items()]
