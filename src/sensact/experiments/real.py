@@ -101,7 +101,8 @@ def truth_informed_start(
 def restart_from_truth(ml: MrclamLog, res: EMResult, score: dict[str, Any], config: EMConfig) -> dict[str, Any]:
     """A diagnostic that needs the truth: EM again from ``truth_informed_start``, nothing held. If it
     ends at a higher likelihood than the run from the poor start, that run stopped in a local optimum,
-    and its scores are those of the wrong basin."""
+    and its scores are those of the wrong basin. The prior (on step 0) is Vicon's first valid pose,
+    whose step is recorded as ``truth_start_step``: 0 on every robot of Dataset 6."""
     poses, valid = ml.truth_poses()
     first = int(np.flatnonzero(valid)[0])
     start = truth_informed_start(res.model, score["range"], poses[first])
