@@ -298,6 +298,10 @@ def _shared_cell(n: dict[str, Any]) -> str:
     return f"{n['bearing_within_frame_sd_rad']:.4f}; {n['bearing_frame_shared_fraction']:.0%}{shared_by_motion(n)}"
 
 
+def _failed_bars(score: dict[str, Any]) -> str:
+    return ", ".join(k for k, v in score["bars"].items() if not v) or "all pass"
+
+
 def _path_cell(score: dict[str, Any]) -> str:
     p = score.get("path")
     return "-" if not p else f"{p['median_mm']:.0f} ({p['forward_median_mm']:+.0f})"
@@ -319,7 +323,7 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
                 f"{rg['sigma_learned_mm']:.0f} / {rg['sigma_truth_mm']:.0f} ({rg['sigma_ratio']:.2f})",
                 f"{b['sigma_learned_rad']:.4f} / {b['sigma_truth_rad']:.4f} ({b['sigma_ratio']:.2f})",
                 _path_cell(r["score"]),
-                ", ".join(k for k, v in r["score"]["bars"].items() if not v) or "all pass",
+                _failed_bars(r["score"]),
             ]
         )
     if rows:
@@ -362,7 +366,7 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
                         f"{r['score']['range']['learned_vs_from_truth_rms_mm']:.0f} / "
                         f"{t['score']['range']['learned_vs_from_truth_rms_mm']:.0f}",
                         f"{r['score']['bearing']['sigma_ratio']:.2f} / {t['score']['bearing']['sigma_ratio']:.2f}",
-                        ", ".join(k for k, v in t["score"]["bars"].items() if not v) or "all pass",
+                        _failed_bars(t["score"]),
                     ]
                     for name, r, t in restarts
                 ],
