@@ -133,6 +133,13 @@ def test_simulate_field2d_then_learn_em(tmp_path):
 
     with np.load(tmp_path / "model.history.npz", allow_pickle=False) as h:
         assert h["loglik"].size == out["summary"]["iterations"] and h["velocities"].shape[1:] == (40, 3)
+    # a learned Sigma_m is held first; with a ridge search the run says where the search moved
+    sets = ["motion_noise=shared", "refine_from=5", "ridge_search_mm=300", "max_iterations=8", "prune_rad_per_step=0"]
+    res = runner.invoke(app, ["learn", "em", str(log), "--out", str(model)] + [a for x in sets for a in ("--set", x)])
+    assert res.exit_code == 0, res.output
+    assert "ridge search at iteration 5" in res.output
+    (ridge,) = json.loads(model.read_text())["summary"]["ridge"]
+    assert ridge["loglik_after"] >= ridge["loglik_before"] and abs(ridge["shift_mm"]) <= 300.0
 
 
 def test_reproduce_em1d_and_field2d_write_the_documented_keys(tmp_path):

@@ -329,6 +329,11 @@ def learn_em_cmd(
         race = res.start_search.get("race")
         which = f" (candidate {race['winner']} of {len(race['rounds'][0])} won the race)" if race else ""
         console.print(f"start pose chosen: x {x:.0f} mm, y {y:.0f} mm, heading {th:.3f} rad{which}")
+    for r in res.ridge or []:
+        console.print(
+            f"ridge search at iteration {r['iteration']}: path and f moved {r['shift_mm']:+.0f} mm forward, "
+            f"log-likelihood {r['loglik_before']:.1f} -> {r['loglik_after']:.1f} ({r['e_steps']} E-steps)"
+        )
     _print_em_model(m)
     evaluation = _evaluate_em(lf, m)
     if out is not None:

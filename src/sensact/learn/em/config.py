@@ -98,6 +98,11 @@ class EMConfig:
     # start_trial_iterations held iterations, until one is left (1 = the grid's best, no race)
     start_candidates: int = 6
     start_trial_iterations: int = 20
+    # when the held stage ends, and every ridge_search_every iterations after, search this far (mm)
+    # along the ridge where the path and every range function's offset trade against each other
+    # (learn/em/ridge.py; 0 = off, as in the thesis)
+    ridge_search_mm: float = 0.0
+    ridge_search_every: int = 50
 
     def __post_init__(self) -> None:
         problems = []
@@ -137,6 +142,8 @@ class EMConfig:
             problems.append("start_search_s must be >= 0 and start_search_grid_mm > 0")
         if self.start_candidates < 1 or self.start_trial_iterations < 1:
             problems.append("start_candidates and start_trial_iterations must be >= 1")
+        if not self.ridge_search_mm >= 0 or self.ridge_search_every < 1:
+            problems.append("ridge_search_mm must be >= 0 (0 = no ridge search) and ridge_search_every >= 1")
         try:
             check_robust(self.bearing_robust, self.bearing_robust_param, "bearing")
         except ValueError as exc:

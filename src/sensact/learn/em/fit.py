@@ -11,6 +11,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -18,6 +19,7 @@ import numpy as np
 from sensact.learn.em.config import EMConfig
 from sensact.learn.em.estep import Posteriors, e_step
 from sensact.learn.em.mstep import m_step
+from sensact.learn.em.ridge import search_ridge
 from sensact.learn.em.start import race_starts, start_candidates
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.action_table import ActionTable
@@ -135,6 +137,7 @@ class EMResult:
     motion_sd_history: np.ndarray | None = None  # (iterations, G, n) Sigma_m's standard deviations
     start_search: dict[str, Any] | None = None  # what the start search tried and chose
     freed_at: int = -1  # the iteration after which Sigma_m, the terms and robust readings were freed (-1: never held)
+    ridge: list[dict[str, Any]] | None = None  # each ridge search: its iteration, shift, likelihoods (ridge.py)
 
     @property
     def iterations(self) -> int:
@@ -156,6 +159,7 @@ class EMResult:
             "seconds": self.seconds,
             "start_search": self.start_search,
             "freed_at": self.freed_at,
+            "ridge": self.ridge,
             "config": asdict(self.config),
         }
 
@@ -196,6 +200,7 @@ def fit_em(
     refine_from = cfg.refine_from - spent
     refining = not staged or refine_from <= 0
     freed_at = -1
+    ridge_info: list[dict[str, Any]] = []
     start = time.perf_counter()
     try:
         for it in range(max(cfg.max_iterations - spent, 1)):  # the race's iterations count
@@ -223,7 +228,17 @@ def fit_em(
                 best_ll, best_it, best_model, best_post = post.loglik, it, model, post
             if progress is not None:
                 progress(it, post.loglik, best_ll, it - best_it)
-            if not refining and (it >= refine_from or it - best_it >= cfg.patience):
+            ending_held = not refining and (it >= refine_from or it - best_it >= cfg.patience)
+            # along the ridge when the held stage ends, and again every ridge_search_every iterations:
+            # EM keeps crawling back along it between searches (docs/em-real.md)
+            again = freed_at >= 0 and it > freed_at and (it - freed_at) % cfg.ridge_search_every == 0
+            if cfg.ridge_search_mm > 0 and data.geometry == "planar" and (ending_held or again):
+                evaluate = partial(_stage_e_step, data=data, obs_use=obs_use, robust=refining)
+                model, post, info = search_ridge(model, post, evaluate, cfg.ridge_search_mm)
+                ridge_info.append({"iteration": it, **info})
+                if post.loglik > best_ll:
+                    best_ll, best_it, best_model, best_post = post.loglik, it, model, post
+            if ending_held:
                 refining, freed_at = True, it  # converged with Sigma_m and the terms held: free them
                 if model.sensor.is_robust:
                     best_ll = -np.inf  # the robust likelihood is another function: its own best from here
@@ -261,7 +276,13 @@ def fit_em(
         np.asarray(motion_sds, dtype=float).reshape(-1, *model.motion_sd.shape),
         start_info,
         freed_at,
+        ridge_info or None,
     )
+
+
+def _stage_e_step(model: EMModel, data: LandmarkLog, obs_use: np.ndarray, robust: bool) -> Posteriors:
+    """The E-step the loop's current stage runs: Gaussian readings while held, the configured ones after."""
+    return e_step(model if robust else model.replace(sensor=model.sensor.gaussian()), data, obs_use=obs_use)
 
 
 def _action_parameters(model: EMModel) -> np.ndarray:

@@ -14,6 +14,8 @@ only lock on from a start near the truth, so the start is chosen in two rounds:
    no pruning, so every candidate is scored on the same observations by the same likelihood), and
    keeps the better half after each round. A start that lost the robot stays thousands of log-units
    below one that found it, so the rounds are decisive; the winner's EM goes on where it stopped.
+   A trial whose best model is the one it started from would repeat itself exactly in the next
+   round (the M-step's samples are seeded), so it is not run again: its score stands.
 """
 
 from __future__ import annotations
@@ -114,13 +116,21 @@ def race_starts(
     models = list(candidates)
     spent = [0] * len(candidates)
     rounds: list[dict[str, float]] = []
+    stalled: dict[int, float] = {}  # candidates whose last trial found nothing better than its start
     while True:
         scores = {}
         for i in alive:
+            if i in stalled:
+                # the trial is deterministic (seeded), so it would repeat itself from the same model
+                scores[i] = stalled[i]
+                spent[i] += trial.max_iterations
+                continue
             res = run(data, models[i], trial)
+            scores[i] = res.loglik_best if res.iterations else -math.inf
+            if res.model is models[i] and res.iterations == trial.max_iterations:
+                stalled[i] = scores[i]
             models[i] = res.model
             spent[i] += res.iterations
-            scores[i] = res.loglik_best if res.iterations else -math.inf
         rounds.append({str(i): float(s) for i, s in scores.items()})
         ranked = sorted(alive, key=lambda i: -scores[i])
         if len(ranked) <= 2 or scores[ranked[0]] == -math.inf:

@@ -1,0 +1,76 @@
+"""A line search along the direction EM climbs slowest (beyond the thesis).
+
+A camera that looks forward sees every landmark about as far as it would if the robot were ``delta``
+further ahead and every range function read ``f(d + delta)``: the path and the sensor's offset trade
+against each other, and only the bearings to near landmarks and the turns tell them apart. EM's
+alternating steps crawl along that ridge (each E-step puts the path where the current ``f`` says, each
+M-step fits ``f`` to that path), so a fit from a poor start can stop with the path a few hundred
+millimetres behind the robot and ``f`` off by as much.
+
+``search_ridge`` moves along the ridge in one step: it maximizes the E-step's own
+``log P(O | C, lambda)`` over ``delta`` with scipy's bounded scalar search, and keeps the move only if
+the likelihood rises. Every evaluation is one E-step (6-8 of them on MRCLAM), and the search never
+lowers the likelihood. ``fit_em`` runs it when the held stage ends and every ``ridge_search_every``
+iterations after, because the freed EM keeps sliding back along the ridge between searches.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+from sensact.core.pose_models import apply_displacement
+from sensact.learn.em.estep import Posteriors
+from sensact.models.em_model import EMModel
+
+RIDGE_TOLERANCE_MM = 10.0  # the search stops when delta is known to this; well inside a range sigma
+
+
+def shifted_forward(model: EMModel, delta_mm: float) -> EMModel:
+    """``model`` with its start ``delta_mm`` further ahead (sec. 2.5.1: the robot faces +y) and every
+    reading channel's ``f(d)`` replaced by ``f(d + delta)``, which reads the same from there.
+
+    Exact for ``f`` (a polynomial in ``(d - center) / scale`` moves its center); the bearing terms
+    ``d g(b)`` keep their ``d``, a change of ``delta g(b)``, well inside a reading's sigma."""
+    fits = [
+        (replace(c.function, center=c.function.center - delta_mm), c.sigma, c.bearing_terms)
+        for c in model.sensor.channels
+    ]
+    prior = apply_displacement(model.prior_mean, np.array([0.0, delta_mm, 0.0]))[0]
+    return model.replace(sensor=model.sensor.with_fits(fits, model.sensor.sigma_bearing_rad), prior_mean=prior)
+
+
+def search_ridge(
+    model: EMModel, post: Posteriors, evaluate: Callable[[EMModel], Posteriors], half_width_mm: float
+) -> tuple[EMModel, Posteriors, dict[str, Any]]:
+    """The model along the ridge through ``model`` (whose E-step gave ``post``) with the highest
+    likelihood within ``half_width_mm``, and its E-step; ``model`` and ``post`` themselves when no
+    shift raises the likelihood. ``evaluate`` is the E-step of the loop's current stage."""
+    tried: dict[float, Posteriors] = {0.0: post}
+
+    def negative_loglik(delta: float) -> float:
+        p = evaluate(shifted_forward(model, delta))
+        tried[float(delta)] = p
+        return -p.loglik if p.ok and np.isfinite(p.loglik) else np.inf
+
+    minimize_scalar(
+        negative_loglik,
+        bounds=(-half_width_mm, half_width_mm),
+        method="bounded",
+        options={"xatol": RIDGE_TOLERANCE_MM},
+    )
+    ok = {d: p for d, p in tried.items() if p.ok and np.isfinite(p.loglik)}
+    best = max(ok, key=lambda d: ok[d].loglik)
+    info = {
+        "shift_mm": best,
+        "loglik_before": float(post.loglik),
+        "loglik_after": float(ok[best].loglik),
+        "e_steps": len(tried) - 1,
+    }
+    if best == 0.0:
+        return model, post, info
+    return shifted_forward(model, best), ok[best], info
