@@ -317,8 +317,12 @@ def test_ridge_search_finds_a_model_moved_behind_and_never_lowers_the_likelihood
     assert 0 < info0["e_steps"] <= 30
 
 
-def test_fit_searches_the_ridge_when_the_held_stage_ends_and_every_so_often_after():
-    data, _ = _simulate(2, T=1500)
+def test_fit_searches_the_ridge_when_the_held_stage_ends_and_every_so_often_after(tmp_path):
+    from sensact.experiments.real import evaluate_mrclam
+    from sensact.report.figures_real import figure_loglik
+    from sensact.report.tables import real_tables
+
+    data, poses = _simulate(2, T=1500)
     off = fit_em(data, None, _config(refine_from=4, max_iterations=12))
     cfg = _config(refine_from=4, max_iterations=12, patience=50, ridge_search_mm=300.0, ridge_search_every=3)
     on = fit_em(data, None, cfg)
@@ -331,6 +335,16 @@ def test_fit_searches_the_ridge_when_the_held_stage_ends_and_every_so_often_afte
         _config(ridge_search_mm=-1.0)
     with pytest.raises(ValueError, match="ridge_search"):
         _config(ridge_search_every=0)
+    # the report lists each search's move, and a dash for a run without the search
+    rows = {
+        name: {"em": r.summary(), "score": evaluate_mrclam(_TruthLog(data, poses), r)}
+        for name, r in (("on", on), ("off", off))
+    }
+    _, headers, cells = real_tables({"mrclam": rows})[0]
+    col = headers.index("ridge moves mm, forward (the first as the held stage ends)")
+    assert [float(m) for m in cells[0][col].split(", ")] == pytest.approx([r["shift_mm"] for r in on.ridge], abs=0.5)
+    assert cells[1][col] == "-"
+    assert figure_loglik({"on": on, "off": off}, tmp_path / "ll.png").stat().st_size > 0
 
 
 def test_start_search_candidates_are_distinct_and_one_is_near_the_start():
