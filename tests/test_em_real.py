@@ -328,6 +328,9 @@ def test_fit_searches_the_ridge_when_the_held_stage_ends_and_every_so_often_afte
     on = fit_em(data, None, cfg)
     assert off.ridge is None and on.freed_at == 4
     assert [r["iteration"] for r in on.ridge] == [4, 7, 10]
+    # with nothing held (refine_from 0) the searches count from the start
+    unheld = fit_em(data, None, _config(refine_from=0, max_iterations=8, ridge_search_mm=300.0, ridge_search_every=3))
+    assert unheld.freed_at == -1 and [r["iteration"] for r in unheld.ridge] == [3, 6]
     for r in on.ridge:
         assert r["loglik_after"] >= r["loglik_before"] and abs(r["shift_mm"]) <= 300.0
     assert on.summary()["ridge"] == on.ridge

@@ -98,9 +98,9 @@ class EMConfig:
     # start_trial_iterations held iterations, until one is left (1 = the grid's best, no race)
     start_candidates: int = 6
     start_trial_iterations: int = 20
-    # when the held stage ends, and every ridge_search_every iterations after, search this far (mm)
-    # along the ridge where the path and every range function's offset trade against each other
-    # (learn/em/ridge.py; 0 = off, as in the thesis)
+    # when the held stage ends, and every ridge_search_every iterations after (with nothing held: every
+    # ridge_search_every from the start), search this far (mm) along the ridge where the path and
+    # every range function's offset trade against each other (learn/em/ridge.py; 0 = off, the thesis)
     ridge_search_mm: float = 0.0
     ridge_search_every: int = 50
 

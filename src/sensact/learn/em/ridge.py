@@ -11,7 +11,8 @@ millimetres behind the robot and ``f`` off by as much.
 ``log P(O | C, lambda)`` over ``delta`` with scipy's bounded scalar search, and keeps the move only if
 the likelihood rises. Every evaluation is one E-step (6-8 of them on MRCLAM), and the search never
 lowers the likelihood. ``fit_em`` runs it when the held stage ends and every ``ridge_search_every``
-iterations after, because the freed EM keeps sliding back along the ridge between searches.
+iterations after (from the start when nothing is held), because EM keeps sliding back along the
+ridge between searches.
 """
 
 from __future__ import annotations
