@@ -35,8 +35,9 @@ def shifted_forward(model: EMModel, delta_mm: float) -> EMModel:
     """``model`` with its start ``delta_mm`` further ahead (sec. 2.5.1: the robot faces +y) and every
     reading channel's ``f(d)`` replaced by ``f(d + delta)``, which reads the same from there.
 
-    Exact for ``f`` (a polynomial in ``(d - center) / scale`` moves its center); the bearing terms
-    ``d g(b)`` keep their ``d``, a change of ``delta g(b)``, well inside a reading's sigma."""
+    Exact for ``f`` (a polynomial in ``(d - center) / scale`` moves its center). The bearing terms
+    ``d g(b)`` keep their ``d``, so they read ``delta g(b)`` differently; the next M-step refits them,
+    and the search keeps a shift only if the likelihood says so, this change included."""
     fits = [
         (replace(c.function, center=c.function.center - delta_mm), c.sigma, c.bearing_terms)
         for c in model.sensor.channels
