@@ -338,6 +338,8 @@ def test_fit_searches_the_ridge_when_the_held_stage_ends_and_every_so_often_afte
         _config(ridge_search_mm=-1.0)
     with pytest.raises(ValueError, match="ridge_search"):
         _config(ridge_search_every=0)
+    with pytest.raises(ValueError, match=r"t\.csv: ridge_search_mm .* needs a planar log"):
+        fit_em(_tiny_track(), None, EMConfig(ridge_search_mm=100.0))
     # the report lists each search's move, and a dash for a run without the search
     rows = {
         name: {"em": r.summary(), "score": evaluate_mrclam(_TruthLog(data, poses), r)}
@@ -421,8 +423,9 @@ def test_turning_noise_is_recovered_and_zero_turning_is_the_shared_model(continu
     assert again.turn_var == m.turn_var and plain.to_dict()["turn_var"] is None
 
 
-def test_turning_noise_needs_a_planar_shared_model():
-    track = LandmarkLog(
+def _tiny_track() -> LandmarkLog:
+    """A five-step track log with one sighting: enough for the checks that refuse a track."""
+    return LandmarkLog(
         "track",
         0.1,
         np.zeros(5, dtype=int),
@@ -435,6 +438,10 @@ def test_turning_noise_needs_a_planar_shared_model():
         np.zeros((1, 2)),
         source="t.csv",
     )
+
+
+def test_turning_noise_needs_a_planar_shared_model():
+    track = _tiny_track()
     with pytest.raises(ValueError, match="motion_noise=turning needs a planar log"):
         initial_model(track, EMConfig(motion_noise="turning"))
     data, _ = _simulate(1, T=300)

@@ -173,6 +173,11 @@ def fit_em(
 ) -> EMResult:
     """Learn the action table, the sensor model and the prior from ``data`` by EM (Algorithm of ch. 4)."""
     cfg = config or EMConfig()
+    if cfg.ridge_search_mm > 0 and data.geometry != "planar":
+        raise ValueError(
+            f"{data.source}: ridge_search_mm moves the path along the robot's heading and needs a planar log; "
+            "set ridge_search_mm: 0 for a track"
+        )
     model = initial or initial_model(data, cfg)
     rng = np.random.default_rng(cfg.seed)
     n = model.prior_mean.size
@@ -233,7 +238,7 @@ def fit_em(
             # along the ridge when the held stage ends, and again every ridge_search_every iterations:
             # EM keeps crawling back along it between searches (docs/em-real.md)
             again = ridge_from >= 0 and it > ridge_from and (it - ridge_from) % cfg.ridge_search_every == 0
-            if cfg.ridge_search_mm > 0 and data.geometry == "planar" and (ending_held or again):
+            if cfg.ridge_search_mm > 0 and (ending_held or again):
                 evaluate = partial(_stage_e_step, data=data, obs_use=obs_use, robust=refining)
                 model, post, info = search_ridge(model, post, evaluate, cfg.ridge_search_mm)
                 ridge_info.append({"iteration": it, **info})
