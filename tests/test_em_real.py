@@ -333,6 +333,8 @@ def test_fit_searches_the_ridge_when_the_held_stage_ends_and_every_so_often_afte
     assert unheld.freed_at == -1 and [r["iteration"] for r in unheld.ridge] == [3, 6]
     for r in on.ridge:
         assert r["loglik_after"] >= r["loglik_before"] and abs(r["shift_mm"]) <= 300.0
+        assert on.loglik_history[r["iteration"]] == r["loglik_after"]  # the history holds the moved model
+    assert on.posteriors.loglik == on.loglik_best  # the reported best is the returned model's likelihood
     assert on.summary()["ridge"] == on.ridge
     with pytest.raises(ValueError, match="ridge_search"):
         _config(ridge_search_mm=-1.0)

@@ -242,6 +242,7 @@ def fit_em(
                 evaluate = partial(_stage_e_step, data=data, obs_use=obs_use, robust=refining)
                 model, post, info = search_ridge(model, post, evaluate, cfg.ridge_search_mm)
                 ridge_info.append({"iteration": it, **info})
+                logliks[-1] = post.loglik  # lambda_it is now the moved model (its likelihood before: info)
                 if post.loglik > best_ll:
                     best_ll, best_it, best_model, best_post = post.loglik, it, model, post
             if ending_held:
