@@ -206,7 +206,6 @@ def fit_em(
     refining = not staged or refine_from <= 0
     freed_at = -1
     ridge_info: list[dict[str, Any]] = []
-    ridge_from = 0 if refining else -1  # later ridge searches count from the start or the held stage's end
     start = time.perf_counter()
     try:
         for it in range(max(cfg.max_iterations - spent, 1)):  # the race's iterations count
@@ -237,7 +236,8 @@ def fit_em(
             ending_held = not refining and (it >= refine_from or it - best_it >= cfg.patience)
             # along the ridge when the held stage ends, and again every ridge_search_every iterations:
             # EM keeps crawling back along it between searches (docs/em-real.md)
-            again = ridge_from >= 0 and it > ridge_from and (it - ridge_from) % cfg.ridge_search_every == 0
+            since = freed_at if freed_at >= 0 else (0 if refining else -1)  # -1: still held
+            again = since >= 0 and it > since and (it - since) % cfg.ridge_search_every == 0
             if cfg.ridge_search_mm > 0 and (ending_held or again):
                 evaluate = partial(_stage_e_step, data=data, obs_use=obs_use, robust=refining)
                 model, post, info = search_ridge(model, post, evaluate, cfg.ridge_search_mm)
@@ -247,7 +247,6 @@ def fit_em(
                     best_ll, best_it, best_model, best_post = post.loglik, it, model, post
             if ending_held:
                 refining, freed_at = True, it  # converged with Sigma_m and the terms held: free them
-                ridge_from = it
                 if model.sensor.is_robust:
                     best_ll = -np.inf  # the robust likelihood is another function: its own best from here
             if it - max(best_it, freed_at) >= cfg.patience:
