@@ -351,7 +351,30 @@ def test_fit_searches_the_ridge_when_the_held_stage_ends_and_every_so_often_afte
     col = headers.index("ridge moves mm, forward (the first as the held stage ends)")
     assert [float(m) for m in cells[0][col].split(", ")] == pytest.approx([r["shift_mm"] for r in on.ridge], abs=0.5)
     assert cells[1][col] == "-"
+    # the noise table sets the learned Sigma_m's translational walk over 1 s beside the truth's miss
+    title, nh, ncells = next(t for t in real_tables({"mrclam": rows}) if "what the truth says" in t[0])
+    col = nh.index("sideways / forward miss per 1 s mm, truth; Sigma_m")
+    side, fwd = math.sqrt(30) * on.model.motion_sd[0, :2]
+    assert ncells[0][col].endswith(f"; {side:.1f} / {fwd:.1f}")
+    del rows["on"]["score"]["truth_noise"]["translation_drift_rms_mm"]  # results written before it
+    assert next(t for t in real_tables({"mrclam": rows}) if t[0] == title)[2][0][col] == "-"
     assert figure_loglik({"on": on, "off": off}, tmp_path / "ll.png").stat().st_size > 0
+
+
+def test_sideways_motion_noise_starts_apart_from_the_forward():
+    """Exact: the sideways start replaces Sigma_m's x entry only (0 leaves motion_sd_mm), a fixed
+    Sigma_m keeps it through EM, and it is refused where it means nothing (a track) or is negative."""
+    data, _ = _simulate(2, T=600)
+    same = initial_model(data, _config())
+    apart = initial_model(data, _config(motion_sd_sideways_mm=0.5))
+    assert same.motion_sd.tolist() == [[10.0, 10.0, 0.05]]
+    assert apart.motion_sd.tolist() == [[0.5, 10.0, 0.05]]
+    fixed = fit_em(data, None, _config(motion_noise="fixed", motion_sd_sideways_mm=0.5, max_iterations=2))
+    assert fixed.model.motion_sd.tolist() == [[0.5, 10.0, 0.05]]
+    with pytest.raises(ValueError, match="motion_sd_sideways_mm must be >= 0"):
+        _config(motion_sd_sideways_mm=-1.0)
+    with pytest.raises(ValueError, match=r"t\.csv: motion_sd_sideways_mm .* a track has no sideways"):
+        fit_em(_tiny_track(), None, EMConfig(motion_sd_sideways_mm=0.5))
 
 
 def test_start_search_candidates_are_distinct_and_one_is_near_the_start():
@@ -587,6 +610,14 @@ def test_truth_noise_structure_recovers_turn_dependent_drift_and_frame_correlati
     assert out["heading_drift_rms_turning_rad"] == pytest.approx(math.sqrt(a + b * busy), rel=0.1)
     assert abs(out["bearing_frame_correlation"]) < 0.1
     assert truth_noise_structure(v, D_true, dt, slow, frames, W)["bearing_frame_correlation"] > 0.8
+    # exact reduction: windows that turn in place miss no position
+    assert out["translation_drift_rms_mm"] == [0.0, 0.0]
+    # seeded recovery: a sideways and forward random walk of 1.5 and 3 mm per step
+    walk = D_true.copy()
+    walk[:, :2] += rng.normal(size=(N, 2)) * np.array([1.5, 3.0]) * math.sqrt(W)
+    side, fwd = truth_noise_structure(v, walk, dt, independent, frames, W)["translation_drift_rms_mm"]
+    assert side == pytest.approx(1.5 * math.sqrt(W), rel=0.05)
+    assert fwd == pytest.approx(3.0 * math.sqrt(W), rel=0.05)
 
 
 def _seen_from(data: LandmarkLog, sensor_poses: np.ndarray, seed: int) -> LandmarkLog:
@@ -709,6 +740,11 @@ def test_truth_residuals_are_taken_at_the_sensor():
     with cli.console.capture() as out:  # what `learn em` and `evaluate mrclam` print of it
         cli._print_truth_score(sc)
     assert f"sensor pose on the robot, fitted to the truth: {m['forward_mm']:.0f} mm forward" in out.get()
+    # the learned Sigma_m's translational random walk over the 30-step windows, beside the truth's miss
+    n = sc["truth_noise"]
+    assert n["learned_translation_drift_mm"] == pytest.approx(math.sqrt(30) * model.motion_sd[0, :2])
+    side, fwd = n["learned_translation_drift_mm"]
+    assert f"(Sigma_m: {side:.1f} / {fwd:.1f})" in " ".join(out.get().split())
 
 
 def test_frame_shared_bearing_error_splits_a_frames_residuals():

@@ -292,6 +292,15 @@ def shared_by_motion(n: dict[str, Any]) -> str:
     return " (" + ", ".join(parts) + ")"
 
 
+def translation_drift_cell(n: dict[str, Any]) -> str:
+    """'7.1 / 7.6; 16.5 / 15.7': the truth's sideways / forward miss per window, RMS mm, then the
+    learned Sigma_m's; '-' for results written before they were measured."""
+    truth, learned = n.get("translation_drift_rms_mm"), n.get("learned_translation_drift_mm")
+    if truth is None or learned is None:
+        return "-"
+    return f"{truth[0]:.1f} / {truth[1]:.1f}; {learned[0]:.1f} / {learned[1]:.1f}"
+
+
 def _shared_cell(n: dict[str, Any]) -> str:
     if "bearing_within_frame_sd_rad" not in n:
         return "-"
@@ -389,6 +398,7 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
                     "heading drift per 1 s at rest rad, truth / Sigma_m",
                     "while turning (90th percentile), truth / Sigma_m",
                     "turn rate rad/s",
+                    "sideways / forward miss per 1 s mm, truth; Sigma_m",
                     "bearing residual correlation, frames 1-5 s apart",
                     "bearing residual about its frame's mean, sd rad; frame-shared variance (by motion)",
                     "sensor on the robot, forward mm / right mm / yaw rad; "
@@ -400,6 +410,7 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
                         _drift_cell(n, "at_rest"),
                         _drift_cell(n, "turning"),
                         f"{n['turning_rad_s']:.3f}",
+                        translation_drift_cell(n),
                         f"{n['bearing_frame_correlation']:.2f}",
                         _shared_cell(n),
                         _mount_cell(res["mrclam"][name]["score"]),

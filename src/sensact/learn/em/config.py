@@ -81,6 +81,10 @@ class EMConfig:
     motion_noise: str = "fixed"
     motion_sd_floor_mm: float = 0.05
     motion_sd_floor_rad: float = 5e-4
+    # Sigma_m's sideways sd per step on a planar log, if not motion_sd_mm (0 = motion_sd_mm). The
+    # sightings hardly pin it, so a learned Sigma_m keeps about its start (docs/em-real.md, Known limits):
+    # a differential drive, which cannot side-step, can start it small
+    motion_sd_sideways_mm: float = 0.0
     # reading channels; empty = the thesis's one beacon-height channel from the start_height_* fields
     channels: tuple[ChannelConfig, ...] = ()
     bearing_robust: str = "none"
@@ -132,6 +136,8 @@ class EMConfig:
             problems.append(f"motion_noise must be one of {MOTION_NOISE}")
         if self.motion_noise == "per_action" and self.action_basis != "table":
             problems.append("motion_noise=per_action needs action_basis=table (continuous commands have no actions)")
+        if self.motion_sd_sideways_mm < 0:
+            problems.append("motion_sd_sideways_mm must be >= 0 (0 = motion_sd_mm)")
         if not (self.motion_sd_floor_mm > 0 and self.motion_sd_floor_rad > 0):
             problems.append("motion_sd_floor_mm and motion_sd_floor_rad must be > 0")
         if len({c.name for c in self.channels}) != len(self.channels):

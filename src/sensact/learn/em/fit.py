@@ -114,7 +114,12 @@ def initial_model(data: LandmarkLog, config: EMConfig) -> EMModel:
 
 
 def motion_sd_start(config: EMConfig, n: int) -> np.ndarray:
-    return np.array([[config.motion_sd_mm] * min(n, 2) + ([config.motion_sd_rad] if n == 3 else [])])
+    """Sigma_m's start per step: the sideways and forward sd in the robot's frame (sec. 2.5.1: x to the
+    right, y ahead), then the heading's; a track's one entry is its forward sd."""
+    sd = [config.motion_sd_mm] * min(n, 2) + ([config.motion_sd_rad] if n == 3 else [])
+    if n == 3 and config.motion_sd_sideways_mm > 0:
+        sd[0] = config.motion_sd_sideways_mm
+    return np.array([sd])
 
 
 def motion_sd_floor(config: EMConfig, n: int) -> np.ndarray:
@@ -177,6 +182,11 @@ def fit_em(
         raise ValueError(
             f"{data.source}: ridge_search_mm moves the path along the robot's heading and needs a planar log; "
             "set ridge_search_mm: 0 for a track"
+        )
+    if cfg.motion_sd_sideways_mm > 0 and data.geometry != "planar":
+        raise ValueError(
+            f"{data.source}: motion_sd_sideways_mm is a planar robot's sideways noise and a track has no sideways; "
+            "remove it or set it to 0"
         )
     model = initial or initial_model(data, cfg)
     rng = np.random.default_rng(cfg.seed)
