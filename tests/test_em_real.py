@@ -15,6 +15,7 @@ from sensact.core.pose_models import apply_displacement, landmark_bearing, landm
 from sensact.learn.em import EMConfig, e_step, fit_em, initial_model
 from sensact.learn.em.actions import linear_coefficients, step_motion_var, table_velocities
 from sensact.learn.em.config import ChannelConfig
+from sensact.learn.em.delay_search import search_delay, with_delay
 from sensact.learn.em.ridge import search_ridge, shifted_forward
 from sensact.learn.em.start import race_starts, start_candidates
 from sensact.logs.landmark_log import LandmarkLog
@@ -38,10 +39,12 @@ def _simulate(
     bearing_terms=(0.0, 0.0),
     sd=TRUE_SD,
     turn_var: float = 0.0,
+    delay_steps: int = 0,
 ):
     """A robot on continuous commands among five landmarks, range and bearing. The range reads
     ``1.05 d + 40 + d (a_1 b + a_2 b^2)`` with ``bearing_terms`` (a_1, a_2) at the measured bearing b.
-    The heading's motion variance per step is ``sd[2]^2 + turn_var |omega_t|``."""
+    The heading's motion variance per step is ``sd[2]^2 + turn_var |omega_t|``. The robot obeys each
+    command ``delay_steps`` steps late."""
     rng = np.random.default_rng(seed)
     dt = 1 / 30
     seg = rng.integers(30, 120, T // 30)
@@ -54,6 +57,9 @@ def _simulate(
         if np.hypot(*poses[t, :2]) > 1500:
             commands[t, 1] = 0.6
             v[t] = command_features("affine", 1, commands[t : t + 1]) @ beta
+        if delay_steps:
+            late = max(t - delay_steps, 0)
+            v[t] = command_features("affine", 1, commands[late : late + 1]) @ beta
         step_sd = np.array([sd[0], sd[1], math.sqrt(sd[2] ** 2 + turn_var * abs(v[t, 2]))])
         poses[t + 1] = apply_displacement(poses[t], (v[t] + rng.normal(size=3) * step_sd / dt) * dt)[0]
     steps = np.arange(0, T, 6)
@@ -317,6 +323,87 @@ def test_ridge_search_finds_a_model_moved_behind_and_never_lowers_the_likelihood
     assert 0 < info0["e_steps"] <= 30
 
 
+@pytest.fixture(scope="module")
+def delayed_fit():
+    data, poses = _simulate(3, T=3000, delay_steps=6)
+    return data, poses, fit_em(data, None, _config(action_delay_max_s=0.5, max_iterations=60))
+
+
+def test_delay_search_finds_the_command_delay_and_never_lowers_the_likelihood(delayed_fit):
+    """Seeded recovery: a robot that obeys its commands 6 steps late. EM's model with its delay set to
+    0, and to 15, is brought back to 6 (+-1) by the search, with beta unchanged; from EM's own model
+    the search keeps its delay, and the likelihood never falls."""
+    data, _, res = delayed_fit
+    assert res.model.action.delay_steps == pytest.approx(6, abs=1)
+
+    def evaluate(m):
+        return e_step(m, data)
+
+    for wrong in (0, 15):
+        start = with_delay(res.model, wrong)
+        model, post, info = search_delay(start, evaluate(start), evaluate, 15)
+        assert info["delay_from"] == wrong and abs(info["delay_to"] - 6) <= 1
+        assert model.action.delay_steps == info["delay_to"]
+        assert np.array_equal(model.action.coefficients, res.model.action.coefficients)
+        assert post.loglik == info["loglik_after"] > info["loglik_before"] + 10.0
+        assert info["e_steps"] <= 10  # 0, 3, ..., 15, then the best one's neighbours
+    same, _, info0 = search_delay(res.model, evaluate(res.model), evaluate, 15)
+    assert info0["loglik_after"] >= info0["loglik_before"]
+    assert abs(same.action.delay_steps - res.model.action.delay_steps) <= 1
+
+
+def test_fit_searches_the_delay_on_the_ridge_schedule_only_when_a_delay_is_learned(tmp_path):
+    """Exact bookkeeping: the delay search runs when the held stage ends and every search_every
+    iterations after, is in the summary, never lowers the likelihood, and is off with
+    ``delay_search: false`` or without a delay to learn (then EM is as before, bit for bit)."""
+    data, poses = _simulate(3, T=1500, delay_steps=6)
+    cfg = _config(refine_from=4, max_iterations=12, patience=50, search_every=3, action_delay_max_s=0.5)
+    on = fit_em(data, None, cfg)
+    assert [r["iteration"] for r in on.delay_search] == [4, 7, 10]
+    for r in on.delay_search:
+        assert r["loglik_after"] >= r["loglik_before"] and 0 <= r["delay_to"] <= 15
+        assert on.loglik_history[r["iteration"]] == r["loglik_after"]
+    assert on.summary()["delay_search"] == on.delay_search and on.ridge is None
+    off = fit_em(
+        data,
+        None,
+        _config(refine_from=4, max_iterations=12, search_every=3, action_delay_max_s=0.5, delay_search=False),
+    )
+    assert off.delay_search is None
+    # the report sets the learned delay beside From-Truth's, with the searches' moves
+    from sensact.experiments.real import evaluate_mrclam
+    from sensact.report.tables import real_tables
+
+    row = {"em": on.summary(), "score": evaluate_mrclam(_TruthLog(data, poses), on)}
+    _, headers, cells = real_tables({"mrclam": {"on": row}})[0]
+    cell = cells[0][headers.index("command delay s, learned / From-Truth")]
+    assert cell.startswith(f"{on.model.action.delay_steps * data.dt_s:.3f} / ")
+    moved = [r for r in on.delay_search if r["delay_to"] != r["delay_from"]]
+    assert moved and f"{moved[0]['delay_from']}->{moved[0]['delay_to']}" in cell
+    # the CLI says where each search moved the delay
+    from typer.testing import CliRunner
+
+    from sensact.io.landmark_log import write_landmark_log
+
+    write_landmark_log(tmp_path / "log", data)
+    sets = [
+        "action_basis=affine",
+        "action_delay_max_s=0.5",
+        "motion_noise=shared",
+        "refine_from=4",
+        "search_every=3",
+        "max_iterations=8",
+        "prune_rad_per_step=0",
+    ]
+    run = CliRunner().invoke(cli.app, ["learn", "em", str(tmp_path / "log")] + [a for x in sets for a in ("--set", x)])
+    assert run.exit_code == 0, run.output
+    assert "delay search at iteration 4: command delay" in run.output
+    plain = fit_em(data, None, _config(refine_from=4, max_iterations=12, search_every=3))
+    plain_off = fit_em(data, None, _config(refine_from=4, max_iterations=12, search_every=3, delay_search=False))
+    assert plain.delay_search is None
+    assert np.array_equal(plain.loglik_history, plain_off.loglik_history)
+
+
 def test_fit_searches_the_ridge_when_the_held_stage_ends_and_every_so_often_after(tmp_path):
     from sensact.experiments.real import evaluate_mrclam
     from sensact.report.figures_real import figure_loglik
@@ -324,12 +411,12 @@ def test_fit_searches_the_ridge_when_the_held_stage_ends_and_every_so_often_afte
 
     data, poses = _simulate(2, T=1500)
     off = fit_em(data, None, _config(refine_from=4, max_iterations=12))
-    cfg = _config(refine_from=4, max_iterations=12, patience=50, ridge_search_mm=300.0, ridge_search_every=3)
+    cfg = _config(refine_from=4, max_iterations=12, patience=50, ridge_search_mm=300.0, search_every=3)
     on = fit_em(data, None, cfg)
     assert off.ridge is None and on.freed_at == 4
     assert [r["iteration"] for r in on.ridge] == [4, 7, 10]
     # with nothing held (refine_from 0) the searches count from the start
-    unheld = fit_em(data, None, _config(refine_from=0, max_iterations=8, ridge_search_mm=300.0, ridge_search_every=3))
+    unheld = fit_em(data, None, _config(refine_from=0, max_iterations=8, ridge_search_mm=300.0, search_every=3))
     assert unheld.freed_at == -1 and [r["iteration"] for r in unheld.ridge] == [3, 6]
     for r in on.ridge:
         assert r["loglik_after"] >= r["loglik_before"] and abs(r["shift_mm"]) <= 300.0
@@ -339,7 +426,7 @@ def test_fit_searches_the_ridge_when_the_held_stage_ends_and_every_so_often_afte
     with pytest.raises(ValueError, match="ridge_search"):
         _config(ridge_search_mm=-1.0)
     with pytest.raises(ValueError, match="ridge_search"):
-        _config(ridge_search_every=0)
+        _config(search_every=0)
     with pytest.raises(ValueError, match=r"t\.csv: ridge_search_mm .* needs a planar log"):
         fit_em(_tiny_track(), None, EMConfig(ridge_search_mm=100.0))
     # the report lists each search's move, and a dash for a run without the search

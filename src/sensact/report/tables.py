@@ -321,6 +321,14 @@ def _ridge_cell(em: dict[str, Any]) -> str:
     return ", ".join(f"{r['shift_mm']:+.0f}" for r in em.get("ridge") or []) or "-"
 
 
+def _delay_cell(action: dict[str, Any], em: dict[str, Any]) -> str:
+    cell = f"{action['learned_delay_s']:.3f} / {action['from_truth_delay_s']:.3f}"
+    moves = [
+        f"{s['delay_from']}->{s['delay_to']}" for s in em.get("delay_search") or [] if s["delay_to"] != s["delay_from"]
+    ]
+    return f"{cell} (searches moved it {', '.join(moves)} steps)" if moves else cell
+
+
 def real_tables(res: dict[str, Any]) -> list[Table]:
     """MRCLAM robots (learned against From-Truth) and the Turtlebot (EM beside chapter 3)."""
     tables: list[Table] = []
@@ -333,6 +341,7 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
                 name,
                 f"{la['translation_rms_mm_s']:.1f} / {fa['translation_rms_mm_s']:.1f} ({a['ratio_translation']:.2f})",
                 f"{la['rotation_rms_rad_s']:.4f} / {fa['rotation_rms_rad_s']:.4f} ({a['ratio_rotation']:.2f})",
+                _delay_cell(a, r["em"]),
                 f"{rg['learned_residual_rms_mm']:.0f} / {rg['from_truth_residual_rms_mm']:.0f}",
                 f"{rg['sigma_learned_mm']:.0f} / {rg['sigma_truth_mm']:.0f} ({rg['sigma_ratio']:.2f})",
                 f"{b['sigma_learned_rad']:.4f} / {b['sigma_truth_rad']:.4f} ({b['sigma_ratio']:.2f})",
@@ -349,6 +358,7 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
                     "robot",
                     "translation RMS mm/s",
                     "rotation RMS rad/s",
+                    "command delay s, learned / From-Truth",
                     "range residual RMS mm",
                     "range sigma mm",
                     "bearing sigma rad",

@@ -2,8 +2,9 @@
 
 ``estep`` (sec. 4.2) -> ``mstep`` (sec. 4.3) -> ``fit`` (the loop, secs. 4.1 and 4.4.1). The compiled
 forward and backward passes live in ``sensact.core.ekf_smoother``. Beyond the thesis, for real logs:
-``start`` (where the robot starts: a grid and a race) and ``ridge`` (a line search along the path's
-trade-off with the range functions' offset).
+``start`` (where the robot starts: a grid and a race), ``ridge`` (a line search along the path's
+trade-off with the range functions' offset) and ``delay_search`` (the command delay, chosen by the
+likelihood).
 """
 
 from sensact.learn.em.config import EMConfig

@@ -102,11 +102,15 @@ class EMConfig:
     # start_trial_iterations held iterations, until one is left (1 = the grid's best, no race)
     start_candidates: int = 6
     start_trial_iterations: int = 20
-    # when the held stage ends, and every ridge_search_every iterations after (with nothing held: every
-    # ridge_search_every from the start), search this far (mm) along the ridge where the path and
-    # every range function's offset trade against each other (learn/em/ridge.py; 0 = off, the thesis)
+    # the searches below run when the held stage ends and every search_every iterations after (with
+    # nothing held: every search_every from the start), along directions EM climbs too slowly itself.
+    # Along the ridge where the path and every range function's offset trade against each other, this
+    # far (mm; learn/em/ridge.py; 0 = off, the thesis):
     ridge_search_mm: float = 0.0
-    ridge_search_every: int = 50
+    # over the command delay 0..action_delay_max_s by the E-step likelihood (learn/em/delay_search.py;
+    # only when a delay is learned):
+    delay_search: bool = True
+    search_every: int = 50
 
     def __post_init__(self) -> None:
         problems = []
@@ -148,8 +152,8 @@ class EMConfig:
             problems.append("start_search_s must be >= 0 and start_search_grid_mm > 0")
         if self.start_candidates < 1 or self.start_trial_iterations < 1:
             problems.append("start_candidates and start_trial_iterations must be >= 1")
-        if not self.ridge_search_mm >= 0 or self.ridge_search_every < 1:
-            problems.append("ridge_search_mm must be >= 0 (0 = no ridge search) and ridge_search_every >= 1")
+        if not self.ridge_search_mm >= 0 or self.search_every < 1:
+            problems.append("ridge_search_mm must be >= 0 (0 = no ridge search) and search_every >= 1")
         try:
             check_robust(self.bearing_robust, self.bearing_robust_param, "bearing")
         except ValueError as exc:

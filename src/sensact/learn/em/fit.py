@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from sensact.learn.em.config import EMConfig
+from sensact.learn.em.delay_search import search_delay
 from sensact.learn.em.estep import Posteriors, e_step
 from sensact.learn.em.mstep import m_step
 from sensact.learn.em.ridge import search_ridge
@@ -143,6 +144,7 @@ class EMResult:
     start_search: dict[str, Any] | None = None  # what the start search tried and chose
     freed_at: int = -1  # the iteration after which Sigma_m, the terms and robust readings were freed (-1: never held)
     ridge: list[dict[str, Any]] | None = None  # each ridge search: its iteration, shift, likelihoods (ridge.py)
+    delay_search: list[dict[str, Any]] | None = None  # each delay search: its iteration, delays, likelihoods
 
     @property
     def iterations(self) -> int:
@@ -165,6 +167,7 @@ class EMResult:
             "start_search": self.start_search,
             "freed_at": self.freed_at,
             "ridge": self.ridge,
+            "delay_search": self.delay_search,
             "config": asdict(self.config),
         }
 
@@ -216,6 +219,9 @@ def fit_em(
     refining = not staged or refine_from <= 0
     freed_at = -1
     ridge_info: list[dict[str, Any]] = []
+    delay_info: list[dict[str, Any]] = []
+    max_delay = round(cfg.action_delay_max_s / data.dt_s)
+    searches_delay = cfg.delay_search and max_delay > 0 and isinstance(model.action, LinearActionModel)
     start = time.perf_counter()
     try:
         for it in range(max(cfg.max_iterations - spent, 1)):  # the race's iterations count
@@ -244,14 +250,18 @@ def fit_em(
             if progress is not None:
                 progress(it, post.loglik, best_ll, it - best_it)
             ending_held = not refining and (it >= refine_from or it - best_it >= cfg.patience)
-            # along the ridge when the held stage ends, and again every ridge_search_every iterations:
-            # EM keeps crawling back along it between searches (docs/em-real.md)
+            # the searches run when the held stage ends, and again every search_every iterations:
+            # EM keeps crawling back along the ridge between them (docs/em-real.md)
             since = freed_at if freed_at >= 0 else (0 if refining else -1)  # -1: still held
-            again = since >= 0 and it > since and (it - since) % cfg.ridge_search_every == 0
-            if cfg.ridge_search_mm > 0 and (ending_held or again):
+            again = since >= 0 and it > since and (it - since) % cfg.search_every == 0
+            if (cfg.ridge_search_mm > 0 or searches_delay) and (ending_held or again):
                 evaluate = partial(_stage_e_step, data=data, obs_use=obs_use, robust=refining)
-                model, post, info = search_ridge(model, post, evaluate, cfg.ridge_search_mm)
-                ridge_info.append({"iteration": it, **info})
+                if cfg.ridge_search_mm > 0:
+                    model, post, info = search_ridge(model, post, evaluate, cfg.ridge_search_mm)
+                    ridge_info.append({"iteration": it, **info})
+                if searches_delay:
+                    model, post, info = search_delay(model, post, evaluate, max_delay)
+                    delay_info.append({"iteration": it, **info})
                 logliks[-1] = post.loglik  # lambda_it is now the moved model (its likelihood before: info)
                 if post.loglik > best_ll:
                     best_ll, best_it, best_model, best_post = post.loglik, it, model, post
@@ -271,7 +281,7 @@ def fit_em(
                 rng=rng,
                 learn_motion_noise=learns_sigma_m and refining,
                 motion_floor_sd=motion_sd_floor(cfg, n),
-                max_delay_steps=round(cfg.action_delay_max_s / data.dt_s),
+                max_delay_steps=max_delay,
                 fit_bearing_terms=refining,
             )
     except KeyboardInterrupt:
@@ -294,6 +304,7 @@ def fit_em(
         start_info,
         freed_at,
         ridge_info or None,
+        delay_info or None,
     )
 
 

@@ -10,7 +10,7 @@ millimetres behind the robot and ``f`` off by as much.
 ``search_ridge`` moves along the ridge in one step: it maximizes the E-step's own
 ``log P(O | C, lambda)`` over ``delta`` with scipy's bounded scalar search, and keeps the move only if
 the likelihood rises. Every evaluation is one E-step (6-8 of them on MRCLAM), and the search never
-lowers the likelihood. ``fit_em`` runs it when the held stage ends and every ``ridge_search_every``
+lowers the likelihood. ``fit_em`` runs it when the held stage ends and every ``search_every``
 iterations after (from the start when nothing is held), because EM keeps sliding back along the
 ridge between searches.
 """
