@@ -320,7 +320,13 @@ def test_ridge_search_finds_a_model_moved_behind_and_never_lowers_the_likelihood
     assert model.prior_mean == pytest.approx(res.model.prior_mean, abs=45.0)
     _, _, info0 = search_ridge(res.model, evaluate(res.model), evaluate, 500.0)
     assert abs(info0["shift_mm"]) < 40.0 and info0["loglik_after"] >= info0["loglik_before"]
-    assert 0 < info0["e_steps"] <= 30
+    assert 0 < info0["e_steps"] <= 30 and info0["expansions"] == 0
+    # beyond the bracket: the search starts again from its edge until the peak is inside
+    far = shifted_forward(res.model, -900.0)
+    model, post, info = search_ridge(far, evaluate(far), evaluate, 500.0)
+    assert info["shift_mm"] == pytest.approx(900.0, abs=40.0) and info["expansions"] >= 1
+    assert post.loglik == info["loglik_after"] > info["loglik_before"] + 10.0
+    assert model.prior_mean == pytest.approx(res.model.prior_mean, abs=45.0)
 
 
 @pytest.fixture(scope="module")
