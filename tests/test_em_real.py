@@ -356,6 +356,9 @@ def test_delay_search_finds_the_command_delay_and_never_lowers_the_likelihood(de
     same, _, info0 = search_delay(res.model, evaluate(res.model), evaluate, 15)
     assert info0["loglik_after"] >= info0["loglik_before"]
     assert abs(same.action.delay_steps - res.model.action.delay_steps) <= 1
+    # a robot without a delay: searched from the same config, EM learns none
+    prompt, _ = _simulate(3, T=3000)
+    assert fit_em(prompt, None, _config(action_delay_max_s=0.5, max_iterations=60)).model.action.delay_steps <= 1
 
 
 def test_fit_searches_the_delay_on_the_ridge_schedule_only_when_a_delay_is_learned(tmp_path):
