@@ -389,6 +389,9 @@ def test_fit_searches_the_delay_on_the_ridge_schedule_only_when_a_delay_is_learn
     assert cell.startswith(f"{on.model.action.delay_steps * data.dt_s:.3f} / ")
     moved = [r for r in on.delay_search if r["delay_to"] != r["delay_from"]]
     assert moved and f"{moved[0]['delay_from']}->{moved[0]['delay_to']}" in cell
+    from sensact.report.figures_real import figure_loglik
+
+    assert figure_loglik({"on": on}, tmp_path / "ll.png").stat().st_size > 0  # delay searches, no ridge
     # the CLI says where each search moved the delay
     from typer.testing import CliRunner
 

@@ -112,19 +112,21 @@ def figure_heading_noise(ml: Any, res: Any, score: dict[str, Any], path: Path, t
 def figure_loglik(results: dict[str, Any], path: Path) -> Path:
     """log P(O | C, lambda) against the iteration, one line per run; a dot where the held stage ends
     (from there the likelihood is the robust one, with Sigma_m and the bearing terms learned) and a
-    triangle at each later ridge search (learn/em/ridge.py), whose move shows as the next step up."""
+    triangle at each later ridge or delay search (learn/em/ridge.py, delay_search.py), whose move shows
+    as the next step up."""
     fig, ax = plt.subplots(figsize=(7, 4))
     for name, res in results.items():
         ll = res.loglik_history
         (line,) = ax.plot(np.arange(ll.size), ll - ll.max(), lw=1, label=name)
         if 0 <= res.freed_at < ll.size:
             ax.plot(res.freed_at, ll[res.freed_at] - ll.max(), "o", ms=4, color=line.get_color())
-        later = [r["iteration"] for r in res.ridge or [] if res.freed_at < r["iteration"] < ll.size]
+        searched = {r["iteration"] for r in (res.ridge or []) + (res.delay_search or [])}
+        later = sorted(i for i in searched if res.freed_at < i < ll.size)
         if later:
             ax.plot(later, ll[later] - ll.max(), "^", ms=4, color=line.get_color())
     ax.set_yscale("symlog", linthresh=10)
     ax.set(
-        xlabel="EM iteration after the start race (dot: held stage ends; triangle: ridge search)",
+        xlabel="EM iteration after the start race (dot: held stage ends; triangle: a search)",
         ylabel="log-likelihood minus its best",
         title="EM on real robots",
     )
