@@ -240,3 +240,71 @@ def test_simulate_car_then_learn_car_with_ros_export(tmp_path):
     np.testing.assert_allclose(np.degrees(cal.horizontal_rad) + 90.0, model["laser_angles_deg"], atol=1e-9)
     res = runner.invoke(app, ["learn", "car", str(tmp_path)])
     assert res.exit_code == 2 and "meta.json" in res.output
+
+
+def _write_turtlebot_csv(path, *, with_range: bool, seed: int = 7) -> None:
+    """A seeded robot in the Turtlebot's CSV format: it backs away from and drives at a wall, obeying its
+    command with gain 0.9 and 2 steps (0.12 s) late (the move from step k - 1 to k follows the command of
+    step k - 3); sonar1 reads the distance in m with 5 % outliers, each IR sensor a falling curve of it."""
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    n, dt = 2500, 0.06
+    t = 0.1 + dt * np.arange(n)
+    period = 14.0  # whole periods of a sine out and back, at 0.2, 0.3 and 0.4 m/s: 400 to 2000 mm
+    cmd = np.sin(2 * np.pi * t / period) * (0.2 + 0.1 * ((t // period) % 3))
+    d = np.empty(n)
+    d[0] = 400.0
+    for k in range(1, n):
+        d[k] = d[k - 1] + 0.9 * 1000.0 * cmd[max(k - 3, 0)] * dt + rng.normal(0.0, 2.0)
+    sonar = d / 1000.0 + rng.normal(0.0, 0.01, n)
+    bad = rng.random(n) < 0.05
+    sonar[bad] = rng.uniform(0.1, 5.0, bad.sum())
+    ir = [
+        a * np.exp(-d / s) + 0.3 + rng.normal(0.0, 0.02, n)
+        for a, s in ((3.0, 600), (2.5, 150), (3.0, 400), (2.5, 2500))
+    ]
+    cols = {"time": t, "range": d / 1000.0, "velocity_command": cmd}
+    cols |= {f"raw_ir{i + 1}": v for i, v in enumerate(ir)} | {"sonar1": sonar, "sonar2": d / 1000.0}
+    if not with_range:
+        del cols["range"]
+    rows = [",".join(["", *cols])] + [",".join([str(k), *(f"{v[k]:.6f}" for v in cols.values())]) for k in range(n)]
+    path.write_text("\n".join(rows) + "\n")
+
+
+def test_learn_em_on_a_turtlebot_csv_recovers_the_gain_and_sonar(tmp_path):
+    csv = tmp_path / "robot.csv"
+    _write_turtlebot_csv(csv, with_range=True)
+    model = tmp_path / "m.json"
+    res = runner.invoke(app, ["learn", "em", str(csv), "--out", str(model)])
+    assert res.exit_code == 0, res.output
+    assert "Turtlebot CSV" in res.output and "continuous commands (v_cmd_mm_s)" in res.output
+    out = json.loads(model.read_text())
+    channels = out["model"]["sensor"]["channels"]
+    assert [c["name"] for c in channels] == ["sonar1", "raw_ir1", "raw_ir2", "raw_ir3", "raw_ir4"]
+    ev = out["evaluation"]
+    # seeds 7, 8, 9 gave gain 0.25-0.36 % off, sonar1 0.53-1.35 % of its span, the delay exact
+    assert ev["gain_error_pct"] < 1.0, ev["gain_error_pct"]
+    assert ev["sensors"]["sonar1"]["rms_pct_of_span"] < 2.0
+    assert ev["delay_s"] == pytest.approx(0.12, abs=0.01)
+    # --set overrides the Turtlebot's settings; without a range column there is nothing to score
+    _write_turtlebot_csv(csv, with_range=False)
+    res = runner.invoke(app, ["learn", "em", str(csv), "--out", str(model), "--set", "max_iterations=5"])
+    assert res.exit_code == 0, res.output
+    assert "no range column" in res.output
+    out = json.loads(model.read_text())
+    assert out["evaluation"] is None and out["summary"]["iterations"] <= 5
+
+
+def test_learn_em_refuses_a_turtlebot_csv_out_of_order(tmp_path):
+    csv = tmp_path / "robot.csv"
+    _write_turtlebot_csv(csv, with_range=True)
+    lines = csv.read_text().splitlines()
+    lines[5], lines[6] = lines[6], lines[5]
+    csv.write_text("\n".join(lines) + "\n")
+    res = runner.invoke(app, ["learn", "em", str(csv)])
+    assert res.exit_code == 2 and "time must be finite and strictly increasing" in res.output
+    assert "robot.csv" in res.output and "Traceback" not in res.output
+    (tmp_path / "notes.txt").write_text("x")
+    res = runner.invoke(app, ["learn", "em", str(tmp_path / "notes.txt")])
+    assert res.exit_code == 2 and "EM reads a log folder or a Turtlebot CSV file" in res.output

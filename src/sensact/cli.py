@@ -280,7 +280,7 @@ def learn_bootstrap_cmd(
 @learn_app.command("em")
 @_friendly
 def learn_em_cmd(
-    log: Annotated[Path, typer.Argument(help="A log folder: planar (field2d) or a 1-D track.")],
+    log: Annotated[Path, typer.Argument(help="A log folder (planar or a 1-D track), or a Turtlebot CSV file.")],
     out: Annotated[
         Path | None,
         typer.Option("--out", help="Write the learned model here (JSON) and the learning history beside it (.npz)."),
@@ -289,18 +289,45 @@ def learn_em_cmd(
     set_: SetOpt = None,
     config: ConfigOpt = None,
 ) -> None:
-    """Learn the action table, sensor function f and noise sigmas by EM (ch. 4). Ctrl-C stops early and
+    """Learn the action model, sensor functions f and noise sigmas by EM (ch. 4). Ctrl-C stops early and
     still writes the most likely model so far."""
     from sensact.io.atomic import write_json, write_npz
     from sensact.io.landmark_log import read_landmark_log
     from sensact.learn.em import EMConfig, fit_em, initial_model
 
-    cfg = _config(EMConfig, config, set_)
-    lf = read_landmark_log(log, command_bins=bins)
-    data = lf.data
+    lf, turtlebot_truth = None, None
+    if log.is_file() and log.suffix.lower() == ".csv":
+        from sensact.experiments.turtlebot_em import turtlebot_em_config
+        from sensact.io.turtlebot import read_turtlebot_landmark_log
+
+        data, turtlebot_truth = read_turtlebot_landmark_log(log)
+        cfg = _config(EMConfig, config, set_, base=turtlebot_em_config())
+        console.print(
+            "Turtlebot CSV: starting from the Turtlebot's EM settings (docs/em-real.md); --config and --set "
+            "override them."
+        )
+    else:
+        if log.is_file():
+            from sensact.errors import LogFormatError
+
+            raise LogFormatError(
+                "EM reads a log folder or a Turtlebot CSV file.",
+                file=log,
+                fix="give a folder with meta.json, actions.csv and observations.csv (sensact convert mrclam "
+                "writes one), or a .csv with the Turtlebot's columns.",
+            )
+        cfg = _config(EMConfig, config, set_)
+        lf = read_landmark_log(log, command_bins=bins)
+        data = lf.data
     console.print(
         f"{data.source}: {data.geometry} log, {data.n_steps} steps of {data.dt_s:.4g} s, "
-        f"{data.n_observations} observations, {data.n_actions} actions" + (f" ({lf.note})" if lf.note else "")
+        f"{data.n_observations} observations, "
+        + (
+            f"continuous commands ({', '.join(data.command_names)})"
+            if data.is_continuous
+            else f"{data.n_actions} actions"
+        )
+        + (f" ({lf.note})" if lf is not None and lf.note else "")
     )
     start = initial_model(data, cfg)
     if cfg.start_search_s > 0 and data.geometry == "planar":
@@ -340,7 +367,7 @@ def learn_em_cmd(
             f"log-likelihood {r['loglik_before']:.1f} -> {r['loglik_after']:.1f} ({r['e_steps']} E-steps)"
         )
     _print_em_model(m)
-    evaluation = _evaluate_em(lf, m)
+    evaluation = _evaluate_em(lf, m) if lf is not None else _evaluate_turtlebot_em(res, data, turtlebot_truth)
     if out is not None:
         write_json(
             out,
@@ -568,6 +595,25 @@ def _evaluate_em(lf: Any, model: Any) -> dict[str, Any] | None:
         )
         return sc
     return None
+
+
+def _evaluate_turtlebot_em(res: Any, data: Any, truth_mm: Any) -> dict[str, Any] | None:
+    """The Turtlebot's scaled gain and sensor errors against its ``range`` column, when it has one."""
+    import numpy as np
+
+    if truth_mm is None or not np.isfinite(truth_mm).all():
+        console.print("no range column: nothing to score against (the model is learned from the readings alone).")
+        return None
+    from sensact.experiments.turtlebot_em import score_turtlebot_em
+
+    sc = score_turtlebot_em(res, data, truth_mm)
+    console.print(
+        f"vs range (optimal scale and offset): action gain {sc['gain_learned']:.4f} against "
+        f"{sc['gain_true']:.4f} ({sc['gain_error_pct']:.2f} % off); command delay {sc['delay_s']:.2f} s"
+    )
+    for name, s in sc["sensors"].items():
+        console.print(f"  {name}: {s['rms_pct_of_span']:.2f} % of its {s['span_mm']:.0f} mm span")
+    return sc
 
 
 def _evaluate_log(data: Any, res: Any, cfg: Any) -> dict[str, Any] | None:

@@ -43,10 +43,28 @@ EM_READINGS = ("sonar1", "raw_ir1", "raw_ir2", "raw_ir3", "raw_ir4")
 EM_SCALE = {"sonar1": 1000.0}  # sonar m -> mm; the IR readings stay in volts
 
 
+def _read_checked(path: str | Path, readings: tuple[str, ...]) -> dict[str, np.ndarray]:
+    """The time, command and reading columns, with the time and command columns checked."""
+    cols = read_numeric_csv(path, ["time", "velocity_command", *readings], what="Turtlebot CSV")
+    t = cols["time"]
+    if len(t) < 2 or np.any(~np.isfinite(t)) or np.any(np.diff(t) <= 0):
+        raise LogFormatError(
+            "time must be finite and strictly increasing, over at least two rows.",
+            file=path,
+            field="time",
+            fix="sort the rows by time and drop duplicates.",
+        )
+    if np.any(~np.isfinite(cols["velocity_command"])):
+        raise LogFormatError(
+            "a velocity_command cell is empty.", file=path, field="velocity_command", fix="fill every command cell."
+        )
+    return cols
+
+
 def read_turtlebot_landmark_log(path: str | Path, dt_s: float | None = None) -> tuple[LandmarkLog, np.ndarray]:
     """The CSV on a fixed step (its median spacing): commands held, each row's readings at the nearest
     step. Returns the log and the true range (mm) per step, for evaluation only."""
-    cols = read_numeric_csv(path, ["time", "velocity_command", *EM_READINGS], what="Turtlebot CSV")
+    cols = _read_checked(path, EM_READINGS)
     t = cols["time"]
     dt = float(np.median(np.diff(t))) if dt_s is None else dt_s
     T = int(np.floor((t[-1] - t[0]) / dt)) + 1
@@ -81,23 +99,10 @@ def read_turtlebot_csv(path: str | Path, sensor: str = "sonar1") -> TrackLog:
         raise LogFormatError(
             f"unknown sensor {sensor!r}.", file=path, field="sensor", fix=f"choose one of {', '.join(UNITS)}."
         )
-    cols = read_numeric_csv(path, ["time", "velocity_command", sensor], what="Turtlebot CSV")
-    t = cols["time"]
-    if np.any(~np.isfinite(t)) or np.any(np.diff(t) <= 0):
-        raise LogFormatError(
-            "time must be finite and strictly increasing.",
-            file=path,
-            field="time",
-            fix="sort the rows by time and drop duplicates.",
-        )
-    commands = cols["velocity_command"]
-    if np.any(~np.isfinite(commands)):
-        raise LogFormatError(
-            "a velocity_command cell is empty.", file=path, field="velocity_command", fix="fill every command cell."
-        )
+    cols = _read_checked(path, (sensor,))
     return TrackLog(
-        t,
-        commands,
+        cols["time"],
+        cols["velocity_command"],
         cols[sensor],
         "m/s",
         sensor,
