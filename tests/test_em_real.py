@@ -661,6 +661,23 @@ def test_channels_parse_from_a_config_mapping():
         EMConfig(action_basis="affine", motion_noise="per_action")
 
 
+def test_a_config_written_as_yaml_reads_back_exactly(tmp_path):
+    """Exact round trip of the YAML `convert mrclam` writes: only the fields that differ from the
+    defaults (a channel's infinite window left out), and `build_config` gives the same config back."""
+    from sensact.config import build_config, config_to_yaml
+    from sensact.experiments.real import mrclam_config
+    from sensact.experiments.turtlebot_em import turtlebot_em_config
+
+    for cfg in (mrclam_config(), turtlebot_em_config(), EMConfig()):
+        text = config_to_yaml(cfg, "first line\nsecond line")
+        assert text.startswith("# first line\n# second line\n")
+        (tmp_path / "c.yaml").write_text(text)
+        assert build_config(EMConfig, tmp_path / "c.yaml") == cfg
+    text = config_to_yaml(mrclam_config())
+    assert "ridge_search_mm: 500.0" in text and "inf" not in text and "patience" not in text
+    assert config_to_yaml(EMConfig()) == "{}\n"
+
+
 @pytest.mark.skipif(not MRCLAM.is_dir(), reason=f"MRCLAM data not found at {MRCLAM}")
 def test_mrclam_reader_and_log_folder_round_trip(tmp_path):
     from sensact.io.landmark_log import read_landmark_log, write_landmark_log
@@ -680,6 +697,17 @@ def test_mrclam_reader_and_log_folder_round_trip(tmp_path):
     assert np.all(ml.data.obs_readings > 0)
     write_landmark_log(tmp_path / "log", ml.data, groundtruth=ml.groundtruth)
     back = read_landmark_log(tmp_path / "log")
+    # the command writes the same folder, with the EM settings its printed command passes
+    from typer.testing import CliRunner
+
+    from sensact.config import build_config
+    from sensact.experiments.real import mrclam_config
+
+    run = CliRunner().invoke(cli.app, ["convert", "mrclam", str(MRCLAM), "--robot", "1", "--out", str(tmp_path / "c")])
+    assert run.exit_code == 0, run.output
+    assert f"--config {tmp_path / 'c' / 'em_config.yaml'}" in run.output.replace("\n", "")
+    assert build_config(EMConfig, tmp_path / "c" / "em_config.yaml") == mrclam_config()
+    np.testing.assert_array_equal(read_landmark_log(tmp_path / "c").data.obs_readings, back.data.obs_readings)
     np.testing.assert_allclose(back.data.step_commands, ml.data.step_commands)
     np.testing.assert_allclose(back.data.obs_readings, ml.data.obs_readings)
     np.testing.assert_array_equal(back.data.obs_step, ml.data.obs_step)

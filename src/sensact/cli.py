@@ -646,6 +646,12 @@ def _evaluate_log(data: Any, res: Any, cfg: Any) -> dict[str, Any] | None:
 # ---- convert and evaluate -------------------------------------------------------------------------------
 
 
+MRCLAM_CONFIG_HEADER = """The EM settings behind docs/em-real.md's MRCLAM results
+(sensact.experiments.real.mrclam_config()), as the fields that differ from EMConfig's defaults.
+Edit them for your robot (docs/em-real.md, section 2) and pass this file with --config;
+--set overrides single fields."""
+
+
 @convert_app.command("mrclam")
 @_friendly
 def convert_mrclam(
@@ -657,6 +663,9 @@ def convert_mrclam(
     """Write one MRCLAM robot as an EM log folder: commands resampled with a zero-order hold, landmark
     sightings only (range in mm and bearing), the landmark map, and Vicon in groundtruth.csv (for
     `sensact learn em` to score against; it is never learned from)."""
+    from sensact.config import config_to_yaml
+    from sensact.experiments.real import mrclam_config
+    from sensact.io.atomic import write_text
     from sensact.io.landmark_log import write_landmark_log
     from sensact.io.mrclam import read_mrclam
 
@@ -669,7 +678,9 @@ def convert_mrclam(
         groundtruth=ml.groundtruth,
         meta_extra={"source": {"dataset": str(dataset), "robot": robot, "t0_s": ml.t0_s, "rows": ml.summary}},
     )
-    console.print(f"wrote {out}; learn with `sensact learn em {out} --config mrclam.yaml` (docs/em-real.md)")
+    cfg = out / "em_config.yaml"
+    write_text(cfg, config_to_yaml(mrclam_config(), MRCLAM_CONFIG_HEADER))
+    console.print(f"wrote {out} and its EM settings {cfg}; learn with `sensact learn em {out} --config {cfg}`")
 
 
 @evaluate_app.command("mrclam")

@@ -24,6 +24,29 @@ def config_to_dict(config: Any) -> dict[str, Any]:
     return json.loads(json.dumps(dataclasses.asdict(config)))
 
 
+def config_to_yaml(config: Any, header: str = "") -> str:
+    """The fields of ``config`` (and of the configs nested in it) that differ from their defaults, as a
+    YAML file that ``build_config`` reads back to ``config``; ``header`` becomes its leading comment."""
+    import yaml
+
+    def changed(obj: Any) -> Any:
+        if not dataclasses.is_dataclass(obj):
+            return [changed(x) for x in obj] if isinstance(obj, tuple | list) else obj
+        out = {}
+        for f in dataclasses.fields(obj):
+            value = getattr(obj, f.name)
+            if f.default is not dataclasses.MISSING and value == f.default:
+                continue
+            if f.default_factory is not dataclasses.MISSING and value == f.default_factory():
+                continue
+            out[f.name] = changed(value)
+        return out
+
+    text = yaml.safe_dump(json.loads(json.dumps(changed(config))), sort_keys=False, default_flow_style=None)
+    comment = "".join(f"# {line}\n".replace("# \n", "#\n") for line in header.splitlines())
+    return comment + text
+
+
 def _coerce(value: Any, annotation: Any, name: str, source: str) -> Any:
     """Convert a YAML/JSON/CLI value to the field's declared type, or raise ConfigError."""
     origin = typing.get_origin(annotation)
