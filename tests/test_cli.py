@@ -133,6 +133,9 @@ def test_simulate_field2d_then_learn_em(tmp_path):
 
     with np.load(tmp_path / "model.history.npz", allow_pickle=False) as h:
         assert h["loglik"].size == out["summary"]["iterations"] and h["velocities"].shape[1:] == (40, 3)
+    # the fit's figure: the likelihood, f over the readings, the smoothed path
+    assert (tmp_path / "model.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and "model.png" in res.output
+    assert (tmp_path / "model.png").stat().st_size > 30_000
     # a learned Sigma_m is held first; with a ridge search the run says where the search moved
     sets = ["motion_noise=shared", "refine_from=5", "ridge_search_mm=300", "max_iterations=8", "prune_rad_per_step=0"]
     res = runner.invoke(app, ["learn", "em", str(log), "--out", str(model)] + [a for x in sets for a in ("--set", x)])
@@ -287,6 +290,7 @@ def test_learn_em_on_a_turtlebot_csv_recovers_the_gain_and_sonar(tmp_path):
     assert ev["gain_error_pct"] < 1.0, ev["gain_error_pct"]
     assert ev["sensors"]["sonar1"]["rms_pct_of_span"] < 2.0
     assert ev["delay_s"] == pytest.approx(0.12, abs=0.01)
+    assert (tmp_path / "m.png").stat().st_size > 30_000  # a panel per channel and the smoothed state
     # --set overrides the Turtlebot's settings; without a range column there is nothing to score
     _write_turtlebot_csv(csv, with_range=False)
     res = runner.invoke(app, ["learn", "em", str(csv), "--out", str(model), "--set", "max_iterations=5"])

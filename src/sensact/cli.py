@@ -385,7 +385,12 @@ def learn_em_cmd(
             velocities=res.velocity_history,
             sigmas=res.sigma_history,
         )
-        console.print(f"wrote {out} and {out.with_suffix('.history.npz')}")
+        written = [out, out.with_suffix(".history.npz")]
+        if res.posteriors is not None:
+            from sensact.report.figures_fit import figure_em_fit
+
+            written.append(figure_em_fit(res, data, out.with_suffix(".png"), f"EM on {Path(data.source).name}"))
+        console.print("wrote " + ", ".join(str(p) for p in written))
 
 
 @learn_app.command("car")
