@@ -992,3 +992,40 @@ def test_mrclam_robot1_from_an_unknown_start(tmp_path):
     t = row["truth_restart"]
     assert t["sightings_used"] == t["sightings_used_poor_start"]
     assert t["loglik_best"] - t["loglik_poor_start"] < 100.0
+
+
+def test_reproduce_real_runs_every_mrclam_dataset_it_finds(tmp_path):
+    """The same command on other datasets: every MRCLAM_Dataset* folder under DATA/mrclam is run, keyed
+    by dataset when there are several, with the tables titled and the figures named after them."""
+    from dataclasses import replace
+
+    from sensact.experiments.real import mrclam_config, mrclam_datasets, mrclam_row_key, run_real
+    from sensact.report import figures_real
+    from sensact.report.tables import real_tables
+
+    root = tmp_path / "data"
+    assert mrclam_datasets(root) == []
+    (root / "mrclam" / "notes").mkdir(parents=True)  # a folder without robot files is not a dataset
+    assert mrclam_datasets(root) == []
+    assert mrclam_row_key(Path("x/MRCLAM_Dataset3"), 2, True) == "MRCLAM_Dataset3/robot2"
+    assert mrclam_row_key(Path("x/MRCLAM_Dataset3"), 2, False) == "robot2"
+    if not MRCLAM.is_dir():
+        pytest.skip(f"MRCLAM data not found at {MRCLAM}")
+    for name in ("MRCLAM_Dataset6", "MRCLAM_Dataset9"):
+        (root / "mrclam" / name).mkdir()
+        for f in MRCLAM.iterdir():
+            (root / "mrclam" / name / f.name).symlink_to(f)
+    assert [d.name for d in mrclam_datasets(root)] == ["MRCLAM_Dataset6", "MRCLAM_Dataset9"]
+    cfg = replace(mrclam_config(), start_search_s=0.0, max_iterations=3)
+    res, art = run_real(root, robots=(2,), config=cfg)
+    assert list(res["mrclam"]) == ["MRCLAM_Dataset6/robot2", "MRCLAM_Dataset9/robot2"]
+    assert [r["dataset"] for r in res["mrclam"].values()] == ["MRCLAM_Dataset6", "MRCLAM_Dataset9"]
+    # the same log and seed give the same fit under either name
+    a, b = (r["em"]["loglik_best"] for r in res["mrclam"].values())
+    assert a == b
+    assert res["skipped"] == [f"Turtlebot: {root / 'turtlebot1d' / 'training1.csv'} not found"]
+    titles = [t[0] for t in real_tables(res)]
+    assert titles[0] == "MRCLAM Dataset 6, Dataset 9: learned / From-Truth (ratio)"
+    paths = figures_real.write_all(art, res, tmp_path)
+    assert tmp_path / "real_mrclam_MRCLAM_Dataset9_robot2_range.png" in paths
+    assert all(p.stat().st_size > 0 for p in paths)

@@ -1,4 +1,5 @@
-"""EM on real robots (beyond the thesis): MRCLAM Dataset 6, all five robots, and the Turtlebot in 1-D.
+"""EM on real robots (beyond the thesis): MRCLAM (Dataset 6 here; every dataset under the data folder's
+``mrclam/``), all five robots, and the Turtlebot in 1-D.
 
 MRCLAM settings are the choices a user makes for a differential-drive robot with a range-and-bearing
 camera, not fits to Dataset 6:
@@ -60,6 +61,20 @@ def mrclam_config() -> EMConfig:
 
 def mrclam_folder(root: Path | None = None) -> Path:
     return (root or data_root()) / "mrclam" / "MRCLAM_Dataset6"
+
+
+def mrclam_datasets(root: Path) -> list[Path]:
+    """Every MRCLAM dataset folder under ``root/mrclam`` (one holding ``Robot1_Odometry.dat``), in
+    order, so that the same command runs on whichever datasets a data folder holds."""
+    base = root / "mrclam"
+    if not base.is_dir():
+        return []
+    return sorted(d for d in base.iterdir() if d.is_dir() and (d / "Robot1_Odometry.dat").is_file())
+
+
+def mrclam_row_key(dataset: Path, robot: int, several: bool) -> str:
+    """``robotN`` when one dataset is run (real.json's keys for Dataset 6 alone), else ``<dataset>/robotN``."""
+    return f"{dataset.name}/robot{robot}" if several else f"robot{robot}"
 
 
 def evaluate_mrclam(ml: MrclamLog, res: EMResult) -> dict[str, Any]:
@@ -158,26 +173,31 @@ def run_real(
     config: EMConfig | None = None,
     truth_restart: bool = False,
 ) -> tuple[dict[str, Any], dict[str, Any]]:
-    """Every robot of MRCLAM Dataset 6 (with ``config``, default ``mrclam_config()``) and the Turtlebot;
-    skips a dataset whose folder is missing. ``truth_restart`` adds ``restart_from_truth`` per robot."""
+    """Every robot of every MRCLAM dataset under ``root/mrclam`` (Dataset 6 here; with ``config``,
+    default ``mrclam_config()``) and the Turtlebot; skips what is missing. ``truth_restart`` adds
+    ``restart_from_truth`` per robot. Rows are keyed ``robotN``, or ``<dataset>/robotN`` when the folder
+    holds more than one dataset."""
     from sensact.experiments.turtlebot_em import run_turtlebot_em
 
     t0 = time.perf_counter()
     root = root or data_root()
     out: dict[str, Any] = {"experiment": "real", "data": str(root), "bars": BARS, "mrclam": {}, "skipped": []}
     artifacts: dict[str, Any] = {"mrclam": {}}
-    folder = mrclam_folder(root)
-    if folder.is_dir():
+    datasets = mrclam_datasets(root)
+    if datasets:
         cfg = config or mrclam_config()
         out["mrclam_config"] = config_to_dict(cfg)
-        for robot in robots:
-            if progress:
-                progress(f"MRCLAM robot {robot}" + (" (and its restart from the truth)" if truth_restart else ""))
-            row, ml, res = run_mrclam_robot(folder, robot, cfg, truth_restart=truth_restart)
-            out["mrclam"][f"robot{robot}"] = row
-            artifacts["mrclam"][robot] = (ml, res)
+        out["mrclam_datasets"] = [str(d) for d in datasets]
+        for folder in datasets:
+            for robot in robots:
+                key = mrclam_row_key(folder, robot, len(datasets) > 1)
+                if progress:
+                    progress(f"MRCLAM {key}" + (" (and its restart from the truth)" if truth_restart else ""))
+                row, ml, res = run_mrclam_robot(folder, robot, cfg, truth_restart=truth_restart)
+                out["mrclam"][key] = {"dataset": folder.name, **row}
+                artifacts["mrclam"][key] = (ml, res)
     else:
-        out["skipped"].append(f"MRCLAM: {folder} not found")
+        out["skipped"].append(f"MRCLAM: no MRCLAM_Dataset* folder with Robot1_Odometry.dat in {root / 'mrclam'}")
     tb = root / "turtlebot1d" / "training1.csv"
     if tb.is_file():
         if progress:

@@ -139,16 +139,13 @@ def figure_loglik(results: dict[str, Any], path: Path) -> Path:
 def write_all(art: dict[str, Any], res: dict[str, Any], out: Path) -> list[Path]:
     paths = []
     runs = {}
-    for robot, (ml, r) in art.get("mrclam", {}).items():
-        score = res["mrclam"][f"robot{robot}"]["score"]
-        paths.append(
-            figure_action_curves(ml, r, score, out / f"real_mrclam_robot{robot}_actions.png", f"robot {robot}")
-        )
-        paths.append(figure_range_function(ml, r, score, out / f"real_mrclam_robot{robot}_range.png", f"robot {robot}"))
-        paths.append(
-            figure_heading_noise(ml, r, score, out / f"real_mrclam_robot{robot}_heading_noise.png", f"robot {robot}")
-        )
-        runs[f"MRCLAM robot {robot}"] = r
+    for key, (ml, r) in art.get("mrclam", {}).items():
+        score = res["mrclam"][key]["score"]
+        stem, name = f"real_mrclam_{key.replace('/', '_')}", key.replace("/", " ").replace("robot", "robot ")
+        paths.append(figure_action_curves(ml, r, score, out / f"{stem}_actions.png", name))
+        paths.append(figure_range_function(ml, r, score, out / f"{stem}_range.png", name))
+        paths.append(figure_heading_noise(ml, r, score, out / f"{stem}_heading_noise.png", name))
+        runs[f"MRCLAM {name}"] = r
     if "turtlebot" in art:
         runs["Turtlebot"] = art["turtlebot"]
     if runs:

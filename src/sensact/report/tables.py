@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
 Table = tuple[str, list[str], list[list[str]]]  # title, headers, rows
@@ -329,9 +330,16 @@ def _delay_cell(action: dict[str, Any], em: dict[str, Any]) -> str:
     return f"{cell} (searches moved it {', '.join(moves)} steps)" if moves else cell
 
 
+def _mrclam_title(res: dict[str, Any]) -> str:
+    """'MRCLAM Dataset 6', or the names of the datasets the run found."""
+    names = [Path(d).name.replace("MRCLAM_", "").replace("Dataset", "Dataset ") for d in res.get("mrclam_datasets", [])]
+    return "MRCLAM " + (", ".join(names) if names else "Dataset 6")
+
+
 def real_tables(res: dict[str, Any]) -> list[Table]:
     """MRCLAM robots (learned against From-Truth) and the Turtlebot (EM beside chapter 3)."""
     tables: list[Table] = []
+    title = _mrclam_title(res)
     rows = []
     for name, r in res.get("mrclam", {}).items():
         a, rg, b = r["score"]["action"], r["score"]["range"], r["score"]["bearing"]
@@ -353,7 +361,7 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
     if rows:
         tables.append(
             (
-                "MRCLAM Dataset 6: learned / From-Truth (ratio)",
+                f"{title}: learned / From-Truth (ratio)",
                 [
                     "robot",
                     "translation RMS mm/s",
@@ -373,7 +381,7 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
     if restarts:
         tables.append(
             (
-                "MRCLAM Dataset 6: poor start / EM again from the truth's range function and start pose "
+                f"{title}: poor start / EM again from the truth's range function and start pose "
                 "(a higher likelihood after the restart means the poor start stopped in a local optimum)",
                 [
                     "robot",
@@ -402,7 +410,7 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
     if any(n for _, n in noise):
         tables.append(
             (
-                "MRCLAM Dataset 6: what the truth says about the noise (see docs/em-real.md, Known limits)",
+                f"{title}: what the truth says about the noise (see docs/em-real.md, Known limits)",
                 [
                     "robot",
                     "heading drift per 1 s at rest rad, truth / Sigma_m",
