@@ -1017,13 +1017,16 @@ def test_reproduce_real_runs_every_mrclam_dataset_it_finds(tmp_path):
             (root / "mrclam" / name / f.name).symlink_to(f)
     assert [d.name for d in mrclam_datasets(root)] == ["MRCLAM_Dataset6", "MRCLAM_Dataset9"]
     cfg = replace(mrclam_config(), start_search_s=0.0, max_iterations=3)
-    res, art = run_real(root, robots=(2,), config=cfg)
-    assert list(res["mrclam"]) == ["MRCLAM_Dataset6/robot2", "MRCLAM_Dataset9/robot2"]
+    (root / "mrclam" / "MRCLAM_Dataset9" / "Robot3_Odometry.dat").unlink()  # a robot missing is skipped
+    res, art = run_real(root, robots=(2, 3), config=cfg)
+    assert list(res["mrclam"]) == ["MRCLAM_Dataset6/robot2", "MRCLAM_Dataset6/robot3", "MRCLAM_Dataset9/robot2"]
+    assert any(s.startswith("MRCLAM MRCLAM_Dataset9/robot3: ") for s in res["skipped"])
+    del res["mrclam"]["MRCLAM_Dataset6/robot3"], art["mrclam"]["MRCLAM_Dataset6/robot3"]
     assert [r["dataset"] for r in res["mrclam"].values()] == ["MRCLAM_Dataset6", "MRCLAM_Dataset9"]
     # the same log and seed give the same fit under either name
     a, b = (r["em"]["loglik_best"] for r in res["mrclam"].values())
     assert a == b
-    assert res["skipped"] == [f"Turtlebot: {root / 'turtlebot1d' / 'training1.csv'} not found"]
+    assert res["skipped"][-1] == f"Turtlebot: {root / 'turtlebot1d' / 'training1.csv'} not found"
     titles = [t[0] for t in real_tables(res)]
     assert titles[0] == "MRCLAM Dataset 6, Dataset 9: learned / From-Truth (ratio)"
     paths = figures_real.write_all(art, res, tmp_path)

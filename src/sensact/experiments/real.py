@@ -191,6 +191,9 @@ def run_real(
         for folder in datasets:
             for robot in robots:
                 key = mrclam_row_key(folder, robot, len(datasets) > 1)
+                if not (folder / f"Robot{robot}_Odometry.dat").is_file():
+                    out["skipped"].append(f"MRCLAM {key}: {folder / f'Robot{robot}_Odometry.dat'} not found")
+                    continue
                 if progress:
                     progress(f"MRCLAM {key}" + (" (and its restart from the truth)" if truth_restart else ""))
                 row, ml, res = run_mrclam_robot(folder, robot, cfg, truth_restart=truth_restart)
