@@ -298,6 +298,16 @@ def test_learn_em_on_a_turtlebot_csv_recovers_the_gain_and_sonar(tmp_path):
     assert "no range column" in res.output
     out = json.loads(model.read_text())
     assert out["evaluation"] is None and out["summary"]["iterations"] <= 5
+    # a range column with an empty cell is not scored, and says so
+    _write_turtlebot_csv(csv, with_range=True)
+    lines = csv.read_text().splitlines()
+    cells = lines[10].split(",")
+    cells[2] = ""  # the range cell (index, time, range, ...)
+    lines[10] = ",".join(cells)
+    csv.write_text("\n".join(lines) + "\n")
+    res = runner.invoke(app, ["learn", "em", str(csv), "--set", "max_iterations=2"])
+    assert res.exit_code == 0, res.output
+    assert "empty steps: not scored" in res.output
 
 
 def test_learn_em_refuses_a_turtlebot_csv_out_of_order(tmp_path):

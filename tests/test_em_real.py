@@ -995,7 +995,7 @@ def test_mrclam_robot1_from_an_unknown_start(tmp_path):
 
 
 def test_reproduce_real_runs_every_mrclam_dataset_it_finds(tmp_path):
-    """The same command on other datasets: every MRCLAM_Dataset* folder under DATA/mrclam is run, keyed
+    """The same command on other datasets: every dataset folder under DATA/mrclam is run, keyed
     by dataset when there are several, with the tables titled and the figures named after them."""
     from dataclasses import replace
 

@@ -606,8 +606,11 @@ def _evaluate_turtlebot_em(res: Any, data: Any, truth_mm: Any) -> dict[str, Any]
     """The Turtlebot's scaled gain and sensor errors against its ``range`` column, when it has one."""
     import numpy as np
 
-    if truth_mm is None or not np.isfinite(truth_mm).all():
+    if truth_mm is None or np.isnan(truth_mm).all():
         console.print("no range column: nothing to score against (the model is learned from the readings alone).")
+        return None
+    if not np.isfinite(truth_mm).all():
+        console.print(f"the range column has {int((~np.isfinite(truth_mm)).sum())} empty steps: not scored.")
         return None
     from sensact.experiments.turtlebot_em import score_turtlebot_em
 

@@ -200,7 +200,7 @@ def run_real(
                 out["mrclam"][key] = {"dataset": folder.name, **row}
                 artifacts["mrclam"][key] = (ml, res)
     else:
-        out["skipped"].append(f"MRCLAM: no MRCLAM_Dataset* folder with Robot1_Odometry.dat in {root / 'mrclam'}")
+        out["skipped"].append(f"MRCLAM: no dataset folder (one holding Robot1_Odometry.dat) in {root / 'mrclam'}")
     tb = root / "turtlebot1d" / "training1.csv"
     if tb.is_file():
         if progress:
