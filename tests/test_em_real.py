@@ -981,6 +981,18 @@ def test_mrclam_robot1_from_an_unknown_start(tmp_path):
     a, b = row["score"]["truth_noise"]["learned_heading_variance_per_step"]
     assert a == pytest.approx(res.model.motion_sd[0, 2] ** 2) and b == (res.model.turn_var or 0.0)
     assert figure_heading_noise(ml, res, row["score"], tmp_path / "h.png", "robot 1").stat().st_size > 0
+    # the bearing figure draws the residuals the bar scores: their trimmed RMS is the bar's truth sigma
+    from sensact.evaluate.landmark_truth import trimmed
+    from sensact.report.figures_real import bearing_residuals, figure_bearing_noise
+
+    truth, em = bearing_residuals(ml, res, row["score"])
+    keep = trimmed(truth, 3.0)
+    assert np.sqrt(np.mean(truth[keep] ** 2)) == pytest.approx(row["score"]["bearing"]["sigma_truth_rad"], rel=1e-9)
+    assert em.size == int((res.posteriors.obs_used & (res.posteriors.weights[:, -1] > 0)).sum()) > 500
+    assert (
+        figure_bearing_noise(ml, res, row["score"], tmp_path / "b.png", "robot 1").read_bytes()[:8]
+        == b"\x89PNG\r\n\x1a\n"
+    )
     # the held stage ends with the path behind the robot; the ridge search moves it forward along the
     # camera's view at a higher likelihood, and EM ends near the basin that the truth restart finds
     # (without the search: 311 mm off, 282 behind, 324 log-units below the restart)
@@ -1031,4 +1043,5 @@ def test_reproduce_real_runs_every_mrclam_dataset_it_finds(tmp_path):
     assert titles[0] == "MRCLAM Dataset 6, Dataset 9: learned / From-Truth (ratio)"
     paths = figures_real.write_all(art, res, tmp_path)
     assert tmp_path / "real_mrclam_MRCLAM_Dataset9_robot2_range.png" in paths
+    assert tmp_path / "real_mrclam_MRCLAM_Dataset9_robot2_bearing.png" in paths
     assert all(p.stat().st_size > 0 for p in paths)

@@ -1,5 +1,6 @@
 """Figures for EM on real robots: action curves against Vicon, the range function over the residual
-scatter, the heading noise against Vicon's, and the log-likelihood per iteration."""
+scatter, the heading noise against Vicon's, the bearing noise against Vicon's, and the log-likelihood
+per iteration."""
 
 from __future__ import annotations
 
@@ -109,6 +110,77 @@ def figure_heading_noise(ml: Any, res: Any, score: dict[str, Any], path: Path, t
     return _save(fig, path)
 
 
+def bearing_residuals(ml: Any, res: Any, score: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+    """The bearing residuals about Vicon's pose at the fitted sensor pose, at the sightings with valid
+    truth (the ones the bar's sigma is the trimmed RMS of), and about EM's smoothed path, at the
+    sightings whose bearing the E-step used."""
+    from sensact.core.angles import wrap
+    from sensact.core.pose_models import landmark_bearing
+    from sensact.evaluate.landmark_truth import at_sensor
+
+    d, post = ml.data, res.posteriors
+    poses, valid = ml.truth_poses()
+    ok = valid[d.obs_step] > 0
+    m = score.get("sensor_mount", {})
+    mount = [m.get("lateral_mm", 0.0), m.get("forward_mm", 0.0), m.get("yaw_rad", 0.0)]
+    lm = d.landmarks_xy[d.obs_landmark]
+    truth = wrap(d.obs_bearing_rad[ok] - landmark_bearing(at_sensor(poses[d.obs_step[ok]], mount), lm[ok]))
+    used = post.obs_used & (post.weights[:, -1] > 0)
+    em = wrap(d.obs_bearing_rad[used] - landmark_bearing(post.mean_gamma[d.obs_step[used]], lm[used]))
+    return truth, em
+
+
+def figure_bearing_noise(ml: Any, res: Any, score: dict[str, Any], path: Path, title: str) -> Path:
+    """The bearing sigma bar as a picture: the residuals about Vicon's pose (as the bar scores them)
+    and about EM's smoothed path (what EM learns from), with the learned noise density, the truth's
+    trimmed sigma (the bar's) and the camera's own noise (the sd of a sighting about its frame's
+    mean). EM's histogram narrower than the learned density means the M-step's posterior variance
+    term carries the sigma; narrower than the camera's own, the smoother has fitted its path to the
+    bearings."""
+    from scipy import stats
+
+    truth, em = bearing_residuals(ml, res, score)
+    b, sensor = score["bearing"], res.model.sensor
+    s_true, s_learned = b["sigma_truth_rad"], b["sigma_learned_rad"]
+    own = score["truth_noise"]["bearing_within_frame_sd_rad"]
+    passed = score.get("bars", {}).get("bearing_sigma")
+    verdict = "" if passed is None else (", bar passed" if passed else ", bar failed")
+    x = np.linspace(-4 * s_true, 4 * s_true, 400)
+    bins = np.linspace(x[0], x[-1], 61)
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    ax.hist(truth, bins, density=True, color="0.75", label=f"about Vicon's pose ({truth.size} sightings)")
+    ax.hist(
+        em, bins, density=True, histtype="step", lw=1.5, color="tab:blue", label=f"about EM's smoothed path ({em.size})"
+    )
+    if sensor.bearing_robust == "student_t":
+        nu = sensor.bearing_robust_param
+        learned, kind = stats.t.pdf(x, nu, scale=s_learned), f"Student-t, nu {nu:g}, scale"
+    else:
+        learned, kind = stats.norm.pdf(x, scale=s_learned), "Gaussian, sd"
+    ax.plot(x, learned, lw=2, color="tab:blue", label=f"learned: {kind} {s_learned:.4f} rad")
+    ax.plot(
+        x, stats.norm.pdf(x, scale=s_true), "--", lw=2, color="k", label=f"Vicon's trimmed RMS {s_true:.4f} (the bar's)"
+    )
+    ax.plot(
+        x,
+        stats.norm.pdf(x, scale=own),
+        ":",
+        lw=2,
+        color="tab:red",
+        label=f"camera's own sd {own:.4f} (about its frame)",
+    )
+    ax.set(
+        xlabel="bearing residual (rad)",
+        ylabel="density",
+        title=f"{title}: bearing noise, learned / Vicon {b['sigma_ratio']:.2f}{verdict}",
+    )
+    ax.set_xlim(x[0], x[-1])
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
 def figure_loglik(results: dict[str, Any], path: Path) -> Path:
     """log P(O | C, lambda) against the iteration, one line per run; a dot where the held stage ends
     (from there the likelihood is the robust one, with Sigma_m and the bearing terms learned) and a
@@ -145,6 +217,7 @@ def write_all(art: dict[str, Any], res: dict[str, Any], out: Path) -> list[Path]
         paths.append(figure_action_curves(ml, r, score, out / f"{stem}_actions.png", name))
         paths.append(figure_range_function(ml, r, score, out / f"{stem}_range.png", name))
         paths.append(figure_heading_noise(ml, r, score, out / f"{stem}_heading_noise.png", name))
+        paths.append(figure_bearing_noise(ml, r, score, out / f"{stem}_bearing.png", name))
         runs[f"MRCLAM {name}"] = r
     if "turtlebot" in art:
         runs["Turtlebot"] = art["turtlebot"]
