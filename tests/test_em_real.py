@@ -3,6 +3,7 @@ robust observations, and the real datasets (MRCLAM, Turtlebot)."""
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -701,7 +702,7 @@ def test_mrclam_reader_and_log_folder_round_trip(tmp_path):
     from typer.testing import CliRunner
 
     from sensact.config import build_config
-    from sensact.experiments.real import mrclam_config
+    from sensact.experiments.real import bar_checks, mrclam_config
 
     run = CliRunner().invoke(cli.app, ["convert", "mrclam", str(MRCLAM), "--robot", "1", "--out", str(tmp_path / "c")])
     assert run.exit_code == 0, run.output
@@ -712,6 +713,54 @@ def test_mrclam_reader_and_log_folder_round_trip(tmp_path):
     np.testing.assert_allclose(back.data.obs_readings, ml.data.obs_readings)
     np.testing.assert_array_equal(back.data.obs_step, ml.data.obs_step)
     np.testing.assert_allclose(back.groundtruth["x_mm"], ml.groundtruth["x_mm"], rtol=1e-9)
+    # learn on the folder (a short fit) and score the model with `evaluate mrclam`: the same table
+    # and bars both ways, and the JSON carries the bars the table marks
+    cfg = ["--config", str(tmp_path / "c" / "em_config.yaml"), "--set", "start_search_s=0", "--set", "max_iterations=2"]
+    model = tmp_path / "m" / "model.json"
+    run = CliRunner().invoke(cli.app, ["learn", "em", str(tmp_path / "c"), *cfg, "--out", str(model)])
+    assert run.exit_code == 0, run.output
+    assert "against ground truth" in run.output and "bearing sigma (rad)" in run.output
+    run = CliRunner().invoke(
+        cli.app,
+        ["evaluate", "mrclam", str(MRCLAM), "--model", str(model), "--robot", "1", "--out", str(tmp_path / "e.json")],
+    )
+    assert run.exit_code == 0, run.output
+    score = json.loads((tmp_path / "e.json").read_text())
+    assert score["bars"] == bar_checks(score) and len(score["bars"]) == 5
+    marks = [
+        ln.split()[-2] for ln in run.output.splitlines() if "RMS (mm/s)" in ln or "RMS (rad/s)" in ln or "sigma (" in ln
+    ]
+    assert marks == [
+        "pass" if ok else "miss"
+        for ok in (
+            score["bars"]["action_translation_ratio"] and score["bars"]["action_translation_abs"],
+            score["bars"]["action_rotation_ratio"],
+            score["bars"]["range_sigma"],
+            score["bars"]["bearing_sigma"],
+        )
+    ]
+
+
+def test_bar_checks_hold_at_their_edges():
+    """Issue 5's bars: ratios up to 1.5 pass, a sigma down to 1/1.5 passes, translation up to 50 mm/s."""
+    from sensact.experiments.real import bar_checks
+
+    def score(tr, rot, abs_mm_s, range_ratio, bearing_ratio):
+        return {
+            "action": {"ratio_translation": tr, "ratio_rotation": rot, "learned": {"translation_rms_mm_s": abs_mm_s}},
+            "range": {"sigma_ratio": range_ratio},
+            "bearing": {"sigma_ratio": bearing_ratio},
+        }
+
+    assert all(bar_checks(score(1.5, 1.5, 50.0, 1.5, 1 / 1.5)).values())
+    missed = bar_checks(score(1.51, 1.0, 50.1, 0.66, 1.51))
+    assert missed == {
+        "action_translation_ratio": False,
+        "action_rotation_ratio": True,
+        "action_translation_abs": False,
+        "range_sigma": False,
+        "bearing_sigma": False,
+    }
 
 
 def test_truth_noise_structure_recovers_turn_dependent_drift_and_frame_correlation():

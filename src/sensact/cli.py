@@ -492,11 +492,17 @@ def _print_em_model(m: Any) -> None:
 
 
 def _print_truth_score(sc: dict[str, Any]) -> None:
+    from sensact.experiments.real import bar_checks
     from sensact.report.tables import shared_by_motion
 
     a, r, b = sc["action"], sc["range"], sc["bearing"]
+    bars = sc.get("bars") or bar_checks(sc)
+
+    def mark(*keys: str) -> str:
+        return "pass" if all(bars[k] for k in keys) else "[bold red]miss[/]"
+
     t = Table(title=f"against ground truth ({sc['windows_scored']} windows of {sc['window_s']:.2g} s)")
-    for col in ("quantity", "learned", "From-Truth", "ratio / bar"):
+    for col in ("quantity", "learned", "From-Truth", "ratio", "bar"):
         t.add_column(col)
     la, fa = a["learned"], a["from_truth"]
     t.add_row(
@@ -504,27 +510,42 @@ def _print_truth_score(sc: dict[str, Any]) -> None:
         f"{la['translation_rms_mm_s']:.1f}",
         f"{fa['translation_rms_mm_s']:.1f}",
         f"{a['ratio_translation']:.2f}",
+        mark("action_translation_ratio", "action_translation_abs"),
     )
     t.add_row(
         "rotation RMS (rad/s)",
         f"{la['rotation_rms_rad_s']:.4f}",
         f"{fa['rotation_rms_rad_s']:.4f}",
         f"{a['ratio_rotation']:.2f}",
+        mark("action_rotation_ratio"),
     )
-    t.add_row("command delay (s)", f"{a['learned_delay_s']:.3f}", f"{a['from_truth_delay_s']:.3f}", "")
+    t.add_row("command delay (s)", f"{a['learned_delay_s']:.3f}", f"{a['from_truth_delay_s']:.3f}", "", "")
     t.add_row(
         "range residual RMS (mm)",
         f"{r['learned_residual_rms_mm']:.1f}",
         f"{r['from_truth_residual_rms_mm']:.1f}",
         f"f gap {r['learned_vs_from_truth_rms_mm']:.1f} mm",
+        "",
     )
     t.add_row(
-        "range sigma (mm)", f"{r['sigma_learned_mm']:.1f}", f"{r['sigma_truth_mm']:.1f}", f"{r['sigma_ratio']:.2f}"
+        "range sigma (mm)",
+        f"{r['sigma_learned_mm']:.1f}",
+        f"{r['sigma_truth_mm']:.1f}",
+        f"{r['sigma_ratio']:.2f}",
+        mark("range_sigma"),
     )
     t.add_row(
-        "bearing sigma (rad)", f"{b['sigma_learned_rad']:.4f}", f"{b['sigma_truth_rad']:.4f}", f"{b['sigma_ratio']:.2f}"
+        "bearing sigma (rad)",
+        f"{b['sigma_learned_rad']:.4f}",
+        f"{b['sigma_truth_rad']:.4f}",
+        f"{b['sigma_ratio']:.2f}",
+        mark("bearing_sigma"),
     )
     console.print(t)
+    console.print(
+        "bar: an action RMS at most 1.5 times From-Truth's (translation at most 50 mm/s), a sigma within a"
+        " factor of 1.5 of the truth's (docs/em-real.md)"
+    )
     n = sc.get("truth_noise")
     if n:
         console.print(
@@ -561,10 +582,12 @@ def _evaluate_em(lf: Any, model: Any) -> dict[str, Any] | None:
     gt = lf.groundtruth
     if gt is not None and lf.data.is_continuous and {"x_mm", "y_mm", "theta_rad"} <= set(gt):
         from sensact.evaluate.landmark_truth import score_against_truth
+        from sensact.experiments.real import bar_checks
 
         poses = np.column_stack([gt["x_mm"], gt["y_mm"], gt["theta_rad"]])
         valid = gt["valid"] > 0.5 if "valid" in gt else np.ones(len(poses), dtype=bool)
         sc = score_against_truth(model, lf.data, poses, valid)
+        sc["bars"] = bar_checks(sc)
         _print_truth_score(sc)
         return sc
     truth = lf.meta.get("truth")
@@ -705,6 +728,7 @@ def evaluate_mrclam_cmd(
 
     from sensact.errors import ModelFormatError
     from sensact.evaluate.landmark_truth import score_against_truth
+    from sensact.experiments.real import bar_checks
     from sensact.io.atomic import write_json
     from sensact.io.mrclam import read_mrclam
     from sensact.models.em_model import EMModel
@@ -715,6 +739,7 @@ def evaluate_mrclam_cmd(
     m = EMModel.from_dict(doc.get("model", doc), source=str(model))
     ml = read_mrclam(dataset, robot, dt_s=float(doc.get("dt_s", 1.0 / 30.0)))
     sc = score_against_truth(m, ml.data, *ml.truth_poses())
+    sc["bars"] = bar_checks(sc)
     _print_truth_score(sc)
     if out is not None:
         write_json(out, sc)
