@@ -496,7 +496,7 @@ def _print_truth_score(sc: dict[str, Any]) -> None:
     from sensact.report.tables import shared_by_motion
 
     a, r, b = sc["action"], sc["range"], sc["bearing"]
-    bars = sc.get("bars") or bar_checks(sc)
+    bars = bar_checks(sc)
 
     def mark(*keys: str) -> str:
         return "pass" if all(bars[k] for k in keys) else "[bold red]miss[/]"

@@ -18,6 +18,19 @@ from sensact.models.polynomial import Polynomial1D
 from sensact.report.figures1d import _save
 
 
+def _truth_at_sensor(ml: Any, score: dict[str, Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The sightings with valid truth (a mask), Vicon's pose moved to the sensor mount the score fitted
+    at each, and each one's landmark: what the sensor bars score against."""
+    from sensact.evaluate.landmark_truth import at_sensor
+
+    d = ml.data
+    poses, valid = ml.truth_poses()
+    ok = valid[d.obs_step] > 0
+    m = score.get("sensor_mount", {})
+    mount = [m.get("lateral_mm", 0.0), m.get("forward_mm", 0.0), m.get("yaw_rad", 0.0)]
+    return ok, at_sensor(poses[d.obs_step[ok]], mount), d.landmarks_xy[d.obs_landmark[ok]]
+
+
 def figure_action_curves(ml: Any, res: Any, score: dict[str, Any], path: Path, title: str) -> Path:
     """Forward speed against commanded v (omega = 0) and turn rate against commanded omega (v at its
     median), learned and From-Truth, over the commands the robot used."""
@@ -48,14 +61,9 @@ def figure_range_function(ml: Any, res: Any, score: dict[str, Any], path: Path, 
     """Readings against the Vicon distance, with the learned and From-Truth range functions. With bearing
     terms the readings are shown with the learned terms taken out, ``reading - d g(b)``, so that they
     scatter about f(d)."""
-    from sensact.evaluate.landmark_truth import at_sensor
-
     d = ml.data
-    poses, valid = ml.truth_poses()
-    poses, ok = poses[d.obs_step], valid[d.obs_step]
-    m = score.get("sensor_mount", {})
-    mount = [m.get("lateral_mm", 0.0), m.get("forward_mm", 0.0), m.get("yaw_rad", 0.0)]
-    dist = landmark_distance(at_sensor(poses[ok], mount), d.landmarks_xy[d.obs_landmark[ok]])
+    ok, sensor_poses, lm = _truth_at_sensor(ml, score)
+    dist = landmark_distance(sensor_poses, lm)
     chan = res.model.sensor.channels[0]
     reading = d.obs_readings[ok, 0] - dist * chan.bearing_gain(d.obs_bearing_rad[ok])
     f = chan.function
@@ -116,17 +124,13 @@ def bearing_residuals(ml: Any, res: Any, score: dict[str, Any]) -> tuple[np.ndar
     sightings whose bearing the E-step used."""
     from sensact.core.angles import wrap
     from sensact.core.pose_models import landmark_bearing
-    from sensact.evaluate.landmark_truth import at_sensor
 
     d, post = ml.data, res.posteriors
-    poses, valid = ml.truth_poses()
-    ok = valid[d.obs_step] > 0
-    m = score.get("sensor_mount", {})
-    mount = [m.get("lateral_mm", 0.0), m.get("forward_mm", 0.0), m.get("yaw_rad", 0.0)]
-    lm = d.landmarks_xy[d.obs_landmark]
-    truth = wrap(d.obs_bearing_rad[ok] - landmark_bearing(at_sensor(poses[d.obs_step[ok]], mount), lm[ok]))
+    ok, sensor_poses, lm = _truth_at_sensor(ml, score)
+    truth = wrap(d.obs_bearing_rad[ok] - landmark_bearing(sensor_poses, lm))
     used = post.obs_used & (post.weights[:, -1] > 0)
-    em = wrap(d.obs_bearing_rad[used] - landmark_bearing(post.mean_gamma[d.obs_step[used]], lm[used]))
+    lm_used = d.landmarks_xy[d.obs_landmark[used]]
+    em = wrap(d.obs_bearing_rad[used] - landmark_bearing(post.mean_gamma[d.obs_step[used]], lm_used))
     return truth, em
 
 
