@@ -11,6 +11,8 @@ import numpy as np
 import pytest
 
 from sensact import cli
+from sensact.cli.base import console
+from sensact.cli.scores import print_truth_score
 from sensact.config import config_from_dict
 from sensact.core.pose_models import apply_displacement, landmark_bearing, landmark_distance
 from sensact.learn.em import EMConfig, e_step, fit_em, initial_model
@@ -913,8 +915,8 @@ def test_truth_residuals_are_taken_at_the_sensor():
     plain = score_against_truth(model, data, poses, valid, fit_mount=False)
     assert plain["bearing"]["sigma_truth_rad"] == plain["bearing"]["truth_origin_sigma_rad"]
     assert plain["sensor_mount"] == {"lateral_mm": 0.0, "forward_mm": 0.0, "yaw_rad": 0.0}
-    with cli.console.capture() as out:  # what `learn em` and `evaluate mrclam` print of it
-        cli._print_truth_score(sc)
+    with console.capture() as out:  # what `learn em` and `evaluate mrclam` print of it
+        print_truth_score(sc)
     assert f"sensor pose on the robot, fitted to the truth: {m['forward_mm']:.0f} mm forward" in out.get()
     # the learned Sigma_m's translational random walk over the 30-step windows, beside the truth's miss
     n = sc["truth_noise"]

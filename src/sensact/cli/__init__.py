@@ -1,0 +1,11 @@
+"""The ``sensact`` command (typer), one module per command group; the only place that configures logging
+or draws progress bars.
+
+Heavy modules (numba kernels, matplotlib) are imported inside the commands so that ``sensact --help``
+stays instant.
+"""
+
+from sensact.cli import datasets, learn, reproduce, simulate  # noqa: F401  (each registers its commands)
+from sensact.cli.base import app, main
+
+__all__ = ["app", "main"]

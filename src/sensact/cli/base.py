@@ -1,0 +1,158 @@
+"""The ``sensact`` Typer app, its command groups, and what every command shares: the consoles, bad input
+as one line and exit code 2, progress bars, result tables, and the layering of defaults, ``--config``
+and ``--set``."""
+
+from __future__ import annotations
+
+import functools
+import logging
+import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Annotated, Any, TypeVar
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from sensact.errors import SensactError
+
+app = typer.Typer(
+    name="sensact",
+    help="Learn a mobile robot's action and sensor models from its own logs, with no ground truth "
+    "(Stronger 2008). Start with `sensact reproduce`; see docs/commands.md.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+simulate_app = typer.Typer(help="Write a simulated log folder (with its ground truth).", no_args_is_help=True)
+learn_app = typer.Typer(help="Learn models from a log.", no_args_is_help=True)
+app.add_typer(simulate_app, name="simulate")
+app.add_typer(learn_app, name="learn")
+convert_app = typer.Typer(help="Turn a dataset into a sensact log folder.", no_args_is_help=True)
+evaluate_app = typer.Typer(help="Score a learned model against a dataset's ground truth.", no_args_is_help=True)
+app.add_typer(convert_app, name="convert")
+app.add_typer(evaluate_app, name="evaluate")
+
+# rich falls back to 80 columns when output is not a terminal; the result tables need more
+console = Console(width=None if sys.stdout.isatty() else 160)
+err_console = Console(stderr=True, width=None if sys.stderr.isatty() else 160)
+_state = {"debug": False}
+F = TypeVar("F", bound=Callable[..., Any])
+
+SetOpt = Annotated[
+    list[str] | None, typer.Option("--set", help="Override a config field: --set name=value (repeatable).")
+]
+ConfigOpt = Annotated[Path | None, typer.Option("--config", help="YAML file of config fields.")]
+
+
+def friendly(fn: F) -> F:
+    """Bad input becomes one line and exit code 2; ``--debug`` shows the traceback instead."""
+
+    @functools.wraps(fn)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return fn(*args, **kwargs)
+        except SensactError as exc:
+            if _state["debug"]:
+                raise
+            err_console.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
+            raise typer.Exit(2) from None
+        except KeyboardInterrupt:
+            err_console.print("interrupted; files already written are complete (atomic writes).")
+            raise typer.Exit(130) from None
+
+    return wrapper  # type: ignore[return-value]
+
+
+@app.callback()
+def _main(
+    debug: Annotated[bool, typer.Option("--debug", help="Show full tracebacks.")] = False,
+    verbose: Annotated[bool, typer.Option("--verbose", "-v", help="Log library messages.")] = False,
+) -> None:
+    _state["debug"] = debug
+    logging.basicConfig(level=logging.DEBUG if verbose else logging.WARNING, format="%(name)s: %(message)s")
+
+
+@contextmanager
+def progress_bar() -> Iterator[Callable[[str, int, int], None]]:
+    """A rich progress bar fed by the library's ``progress(description, done, total)`` callbacks."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    tasks: dict[str, Any] = {}
+    with Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=err_console,
+        transient=False,
+        disable=not err_console.is_terminal,
+    ) as bar:
+
+        def update(desc: str, done: int, total: int) -> None:
+            if desc not in tasks:
+                tasks[desc] = bar.add_task(desc, total=total)
+            bar.update(tasks[desc], completed=done, total=total)
+
+        yield update
+
+
+def print_tables(tables: list[tuple[str, list[str], list[list[str]]]]) -> None:
+    for title, headers, rows in tables:
+        t = Table(title=title, title_justify="left")
+        for h in headers:
+            t.add_column(h)
+        for r in rows:
+            t.add_row(*r)
+        console.print(t)
+
+
+def write_results(out: Path, name: str, res: dict[str, Any], tables: list[Any]) -> None:
+    """``out/<name>.json`` and ``out/<name>.md``, and the tables on the console."""
+    from sensact.io.atomic import write_json, write_text
+    from sensact.report.tables import to_markdown
+
+    out.mkdir(parents=True, exist_ok=True)
+    write_json(out / f"{name}.json", res)
+    write_text(out / f"{name}.md", to_markdown(tables))
+    print_tables(tables)
+
+
+def layered_config(cls: type, config: Path | None, sets: list[str] | None, base: Any = None, **flags: Any) -> Any:
+    """``base`` or defaults < ``--config`` YAML < ``--set`` < explicit flags."""
+    import dataclasses
+
+    from sensact.config import build_config
+
+    cfg = build_config(cls, config, sets or [], base=base)
+    flags = {k: v for k, v in flags.items() if v is not None}
+    return dataclasses.replace(cfg, **flags) if flags else cfg
+
+
+def split_fields(set_: list[str] | None, config: Path | None, learner_cls: type) -> tuple[dict, dict]:
+    """--set / --config fields go to the learner or the simulator, whichever has the field."""
+    from sensact.config import load_yaml_mapping, parse_overrides
+
+    fields = {**(load_yaml_mapping(config) if config else {}), **parse_overrides(set_ or [])}
+    learner = {k: v for k, v in fields.items() if k in learner_cls.__dataclass_fields__}
+    return learner, {k: v for k, v in fields.items() if k not in learner}
+
+
+def merged(cls: type, base: Any, fields: dict[str, Any]) -> Any:
+    """``base`` with the given fields replaced, validated like any config."""
+    from sensact.config import config_from_dict, config_to_dict
+
+    return config_from_dict(cls, {**config_to_dict(base), **fields}, source="--set/--config") if fields else base
+
+
+def main() -> None:
+    """Console-script entry point."""
+    try:
+        app()
+    except SensactError as exc:  # raised outside a command, e.g. while parsing
+        if _state["debug"]:
+            raise
+        err_console.print(f"error: {exc}")
+        sys.exit(2)

@@ -1,0 +1,258 @@
+"""``sensact learn``: bootstrap (ch. 3), em (ch. 4) and car (ch. 5) on a log."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from sensact.cli.base import ConfigOpt, SetOpt, console, friendly, layered_config, learn_app, progress_bar
+from sensact.cli.scores import evaluate_em, evaluate_log, evaluate_turtlebot_em, print_em_model
+
+
+@learn_app.command("bootstrap")
+@friendly
+def learn_bootstrap_cmd(
+    log: Annotated[Path, typer.Argument(help="A log folder, or a Turtlebot CSV file.")],
+    a0: Annotated[str | None, typer.Option(help="Starting action model: linear, sign or constant.")] = None,
+    sensor: Annotated[
+        str | None, typer.Option(help="Observation column (default: the log's own; sonar1 for a Turtlebot CSV).")
+    ] = None,
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", help="Write the learned models here (JSON) and the history beside it (.npz)."),
+    ] = None,
+    set_: SetOpt = None,
+    config: ConfigOpt = None,
+) -> None:
+    """Learn S(o) and A(c) from each other with Algorithm 1 (sec. 3.2.3). Prints the polynomials, and
+    the scaled errors when the log carries ground truth."""
+    from sensact.errors import ConfigError
+    from sensact.io.atomic import write_json, write_npz
+    from sensact.io.logfolder import read_track_log
+    from sensact.learn.bootstrap import BootstrapConfig, learn_bootstrap
+
+    if a0 is not None and a0 not in ("linear", "sign", "constant"):
+        raise ConfigError(f"unknown starting model {a0!r}.", field="--a0", fix="use linear, sign or constant.")
+    data = read_track_log(log, sensor=sensor)
+    base = None
+    if data.meta.get("platform") == "turtlebot1d":
+        from sensact.experiments.turtlebot import learner_for
+
+        base = learner_for(data.observation_name)
+        console.print(
+            "Turtlebot log: starting from the turtlebot settings (docs/bootstrap.md); --config and --set override them."
+        )
+    cfg = layered_config(BootstrapConfig, config, set_, base=base, a0=a0)
+    console.print(
+        f"{data.source}: {len(data.times_s)} steps over {data.duration_s:.1f} s, "
+        f"{data.n_observations} observations of {data.observation_name}"
+    )
+    with progress_bar() as progress:
+        res = learn_bootstrap(
+            data.times_s,
+            data.commands,
+            data.observations,
+            cfg,
+            units=(data.command_unit, data.observation_unit, "w"),
+            progress=lambda d, n: progress("Algorithm 1", d, n),
+        )
+    console.print(
+        f"status: [bold]{res.status}[/]"
+        + (f" at {res.diverged_at_s:.1f} s" if res.diverged_at_s else "")
+        + (f"; {res.n_gated} observations gated as outliers" if res.n_gated else "")
+    )
+    console.print("  " + res.sensor.describe("S"))
+    console.print("  " + res.action.describe("A"))
+    evaluation = evaluate_log(data, res, cfg)
+    if out is not None:
+        payload = {**res.to_dict(), "log": data.source, "evaluation": evaluation}
+        write_json(out, payload)
+        assert res.history is not None
+        write_npz(out.with_suffix(".history.npz"), **res.history.arrays())
+        console.print(f"wrote {out} and {out.with_suffix('.history.npz')}")
+
+
+@learn_app.command("em")
+@friendly
+def learn_em_cmd(
+    log: Annotated[Path, typer.Argument(help="A log folder (planar or a 1-D track), or a Turtlebot CSV file.")],
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", help="Write the learned model here (JSON) and the learning history beside it (.npz)."),
+    ] = None,
+    bins: Annotated[int, typer.Option(help="Actions to bin continuous 1-D commands into.")] = 21,
+    set_: SetOpt = None,
+    config: ConfigOpt = None,
+) -> None:
+    """Learn the action model, sensor functions f and noise sigmas by EM (ch. 4). Ctrl-C stops early and
+    still writes the most likely model so far."""
+    from sensact.io.atomic import write_json, write_npz
+    from sensact.io.landmark_log import read_landmark_log
+    from sensact.learn.em import EMConfig, fit_em, initial_model
+
+    lf, turtlebot_truth = None, None
+    if log.is_file() and log.suffix.lower() == ".csv":
+        from sensact.experiments.turtlebot_em import turtlebot_em_config
+        from sensact.io.turtlebot import read_turtlebot_landmark_log
+
+        data, turtlebot_truth = read_turtlebot_landmark_log(log)
+        cfg = layered_config(EMConfig, config, set_, base=turtlebot_em_config())
+        console.print(
+            "Turtlebot CSV: starting from the Turtlebot's EM settings (docs/em-real.md); --config and --set "
+            "override them."
+        )
+    else:
+        if log.is_file():
+            from sensact.errors import LogFormatError
+
+            raise LogFormatError(
+                "EM reads a log folder or a Turtlebot CSV file.",
+                file=log,
+                fix="give a folder with meta.json, actions.csv and observations.csv (sensact convert mrclam "
+                "writes one), or a .csv with the Turtlebot's columns.",
+            )
+        cfg = layered_config(EMConfig, config, set_)
+        lf = read_landmark_log(log, command_bins=bins)
+        data = lf.data
+    console.print(
+        f"{data.source}: {data.geometry} log, {data.n_steps} steps of {data.dt_s:.4g} s, "
+        f"{data.n_observations} observations, "
+        + (
+            f"continuous commands ({', '.join(data.command_names)})"
+            if data.is_continuous
+            else f"{data.n_actions} actions"
+        )
+        + (f" ({lf.note})" if lf is not None and lf.note else "")
+    )
+    start = initial_model(data, cfg)
+    if cfg.start_search_s > 0 and data.geometry == "planar":
+        console.print(
+            f"finding the start pose: a {cfg.start_search_grid_mm:g} mm grid scored on the first "
+            f"{cfg.start_search_s:g} s, then EM from its {cfg.start_candidates} best, the better half kept every "
+            f"{cfg.start_trial_iterations} iterations (no bar until one is left)"
+        )
+    with progress_bar() as progress:
+        res = fit_em(
+            data,
+            start,
+            cfg,
+            progress=lambda it, ll, best, since: progress(
+                f"EM: log-likelihood {ll:.1f} (best {best:.1f}, {since} since)", it + 1, cfg.max_iterations
+            ),
+        )
+    m = res.model
+    console.print(
+        f"stopped: [bold]{res.stop_reason}[/] after {res.iterations} iterations ({res.seconds:.1f} s); "
+        f"best log-likelihood {res.loglik_best:.1f} at iteration {res.best_iteration}"
+        + (f"; {res.n_pruned} observations pruned" if res.n_pruned else "")
+    )
+    if res.start_search:
+        x, y, th = res.start_search["prior_mean"]
+        race = res.start_search.get("race")
+        which = f" (candidate {race['winner']} of {len(race['rounds'][0])} won the race)" if race else ""
+        console.print(f"start pose chosen: x {x:.0f} mm, y {y:.0f} mm, heading {th:.3f} rad{which}")
+    for r in res.ridge or []:
+        console.print(
+            f"ridge search at iteration {r['iteration']}: path and f moved {r['shift_mm']:+.0f} mm forward, "
+            f"log-likelihood {r['loglik_before']:.1f} -> {r['loglik_after']:.1f} ({r['e_steps']} E-steps)"
+        )
+    for r in res.delay_search or []:
+        console.print(
+            f"delay search at iteration {r['iteration']}: command delay {r['delay_from']} -> {r['delay_to']} steps, "
+            f"log-likelihood {r['loglik_before']:.1f} -> {r['loglik_after']:.1f} ({r['e_steps']} E-steps)"
+        )
+    print_em_model(m)
+    evaluation = evaluate_em(lf, m) if lf is not None else evaluate_turtlebot_em(res, data, turtlebot_truth)
+    if out is not None:
+        write_json(
+            out,
+            {
+                "model": m.to_dict(),
+                "summary": res.summary(),
+                "log": data.source,
+                "dt_s": data.dt_s,
+                "evaluation": evaluation,
+            },
+        )
+        write_npz(
+            out.with_suffix(".history.npz"),
+            loglik=res.loglik_history,
+            velocities=res.velocity_history,
+            sigmas=res.sigma_history,
+        )
+        written = [out, out.with_suffix(".history.npz")]
+        if res.posteriors is not None:
+            from sensact.report.figures_fit import figure_em_fit
+
+            written.append(figure_em_fit(res, data, out.with_suffix(".png"), f"EM on {Path(data.source).name}"))
+        console.print("wrote " + ", ".join(str(p) for p in written))
+
+
+@learn_app.command("car")
+@friendly
+def learn_car_cmd(
+    log: Annotated[Path, typer.Argument(help="A car log folder (velodyne.pcap, actions.csv, meta.json).")],
+    out: Annotated[Path | None, typer.Option("--out", help="Write the learned models here (JSON).")] = None,
+    calibration_yaml: Annotated[
+        Path | None,
+        typer.Option("--calibration-yaml", help="Also write the learned angles as a ROS velodyne calibration."),
+    ] = None,
+    set_: SetOpt = None,
+    config: ConfigOpt = None,
+) -> None:
+    """Learn the lidar's laser angles, the scan-matching odometry and the car dynamics (Algorithm 3)."""
+    import numpy as np
+
+    from sensact.config import config_to_dict
+    from sensact.experiments.car import learn_from_log
+    from sensact.io.atomic import write_json
+    from sensact.io.car_log import read_car_log
+    from sensact.io.velodyne_calibration import write_calibration
+    from sensact.learn.car_dynamics import CarLearningConfig
+    from sensact.models.laser_intrinsics import LaserIntrinsics
+
+    cfg = layered_config(CarLearningConfig, config, set_)
+    data = read_car_log(log)
+    console.print(
+        f"{log}: {data.distance_m.shape[0]} firings of {data.distance_m.shape[1]} lasers "
+        f"({data.distance_m.shape[0] / data.firing_hz:.1f} s), {len(data.actions)} action rows"
+    )
+    with progress_bar() as progress:
+        res = learn_from_log(data, cfg, progress)
+    m = res.model
+    console.print(f"converged after {res.iterations} iterations; C = {np.degrees(res.offset_rad):.3f}°")
+    console.print(f"  a = {m.C5:.4g} + {m.C6:.4g} g + {m.C7:.4g} v + {m.C8:.4g} v b   (eq. 5.3)")
+    console.print(f"  omega = {m.C9:.4g} v + {m.C10:.4g} v s   (eq. 5.4)")
+    evaluation = None
+    if "truth" in data.meta and data.groundtruth is not None:
+        from sensact.experiments.car import evaluate_run
+
+        evaluation, _ = evaluate_run(data.meta["truth"], data.groundtruth, res, cfg.odometry.dt_s)
+        console.print(
+            f"vs truth: laser angles {evaluation['laser_angle_rms_deg']:.3f}° RMS; accel "
+            f"{evaluation['accel_rms']:.3f} m/s² (from truth {evaluation['accel_rms_from_truth']:.3f}), forward "
+            f"velocity {evaluation['fwd_vel_rms']:.3f} m/s ({evaluation['fwd_vel_rms_from_truth']:.3f}), angular "
+            f"velocity {evaluation['ang_vel_rms']:.4f} rad/s ({evaluation['ang_vel_rms_from_truth']:.4f})"
+        )
+    if out is not None:
+        write_json(
+            out,
+            {
+                "laser_angles_deg": np.degrees(res.laser_angles_rad).tolist(),
+                "offset_C_deg": float(np.degrees(res.offset_rad)),
+                "car_dynamics": m.to_dict(),
+                "iterations": res.iterations,
+                "history": res.history,
+                "seconds_by_stage": res.seconds_by_stage,
+                "config": config_to_dict(cfg),
+                "evaluation": evaluation,
+            },
+        )
+        console.print(f"wrote {out}")
+    if calibration_yaml is not None:
+        # ROS's driver puts a point at azimuth (rotation - rot_correction) clockwise from forward, which is
+        # eq. 2.35 with theta_b = 90°: rot_correction = theta_hat_l - 90° puts points in the car's frame
+        write_calibration(calibration_yaml, LaserIntrinsics(data.vertical_rad, res.laser_angles_rad - np.pi / 2))
+        console.print(f"wrote {calibration_yaml} (rot_correction = learned angle - 90°)")

@@ -1,0 +1,318 @@
+"""``sensact reproduce``: the thesis's experiments and the real-data runs, each writing
+RESULTS/<experiment>.json, a Markdown table and figures."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from sensact.cli.base import (
+    ConfigOpt,
+    SetOpt,
+    app,
+    console,
+    friendly,
+    merged,
+    progress_bar,
+    split_fields,
+    write_results,
+)
+from sensact.errors import SensactError
+
+EXPERIMENTS = ("track1d", "turtlebot", "field2d", "em1d", "car", "real")
+
+
+def _data_dir(data: Path | None) -> Path:
+    from sensact.experiments.shared_data import data_root
+
+    return data if data is not None else data_root()
+
+
+@app.command()
+@friendly
+def reproduce(
+    experiment: Annotated[str | None, typer.Argument(help=f"One of {', '.join(EXPERIMENTS)}; default: all.")] = None,
+    out: Annotated[Path, typer.Option("--out", help="Results folder.")] = Path("results"),
+    trials: Annotated[
+        int | None,
+        typer.Option(help="Trials: per Table 3.1 row (default 15) or field2d seeds (default 5)."),
+    ] = None,
+    seed: Annotated[int, typer.Option(help="Seed of the first trial.")] = 0,
+    data: Annotated[
+        Path | None, typer.Option(help="Real-data folder (default $SENSACT_DATA or ../shared/data).")
+    ] = None,
+    set_: SetOpt = None,
+    config: ConfigOpt = None,
+    truth_restart: Annotated[
+        bool,
+        typer.Option(
+            "--truth-restart",
+            help="real: also run each MRCLAM robot's EM again from the truth's range function and start pose "
+            "(a local-optimum check; about doubles the time).",
+        ),
+    ] = False,
+) -> None:
+    """Run the thesis's experiments and write RESULTS/<experiment>.json, tables and figures."""
+    from sensact.errors import ConfigError
+
+    if experiment is not None and experiment not in EXPERIMENTS:
+        raise ConfigError(
+            f"unknown experiment {experiment!r}.",
+            field="EXPERIMENT",
+            fix=f"choose one of {', '.join(EXPERIMENTS)}, or none for all.",
+        )
+    todo = [experiment] if experiment else list(EXPERIMENTS)
+    if "track1d" in todo:
+        _reproduce_track1d(out, trials or 15, seed, set_, config)
+    if "turtlebot" in todo:
+        csv = _data_dir(data) / "turtlebot1d" / "training1.csv"
+        if not csv.is_file():
+            if experiment == "turtlebot":
+                raise SensactError(
+                    "Turtlebot data not found.",
+                    file=csv,
+                    fix="pass --data DIR (the folder holding turtlebot1d/) or set SENSACT_DATA.",
+                )
+            console.print(f"skipping turtlebot: {csv} not found (pass --data DIR to include it)")
+        else:
+            _reproduce_turtlebot(out, csv)
+    if "field2d" in todo:
+        _reproduce_field2d(out, trials or 5, seed, set_, config)
+    if "em1d" in todo:
+        _reproduce_em1d(out, seed, set_, config)
+    if "car" in todo:
+        _reproduce_car(out, seed, set_, config)
+    if "real" in todo:
+        _reproduce_real(out, _data_dir(data), experiment == "real", set_, config, truth_restart)
+
+
+def _reproduce_real(
+    out: Path, root: Path, required: bool, set_: list[str] | None, config: Path | None, truth_restart: bool = False
+) -> None:
+    """MRCLAM's EM settings are ``mrclam_config()``, changed by the EM fields of ``--config``/``--set``
+    (e.g. ``--set motion_noise=turning``); the Turtlebot's are fixed. ``truth_restart``: see
+    ``experiments.real.restart_from_truth``."""
+    from sensact.errors import ConfigError
+    from sensact.experiments.real import mrclam_config, run_real
+    from sensact.learn.em import EMConfig
+    from sensact.report import figures_real
+    from sensact.report.tables import real_tables
+
+    learner_f, other = split_fields(set_, config, EMConfig)
+    if required and other:
+        raise ConfigError(
+            f"{', '.join(sorted(other))} is not an EM setting.",
+            field="--set/--config",
+            fix="give fields of the EM config (docs/em-real.md), e.g. --set motion_noise=turning.",
+        )
+    cfg = merged(EMConfig, mrclam_config(), learner_f)
+
+    if not root.is_dir():
+        if required:
+            raise SensactError(
+                "real-data folder not found.", file=root, fix="pass --data DIR (holding mrclam/ and turtlebot1d/)."
+            )
+        console.print(f"skipping real: {root} not found (pass --data DIR to include it)")
+        return
+    with console.status("EM on real robots") as status:
+        res, art = run_real(
+            root,
+            progress=lambda msg: status.update(f"EM on real robots: {msg}"),
+            config=cfg,
+            truth_restart=truth_restart,
+        )
+    for line in res["skipped"]:
+        console.print(f"skipped {line}")
+    write_results(out, "real", res, real_tables(res))
+    figures_real.write_all(art, res, out)
+
+
+def _reproduce_car(out: Path, seed: int, set_: list[str] | None, config: Path | None) -> None:
+    import numpy as np
+
+    from sensact.experiments.car import CarExperiment, run_car
+    from sensact.learn.car_dynamics import CarLearningConfig
+    from sensact.report import figures_car
+    from sensact.report.tables import car_tables
+    from sensact.sim.car import CarConfig
+
+    learner_f, sim_f = split_fields(set_, config, CarLearningConfig)
+    base = CarExperiment()
+    exp = CarExperiment(
+        simulator=merged(CarConfig, base.simulator, {**sim_f, "seed": seed}),
+        learner=merged(CarLearningConfig, base.learner, learner_f),
+    )
+    with progress_bar() as progress:
+        res, art = run_car(exp, out / "car_log", progress)
+    write_results(out, "car", res, car_tables(res))
+    log, r = art["log"], art["result"]
+    figures_car.figure_5_2(log, r.intrinsics.relative_rad, 40.0, 0.5, out / "fig5_2_scans.png")
+    figures_car.figure_5_3(
+        r.laser_angles_rad,
+        np.asarray(log.meta["truth"]["laser_angles_rad"]),
+        log.vertical_rad,
+        out / "fig5_3_laser_angles.png",
+    )
+    K = len(r.actions) - 1
+    pred = r.model.predict(r.actions[:K], r.speed_m_s[0], exp.learner.odometry.dt_s)
+    v, w, a = art["truth"]
+    t = r.interval_times_s[:K]
+    figures_car.figure_5_4_5(t, (v[:K], w[:K], a[:K]), pred, out / "fig5_4_5_dynamics.png", (85.0, 110.0))
+    ok = res["bars_cleared"]
+    console.print(
+        f"bars cleared: {', '.join(f'{k} {v}' for k, v in ok.items())}; wrote {out / 'car.json'}, "
+        f"{out / 'car.md'}, figures and the log in {out / 'car_log'} ({res['seconds']:.1f} s)"
+    )
+
+
+def _reproduce_field2d(out: Path, trials: int, seed: int, set_: list[str] | None, config: Path | None) -> None:
+    from sensact.config import config_from_dict
+    from sensact.experiments.field2d import Field2DExperiment, run_field2d, velocity_rms_history
+    from sensact.io.atomic import write_npz
+    from sensact.learn.em import EMConfig
+    from sensact.report import figures_em
+    from sensact.report.tables import field2d_tables
+    from sensact.sim.field2d import Field2DConfig
+
+    base = Field2DExperiment()
+    learner_f, sim_f = split_fields(set_, config, EMConfig)
+    exp = Field2DExperiment(
+        trials=trials,
+        seed=seed,
+        simulator=config_from_dict(Field2DConfig, sim_f, source="--set/--config"),
+        learner=merged(EMConfig, base.learner, learner_f),
+    )
+    with progress_bar() as progress:
+        res, art = run_field2d(exp, progress)
+    write_results(out, "field2d", res, field2d_tables(res))
+    first = art["trials"][0]
+    vr = velocity_rms_history(first)
+    figures_em.figure_learning_curve(
+        first, vr, out / "fig4_4_field2d_learning.png", f"simulation, seed {first.run.config.seed}", res["thesis"]
+    )
+    from sensact.learn.em.fit import starting_height
+
+    f0 = starting_height(first.result.config)
+    figures_em.figure_sensor(
+        f0,
+        first.result.model.sensor.height,
+        first.run.config.height_px,
+        out / "fig4_5_field2d_sensor.png",
+        "sensor model f (simulation)",
+    )
+    arrays = {"loglik": first.result.loglik_history, "velocity_rms": vr}
+    if "real" in art:
+        real = art["real"]
+        figures_em.figure_learning_curve(real, None, out / "fig4_2_real_robot_learning.png", "real-robot setting")
+        figures_em.figure_sensor(
+            f0,
+            real.result.model.sensor.height,
+            real.run.config.height_px,
+            out / "fig4_3_real_robot_sensor.png",
+            "sensor model f (real-robot setting)",
+        )
+        arrays["real_loglik"] = real.result.loglik_history
+    write_npz(out / "field2d_curves.npz", **arrays)
+    o = res["ours"]
+    console.print(
+        f"bars (v_x <= 23.06, v_y <= 18.34 mm/s, v_theta <= 0.086 rad/s, sigmas within 5 %) cleared in every trial: "
+        f"[bold]{o['clears_bars_every_trial']}[/]"
+    )
+    console.print(f"wrote {out / 'field2d.json'}, {out / 'field2d.md'} and figures in {out} ({res['seconds']:.1f} s)")
+
+
+def _reproduce_em1d(out: Path, seed: int, set_: list[str] | None, config: Path | None) -> None:
+    from sensact.experiments.em1d import EM1D_TRACK, EM1DExperiment, run_em1d
+    from sensact.learn.em import EMConfig
+    from sensact.report import figures_em
+    from sensact.report.tables import em1d_tables
+    from sensact.sim.track1d import Track1DConfig
+
+    base = EM1DExperiment()
+    learner_f, sim_f = split_fields(set_, config, EMConfig)
+    exp = EM1DExperiment(
+        seed=seed,
+        simulator=merged(Track1DConfig, EM1D_TRACK, sim_f),
+        learner=merged(EMConfig, base.learner, learner_f),
+    )
+    with progress_bar() as progress:
+        res, art = run_em1d(exp, progress)
+    write_results(out, "em1d", res, em1d_tables(res))
+    sim = art["simulator"]
+    levels = sim.levels_mm_s() / sim.command_max_mm_s
+    h = art["halves"]
+    figures_em.figure_track(
+        h["before"].result.model,
+        h["before"].true_velocities,
+        sim.truth().height_px,
+        levels,
+        out / "fig4_6_em1d_learned.png",
+        "before the change",
+    )
+    figures_em.figure_track(
+        h["after"].result.model,
+        h["after"].true_velocities,
+        sim.truth().height_px,
+        levels,
+        out / "fig4_7_em1d_relearned.png",
+        "after the change",
+        stale=h["before"].result.model,
+    )
+    console.print(
+        f"relearned models beat the stale ones: [bold]{res['ours']['relearning_beats_stale']}[/]; "
+        f"wrote {out / 'em1d.json'}, {out / 'em1d.md'} and figures in {out} ({res['seconds']:.1f} s)"
+    )
+
+
+def _reproduce_track1d(out: Path, trials: int, seed: int, set_: list[str] | None, config: Path | None) -> None:
+    from sensact.config import config_from_dict
+    from sensact.experiments.track1d import Track1DExperiment, run_track1d
+    from sensact.io.atomic import write_npz
+    from sensact.learn.bootstrap import BootstrapConfig
+    from sensact.report import figures1d
+    from sensact.report.tables import track1d_tables
+    from sensact.sim.track1d import Track1DConfig
+
+    learner_fields, sim_fields = split_fields(set_, config, BootstrapConfig)
+    exp = Track1DExperiment(
+        trials=trials,
+        degree_trials=trials,
+        seed=seed,
+        learner=config_from_dict(BootstrapConfig, learner_fields, source="--set/--config"),
+        simulator=config_from_dict(Track1DConfig, sim_fields, source="--set/--config"),
+    )
+    with progress_bar() as progress:
+        res, art = run_track1d(exp, progress)
+    write_results(out, "track1d", res, track1d_tables(res))
+    linear = art["trials"].get("linear") or next(iter(art["trials"].values()))
+    figures1d.figure_3_7(linear[0], out / "fig3_7_location_estimates.png")
+    figures1d.figure_3_8(linear[0], out / "fig3_8_learned_vs_measured.png")
+    first = next(iter(res["rows"].values()))
+    figures1d.figure_3_9(
+        art["curves"],
+        {"sensor": first["sensor_best_rms_mm"], "action": first["action_best_rms_mm_s"]},
+        out / "fig3_9_learning_curves.png",
+    )
+    figures1d.figure_degree(art["degree_trials"], out / "fig_degree_selection.png")
+    write_npz(
+        out / "track1d_curves.npz",
+        **{
+            f"{row}_{name}": arr
+            for row, c in art["curves"].items()
+            for name, arr in zip(("t_s", "sensor_rms_mm", "action_rms_mm_s"), c, strict=True)
+        },
+    )
+    console.print(f"wrote {out / 'track1d.json'}, {out / 'track1d.md'} and figures in {out} ({res['seconds']:.1f} s)")
+
+
+def _reproduce_turtlebot(out: Path, csv: Path) -> None:
+    from sensact.experiments.turtlebot import run_turtlebot
+    from sensact.report.figures1d import figure_real
+    from sensact.report.tables import turtlebot_tables
+
+    res, runs = run_turtlebot(csv)
+    write_results(out, "turtlebot", res, turtlebot_tables(res))
+    figure_real(runs, out / "turtlebot_models.png")
+    console.print(f"wrote {out / 'turtlebot.json'} and {out / 'turtlebot_models.png'}")

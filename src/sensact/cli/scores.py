@@ -1,0 +1,223 @@
+"""What ``learn`` and ``evaluate`` print about a learned model: its parameters and its errors against
+the ground truth a log carries (never used for learning)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from rich.table import Table
+
+from sensact.cli.base import console
+
+
+def print_em_model(m: Any) -> None:
+    from sensact.models.action_table import ActionTable
+
+    for ch in m.sensor.channels:
+        console.print(f"  {ch.name}: " + ch.function.describe("f") + f", sigma = {ch.sigma:.4g}")
+    sb = m.sensor.sigma_bearing_rad
+    if sb:
+        console.print(f"  bearing sigma_2 = {sb:.4g} rad")
+    console.print("  Sigma_m (sd per step): " + "; ".join(", ".join(f"{x:.4g}" for x in row) for row in m.motion_sd))
+    if m.turn_var is not None:
+        console.print(f"  heading variance per step grows by {m.turn_var:.4g} rad^2 per rad/s of turning")
+    a = m.action
+    if isinstance(a, ActionTable):
+        t = Table(title="learned velocity of each action", title_justify="left")
+        for name in (*a.command_names, *a.velocity_names):
+            t.add_column(name)
+        for c, v in zip(a.commands, a.velocities, strict=True):
+            t.add_row(*(f"{x:.3g}" for x in c), *(f"{x:.4g}" for x in v))
+    else:
+        from sensact.models.linear_action import feature_names
+
+        t = Table(title=f"learned A(c) = Phi(c) beta ({a.basis}; delay {a.delay_steps} steps)", title_justify="left")
+        t.add_column("feature")
+        for name in a.velocity_names:
+            t.add_column(name)
+        for fname, row in zip(feature_names(a.basis, a.degree, a.command_names), a.coefficients, strict=True):
+            t.add_row(fname, *(f"{x:.4g}" for x in row))
+    console.print(t)
+
+
+def print_truth_score(sc: dict[str, Any]) -> None:
+    from sensact.experiments.real import bar_checks
+    from sensact.report.tables import shared_by_motion
+
+    a, r, b = sc["action"], sc["range"], sc["bearing"]
+    bars = bar_checks(sc)
+
+    def mark(*keys: str) -> str:
+        return "pass" if all(bars[k] for k in keys) else "[bold red]miss[/]"
+
+    t = Table(title=f"against ground truth ({sc['windows_scored']} windows of {sc['window_s']:.2g} s)")
+    for col in ("quantity", "learned", "From-Truth", "ratio", "bar"):
+        t.add_column(col)
+    la, fa = a["learned"], a["from_truth"]
+    t.add_row(
+        "translation RMS (mm/s)",
+        f"{la['translation_rms_mm_s']:.1f}",
+        f"{fa['translation_rms_mm_s']:.1f}",
+        f"{a['ratio_translation']:.2f}",
+        mark("action_translation_ratio", "action_translation_abs"),
+    )
+    t.add_row(
+        "rotation RMS (rad/s)",
+        f"{la['rotation_rms_rad_s']:.4f}",
+        f"{fa['rotation_rms_rad_s']:.4f}",
+        f"{a['ratio_rotation']:.2f}",
+        mark("action_rotation_ratio"),
+    )
+    t.add_row("command delay (s)", f"{a['learned_delay_s']:.3f}", f"{a['from_truth_delay_s']:.3f}", "", "")
+    t.add_row(
+        "range residual RMS (mm)",
+        f"{r['learned_residual_rms_mm']:.1f}",
+        f"{r['from_truth_residual_rms_mm']:.1f}",
+        f"f gap {r['learned_vs_from_truth_rms_mm']:.1f} mm",
+        "",
+    )
+    t.add_row(
+        "range sigma (mm)",
+        f"{r['sigma_learned_mm']:.1f}",
+        f"{r['sigma_truth_mm']:.1f}",
+        f"{r['sigma_ratio']:.2f}",
+        mark("range_sigma"),
+    )
+    t.add_row(
+        "bearing sigma (rad)",
+        f"{b['sigma_learned_rad']:.4f}",
+        f"{b['sigma_truth_rad']:.4f}",
+        f"{b['sigma_ratio']:.2f}",
+        mark("bearing_sigma"),
+    )
+    console.print(t)
+    console.print(
+        "bar: an action RMS at most 1.5 times From-Truth's (translation at most 50 mm/s), a sigma within a"
+        " factor of 1.5 of the truth's (docs/em-real.md)"
+    )
+    n = sc.get("truth_noise")
+    if n:
+        console.print(
+            f"truth's noise: heading drift per {sc['window_s']:.2g} s "
+            f"{n['heading_drift_rms_at_rest_rad']:.4f} rad at rest (Sigma_m: "
+            f"{n['learned_heading_drift_at_rest_rad']:.4f}), "
+            f"{n['heading_drift_rms_turning_rad']:.4f} rad turning at {n['turning_rad_s']:.2f} rad/s (Sigma_m: "
+            f"{n['learned_heading_drift_turning_rad']:.4f}); "
+            f"position missed per {sc['window_s']:.2g} s, sideways / forward "
+            f"{n['translation_drift_rms_mm'][0]:.1f} / {n['translation_drift_rms_mm'][1]:.1f} mm (Sigma_m: "
+            f"{n['learned_translation_drift_mm'][0]:.1f} / {n['learned_translation_drift_mm'][1]:.1f}); "
+            f"bearing residuals of frames 1-5 windows apart correlate at {n['bearing_frame_correlation']:.2f}; "
+            f"a frame's sightings share {n['bearing_frame_shared_fraction']:.0%} of their residual's variance"
+            f"{shared_by_motion(n)}, "
+            f"and vary about their frame's mean by {n['bearing_within_frame_sd_rad']:.4f} rad (docs/em-real.md, "
+            "Known limits)"
+        )
+    m = sc.get("sensor_mount")
+    if m:
+        console.print(
+            f"sensor pose on the robot, fitted to the truth: {m['forward_mm']:.0f} mm forward, "
+            f"{m['lateral_mm']:.0f} mm to the right, yaw {m['yaw_rad']:+.4f} rad (counterclockwise); "
+            f"at the truth's origin instead the bearing residual is {b['truth_origin_sigma_rad']:.4f} rad RMS "
+            f"(mean {b['truth_origin_mean_rad']:+.4f}; learned sigma / it {b['truth_origin_sigma_ratio']:.2f})"
+        )
+    if "bars" in sc:
+        console.print("bars: " + ", ".join(f"{k} {'pass' if v else 'FAIL'}" for k, v in sc["bars"].items()))
+
+
+def evaluate_em(lf: Any, model: Any) -> dict[str, Any] | None:
+    """Errors against the truth a simulated log carries (never used for learning)."""
+    import numpy as np
+
+    gt = lf.groundtruth
+    if gt is not None and lf.data.is_continuous and {"x_mm", "y_mm", "theta_rad"} <= set(gt):
+        from sensact.evaluate.landmark_truth import score_against_truth
+        from sensact.experiments.real import bar_checks
+
+        poses = np.column_stack([gt["x_mm"], gt["y_mm"], gt["theta_rad"]])
+        valid = gt["valid"] > 0.5 if "valid" in gt else np.ones(len(poses), dtype=bool)
+        sc = score_against_truth(model, lf.data, poses, valid)
+        sc["bars"] = bar_checks(sc)
+        print_truth_score(sc)
+        return sc
+    truth = lf.meta.get("truth")
+    if not truth:
+        return None
+
+    if lf.data.geometry == "planar" and "velocities" in truth:
+        from sensact.evaluate.em import score_planar
+        from sensact.sim.track1d import TrackTruth
+
+        s = truth["sensor"]
+        height = TrackTruth(sensor_k_px_mm=s["k_px_mm"], sensor_d0_mm=s["d0_mm"], sensor_h0_px=s["h0_px"]).height_px
+        sc = score_planar(
+            model, np.asarray(truth["velocities"]), height, truth["sigma_height_px"], truth["sigma_bearing_rad"]
+        )
+        console.print(
+            f"vs truth: v_x {sc['vx_rms_mm_s']:.1f} mm/s, v_y {sc['vy_rms_mm_s']:.1f} mm/s, "
+            f"v_theta {sc['vtheta_rms_rad_s']:.3f} rad/s RMS; sigma_1 {sc['sigma1_error_pct']:.1f} % off, "
+            f"sigma_2 {sc['sigma2_error_pct']:.1f} % off; f {sc['sensor_rms_px']:.2f} px RMS"
+        )
+        return sc
+    if lf.data.geometry == "track" and "action" in truth:
+        from sensact.evaluate.em import score_track
+        from sensact.evaluate.track1d import DISTANCE_GRID_MM
+        from sensact.sim.track1d import TrackTruth
+
+        tt = TrackTruth.from_dict(truth)
+        sc = score_track(model, tt.velocity_mm_s(lf.data.action_commands[:, 0]), tt.height_px, DISTANCE_GRID_MM)
+        console.print(
+            f"vs truth (optimal scale): sensor {sc['sensor_rms_px']:.2f} px ({sc['sensor_rms_pct']:.2f} %), "
+            f"action {sc['action_rms_mm_s']:.1f} mm/s ({sc['action_rms_pct']:.2f} %), "
+            f"scale ratio {sc['scale_ratio']:.3f}"
+        )
+        return sc
+    return None
+
+
+def evaluate_turtlebot_em(res: Any, data: Any, truth_mm: Any) -> dict[str, Any] | None:
+    """The Turtlebot's scaled gain and sensor errors against its ``range`` column, when it has one."""
+    import numpy as np
+
+    if truth_mm is None or np.isnan(truth_mm).all():
+        console.print("no range column: nothing to score against (the model is learned from the readings alone).")
+        return None
+    if not np.isfinite(truth_mm).all():
+        console.print(f"the range column has {int((~np.isfinite(truth_mm)).sum())} empty steps: not scored.")
+        return None
+    from sensact.experiments.turtlebot_em import score_turtlebot_em
+
+    sc = score_turtlebot_em(res, data, truth_mm)
+    console.print(
+        f"vs range (optimal scale and offset): action gain {sc['gain_learned']:.4f} against "
+        f"{sc['gain_true']:.4f} ({sc['gain_error_pct']:.2f} % off); command delay {sc['delay_s']:.2f} s"
+    )
+    for name, s in sc["sensors"].items():
+        console.print(f"  {name}: {s['rms_pct_of_span']:.2f} % of its {s['span_mm']:.0f} mm span")
+    return sc
+
+
+def evaluate_log(data: Any, res: Any, cfg: Any) -> dict[str, Any] | None:
+    """Scaled errors against the log's ground truth, if it has any (never used for learning)."""
+    if "truth" in data.meta:
+        from sensact.evaluate.track1d import score_track_models
+        from sensact.sim.track1d import TrackTruth
+
+        sc = score_track_models(res.sensor, res.action, TrackTruth.from_dict(data.meta["truth"]))
+        console.print(
+            f"vs truth (measured grid of sec. 3.3.2): sensor RMS {sc.sensor_rms:.1f} mm "
+            f"(best cubic {sc.sensor_best_rms:.1f}), action RMS {sc.action_rms:.1f} mm/s "
+            f"(best quartic {sc.action_best_rms:.1f}), consistency {sc.consistency:.3f}"
+        )
+        return sc.to_dict()
+    if data.true_position is not None:
+        from sensact.experiments.turtlebot import evaluate_real
+
+        run = evaluate_real(data, res, cfg)
+        sc = run.score
+        console.print(
+            f"vs ground truth: sensor RMS {sc.sensor_rms:.4g} {data.position_unit} "
+            f"(best {sc.sensor_best_rms:.4g}), action RMS {sc.action_rms:.4g} {data.position_unit}/s, "
+            f"gain {run.learned_gain:.4f} (truth {run.true_gain:.4f}), consistency {sc.consistency:.3f}"
+        )
+        return {**sc.to_dict(), "learned_gain": run.learned_gain, "true_gain": run.true_gain}
+    return None
