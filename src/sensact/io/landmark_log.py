@@ -192,7 +192,9 @@ def read_landmark_log(path: str | Path, *, command_bins: int = 21) -> LandmarkLo
     path = Path(path)
     if not path.is_dir():
         raise LogFormatError(
-            "EM reads a log folder.", file=path, fix="give a folder with meta.json, actions.csv and observations.csv."
+            "EM reads a log folder; " + ("this is a file." if path.exists() else "not found."),
+            file=path,
+            fix="give a folder with meta.json, actions.csv and observations.csv.",
         )
     meta = read_meta(path)
     if meta.get("geometry") in ("planar", "track") or meta.get("platform") == "field2d":
