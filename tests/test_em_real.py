@@ -741,6 +741,17 @@ def test_mrclam_reader_and_log_folder_round_trip(tmp_path):
             score["bars"]["bearing_sigma"],
         )
     ]
+    # beside the JSON, the four figures `reproduce real` draws per robot; with no EM run to take the
+    # smoothed path from, the bearing figure has Vicon's residuals alone, the ones the bar scores
+    for kind in ("actions", "range", "heading_noise", "bearing"):
+        assert (tmp_path / f"e_{kind}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    from sensact.evaluate.landmark_truth import trimmed
+    from sensact.report.figures_real import bearing_residuals
+
+    truth, em = bearing_residuals(ml, score)
+    assert em is None
+    keep = trimmed(truth, 3.0)
+    assert np.sqrt(np.mean(truth[keep] ** 2)) == pytest.approx(score["bearing"]["sigma_truth_rad"], rel=1e-9)
 
 
 def test_bar_checks_hold_at_their_edges():
@@ -1031,19 +1042,17 @@ def test_mrclam_robot1_from_an_unknown_start(tmp_path):
 
     a, b = row["score"]["truth_noise"]["learned_heading_variance_per_step"]
     assert a == pytest.approx(res.model.motion_sd[0, 2] ** 2) and b == (res.model.turn_var or 0.0)
-    assert figure_heading_noise(ml, res, row["score"], tmp_path / "h.png", "robot 1").stat().st_size > 0
+    assert figure_heading_noise(ml, res.model, row["score"], tmp_path / "h.png", "robot 1").stat().st_size > 0
     # the bearing figure draws the residuals the bar scores: their trimmed RMS is the bar's truth sigma
     from sensact.evaluate.landmark_truth import trimmed
     from sensact.report.figures_real import bearing_residuals, figure_bearing_noise
 
-    truth, em = bearing_residuals(ml, res, row["score"])
+    truth, em = bearing_residuals(ml, row["score"], res.posteriors)
     keep = trimmed(truth, 3.0)
     assert np.sqrt(np.mean(truth[keep] ** 2)) == pytest.approx(row["score"]["bearing"]["sigma_truth_rad"], rel=1e-9)
     assert em.size == int((res.posteriors.obs_used & (res.posteriors.weights[:, -1] > 0)).sum()) > 500
-    assert (
-        figure_bearing_noise(ml, res, row["score"], tmp_path / "b.png", "robot 1").read_bytes()[:8]
-        == b"\x89PNG\r\n\x1a\n"
-    )
+    png = figure_bearing_noise(ml, res.model, row["score"], tmp_path / "b.png", "robot 1", res.posteriors)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     # the held stage ends with the path behind the robot; the ridge search moves it forward along the
     # camera's view at a higher likelihood, and EM ends near the basin that the truth restart finds
     # (without the search: 311 mm off, 282 behind, 324 log-units below the restart)

@@ -54,10 +54,14 @@ def evaluate_mrclam_cmd(
     dataset: Annotated[Path, typer.Argument(help="An MRCLAM dataset folder, e.g. .../MRCLAM_Dataset6.")],
     model: Annotated[Path, typer.Option("--model", help="A model.json written by `sensact learn em`.")],
     robot: Annotated[int, typer.Option(help="Robot 1-5.")] = 1,
-    out: Annotated[Path | None, typer.Option("--out", help="Write the scores here (JSON).")] = None,
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", help="Write the scores here (JSON), and four figures beside it (OUT_actions.png, ...)."),
+    ] = None,
 ) -> None:
     """Score a learned continuous-command model against Vicon, next to From-Truth: the same model
-    families fitted directly to the ground truth."""
+    families fitted directly to the ground truth. With --out, also draw the action curves, the range
+    function, the heading noise and the bearing noise against Vicon's, as `reproduce real` does."""
     import json
 
     from sensact.errors import ModelFormatError
@@ -76,5 +80,8 @@ def evaluate_mrclam_cmd(
     sc["bars"] = bar_checks(sc)
     print_truth_score(sc)
     if out is not None:
+        from sensact.report.figures_real import write_robot
+
         write_json(out, sc)
-        console.print(f"wrote {out}")
+        figures = write_robot(ml, m, sc, out.with_suffix(""), f"robot {robot}")
+        console.print("wrote " + ", ".join(str(p) for p in (out, *figures)))

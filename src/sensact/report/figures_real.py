@@ -31,10 +31,10 @@ def _truth_at_sensor(ml: Any, score: dict[str, Any]) -> tuple[np.ndarray, np.nda
     return ok, at_sensor(poses[d.obs_step[ok]], mount), d.landmarks_xy[d.obs_landmark[ok]]
 
 
-def figure_action_curves(ml: Any, res: Any, score: dict[str, Any], path: Path, title: str) -> Path:
+def figure_action_curves(ml: Any, model: Any, score: dict[str, Any], path: Path, title: str) -> Path:
     """Forward speed against commanded v (omega = 0) and turn rate against commanded omega (v at its
     median), learned and From-Truth, over the commands the robot used."""
-    act = res.model.action
+    act = model.action
     beta_ft = np.asarray(score["action"]["from_truth_coefficients"])
     c = ml.data.step_commands
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
@@ -57,14 +57,14 @@ def figure_action_curves(ml: Any, res: Any, score: dict[str, Any], path: Path, t
     return _save(fig, path)
 
 
-def figure_range_function(ml: Any, res: Any, score: dict[str, Any], path: Path, title: str) -> Path:
+def figure_range_function(ml: Any, model: Any, score: dict[str, Any], path: Path, title: str) -> Path:
     """Readings against the Vicon distance, with the learned and From-Truth range functions. With bearing
     terms the readings are shown with the learned terms taken out, ``reading - d g(b)``, so that they
     scatter about f(d)."""
     d = ml.data
     ok, sensor_poses, lm = _truth_at_sensor(ml, score)
     dist = landmark_distance(sensor_poses, lm)
-    chan = res.model.sensor.channels[0]
+    chan = model.sensor.channels[0]
     reading = d.obs_readings[ok, 0] - dist * chan.bearing_gain(d.obs_bearing_rad[ok])
     f = chan.function
     f_ft = Polynomial1D.from_dict(score["range"]["from_truth_function"])
@@ -82,14 +82,14 @@ def figure_range_function(ml: Any, res: Any, score: dict[str, Any], path: Path, 
     return _save(fig, path)
 
 
-def figure_heading_noise(ml: Any, res: Any, score: dict[str, Any], path: Path, title: str) -> Path:
+def figure_heading_noise(ml: Any, model: Any, score: dict[str, Any], path: Path, title: str) -> Path:
     """The truth's heading drift over each 1-s window against the window's turn rate, its RMS in bins,
     the truth's ``a + b |turn|`` fit, and the drift the learned Sigma_m allows over the same window."""
     from sensact.evaluate.landmark_truth import from_truth_windows, heading_drift
 
     d = ml.data
     window = round(score["window_s"] / d.dt_s)
-    _, D_true, features = from_truth_windows(d, *ml.truth_poses(), res.model.action, window)
+    _, D_true, features = from_truth_windows(d, *ml.truth_poses(), model.action, window)
     beta = np.asarray(score["action"]["from_truth_coefficients"])
     turn, drift = heading_drift(features(round(score["action"]["from_truth_delay_s"] / d.dt_s)) @ beta, D_true, d.dt_s)
     a, b = score["truth_noise"]["heading_drift_variance_fit"]
@@ -103,7 +103,7 @@ def figure_heading_noise(ml: Any, res: Any, score: dict[str, Any], path: Path, t
     ax.scatter(turn, np.abs(drift), s=3, alpha=0.2, color="0.5", label="|heading drift| per window (Vicon)")
     ax.plot(mid, rms, "o", color="k", label="its RMS in tenths of the windows")
     ax.plot(x, np.sqrt(np.maximum(a + b * x, 0.0)), "--", lw=2, label="Vicon: variance a + b |turn|")
-    kind = "turning" if res.model.turn_var is not None else "shared"
+    kind = "turning" if model.turn_var is not None else "shared"
     ax.plot(x, np.sqrt(window * (a_m + b_m * x)), lw=2, label=f"learned Sigma_m ({kind})")
     ax.set(
         xlabel="window's mean turn rate (rad/s)",
@@ -118,33 +118,37 @@ def figure_heading_noise(ml: Any, res: Any, score: dict[str, Any], path: Path, t
     return _save(fig, path)
 
 
-def bearing_residuals(ml: Any, res: Any, score: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+def bearing_residuals(ml: Any, score: dict[str, Any], posteriors: Any = None) -> tuple[np.ndarray, np.ndarray | None]:
     """The bearing residuals about Vicon's pose at the fitted sensor pose, at the sightings with valid
-    truth (the ones the bar's sigma is the trimmed RMS of), and about EM's smoothed path, at the
-    sightings whose bearing the E-step used."""
+    truth (the ones the bar's sigma is the trimmed RMS of), and, given EM's posteriors, about its
+    smoothed path at the sightings whose bearing the E-step used (else None)."""
     from sensact.core.angles import wrap
     from sensact.core.pose_models import landmark_bearing
 
-    d, post = ml.data, res.posteriors
+    d, post = ml.data, posteriors
     ok, sensor_poses, lm = _truth_at_sensor(ml, score)
     truth = wrap(d.obs_bearing_rad[ok] - landmark_bearing(sensor_poses, lm))
+    if post is None:
+        return truth, None
     used = post.obs_used & (post.weights[:, -1] > 0)
     lm_used = d.landmarks_xy[d.obs_landmark[used]]
     em = wrap(d.obs_bearing_rad[used] - landmark_bearing(post.mean_gamma[d.obs_step[used]], lm_used))
     return truth, em
 
 
-def figure_bearing_noise(ml: Any, res: Any, score: dict[str, Any], path: Path, title: str) -> Path:
+def figure_bearing_noise(
+    ml: Any, model: Any, score: dict[str, Any], path: Path, title: str, posteriors: Any = None
+) -> Path:
     """The bearing sigma bar as a picture: the residuals about Vicon's pose (as the bar scores them)
     and about EM's smoothed path (what EM learns from), with the learned noise density, the truth's
     trimmed sigma (the bar's) and the camera's own noise (the sd of a sighting about its frame's
     mean). EM's histogram narrower than the learned density means the M-step's posterior variance
     term carries the sigma; narrower than the camera's own, the smoother has fitted its path to the
-    bearings."""
+    bearings. Without posteriors (a model scored after the fact) EM's histogram is left out."""
     from scipy import stats
 
-    truth, em = bearing_residuals(ml, res, score)
-    b, sensor = score["bearing"], res.model.sensor
+    truth, em = bearing_residuals(ml, score, posteriors)
+    b, sensor = score["bearing"], model.sensor
     s_true, s_learned = b["sigma_truth_rad"], b["sigma_learned_rad"]
     own = score["truth_noise"]["bearing_within_frame_sd_rad"]
     passed = score.get("bars", {}).get("bearing_sigma")
@@ -153,9 +157,16 @@ def figure_bearing_noise(ml: Any, res: Any, score: dict[str, Any], path: Path, t
     bins = np.linspace(x[0], x[-1], 61)
     fig, ax = plt.subplots(figsize=(7, 4.5))
     ax.hist(truth, bins, density=True, color="0.75", label=f"about Vicon's pose ({truth.size} sightings)")
-    ax.hist(
-        em, bins, density=True, histtype="step", lw=1.5, color="tab:blue", label=f"about EM's smoothed path ({em.size})"
-    )
+    if em is not None:
+        ax.hist(
+            em,
+            bins,
+            density=True,
+            histtype="step",
+            lw=1.5,
+            color="tab:blue",
+            label=f"about EM's smoothed path ({em.size})",
+        )
     if sensor.bearing_robust == "student_t":
         nu = sensor.bearing_robust_param
         learned, kind = stats.t.pdf(x, nu, scale=s_learned), f"Student-t, nu {nu:g}, scale"
@@ -212,16 +223,26 @@ def figure_loglik(results: dict[str, Any], path: Path) -> Path:
     return _save(fig, path)
 
 
+def write_robot(
+    ml: Any, model: Any, score: dict[str, Any], stem: Path, name: str, posteriors: Any = None
+) -> list[Path]:
+    """One robot's four figures against its ground truth: ``<stem>_actions.png``, ``_range``,
+    ``_heading_noise`` and ``_bearing``."""
+    return [
+        figure_action_curves(ml, model, score, stem.with_name(f"{stem.name}_actions.png"), name),
+        figure_range_function(ml, model, score, stem.with_name(f"{stem.name}_range.png"), name),
+        figure_heading_noise(ml, model, score, stem.with_name(f"{stem.name}_heading_noise.png"), name),
+        figure_bearing_noise(ml, model, score, stem.with_name(f"{stem.name}_bearing.png"), name, posteriors),
+    ]
+
+
 def write_all(art: dict[str, Any], res: dict[str, Any], out: Path) -> list[Path]:
     paths = []
     runs = {}
     for key, (ml, r) in art.get("mrclam", {}).items():
         score = res["mrclam"][key]["score"]
-        stem, name = f"real_mrclam_{key.replace('/', '_')}", key.replace("/", " ").replace("robot", "robot ")
-        paths.append(figure_action_curves(ml, r, score, out / f"{stem}_actions.png", name))
-        paths.append(figure_range_function(ml, r, score, out / f"{stem}_range.png", name))
-        paths.append(figure_heading_noise(ml, r, score, out / f"{stem}_heading_noise.png", name))
-        paths.append(figure_bearing_noise(ml, r, score, out / f"{stem}_bearing.png", name))
+        stem, name = out / f"real_mrclam_{key.replace('/', '_')}", key.replace("/", " ").replace("robot", "robot ")
+        paths += write_robot(ml, r.model, score, stem, name, r.posteriors)
         runs[f"MRCLAM {name}"] = r
     if "turtlebot" in art:
         runs["Turtlebot"] = art["turtlebot"]
