@@ -722,6 +722,7 @@ def test_mrclam_reader_and_log_folder_round_trip(tmp_path):
     run = CliRunner().invoke(cli.app, ["learn", "em", str(tmp_path / "c"), *cfg, "--out", str(model)])
     assert run.exit_code == 0, run.output
     assert "against ground truth" in run.output and "bearing sigma (rad)" in run.output
+    assert (tmp_path / "m" / "model_bearing.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     run = CliRunner().invoke(
         cli.app,
         ["evaluate", "mrclam", str(MRCLAM), "--model", str(model), "--robot", "1", "--out", str(tmp_path / "e.json")],
@@ -934,6 +935,57 @@ def test_truth_residuals_are_taken_at_the_sensor():
     assert n["learned_translation_drift_mm"] == pytest.approx(math.sqrt(30) * model.motion_sd[0, :2])
     side, fwd = n["learned_translation_drift_mm"]
     assert f"(Sigma_m: {side:.1f} / {fwd:.1f})" in " ".join(out.get().split())
+
+
+def test_learn_em_on_a_folder_with_recorded_poses_draws_the_figures_against_them(tmp_path):
+    """A log folder whose groundtruth.csv holds poses: `learn em --out` scores the model against them and
+    draws what `evaluate mrclam --out` draws, the bearing figure with EM's own path too. The action curves
+    read two commands as (forward, turn); with three the other figures are still drawn."""
+    from dataclasses import replace
+
+    from typer.testing import CliRunner
+
+    from sensact.config import config_to_yaml
+    from sensact.evaluate.landmark_truth import score_against_truth
+    from sensact.io.landmark_log import read_landmark_log, write_landmark_log
+    from sensact.report.figures_real import write_robot
+
+    data, poses = _simulate(5, T=3000)
+    gt = {"x_mm": poses[:, 0], "y_mm": poses[:, 1], "theta_rad": poses[:, 2]}
+    write_landmark_log(tmp_path / "log", data, groundtruth=gt)
+    lf = read_landmark_log(tmp_path / "log")
+    recorded, valid = lf.truth_poses()  # no valid column: every step counts
+    np.testing.assert_allclose(recorded, poses, rtol=1e-9, atol=1e-9)
+    assert valid.all() and valid.shape == (3000,)
+    assert replace(lf, groundtruth={"x_mm": poses[:, 0]}).truth_poses() is None
+    (tmp_path / "em.yaml").write_text(config_to_yaml(_config(max_iterations=4)))
+    model = tmp_path / "fit" / "model.json"
+    run = CliRunner().invoke(
+        cli.app, ["learn", "em", str(tmp_path / "log"), "--config", str(tmp_path / "em.yaml"), "--out", str(model)]
+    )
+    assert run.exit_code == 0, run.output
+    assert "against ground truth" in run.output
+    evaluation = json.loads(model.read_text())["evaluation"]
+    assert set(evaluation["bars"]) == {
+        "action_translation_ratio",
+        "action_translation_abs",
+        "action_rotation_ratio",
+        "range_sigma",
+        "bearing_sigma",
+    }
+    for kind in ("actions", "range", "heading_noise", "bearing"):
+        png = tmp_path / "fit" / f"model_{kind}.png"
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.name in run.output.replace("\n", "")
+    # a third command: no action curves, the other three figures
+    extra = np.column_stack([data.step_commands, np.random.default_rng(0).normal(size=data.n_steps)])
+    data3 = replace(
+        data, command_names=(*data.command_names, "tilt"), action_commands=np.zeros((0, 3)), step_commands=extra
+    )
+    lf3 = replace(lf, data=data3)
+    m3 = initial_model(data3, _config())
+    paths = write_robot(lf3, m3, score_against_truth(m3, data3, poses, valid), tmp_path / "three", "three")
+    assert [p.name for p in paths] == ["three_range.png", "three_heading_noise.png", "three_bearing.png"]
+    assert not (tmp_path / "three_actions.png").exists()
 
 
 def test_frame_shared_bearing_error_splits_a_frames_residuals():

@@ -80,7 +80,11 @@ def learn_em_cmd(
     log: Annotated[Path, typer.Argument(help="A log folder (planar or a 1-D track), or a Turtlebot CSV file.")],
     out: Annotated[
         Path | None,
-        typer.Option("--out", help="Write the learned model here (JSON) and the learning history beside it (.npz)."),
+        typer.Option(
+            "--out",
+            help="Write the learned model here (JSON), the learning history beside it (.npz) and a figure of the "
+            "fit (.png); with recorded poses, also the figures against them (OUT_actions.png, ...).",
+        ),
     ] = None,
     bins: Annotated[int, typer.Option(help="Actions to bin continuous 1-D commands into.")] = 21,
     set_: SetOpt = None,
@@ -187,6 +191,10 @@ def learn_em_cmd(
             from sensact.report.figures_fit import figure_em_fit
 
             written.append(figure_em_fit(res, data, out.with_suffix(".png"), f"EM on {Path(data.source).name}"))
+        if evaluation is not None and "truth_noise" in evaluation:  # scored against recorded poses
+            from sensact.report.figures_real import write_robot
+
+            written += write_robot(lf, m, evaluation, out.with_suffix(""), Path(data.source).name, res.posteriors)
         console.print("wrote " + ", ".join(str(p) for p in written))
 
 

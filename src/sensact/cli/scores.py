@@ -125,17 +125,17 @@ def print_truth_score(sc: dict[str, Any]) -> None:
 
 
 def evaluate_em(lf: Any, model: Any) -> dict[str, Any] | None:
-    """Errors against the truth a simulated log carries (never used for learning)."""
+    """Errors against the log's ground truth (never used for learning): its recorded poses
+    (groundtruth.csv, as `convert mrclam` writes from Vicon) for a continuous-command model, else the true
+    model a simulated log's meta.json carries."""
     import numpy as np
 
-    gt = lf.groundtruth
-    if gt is not None and lf.data.is_continuous and {"x_mm", "y_mm", "theta_rad"} <= set(gt):
+    recorded = lf.truth_poses()
+    if recorded is not None and lf.data.is_continuous:
         from sensact.evaluate.landmark_truth import score_against_truth
         from sensact.experiments.real import bar_checks
 
-        poses = np.column_stack([gt["x_mm"], gt["y_mm"], gt["theta_rad"]])
-        valid = gt["valid"] > 0.5 if "valid" in gt else np.ones(len(poses), dtype=bool)
-        sc = score_against_truth(model, lf.data, poses, valid)
+        sc = score_against_truth(model, lf.data, *recorded)
         sc["bars"] = bar_checks(sc)
         print_truth_score(sc)
         return sc

@@ -32,24 +32,26 @@ def _truth_at_sensor(ml: Any, score: dict[str, Any]) -> tuple[np.ndarray, np.nda
 
 
 def figure_action_curves(ml: Any, model: Any, score: dict[str, Any], path: Path, title: str) -> Path:
-    """Forward speed against commanded v (omega = 0) and turn rate against commanded omega (v at its
-    median), learned and From-Truth, over the commands the robot used."""
+    """Forward speed against the forward command (the turn command 0) and turn rate against the turn
+    command (the forward one at its median), learned and From-Truth, over the commands the robot used.
+    The log's two commands are taken as (forward, turn), as a differential drive's (v, omega) are."""
     act = model.action
     beta_ft = np.asarray(score["action"]["from_truth_coefficients"])
     c = ml.data.step_commands
+    fwd, turn = ml.data.command_names
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     v = np.linspace(c[:, 0].min(), c[:, 0].max(), 50)
     grid = np.column_stack([v, np.zeros_like(v)])
     axes[0].plot(v, act.features(grid) @ act.coefficients[:, 1], label="learned (EM)")
     axes[0].plot(v, act.features(grid) @ beta_ft[:, 1], "--", label="From-Truth (Vicon)")
     axes[0].plot(v, v, ":", color="0.5", label="command")
-    axes[0].set(xlabel="commanded v (mm/s)", ylabel="forward velocity v_y (mm/s)", title=f"{title}: forward")
+    axes[0].set(xlabel=f"commanded {fwd}", ylabel="forward velocity v_y (mm/s)", title=f"{title}: forward")
     w = np.linspace(c[:, 1].min(), c[:, 1].max(), 50)
     grid = np.column_stack([np.full_like(w, np.median(c[:, 0])), w])
     axes[1].plot(w, act.features(grid) @ act.coefficients[:, 2], label="learned (EM)")
     axes[1].plot(w, act.features(grid) @ beta_ft[:, 2], "--", label="From-Truth (Vicon)")
     axes[1].plot(w, w, ":", color="0.5", label="command")
-    axes[1].set(xlabel="commanded omega (rad/s)", ylabel="turn rate v_theta (rad/s)", title=f"{title}: turning")
+    axes[1].set(xlabel=f"commanded {turn}", ylabel="turn rate v_theta (rad/s)", title=f"{title}: turning")
     for ax in axes:
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3)
@@ -227,9 +229,13 @@ def write_robot(
     ml: Any, model: Any, score: dict[str, Any], stem: Path, name: str, posteriors: Any = None
 ) -> list[Path]:
     """One robot's four figures against its ground truth: ``<stem>_actions.png``, ``_range``,
-    ``_heading_noise`` and ``_bearing``."""
+    ``_heading_noise`` and ``_bearing``. The action curves need two commands, read as (forward, turn);
+    a robot with another number of commands gets the other three."""
+    actions = []
+    if ml.data.step_commands.shape[1] == 2:
+        actions = [figure_action_curves(ml, model, score, stem.with_name(f"{stem.name}_actions.png"), name)]
     return [
-        figure_action_curves(ml, model, score, stem.with_name(f"{stem.name}_actions.png"), name),
+        *actions,
         figure_range_function(ml, model, score, stem.with_name(f"{stem.name}_range.png"), name),
         figure_heading_noise(ml, model, score, stem.with_name(f"{stem.name}_heading_noise.png"), name),
         figure_bearing_noise(ml, model, score, stem.with_name(f"{stem.name}_bearing.png"), name, posteriors),
