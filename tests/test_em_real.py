@@ -937,7 +937,7 @@ def test_truth_residuals_are_taken_at_the_sensor():
     assert f"(Sigma_m: {side:.1f} / {fwd:.1f})" in " ".join(out.get().split())
 
 
-def test_learn_em_on_a_folder_with_recorded_poses_draws_the_figures_against_them(tmp_path):
+def test_learn_em_on_a_folder_with_recorded_poses_draws_the_figures_against_them(tmp_path, monkeypatch):
     """A log folder whose groundtruth.csv holds poses: `learn em --out` scores the model against them and
     draws what `evaluate mrclam --out` draws, the bearing figure with EM's own path too. The action curves
     read two commands as (forward, turn); with three the other figures are still drawn."""
@@ -986,6 +986,32 @@ def test_learn_em_on_a_folder_with_recorded_poses_draws_the_figures_against_them
     paths = write_robot(lf3, m3, score_against_truth(m3, data3, poses, valid), tmp_path / "three", "three")
     assert [p.name for p in paths] == ["three_range.png", "three_heading_noise.png", "three_bearing.png"]
     assert not (tmp_path / "three_actions.png").exists()
+    # the legends and titles name the ground truth as told: Vicon only where it is Vicon
+    import matplotlib.pyplot as plt
+
+    from sensact.report import figures_real
+
+    texts: dict[str, list[str]] = {}
+
+    def keep_text(fig, path):
+        texts[path.name] = [ax.get_title() for ax in fig.axes] + [
+            t.get_text() for ax in fig.axes for t in ax.get_legend().get_texts()
+        ]
+        plt.close(fig)
+        return path
+
+    monkeypatch.setattr(figures_real, "_save", keep_text)
+    score = json.loads(model.read_text())["evaluation"]
+    fitted = EMModel.from_dict(json.loads(model.read_text())["model"])
+    write_robot(lf, fitted, score, tmp_path / "gt", "gt", truth="ground truth")
+    write_robot(lf, fitted, score, tmp_path / "vicon", "vicon")
+    assert len(texts) == 8
+    for name, words in texts.items():
+        said = " ".join(words)
+        assert ("Vicon" in said) == name.startswith("vicon") and ("ground truth" in said) == name.startswith("gt")
+    # one sighting a frame: no sd about a frame's mean (null in the JSON), so no camera line
+    assert score["truth_noise"]["bearing_within_frame_sd_rad"] is None
+    assert not any("camera's own" in t for t in texts["gt_bearing.png"])
 
 
 def test_frame_shared_bearing_error_splits_a_frames_residuals():

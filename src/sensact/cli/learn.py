@@ -194,7 +194,8 @@ def learn_em_cmd(
         if evaluation is not None and "truth_noise" in evaluation:  # scored against recorded poses
             from sensact.report.figures_real import write_robot
 
-            written += write_robot(lf, m, evaluation, out.with_suffix(""), Path(data.source).name, res.posteriors)
+            stem, name = out.with_suffix(""), Path(data.source).name
+            written += write_robot(lf, m, evaluation, stem, name, res.posteriors, truth="ground truth")
         console.print("wrote " + ", ".join(str(p) for p in written))
 
 

@@ -1,6 +1,7 @@
 """Figures for EM on real robots: action curves against Vicon, the range function over the residual
 scatter, the heading noise against Vicon's, the bearing noise against Vicon's, and the log-likelihood
-per iteration."""
+per iteration. The legends name the ground truth ``truth``: Vicon on MRCLAM, "ground truth" for a log
+folder's groundtruth.csv of unknown origin."""
 
 from __future__ import annotations
 
@@ -31,7 +32,9 @@ def _truth_at_sensor(ml: Any, score: dict[str, Any]) -> tuple[np.ndarray, np.nda
     return ok, at_sensor(poses[d.obs_step[ok]], mount), d.landmarks_xy[d.obs_landmark[ok]]
 
 
-def figure_action_curves(ml: Any, model: Any, score: dict[str, Any], path: Path, title: str) -> Path:
+def figure_action_curves(
+    ml: Any, model: Any, score: dict[str, Any], path: Path, title: str, truth: str = "Vicon"
+) -> Path:
     """Forward speed against the forward command (the turn command 0) and turn rate against the turn
     command (the forward one at its median), learned and From-Truth, over the commands the robot used.
     The log's two commands are taken as (forward, turn), as a differential drive's (v, omega) are."""
@@ -43,13 +46,13 @@ def figure_action_curves(ml: Any, model: Any, score: dict[str, Any], path: Path,
     v = np.linspace(c[:, 0].min(), c[:, 0].max(), 50)
     grid = np.column_stack([v, np.zeros_like(v)])
     axes[0].plot(v, act.features(grid) @ act.coefficients[:, 1], label="learned (EM)")
-    axes[0].plot(v, act.features(grid) @ beta_ft[:, 1], "--", label="From-Truth (Vicon)")
+    axes[0].plot(v, act.features(grid) @ beta_ft[:, 1], "--", label=f"From-Truth ({truth})")
     axes[0].plot(v, v, ":", color="0.5", label="command")
     axes[0].set(xlabel=f"commanded {fwd}", ylabel="forward velocity v_y (mm/s)", title=f"{title}: forward")
     w = np.linspace(c[:, 1].min(), c[:, 1].max(), 50)
     grid = np.column_stack([np.full_like(w, np.median(c[:, 0])), w])
     axes[1].plot(w, act.features(grid) @ act.coefficients[:, 2], label="learned (EM)")
-    axes[1].plot(w, act.features(grid) @ beta_ft[:, 2], "--", label="From-Truth (Vicon)")
+    axes[1].plot(w, act.features(grid) @ beta_ft[:, 2], "--", label=f"From-Truth ({truth})")
     axes[1].plot(w, w, ":", color="0.5", label="command")
     axes[1].set(xlabel=f"commanded {turn}", ylabel="turn rate v_theta (rad/s)", title=f"{title}: turning")
     for ax in axes:
@@ -59,7 +62,9 @@ def figure_action_curves(ml: Any, model: Any, score: dict[str, Any], path: Path,
     return _save(fig, path)
 
 
-def figure_range_function(ml: Any, model: Any, score: dict[str, Any], path: Path, title: str) -> Path:
+def figure_range_function(
+    ml: Any, model: Any, score: dict[str, Any], path: Path, title: str, truth: str = "Vicon"
+) -> Path:
     """Readings against the Vicon distance, with the learned and From-Truth range functions. With bearing
     terms the readings are shown with the learned terms taken out, ``reading - d g(b)``, so that they
     scatter about f(d)."""
@@ -73,7 +78,7 @@ def figure_range_function(ml: Any, model: Any, score: dict[str, Any], path: Path
     x = np.linspace(dist.min(), dist.max(), 200)
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     what = "sightings, learned bearing terms removed" if chan.bearing_terms else "sightings"
-    ax.scatter(dist, reading, s=3, alpha=0.25, color="0.4", label=f"{what} (Vicon, at the fitted sensor pose)")
+    ax.scatter(dist, reading, s=3, alpha=0.25, color="0.4", label=f"{what} ({truth}, at the fitted sensor pose)")
     ax.plot(x, f(x), lw=2, label="learned f (EM)")
     ax.plot(x, f_ft(x), "--", lw=2, label="From-Truth f")
     ax.set(xlabel="true distance (mm)", ylabel="range reading (mm)", title=f"{title}: range function")
@@ -84,7 +89,9 @@ def figure_range_function(ml: Any, model: Any, score: dict[str, Any], path: Path
     return _save(fig, path)
 
 
-def figure_heading_noise(ml: Any, model: Any, score: dict[str, Any], path: Path, title: str) -> Path:
+def figure_heading_noise(
+    ml: Any, model: Any, score: dict[str, Any], path: Path, title: str, truth: str = "Vicon"
+) -> Path:
     """The truth's heading drift over each 1-s window against the window's turn rate, its RMS in bins,
     the truth's ``a + b |turn|`` fit, and the drift the learned Sigma_m allows over the same window."""
     from sensact.evaluate.landmark_truth import from_truth_windows, heading_drift
@@ -102,9 +109,9 @@ def figure_heading_noise(ml: Any, model: Any, score: dict[str, Any], path: Path,
     rms = [np.sqrt(np.mean(drift[which == k] ** 2)) for k in range(10)]
     mid = [np.median(turn[which == k]) for k in range(10)]
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
-    ax.scatter(turn, np.abs(drift), s=3, alpha=0.2, color="0.5", label="|heading drift| per window (Vicon)")
+    ax.scatter(turn, np.abs(drift), s=3, alpha=0.2, color="0.5", label=f"|heading drift| per window ({truth})")
     ax.plot(mid, rms, "o", color="k", label="its RMS in tenths of the windows")
-    ax.plot(x, np.sqrt(np.maximum(a + b * x, 0.0)), "--", lw=2, label="Vicon: variance a + b |turn|")
+    ax.plot(x, np.sqrt(np.maximum(a + b * x, 0.0)), "--", lw=2, label=f"{truth}: variance a + b |turn|")
     kind = "turning" if model.turn_var is not None else "shared"
     ax.plot(x, np.sqrt(window * (a_m + b_m * x)), lw=2, label=f"learned Sigma_m ({kind})")
     ax.set(
@@ -139,17 +146,24 @@ def bearing_residuals(ml: Any, score: dict[str, Any], posteriors: Any = None) ->
 
 
 def figure_bearing_noise(
-    ml: Any, model: Any, score: dict[str, Any], path: Path, title: str, posteriors: Any = None
+    ml: Any,
+    model: Any,
+    score: dict[str, Any],
+    path: Path,
+    title: str,
+    posteriors: Any = None,
+    truth: str = "Vicon",
 ) -> Path:
     """The bearing sigma bar as a picture: the residuals about Vicon's pose (as the bar scores them)
     and about EM's smoothed path (what EM learns from), with the learned noise density, the truth's
     trimmed sigma (the bar's) and the camera's own noise (the sd of a sighting about its frame's
-    mean). EM's histogram narrower than the learned density means the M-step's posterior variance
-    term carries the sigma; narrower than the camera's own, the smoother has fitted its path to the
-    bearings. Without posteriors (a model scored after the fact) EM's histogram is left out."""
+    mean; left out when no frame has two sightings). EM's histogram narrower than the learned density
+    means the M-step's posterior variance term carries the sigma; narrower than the camera's own, the
+    smoother has fitted its path to the bearings. Without posteriors (a model scored after the fact)
+    EM's histogram is left out."""
     from scipy import stats
 
-    truth, em = bearing_residuals(ml, score, posteriors)
+    res_truth, em = bearing_residuals(ml, score, posteriors)
     b, sensor = score["bearing"], model.sensor
     s_true, s_learned = b["sigma_truth_rad"], b["sigma_learned_rad"]
     own = score["truth_noise"]["bearing_within_frame_sd_rad"]
@@ -158,7 +172,7 @@ def figure_bearing_noise(
     x = np.linspace(-4 * s_true, 4 * s_true, 400)
     bins = np.linspace(x[0], x[-1], 61)
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    ax.hist(truth, bins, density=True, color="0.75", label=f"about Vicon's pose ({truth.size} sightings)")
+    ax.hist(res_truth, bins, density=True, color="0.75", label=f"about {truth}'s pose ({res_truth.size} sightings)")
     if em is not None:
         ax.hist(
             em,
@@ -175,21 +189,21 @@ def figure_bearing_noise(
     else:
         learned, kind = stats.norm.pdf(x, scale=s_learned), "Gaussian, sd"
     ax.plot(x, learned, lw=2, color="tab:blue", label=f"learned: {kind} {s_learned:.4f} rad")
-    ax.plot(
-        x, stats.norm.pdf(x, scale=s_true), "--", lw=2, color="k", label=f"Vicon's trimmed RMS {s_true:.4f} (the bar's)"
-    )
-    ax.plot(
-        x,
-        stats.norm.pdf(x, scale=own),
-        ":",
-        lw=2,
-        color="tab:red",
-        label=f"camera's own sd {own:.4f} (about its frame)",
-    )
+    bar = f"{truth}'s trimmed RMS {s_true:.4f} (the bar's)"
+    ax.plot(x, stats.norm.pdf(x, scale=s_true), "--", lw=2, color="k", label=bar)
+    if own is not None and np.isfinite(own):  # needs frames with several sightings (null in JSON otherwise)
+        ax.plot(
+            x,
+            stats.norm.pdf(x, scale=own),
+            ":",
+            lw=2,
+            color="tab:red",
+            label=f"camera's own sd {own:.4f} (about its frame)",
+        )
     ax.set(
         xlabel="bearing residual (rad)",
         ylabel="density",
-        title=f"{title}: bearing noise, learned / Vicon {b['sigma_ratio']:.2f}{verdict}",
+        title=f"{title}: bearing noise, learned / {truth} {b['sigma_ratio']:.2f}{verdict}",
     )
     ax.set_xlim(x[0], x[-1])
     ax.legend(fontsize=8)
@@ -226,19 +240,29 @@ def figure_loglik(results: dict[str, Any], path: Path) -> Path:
 
 
 def write_robot(
-    ml: Any, model: Any, score: dict[str, Any], stem: Path, name: str, posteriors: Any = None
+    ml: Any,
+    model: Any,
+    score: dict[str, Any],
+    stem: Path,
+    name: str,
+    posteriors: Any = None,
+    truth: str = "Vicon",
 ) -> list[Path]:
-    """One robot's four figures against its ground truth: ``<stem>_actions.png``, ``_range``,
-    ``_heading_noise`` and ``_bearing``. The action curves need two commands, read as (forward, turn);
-    a robot with another number of commands gets the other three."""
+    """One robot's four figures against its ground truth, which the legends call ``truth``:
+    ``<stem>_actions.png``, ``_range``, ``_heading_noise`` and ``_bearing``. The action curves need two
+    commands, read as (forward, turn); a robot with another number of commands gets the other three."""
+
+    def at(kind: str) -> Path:
+        return stem.with_name(f"{stem.name}_{kind}.png")
+
     actions = []
     if ml.data.step_commands.shape[1] == 2:
-        actions = [figure_action_curves(ml, model, score, stem.with_name(f"{stem.name}_actions.png"), name)]
+        actions = [figure_action_curves(ml, model, score, at("actions"), name, truth)]
     return [
         *actions,
-        figure_range_function(ml, model, score, stem.with_name(f"{stem.name}_range.png"), name),
-        figure_heading_noise(ml, model, score, stem.with_name(f"{stem.name}_heading_noise.png"), name),
-        figure_bearing_noise(ml, model, score, stem.with_name(f"{stem.name}_bearing.png"), name, posteriors),
+        figure_range_function(ml, model, score, at("range"), name, truth),
+        figure_heading_noise(ml, model, score, at("heading_noise"), name, truth),
+        figure_bearing_noise(ml, model, score, at("bearing"), name, posteriors, truth),
     ]
 
 
