@@ -965,7 +965,10 @@ def test_learn_em_on_a_folder_with_recorded_poses_draws_the_figures_against_them
     )
     assert run.exit_code == 0, run.output
     assert "against ground truth" in run.output
-    evaluation = json.loads(model.read_text())["evaluation"]
+    said = " ".join(run.output.split())  # one sighting a frame: no within-frame split, said so, not "nan"
+    assert "no frame has two sightings" in said and "nan%" not in said and "nan rad" not in said
+    doc = json.loads(model.read_text())
+    evaluation = doc["evaluation"]
     assert set(evaluation["bars"]) == {
         "action_translation_ratio",
         "action_translation_abs",
@@ -1001,16 +1004,15 @@ def test_learn_em_on_a_folder_with_recorded_poses_draws_the_figures_against_them
         return path
 
     monkeypatch.setattr(figures_real, "_save", keep_text)
-    score = json.loads(model.read_text())["evaluation"]
-    fitted = EMModel.from_dict(json.loads(model.read_text())["model"])
-    write_robot(lf, fitted, score, tmp_path / "gt", "gt", truth="ground truth")
-    write_robot(lf, fitted, score, tmp_path / "vicon", "vicon")
+    fitted = EMModel.from_dict(doc["model"])
+    write_robot(lf, fitted, evaluation, tmp_path / "gt", "gt", truth="ground truth")
+    write_robot(lf, fitted, evaluation, tmp_path / "vicon", "vicon")
     assert len(texts) == 8
     for name, words in texts.items():
         said = " ".join(words)
         assert ("Vicon" in said) == name.startswith("vicon") and ("ground truth" in said) == name.startswith("gt")
     # one sighting a frame: no sd about a frame's mean (null in the JSON), so no camera line
-    assert score["truth_noise"]["bearing_within_frame_sd_rad"] is None
+    assert evaluation["truth_noise"]["bearing_within_frame_sd_rad"] is None
     assert not any("camera's own" in t for t in texts["gt_bearing.png"])
 
 

@@ -97,6 +97,14 @@ def print_truth_score(sc: dict[str, Any]) -> None:
     )
     n = sc.get("truth_noise")
     if n:
+        within = n["bearing_within_frame_sd_rad"]
+        if within is None or within != within:  # NaN, null in JSON: no frame with two sightings
+            frame_split = "no frame has two sightings, so no part shared by a frame can be split off"
+        else:
+            frame_split = (
+                f"a frame's sightings share {n['bearing_frame_shared_fraction']:.0%} of their residual's variance"
+                f"{shared_by_motion(n)}, and vary about their frame's mean by {within:.4f} rad"
+            )
         console.print(
             f"truth's noise: heading drift per {sc['window_s']:.2g} s "
             f"{n['heading_drift_rms_at_rest_rad']:.4f} rad at rest (Sigma_m: "
@@ -107,10 +115,8 @@ def print_truth_score(sc: dict[str, Any]) -> None:
             f"{n['translation_drift_rms_mm'][0]:.1f} / {n['translation_drift_rms_mm'][1]:.1f} mm (Sigma_m: "
             f"{n['learned_translation_drift_mm'][0]:.1f} / {n['learned_translation_drift_mm'][1]:.1f}); "
             f"bearing residuals of frames 1-5 windows apart correlate at {n['bearing_frame_correlation']:.2f}; "
-            f"a frame's sightings share {n['bearing_frame_shared_fraction']:.0%} of their residual's variance"
-            f"{shared_by_motion(n)}, "
-            f"and vary about their frame's mean by {n['bearing_within_frame_sd_rad']:.4f} rad (docs/em-real.md, "
-            "Known limits)"
+            + frame_split
+            + " (docs/em-real.md, Known limits)"
         )
     m = sc.get("sensor_mount")
     if m:
