@@ -723,6 +723,7 @@ def test_mrclam_reader_and_log_folder_round_trip(tmp_path):
     assert run.exit_code == 0, run.output
     assert "against ground truth" in run.output and "bearing sigma (rad)" in run.output
     assert (tmp_path / "m" / "model_bearing.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert read_landmark_log(tmp_path / "c").title(tmp_path / "c") == "c (MRCLAM_Dataset6 robot 1)"
     run = CliRunner().invoke(
         cli.app,
         ["evaluate", "mrclam", str(MRCLAM), "--model", str(model), "--robot", "1", "--out", str(tmp_path / "e.json")],
@@ -943,17 +944,31 @@ def test_learn_em_on_a_folder_with_recorded_poses_draws_the_figures_against_them
     read two commands as (forward, turn); with three the other figures are still drawn."""
     from dataclasses import replace
 
+    import matplotlib.pyplot as plt
     from typer.testing import CliRunner
 
     from sensact.config import config_to_yaml
     from sensact.evaluate.landmark_truth import score_against_truth
     from sensact.io.landmark_log import read_landmark_log, write_landmark_log
+    from sensact.report import figures_real
     from sensact.report.figures_real import write_robot
 
     data, poses = _simulate(5, T=3000)
     gt = {"x_mm": poses[:, 0], "y_mm": poses[:, 1], "theta_rad": poses[:, 2]}
-    write_landmark_log(tmp_path / "log", data, groundtruth=gt)
+    source = {"source": {"dataset": "/d/Set9", "robot": 4}}
+    write_landmark_log(tmp_path / "log", data, groundtruth=gt, meta_extra=source)
     lf = read_landmark_log(tmp_path / "log")
+    # figures name the log by its folder, and by where it came from when meta.json's source says
+    assert lf.title(tmp_path / "log") == "log (Set9 robot 4)"
+    assert replace(lf, meta={k: v for k, v in lf.meta.items() if k != "source"}).title(tmp_path / "log") == "log"
+    titles: list[str] = []
+    save = figures_real._save
+
+    def keep_title(fig, path):
+        titles.extend(ax.get_title() for ax in fig.axes)
+        return save(fig, path)
+
+    monkeypatch.setattr(figures_real, "_save", keep_title)
     recorded, valid = lf.truth_poses()  # no valid column: every step counts
     np.testing.assert_allclose(recorded, poses, rtol=1e-9, atol=1e-9)
     assert valid.all() and valid.shape == (3000,)
@@ -979,6 +994,7 @@ def test_learn_em_on_a_folder_with_recorded_poses_draws_the_figures_against_them
     for kind in ("actions", "range", "heading_noise", "bearing"):
         png = tmp_path / "fit" / f"model_{kind}.png"
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.name in run.output.replace("\n", "")
+    assert titles and all(t.startswith("log (Set9 robot 4): ") for t in titles if t)
     # a third command: no action curves, the other three figures
     extra = np.column_stack([data.step_commands, np.random.default_rng(0).normal(size=data.n_steps)])
     data3 = replace(
@@ -990,10 +1006,6 @@ def test_learn_em_on_a_folder_with_recorded_poses_draws_the_figures_against_them
     assert [p.name for p in paths] == ["three_range.png", "three_heading_noise.png", "three_bearing.png"]
     assert not (tmp_path / "three_actions.png").exists()
     # the legends and titles name the ground truth as told: Vicon only where it is Vicon
-    import matplotlib.pyplot as plt
-
-    from sensact.report import figures_real
-
     texts: dict[str, list[str]] = {}
 
     def keep_text(fig, path):

@@ -187,15 +187,15 @@ def learn_em_cmd(
             sigmas=res.sigma_history,
         )
         written = [out, out.with_suffix(".history.npz")]
+        name = lf.title(log) if lf is not None else Path(data.source).name
         if res.posteriors is not None:
             from sensact.report.figures_fit import figure_em_fit
 
-            written.append(figure_em_fit(res, data, out.with_suffix(".png"), f"EM on {Path(data.source).name}"))
+            written.append(figure_em_fit(res, data, out.with_suffix(".png"), f"EM on {name}"))
         if evaluation is not None and "truth_noise" in evaluation:  # scored against recorded poses
             from sensact.report.figures_real import write_robot
 
-            stem, name = out.with_suffix(""), Path(data.source).name
-            written += write_robot(lf, m, evaluation, stem, name, res.posteriors, truth="ground truth")
+            written += write_robot(lf, m, evaluation, out.with_suffix(""), name, res.posteriors, truth="ground truth")
         console.print("wrote " + ", ".join(str(p) for p in written))
 
 

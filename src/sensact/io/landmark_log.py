@@ -38,6 +38,15 @@ class LandmarkLogFile:
     groundtruth: dict[str, np.ndarray] | None  # columns on the log's step grid
     note: str = ""  # how the commands were turned into actions, for the user
 
+    def title(self, folder: str | Path) -> str:
+        """The name figures give the log: its folder's, and the dataset and robot it was converted from
+        when meta.json's ``source`` says (``sensact convert mrclam`` writes them)."""
+        src = self.meta.get("source")
+        name = Path(folder).name
+        if isinstance(src, dict) and src.get("dataset") and src.get("robot") is not None:
+            return f"{name} ({Path(str(src['dataset'])).name} robot {src['robot']})"
+        return name
+
     def truth_poses(self) -> tuple[np.ndarray, np.ndarray] | None:
         """The ground truth's ``(T, 3)`` poses on the step grid and where they are valid (every step when
         groundtruth.csv has no ``valid`` column), or None without ``x_mm``, ``y_mm`` and ``theta_rad``."""
