@@ -960,6 +960,8 @@ def test_learn_em_on_a_folder_with_recorded_poses_draws_the_figures_against_them
     lf = read_landmark_log(tmp_path / "log")
     # figures name the log by its folder, and by where it came from when meta.json's source says
     assert lf.title(tmp_path / "log") == "log (Set9 robot 4)"
+    monkeypatch.chdir(tmp_path / "log")
+    assert lf.title(".") == "log (Set9 robot 4)"  # run from inside the folder
     assert replace(lf, meta={k: v for k, v in lf.meta.items() if k != "source"}).title(tmp_path / "log") == "log"
     titles: list[str] = []
     save = figures_real._save

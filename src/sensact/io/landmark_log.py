@@ -42,7 +42,7 @@ class LandmarkLogFile:
         """The name figures give the log: its folder's, and the dataset and robot it was converted from
         when meta.json's ``source`` says (``sensact convert mrclam`` writes them)."""
         src = self.meta.get("source")
-        name = Path(folder).name
+        name = Path(folder).resolve().name  # "." names the folder it is
         if isinstance(src, dict) and src.get("dataset") and src.get("robot") is not None:
             return f"{name} ({Path(str(src['dataset'])).name} robot {src['robot']})"
         return name
