@@ -65,9 +65,9 @@ def figure_action_curves(
 def figure_range_function(
     ml: Any, model: Any, score: dict[str, Any], path: Path, title: str, truth: str = "Vicon"
 ) -> Path:
-    """Readings against the Vicon distance, with the learned and From-Truth range functions. With bearing
-    terms the readings are shown with the learned terms taken out, ``reading - d g(b)``, so that they
-    scatter about f(d)."""
+    """Readings against the ground truth's distance (Vicon's on MRCLAM), with the learned and From-Truth
+    range functions. With bearing terms the readings are shown with the learned terms taken out,
+    ``reading - d g(b)``, so that they scatter about f(d)."""
     d = ml.data
     ok, sensor_poses, lm = _truth_at_sensor(ml, score)
     dist = landmark_distance(sensor_poses, lm)
@@ -128,9 +128,9 @@ def figure_heading_noise(
 
 
 def bearing_residuals(ml: Any, score: dict[str, Any], posteriors: Any = None) -> tuple[np.ndarray, np.ndarray | None]:
-    """The bearing residuals about Vicon's pose at the fitted sensor pose, at the sightings with valid
-    truth (the ones the bar's sigma is the trimmed RMS of), and, given EM's posteriors, about its
-    smoothed path at the sightings whose bearing the E-step used (else None)."""
+    """The bearing residuals about the ground truth's pose moved to the fitted sensor pose, at the
+    sightings with valid truth (the ones the bar's sigma is the trimmed RMS of), and, given EM's
+    posteriors, about its smoothed path at the sightings whose bearing the E-step used (else None)."""
     from sensact.core.angles import wrap
     from sensact.core.pose_models import landmark_bearing
 
@@ -154,8 +154,8 @@ def figure_bearing_noise(
     posteriors: Any = None,
     truth: str = "Vicon",
 ) -> Path:
-    """The bearing sigma bar as a picture: the residuals about Vicon's pose (as the bar scores them)
-    and about EM's smoothed path (what EM learns from), with the learned noise density, the truth's
+    """The bearing sigma bar as a picture: the residuals about the ground truth's pose (as the bar scores
+    them) and about EM's smoothed path (what EM learns from), with the learned noise density, the truth's
     trimmed sigma (the bar's) and the camera's own noise (the sd of a sighting about its frame's
     mean; left out when no frame has two sightings). EM's histogram narrower than the learned density
     means the M-step's posterior variance term carries the sigma; narrower than the camera's own, the
