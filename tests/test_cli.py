@@ -291,6 +291,7 @@ def test_learn_em_on_a_turtlebot_csv_recovers_the_gain_and_sonar(tmp_path):
     assert ev["sensors"]["sonar1"]["rms_pct_of_span"] < 2.0
     assert ev["delay_s"] == pytest.approx(0.12, abs=0.01)
     assert (tmp_path / "m.png").stat().st_size > 30_000  # a panel per channel and the smoothed state
+    assert "stopped: converged" in res.output and "raise the cap" not in res.output
     # --set overrides the Turtlebot's settings; without a range column there is nothing to score
     _write_turtlebot_csv(csv, with_range=False)
     res = runner.invoke(app, ["learn", "em", str(csv), "--out", str(model), "--set", "max_iterations=5"])
@@ -298,6 +299,11 @@ def test_learn_em_on_a_turtlebot_csv_recovers_the_gain_and_sonar(tmp_path):
     assert "no range column" in res.output
     out = json.loads(model.read_text())
     assert out["evaluation"] is None and out["summary"]["iterations"] <= 5
+    # stopped at the cap, not by patience: the user is told the likelihood was still rising, and how to go on
+    said = " ".join(res.output.split())
+    assert "EM reached max_iterations (5) before 50 iterations passed without a new best" in said
+    ll = out["summary"]["loglik_best"] - json.loads(model.read_text())["summary"]["loglik_start"]
+    assert "in the last 2 iterations" in said and "--set max_iterations=10" in said and ll > 0
     # a range column with an empty cell is not scored, and says so
     _write_turtlebot_csv(csv, with_range=True)
     lines = csv.read_text().splitlines()
@@ -308,6 +314,12 @@ def test_learn_em_on_a_turtlebot_csv_recovers_the_gain_and_sonar(tmp_path):
     res = runner.invoke(app, ["learn", "em", str(csv), "--set", "max_iterations=2"])
     assert res.exit_code == 0, res.output
     assert "empty steps: not scored" in res.output
+    # after five iterations raw_ir2's window holds too few of the range column's distances: said, not "nan"
+    _write_turtlebot_csv(csv, with_range=True)
+    res = runner.invoke(app, ["learn", "em", str(csv), "--set", "max_iterations=5"])
+    said = " ".join(res.output.split())
+    assert res.exit_code == 0 and "raw_ir2: not scored (fewer than two 100-mm bins" in said, res.output
+    assert "nan" not in said and "raw_ir1: " in said and "% of its" in said
 
 
 def test_learn_em_refuses_a_turtlebot_csv_out_of_order(tmp_path):
@@ -322,3 +334,18 @@ def test_learn_em_refuses_a_turtlebot_csv_out_of_order(tmp_path):
     (tmp_path / "notes.txt").write_text("x")
     res = runner.invoke(app, ["learn", "em", str(tmp_path / "notes.txt")])
     assert res.exit_code == 2 and "EM reads a log folder or a Turtlebot CSV file" in res.output
+
+
+def test_a_fit_stopped_at_the_cap_says_how_fast_it_was_climbing():
+    import numpy as np
+
+    from sensact.cli.learn import _still_climbing
+
+    # the best of 240 iterations rose by 50 in the last 50 (patience); the race's 60 count toward the cap
+    said = _still_climbing(np.arange(240.0), 239, 300, 50, 60)
+    assert "max_iterations (300, the start race's 60 included) before 50 iterations" in said
+    assert "rose by 50.0 in the last 50 iterations" in said and "--set max_iterations=600" in said
+    # a best before the window is no rise; a run shorter than patience is judged on its second half
+    assert "rose by 0.0 in the last 2 iterations" in _still_climbing(np.array([0.0, 5.0, 1.0, 2.0]), 1, 4, 50, 0)
+    assert "race" not in _still_climbing(np.array([0.0, 5.0, 1.0, 2.0]), 1, 4, 50, 0)
+    assert "too few iterations" in _still_climbing(np.array([3.0]), 0, 1, 50, 0)

@@ -1108,6 +1108,24 @@ def dead_reckon_windows(v: np.ndarray, dt: float) -> np.ndarray:
     return dead_reckon(v, dt)
 
 
+def test_turtlebot_table_says_a_sensor_without_bins_is_not_scored():
+    """A sensor whose window holds fewer than two distance bins has no span (NaN in memory, null once
+    real.json is read back); the table says it was not scored instead of printing "nan"."""
+    from sensact.report.tables import real_tables
+
+    sensor = {"rms_pct_of_span": 1.234, "span_mm": 1500.0}
+    score = {"gain_learned": 0.9, "gain_true": 0.91, "gain_error_pct": 1.1, "delay_s": 0.12}
+    score["sensors"] = {"sonar1": sensor, "raw_ir2": {"rms_pct_of_span": float("nan"), "span_mm": float("nan")}}
+    score["sensors"]["raw_ir3"] = {"rms_pct_of_span": None, "span_mm": None}
+    res = {"turtlebot": {"score": score, "chapter3_sonar1": {"learned_gain": 0.8, "gain_error_pct": 2.0}}}
+    res["turtlebot"]["chapter3_sonar1"]["sensor_rms_pct"] = 2.5
+    (_, _, rows) = next(t for t in real_tables(res) if t[0].startswith("Turtlebot"))
+    cells = {r[0]: r[1:] for r in rows}
+    assert cells["sonar1 error, % of its span"] == ["1.23 % (1500 mm)", "2.50 %"]
+    for name in ("raw_ir2", "raw_ir3"):
+        assert cells[f"{name} error, % of its span"] == ["not scored (readings in fewer than two bins)", "-"]
+
+
 @pytest.mark.skipif(not TURTLEBOT.is_file(), reason=f"Turtlebot data not found at {TURTLEBOT}")
 def test_turtlebot_em_clears_its_bars():
     from sensact.experiments.turtlebot_em import run_turtlebot_em

@@ -3,12 +3,33 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from sensact.cli.base import ConfigOpt, SetOpt, console, friendly, layered_config, learn_app, progress_bar
 from sensact.cli.scores import evaluate_em, evaluate_log, evaluate_turtlebot_em, print_em_model
+
+if TYPE_CHECKING:  # numpy is imported where a command needs it, so that --help stays quick
+    import numpy as np
+
+
+def _still_climbing(loglik: np.ndarray, best: int, max_iterations: int, patience: int, raced: int) -> str:
+    """What a fit stopped at the cap tells the user: patience never ran out, so the likelihood may still
+    rise; how much it rose lately says whether more iterations are worth their time."""
+    window = min(patience, loglik.size // 2)
+    lately = (
+        f"the best log-likelihood rose by {loglik[best] - loglik[: loglik.size - window].max():.1f} "
+        f"in the last {window} iterations"
+        if window >= 1
+        else "too few iterations to tell how fast it was rising"
+    )
+    return (
+        f"[yellow]EM reached max_iterations ({max_iterations}"
+        + (f", the start race's {raced} included" if raced > 0 else "")  # they count toward the cap
+        + f") before {patience} iterations passed without a new best[/]: {lately}. The model given is the best "
+        f"so far; to let EM run on, raise the cap (--set max_iterations={2 * max_iterations})."
+    )
 
 
 @learn_app.command("bootstrap")
@@ -152,6 +173,10 @@ def learn_em_cmd(
         f"best log-likelihood {res.loglik_best:.1f} at iteration {res.best_iteration}"
         + (f"; {res.n_pruned} observations pruned" if res.n_pruned else "")
     )
+    if res.stop_reason == "max_iterations":
+        race = (res.start_search or {}).get("race")
+        raced = race["winner_iterations"] if race else 0
+        console.print(_still_climbing(res.loglik_history, res.best_iteration, cfg.max_iterations, cfg.patience, raced))
     if res.start_search:
         x, y, th = res.start_search["prior_mean"]
         race = res.start_search.get("race")

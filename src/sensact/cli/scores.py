@@ -198,7 +198,10 @@ def evaluate_turtlebot_em(res: Any, data: Any, truth_mm: Any) -> dict[str, Any] 
         f"{sc['gain_true']:.4f} ({sc['gain_error_pct']:.2f} % off); command delay {sc['delay_s']:.2f} s"
     )
     for name, s in sc["sensors"].items():
-        console.print(f"  {name}: {s['rms_pct_of_span']:.2f} % of its {s['span_mm']:.0f} mm span")
+        if np.isfinite(s["rms_pct_of_span"]):
+            console.print(f"  {name}: {s['rms_pct_of_span']:.2f} % of its {s['span_mm']:.0f} mm span")
+        else:  # its window, mapped into mm, holds too few of the range column's distances
+            console.print(f"  {name}: not scored (fewer than two 100-mm bins of readings inside its window)")
     return sc
 
 

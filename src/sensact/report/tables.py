@@ -451,7 +451,12 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
         ]
         for name, s in sc["sensors"].items():
             c3 = f"{ch3['sensor_rms_pct']:.2f} %" if name == "sonar1" and ch3 else "-"
-            trows.append([f"{name} error, % of its span", f"{s['rms_pct_of_span']:.2f} % ({s['span_mm']:.0f} mm)", c3])
+            err = (
+                f"{s['rms_pct_of_span']:.2f} % ({s['span_mm']:.0f} mm)"
+                if s["rms_pct_of_span"] is not None and math.isfinite(s["rms_pct_of_span"])  # null once read back
+                else "not scored (readings in fewer than two bins)"
+            )
+            trows.append([f"{name} error, % of its span", err, c3])
         tables.append(
             ("Turtlebot training1.csv: EM in 1-D against the chapter-3 learner", ["quantity", "EM", "chapter 3"], trows)
         )
