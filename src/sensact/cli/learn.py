@@ -173,13 +173,12 @@ def learn_em_cmd(
         f"best log-likelihood {res.loglik_best:.1f} at iteration {res.best_iteration}"
         + (f"; {res.n_pruned} observations pruned" if res.n_pruned else "")
     )
+    race = (res.start_search or {}).get("race")
     if res.stop_reason == "max_iterations":
-        race = (res.start_search or {}).get("race")
         raced = race["winner_iterations"] if race else 0
         console.print(_still_climbing(res.loglik_history, res.best_iteration, cfg.max_iterations, cfg.patience, raced))
     if res.start_search:
         x, y, th = res.start_search["prior_mean"]
-        race = res.start_search.get("race")
         which = f" (candidate {race['winner']} of {len(race['rounds'][0])} won the race)" if race else ""
         console.print(f"start pose chosen: x {x:.0f} mm, y {y:.0f} mm, heading {th:.3f} rad{which}")
     for r in res.ridge or []:
