@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -16,14 +17,14 @@ from sensact.cli.scores import print_truth_score
 from sensact.config import config_from_dict
 from sensact.core.pose_models import apply_displacement, landmark_bearing, landmark_distance
 from sensact.learn.em import EMConfig, e_step, fit_em, initial_model
-from sensact.learn.em.actions import linear_coefficients, step_motion_var, table_velocities
+from sensact.learn.em.actions import linear_action_update, linear_coefficients, step_motion_var, table_velocities
 from sensact.learn.em.config import ChannelConfig
 from sensact.learn.em.delay_search import search_delay, with_delay
 from sensact.learn.em.ridge import search_ridge, shifted_forward
 from sensact.learn.em.start import race_starts, start_candidates
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
-from sensact.models.linear_action import LinearActionModel, command_features, one_hot
+from sensact.models.linear_action import LinearActionModel, command_features, delayed, one_hot
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 MRCLAM = DATA / "mrclam" / "MRCLAM_Dataset6"
@@ -124,6 +125,50 @@ def test_one_hot_basis_is_the_action_table():
     Phi = one_hot(actions[:-1], A)
     var = np.ones((T - 1, 3)) * rng.uniform(0.5, 2.0, A + 1)[actions[:-1], None]
     np.testing.assert_allclose(linear_coefficients(Phi, disp, var, dt, np.zeros((A, 3))), table, atol=1e-12)
+
+
+def test_action_update_picks_the_delay_and_beta_that_least_squares_on_the_delayed_rows_give():
+    """Independent reference: for every delay, numpy's lstsq on the explicitly delayed rows (each
+    component on its free, nonzero columns) and its weighted squared error; the M-step's sums formed
+    once per delay must pick the same delay and beta. A command that is zero until the last steps
+    has no rows at large delays, so its coefficient keeps its previous value there."""
+    rng = np.random.default_rng(5)
+    T, dt, true_delay = 900, 0.05, 4
+    commands = rng.normal(size=(T, 2))
+    commands[: T - 3, 1] = 0.0  # the turn command starts 3 steps before the end
+    act = LinearActionModel.zero("affine", 1, ("v", "w"), ("vx", "vy", "vt"), zero_mean=("vy",))
+    act = act.with_coefficients(np.full((3, 3), 0.5), 0)
+    Phi0 = command_features("affine", 1, commands)
+    beta_true = np.array([[10.0, 0.0, 0.1], [0.9, 0.0, 0.0], [3.0, 0.0, 1.1]])
+    disp = delayed(Phi0, true_delay)[:-1] @ beta_true * dt + rng.normal(scale=0.01, size=(T - 1, 3))
+    var = rng.uniform(0.5, 2.0, size=(T - 1, 3)) * 1e-4
+    data = LandmarkLog(
+        "planar", dt, np.full(T, -1), np.zeros((0, 2)), ("v", "w"), [], [], [], [], np.zeros((1, 2)),
+        reading_names=("r",), step_commands=commands,
+    )  # fmt: skip
+    free = act.free_coefficients
+    refs = []
+    for d in range(9):
+        X = delayed(Phi0, d)[:-1] * dt
+        beta = act.coefficients.copy()
+        beta[~free] = 0.0
+        for i in range(3):
+            cols = free[:, i] & np.any(X != 0.0, axis=0)
+            if cols.any():
+                sw = 1.0 / np.sqrt(var[:, i])
+                beta[cols, i] = np.linalg.lstsq(X[:, cols] * sw[:, None], disp[:, i] * sw, rcond=None)[0]
+        refs.append((float(np.sum((disp - X @ beta) ** 2 / var)), beta))
+    best = int(np.argmin([r[0] for r in refs]))
+    assert best == true_delay
+    got = linear_action_update(act, data, disp, var, 8)
+    assert got.delay_steps == best
+    np.testing.assert_allclose(got.coefficients, refs[best][1], rtol=1e-8, atol=1e-12)
+    # at delay 5 the turn command has no nonzero row: its coefficients are kept
+    kept = linear_action_update(act.with_coefficients(act.coefficients, 5), data, disp, var, 0)
+    assert kept.delay_steps == 5
+    np.testing.assert_array_equal(kept.coefficients[2, 2], act.coefficients[2, 2])
+    X5 = delayed(Phi0, 5)[:-1] * dt
+    assert not X5[:, 2].any()
 
 
 def test_action_inputs_fit_each_velocity_on_its_own_commands():
@@ -291,6 +336,29 @@ def test_start_race_does_not_rerun_a_trial_that_found_nothing_better():
     assert model is cands[1]
 
 
+def test_start_race_runs_a_round_in_threads_and_gives_the_serial_race():
+    """Invariant: the trials of a round run at once (two of them meet at a barrier, which a serial race
+    would never reach), and with the real EM the threaded race gives the serial one's scores and
+    winner exactly, the trials being seeded and independent."""
+    data, _ = _simulate(6, T=600)
+    cfg = _config(start_search_s=10.0, refine_from=100, start_trial_iterations=4)
+    start = initial_model(data, cfg)
+    cands = [start.replace(prior_mean=start.prior_mean + np.array([dx, dy, 0.0])) for dx, dy in
+             [(0.0, 0.0), (400.0, 0.0), (0.0, -400.0), (-300.0, 300.0)]]  # fmt: skip
+    barrier = threading.Barrier(2, timeout=10)
+
+    def meeting(data, model, trial_cfg):
+        barrier.wait()  # raises BrokenBarrierError after 10 s alone
+        return fit_em(data, model, trial_cfg)
+
+    race_starts(data, cands[:2], cfg, meeting, workers=2)
+    serial_model, serial = race_starts(data, cands, cfg, fit_em, workers=1)
+    threaded_model, threaded = race_starts(data, cands, cfg, fit_em, workers=3)
+    assert threaded == serial and len(serial["rounds"]) == 2
+    np.testing.assert_array_equal(threaded_model.prior_mean, serial_model.prior_mean)
+    np.testing.assert_array_equal(threaded_model.action.coefficients, serial_model.action.coefficients)
+
+
 def test_shifted_forward_reads_the_same_from_further_ahead(continuous_fit):
     """Exact reduction: the shifted model's start is ``delta`` ahead along its heading, its range
     function is ``f(d + delta)``, and nothing else changes; a zero shift is the model itself."""
@@ -417,6 +485,23 @@ def test_fit_searches_the_delay_on_the_ridge_schedule_only_when_a_delay_is_learn
     plain_off = fit_em(data, None, _config(refine_from=4, max_iterations=12, search_every=3, delay_search=False))
     assert plain.delay_search is None
     assert np.array_equal(plain.loglik_history, plain_off.loglik_history)
+
+
+def test_heading_noise_bins_skip_the_empty_tenths_of_tied_turn_rates():
+    """Exact: 60 windows at one turn rate (a half log that stood still) and 40 spread ones give the
+    tied ones one bin (the 60 values' RMS) and four of ten each for the rest; no bin is empty, so the
+    figure's axis limit is finite (it was NaN, and `reproduce real` failed, on half of Dataset 6)."""
+    from sensact.report.figures_real import binned_rms
+
+    turn = np.concatenate([np.full(60, 0.01), np.linspace(0.1, 0.4, 40)])
+    drift = np.concatenate([np.full(60, 2.0), np.arange(40.0)])
+    mid, rms = binned_rms(turn, drift)
+    assert np.all(np.isfinite(rms)) and len(mid) == len(rms) == 5
+    assert mid[0] == 0.01 and rms[0] == 2.0
+    for k, chunk in enumerate(np.split(np.arange(40.0), 4)):
+        assert rms[k + 1] == pytest.approx(np.sqrt(np.mean(chunk**2)))
+    spread = np.random.default_rng(1).uniform(0, 1, 1000)
+    assert len(binned_rms(spread, spread)[0]) == 10
 
 
 def test_fit_searches_the_ridge_when_the_held_stage_ends_and_every_so_often_after(tmp_path):

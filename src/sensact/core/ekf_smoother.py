@@ -139,7 +139,7 @@ def _resolvent(A, B, w, Mx, RHS, n):
     return lu_solve_inplace(Mx, RHS, n, n + 1)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)  # releases the GIL: the start race runs its trials in threads
 def ekf_smoother(
     mode,
     dt,

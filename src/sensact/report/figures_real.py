@@ -89,6 +89,18 @@ def figure_range_function(
     return _save(fig, path)
 
 
+def binned_rms(x: np.ndarray, y: np.ndarray, n_bins: int = 10) -> tuple[np.ndarray, np.ndarray]:
+    """The median of ``x`` and the RMS of ``y`` in each of ``n_bins`` quantile bins of ``x`` that holds
+    any point. Tied values share a bin, so a log whose windows mostly have the same turn rate (a robot
+    that stood still for half of it) gives fewer bins, never an empty one."""
+    edges = np.quantile(x, np.linspace(0, 1, n_bins + 1))
+    which = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, n_bins - 1)
+    filled = [k for k in range(n_bins) if np.any(which == k)]
+    mid = np.array([np.median(x[which == k]) for k in filled])
+    rms = np.array([np.sqrt(np.mean(y[which == k] ** 2)) for k in filled])
+    return mid, rms
+
+
 def figure_heading_noise(
     ml: Any, model: Any, score: dict[str, Any], path: Path, title: str, truth: str = "Vicon"
 ) -> Path:
@@ -104,10 +116,7 @@ def figure_heading_noise(
     a, b = score["truth_noise"]["heading_drift_variance_fit"]
     a_m, b_m = score["truth_noise"]["learned_heading_variance_per_step"]
     x = np.linspace(0.0, np.percentile(turn, 99), 100)
-    edges = np.quantile(turn, np.linspace(0, 1, 11))
-    which = np.clip(np.searchsorted(edges, turn, side="right") - 1, 0, 9)
-    rms = [np.sqrt(np.mean(drift[which == k] ** 2)) for k in range(10)]
-    mid = [np.median(turn[which == k]) for k in range(10)]
+    mid, rms = binned_rms(turn, drift)
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     ax.scatter(turn, np.abs(drift), s=3, alpha=0.2, color="0.5", label=f"|heading drift| per window ({truth})")
     ax.plot(mid, rms, "o", color="k", label="its RMS in tenths of the windows")
@@ -120,7 +129,8 @@ def figure_heading_noise(
         title=f"{title}: heading noise",
     )
     ax.set_xlim(0, x[-1])
-    ax.set_ylim(0, 3 * max(rms))
+    if max(rms) > 0:
+        ax.set_ylim(0, 3 * max(rms))
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()

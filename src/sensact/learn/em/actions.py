@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sensact.core.polyfit import weighted_lstsq_fast
+from sensact.core.polyfit import solve_normal_equations, weighted_lstsq
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import ActionModel, EMModel
 from sensact.models.linear_action import LinearActionModel, delayed
@@ -86,15 +86,7 @@ def linear_coefficients(
     Coefficients not ``free`` (``(F, n)`` bool, as ``LinearActionModel.free_coefficients``) are held at
     zero; each component is fitted on its free columns only (the components are independent).
     """
-    beta = np.array(previous, dtype=float, copy=True)
-    used = np.any(features != 0.0, axis=0)
-    for i in range(disp_mean.shape[1]):
-        cols = used if free is None else used & free[:, i]
-        if free is not None:
-            beta[~free[:, i], i] = 0.0
-        if cols.any():
-            beta[cols, i] = weighted_lstsq_fast(features[:, cols] * dt, disp_mean[:, i], 1.0 / var[:, i])
-    return beta
+    return _fits_by_delay(features, disp_mean, var, dt, previous, free, [0])[0][1]
 
 
 def linear_action_update(
@@ -103,16 +95,72 @@ def linear_action_update(
     """The M-step of ``A(c) = Phi(c) beta`` with its command delay: for each delay in ``0..max_delay``
     the weighted least-squares beta, and of those the pair with the least weighted squared error (the
     same expected log-likelihood, maximized over a discrete parameter too)."""
-    best = (np.inf, action)
-    Phi0 = action.step_features(data.step_commands, 0)  # a delay shifts rows of Phi; compute it once
-    free = action.free_coefficients
-    for delay in range(max_delay + 1) if max_delay > 0 else [action.delay_steps]:
-        Phi = delayed(Phi0, delay)[:-1]
-        beta = linear_coefficients(Phi, disp_mean, var, data.dt_s, action.coefficients, free)
-        sse = float(np.sum((disp_mean - Phi @ beta * data.dt_s) ** 2 / var))
-        if sse < best[0]:
-            best = (sse, action.with_coefficients(beta, delay))
-    return best[1]
+    delays = list(range(max_delay + 1)) if max_delay > 0 else [action.delay_steps]
+    Phi0 = action.step_features(data.step_commands, 0)
+    fits = _fits_by_delay(Phi0, disp_mean, var, data.dt_s, action.coefficients, action.free_coefficients, delays)
+    best = min(range(len(fits)), key=lambda k: fits[k][0])  # the first of equals, as a strict < keeps
+    return action.with_coefficients(fits[best][1], delays[best])
+
+
+def _fits_by_delay(
+    Phi0: np.ndarray,
+    disp_mean: np.ndarray,
+    var: np.ndarray,
+    dt: float,
+    previous: np.ndarray,
+    free: np.ndarray | None,
+    delays: list[int],
+) -> list[tuple[float, np.ndarray]]:
+    """``(weighted squared error, beta)`` of ``linear_coefficients`` on ``delayed(Phi0, d)[:T-1]`` for
+    each delay ``d``, from sums over the rows formed once per delay instead of a least-squares solve on
+    the rows for each (the M-step tries 16 delays every iteration on 27,000 steps).
+
+    Delayed row t is ``Phi0[max(t - d, 0)]``, so ``X'WX = sum_{t >= d} w_t Phi0_{t-d} Phi0_{t-d}'`` plus
+    ``Phi0_0 Phi0_0'`` times the first ``d`` weights, one product of the weights with the rows' outer
+    products; ``X'Wy`` likewise, and the error is ``y'Wy - 2 beta'X'Wy + beta'X'WX beta``."""
+    n_rows, n = disp_mean.shape
+    F = Phi0.shape[1]
+    free = np.ones((F, n), dtype=bool) if free is None else free
+    w = 1.0 / var
+    wy = w * disp_mean
+    wyy = np.einsum("ti,ti->i", wy, disp_mean)
+    outer = (Phi0[:, :, None] * Phi0[:, None, :]).reshape(len(Phi0), F * F)
+    shared = bool(np.all(var == var[0]))  # Sigma_m shared: the gram is the weight times a prefix sum
+    if shared:
+        outer_sums = np.concatenate([np.zeros((1, F * F)), np.cumsum(outer[:n_rows], axis=0)])
+    else:
+        w_rows = np.ascontiguousarray(w.T)
+    wy_rows = np.ascontiguousarray(wy.T)  # as rows, so that each delay's sums are one matrix product
+    w_head = np.concatenate([np.zeros((1, n)), np.cumsum(w, axis=0)])  # sums of the first d rows
+    wy_head = np.concatenate([np.zeros((1, n)), np.cumsum(wy, axis=0)])
+    nonzero = Phi0 != 0.0
+    first_nonzero = np.where(nonzero.any(axis=0), nonzero.argmax(axis=0), len(Phi0))
+    out = []
+    for d in delays:
+        k = max(n_rows - d, 1)  # delayed rows read Phi0[0 .. k-1]
+        head = min(d, n_rows)
+        if shared:
+            gram = w[0][:, None] * (outer_sums[n_rows - head] + head * outer[0])
+        else:
+            gram = w_rows[:, head:] @ outer[: n_rows - head] + w_head[head][:, None] * outer[0]
+        gram = gram.reshape(n, F, F)
+        rhs = wy_rows[:, head:] @ Phi0[: n_rows - head] + wy_head[head][:, None] * Phi0[0]
+        used = first_nonzero < k  # a feature zero on every row read says nothing
+        beta = np.array(previous, dtype=float, copy=True)
+        for i in range(n):
+            cols = used & free[:, i]
+            beta[~free[:, i], i] = 0.0
+            if not cols.any():
+                continue
+            coef = solve_normal_equations(gram[i][np.ix_(cols, cols)] * dt * dt, rhs[i, cols] * dt)
+            if coef is None:
+                X = delayed(Phi0, d)[:n_rows, cols] * dt
+                coef = weighted_lstsq(X, disp_mean[:, i], w[:, i])
+            beta[cols, i] = coef
+        sse = float(np.sum(wyy - 2.0 * dt * np.einsum("fi,if->i", beta, rhs)))
+        sse += float(dt * dt * np.einsum("fi,ifg,gi->", beta, gram, beta))
+        out.append((sse, beta))
+    return out
 
 
 def motion_noise(

@@ -16,12 +16,16 @@ only lock on from a start near the truth, so the start is chosen in two rounds:
    below one that found it, so the rounds are decisive; the winner's EM goes on where it stopped.
    A trial whose best model is the one it started from would repeat itself exactly in the next
    round (the M-step's samples are seeded), so it is not run again: its score stands.
+   A round's trials are independent and each seeds its own samples, so they run in threads, one
+   per core (the E-step's compiled passes release the GIL): the same race, sooner.
 """
 
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 from typing import Any
 
@@ -99,11 +103,12 @@ RunEM = Callable[[LandmarkLog, EMModel, EMConfig], Any]
 
 
 def race_starts(
-    data: LandmarkLog, candidates: list[EMModel], config: EMConfig, run: RunEM
+    data: LandmarkLog, candidates: list[EMModel], config: EMConfig, run: RunEM, workers: int | None = None
 ) -> tuple[EMModel, dict[str, Any]]:
     """The candidate whose held EM reaches the highest whole-log likelihood, as its model after the
     race, and the race: each round's scores, the winner and its iterations. The field is halved every
-    ``start_trial_iterations`` until two are left, and the better of those wins."""
+    ``start_trial_iterations`` until two are left, and the better of those wins. ``workers`` threads
+    run a round's trials (one per core by default)."""
     trial = replace(
         config,
         start_search_s=0.0,
@@ -117,24 +122,27 @@ def race_starts(
     spent = [0] * len(candidates)
     rounds: list[dict[str, float]] = []
     stalled: dict[int, float] = {}  # candidates whose last trial found nothing better than its start
-    while True:
-        scores = {}
-        for i in alive:
-            if i in stalled:
-                # the trial is deterministic (seeded), so it would repeat itself from the same model
-                scores[i] = stalled[i]
-                spent[i] += trial.max_iterations
-                continue
-            res = run(data, models[i], trial)
-            scores[i] = res.loglik_best if res.iterations else -math.inf
-            if res.model is models[i] and res.iterations == trial.max_iterations:
-                stalled[i] = scores[i]
-            models[i] = res.model
-            spent[i] += res.iterations
-        rounds.append({str(i): float(s) for i, s in scores.items()})
-        ranked = sorted(alive, key=lambda i: -scores[i])
-        if len(ranked) <= 2 or scores[ranked[0]] == -math.inf:
-            break
-        alive = ranked[: math.ceil(len(ranked) / 2)]
+    with ThreadPoolExecutor(max_workers=max(min(len(candidates), workers or os.cpu_count() or 1), 1)) as pool:
+        while True:
+            to_run = [i for i in alive if i not in stalled]
+            # the trial is deterministic (seeded), so a stalled one would repeat itself from the same model
+            results = dict(zip(to_run, pool.map(lambda i: run(data, models[i], trial), to_run), strict=True))
+            scores = {}
+            for i in alive:
+                if i in stalled:
+                    scores[i] = stalled[i]
+                    spent[i] += trial.max_iterations
+                    continue
+                res = results[i]
+                scores[i] = res.loglik_best if res.iterations else -math.inf
+                if res.model is models[i] and res.iterations == trial.max_iterations:
+                    stalled[i] = scores[i]
+                models[i] = res.model
+                spent[i] += res.iterations
+            rounds.append({str(i): float(s) for i, s in scores.items()})
+            ranked = sorted(alive, key=lambda i: -scores[i])
+            if len(ranked) <= 2 or scores[ranked[0]] == -math.inf:
+                break
+            alive = ranked[: math.ceil(len(ranked) / 2)]
     winner = ranked[0]
     return models[winner], {"rounds": rounds, "winner": winner, "winner_iterations": spent[winner]}
