@@ -55,8 +55,7 @@ def mrclam_config() -> EMConfig:
         bearing_robust_param=4.0,
         start_search_s=30.0,
         ridge_search_mm=500.0,  # one cell of the start search's grid: how far off the start may be
-        max_iterations=300,
-    )
+    )  # EM runs until it converges (patience), as the thesis's does
 
 
 def mrclam_folder(root: Path | None = None) -> Path:
