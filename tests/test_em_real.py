@@ -127,11 +127,14 @@ def test_one_hot_basis_is_the_action_table():
     np.testing.assert_allclose(linear_coefficients(Phi, disp, var, dt, np.zeros((A, 3))), table, atol=1e-12)
 
 
-def test_action_update_picks_the_delay_and_beta_that_least_squares_on_the_delayed_rows_give():
+@pytest.mark.parametrize("weights", ["per step", "shared"])
+def test_action_update_picks_the_delay_and_beta_that_least_squares_on_the_delayed_rows_give(weights):
     """Independent reference: for every delay, numpy's lstsq on the explicitly delayed rows (each
     component on its free, nonzero columns) and its weighted squared error; the M-step's sums formed
-    once per delay must pick the same delay and beta. A command that is zero until the last steps
-    has no rows at large delays, so its coefficient keeps its previous value there."""
+    once per delay must give each delay's beta and pick the same delay, with a variance per step
+    (``turning``) or one for all steps (``shared``, where the sums are prefix sums). A command that
+    is zero until the last steps has no rows at large delays, so its coefficient keeps its previous
+    value there."""
     rng = np.random.default_rng(5)
     T, dt, true_delay = 900, 0.05, 4
     commands = rng.normal(size=(T, 2))
@@ -142,6 +145,8 @@ def test_action_update_picks_the_delay_and_beta_that_least_squares_on_the_delaye
     beta_true = np.array([[10.0, 0.0, 0.1], [0.9, 0.0, 0.0], [3.0, 0.0, 1.1]])
     disp = delayed(Phi0, true_delay)[:-1] @ beta_true * dt + rng.normal(scale=0.01, size=(T - 1, 3))
     var = rng.uniform(0.5, 2.0, size=(T - 1, 3)) * 1e-4
+    if weights == "shared":
+        var = np.broadcast_to(var[0], var.shape)  # as the M-step passes a shared Sigma_m
     data = LandmarkLog(
         "planar", dt, np.full(T, -1), np.zeros((0, 2)), ("v", "w"), [], [], [], [], np.zeros((1, 2)),
         reading_names=("r",), step_commands=commands,
@@ -163,6 +168,9 @@ def test_action_update_picks_the_delay_and_beta_that_least_squares_on_the_delaye
     got = linear_action_update(act, data, disp, var, 8)
     assert got.delay_steps == best
     np.testing.assert_allclose(got.coefficients, refs[best][1], rtol=1e-8, atol=1e-12)
+    for d, (_, ref) in enumerate(refs):
+        at_d = linear_action_update(act.with_coefficients(act.coefficients, d), data, disp, var, 0)
+        np.testing.assert_allclose(at_d.coefficients, ref, rtol=1e-8, atol=1e-12)
     # at delay 5 the turn command has no nonzero row: its coefficients are kept
     kept = linear_action_update(act.with_coefficients(act.coefficients, 5), data, disp, var, 0)
     assert kept.delay_steps == 5

@@ -129,9 +129,9 @@ def _fits_by_delay(
     if shared:
         outer_sums = np.concatenate([np.zeros((1, F * F)), np.cumsum(outer[:n_rows], axis=0)])
     else:
-        w_rows = np.ascontiguousarray(w.T)
-    wy_rows = np.ascontiguousarray(wy.T)  # as rows, so that each delay's sums are one matrix product
-    w_head = np.concatenate([np.zeros((1, n)), np.cumsum(w, axis=0)])  # sums of the first d rows
+        w_rows = np.ascontiguousarray(w.T)  # as rows, so that each delay's sums are one matrix product
+        w_head = np.concatenate([np.zeros((1, n)), np.cumsum(w, axis=0)])  # sums of the first d rows
+    wy_rows = np.ascontiguousarray(wy.T)
     wy_head = np.concatenate([np.zeros((1, n)), np.cumsum(wy, axis=0)])
     nonzero = Phi0 != 0.0
     first_nonzero = np.where(nonzero.any(axis=0), nonzero.argmax(axis=0), len(Phi0))
