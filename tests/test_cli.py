@@ -349,3 +349,34 @@ def test_a_fit_stopped_at_the_cap_says_how_fast_it_was_climbing():
     assert "rose by 0.0 in the last 2 iterations" in _still_climbing(np.array([0.0, 5.0, 1.0, 2.0]), 1, 4, 50, 0)
     assert "race" not in _still_climbing(np.array([0.0, 5.0, 1.0, 2.0]), 1, 4, 50, 0)
     assert "too few iterations" in _still_climbing(np.array([3.0]), 0, 1, 50, 0)
+
+
+def test_a_progress_description_that_changes_while_counting_keeps_its_row():
+    """EM's progress line carries the current log-likelihood, so its description changes every
+    iteration; it must move one row of the bar, not add a row per iteration (as it did in a terminal).
+    A count that starts again (the next trial) or another total is a new row; a known description
+    goes back to its row."""
+    from sensact.cli.base import ProgressRows
+
+    class Bar:
+        def __init__(self):
+            self.rows, self.updates = [], []
+
+        def add_task(self, desc, total):
+            self.rows.append(desc)
+            return len(self.rows) - 1
+
+        def update(self, task, description, completed, total):
+            self.updates.append((task, description, completed, total))
+
+    bar = Bar()
+    rows = ProgressRows(bar)
+    for it in range(4):
+        rows(f"EM: log-likelihood {-100.0 + it:.1f}", it + 1, None)
+    assert len(bar.rows) == 1 and bar.updates[-1] == (0, "EM: log-likelihood -97.0", 4, None)
+    rows("trial 2 iteration 0", 1, None)  # the count starts again: a new row
+    rows("scan matching", 3, 10)  # another total: a new row
+    rows("scan matching", 4, 10)
+    rows("EM: log-likelihood -97.0", 5, None)  # a known description: its own row
+    assert bar.rows == ["EM: log-likelihood -100.0", "trial 2 iteration 0", "scan matching"]
+    assert [u[0] for u in bar.updates[4:]] == [1, 2, 2, 0]

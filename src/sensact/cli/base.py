@@ -75,12 +75,35 @@ def _main(
     logging.basicConfig(level=logging.DEBUG if verbose else logging.WARNING, format="%(name)s: %(message)s")
 
 
+class ProgressRows:
+    """Which row of a progress bar a library ``progress(description, done, total)`` call moves: the row
+    with that description; else the last row, relabelled, while its count climbs toward the same total
+    (EM's description carries the current log-likelihood, so it changes every iteration); else a new
+    row (the next trial starts again from 1)."""
+
+    def __init__(self, bar: Any) -> None:
+        self.bar = bar
+        self.rows: dict[str, Any] = {}
+        self.last: tuple[Any, int, int | None] | None = None  # (task, done, total) of the last call
+
+    def __call__(self, desc: str, done: int, total: int | None) -> None:
+        task = self.rows.get(desc)
+        if task is None and self.last is not None and self.last[2] == total and done > self.last[1]:
+            task = self.last[0]
+            self.rows = {k: v for k, v in self.rows.items() if v != task}
+        if task is None:
+            task = self.bar.add_task(desc, total=total)
+        self.rows[desc] = task
+        self.bar.update(task, description=desc, completed=done, total=total)
+        self.last = (task, done, total)
+
+
 @contextmanager
-def progress_bar() -> Iterator[Callable[[str, int, int], None]]:
-    """A rich progress bar fed by the library's ``progress(description, done, total)`` callbacks."""
+def progress_bar() -> Iterator[Callable[[str, int, int | None], None]]:
+    """A rich progress bar fed by the library's ``progress(description, done, total)`` callbacks
+    (``total`` None: a count with no end known, as EM's, which stops when it converges)."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    tasks: dict[str, Any] = {}
     with Progress(
         TextColumn("{task.description}"),
         BarColumn(),
@@ -90,13 +113,7 @@ def progress_bar() -> Iterator[Callable[[str, int, int], None]]:
         transient=False,
         disable=not err_console.is_terminal,
     ) as bar:
-
-        def update(desc: str, done: int, total: int) -> None:
-            if desc not in tasks:
-                tasks[desc] = bar.add_task(desc, total=total)
-            bar.update(tasks[desc], completed=done, total=total)
-
-        yield update
+        yield ProgressRows(bar)
 
 
 def print_tables(tables: list[tuple[str, list[str], list[list[str]]]]) -> None:

@@ -163,8 +163,10 @@ def learn_em_cmd(
             data,
             start,
             cfg,
-            progress=lambda it, ll, best, since: progress(
-                f"EM: log-likelihood {ll:.1f} (best {best:.1f}, {since} since)", it + 1, cfg.max_iterations
+            progress=lambda it, ll, best, since: progress(  # it stops by patience: no end to show
+                f"EM: log-likelihood {ll:.1f} (best {best:.1f}, {since} of {cfg.patience} iterations since)",
+                it + 1,
+                None,
             ),
         )
     m = res.model
