@@ -169,3 +169,13 @@ def test_first_iteration_pruning_drops_false_positives():
     assert (dropped & run.obs_false).sum() >= 0.6 * run.obs_false.sum()  # most false sightings go
     assert (dropped & ~run.obs_false).sum() <= 0.05 * (~run.obs_false).sum()  # few true ones
     assert post.n_used == int(post.obs_used.sum())
+
+
+def test_the_passes_are_compiled_for_a_track_and_a_planar_pose_only():
+    """Each state size has its own compiled kernel (its loops unrolled); another size is refused with
+    the sizes there are, rather than running a kernel whose loops stop short."""
+    from sensact.core.ekf_smoother import ekf_smoother_for
+
+    assert ekf_smoother_for(1) is not ekf_smoother_for(3)
+    with pytest.raises(ValueError, match=r"1 \(track\) or 3 \(planar\) numbers, not 2"):
+        ekf_smoother_for(2)

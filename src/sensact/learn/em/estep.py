@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sensact.core.ekf_smoother import GATE, GAUSSIAN, OK, STUDENT_T, ekf_smoother
+from sensact.core.ekf_smoother import GATE, GAUSSIAN, OK, STUDENT_T, ekf_smoother_for
 from sensact.learn.em.actions import step_motion_var, step_velocity
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
@@ -112,7 +112,7 @@ def e_step(
     d_P = np.full((T - 1, n, n), np.nan)
     weights = np.zeros((data.n_observations, C + 1))
     readings, gain = channel_inputs(sensor, data)
-    status, loglik, n_used = ekf_smoother(
+    status, loglik, n_used = ekf_smoother_for(n)(
         data.mode,
         data.dt_s,
         np.ascontiguousarray(velocity),
