@@ -10,9 +10,9 @@ from sensact.core.polyfit import (
     best_fit_rms,
     polyval,
     renormalize,
+    solve_scaled_gram,
     vander,
     weighted_lstsq,
-    weighted_lstsq_fast,
     weighted_polyfit,
 )
 from sensact.core.recursive import RecursivePolyFit, accumulate_vector, shift_features, solve_spd
@@ -29,15 +29,17 @@ def test_weighted_polyfit_matches_numpy_polyfit():
     np.testing.assert_allclose(ours, ref, rtol=1e-9, atol=1e-12)
 
 
-def test_fast_weighted_lstsq_matches_the_svd_one_and_falls_back_when_singular():
+def test_scaled_gram_solve_matches_the_svd_one_and_refuses_when_singular():
     rng = np.random.default_rng(3)
     # columns of very different size (an intercept, mm/s, rad/s), as in the action M-step
     X = np.column_stack([np.ones(5000), rng.uniform(0, 300, 5000), rng.uniform(-1, 1, 5000)])
     y = X @ [5.0, 0.9, 30.0] + rng.normal(size=5000)
     w = rng.uniform(0.1, 2.0, 5000)
-    np.testing.assert_allclose(weighted_lstsq_fast(X, y, w), weighted_lstsq(X, y, w), rtol=1e-9)
-    singular = np.column_stack([X, 2 * X[:, 1]])  # the minimum-norm solution, as lstsq gives
-    np.testing.assert_allclose(weighted_lstsq_fast(singular, y, w), weighted_lstsq(singular, y, w), rtol=1e-9)
+    Xw = X * w[:, None]
+    np.testing.assert_allclose(solve_scaled_gram(X.T @ Xw, Xw.T @ y), weighted_lstsq(X, y, w), rtol=1e-9)
+    singular = np.column_stack([X, 2 * X[:, 1]])  # left to the caller, who solves from the rows
+    Sw = singular * w[:, None]
+    assert solve_scaled_gram(singular.T @ Sw, Sw.T @ y) is None
 
 
 def test_affine_basis_matrix_is_exact():

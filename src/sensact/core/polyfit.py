@@ -56,19 +56,13 @@ def weighted_lstsq(X: np.ndarray, y: np.ndarray, weights: np.ndarray | None = No
     return coef
 
 
-def weighted_lstsq_fast(X: np.ndarray, y: np.ndarray, weights: np.ndarray, max_cond: float = 1e10) -> np.ndarray:
-    """``weighted_lstsq`` by the normal equations (``solve_normal_equations``): about three times faster
-    for a few columns and tens of thousands of rows. Falls back to ``weighted_lstsq`` when the scaled
-    system is ill-conditioned, where forming ``X'WX`` would lose digits."""
-    Xw = X * weights[:, None]
-    coef = solve_normal_equations(X.T @ Xw, Xw.T @ y, max_cond)
-    return weighted_lstsq(X, y, weights) if coef is None else coef
-
-
-def solve_normal_equations(gram: np.ndarray, rhs: np.ndarray, max_cond: float = 1e10) -> np.ndarray | None:
+def solve_scaled_gram(gram: np.ndarray, rhs: np.ndarray, max_cond: float = 1e10) -> np.ndarray | None:
     """``c`` with ``gram c = rhs`` (``gram = X'WX``, ``rhs = X'Wy``), the columns scaled to unit norm
-    first; None when the scaled system's condition number reaches ``max_cond``, so that the caller can
-    solve from the rows instead (EM's action M-step forms these sums once for every command delay)."""
+    first, which for a few columns and tens of thousands of rows is several times faster than
+    ``weighted_lstsq`` on the rows. None when the scaled system's condition number reaches ``max_cond``,
+    where forming ``X'WX`` loses digits, so that the caller solves from the rows instead (EM's action
+    M-step forms these sums once for every command delay). Unlike ``core.recursive``'s
+    ``solve_normal_equations`` (the online learner's, compiled, with a ridge retry) it never regularizes."""
     scale = np.sqrt(np.diag(gram))
     scale[scale == 0] = 1.0
     G = gram / np.outer(scale, scale)

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sensact.core.polyfit import solve_normal_equations, weighted_lstsq
+from sensact.core.polyfit import solve_scaled_gram, weighted_lstsq
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import ActionModel, EMModel
 from sensact.models.linear_action import LinearActionModel, delayed
@@ -152,7 +152,7 @@ def _fits_by_delay(
             beta[~free[:, i], i] = 0.0
             if not cols.any():
                 continue
-            coef = solve_normal_equations(gram[i][np.ix_(cols, cols)] * dt * dt, rhs[i, cols] * dt)
+            coef = solve_scaled_gram(gram[i][np.ix_(cols, cols)] * dt * dt, rhs[i, cols] * dt)
             if coef is None:
                 X = delayed(Phi0, d)[:n_rows, cols] * dt
                 coef = weighted_lstsq(X, disp_mean[:, i], w[:, i])
