@@ -245,10 +245,12 @@ def test_simulate_car_then_learn_car_with_ros_export(tmp_path):
     assert res.exit_code == 2 and "meta.json" in res.output
 
 
-def _write_turtlebot_csv(path, *, with_range: bool, seed: int = 7) -> None:
+def _write_turtlebot_csv(path, *, with_range: bool, seed: int = 7, one_speed: bool = False) -> None:
     """A seeded robot in the Turtlebot's CSV format: it backs away from and drives at a wall, obeying its
     command with gain 0.9 and 2 steps (0.12 s) late (the move from step k - 1 to k follows the command of
-    step k - 3); sonar1 reads the distance in m with 5 % outliers, each IR sensor a falling curve of it."""
+    step k - 3); sonar1 reads the distance in m with 5 % outliers, each IR sensor a falling curve of it.
+    ``one_speed``: it backs away at 0.01 m/s instead, apart from a 1-s stop every 30 s (like
+    turtlebot1d's calibration.csv)."""
     import numpy as np
 
     rng = np.random.default_rng(seed)
@@ -256,6 +258,8 @@ def _write_turtlebot_csv(path, *, with_range: bool, seed: int = 7) -> None:
     t = 0.1 + dt * np.arange(n)
     period = 14.0  # whole periods of a sine out and back, at 0.2, 0.3 and 0.4 m/s: 400 to 2000 mm
     cmd = np.sin(2 * np.pi * t / period) * (0.2 + 0.1 * ((t // period) % 3))
+    if one_speed:
+        cmd = np.where(t % 30.0 < 1.0, 0.0, 0.01)
     d = np.empty(n)
     d[0] = 400.0
     for k in range(1, n):
@@ -380,3 +384,32 @@ def test_a_progress_description_that_changes_while_counting_keeps_its_row():
     rows("EM: log-likelihood -97.0", 5, None)  # a known description: its own row
     assert bar.rows == ["EM: log-likelihood -100.0", "trial 2 iteration 0", "scan matching"]
     assert [u[0] for u in bar.updates[4:]] == [1, 2, 2, 0]
+
+
+def test_a_log_at_one_speed_is_learned_with_a_warning_and_its_gain_not_scored(tmp_path):
+    """A gain is a slope of velocity on command: a log that holds one command (97 % of its steps here)
+    gives one point of it, so `learn` says so and neither learner's gain is scored (the chapter-3
+    scorer's optimal scale would fit any model to its one timed command: "0.00 % off"); `reproduce
+    real` on such a log divided by the span of one timed velocity."""
+    from sensact.experiments.turtlebot import run_turtlebot
+
+    csv = tmp_path / "one_speed.csv"
+    _write_turtlebot_csv(csv, with_range=True, one_speed=True)
+    model = tmp_path / "m.json"
+    res = runner.invoke(app, ["learn", "em", str(csv), "--out", str(model), "--set", "max_iterations=5"])
+    said = " ".join(res.output.split())
+    assert res.exit_code == 0, res.output
+    assert "spends 97 % of its steps at one command (v_cmd_mm_s 10)" in said
+    assert "action gain" in said and "(not scored: 97 % of the steps at one command)" in said
+    ev = json.loads(model.read_text())["evaluation"]
+    assert ev["gain_error_pct"] is None and ev["one_command_share"] == pytest.approx(0.967, abs=0.001)
+    res = runner.invoke(app, ["learn", "bootstrap", str(csv)])
+    said = " ".join(res.output.split())
+    assert res.exit_code == 0 and "at one command (command 0.01 m/s)" in said, res.output
+    assert "action and gain not scored: fewer than two commands held for 2 s" in said
+    row = run_turtlebot(csv, ("sonar1",))[0]["rows"]["sonar1"]
+    assert row["commands_timed"] == 1 and row["action_rms_pct"] is None and row["gain_error_pct"] is None
+    # the sine of the other tests is never held, and is not warned about
+    _write_turtlebot_csv(csv, with_range=True)
+    res = runner.invoke(app, ["learn", "em", str(csv), "--set", "max_iterations=2"])
+    assert res.exit_code == 0 and "at one command" not in res.output and "% off" in res.output

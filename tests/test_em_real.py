@@ -1203,20 +1203,32 @@ def dead_reckon_windows(v: np.ndarray, dt: float) -> np.ndarray:
 
 def test_turtlebot_table_says_a_sensor_without_bins_is_not_scored():
     """A sensor whose window holds fewer than two distance bins has no span (NaN in memory, null once
-    real.json is read back); the table says it was not scored instead of printing "nan"."""
+    real.json is read back); the table says it was not scored instead of printing "nan", and so for a
+    gain that a log at one speed cannot score."""
     from sensact.report.tables import real_tables
 
     sensor = {"rms_pct_of_span": 1.234, "span_mm": 1500.0}
     score = {"gain_learned": 0.9, "gain_true": 0.91, "gain_error_pct": 1.1, "delay_s": 0.12}
     score["sensors"] = {"sonar1": sensor, "raw_ir2": {"rms_pct_of_span": float("nan"), "span_mm": float("nan")}}
     score["sensors"]["raw_ir3"] = {"rms_pct_of_span": None, "span_mm": None}
-    res = {"turtlebot": {"score": score, "chapter3_sonar1": {"learned_gain": 0.8, "gain_error_pct": 2.0}}}
-    res["turtlebot"]["chapter3_sonar1"]["sensor_rms_pct"] = 2.5
-    (_, _, rows) = next(t for t in real_tables(res) if t[0].startswith("Turtlebot"))
+    ch3 = {"learned_gain": 0.8, "gain_error_pct": 2.0, "sensor_rms_pct": 2.5}
+    res = {"turtlebot": {"file": "/data/turtlebot1d/run7.csv", "score": score, "chapter3_sonar1": ch3}}
+    (title, _, rows) = next(t for t in real_tables(res) if t[0].startswith("Turtlebot"))
     cells = {r[0]: r[1:] for r in rows}
+    assert title.startswith("Turtlebot run7.csv: EM in 1-D")
     assert cells["sonar1 error, % of its span"] == ["1.23 % (1500 mm)", "2.50 %"]
     for name in ("raw_ir2", "raw_ir3"):
         assert cells[f"{name} error, % of its span"] == ["not scored (readings in fewer than two bins)", "-"]
+    gain = "action gain (after the optimal scale)"
+    assert cells[gain] == ["0.9000 (truth 0.9100, 1.10 % off)", "0.8000 (2.00 % off)"]
+    # a log at one speed: neither gain is scored, each for its own reason
+    score |= {"gain_error_pct": None, "one_command_share": 0.978}
+    ch3["gain_error_pct"] = None
+    (_, _, rows) = next(t for t in real_tables(res) if t[0].startswith("Turtlebot"))
+    assert {r[0]: r[1:] for r in rows}[gain] == [
+        "0.9000 (not scored: 98 % of the steps at one command)",
+        "0.8000 (not scored: fewer than two commands held for 2 s)",
+    ]
 
 
 @pytest.mark.skipif(not TURTLEBOT.is_file(), reason=f"Turtlebot data not found at {TURTLEBOT}")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sensact.evaluate.measured import measure_action, measure_sensor
+from sensact.evaluate.measured import ONE_COMMAND_SHARE, dominant_command, measure_action, measure_sensor
 from sensact.evaluate.scaled import consistency, fit_scale, fit_scale_offset, score_models
 from sensact.evaluate.track1d import COMMAND_GRID_MM_S, DISTANCE_GRID_MM
 from sensact.models.polynomial import Polynomial1D
@@ -67,3 +67,14 @@ def test_measure_sensor_uses_medians_and_drops_non_invertible_bins():
     ms = measure_sensor(o, x, bin_width=0.1, window=(0.0, 5.0))
     np.testing.assert_allclose(ms.observations, 2 * ms.positions, atol=0.02)
     assert ms.positions.max() < 2.5  # bins whose median is above 5.0 are left out
+
+
+def test_dominant_command_counts_the_steps_at_the_median_command():
+    held = np.r_[np.full(95, 0.02), np.zeros(3), np.full(2, -0.02)]  # calibration.csv's pattern
+    assert dominant_command(held) == (0.02, 0.95) and 0.95 >= ONE_COMMAND_SHARE
+    # within 2 % of the largest command's size counts as the same command; 3 % does not
+    assert dominant_command(np.r_[np.full(50, 1.0), np.full(50, 0.98)])[1] == 1.0
+    assert dominant_command(np.r_[np.full(50, 1.0), np.full(49, 0.97), [np.nan]])[1] == 50 / 99
+    sweep = np.sin(np.linspace(0.0, 20.0, 1000))  # a sine never holds a command
+    assert dominant_command(sweep)[1] < 0.05
+    assert np.isnan(dominant_command(np.full(3, np.nan))[0]) and dominant_command(np.full(3, np.nan))[1] == 0.0

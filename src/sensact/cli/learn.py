@@ -32,6 +32,23 @@ def _still_climbing(loglik: np.ndarray, best: int, max_iterations: int, patience
     )
 
 
+def warn_if_one_command(commands: np.ndarray, source: str, name: str, unit: str = "") -> bool:
+    """Say so when a 1-D log spends nearly all its steps at one command: the action model's slope then
+    rests on the few steps at others. True when it warned."""
+    from sensact.evaluate.measured import ONE_COMMAND_SHARE, dominant_command
+
+    value, share = dominant_command(commands)
+    if share < ONE_COMMAND_SHARE:
+        return False
+    command = f"{name} {value:g} {unit}".rstrip()
+    console.print(
+        f"[yellow]warning[/]: {source} spends {100 * share:.0f} % of its steps at one command ({command}), "
+        "so the action model's slope rests on the few steps at others and a gain against ground truth is not "
+        "scored; for a model to trust, drive at two or more speeds, each for a few seconds."
+    )
+    return True
+
+
 @learn_app.command("bootstrap")
 @friendly
 def learn_bootstrap_cmd(
@@ -70,6 +87,7 @@ def learn_bootstrap_cmd(
         f"{data.source}: {len(data.times_s)} steps over {data.duration_s:.1f} s, "
         f"{data.n_observations} observations of {data.observation_name}"
     )
+    warn_if_one_command(data.commands, data.source, "command", data.command_unit)
     with progress_bar() as progress:
         res = learn_bootstrap(
             data.times_s,
@@ -151,6 +169,8 @@ def learn_em_cmd(
         )
         + (f" ({lf.note})" if lf is not None and lf.note else "")
     )
+    if data.geometry == "track" and data.step_commands is not None:
+        warn_if_one_command(data.step_commands[:, 0], data.source, data.command_names[0])
     start = initial_model(data, cfg)
     if cfg.start_search_s > 0 and data.geometry == "planar":
         console.print(

@@ -191,12 +191,13 @@ def evaluate_turtlebot_em(res: Any, data: Any, truth_mm: Any) -> dict[str, Any] 
         console.print(f"the range column has {int((~np.isfinite(truth_mm)).sum())} empty steps: not scored.")
         return None
     from sensact.experiments.turtlebot_em import score_turtlebot_em
+    from sensact.report.tables import gain_cell, one_command_reason
 
     sc = score_turtlebot_em(res, data, truth_mm)
-    console.print(
-        f"vs range (optimal scale and offset): action gain {sc['gain_learned']:.4f} against "
-        f"{sc['gain_true']:.4f} ({sc['gain_error_pct']:.2f} % off); command delay {sc['delay_s']:.2f} s"
+    gain = gain_cell(
+        sc["gain_learned"], sc["gain_true"], sc["gain_error_pct"], one_command_reason(sc["one_command_share"])
     )
+    console.print(f"vs range (optimal scale and offset): action gain {gain}; command delay {sc['delay_s']:.2f} s")
     for name, s in sc["sensors"].items():
         if np.isfinite(s["rms_pct_of_span"]):
             console.print(f"  {name}: {s['rms_pct_of_span']:.2f} % of its {s['span_mm']:.0f} mm span")
@@ -220,12 +221,16 @@ def evaluate_log(data: Any, res: Any, cfg: Any) -> dict[str, Any] | None:
         return sc.to_dict()
     if data.true_position is not None:
         from sensact.experiments.turtlebot import evaluate_real
+        from sensact.report.tables import NOT_TIMED
 
         run = evaluate_real(data, res, cfg)
         sc = run.score
+        sensor = f"vs ground truth: sensor RMS {sc.sensor_rms:.4g} {data.position_unit} (best {sc.sensor_best_rms:.4g})"
+        if run.measured_action.commands.size < 2:  # one timed point: any action model scales onto it
+            console.print(f"{sensor}; action and gain {NOT_TIMED}")
+            return {**sc.to_dict(), "action_rms": None, "action_best_rms": None, "learned_gain": run.learned_gain}
         console.print(
-            f"vs ground truth: sensor RMS {sc.sensor_rms:.4g} {data.position_unit} "
-            f"(best {sc.sensor_best_rms:.4g}), action RMS {sc.action_rms:.4g} {data.position_unit}/s, "
+            f"{sensor}, action RMS {sc.action_rms:.4g} {data.position_unit}/s, "
             f"gain {run.learned_gain:.4f} (truth {run.true_gain:.4f}), consistency {sc.consistency:.3f}"
         )
         return {**sc.to_dict(), "learned_gain": run.learned_gain, "true_gain": run.true_gain}

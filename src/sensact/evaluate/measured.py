@@ -84,3 +84,20 @@ def measure_action(
     vel = np.array([np.average([v for v, _ in acc[k]], weights=[w for _, w in acc[k]]) for k in cmds])
     secs = np.array([sum(w for _, w in acc[k]) for k in cmds])
     return MeasuredAction(cmds, vel, secs)
+
+
+# a log spending this share of its steps at one command measures one point of the action model
+ONE_COMMAND_SHARE = 0.9
+
+
+def dominant_command(commands: np.ndarray, tolerance: float = 0.02) -> tuple[float, float]:
+    """The median command and the share of steps within ``tolerance`` of the largest command's size of
+    it. Needs no ground truth: when the share reaches ``ONE_COMMAND_SHARE`` (turtlebot1d's
+    calibration.csv: 0.98; training1.csv: 0.07) a slope of velocity on command rests on the few steps
+    at other commands, mostly their accelerations, and is not a gain to score or to trust."""
+    c = np.asarray(commands, dtype=float)
+    c = c[np.isfinite(c)]
+    if c.size == 0:
+        return float("nan"), 0.0
+    med = float(np.median(c))
+    return med, float(np.mean(np.abs(c - med) <= tolerance * np.abs(c).max()))

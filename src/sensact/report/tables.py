@@ -87,6 +87,23 @@ def track1d_tables(res: dict[str, Any]) -> list[Table]:
     return [t1, t2, t3]
 
 
+# chapter 3 times each command held for 2 s or more (sec. 3.3.2); one timed command is one point, which
+# the optimal scale fits exactly
+NOT_TIMED = "not scored: fewer than two commands held for 2 s"
+
+
+def gain_cell(learned: float, true: float | None, error_pct: float | None, why: str = NOT_TIMED) -> str:
+    """``learned (truth T, E % off)``, or ``learned (why)`` when the log could not score a gain."""
+    if error_pct is None:
+        return f"{learned:.4f} ({why})"
+    truth = f"truth {true:.4f}, " if true is not None else ""
+    return f"{learned:.4f} ({truth}{error_pct:.2f} % off)"
+
+
+def one_command_reason(share: float) -> str:
+    return f"not scored: {100 * share:.0f} % of the steps at one command"
+
+
 def turtlebot_tables(res: dict[str, Any]) -> list[Table]:
     rows = []
     for name, r in res["rows"].items():
@@ -95,15 +112,15 @@ def turtlebot_tables(res: dict[str, Any]) -> list[Table]:
                 name,
                 f"{100 * r['sensor_rms_m']:.1f} cm ({r['sensor_rms_pct']:.1f} %)",
                 f"{100 * r['sensor_best_rms_m']:.1f} cm",
-                f"{1000 * r['action_rms_m_s']:.1f} mm/s",
-                f"{r['learned_gain']:.3f} / {r['true_gain']:.3f}",
+                f"{1000 * r['action_rms_m_s']:.1f} mm/s" if r["action_rms_m_s"] is not None else "-",
+                f"{r['learned_gain']:.3f} / {r['true_gain']:.3f}" if r["gain_error_pct"] is not None else NOT_TIMED,
                 f"{r['consistency']:.3f}",
                 f"{r['n_gated']}/{r['n_observations']}",
             ]
         )
     return [
         (
-            "Turtlebot training1.csv, Algorithm 1 (errors after the optimal scale)",
+            f"Turtlebot {Path(res['file']).name}, Algorithm 1 (errors after the optimal scale)",
             [
                 "sensor",
                 "sensor RMS (% of span)",
@@ -441,11 +458,12 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
     tb = res.get("turtlebot")
     if tb:
         sc, ch3 = tb["score"], tb.get("chapter3_sonar1", {})
+        share = sc.get("one_command_share", 0.0)  # absent from results written before it was measured
         trows = [
             [
                 "action gain (after the optimal scale)",
-                f"{sc['gain_learned']:.4f} (truth {sc['gain_true']:.4f}, {sc['gain_error_pct']:.2f} % off)",
-                f"{ch3.get('learned_gain', float('nan')):.4f} ({ch3.get('gain_error_pct', float('nan')):.2f} % off)",
+                gain_cell(sc["gain_learned"], sc["gain_true"], sc["gain_error_pct"], one_command_reason(share)),
+                gain_cell(ch3["learned_gain"], None, ch3["gain_error_pct"]) if ch3 else "-",
             ],
             ["learned command delay", f"{sc['delay_s']:.3f} s", "-"],
         ]
@@ -458,6 +476,10 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
             )
             trows.append([f"{name} error, % of its span", err, c3])
         tables.append(
-            ("Turtlebot training1.csv: EM in 1-D against the chapter-3 learner", ["quantity", "EM", "chapter 3"], trows)
+            (
+                f"Turtlebot {Path(tb['file']).name}: EM in 1-D against the chapter-3 learner",
+                ["quantity", "EM", "chapter 3"],
+                trows,
+            )
         )
     return tables
