@@ -8,7 +8,8 @@ window a reading says nothing). Nothing fixes the unit of the 1-D state, so the 
 learned state to the true range with the optimal scale and offset (as sec. 4.4.3 does) and compares:
 
 * the action **gain**: the learned d(velocity)/d(command) after the scale, against the slope of the
-  true velocity (from ``range`` over 1 s windows) on the command;
+  true velocity (from ``range`` over 1 s windows) on the command; not scored when the log spends
+  ``ONE_COMMAND_SHARE`` of its steps at one command, where that slope rests on the few others;
 * each **sensor**: over 100 mm bins of true distance inside the channel's window, the gap between the
   learned f and the median reading, turned into distance by f's slope, as an RMS percent of the span.
 
