@@ -245,7 +245,9 @@ def test_simulate_car_then_learn_car_with_ros_export(tmp_path):
     assert res.exit_code == 2 and "meta.json" in res.output
 
 
-def _write_turtlebot_csv(path, *, with_range: bool, seed: int = 7, one_speed: bool = False) -> None:
+def _write_turtlebot_csv(
+    path, *, with_range: bool, seed: int = 7, one_speed: bool = False, drop: tuple[str, ...] = ()
+) -> None:
     """A seeded robot in the Turtlebot's CSV format: it backs away from and drives at a wall, obeying its
     command with gain 0.9 and 2 steps (0.12 s) late (the move from step k - 1 to k follows the command of
     step k - 3); sonar1 reads the distance in m with 5 % outliers, each IR sensor a falling curve of it.
@@ -273,8 +275,8 @@ def _write_turtlebot_csv(path, *, with_range: bool, seed: int = 7, one_speed: bo
     ]
     cols = {"time": t, "range": d / 1000.0, "velocity_command": cmd}
     cols |= {f"raw_ir{i + 1}": v for i, v in enumerate(ir)} | {"sonar1": sonar, "sonar2": d / 1000.0}
-    if not with_range:
-        del cols["range"]
+    for name in (*drop, *(() if with_range else ("range",))):
+        del cols[name]
     rows = [",".join(["", *cols])] + [",".join([str(k), *(f"{v[k]:.6f}" for v in cols.values())]) for k in range(n)]
     path.write_text("\n".join(rows) + "\n")
 
@@ -324,6 +326,23 @@ def test_learn_em_on_a_turtlebot_csv_recovers_the_gain_and_sonar(tmp_path):
     said = " ".join(res.output.split())
     assert res.exit_code == 0 and "raw_ir2: not scored (fewer than two 100-mm bins" in said, res.output
     assert "nan" not in said and "raw_ir1: " in said and "% of its" in said
+
+
+def test_learn_em_on_a_turtlebot_csv_learns_the_sensors_it_has(tmp_path):
+    csv = tmp_path / "robot.csv"
+    _write_turtlebot_csv(csv, with_range=True, drop=("raw_ir1", "raw_ir2"))
+    model = tmp_path / "m.json"
+    res = runner.invoke(app, ["learn", "em", str(csv), "--out", str(model), "--set", "max_iterations=3"])
+    assert res.exit_code == 0, res.output
+    assert "Channels sonar1, raw_ir3, raw_ir4 (raw_ir1, raw_ir2 not in the file)." in " ".join(res.output.split())
+    channels = json.loads(model.read_text())["model"]["sensor"]["channels"]
+    assert [c["name"] for c in channels] == ["sonar1", "raw_ir3", "raw_ir4"]
+    assert channels[1]["valid_min"] == 100.0 and channels[2]["valid_max"] == 5000.0  # their datasheet windows
+    # without the sonar, nothing says what unit the state is in
+    _write_turtlebot_csv(csv, with_range=True, drop=("sonar1",))
+    res = runner.invoke(app, ["learn", "em", str(csv)])
+    said = " ".join(res.output.split())
+    assert res.exit_code == 2 and "robot.csv: sonar1: EM on a Turtlebot CSV needs the sonar1 column" in said
 
 
 def test_learn_em_refuses_a_turtlebot_csv_out_of_order(tmp_path):

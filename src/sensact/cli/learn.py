@@ -138,13 +138,15 @@ def learn_em_cmd(
     lf, turtlebot_truth = None, None
     if log.is_file() and log.suffix.lower() == ".csv":
         from sensact.experiments.turtlebot_em import turtlebot_em_config
-        from sensact.io.turtlebot import read_turtlebot_landmark_log
+        from sensact.io.turtlebot import EM_READINGS, read_turtlebot_landmark_log
 
         data, turtlebot_truth = read_turtlebot_landmark_log(log)
-        cfg = layered_config(EMConfig, config, set_, base=turtlebot_em_config())
+        cfg = layered_config(EMConfig, config, set_, base=turtlebot_em_config(data.reading_names))
+        absent = [r for r in EM_READINGS if r not in data.reading_names]
         console.print(
             "Turtlebot CSV: starting from the Turtlebot's EM settings (docs/em-real.md); --config and --set "
             "override them."
+            + (f" Channels {', '.join(data.reading_names)} ({', '.join(absent)} not in the file)." if absent else "")
         )
     else:
         if log.is_file():

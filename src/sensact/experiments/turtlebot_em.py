@@ -34,15 +34,16 @@ from sensact.learn.em.config import ChannelConfig
 from sensact.logs.landmark_log import LandmarkLog
 
 
-def turtlebot_em_config() -> EMConfig:
+def turtlebot_em_config(readings: tuple[str, ...] = EM_READINGS) -> EMConfig:
     """The model a user would choose from the datasheets: every channel a cubic from a poor line;
-    the IR channels valid within their datasheet ranges; sonar1 robust."""
+    the IR channels valid within their datasheet ranges; sonar1 robust. ``readings``: the columns a
+    file has (sonar1 and any of the IR sensors)."""
     chans = [
         # a sonar reads a distance: its poor start is a wrong scale and offset, not a wrong unit, so that the
         # state is in mm and the IR windows mean what the datasheets say
         ChannelConfig("sonar1", 3, 100.0, 0.8, 300.0, robust="student_t", robust_param=4.0),
     ]
-    for name in EM_READINGS[1:]:
+    for name in (r for r in EM_READINGS[1:] if r in readings):
         lo, hi = SPEC_RANGE_M[name]
         chans.append(ChannelConfig(name, 3, 1.5, -0.0002, 1.0, lo * 1000.0, hi * 1000.0))
     return EMConfig(
@@ -114,8 +115,8 @@ def score_turtlebot_em(res: EMResult, data: LandmarkLog, truth_mm: np.ndarray) -
 
 def run_turtlebot_em(csv_path: str | Path, config: EMConfig | None = None) -> tuple[dict[str, Any], EMResult]:
     t0 = time.perf_counter()
-    cfg = config or turtlebot_em_config()
     data, truth = read_turtlebot_landmark_log(csv_path)
+    cfg = config or turtlebot_em_config(data.reading_names)
     res = fit_em(data, None, cfg)
     score = score_turtlebot_em(res, data, truth)
     pcts = [v["rms_pct_of_span"] for v in score["sensors"].values()]

@@ -63,8 +63,19 @@ def _read_checked(path: str | Path, readings: tuple[str, ...]) -> dict[str, np.n
 
 def read_turtlebot_landmark_log(path: str | Path, dt_s: float | None = None) -> tuple[LandmarkLog, np.ndarray]:
     """The CSV on a fixed step (its median spacing): commands held, each row's readings at the nearest
-    step. Returns the log and the true range (mm) per step, for evaluation only."""
-    cols = _read_checked(path, EM_READINGS)
+    step. Returns the log and the true range (mm) per step, for evaluation only. The readings are
+    sonar1 and whichever IR columns the file has: sonar1 reads a distance, which sets the state's
+    unit (mm) that the IR sensors' datasheet windows are given in."""
+    cols = _read_checked(path, ())
+    if "sonar1" not in cols:
+        raise LogFormatError(
+            "EM on a Turtlebot CSV needs the sonar1 column: its readings are distances (m), which set the "
+            "learned state's unit that the IR sensors' datasheet windows are given in.",
+            file=path,
+            field="sonar1",
+            fix="add the sonar1 column, or write a log folder (docs/commands.md) with your own channels and windows.",
+        )
+    readings = tuple(r for r in EM_READINGS if r in cols)
     t = cols["time"]
     dt = float(np.median(np.diff(t))) if dt_s is None else dt_s
     T = int(np.floor((t[-1] - t[0]) / dt)) + 1
@@ -72,7 +83,7 @@ def read_turtlebot_landmark_log(path: str | Path, dt_s: float | None = None) -> 
     held = np.clip(np.searchsorted(t, grid + 1e-9, side="right") - 1, 0, len(t) - 1)
     commands = (cols["velocity_command"][held] * 1000.0).reshape(-1, 1)
     steps = np.clip(np.rint((t - t[0]) / dt).astype(np.int64), 0, T - 1)
-    readings = np.column_stack([cols[r] * EM_SCALE.get(r, 1.0) for r in EM_READINGS])
+    values = np.column_stack([cols[r] * EM_SCALE.get(r, 1.0) for r in readings])
     truth = np.interp(grid, t, cols["range"]) * 1000.0 if "range" in cols else np.full(T, np.nan)
     data = LandmarkLog(
         "track",
@@ -82,12 +93,12 @@ def read_turtlebot_landmark_log(path: str | Path, dt_s: float | None = None) -> 
         ("v_cmd_mm_s",),
         steps,
         np.zeros(len(steps), dtype=np.int64),
-        readings,
+        values,
         np.full(len(steps), np.nan),
         np.zeros((1, 2)),
         ("wall",),
         str(path),
-        EM_READINGS,
+        readings,
         commands,
     )
     return data, truth
