@@ -409,8 +409,11 @@ def test_a_log_at_one_speed_is_learned_with_a_warning_and_its_gain_not_scored(tm
     """A gain is a slope of velocity on command: a log that holds one command (97 % of its steps here)
     gives one point of it, so `learn` says so and neither learner's gain is scored (the chapter-3
     scorer's optimal scale would fit any model to its one timed command: "0.00 % off"); `reproduce
-    real` on such a log divided by the span of one timed velocity."""
+    real` on such a log divided by the span of one timed velocity, and on a log that holds no command
+    it fitted a polynomial to no points."""
     from sensact.experiments.turtlebot import run_turtlebot
+    from sensact.report.figures1d import figure_real
+    from sensact.report.tables import turtlebot_tables
 
     csv = tmp_path / "one_speed.csv"
     _write_turtlebot_csv(csv, with_range=True, one_speed=True)
@@ -428,7 +431,14 @@ def test_a_log_at_one_speed_is_learned_with_a_warning_and_its_gain_not_scored(tm
     assert "action and gain not scored: fewer than two commands held for 2 s" in said
     row = run_turtlebot(csv, ("sonar1",))[0]["rows"]["sonar1"]
     assert row["commands_timed"] == 1 and row["action_rms_pct"] is None and row["gain_error_pct"] is None
-    # the sine of the other tests is never held, and is not warned about
+    # the sine of the other tests is never held, and is not warned about: EM's gain (a regression on
+    # 1-s windows) is scored, chapter 3's (timed over held commands) has nothing to time and says so
     _write_turtlebot_csv(csv, with_range=True)
     res = runner.invoke(app, ["learn", "em", str(csv), "--set", "max_iterations=2"])
     assert res.exit_code == 0 and "at one command" not in res.output and "% off" in res.output
+    summary, runs = run_turtlebot(csv, ("sonar1",))
+    row = summary["rows"]["sonar1"]
+    assert row["commands_timed"] == 0 and row["gain_error_pct"] is None and row["action_rms_m_s"] is None
+    (_, _, rows) = turtlebot_tables(summary)[0]
+    assert rows[0][3:6] == ["-", "not scored: fewer than two commands held for 2 s", "-"]
+    assert figure_real(runs, tmp_path / "models.png").stat().st_size > 10_000

@@ -93,8 +93,10 @@ def renormalize(coef: np.ndarray, center: float, scale: float, new_center: float
 
 
 def best_fit_rms(x: np.ndarray, y: np.ndarray, degree: int) -> float:
-    """RMS residual of the best unweighted polynomial of ``degree`` through ``(x, y)``."""
+    """RMS residual of the best unweighted polynomial of ``degree`` through ``(x, y)``; NaN with no points."""
     x = np.asarray(x, dtype=float)
+    if x.size == 0:
+        return float("nan")
     center, scale = 0.5 * (x.max() + x.min()), max(0.5 * (x.max() - x.min()), 1e-300)
     coef = weighted_polyfit(x, y, degree, center=center, scale=scale)
     resid = np.asarray(y, dtype=float) - polyval(coef, (x - center) / scale)

@@ -123,12 +123,16 @@ def figure_real(runs: dict[str, Any], path: Path) -> Path:
     ax = axes[-1]
     first = next(iter(runs.values()))
     ma = first.measured_action
-    c = np.linspace(ma.commands.min(), ma.commands.max(), 100)
-    ax.plot(ma.commands, ma.velocities, "o", label="timed (ground truth)")
-    for name, run in runs.items():
-        ax.plot(c, run.score.action_scale_k * run.result.action(c), "-", lw=1, label=f"learned with {name}")
+    if ma.commands.size:
+        c = np.linspace(ma.commands.min(), ma.commands.max(), 100)
+        ax.plot(ma.commands, ma.velocities, "o", label="timed (ground truth)")
+        for name, run in runs.items():
+            ax.plot(c, run.score.action_scale_k * run.result.action(c), "-", lw=1, label=f"learned with {name}")
+        ax.legend(fontsize=7)
+    else:  # the optimal scale needs a timed command to scale the learned A onto
+        ax.text(0.5, 0.5, "no command held for 2 s:\nnothing timed to scale against", ha="center", va="center")
+        ax.set_axis_off()
     ax.set_xlabel("velocity_command (m/s)")
     ax.set_ylabel("velocity (m/s)")
-    ax.legend(fontsize=7)
     fig.suptitle("Turtlebot, Algorithm 1: learned models after the optimal scale")
     return _save(fig, path)

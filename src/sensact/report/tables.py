@@ -92,10 +92,10 @@ def track1d_tables(res: dict[str, Any]) -> list[Table]:
 NOT_TIMED = "not scored: fewer than two commands held for 2 s"
 
 
-def gain_cell(learned: float, true: float | None, error_pct: float | None, why: str = NOT_TIMED) -> str:
+def gain_cell(learned: float | None, true: float | None, error_pct: float | None, why: str = NOT_TIMED) -> str:
     """``learned (truth T, E % off)``, or ``learned (why)`` when the log could not score a gain."""
     if error_pct is None:
-        return f"{learned:.4f} ({why})"
+        return f"{learned:.4f} ({why})" if learned is not None and math.isfinite(learned) else why
     truth = f"truth {true:.4f}, " if true is not None else ""
     return f"{learned:.4f} ({truth}{error_pct:.2f} % off)"
 
@@ -114,7 +114,7 @@ def turtlebot_tables(res: dict[str, Any]) -> list[Table]:
                 f"{100 * r['sensor_best_rms_m']:.1f} cm",
                 f"{1000 * r['action_rms_m_s']:.1f} mm/s" if r["action_rms_m_s"] is not None else "-",
                 f"{r['learned_gain']:.3f} / {r['true_gain']:.3f}" if r["gain_error_pct"] is not None else NOT_TIMED,
-                f"{r['consistency']:.3f}",
+                _f(r["consistency"], 3) if r["consistency"] != math.inf else "-",  # inf: no timed command
                 f"{r['n_gated']}/{r['n_observations']}",
             ]
         )
