@@ -1227,7 +1227,7 @@ def test_turtlebot_table_says_a_sensor_without_bins_is_not_scored():
     (_, _, rows) = next(t for t in real_tables(res) if t[0].startswith("Turtlebot"))
     assert {r[0]: r[1:] for r in rows}[gain] == [
         "0.9000 (not scored: 98 % of the steps at one command)",
-        "0.8000 (not scored: fewer than two commands held for 2 s)",
+        "0.8000 (not scored: no command held for 2 s)",
     ]
 
 

@@ -78,3 +78,27 @@ def test_dominant_command_counts_the_steps_at_the_median_command():
     sweep = np.sin(np.linspace(0.0, 20.0, 1000))  # a sine never holds a command
     assert dominant_command(sweep)[1] < 0.05
     assert np.isnan(dominant_command(np.full(3, np.nan))[0]) and dominant_command(np.full(3, np.nan))[1] == 0.0
+
+
+def test_the_real_robot_gain_goes_through_the_sensor_scale_not_the_actions_own():
+    """Exact: a robot at gain 0.9 and a sensor read in half-metres. An S that is right (d = 0.5 o)
+    with an A that says 1.8 half-metres per unit command is consistent, gain 0.9; the same S with
+    A twice too fast has gain 1.8, which A's own optimal scale would have hidden (0.9 again)."""
+    from types import SimpleNamespace
+
+    from sensact.experiments.turtlebot import evaluate_real
+    from sensact.io.logfolder import TrackLog
+    from sensact.learn.bootstrap import BootstrapConfig
+
+    t = np.arange(0.0, 40.0, 0.05)
+    cmd = np.where(t < 20.0, 0.1, -0.2)
+    x = 1.0 + np.cumsum(0.9 * cmd * 0.05)
+    log = TrackLog(t, cmd, 2.0 * x, "m/s", "half_m", "half-metres", "synthetic", true_position=x, position_unit="m")
+    sensor = Polynomial1D((0.0, 1.0))  # w = o: the learned unit is the sensor's half-metres
+    for a_slope, gain in ((1.8, 0.9), (3.6, 1.8)):
+        result = SimpleNamespace(sensor=sensor, action=Polynomial1D((0.0, a_slope)))
+        run = evaluate_real(log, result, BootstrapConfig())
+        assert run.true_gain == pytest.approx(0.9, rel=1e-9)
+        assert run.score.sensor_scale_b == pytest.approx(0.5, rel=1e-9)
+        assert run.learned_gain == pytest.approx(gain, rel=1e-9)
+        assert run.score.action_scale_k * a_slope == pytest.approx(0.9, rel=1e-9)  # the action's own: always 0.9

@@ -226,12 +226,17 @@ def evaluate_log(data: Any, res: Any, cfg: Any) -> dict[str, Any] | None:
         run = evaluate_real(data, res, cfg)
         sc = run.score
         sensor = f"vs ground truth: sensor RMS {sc.sensor_rms:.4g} {data.position_unit} (best {sc.sensor_best_rms:.4g})"
-        if run.measured_action.commands.size < 2:  # one timed point: any action model scales onto it
+        timed = run.measured_action.commands.size
+        out = {**sc.to_dict(), "learned_gain": run.learned_gain, "true_gain": run.true_gain}
+        if timed < 2:  # A's own optimal scale fits one timed command exactly: no action error to show
+            out |= {"action_rms": None, "action_best_rms": None}
+        if timed == 0:
             console.print(f"{sensor}; action and gain {NOT_TIMED}")
-            return {**sc.to_dict(), "action_rms": None, "action_best_rms": None, "learned_gain": run.learned_gain}
+            return out | {"true_gain": None}
+        action = f"action RMS {sc.action_rms:.4g} {data.position_unit}/s" if timed >= 2 else "action RMS not scored"
         console.print(
-            f"{sensor}, action RMS {sc.action_rms:.4g} {data.position_unit}/s, "
-            f"gain {run.learned_gain:.4f} (truth {run.true_gain:.4f}), consistency {sc.consistency:.3f}"
+            f"{sensor}, {action}, gain {run.learned_gain:.4f} (truth {run.true_gain:.4f}), "
+            f"consistency {sc.consistency:.3f}"
         )
-        return {**sc.to_dict(), "learned_gain": run.learned_gain, "true_gain": run.true_gain}
+        return out
     return None

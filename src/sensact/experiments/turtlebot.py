@@ -42,7 +42,7 @@ class RealRun:
     score: ModelPairScore
     measured_sensor: MeasuredSensor
     measured_action: MeasuredAction
-    learned_gain: float  # slope through the origin of the scaled learned A
+    learned_gain: float  # slope through the origin of the learned A, in distance units by S's scale b
     true_gain: float  # slope through the origin of the timed velocities
 
 
@@ -69,10 +69,11 @@ def evaluate_real(log: TrackLog, result: BootstrapResult, config: BootstrapConfi
         commands=ma.commands,
         velocities=ma.velocities,
     )
-    learned = score.action_scale_k * result.action(ma.commands)
-    return RealRun(
-        log, result, score, ms, ma, fit_scale(ma.commands, learned).scale, fit_scale(ma.commands, ma.velocities).scale
-    )
+    # S and A share the learned unit w (sec. 3.2), and distance = a + b S(o), so the learned velocity in
+    # distance units is b A(c). A's own optimal scale k (sec. 3.3.2's action error) is fitted to the
+    # timed velocities, so through it a straight A would match the timed gain exactly, however wrong.
+    learned_gain = score.sensor_scale_b * fit_scale(ma.commands, result.action(ma.commands)).scale
+    return RealRun(log, result, score, ms, ma, learned_gain, fit_scale(ma.commands, ma.velocities).scale)
 
 
 def run_turtlebot(
@@ -90,8 +91,9 @@ def run_turtlebot(
         run = evaluate_real(log, res, cfg)
         runs[sensor] = run
         span = float(np.ptp(run.measured_sensor.positions)) if run.measured_sensor.positions.size else float("nan")
-        # one held command is one point: the optimal scale then fits any action model to it exactly
-        timed = run.measured_action.commands.size >= 2
+        # A's own optimal scale fits any model exactly to one timed command, so its error needs two; the
+        # gain (through S's scale) needs one
+        timed = run.measured_action.commands.size
         vspan = float(np.ptp(run.measured_action.velocities)) if timed else 0.0
         rows[sensor] = {
             "status": res.status,
@@ -99,9 +101,9 @@ def run_turtlebot(
             "sensor_rms_pct": 100.0 * run.score.sensor_rms / span,
             "sensor_best_rms_m": run.score.sensor_best_rms,
             "distance_span_m": span,
-            "commands_timed": int(run.measured_action.commands.size),
-            "action_rms_m_s": run.score.action_rms if timed else None,
-            "action_rms_pct": 100.0 * run.score.action_rms / vspan if timed and vspan > 0 else None,
+            "commands_timed": int(timed),
+            "action_rms_m_s": run.score.action_rms if timed >= 2 else None,
+            "action_rms_pct": 100.0 * run.score.action_rms / vspan if timed >= 2 and vspan > 0 else None,
             "learned_gain": run.learned_gain,
             "true_gain": run.true_gain,
             "gain_error_pct": 100.0 * abs(run.learned_gain / run.true_gain - 1.0) if timed else None,

@@ -87,9 +87,8 @@ def track1d_tables(res: dict[str, Any]) -> list[Table]:
     return [t1, t2, t3]
 
 
-# chapter 3 times each command held for 2 s or more (sec. 3.3.2); one timed command is one point, which
-# the optimal scale fits exactly
-NOT_TIMED = "not scored: fewer than two commands held for 2 s"
+# chapter 3 times each command held for 2 s or more (sec. 3.3.2); a gain needs one such command
+NOT_TIMED = "not scored: no command held for 2 s"
 
 
 def gain_cell(learned: float | None, true: float | None, error_pct: float | None, why: str = NOT_TIMED) -> str:
