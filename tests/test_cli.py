@@ -338,6 +338,14 @@ def test_learn_em_on_a_turtlebot_csv_learns_the_sensors_it_has(tmp_path):
     channels = json.loads(model.read_text())["model"]["sensor"]["channels"]
     assert [c["name"] for c in channels] == ["sonar1", "raw_ir3", "raw_ir4"]
     assert channels[1]["valid_min"] == 100.0 and channels[2]["valid_max"] == 5000.0  # their datasheet windows
+    # chapter 3's reproduction runs the default sensors the file has
+    folder = tmp_path / "data" / "turtlebot1d"
+    folder.mkdir(parents=True)
+    _write_turtlebot_csv(folder / "training1.csv", with_range=True, drop=("raw_ir3",))
+    res = runner.invoke(app, ["reproduce", "turtlebot", "--data", str(tmp_path / "data"), "--out", str(tmp_path / "r")])
+    assert res.exit_code == 0 and "has no column raw_ir3: run without them" in " ".join(res.output.split())
+    out = json.loads((tmp_path / "r" / "turtlebot.json").read_text())
+    assert list(out["rows"]) == ["sonar1", "sonar2", "raw_ir4"] and out["skipped_sensors"] == ["raw_ir3"]
     # without the sonar, nothing says what unit the state is in
     _write_turtlebot_csv(csv, with_range=True, drop=("sonar1",))
     res = runner.invoke(app, ["learn", "em", str(csv)])

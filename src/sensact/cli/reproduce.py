@@ -313,6 +313,8 @@ def _reproduce_turtlebot(out: Path, csv: Path) -> None:
     from sensact.report.tables import turtlebot_tables
 
     res, runs = run_turtlebot(csv)
+    if res["skipped_sensors"]:
+        console.print(f"{csv} has no column {', '.join(res['skipped_sensors'])}: run without them")
     write_results(out, "turtlebot", res, turtlebot_tables(res))
     figure_real(runs, out / "turtlebot_models.png")
     console.print(f"wrote {out / 'turtlebot.json'} and {out / 'turtlebot_models.png'}")

@@ -6,6 +6,7 @@ true distance to the wall (evaluation only) and is absent from ``test.csv``.
 
 from __future__ import annotations
 
+import csv
 from pathlib import Path
 from typing import Any
 
@@ -41,6 +42,17 @@ LEARNER_SETTINGS: dict[str, dict[str, Any]] = {
 
 EM_READINGS = ("sonar1", "raw_ir1", "raw_ir2", "raw_ir3", "raw_ir4")
 EM_SCALE = {"sonar1": 1000.0}  # sonar m -> mm; the IR readings stay in volts
+
+
+def turtlebot_sensors(path: str | Path) -> tuple[str, ...]:
+    """The sensor columns (``UNITS``) a Turtlebot CSV's header names, in ``UNITS`` order; () when the
+    file cannot be read, so that the reader reports why."""
+    try:
+        with Path(path).open(newline="") as handle:
+            header = {h.strip() for h in next(csv.reader(handle), [])}
+    except OSError:
+        return ()
+    return tuple(s for s in UNITS if s in header)
 
 
 def _read_checked(path: str | Path, readings: tuple[str, ...]) -> dict[str, np.ndarray]:
