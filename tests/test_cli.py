@@ -353,6 +353,16 @@ def test_learn_em_on_a_turtlebot_csv_learns_the_sensors_it_has(tmp_path):
     assert res.exit_code == 2 and "robot.csv: sonar1: EM on a Turtlebot CSV needs the sonar1 column" in said
 
 
+def test_a_file_that_is_not_text_is_one_line_naming_it(tmp_path):
+    binary = tmp_path / "capture.csv"
+    binary.write_bytes(b"\x00\xff\xfe\x10 not text")
+    for command in ("bootstrap", "em"):
+        res = runner.invoke(app, ["learn", command, str(binary)])
+        said = " ".join(res.output.split())
+        assert res.exit_code == 2 and "capture.csv: not a readable CSV text file" in said, res.output
+        assert "Traceback" not in res.output
+
+
 def test_learn_em_refuses_a_turtlebot_csv_out_of_order(tmp_path):
     csv = tmp_path / "robot.csv"
     _write_turtlebot_csv(csv, with_range=True)

@@ -24,8 +24,13 @@ def read_numeric_csv(path: str | Path, required: Sequence[str] = (), *, what: st
             file=path,
             fix="check the path; a log folder holds meta.json, actions.csv and observations.csv.",
         )
-    with path.open(newline="") as handle:
-        rows = list(csv.reader(handle))
+    try:
+        with path.open(newline="") as handle:
+            rows = list(csv.reader(handle))
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise LogFormatError(
+            f"not a readable CSV text file ({exc}).", file=path, fix="give a comma-separated text file (UTF-8)."
+        ) from exc
     if not rows:
         raise LogFormatError("the file is empty.", file=path, fix="write a header row and at least one data row.")
     header = [h.strip() for h in rows[0]]

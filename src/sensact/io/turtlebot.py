@@ -50,7 +50,7 @@ def turtlebot_sensors(path: str | Path) -> tuple[str, ...]:
     try:
         with Path(path).open(newline="") as handle:
             header = {h.strip() for h in next(csv.reader(handle), [])}
-    except OSError:
+    except (OSError, UnicodeDecodeError, csv.Error):
         return ()
     return tuple(s for s in UNITS if s in header)
 
