@@ -423,7 +423,7 @@ def test_a_progress_description_that_changes_while_counting_keeps_its_row():
     assert [u[0] for u in bar.updates[4:]] == [1, 2, 2, 0]
 
 
-def test_a_log_at_one_speed_is_learned_with_a_warning_and_its_gain_not_scored(tmp_path):
+def test_a_log_at_one_speed_is_warned_about_and_ems_gain_not_scored(tmp_path):
     """A gain is a slope of velocity on command: a log that holds one command (97 % of its steps here)
     gives one point of it, so `learn` says so and EM's gain (an affine slope over 1-s windows) is not
     scored; chapter 3's gain (through the origin, at the timed commands) is, but not its action RMS,

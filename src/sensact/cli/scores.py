@@ -232,7 +232,7 @@ def evaluate_log(data: Any, res: Any, cfg: Any) -> dict[str, Any] | None:
             out |= {"action_rms": None, "action_best_rms": None}
         if timed == 0:
             console.print(f"{sensor}; action and gain {NOT_TIMED}")
-            return out | {"true_gain": None}
+            return out
         action = f"action RMS {sc.action_rms:.4g} {data.position_unit}/s" if timed >= 2 else "action RMS not scored"
         console.print(
             f"{sensor}, {action}, gain {run.learned_gain:.4f} (truth {run.true_gain:.4f}), "
