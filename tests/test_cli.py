@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import pytest
+import typer
 from typer.testing import CliRunner
 
 from sensact.cli import app
@@ -12,25 +13,31 @@ from sensact.cli import app
 runner = CliRunner()
 
 
-@pytest.mark.parametrize(
-    "args",
-    [
-        [],
-        ["simulate"],
-        ["learn"],
-        ["simulate", "track1d"],
-        ["simulate", "field2d"],
-        ["simulate", "car"],
-        ["learn", "car"],
-        ["learn", "bootstrap"],
-        ["learn", "em"],
-        ["reproduce"],
-    ],
-)
-def test_every_command_has_help(args):
-    res = runner.invoke(app, [*args, "--help"])
+def _command_paths(command, path=()):
+    """Every command and group under ``command``, as the words that name it."""
+    yield path, command
+    for name, sub in getattr(command, "commands", {}).items():
+        yield from _command_paths(sub, (*path, name))
+
+
+COMMANDS = list(_command_paths(typer.main.get_command(app)))
+
+
+@pytest.mark.parametrize("path", [list(p) for p, _ in COMMANDS], ids=[" ".join(p) or "sensact" for p, _ in COMMANDS])
+def test_every_command_has_help(path):
+    res = runner.invoke(app, [*path, "--help"])
     assert res.exit_code == 0, res.output
     assert "Usage" in res.output
+
+
+def test_every_commands_summary_in_its_groups_list_is_one_line():
+    # typer's rich help keeps a docstring's single line breaks in a group's command list, so a summary that
+    # wraps in the source breaks mid-sentence there; the summary is the first paragraph, the rest follows
+    assert len(COMMANDS) >= 13
+    for path, command in COMMANDS:
+        summary = (command.short_help or command.help or "").split("\n\n")[0]
+        assert summary.strip(), path
+        assert "\n" not in summary.strip(), (path, summary)
 
 
 def test_simulate_then_learn(tmp_path):

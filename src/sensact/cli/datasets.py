@@ -25,9 +25,11 @@ def convert_mrclam(
     out: Annotated[Path, typer.Option("--out", help="The log folder to write.")] = Path("mrclam_log"),
     dt: Annotated[float, typer.Option(help="Step (s); commands are held between their rows.")] = 1.0 / 30.0,
 ) -> None:
-    """Write one MRCLAM robot as an EM log folder: commands resampled with a zero-order hold, landmark
-    sightings only (range in mm and bearing), the landmark map, and Vicon in groundtruth.csv (for
-    `sensact learn em` to score against; it is never learned from)."""
+    """Write one MRCLAM robot as an EM log folder, with its EM settings in em_config.yaml.
+
+    Commands are resampled with a zero-order hold; only landmark sightings are kept (range in mm and
+    bearing); the landmark map goes into meta.json and Vicon into groundtruth.csv (for `sensact learn
+    em` to score against; it is never learned from)."""
     from sensact.config import config_to_yaml
     from sensact.experiments.real import mrclam_config
     from sensact.io.atomic import write_text
@@ -59,9 +61,11 @@ def evaluate_mrclam_cmd(
         typer.Option("--out", help="Write the scores here (JSON), and four figures beside it (OUT_actions.png, ...)."),
     ] = None,
 ) -> None:
-    """Score a learned continuous-command model against Vicon, next to From-Truth: the same model
-    families fitted directly to the ground truth. With --out, also draw the action curves, the range
-    function, the heading noise and the bearing noise against Vicon's, as `reproduce real` does."""
+    """Score a learned MRCLAM model against Vicon, next to From-Truth.
+
+    From-Truth is the same model families fitted directly to the ground truth. With --out, also draw
+    the action curves, the range function, the heading noise and the bearing noise against Vicon's,
+    as `reproduce real` does."""
     import json
 
     from sensact.errors import ModelFormatError

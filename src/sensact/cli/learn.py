@@ -63,8 +63,9 @@ def learn_bootstrap_cmd(
     set_: SetOpt = None,
     config: ConfigOpt = None,
 ) -> None:
-    """Learn S(o) and A(c) from each other with Algorithm 1 (sec. 3.2.3). Prints the polynomials, and
-    the scaled errors when the log carries ground truth."""
+    """Learn S(o) and A(c) from each other with Algorithm 1 (sec. 3.2.3).
+
+    Prints the polynomials, and the scaled errors when the log carries ground truth."""
     from sensact.errors import ConfigError
     from sensact.io.atomic import write_json, write_npz
     from sensact.io.logfolder import read_track_log
@@ -128,8 +129,9 @@ def learn_em_cmd(
     set_: SetOpt = None,
     config: ConfigOpt = None,
 ) -> None:
-    """Learn the action model, sensor functions f and noise sigmas by EM (ch. 4). Ctrl-C stops early and
-    still writes the most likely model so far."""
+    """Learn the action model, sensor functions f and noise sigmas by EM (ch. 4).
+
+    Ctrl-C stops early and still writes the most likely model so far."""
     from sensact.io.atomic import write_json, write_npz
     from sensact.io.landmark_log import read_landmark_log
     from sensact.learn.em import EMConfig, fit_em, initial_model
