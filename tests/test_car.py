@@ -2,15 +2,23 @@
 
 from __future__ import annotations
 
+import json
+import shutil
+
 import numpy as np
 import pytest
 
 from sensact.core.raycast import BOX, CYLINDER, _hit_box, _hit_cylinder, build_grid, cast_firings
+from sensact.errors import LogFormatError
 from sensact.experiments.car import learn_from_log, simulate_car_log
+from sensact.io.car_log import read_car_log
+from sensact.io.velodyne import PACKET, UPPER, encode_hdl64e, write_pcap
+from sensact.io.velodyne_calibration import write_calibration
 from sensact.learn.car_dynamics import CarLearningConfig, regression_actions
 from sensact.learn.lidar_intrinsics import learn_relative_angles, masked_ncc
 from sensact.learn.scan_odometry import OdometryConfig, angle_median, icp, invert, offset_from_motion
 from sensact.models.car_dynamics import CarDynamics, fit_car_dynamics
+from sensact.models.laser_intrinsics import LaserIntrinsics
 from sensact.sim.car import CarConfig, nominal_intrinsics
 
 
@@ -84,12 +92,15 @@ def test_masked_ncc_equals_the_direct_sum():
 
 
 @pytest.fixture(scope="module")
-def short_drive(tmp_path_factory):
+def short_drive_folder(tmp_path_factory):
     cfg = CarConfig(seconds=30.0, seed=3, turn_times_s=(12.0,), stop_times_s=(24.0,))
     folder = tmp_path_factory.mktemp("car") / "log"
-    run = simulate_car_log(cfg, folder)
-    from sensact.io.car_log import read_car_log
+    return simulate_car_log(cfg, folder), folder
 
+
+@pytest.fixture(scope="module")
+def short_drive(short_drive_folder):
+    run, folder = short_drive_folder
     return run, read_car_log(folder)
 
 
@@ -100,14 +111,76 @@ def test_simulated_pcap_decodes_as_an_hdl64e(short_drive):
     assert log.distance_m.shape == ((30 * 7800) // 6 * 6, 64)
     valid = log.distance_m > 0
     assert 0.5 < valid.mean() < 0.999 and log.distance_m[valid].max() <= 120.0
-    # the rotation advances by omega / f per firing
-    step = np.mod(np.diff(log.rotation_rad), 2 * np.pi)
-    np.testing.assert_allclose(step, 20 * np.pi / 7800, atol=2e-4)
+    # the rotation moves by omega / f per firing, clockwise as every Velodyne turns (theta_r falls)
+    assert log.omega_rad_s == pytest.approx(-20 * np.pi, rel=1e-4)
+    step = np.angle(np.exp(1j * np.diff(log.rotation_rad)))
+    np.testing.assert_allclose(step, -20 * np.pi / 7800, atol=2e-4)
     assert log.actions.shape[1] == 3 and log.groundtruth is not None
 
 
-def test_relative_angles_recover_the_true_differences(short_drive):
-    run, log = short_drive
+def test_a_users_car_folder_needs_no_rates_and_takes_the_factory_calibration(short_drive_folder, short_drive, tmp_path):
+    """A folder of one's own: the capture where it lies, the pedal log, and the factory calibration file;
+    the firing rate and rpm come from the packets' clock and match what the simulator states."""
+    _, sim = short_drive_folder
+    _, log = short_drive
+    assert not log.notes and not log.warnings  # the simulator's stated rates agree with its packets
+    lidar = {
+        "file": str(sim / "velodyne.pcap"),
+        "time_origin_s": json.loads((sim / "meta.json").read_text())["lidar"]["time_origin_s"],
+    }
+    own = tmp_path / "own"
+    own.mkdir()
+    shutil.copy(sim / "actions.csv", own)
+
+    def write_meta(**extra):
+        meta = {"format": "sensact-log", "version": 1, "platform": "car", "lidar": {**lidar, **extra}}
+        (own / "meta.json").write_text(json.dumps(meta))
+
+    write_meta()
+    with pytest.raises(LogFormatError, match="--factory-calibration"):
+        read_car_log(own)
+    mine = read_car_log(own, calibration=sim / "calibration_true.yaml")
+    assert mine.firing_hz == pytest.approx(log.firing_hz, rel=1e-5)
+    assert mine.omega_rad_s == pytest.approx(log.omega_rad_s, rel=1e-4)
+    np.testing.assert_array_equal(mine.distance_m, log.distance_m)
+    np.testing.assert_allclose(mine.vertical_rad, log.vertical_rad, atol=1e-12)
+    np.testing.assert_allclose(mine.action_times_s, log.action_times_s, atol=1e-9)
+    assert [n.split()[0] for n in mine.notes] == ["firing_hz", "rpm"] and not mine.warnings
+    assert all("measured from the packets' clock" in n for n in mine.notes)
+    # a stated rate wins, but one the packets contradict is said
+    write_meta(rpm=300)
+    wrong = read_car_log(own, calibration=sim / "calibration_true.yaml")
+    assert wrong.omega_rad_s == pytest.approx(-10 * np.pi)
+    assert len(wrong.warnings) == 1 and "rpm is 300 rpm but the packets show 600" in wrong.warnings[0]
+    # a calibration for another unit, the capture itself given as the log, and a capture of another model
+    write_calibration(tmp_path / "vlp16.yaml", LaserIntrinsics(np.zeros(16), np.zeros(16)))
+    with pytest.raises(LogFormatError, match="16 vertical angles for 64 lasers") as err:
+        read_car_log(own, calibration=tmp_path / "vlp16.yaml")
+    assert "vlp16.yaml" in str(err.value)
+    with pytest.raises(LogFormatError, match="not a single file"):
+        read_car_log(sim / "velodyne.pcap")
+    payloads = encode_hdl64e(np.zeros(60), np.ones((60, 64)), np.zeros((60, 64)), np.arange(10) * 769)
+    payloads.view(PACKET).reshape(-1)["blocks"]["id"] = UPPER  # upper blocks only, as a 32-laser unit sends
+    write_pcap(own / "other.pcap", payloads, np.arange(10) * 769e-6)
+    write_meta(file="other.pcap", vertical_deg=[0.0] * 64)
+    with pytest.raises(LogFormatError, match="HDL-32E packets: chapter 5's learner reads an HDL-64E") as err:
+        read_car_log(own)
+    assert "other.pcap" in str(err.value)
+
+
+@pytest.fixture(scope="module")
+def counterclockwise_drive(tmp_path_factory):
+    """The short drive with a unit that turns the other way (no Velodyne does): the learners must not
+    assume a direction."""
+    cfg = CarConfig(seconds=30.0, seed=3, turn_times_s=(12.0,), stop_times_s=(24.0,), clockwise=False)
+    folder = tmp_path_factory.mktemp("car_ccw") / "log"
+    return simulate_car_log(cfg, folder), read_car_log(folder)
+
+
+@pytest.mark.parametrize("drive", ["short_drive", "counterclockwise_drive"])
+def test_relative_angles_recover_the_true_differences(drive, request):
+    run, log = request.getfixturevalue(drive)
+    assert np.sign(log.omega_rad_s) == (-1.0 if run.config.clockwise else 1.0)
     res = learn_relative_angles(log.distance_m, log.vertical_rad, log.firing_hz, log.omega_rad_s)
     err = res.relative_rad - run.true_laser_angles_rad
     err -= err.mean()

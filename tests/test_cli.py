@@ -235,19 +235,40 @@ def test_simulate_car_then_learn_car_with_ros_export(tmp_path):
     )
     assert res.exit_code == 0, res.output
     assert (log / "velodyne.pcap").stat().st_size > 10_000_000
+    import dataclasses
+
+    import numpy as np
+
+    from sensact.io.velodyne_calibration import read_calibration, write_calibration
+
+    # as a user's folder: no rates and no vertical angles in meta.json, the factory's calibration file
+    # (here the true one, with a distance correction per laser) beside it
+    meta = json.loads((log / "meta.json").read_text())
+    for name in ("vertical_deg", "firing_hz", "rpm"):
+        del meta["lidar"][name]
+    (log / "meta.json").write_text(json.dumps(meta))
+    factory = read_calibration(log / "calibration_true.yaml")
+    extra = tuple({"laser_id": i, "dist_correction": 0.01 * i} for i in range(factory.n_lasers))
+    write_calibration(tmp_path / "factory.yaml", dataclasses.replace(factory, extra=extra))
     out, yml = tmp_path / "car.json", tmp_path / "learned.yaml"
-    res = runner.invoke(app, ["learn", "car", str(log), "--out", str(out), "--calibration-yaml", str(yml)])
+    res = runner.invoke(
+        app,
+        [
+            *("learn", "car", str(log), "--out", str(out), "--calibration-yaml", str(yml)),
+            *("--factory-calibration", str(tmp_path / "factory.yaml")),
+        ],
+    )
     assert res.exit_code == 0, res.output
     assert "omega =" in res.output and "vs truth: laser angles" in res.output
+    assert "firing_hz 7800 Hz, measured from the packets' clock" in res.output
+    assert "rpm 600 rpm, measured" in res.output and "warning" not in res.output
     model = json.loads(out.read_text())
     assert len(model["laser_angles_deg"]) == 64 and model["car_dynamics"]["kind"] == "car_dynamics"
     assert model["evaluation"]["laser_angle_rms_deg"] < 1.0  # 20 s: C rests on a few fast intervals
-    import numpy as np
-
-    from sensact.io.velodyne_calibration import read_calibration
-
     cal = read_calibration(yml)
     np.testing.assert_allclose(np.degrees(cal.horizontal_rad) + 90.0, model["laser_angles_deg"], atol=1e-9)
+    np.testing.assert_allclose(cal.vertical_rad, factory.vertical_rad, atol=1e-12)
+    assert [e["dist_correction"] for e in cal.extra] == [0.01 * i for i in range(64)]
     res = runner.invoke(app, ["learn", "car", str(tmp_path)])
     assert res.exit_code == 2 and "meta.json" in res.output
 

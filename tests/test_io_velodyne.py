@@ -13,6 +13,7 @@ from sensact.io.velodyne import (
     UPPER,
     decode_packets,
     encode_hdl64e,
+    measure_spin,
     pcap_bytes,
     read_pcap_payloads,
     read_velodyne_pcap,
@@ -84,6 +85,43 @@ def test_hdl64e_write_then_read_round_trip(tmp_path):
     rot_back[r.firing] = r.rotation_deg
     np.testing.assert_allclose(rot_back, np.round(rot * 100) / 100, atol=1e-9)
     assert np.allclose(np.diff(r.time_s[r.laser == 0]), 1 / 7800.0, atol=1e-3)
+
+
+def test_the_spin_is_measured_from_the_packets_own_clock():
+    """A written HDL-64E capture at a known firing rate and rpm, with dropped packets, jittered capture
+    times and the sensor clock wrapping at the hour: both come back to the clock's microsecond."""
+    hz, rpm = 7800.0, 900.0  # a packet every 769.23 µs: the clock rounds each to a whole µs
+    F = 6 * 3000
+    t = np.arange(F) / hz
+    rot = np.mod(t * rpm * 6.0, 360.0)
+    stamp = np.rint(np.mod(3599.5 + t[::6], 3600.0) * 1e6)
+    payloads = encode_hdl64e(rot, np.ones((F, 64)), np.zeros((F, 64)), stamp)
+    keep = np.ones(F // 6, dtype=bool)
+    keep[[5, 6, 7, 900, 2000]] = False  # a three-packet drop and two single ones
+    spin = measure_spin(payloads[keep])
+    assert spin.firing_hz == pytest.approx(hz, rel=2e-6)
+    assert spin.rpm == pytest.approx(rpm, rel=1e-4)  # the rotation field is in 0.01°
+    assert measure_spin(payloads[:2]) is None
+    frozen = payloads.copy().view(PACKET).reshape(-1)
+    frozen["timestamp_us"] = 7
+    assert measure_spin(frozen.view(np.uint8).reshape(-1, 1206)) is None
+
+
+@pytest.mark.parametrize(
+    "name,period_us", [("hdl32_example.pcap", 46.08), ("velodyne_vlp32.pcap", 46.08), ("velodyne_vlp16.pcap", 55.296)]
+)
+def test_real_captures_fire_at_their_datasheets_rate(name, period_us):
+    """The datasheets' firing periods (HDL-32E 46.08 µs; VLP-16 55.296 µs per sequence of 16), read
+    from real packets; the spin agrees with the rotation's steps between a packet's blocks."""
+    _, payloads, _ = read_pcap_payloads(require(VELO / name))
+    spin = measure_spin(payloads)
+    assert spin.firing_hz == pytest.approx(1e6 / period_us, rel=1e-3)
+    blocks = payloads.view(PACKET).reshape(-1)["blocks"]
+    within = np.mod(np.diff(blocks["rotation"].astype(float) / 100.0, axis=1), 360.0)
+    firings_per_block = 2 if name == "velodyne_vlp16.pcap" else 1
+    rpm_within = within.mean() / (firings_per_block * period_us * 1e-6) / 6.0
+    assert spin.rpm == pytest.approx(rpm_within, rel=0.02)
+    assert 300.0 <= spin.rpm <= 1200.0  # the units' settable range
 
 
 def test_bad_files_are_rejected_clearly(tmp_path):

@@ -257,6 +257,14 @@ def learn_car_cmd(
         Path | None,
         typer.Option("--calibration-yaml", help="Also write the learned angles as a ROS velodyne calibration."),
     ] = None,
+    factory_calibration: Annotated[
+        Path | None,
+        typer.Option(
+            "--factory-calibration",
+            help="The unit's ROS velodyne calibration (YAML): its vertical angles are used (sec. 2.5.2), its "
+            "horizontal ones never; --calibration-yaml then keeps its other fields.",
+        ),
+    ] = None,
     set_: SetOpt = None,
     config: ConfigOpt = None,
 ) -> None:
@@ -267,16 +275,20 @@ def learn_car_cmd(
     from sensact.experiments.car import learn_from_log
     from sensact.io.atomic import write_json
     from sensact.io.car_log import read_car_log
-    from sensact.io.velodyne_calibration import write_calibration
+    from sensact.io.velodyne_calibration import read_calibration, write_calibration
     from sensact.learn.car_dynamics import CarLearningConfig
     from sensact.models.laser_intrinsics import LaserIntrinsics
 
     cfg = layered_config(CarLearningConfig, config, set_)
-    data = read_car_log(log)
+    data = read_car_log(log, calibration=factory_calibration)
     console.print(
         f"{log}: {data.distance_m.shape[0]} firings of {data.distance_m.shape[1]} lasers "
         f"({data.distance_m.shape[0] / data.firing_hz:.1f} s), {len(data.actions)} action rows"
     )
+    for note in data.notes:
+        console.print(f"  {note}")
+    for warning in data.warnings:
+        console.print(f"[yellow]warning[/]: {warning}")
     with progress_bar() as progress:
         res = learn_from_log(data, cfg, progress)
     m = res.model
@@ -312,5 +324,11 @@ def learn_car_cmd(
     if calibration_yaml is not None:
         # ROS's driver puts a point at azimuth (rotation - rot_correction) clockwise from forward, which is
         # eq. 2.35 with theta_b = 90°: rot_correction = theta_hat_l - 90° puts points in the car's frame
-        write_calibration(calibration_yaml, LaserIntrinsics(data.vertical_rad, res.laser_angles_rad - np.pi / 2))
+        factory = read_calibration(factory_calibration) if factory_calibration is not None else None
+        learned = LaserIntrinsics(
+            data.vertical_rad,
+            res.laser_angles_rad - np.pi / 2,
+            *((factory.distance_resolution_m, factory.extra) if factory is not None else ()),
+        )
+        write_calibration(calibration_yaml, learned)
         console.print(f"wrote {calibration_yaml} (rot_correction = learned angle - 90°)")

@@ -3,7 +3,7 @@
 ::
 
     car-001/
-      meta.json            platform "car", lidar {file, firing_hz, rpm, vertical_deg}, truth if simulated
+      meta.json            platform "car", lidar {file, vertical_deg, firing_hz, rpm, time_origin_s}, truth if simulated
       velodyne.pcap        HDL-64E UDP packets
       actions.csv          t_s, throttle, brake, steering (about 20 Hz)
       groundtruth.csv      optional: t_s, x_m, y_m, theta_rad, ... (evaluation only)
@@ -25,7 +25,15 @@ from sensact.errors import LogFormatError
 from sensact.io.atomic import write_json, write_stream
 from sensact.io.csvtable import read_numeric_csv
 from sensact.io.logfolder import LOG_FORMAT, LOG_VERSION, _write_csv, read_meta
-from sensact.io.velodyne import PCAP_HEADER, encode_hdl64e, hdl64e_firings, pcap_records, read_pcap_payloads
+from sensact.io.velodyne import (
+    PCAP_HEADER,
+    encode_hdl64e,
+    hdl64e_firings,
+    measure_spin,
+    pcap_records,
+    read_pcap_payloads,
+    velodyne_model,
+)
 from sensact.io.velodyne_calibration import write_calibration
 from sensact.models.laser_intrinsics import LaserIntrinsics
 
@@ -62,51 +70,128 @@ def write_car_log(
     return folder
 
 
+SPIN_TOLERANCE = 0.02  # a stated firing rate or rpm this far from what the packets show is probably wrong
+CAR_LOG_DOCS = 'docs/commands.md, "Car log folders"'
+
+
 @dataclass(frozen=True, eq=False)
 class CarLog:
     rotation_rad: np.ndarray  # (F,) theta_r per firing, counterclockwise (the packets hold it clockwise)
     distance_m: np.ndarray  # (F, 64) float32 by laser id
     vertical_rad: np.ndarray  # (64,)
     firing_hz: float
-    omega_rad_s: float
+    omega_rad_s: float  # d theta_r / dt, counterclockwise: negative for a Velodyne, which turns clockwise
     action_times_s: np.ndarray  # (M,) on the lidar's clock, from the first firing
     actions: np.ndarray  # (M, 3) throttle, brake, steering
     meta: dict[str, Any]
     groundtruth: dict[str, np.ndarray] | None
+    notes: tuple[str, ...] = ()  # what the reader measured, for the user to see
+    warnings: tuple[str, ...] = ()  # what in the folder contradicts itself
 
 
-def read_car_log(folder: str | Path, vertical_rad: np.ndarray | None = None) -> CarLog:
+def _lidar_number(lidar: dict[str, Any], name: str, meta_file: Path) -> float | None:
+    if name not in lidar:
+        return None
+    try:
+        return float(lidar[name])
+    except (TypeError, ValueError):
+        raise LogFormatError(
+            f"lidar.{name} is not a number.",
+            file=meta_file,
+            field=f"lidar.{name}",
+            fix="give a number, or leave it out to measure it from the packets.",
+        ) from None
+
+
+def _spin_value(
+    stated: float | None, measured: float | None, name: str, unit: str, notes: list[str], warnings: list[str]
+) -> float | None:
+    """The stated value wins (the user said so), but one the packets contradict is reported."""
+    if stated is None:
+        if measured is not None:
+            notes.append(f"{name} {measured:.6g} {unit}, measured from the packets' clock")
+        return measured
+    if measured is not None and abs(stated - measured) > SPIN_TOLERANCE * measured:
+        warnings.append(
+            f"meta.json's lidar.{name} is {stated:.6g} {unit} but the packets show {measured:.6g} {unit}; "
+            f"using {stated:.6g} (leave lidar.{name} out to use the measured value)"
+        )
+    return stated
+
+
+def read_car_log(folder: str | Path, calibration: str | Path | None = None) -> CarLog:
+    """A car log folder. ``calibration``: a ROS velodyne calibration file (the factory's) whose vertical
+    angles replace ``lidar.vertical_deg``; its horizontal ones are never read. ``lidar.firing_hz`` and
+    ``lidar.rpm`` may be left out: the packets' own clock gives them."""
     folder = Path(folder)
-    meta = read_meta(folder)
+    if folder.is_file():
+        raise LogFormatError(
+            "learn car reads a car log folder, not a single file: a capture alone has no throttle, brake and steering.",
+            file=folder,
+            fix=f"put it in a folder with actions.csv and meta.json ({CAR_LOG_DOCS}).",
+        )
+    meta = read_meta(folder, example="`sensact simulate car --out DIR`")
+    meta_file = folder / "meta.json"
     lidar = meta.get("lidar")
     if not isinstance(lidar, dict):
         raise LogFormatError(
             "meta.json has no lidar section.",
-            file=folder / "meta.json",
+            file=meta_file,
             field="lidar",
-            fix='add "lidar": {"file": "velodyne.pcap", "firing_hz": ..., "rpm": ..., "vertical_deg": [...]}.',
+            fix='add "lidar": {"file": "velodyne.pcap"} and the factory vertical angles (vertical_deg, or '
+            f"--factory-calibration); {CAR_LOG_DOCS}.",
         )
-    try:
-        firing_hz = float(lidar.get("firing_hz", 7800.0))
-        omega = float(lidar.get("rpm", 600.0)) / 60.0 * 2 * np.pi
-        t0 = float(lidar.get("time_origin_s", 0.0))
-        if vertical_rad is None:
-            vertical_rad = np.radians(np.asarray(lidar["vertical_deg"], dtype=float))
-    except (KeyError, TypeError, ValueError):
+    t0 = _lidar_number(lidar, "time_origin_s", meta_file) or 0.0
+    if calibration is not None:
+        from sensact.io.velodyne_calibration import read_calibration
+
+        vertical_rad = read_calibration(calibration).vertical_rad
+        vertical_file, vertical_field = Path(calibration), "vert_correction"
+    else:
+        vertical_file, vertical_field = meta_file, "lidar.vertical_deg"
+        try:
+            vertical_rad = np.radians(np.asarray(lidar["vertical_deg"], dtype=float).reshape(-1))
+        except (KeyError, TypeError, ValueError):
+            raise LogFormatError(
+                "no numeric lidar.vertical_deg (the factory's vertical angle of each laser, in degrees).",
+                file=meta_file,
+                field="lidar.vertical_deg",
+                fix="add the 64 factory vertical angles, or pass the factory calibration file "
+                "(sensact learn car LOG --factory-calibration FILE.yaml).",
+            ) from None
+    pcap = folder / str(lidar.get("file", "velodyne.pcap"))
+    times, payloads, _ = read_pcap_payloads(pcap)
+    if len(payloads) == 0:
+        raise LogFormatError("no Velodyne data packets.", file=pcap, fix="check the capture (UDP port 2368).")
+    model = velodyne_model(payloads)
+    if model != "HDL-64E":
         raise LogFormatError(
-            "lidar needs numeric firing_hz, rpm and vertical_deg (64 values).",
-            file=folder / "meta.json",
-            field="lidar.vertical_deg",
-            fix="add the factory vertical angles, or pass a calibration file (--vertical-from).",
-        ) from None
-    times, payloads, _ = read_pcap_payloads(folder / str(lidar.get("file", "velodyne.pcap")))
+            f"{model} packets: chapter 5's learner reads an HDL-64E, whose 64 lasers fire in upper and lower "
+            "blocks (0xEEFF, 0xDDFF).",
+            file=pcap,
+            field="lidar.file",
+            fix="give an HDL-64E capture (sensact.io.velodyne.read_velodyne_pcap decodes this one).",
+        )
     rot_deg, dist = hdl64e_firings(payloads)
     if len(vertical_rad) != dist.shape[1]:
         raise LogFormatError(
             f"{len(vertical_rad)} vertical angles for {dist.shape[1]} lasers.",
-            file=folder / "meta.json",
-            field="lidar.vertical_deg",
+            file=vertical_file,
+            field=vertical_field,
             fix="give one vertical angle per laser id.",
+        )
+    notes: list[str] = []
+    warnings: list[str] = []
+    spin = measure_spin(payloads, model)
+    stated_hz, stated_rpm = _lidar_number(lidar, "firing_hz", meta_file), _lidar_number(lidar, "rpm", meta_file)
+    firing_hz = _spin_value(stated_hz, spin and spin.firing_hz, "firing_hz", "Hz", notes, warnings)
+    rpm = _spin_value(stated_rpm, spin and spin.rpm, "rpm", "rpm", notes, warnings)
+    if firing_hz is None or rpm is None or firing_hz <= 0 or rpm <= 0:
+        raise LogFormatError(
+            "the packets are too few to measure the firing rate and rpm, and meta.json gives no positive ones.",
+            file=meta_file,
+            field="lidar.firing_hz",
+            fix="add lidar.firing_hz and lidar.rpm.",
         )
     acts = read_numeric_csv(folder / "actions.csv", ["t_s", "throttle", "brake", "steering"], what="actions.csv")
     first = times[0] if len(times) else t0
@@ -118,9 +203,13 @@ def read_car_log(folder: str | Path, vertical_rad: np.ndarray | None = None) -> 
         dist,
         np.asarray(vertical_rad, dtype=float),
         firing_hz,
-        omega,
+        # theta_r is counterclockwise (eq. 2.35) and the packets count clockwise; a capture too short to
+        # show the direction is taken to turn as every Velodyne does
+        (1.0 if spin is not None and not spin.clockwise else -1.0) * rpm / 60.0 * 2 * np.pi,
         acts["t_s"] - (first - t0),
         np.column_stack([acts["throttle"], acts["brake"], acts["steering"]]),
         meta,
         gt,
+        tuple(notes),
+        tuple(warnings),
     )

@@ -214,7 +214,7 @@ def read_landmark_log(path: str | Path, *, command_bins: int = 21) -> LandmarkLo
             file=path,
             fix="give a folder with meta.json, actions.csv and observations.csv.",
         )
-    meta = read_meta(path)
+    meta = read_meta(path, example="`sensact simulate field2d --out DIR` (or `sensact convert mrclam`)")
     if meta.get("geometry") in ("planar", "track") or meta.get("platform") == "field2d":
         return _planar(path, meta)
     if meta.get("platform") == "track1d" or "action" in meta:

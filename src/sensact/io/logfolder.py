@@ -91,13 +91,14 @@ def write_log_folder(
     return folder
 
 
-def read_meta(folder: str | Path) -> dict[str, Any]:
+def read_meta(folder: str | Path, example: str = "`sensact simulate track1d --out DIR`") -> dict[str, Any]:
+    """``example``: what writes a folder of the kind the caller reads, for the fix."""
     path = Path(folder) / "meta.json"
     if not path.is_file():
         raise LogFormatError(
             "meta.json not found.",
             file=path,
-            fix="a log folder needs meta.json; `sensact simulate track1d --out DIR` writes an example.",
+            fix=f"a log folder needs meta.json; {example} writes an example.",
         )
     try:
         meta = json.loads(path.read_text())

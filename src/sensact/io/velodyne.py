@@ -150,6 +150,50 @@ def _model_of(packets: np.ndarray) -> str:
     return PRODUCT_IDS.get(product, "HDL-32E")
 
 
+FIRINGS_PER_PACKET = {"HDL-64E": HDL64_FIRINGS_PER_PACKET, "HDL-32E": 12, "VLP-16": 24}
+SPIN_GAP_PACKETS = 5  # packets further apart than this many periods are a gap, not a step of the spin
+
+
+@dataclass(frozen=True)
+class Spin:
+    """How fast a unit fired and turned, as its own packets say."""
+
+    firing_hz: float  # firings (every laser once) per second
+    rpm: float
+    clockwise: bool  # seen from above, as every Velodyne turns: the rotation field counts up
+
+
+def velodyne_model(payloads: np.ndarray) -> str:
+    """HDL-64E, HDL-32E or VLP-16, from the packets themselves (see ``_model_of``)."""
+    return _model_of(np.ascontiguousarray(payloads).view(PACKET).reshape(-1))
+
+
+def measure_spin(payloads: np.ndarray, model: str | None = None) -> Spin | None:
+    """The firing rate and the spin rate from the packets' own clock (µs past the hour), not the host's
+    capture times, which carry its jitter: the usual packet period, over the whole capture, with each
+    step counted as the whole number of periods it spans (dropped packets), holds a model's fixed number
+    of firings; the first block's clockwise rotation over the steps that are not gaps gives the spin.
+    None for fewer than three packets or a clock that never advances."""
+    packets = np.ascontiguousarray(payloads).view(PACKET).reshape(-1)
+    if len(packets) < 3:
+        return None
+    model = model or _model_of(packets)
+    step = np.diff(packets["timestamp_us"].astype(np.int64))
+    step[step < -1_800_000_000] += 3_600_000_000
+    if not np.any(step > 0):
+        return None
+    usual = float(np.median(step[step > 0]))
+    periods = np.rint(np.maximum(step, 0) / usual)
+    packet_s = float(step[periods > 0].sum()) * 1e-6 / float(periods.sum())
+    turn = np.mod(np.diff(packets["blocks"]["rotation"][:, 0].astype(float) / 100.0), 360.0)
+    near = (step > 0) & (periods <= SPIN_GAP_PACKETS)
+    clockwise = bool(np.median(turn[near]) < 180.0) if near.any() else True
+    if not clockwise:
+        turn = 360.0 - turn
+    deg_s = float(turn[near].sum()) / (float(step[near].sum()) * 1e-6)
+    return Spin(FIRINGS_PER_PACKET[model] / packet_s, deg_s / 6.0, clockwise)
+
+
 def decode_packets(times_s: np.ndarray, payloads: np.ndarray, model: str = "auto", firing_rate_hz: float | None = None):
     """Per-return arrays from raw payloads. ``firing_rate_hz`` spaces the firings inside a packet in time
     (defaults: HDL-64E the thesis's 7800 Hz per laser, HDL-32E 1/46.08 µs, VLP-16 1/55.296 µs)."""

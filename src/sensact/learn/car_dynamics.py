@@ -137,7 +137,7 @@ def learn_car(
         C = offset_from_motion(odo.motion, dt, cfg.odometry.min_speed_m_s)
         v, w, a = motion_to_velocities(odo.motion, C, dt)
         # the interval runs between the middles of two revolutions
-        mid = odo.times_s + 0.5 * (2 * np.pi / omega_rad_s)
+        mid = odo.times_s + 0.5 * (2 * np.pi / abs(omega_rad_s))
         act = regression_actions(action_times_s, actions, mid, dt)
         K = len(v) - 1  # a is defined up to the last-but-one interval
         new = fit_car_dynamics(v[:K], a[:K], w[:K], act[:K])

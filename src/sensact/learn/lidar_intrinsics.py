@@ -79,10 +79,12 @@ def learn_relative_angles(
     """``distances`` is (F, n): each firing's return of every laser (0 = none), firings 1/f apart."""
     cfg = config or IntrinsicsConfig()
     order = np.argsort(vertical_rad, kind="stable")
-    step = omega_rad_s / firing_hz  # the angle the unit turns between firings
-    max_lag = int(np.floor(np.pi / step))
+    # the angle the unit turns between firings, counterclockwise: a lag of k firings is k * step whichever
+    # way the unit turns (a Velodyne turns clockwise, so step < 0 and the lags change sign, not the angles)
+    step = omega_rad_s / firing_hz
+    max_lag = int(np.floor(np.pi / abs(step)))
     if cfg.max_difference_deg is not None:
-        max_lag = min(max_lag, int(np.ceil(np.radians(cfg.max_difference_deg) / step)))
+        max_lag = min(max_lag, int(np.ceil(np.radians(cfg.max_difference_deg) / abs(step))))
     n = len(order)
     diffs = np.zeros(n - 1)
     peaks = np.zeros(n - 1)

@@ -103,7 +103,7 @@ def scan_odometry(
 ) -> Odometry:
     """Motions between scans every ``dt``. ``guess`` (K, 3) are initial motions in (x_C, y_C), or identity."""
     cfg = config or OdometryConfig()
-    per_rev = round(2 * np.pi / omega_rad_s * firing_hz)
+    per_rev = round(2 * np.pi / abs(omega_rad_s) * firing_hz)
     step = round(cfg.dt_s * firing_hz)
     starts = np.arange(0, len(rot_rad) - per_rev + 1, step)
     scans = [

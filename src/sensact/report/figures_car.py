@@ -17,7 +17,7 @@ from sensact.report.figures1d import _save
 
 def figure_5_2(log: Any, rel_rad: np.ndarray, t_s: float, dt_s: float, path: Path) -> Path:
     """Two scans dt apart, in the lidar frame (x_C, y_C)."""
-    per_rev = round(2 * np.pi / log.omega_rad_s * log.firing_hz)
+    per_rev = round(2 * np.pi / abs(log.omega_rad_s) * log.firing_hz)
     fig, ax = plt.subplots(figsize=(6.5, 6.5))
     for t, color in ((t_s, "C3"), (t_s + dt_s, "C0")):
         a = round(t * log.firing_hz)

@@ -8,7 +8,8 @@
   with three left turns, stops and accelerations, at up to about 6.3 m/s.
 * **Town**: a ground plane, buildings along both sides of the streets the car drives, poles, trees and
   parked cars; all vertical prisms, ray-cast through a uniform grid (``sensact.core.raycast``).
-* **HDL-64E** (sec. 2.5.2): 64 lasers firing together at ``f = 7800`` Hz while the unit turns at 600 rpm;
+* **HDL-64E** (sec. 2.5.2): 64 lasers firing together at ``f = 7800`` Hz while the unit turns clockwise (seen
+  from above, as every Velodyne does) at 600 rpm;
   vertical angles and true horizontal angles from a ROS calibration file (``64e_utexas.yaml`` when the
   shared data is present, else the thesis's nominal geometry), a mounting yaw ``theta_b``, range noise,
   a maximum range and dropouts. The returns are written as real HDL-64E UDP packets in ``velodyne.pcap``.
@@ -80,7 +81,8 @@ class CarConfig:
     calibration_yaml: str | None = None  # true angles; None: 64e_utexas.yaml from the shared data, else nominal
     # (read by sensact.experiments.car.true_intrinsics)
     firing_hz: float = 7800.0  # f
-    rpm: float = 600.0  # omega = 20 pi rad/s
+    rpm: float = 600.0  # |omega| = 20 pi rad/s
+    clockwise: bool = True  # seen from above, as every Velodyne turns (theta_r, counterclockwise, falls)
     mount_yaw_deg: float = 89.1  # theta_b, sec. 5.4
     sensor_height_m: float = 2.0
     max_range_m: float = 120.0
@@ -101,7 +103,8 @@ class CarConfig:
 
     @property
     def omega_rad_s(self) -> float:
-        return self.rpm / 60.0 * TWO_PI
+        """d theta_r / dt, counterclockwise (eq. 2.35)."""
+        return (-1.0 if self.clockwise else 1.0) * self.rpm / 60.0 * TWO_PI
 
     def true_coefficients(self) -> dict[str, float]:
         """C5..C10 of eqs. 2.30-2.31 from C1..C4 (the drag is not among them)."""
