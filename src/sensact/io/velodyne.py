@@ -150,6 +150,14 @@ def _model_of(packets: np.ndarray) -> str:
     return PRODUCT_IDS.get(product, "HDL-32E")
 
 
+def _clock_steps_us(packets: np.ndarray) -> np.ndarray:
+    """Steps of the sensor's clock between packets (µs past the hour, so a step back by most of an hour
+    is the wrap)."""
+    step = np.diff(packets["timestamp_us"].astype(np.int64))
+    step[step < -1_800_000_000] += 3_600_000_000
+    return step
+
+
 FIRINGS_PER_PACKET = {"HDL-64E": HDL64_FIRINGS_PER_PACKET, "HDL-32E": 12, "VLP-16": 24}
 SPIN_GAP_PACKETS = 5  # packets further apart than this many periods are a gap, not a step of the spin
 
@@ -178,8 +186,7 @@ def measure_spin(payloads: np.ndarray, model: str | None = None) -> Spin | None:
     if len(packets) < 3:
         return None
     model = model or _model_of(packets)
-    step = np.diff(packets["timestamp_us"].astype(np.int64))
-    step[step < -1_800_000_000] += 3_600_000_000
+    step = _clock_steps_us(packets)
     if not np.any(step > 0):
         return None
     usual = float(np.median(step[step > 0]))
@@ -211,9 +218,7 @@ def decode_packets(times_s: np.ndarray, payloads: np.ndarray, model: str = "auto
     P = len(packets)
     # packet times on the sensor's clock (µs past the hour, unwrapped), anchored at the first capture time:
     # capture times carry the host's jitter
-    ts = packets["timestamp_us"].astype(np.int64)
-    step = np.diff(ts)
-    step[step < -1_800_000_000] += 3_600_000_000
+    step = _clock_steps_us(packets)
     times_s = float(times_s[0]) + np.concatenate([[0], np.cumsum(step)]) * 1e-6 if P else np.zeros(0)
     blocks = packets["blocks"]
     dist = blocks["returns"]["distance"].astype(float) * DISTANCE_UNIT_M  # (P, 12, 32)
