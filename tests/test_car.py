@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 
@@ -10,7 +11,7 @@ import pytest
 
 from sensact.core.raycast import BOX, CYLINDER, _hit_box, _hit_cylinder, build_grid, cast_firings
 from sensact.errors import LogFormatError
-from sensact.experiments.car import learn_from_log, simulate_car_log
+from sensact.experiments.car import learn_angles_from_log, learn_from_log, simulate_car_log
 from sensact.io.car_log import read_car_log
 from sensact.io.velodyne import PACKET, UPPER, encode_hdl64e, write_pcap
 from sensact.io.velodyne_calibration import write_calibration
@@ -139,6 +140,11 @@ def test_a_users_car_folder_needs_no_rates_and_takes_the_factory_calibration(sho
     write_meta()
     with pytest.raises(LogFormatError, match="--factory-calibration"):
         read_car_log(own)
+    (own / "actions.csv").rename(own / "later.csv")
+    lidar_only = read_car_log(own, calibration=sim / "calibration_true.yaml")
+    assert lidar_only.actions is None and lidar_only.action_times_s is None
+    assert lidar_only.notes[-1].startswith("no actions.csv: the laser angles and C from the scans alone")
+    (own / "later.csv").rename(own / "actions.csv")
     mine = read_car_log(own, calibration=sim / "calibration_true.yaml")
     assert mine.firing_hz == pytest.approx(log.firing_hz, rel=1e-5)
     assert mine.omega_rad_s == pytest.approx(log.omega_rad_s, rel=1e-4)
@@ -239,6 +245,12 @@ def test_regression_actions_align_with_the_acceleration():
 def test_algorithm_3_on_a_short_drive(short_drive):
     run, log = short_drive
     res = learn_from_log(log, CarLearningConfig())
+    # from the scans alone: exactly Algorithm 3's first pass (identity guesses), which needs no controls
+    scans_only = learn_angles_from_log(log, CarLearningConfig())
+    assert scans_only.offset_rad == res.history[0]["C_rad"]
+    np.testing.assert_array_equal(scans_only.intrinsics.relative_rad, res.intrinsics.relative_rad)
+    with pytest.raises(ValueError, match="needs the log's actions"):
+        learn_from_log(dataclasses.replace(log, actions=None), CarLearningConfig())
     from sensact.evaluate.car import laser_angle_error
 
     assert laser_angle_error(res.laser_angles_rad, run.true_laser_angles_rad)["laser_angle_rms_deg"] < 0.3

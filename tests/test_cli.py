@@ -269,6 +269,16 @@ def test_simulate_car_then_learn_car_with_ros_export(tmp_path):
     np.testing.assert_allclose(np.degrees(cal.horizontal_rad) + 90.0, model["laser_angles_deg"], atol=1e-9)
     np.testing.assert_allclose(cal.vertical_rad, factory.vertical_rad, atol=1e-12)
     assert [e["dist_correction"] for e in cal.extra] == [0.01 * i for i in range(64)]
+    # without the controls: the laser angles and C from the scans alone (Algorithm 3's first pass)
+    (log / "actions.csv").unlink()
+    res = runner.invoke(app, ["learn", "car", str(log), "--out", str(out), "--factory-calibration", str(yml)])
+    assert res.exit_code == 0, res.output
+    assert "no actions.csv" in res.output and "laser angles from the scans alone" in res.output
+    assert "omega =" not in res.output
+    alone = json.loads(out.read_text())
+    assert alone["car_dynamics"] is None and alone["iterations"] == 0
+    assert alone["evaluation"]["laser_angle_rms_deg"] < 1.0
+    assert alone["offset_C_deg"] == pytest.approx(model["history"][0]["C_rad"] * 180 / np.pi, abs=1e-9)
     res = runner.invoke(app, ["learn", "car", str(tmp_path)])
     assert res.exit_code == 2 and "meta.json" in res.output
 

@@ -272,7 +272,7 @@ def learn_car_cmd(
     import numpy as np
 
     from sensact.config import config_to_dict
-    from sensact.experiments.car import learn_from_log
+    from sensact.experiments.car import learn_angles_from_log, learn_from_log
     from sensact.io.atomic import write_json
     from sensact.io.car_log import read_car_log
     from sensact.io.velodyne_calibration import read_calibration, write_calibration
@@ -281,40 +281,56 @@ def learn_car_cmd(
 
     cfg = layered_config(CarLearningConfig, config, set_)
     data = read_car_log(log, calibration=factory_calibration)
+    rows = f"{len(data.actions)} action rows" if data.actions is not None else "no actions"
     console.print(
         f"{log}: {data.distance_m.shape[0]} firings of {data.distance_m.shape[1]} lasers "
-        f"({data.distance_m.shape[0] / data.firing_hz:.1f} s), {len(data.actions)} action rows"
+        f"({data.distance_m.shape[0] / data.firing_hz:.1f} s), {rows}"
     )
     for note in data.notes:
         console.print(f"  {note}")
     for warning in data.warnings:
         console.print(f"[yellow]warning[/]: {warning}")
-    with progress_bar() as progress:
-        res = learn_from_log(data, cfg, progress)
-    m = res.model
-    console.print(f"converged after {res.iterations} iterations; C = {np.degrees(res.offset_rad):.3f}°")
-    console.print(f"  a = {m.C5:.4g} + {m.C6:.4g} g + {m.C7:.4g} v + {m.C8:.4g} v b   (eq. 5.3)")
-    console.print(f"  omega = {m.C9:.4g} v + {m.C10:.4g} v s   (eq. 5.4)")
+    simulated = "truth" in data.meta and data.groundtruth is not None
     evaluation = None
-    if "truth" in data.meta and data.groundtruth is not None:
-        from sensact.experiments.car import evaluate_run
+    if data.actions is None:
+        # secs. 5.1-5.2 need only the scans: a lidar remounted on a car without logged controls
+        with progress_bar() as progress:
+            res = learn_angles_from_log(data, cfg, progress)
+        console.print(f"laser angles from the scans alone; C = {np.degrees(res.offset_rad):.3f}°")
+        if simulated:
+            from sensact.evaluate.car import laser_angle_error
 
-        evaluation, _ = evaluate_run(data.meta["truth"], data.groundtruth, res, cfg.odometry.dt_s)
-        console.print(
-            f"vs truth: laser angles {evaluation['laser_angle_rms_deg']:.3f}° RMS; accel "
-            f"{evaluation['accel_rms']:.3f} m/s² (from truth {evaluation['accel_rms_from_truth']:.3f}), forward "
-            f"velocity {evaluation['fwd_vel_rms']:.3f} m/s ({evaluation['fwd_vel_rms_from_truth']:.3f}), angular "
-            f"velocity {evaluation['ang_vel_rms']:.4f} rad/s ({evaluation['ang_vel_rms_from_truth']:.4f})"
-        )
+            evaluation = laser_angle_error(res.laser_angles_rad, np.asarray(data.meta["truth"]["laser_angles_rad"]))
+            console.print(f"vs truth: laser angles {evaluation['laser_angle_rms_deg']:.3f}° RMS")
+        model: dict | None = None
+        history: list = []
+    else:
+        with progress_bar() as progress:
+            res = learn_from_log(data, cfg, progress)
+        m = res.model
+        console.print(f"converged after {res.iterations} iterations; C = {np.degrees(res.offset_rad):.3f}°")
+        console.print(f"  a = {m.C5:.4g} + {m.C6:.4g} g + {m.C7:.4g} v + {m.C8:.4g} v b   (eq. 5.3)")
+        console.print(f"  omega = {m.C9:.4g} v + {m.C10:.4g} v s   (eq. 5.4)")
+        if simulated:
+            from sensact.experiments.car import evaluate_run
+
+            evaluation, _ = evaluate_run(data.meta["truth"], data.groundtruth, res, cfg.odometry.dt_s)
+            console.print(
+                f"vs truth: laser angles {evaluation['laser_angle_rms_deg']:.3f}° RMS; accel "
+                f"{evaluation['accel_rms']:.3f} m/s² (from truth {evaluation['accel_rms_from_truth']:.3f}), forward "
+                f"velocity {evaluation['fwd_vel_rms']:.3f} m/s ({evaluation['fwd_vel_rms_from_truth']:.3f}), angular "
+                f"velocity {evaluation['ang_vel_rms']:.4f} rad/s ({evaluation['ang_vel_rms_from_truth']:.4f})"
+            )
+        model, history = m.to_dict(), res.history
     if out is not None:
         write_json(
             out,
             {
                 "laser_angles_deg": np.degrees(res.laser_angles_rad).tolist(),
                 "offset_C_deg": float(np.degrees(res.offset_rad)),
-                "car_dynamics": m.to_dict(),
-                "iterations": res.iterations,
-                "history": res.history,
+                "car_dynamics": model,
+                "iterations": len(history),
+                "history": history,
                 "seconds_by_stage": res.seconds_by_stage,
                 "config": config_to_dict(cfg),
                 "evaluation": evaluation,

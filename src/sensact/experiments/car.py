@@ -15,7 +15,13 @@ from sensact.config import config_to_dict
 from sensact.evaluate.car import laser_angle_error, table_5_1, truth_motion
 from sensact.io.car_log import CarLog, read_car_log, write_car_log
 from sensact.io.velodyne_calibration import read_calibration
-from sensact.learn.car_dynamics import CarLearningConfig, CarLearningResult, learn_car
+from sensact.learn.car_dynamics import (
+    CarLearningConfig,
+    CarLearningResult,
+    LaserAnglesResult,
+    learn_car,
+    learn_laser_angles,
+)
 from sensact.models.laser_intrinsics import LaserIntrinsics
 from sensact.sim.car import CarConfig, CarRun, log_tables, nominal_intrinsics, scan_chunks, simulate_drive
 
@@ -66,8 +72,18 @@ def learn_from_log(
     log: CarLog, config: CarLearningConfig | None = None, progress: ProgressFn | None = None
 ) -> CarLearningResult:
     """Algorithm 3 on a car log read by ``sensact.io.car_log.read_car_log``."""
+    if log.actions is None or log.action_times_s is None:
+        raise ValueError("Algorithm 3 needs the log's actions; learn_angles_from_log needs none")
     fields = (log.rotation_rad, log.distance_m, log.vertical_rad, log.firing_hz, log.omega_rad_s)
     return learn_car(*fields, log.action_times_s, log.actions, config, progress)
+
+
+def learn_angles_from_log(
+    log: CarLog, config: CarLearningConfig | None = None, progress: ProgressFn | None = None
+) -> LaserAnglesResult:
+    """The laser angles and C from a car log's scans alone (no actions needed)."""
+    fields = (log.rotation_rad, log.distance_m, log.vertical_rad, log.firing_hz, log.omega_rad_s)
+    return learn_laser_angles(*fields, config, progress)
 
 
 @dataclass(frozen=True)

@@ -81,8 +81,8 @@ class CarLog:
     vertical_rad: np.ndarray  # (64,)
     firing_hz: float
     omega_rad_s: float  # d theta_r / dt, counterclockwise: negative for a Velodyne, which turns clockwise
-    action_times_s: np.ndarray  # (M,) on the lidar's clock, from the first firing
-    actions: np.ndarray  # (M, 3) throttle, brake, steering
+    action_times_s: np.ndarray | None  # (M,) on the lidar's clock, from the first firing; None: no actions.csv
+    actions: np.ndarray | None  # (M, 3) throttle, brake, steering
     meta: dict[str, Any]
     groundtruth: dict[str, np.ndarray] | None
     notes: tuple[str, ...] = ()  # what the reader measured, for the user to see
@@ -126,9 +126,9 @@ def read_car_log(folder: str | Path, calibration: str | Path | None = None) -> C
     folder = Path(folder)
     if folder.is_file():
         raise LogFormatError(
-            "learn car reads a car log folder, not a single file: a capture alone has no throttle, brake and steering.",
+            "learn car reads a car log folder, not a single file.",
             file=folder,
-            fix=f"put it in a folder with actions.csv and meta.json ({CAR_LOG_DOCS}).",
+            fix=f"put it in a folder with meta.json, and actions.csv if you have the controls ({CAR_LOG_DOCS}).",
         )
     meta = read_meta(folder, example="`sensact simulate car --out DIR`")
     meta_file = folder / "meta.json"
@@ -193,8 +193,14 @@ def read_car_log(folder: str | Path, calibration: str | Path | None = None) -> C
             field="lidar.firing_hz",
             fix="add lidar.firing_hz and lidar.rpm.",
         )
-    acts = read_numeric_csv(folder / "actions.csv", ["t_s", "throttle", "brake", "steering"], what="actions.csv")
     first = times[0] if len(times) else t0
+    action_times = actions = None
+    if (folder / "actions.csv").is_file():
+        acts = read_numeric_csv(folder / "actions.csv", ["t_s", "throttle", "brake", "steering"], what="actions.csv")
+        action_times = acts["t_s"] - (first - t0)
+        actions = np.column_stack([acts["throttle"], acts["brake"], acts["steering"]])
+    else:
+        notes.append("no actions.csv: the laser angles and C from the scans alone (the dynamics need the controls)")
     gt = None
     if (folder / "groundtruth.csv").is_file():
         gt = read_numeric_csv(folder / "groundtruth.csv", ["t_s", "x_m", "y_m", "theta_rad"], what="groundtruth.csv")
@@ -206,8 +212,8 @@ def read_car_log(folder: str | Path, calibration: str | Path | None = None) -> C
         # theta_r is counterclockwise (eq. 2.35) and the packets count clockwise; a capture too short to
         # show the direction is taken to turn as every Velodyne does
         (1.0 if spin is not None and not spin.clockwise else -1.0) * rpm / 60.0 * 2 * np.pi,
-        acts["t_s"] - (first - t0),
-        np.column_stack([acts["throttle"], acts["brake"], acts["steering"]]),
+        action_times,
+        actions,
         meta,
         gt,
         tuple(notes),

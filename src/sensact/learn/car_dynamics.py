@@ -1,6 +1,7 @@
 """Sec. 5.3 and Algorithm 3: learn the car's action model, and with it better scan matching.
 
-1. The laser angles up to an offset (sec. 5.1, ``lidar_intrinsics``).
+1. The laser angles up to an offset (sec. 5.1, ``lidar_intrinsics``); with the first scan matching and
+   its ``C``, the laser angles from the scans alone (``learn_laser_angles``).
 2. Repeat: scan matching (sec. 5.2), seeded by the action model's predicted motion once there is one;
    ``C`` from the motion; ``v``, ``omega`` and ``a`` per interval; C5..C10 by regression on eqs. 5.3-5.4;
    until the coefficients stop changing.
@@ -105,6 +106,42 @@ def motion_to_velocities(motion: np.ndarray, offset_rad: float, dt_s: float):
     return v, w, a
 
 
+@dataclass(frozen=True, eq=False)
+class LaserAnglesResult:
+    """Secs. 5.1-5.2 from the scans alone: Algorithm 3's first pass, which needs no controls."""
+
+    laser_angles_rad: np.ndarray  # theta_hat_l = theta'_l + C, by laser id
+    offset_rad: float  # C
+    intrinsics: IntrinsicsResult
+    odometry: Odometry
+    seconds_by_stage: dict[str, float]
+
+
+def learn_laser_angles(
+    rot_rad: np.ndarray,
+    dist: np.ndarray,
+    vertical_rad: np.ndarray,
+    firing_hz: float,
+    omega_rad_s: float,
+    config: CarLearningConfig | None = None,
+    progress: Callable[[str, int, int], None] | None = None,
+) -> LaserAnglesResult:
+    """The laser angles with respect to the car from a drive's scans alone: the relative angles (sec. 5.1),
+    one pass of scan matching from identity guesses (sec. 5.2), and C from its fast motions. This is
+    Algorithm 3's first iteration; the later ones only reseed ICP with the learned dynamics, which needs
+    the throttle, brake and steering."""
+    cfg = config or CarLearningConfig()
+    t0 = time.perf_counter()
+    rel = learn_relative_angles(dist, vertical_rad, firing_hz, omega_rad_s, cfg.intrinsics, progress)
+    t1 = time.perf_counter()
+    rel_rad = rel.relative_rad
+    odo = scan_odometry(rot_rad, dist, vertical_rad, rel_rad, firing_hz, omega_rad_s, None, cfg.odometry, progress)
+    t2 = time.perf_counter()
+    C = offset_from_motion(odo.motion, cfg.odometry.dt_s, cfg.odometry.min_speed_m_s)
+    stages = {"laser_angles": t1 - t0, "scan_matching": t2 - t1}
+    return LaserAnglesResult(wrap_angle(rel.relative_rad + C), C, rel, odo, stages)
+
+
 def learn_car(
     rot_rad: np.ndarray,
     dist: np.ndarray,
@@ -119,20 +156,18 @@ def learn_car(
     """Algorithm 3 on one drive: firings (F,) rotations and (F, 64) distances, actions (M, 3) = (g, b, s)."""
     cfg = config or CarLearningConfig()
     dt = cfg.odometry.dt_s
-    stages: dict[str, float] = {}
-    t0 = time.perf_counter()
-    rel = learn_relative_angles(dist, vertical_rad, firing_hz, omega_rad_s, cfg.intrinsics, progress)
-    stages["laser_angles"] = time.perf_counter() - t0
+    first = learn_laser_angles(rot_rad, dist, vertical_rad, firing_hz, omega_rad_s, cfg, progress)
+    rel, odo = first.intrinsics, first.odometry
+    stages = {**first.seconds_by_stage, "regression": 0.0}
     guess = None
     model = None
     history: list[dict[str, float]] = []
-    stages["scan_matching"] = 0.0
-    stages["regression"] = 0.0
     for it in range(cfg.max_iterations):
         t1 = time.perf_counter()
-        odo = scan_odometry(
-            rot_rad, dist, vertical_rad, rel.relative_rad, firing_hz, omega_rad_s, guess, cfg.odometry, progress
-        )
+        if guess is not None:
+            odo = scan_odometry(
+                rot_rad, dist, vertical_rad, rel.relative_rad, firing_hz, omega_rad_s, guess, cfg.odometry, progress
+            )
         t2 = time.perf_counter()
         C = offset_from_motion(odo.motion, dt, cfg.odometry.min_speed_m_s)
         v, w, a = motion_to_velocities(odo.motion, C, dt)
