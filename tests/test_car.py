@@ -13,7 +13,7 @@ from sensact.core.raycast import BOX, CYLINDER, _hit_box, _hit_cylinder, build_g
 from sensact.errors import LogFormatError
 from sensact.experiments.car import learn_angles_from_log, learn_from_log, simulate_car_log
 from sensact.io.car_log import read_car_log
-from sensact.io.velodyne import PACKET, UPPER, encode_hdl64e, write_pcap
+from sensact.io.velodyne import PACKET, UPPER, encode_hdl64e, read_pcap_payloads, write_pcap
 from sensact.io.velodyne_calibration import write_calibration
 from sensact.learn.car_dynamics import CarLearningConfig, regression_actions
 from sensact.learn.lidar_intrinsics import learn_relative_angles, masked_ncc
@@ -158,6 +158,18 @@ def test_a_users_car_folder_needs_no_rates_and_takes_the_factory_calibration(sho
     wrong = read_car_log(own, calibration=sim / "calibration_true.yaml")
     assert wrong.omega_rad_s == pytest.approx(-10 * np.pi)
     assert len(wrong.warnings) == 1 and "rpm is 300 rpm but the packets show 600" in wrong.warnings[0]
+    # a capture that lost packets on the way: their firings stay in place, empty
+    times, payloads, _ = read_pcap_payloads(sim / "velodyne.pcap")
+    keep = np.ones(len(payloads), dtype=bool)
+    keep[[1000, 2000, 2001, 2002]] = False
+    write_pcap(own / "lossy.pcap", payloads[keep], times[keep])
+    write_meta(file="lossy.pcap", vertical_deg=np.degrees(log.vertical_rad).tolist())
+    lossy = read_car_log(own)
+    lost = np.repeat(~keep, 6)
+    assert lossy.distance_m.shape == log.distance_m.shape and not lossy.distance_m[lost].any()
+    np.testing.assert_array_equal(lossy.distance_m[~lost], log.distance_m[~lost])
+    np.testing.assert_allclose(np.angle(np.exp(1j * (lossy.rotation_rad - log.rotation_rad))), 0, atol=2e-4)
+    assert lossy.notes[0].startswith("4 dropped packets in 2 gaps")
     # a calibration for another unit, the capture itself given as the log, and a capture of another model
     write_calibration(tmp_path / "vlp16.yaml", LaserIntrinsics(np.zeros(16), np.zeros(16)))
     with pytest.raises(LogFormatError, match="16 vertical angles for 64 lasers") as err:

@@ -13,7 +13,9 @@ from sensact.io.velodyne import (
     UPPER,
     decode_packets,
     encode_hdl64e,
+    hdl64e_firings,
     measure_spin,
+    packet_slots,
     pcap_bytes,
     read_pcap_payloads,
     read_velodyne_pcap,
@@ -122,6 +124,29 @@ def test_real_captures_fire_at_their_datasheets_rate(name, period_us):
     rpm_within = within.mean() / (firings_per_block * period_us * 1e-6) / 6.0
     assert spin.rpm == pytest.approx(rpm_within, rel=0.02)
     assert 300.0 <= spin.rpm <= 1200.0  # the units' settable range
+
+
+def test_dropped_packets_leave_their_firings_empty_in_place():
+    """A firing's index is its time (the learners assume it): a capture missing packets reads as the whole
+    capture with those firings empty and their rotations interpolated."""
+    rng = np.random.default_rng(1)
+    F = 6 * 40
+    rot = np.mod(360.0 - np.arange(F) * 0.4615, 360.0)  # clockwise in theta_r, the field counting down here
+    dist = np.round(rng.uniform(1, 100, (F, 64)) / 0.002) * 0.002
+    stamp = np.rint(np.mod(3599.99 + np.arange(F // 6) * 6 / 7800.0, 3600.0) * 1e6)  # across the hour
+    payloads = encode_hdl64e(rot, dist, np.zeros((F, 64)), stamp)
+    np.testing.assert_array_equal(packet_slots(payloads), np.arange(F // 6))
+    whole_rot, whole = hdl64e_firings(payloads, packet_slots(payloads))
+    keep = np.ones(F // 6, dtype=bool)
+    keep[[3, 17, 18, 19, 39]] = False  # the last one too: the capture ends early, nothing to place after it
+    slots = packet_slots(payloads[keep])
+    np.testing.assert_array_equal(slots, np.flatnonzero(keep))
+    got_rot, got = hdl64e_firings(payloads[keep], slots)
+    kept = np.repeat(keep[:39], 6)
+    assert got.shape == (39 * 6, 64)
+    np.testing.assert_array_equal(got[kept], whole[: 39 * 6][kept])
+    assert not got[~kept].any()
+    np.testing.assert_allclose(got_rot, whole_rot[: 39 * 6], atol=0.01)  # the rotation field is in 0.01°
 
 
 def test_bad_files_are_rejected_clearly(tmp_path):

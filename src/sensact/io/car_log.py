@@ -30,6 +30,7 @@ from sensact.io.velodyne import (
     encode_hdl64e,
     hdl64e_firings,
     measure_spin,
+    packet_slots,
     pcap_records,
     read_pcap_payloads,
     velodyne_model,
@@ -172,7 +173,8 @@ def read_car_log(folder: str | Path, calibration: str | Path | None = None) -> C
             field="lidar.file",
             fix="give an HDL-64E capture (sensact.io.velodyne.read_velodyne_pcap decodes this one).",
         )
-    rot_deg, dist = hdl64e_firings(payloads)
+    slots = packet_slots(payloads)
+    rot_deg, dist = hdl64e_firings(payloads, slots)
     if len(vertical_rad) != dist.shape[1]:
         raise LogFormatError(
             f"{len(vertical_rad)} vertical angles for {dist.shape[1]} lasers.",
@@ -182,6 +184,13 @@ def read_car_log(folder: str | Path, calibration: str | Path | None = None) -> C
         )
     notes: list[str] = []
     warnings: list[str] = []
+    dropped = int(slots[-1]) + 1 - len(payloads)
+    if dropped > 0:
+        gaps = int(np.count_nonzero(np.diff(slots) > 1))
+        notes.append(
+            f"{dropped} dropped packets in {gaps} gaps (by the sensor's clock): their firings are left empty, "
+            "so that each firing keeps its time"
+        )
     spin = measure_spin(payloads, model)
     stated_hz, stated_rpm = _lidar_number(lidar, "firing_hz", meta_file), _lidar_number(lidar, "rpm", meta_file)
     firing_hz = _spin_value(stated_hz, spin and spin.firing_hz, "firing_hz", "Hz", notes, warnings)

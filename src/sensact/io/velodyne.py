@@ -158,6 +158,18 @@ def _clock_steps_us(packets: np.ndarray) -> np.ndarray:
     return step
 
 
+def packet_slots(payloads: np.ndarray) -> np.ndarray:
+    """Each packet's place in time, in packet periods from the first, by the sensor's clock: a dropped
+    packet leaves its slot empty. A step of less than a period (a repeated or reordered packet) takes the
+    next slot, so a capture without drops gets 0, 1, 2, ..."""
+    packets = np.ascontiguousarray(payloads).view(PACKET).reshape(-1)
+    step = _clock_steps_us(packets)
+    if not np.any(step > 0):
+        return np.arange(len(packets))
+    periods = np.maximum(np.rint(step / float(np.median(step[step > 0]))), 1).astype(np.int64)
+    return np.concatenate([[0], np.cumsum(periods)])
+
+
 FIRINGS_PER_PACKET = {"HDL-64E": HDL64_FIRINGS_PER_PACKET, "HDL-32E": 12, "VLP-16": 24}
 SPIN_GAP_PACKETS = 5  # packets further apart than this many periods are a gap, not a step of the spin
 
@@ -312,9 +324,12 @@ def encode_hdl64e(
     return pk.view(np.uint8).reshape(P, PAYLOAD_BYTES)
 
 
-def hdl64e_firings(payloads: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def hdl64e_firings(payloads: np.ndarray, slots: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """HDL-64E payloads as ``(rotation_deg (F,), distance_m (F, 64) float32)``, one row per firing and one
-    column per laser id: the compact form the angle learner reads (100 million returns fit in 400 MB)."""
+    column per laser id: the compact form the angle learner reads (100 million returns fit in 400 MB).
+    ``slots`` (``packet_slots``) puts each packet's firings at its place in time: the firings of dropped
+    packets have no returns and a rotation interpolated between their neighbours', so that a firing's
+    index stays its time times the firing rate, which the learners assume."""
     pk = np.ascontiguousarray(payloads).view(PACKET).reshape(-1)
     blocks = pk["blocks"]
     if not (np.all(blocks["id"][:, 0::2] == UPPER) and np.all(blocks["id"][:, 1::2] == LOWER)):
@@ -326,7 +341,15 @@ def hdl64e_firings(payloads: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     P = len(pk)
     d = blocks["returns"]["distance"].reshape(P, 6, 2, 32).reshape(P * 6, 64)
     rot = blocks["rotation"][:, 0::2].reshape(-1).astype(float) / 100.0
-    return rot, (d.astype(np.float32) * np.float32(DISTANCE_UNIT_M))
+    dist = d.astype(np.float32) * np.float32(DISTANCE_UNIT_M)
+    if slots is None or P == 0 or int(slots[-1]) == P - 1:
+        return rot, dist
+    F = (int(slots[-1]) + 1) * HDL64_FIRINGS_PER_PACKET
+    at = (np.asarray(slots)[:, None] * HDL64_FIRINGS_PER_PACKET + np.arange(HDL64_FIRINGS_PER_PACKET)).reshape(-1)
+    full = np.zeros((F, 64), dtype=np.float32)
+    full[at] = dist
+    turned = np.unwrap(rot, period=360.0)
+    return np.mod(np.interp(np.arange(F), at, turned), 360.0), full
 
 
 def _ip_checksum(header: np.ndarray) -> np.ndarray:
