@@ -150,6 +150,7 @@ def test_a_users_car_folder_needs_no_rates_and_takes_the_factory_calibration(sho
     assert mine.omega_rad_s == pytest.approx(log.omega_rad_s, rel=1e-4)
     np.testing.assert_array_equal(mine.distance_m, log.distance_m)
     np.testing.assert_allclose(mine.vertical_rad, log.vertical_rad, atol=1e-12)
+    assert log.factory is None and mine.factory is not None  # kept for the export: the file is read once
     np.testing.assert_allclose(mine.action_times_s, log.action_times_s, atol=1e-9)
     assert [n.split()[0] for n in mine.notes] == ["firing_hz", "rpm"] and not mine.warnings
     assert all("measured from the packets' clock" in n for n in mine.notes)

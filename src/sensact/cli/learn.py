@@ -275,7 +275,7 @@ def learn_car_cmd(
     from sensact.experiments.car import learn_angles_from_log, learn_from_log
     from sensact.io.atomic import write_json
     from sensact.io.car_log import read_car_log
-    from sensact.io.velodyne_calibration import read_calibration, write_calibration
+    from sensact.io.velodyne_calibration import write_calibration
     from sensact.learn.car_dynamics import CarLearningConfig
     from sensact.models.laser_intrinsics import LaserIntrinsics
 
@@ -340,7 +340,7 @@ def learn_car_cmd(
     if calibration_yaml is not None:
         # ROS's driver puts a point at azimuth (rotation - rot_correction) clockwise from forward, which is
         # eq. 2.35 with theta_b = 90°: rot_correction = theta_hat_l - 90° puts points in the car's frame
-        factory = read_calibration(factory_calibration) if factory_calibration is not None else None
+        factory = data.factory
         learned = LaserIntrinsics(
             data.vertical_rad,
             res.laser_angles_rad - np.pi / 2,

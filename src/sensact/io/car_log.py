@@ -88,6 +88,7 @@ class CarLog:
     groundtruth: dict[str, np.ndarray] | None
     notes: tuple[str, ...] = ()  # what the reader measured, for the user to see
     warnings: tuple[str, ...] = ()  # what in the folder contradicts itself
+    factory: LaserIntrinsics | None = None  # the calibration file the vertical angles came from, if one
 
 
 def _lidar_number(lidar: dict[str, Any], name: str, meta_file: Path) -> float | None:
@@ -146,9 +147,11 @@ def read_car_log(folder: str | Path, calibration: str | Path | None = None) -> C
     if calibration is not None:
         from sensact.io.velodyne_calibration import read_calibration
 
-        vertical_rad = read_calibration(calibration).vertical_rad
+        factory = read_calibration(calibration)
+        vertical_rad = factory.vertical_rad
         vertical_file, vertical_field = Path(calibration), "vert_correction"
     else:
+        factory = None
         vertical_file, vertical_field = meta_file, "lidar.vertical_deg"
         try:
             vertical_rad = np.radians(np.asarray(lidar["vertical_deg"], dtype=float).reshape(-1))
@@ -227,4 +230,5 @@ def read_car_log(folder: str | Path, calibration: str | Path | None = None) -> C
         gt,
         tuple(notes),
         tuple(warnings),
+        factory,
     )
