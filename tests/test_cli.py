@@ -9,6 +9,7 @@ import typer
 from typer.testing import CliRunner
 
 from sensact.cli import app
+from sensact.experiments.field2d import bar_misses
 
 runner = CliRunner()
 
@@ -212,6 +213,22 @@ def test_reproduce_em1d_and_field2d_write_the_documented_keys(tmp_path):
     for fig in ("fig4_4_field2d_learning.png", "fig4_5_field2d_sensor.png", "fig4_2_real_robot_learning.png"):
         assert (tmp_path / fig).stat().st_size > 10_000
     assert "real-robot setting" in (tmp_path / "field2d.md").read_text()
+    # a minute of walking and 20 iterations miss bars; the command names each miss, as the JSON does
+    o = out["ours"]
+    assert o["misses"] == bar_misses(out["per_trial"][0]) and o["misses"]
+    assert o["clears_bars_every_trial"] is False and o["clears_bars_mean"] is (not bar_misses(o))
+    flat = " ".join(res.output.split())
+    assert all(m in flat for m in o["misses"]), res.output
+
+
+def test_field2d_bar_misses_name_each_bar_a_trial_misses():
+    ok = {"vx_rms_mm_s": 23.06, "vy_rms_mm_s": 18.34, "vtheta_rms_rad_s": 0.086}  # at a bar is within it
+    ok |= {"sigma1_error_pct": 5.0, "sigma2_error_pct": 0.0, "seed": 2}
+    assert bar_misses(ok) == []
+    bad = ok | {"vx_rms_mm_s": 23.53, "sigma2_error_pct": 5.5}
+    assert bar_misses(bad) == ["seed 2: v_x 23.53 > 23.06 mm/s", "seed 2: sigma_2 5.5 % off > 5 %"]
+    mean = {k: v for k, v in bad.items() if k != "seed"} | {"vtheta_rms_rad_s": 0.09}
+    assert bar_misses(mean)[1] == "mean: v_theta 0.090 > 0.086 rad/s"
 
 
 def test_simulate_car_then_learn_car_with_ros_export(tmp_path):

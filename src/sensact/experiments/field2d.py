@@ -120,6 +120,32 @@ def velocity_rms_history(trial: Field2DTrial) -> np.ndarray:
     return np.array([component_rms(v, tv) for v in trial.result.velocity_history])
 
 
+# The bars of sec. 4.4.2 (the thesis's one trial): each RMS at most the thesis's, each sigma within 5 %.
+SIGMA_BAR_PCT = 5.0
+
+
+def bar_misses(score: dict[str, Any]) -> list[str]:
+    """Which of the simulation setting's bars ``score`` (one trial's, or the mean's) misses, one line each
+    ("seed 2: v_x 23.53 > 23.06 mm/s"); empty when it clears them all."""
+    bars = THESIS["simulation"]
+    who = f"seed {score['seed']}: " if "seed" in score else "mean: "
+    out = [
+        f"{who}{name} {score[key]:.{digits}f} > {bars[key]:.{digits}f} {unit}"
+        for key, name, unit, digits in (
+            ("vx_rms_mm_s", "v_x", "mm/s", 2),
+            ("vy_rms_mm_s", "v_y", "mm/s", 2),
+            ("vtheta_rms_rad_s", "v_theta", "rad/s", 3),
+        )
+        if score[key] > bars[key]
+    ]
+    out += [
+        f"{who}{name} {score[key]:.1f} % off > {SIGMA_BAR_PCT:.0f} %"
+        for key, name in (("sigma1_error_pct", "sigma_1"), ("sigma2_error_pct", "sigma_2"))
+        if score[key] > SIGMA_BAR_PCT
+    ]
+    return out
+
+
 def run_field2d(
     exp: Field2DExperiment | None = None, progress: ProgressFn | None = None
 ) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -143,17 +169,10 @@ def run_field2d(
             "trials": len(scores),
         }
     )
-    bars = THESIS["simulation"]
-    ours["clears_bars_every_trial"] = bool(
-        all(
-            s["vx_rms_mm_s"] <= bars["vx_rms_mm_s"]
-            and s["vy_rms_mm_s"] <= bars["vy_rms_mm_s"]
-            and s["vtheta_rms_rad_s"] <= bars["vtheta_rms_rad_s"]
-            and s["sigma1_error_pct"] <= 5.0
-            and s["sigma2_error_pct"] <= 5.0
-            for s in scores
-        )
-    )
+    misses = [m for s in scores for m in bar_misses(s)]
+    ours["clears_bars_every_trial"] = not misses
+    ours["clears_bars_mean"] = not bar_misses(ours)
+    ours["misses"] = misses
     out: dict[str, Any] = {
         "experiment": "field2d",
         "ours": ours,
