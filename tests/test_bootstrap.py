@@ -229,3 +229,19 @@ def test_errors_in_variables_justify_the_observation_window():
             out.append(np.sqrt(np.mean((fit(m.heights_px) - m.distances_mm) ** 2)))
     assert np.mean(raw) > 70.0  # more than the thesis's whole error budget (70.4 mm), before any learning
     assert np.mean(windowed) < 0.5 * np.mean(raw)
+
+
+def test_the_figures_velocity_of_w_s_is_each_windows_least_squares_slope():
+    from sensact.report.figures_bootstrap import _velocity_of_w_s
+
+    t = np.arange(200) * 0.05
+    w = np.where(t < 5.0, 3.0 * t + 1.0, -2.0 * t + 26.0)  # a turn at 5 s, continuous
+    w[::4] = np.nan  # steps without an observation
+    w[120:150] = np.nan  # 1.5 s without any: the windows there hold fewer than three
+    v = _velocity_of_w_s(t, w, window_s=1.02)  # edges between samples: a window is 21 steps
+    np.testing.assert_allclose(v[20:90], 3.0, rtol=1e-10)  # windows before the turn
+    np.testing.assert_allclose(v[111:119], -2.0, rtol=1e-10)
+    assert np.isnan(v[130:140]).all()
+    i = 100  # a window across the turn: numpy's own least squares on the same points
+    near = (np.abs(t - t[i]) < 0.51) & np.isfinite(w)
+    assert v[i] == pytest.approx(np.polyfit(t[near], w[near], 1)[0], rel=1e-9)

@@ -69,6 +69,8 @@ def test_simulate_then_learn(tmp_path):
     assert out["sensor"]["kind"] == "polynomial1d" and len(out["action"]["coef"]) == 5
     assert out["evaluation"]["sensor_rms"] > 0
     assert (tmp_path / "m.history.npz").is_file()
+    assert (tmp_path / "m.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and "m.png" in res.output
+    assert (tmp_path / "m.png").stat().st_size > 30_000  # three panels of points and curves
 
 
 @pytest.mark.parametrize(

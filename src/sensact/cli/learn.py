@@ -58,7 +58,10 @@ def learn_bootstrap_cmd(
     ] = None,
     out: Annotated[
         Path | None,
-        typer.Option("--out", help="Write the learned models here (JSON) and the history beside it (.npz)."),
+        typer.Option(
+            "--out",
+            help="Write the learned models here (JSON), the history beside it (.npz) and a figure of the run (.png).",
+        ),
     ] = None,
     set_: SetOpt = None,
     config: ConfigOpt = None,
@@ -110,7 +113,10 @@ def learn_bootstrap_cmd(
         write_json(out, payload)
         assert res.history is not None
         write_npz(out.with_suffix(".history.npz"), **res.history.arrays())
-        console.print(f"wrote {out} and {out.with_suffix('.history.npz')}")
+        from sensact.report.figures_bootstrap import figure_bootstrap_fit
+
+        png = figure_bootstrap_fit(res, data, out.with_suffix(".png"), f"Algorithm 1 on {Path(data.source).name}")
+        console.print(f"wrote {out}, {out.with_suffix('.history.npz')} and {png}")
 
 
 @learn_app.command("em")
