@@ -236,6 +236,19 @@ def test_angle_median_and_offset():
     assert offset_from_motion(motion * 2.0, 0.5) == pytest.approx(np.pi / 2 - 1.2)
 
 
+def test_factory_comparison_takes_out_one_mount_yaw():
+    from sensact.evaluate.car import factory_comparison
+
+    factory = np.radians(np.linspace(-8.0, 10.0, 64))
+    yaw = np.radians(179.0)  # the learned angles wrap past pi: the comparison must not see a 360° jump
+    fc = factory_comparison(factory + yaw, factory)
+    assert fc["mount_yaw_deg"] == pytest.approx(179.0, abs=1e-9) and fc["rms_deg"] < 1e-9
+    e = np.radians(0.2) * np.where(np.arange(64) % 2 == 0, 1.0, -1.0)  # disagreements that cancel in pairs
+    fc = factory_comparison(factory + yaw + e, factory)
+    assert fc["mount_yaw_deg"] == pytest.approx(179.0, abs=1e-9)
+    assert fc["rms_deg"] == pytest.approx(0.2, rel=1e-9) and fc["max_deg"] == pytest.approx(0.2, rel=1e-9)
+
+
 def test_regression_recovers_the_coefficients_exactly():
     rng = np.random.default_rng(3)
     true = CarDynamics(0.1, 3.5, -0.4, -0.5, 0.002, 0.11)

@@ -288,6 +288,13 @@ def test_simulate_car_then_learn_car_with_ros_export(tmp_path):
     np.testing.assert_allclose(np.degrees(cal.horizontal_rad) + 90.0, model["laser_angles_deg"], atol=1e-9)
     np.testing.assert_allclose(cal.vertical_rad, factory.vertical_rad, atol=1e-12)
     assert [e["dist_correction"] for e in cal.extra] == [0.01 * i for i in range(64)]
+    # the factory file holds the true theta_l: about its mount yaw it differs by the relative angles' error
+    fc = model["factory_comparison"]
+    assert "vs the factory calibration's horizontal angles" in res.output
+    assert fc["mount_yaw_deg"] == pytest.approx(meta["truth"]["mount_yaw_deg"], abs=1.0)
+    assert fc["rms_deg"] <= model["evaluation"]["laser_angle_rms_deg"] + 1e-3
+    png = out.with_suffix(".png")
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 50_000 and "car.png" in res.output
     # without the controls: the laser angles and C from the scans alone (Algorithm 3's first pass)
     (log / "actions.csv").unlink()
     res = runner.invoke(app, ["learn", "car", str(log), "--out", str(out), "--factory-calibration", str(yml)])
@@ -298,6 +305,12 @@ def test_simulate_car_then_learn_car_with_ros_export(tmp_path):
     assert alone["car_dynamics"] is None and alone["iterations"] == 0
     assert alone["evaluation"]["laser_angle_rms_deg"] < 1.0
     assert alone["offset_C_deg"] == pytest.approx(model["history"][0]["C_rad"] * 180 / np.pi, abs=1e-9)
+    # the "factory" here is Algorithm 3's export (C_final - 90° on the same relative angles), so the scans
+    # alone differ from it by one constant, 90° + C_first - C_final, and not at all about it
+    fc = alone["factory_comparison"]
+    assert fc["rms_deg"] < 1e-6 and fc["mount_yaw_deg"] == pytest.approx(
+        90.0 + alone["offset_C_deg"] - model["offset_C_deg"], abs=1e-6
+    )
     res = runner.invoke(app, ["learn", "car", str(tmp_path)])
     assert res.exit_code == 2 and "meta.json" in res.output
 

@@ -258,7 +258,10 @@ def learn_em_cmd(
 @friendly
 def learn_car_cmd(
     log: Annotated[Path, typer.Argument(help="A car log folder (velodyne.pcap, actions.csv, meta.json).")],
-    out: Annotated[Path | None, typer.Option("--out", help="Write the learned models here (JSON).")] = None,
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", help="Write the learned models here (JSON) and a figure of the drive beside it (.png)."),
+    ] = None,
     calibration_yaml: Annotated[
         Path | None,
         typer.Option("--calibration-yaml", help="Also write the learned angles as a ROS velodyne calibration."),
@@ -328,6 +331,20 @@ def learn_car_cmd(
                 f"velocity {evaluation['ang_vel_rms']:.4f} rad/s ({evaluation['ang_vel_rms_from_truth']:.4f})"
             )
         model, history = m.to_dict(), res.history
+    reference, comparison = None, None
+    if data.factory is not None:
+        from sensact.evaluate.car import factory_comparison
+
+        comparison = factory_comparison(res.laser_angles_rad, data.factory.horizontal_rad)
+        console.print(
+            f"vs the factory calibration's horizontal angles (never used to learn): {comparison['rms_deg']:.3f}° RMS, "
+            f"largest {comparison['max_deg']:.3f}°, with the unit turned θ_b = {comparison['mount_yaw_deg']:.2f}° "
+            "on the car (90° when its forward axis is the car's)"
+        )
+        shift = np.radians(comparison["mount_yaw_deg"])
+        reference = (data.factory.horizontal_rad + shift, f"factory + θ_b ({comparison['mount_yaw_deg']:.2f}°)")
+    elif simulated:
+        reference = (np.asarray(data.meta["truth"]["laser_angles_rad"]), "true θ_l + θ_b")
     if out is not None:
         write_json(
             out,
@@ -339,10 +356,16 @@ def learn_car_cmd(
                 "history": history,
                 "seconds_by_stage": res.seconds_by_stage,
                 "config": config_to_dict(cfg),
+                "factory_comparison": comparison,
                 "evaluation": evaluation,
             },
         )
-        console.print(f"wrote {out}")
+        from sensact.report.figures_car import figure_car_fit
+
+        png = figure_car_fit(
+            res, data, out.with_suffix(".png"), f"Algorithm 3 on {log.name}", reference, cfg.odometry.dt_s
+        )
+        console.print(f"wrote {out} and {png}")
     if calibration_yaml is not None:
         # ROS's driver puts a point at azimuth (rotation - rot_correction) clockwise from forward, which is
         # eq. 2.35 with theta_b = 90°: rot_correction = theta_hat_l - 90° puts points in the car's frame

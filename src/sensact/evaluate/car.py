@@ -16,6 +16,23 @@ def laser_angle_error(learned_rad: np.ndarray, true_rad: np.ndarray) -> dict[str
     return {"laser_angle_rms_deg": rms, "laser_angle_rms_pct": 100 * rms / span, "laser_angle_range_deg": span}
 
 
+def factory_comparison(learned_rad: np.ndarray, factory_horizontal_rad: np.ndarray) -> dict[str, float]:
+    """The learned theta_l + theta_b (eq. 2.35) against a factory calibration's theta_l (ROS's rot_correction).
+
+    The factory does not know how the unit sits on the car, so their difference is theta_b plus each
+    laser's disagreement: theta_b is taken as the differences' circular mean (for small disagreements,
+    the shift that leaves the least squared disagreement), and the RMS and largest disagreement are about
+    it. Never used to learn."""
+    diff = wrap_angle(np.asarray(learned_rad) - np.asarray(factory_horizontal_rad))
+    mount = float(np.angle(np.mean(np.exp(1j * diff))))
+    err = np.degrees(wrap_angle(diff - mount))
+    return {
+        "mount_yaw_deg": float(np.degrees(mount)),
+        "rms_deg": float(np.sqrt(np.mean(err**2))),
+        "max_deg": float(np.max(np.abs(err))),
+    }
+
+
 def truth_motion(times_s, poses, starts_s, dt_s):
     """v, omega, a per interval from pose differences over dt, as the thesis used the Applanix (sec. 5.4)."""
     th = np.unwrap(poses[:, 2])
