@@ -215,6 +215,9 @@ def test_reproduce_em1d_and_field2d_write_the_documented_keys(tmp_path):
     for fig in ("fig4_4_field2d_learning.png", "fig4_5_field2d_sensor.png", "fig4_2_real_robot_learning.png"):
         assert (tmp_path / fig).stat().st_size > 10_000
     assert "real-robot setting" in (tmp_path / "field2d.md").read_text()
+    page = (tmp_path / "index.html").read_text()  # both runs' tables and figures on one page
+    assert "index.html" in res.output and 'id="em1d"' in page and 'id="field2d"' in page
+    assert all(f'src="{f.name}"' in page for f in tmp_path.glob("fig4_*.png"))
     # a minute of walking and 20 iterations miss bars; the command names each miss, as the JSON does
     o = out["ours"]
     assert o["misses"] == bar_misses(out["per_trial"][0]) and o["misses"]

@@ -1,5 +1,5 @@
 """``sensact reproduce``: the thesis's experiments and the real-data runs, each writing
-RESULTS/<experiment>.json, a Markdown table and figures."""
+RESULTS/<experiment>.json, a Markdown table and figures, and RESULTS/index.html over all of them."""
 
 from __future__ import annotations
 
@@ -54,7 +54,9 @@ def reproduce(
         ),
     ] = False,
 ) -> None:
-    """Run the thesis's experiments and write RESULTS/<experiment>.json, tables and figures."""
+    """Run the thesis's experiments and write RESULTS/<experiment>.json, tables and figures.
+
+    RESULTS/index.html then shows every table and figure in the folder on one page."""
     from sensact.errors import ConfigError
 
     if experiment is not None and experiment not in EXPERIMENTS:
@@ -86,6 +88,11 @@ def reproduce(
         _reproduce_car(out, seed, set_, config)
     if "real" in todo:
         _reproduce_real(out, _data_dir(data), experiment == "real", set_, config, truth_restart)
+    from sensact.report.html_report import write_html_report
+
+    page = write_html_report(out)
+    if page is not None:
+        console.print(f"wrote {page}: every table and figure in {out} on one page")
 
 
 def _reproduce_real(
