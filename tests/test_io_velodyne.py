@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -19,6 +21,7 @@ from sensact.io.velodyne import (
     pcap_bytes,
     read_pcap_payloads,
     read_velodyne_pcap,
+    udp_traffic,
     write_pcap,
 )
 from sensact.io.velodyne_calibration import calibration_yaml, read_calibration, write_calibration
@@ -165,8 +168,22 @@ def test_bad_files_are_rejected_clearly(tmp_path):
     with pytest.raises(LogFormatError, match="block id"):
         decode_packets(np.zeros(1), bad)
     (tmp_path / "empty.pcap").write_bytes(data[:24])
-    with pytest.raises(LogFormatError, match="no Velodyne data packets"):
+    with pytest.raises(LogFormatError, match=r"no Velodyne data packets.*it holds no UDP packets"):
         read_velodyne_pcap(tmp_path / "empty.pcap")
+    # another lidar's capture: the error names the streams it does hold, commonest first
+    other = pcap_bytes(np.zeros((5, 100), np.uint8), np.arange(5.0), port=7502)
+    imu = pcap_bytes(np.zeros((2, 48), np.uint8), np.arange(2.0), port=7503)
+    (tmp_path / "other.pcap").write_bytes(other + imu[24:])
+    said = "UDP to port 7502 (100-byte payloads) x 5, UDP to port 7503 (48-byte payloads) x 2"
+    assert udp_traffic(tmp_path / "other.pcap") == said
+    with pytest.raises(LogFormatError, match=re.escape(said)):
+        read_velodyne_pcap(tmp_path / "other.pcap")
+
+
+def test_an_ouster_capture_is_named_by_its_traffic():
+    said = udp_traffic(require(VELO / "ouster_example.pcap"))
+    assert said == "UDP to port 7502 (12608-byte payloads) x 100"  # the OS-1-64's lidar port and packet size
+    assert udp_traffic(require(VELO / "hdl32_example.pcap")).startswith("UDP to port 2368 (1206-byte payloads) x 876")
 
 
 def test_calibration_yaml_round_trip(tmp_path):

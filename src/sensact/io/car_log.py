@@ -33,6 +33,7 @@ from sensact.io.velodyne import (
     packet_slots,
     pcap_records,
     read_pcap_payloads,
+    udp_traffic,
     velodyne_model,
 )
 from sensact.io.velodyne_calibration import write_calibration
@@ -144,6 +145,24 @@ def read_car_log(folder: str | Path, calibration: str | Path | None = None) -> C
             f"--factory-calibration); {CAR_LOG_DOCS}.",
         )
     t0 = _lidar_number(lidar, "time_origin_s", meta_file) or 0.0
+    # the capture before the angles: no angles fix a capture of another lidar
+    pcap = folder / str(lidar.get("file", "velodyne.pcap"))
+    times, payloads, _ = read_pcap_payloads(pcap)
+    if len(payloads) == 0:
+        raise LogFormatError(
+            f"no Velodyne data packets (1206-byte UDP payloads to port 2368); it holds {udp_traffic(pcap)}.",
+            file=pcap,
+            fix="capture the HDL-64E's data port (2368); sensact learn car reads Velodyne HDL-64E packets only.",
+        )
+    model = velodyne_model(payloads)
+    if model != "HDL-64E":
+        raise LogFormatError(
+            f"{model} packets: chapter 5's learner reads an HDL-64E, whose 64 lasers fire in upper and lower "
+            "blocks (0xEEFF, 0xDDFF).",
+            file=pcap,
+            field="lidar.file",
+            fix="give an HDL-64E capture (sensact.io.velodyne.read_velodyne_pcap decodes this one).",
+        )
     if calibration is not None:
         from sensact.io.velodyne_calibration import read_calibration
 
@@ -163,19 +182,6 @@ def read_car_log(folder: str | Path, calibration: str | Path | None = None) -> C
                 fix="add the 64 factory vertical angles, or pass the factory calibration file "
                 "(sensact learn car LOG --factory-calibration FILE.yaml).",
             ) from None
-    pcap = folder / str(lidar.get("file", "velodyne.pcap"))
-    times, payloads, _ = read_pcap_payloads(pcap)
-    if len(payloads) == 0:
-        raise LogFormatError("no Velodyne data packets.", file=pcap, fix="check the capture (UDP port 2368).")
-    model = velodyne_model(payloads)
-    if model != "HDL-64E":
-        raise LogFormatError(
-            f"{model} packets: chapter 5's learner reads an HDL-64E, whose 64 lasers fire in upper and lower "
-            "blocks (0xEEFF, 0xDDFF).",
-            file=pcap,
-            field="lidar.file",
-            fix="give an HDL-64E capture (sensact.io.velodyne.read_velodyne_pcap decodes this one).",
-        )
     slots = packet_slots(payloads)
     rot_deg, dist = hdl64e_firings(payloads, slots)
     if len(vertical_rad) != dist.shape[1]:

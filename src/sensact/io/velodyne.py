@@ -88,9 +88,9 @@ def _records(buf, big_endian):
     return offs[:k], lens[:k], secs[:k], frac[:k], pos
 
 
-def read_pcap_payloads(path: str | Path, port: int = DATA_PORT) -> tuple[np.ndarray, np.ndarray, int]:
-    """``(capture_time_s, payloads (P, 1206) uint8, n_skipped)`` of the Velodyne data packets in a pcap."""
-    path = Path(path)
+def _udp_datagrams(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Every IPv4 UDP datagram of a classic pcap: ``(buf, record ok, payload start, destination port, payload
+    bytes, capture time s)``; the arrays run over the records, ``ok`` marks the UDP ones."""
     if not path.is_file():
         raise LogFormatError("pcap file not found.", file=path, fix="check the path.")
     buf = np.fromfile(path, dtype=np.uint8)
@@ -125,14 +125,32 @@ def read_pcap_payloads(path: str | Path, port: int = DATA_PORT) -> tuple[np.ndar
     ok &= ((buf[ipc] >> 4) == 4) & (buf[ipc + 9] == 17)
     udp = np.minimum(ip + ihl, buf.size - 8)
     dport = buf[udp + 2].astype(np.int64) * 256 + buf[udp + 3]
-    ulen = buf[udp + 4].astype(np.int64) * 256 + buf[udp + 5]
-    ok &= (dport == port) & (ulen == PAYLOAD_BYTES + 8) & (lens >= (udp - offs) + 8 + PAYLOAD_BYTES)
-    start = udp[ok] + 8
+    size = buf[udp + 4].astype(np.int64) * 256 + buf[udp + 5] - 8
+    ok &= lens >= (udp - offs) + 8 + np.maximum(size, 0)  # the whole payload was captured
+    return buf, ok, udp + 8, dport, size, (secs + frac * frac_unit).astype(float)
+
+
+def read_pcap_payloads(path: str | Path, port: int = DATA_PORT) -> tuple[np.ndarray, np.ndarray, int]:
+    """``(capture_time_s, payloads (P, 1206) uint8, n_skipped)`` of the Velodyne data packets in a pcap."""
+    buf, ok, start, dport, size, times = _udp_datagrams(Path(path))
+    ok = ok & (dport == port) & (size == PAYLOAD_BYTES)
     payloads = (
-        buf[start[:, None] + np.arange(PAYLOAD_BYTES)[None, :]] if ok.any() else np.zeros((0, PAYLOAD_BYTES), np.uint8)
+        buf[start[ok][:, None] + np.arange(PAYLOAD_BYTES)[None, :]]
+        if ok.any()
+        else np.zeros((0, PAYLOAD_BYTES), np.uint8)
     )
-    times = secs[ok] + frac[ok] * frac_unit
-    return times.astype(float), payloads, int((~ok).sum())
+    return times[ok], payloads, int((~ok).sum())
+
+
+def udp_traffic(path: str | Path, most: int = 3) -> str:
+    """The capture's commonest UDP streams, for an error that found none it could read: "UDP to port
+    7502 (12608-byte payloads) x 1280, ..." or "no UDP packets"."""
+    _, ok, _, dport, size, _ = _udp_datagrams(Path(path))
+    if not ok.any():
+        return "no UDP packets"
+    streams, counts = np.unique(np.column_stack([dport[ok], size[ok]]), axis=0, return_counts=True)
+    order = np.argsort(-counts, kind="stable")[:most]
+    return ", ".join(f"UDP to port {streams[i, 0]} ({streams[i, 1]}-byte payloads) x {counts[i]}" for i in order)
 
 
 def _model_of(packets: np.ndarray) -> str:
@@ -284,7 +302,7 @@ def read_velodyne_pcap(path: str | Path, *, model: str = "auto", port: int = DAT
     times, payloads, skipped = read_pcap_payloads(path, port)
     if len(payloads) == 0:
         raise LogFormatError(
-            f"no Velodyne data packets (1206-byte UDP payloads on port {port}).",
+            f"no Velodyne data packets (1206-byte UDP payloads on port {port}); it holds {udp_traffic(path)}.",
             file=path,
             fix="check the port (--port) or the capture.",
         )
