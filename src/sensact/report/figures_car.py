@@ -17,13 +17,20 @@ from sensact.learn.scan_odometry import scan_points
 from sensact.report.figures1d import _save
 
 
+def _revolution(log: Any, relative_rad: np.ndarray, at_s: float) -> np.ndarray:
+    """(N, 2) points in (x_C, y_C) of the revolution that starts at ``at_s`` (the last whole one if later)."""
+    per_rev = round(2 * np.pi / abs(log.omega_rad_s) * log.firing_hz)
+    a = min(max(round(at_s * log.firing_hz), 0), max(len(log.rotation_rad) - per_rev, 0))
+    return scan_points(
+        log.rotation_rad[a : a + per_rev], log.distance_m[a : a + per_rev], log.vertical_rad, relative_rad
+    )
+
+
 def figure_5_2(log: Any, rel_rad: np.ndarray, t_s: float, dt_s: float, path: Path) -> Path:
     """Two scans dt apart, in the lidar frame (x_C, y_C)."""
-    per_rev = round(2 * np.pi / abs(log.omega_rad_s) * log.firing_hz)
     fig, ax = plt.subplots(figsize=(6.5, 6.5))
     for t, color in ((t_s, "C3"), (t_s + dt_s, "C0")):
-        a = round(t * log.firing_hz)
-        p = scan_points(log.rotation_rad[a : a + per_rev], log.distance_m[a : a + per_rev], log.vertical_rad, rel_rad)
+        p = _revolution(log, rel_rad, t)
         ax.scatter(p[:, 0], p[:, 1], s=0.3, color=color, label=f"scan at {t:.1f} s")
     ax.plot(0, 0, "kx", ms=10)
     ax.set(xlabel="x_C (m)", ylabel="y_C (m)", title="two consecutive scans (points > 1 m below the sensor dropped)")
@@ -63,9 +70,7 @@ def figure_5_4_5(times_s, truth, predicted, path: Path, window_s: tuple[float, f
 
 
 def _scan_panel(ax: Any, log: Any, relative_rad: np.ndarray, at_s: float, title: str, lim: float) -> None:
-    per_rev = round(2 * np.pi / abs(log.omega_rad_s) * log.firing_hz)
-    a = min(max(round(at_s * log.firing_hz), 0), max(len(log.rotation_rad) - per_rev, 0))
-    p = scan_points(log.rotation_rad[a : a + per_rev], log.distance_m[a : a + per_rev], log.vertical_rad, relative_rad)
+    p = _revolution(log, relative_rad, at_s)
     ax.scatter(p[:, 0], p[:, 1], s=0.2, color="k", alpha=0.5)
     ax.plot(0, 0, "x", color="C3", ms=8)
     ax.set(xlim=(-lim, lim), ylim=(-lim, lim), xlabel="x_C (m)", ylabel="y_C (m)", title=title)
