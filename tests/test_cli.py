@@ -9,6 +9,8 @@ import typer
 from typer.testing import CliRunner
 
 from sensact.cli import app
+from sensact.evaluate.bars import counts, verdict_line
+from sensact.experiments import em1d, field2d, track1d
 from sensact.experiments.field2d import bar_misses
 
 runner = CliRunner()
@@ -119,6 +121,10 @@ def test_reproduce_track1d_writes_the_documented_shape(tmp_path):
     for fig in ("fig3_7_location_estimates.png", "fig3_8_learned_vs_measured.png", "fig3_9_learning_curves.png"):
         assert (tmp_path / fig).stat().st_size > 10_000
     assert "Table 3.1" in (tmp_path / "track1d.md").read_text()
+    checks = track1d.scorecard(out)
+    assert out["scorecard"] == [c.to_dict() for c in checks] and len(checks) == 12
+    assert f"### Bars: {counts(checks)[0]} of 12 cleared" in (tmp_path / "track1d.md").read_text()
+    assert f"track1d {verdict_line(checks)}" in " ".join(res.output.split())
 
 
 def test_simulate_field2d_then_learn_em(tmp_path):
@@ -178,6 +184,8 @@ def test_reproduce_em1d_and_field2d_write_the_documented_keys(tmp_path):
     for k in ("change_before_on_before", "change_after_on_after", "change_before_on_after", "change_after_on_before"):
         assert {"action_rms_mm_s", "scale_ratio"} <= set(out["ours"][k])
     assert (tmp_path / "fig4_6_em1d_learned.png").stat().st_size > 10_000
+    assert out["scorecard"] == [c.to_dict() for c in em1d.scorecard(out)]
+    assert f"em1d {verdict_line(em1d.scorecard(out))}" in " ".join(res.output.split())
     assert (tmp_path / "fig4_7_em1d_relearned.png").stat().st_size > 10_000
     res = runner.invoke(
         app,
@@ -222,8 +230,12 @@ def test_reproduce_em1d_and_field2d_write_the_documented_keys(tmp_path):
     o = out["ours"]
     assert o["misses"] == bar_misses(out["per_trial"][0]) and o["misses"]
     assert o["clears_bars_every_trial"] is False and o["clears_bars_mean"] is (not bar_misses(o))
+    checks = field2d.scorecard(out)
+    assert out["scorecard"] == [c.to_dict() for c in checks] and any(c.cleared is False for c in checks)
     flat = " ".join(res.output.split())
-    assert all(m in flat for m in o["misses"]), res.output
+    assert f"field2d {verdict_line(checks)}" in flat, res.output
+    assert "em1d bars:" in flat.split("every experiment in")[1]  # the folder's earlier run, summed up at the end
+    assert "Bars: " in (tmp_path / "field2d.md").read_text() and 'class="missed"' in page
 
 
 def test_field2d_bar_misses_name_each_bar_a_trial_misses():

@@ -1310,6 +1310,8 @@ def test_reproduce_real_runs_every_mrclam_dataset_it_finds(tmp_path):
     res, art = run_real(root, robots=(2, 3), config=cfg)
     assert list(res["mrclam"]) == ["MRCLAM_Dataset6/robot2", "MRCLAM_Dataset6/robot3", "MRCLAM_Dataset9/robot2"]
     assert any(s.startswith("MRCLAM MRCLAM_Dataset9/robot3: ") for s in res["skipped"])
+    keys = [c["key"] for c in res["scorecard"]]  # every robot's bars, under its row's name
+    assert len(keys) == 15 and keys[5] == "MRCLAM_Dataset6/robot3.action_translation_ratio"
     del res["mrclam"]["MRCLAM_Dataset6/robot3"], art["mrclam"]["MRCLAM_Dataset6/robot3"]
     assert [r["dataset"] for r in res["mrclam"].values()] == ["MRCLAM_Dataset6", "MRCLAM_Dataset9"]
     # the same log and seed give the same fit under either name

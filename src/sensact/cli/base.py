@@ -127,14 +127,30 @@ def print_tables(tables: list[tuple[str, list[str], list[list[str]]]]) -> None:
 
 
 def write_results(out: Path, name: str, res: dict[str, Any], tables: list[Any]) -> None:
-    """``out/<name>.json`` and ``out/<name>.md``, and the tables on the console."""
+    """``out/<name>.json`` and ``out/<name>.md``, and the tables on the console. An experiment's
+    ``scorecard`` goes to the Markdown as a table and to the console as one line."""
     from sensact.io.atomic import write_json, write_text
-    from sensact.report.tables import to_markdown
+    from sensact.report.tables import scorecard_table, to_markdown
 
     out.mkdir(parents=True, exist_ok=True)
     write_json(out / f"{name}.json", res)
-    write_text(out / f"{name}.md", to_markdown(tables))
+    cards = [scorecard_table(res["scorecard"])] if res.get("scorecard") else []
+    write_text(out / f"{name}.md", to_markdown([*tables, *cards]))
     print_tables(tables)
+    if res.get("scorecard"):
+        from sensact.evaluate.bars import checks_from_json
+
+        print_verdict(name, checks_from_json(res["scorecard"]))
+
+
+def print_verdict(name: str, checks: list[Any]) -> None:
+    """``track1d bars: 12 of 12 cleared``, each miss named (``evaluate.bars.BarCheck``); red when one missed."""
+    from rich.text import Text
+
+    from sensact.evaluate.bars import verdict_line
+
+    missed = any(c.cleared is False for c in checks)
+    console.print(Text(f"{name} {verdict_line(checks)}", style="bold red" if missed else "bold"))
 
 
 def layered_config(cls: type, config: Path | None, sets: list[str] | None, base: Any = None, **flags: Any) -> Any:

@@ -17,6 +17,8 @@ from typing import Any
 import numpy as np
 
 from sensact.config import config_to_dict
+from sensact.errors import ConfigError
+from sensact.evaluate.bars import BarCheck, at_most
 from sensact.evaluate.em import score_track
 from sensact.evaluate.track1d import DISTANCE_GRID_MM
 from sensact.learn.em import EMConfig, EMResult, fit_em, initial_model
@@ -67,6 +69,38 @@ EM1D_TRACK = Track1DConfig(
     change_factor=0.75,
 )
 
+# sec. 4.4.3's bars (issue 3): errors in percent of the range, and the scale ratio within 0.09 of 1
+SCALE_RATIO_BAR = 0.09
+
+
+def scorecard(summary: dict[str, Any]) -> list[BarCheck]:
+    """Sec. 4.4.3's bars on ``em1d.json``: the first half's sensor and action errors at most the thesis's,
+    its scale ratio within 0.09 of 1, and after the change the relearned models beat the stale ones."""
+    o, th = summary["ours"], summary["thesis"]
+    ratio = o["scale_ratio"]
+    new, stale = o["change_after_on_after"], o["change_before_on_after"]
+    return [
+        at_most("sensor_rms_pct", "sensor RMS, % of the height range", o["sensor_rms_pct"], th["sensor_rms_pct"], "%"),
+        at_most(
+            "action_rms_pct", "action RMS, % of the velocity range", o["action_rms_pct"], th["action_rms_pct"], "%"
+        ),
+        BarCheck(
+            "scale_ratio",
+            "scale ratio k_a / k_s",
+            f"within {SCALE_RATIO_BAR} of 1",
+            f"{ratio:.3f}",
+            bool(abs(ratio - 1.0) <= SCALE_RATIO_BAR + 1e-12),  # 1.09 - 1 is 0.0900...01 in floating point
+        ),
+        BarCheck(
+            "relearning_beats_stale",
+            "after the change, relearned against stale",
+            "lower action RMS and a scale ratio nearer 1",
+            f"{new['action_rms_mm_s']:.1f} against {stale['action_rms_mm_s']:.1f} mm/s, "
+            f"ratio {new['scale_ratio']:.2f} against {stale['scale_ratio']:.2f}",
+            bool(o["relearning_beats_stale"]),
+        ),
+    ]
+
 
 @dataclass(frozen=True)
 class EM1DExperiment:
@@ -97,8 +131,13 @@ def run_em1d(
     """Returns (``em1d.json`` content, artifacts for figures)."""
     exp = exp or EM1DExperiment()
     sim = dataclasses.replace(exp.simulator, seed=exp.seed)
-    if sim.change_at_s is None:
-        raise ValueError("em1d needs change_at_s: the run is split there into before and after")
+    if sim.change_at_s is None or not 0 < sim.change_at_s < sim.seconds:
+        raise ConfigError(
+            f"em1d splits the run at change_at_s into before and after; {sim.change_at_s} s is not inside "
+            f"the {sim.seconds:g} s run.",
+            field="change_at_s",
+            fix=f"set change_at_s between 0 and seconds, e.g. --set change_at_s={sim.seconds / 2:g}.",
+        )
     t0 = time.perf_counter()
     run: TrackRun = simulate_track(sim)
     data = to_landmark_log(run)
@@ -144,4 +183,5 @@ def run_em1d(
         o["change_after_on_after"]["action_rms_mm_s"] < o["change_before_on_after"]["action_rms_mm_s"]
         and abs(o["change_after_on_after"]["scale_ratio"] - 1) < abs(o["change_before_on_after"]["scale_ratio"] - 1)
     )
+    out["scorecard"] = [c.to_dict() for c in scorecard(out)]
     return out, {"run": run, "halves": halves, "simulator": sim}

@@ -13,6 +13,7 @@ import numpy as np
 
 from sensact.config import config_to_dict
 from sensact.core.polyfit import weighted_polyfit
+from sensact.evaluate.bars import BarCheck, at_most
 from sensact.evaluate.scaled import ModelPairScore, fit_scale
 from sensact.evaluate.track1d import (
     COMMAND_GRID_MM_S,
@@ -74,6 +75,34 @@ THESIS = {
     },
 }
 ROW_SECONDS = {"linear": 150.0, "sign": 150.0, "constant": 300.0}
+# the thesis states a consistency for A0 = linear only; it is the bar for every row
+CONSISTENCY_BAR = THESIS["rows"]["linear"]["consistency"]
+
+
+def scorecard(summary: dict[str, Any]) -> list[BarCheck]:
+    """Table 3.1 as bars, on ``track1d.json``: each row's mean sensor and action RMS at most the thesis's
+    mean, its mean consistency at most 0.08, and at least the thesis's share of its trials converged."""
+    checks = []
+    for name, row in summary["rows"].items():
+        th = summary["thesis"]["rows"].get(name)
+        if th is None or not row["trials"]:
+            continue
+        q = f"A0 = {name}"
+        checks += [
+            at_most(f"{name}.sensor_rms_mm", f"{q}: sensor RMS", row["sensor_rms_mm"], th["sensor_rms_mm"], "mm", 1),
+            at_most(
+                f"{name}.action_rms_mm_s", f"{q}: action RMS", row["action_rms_mm_s"], th["action_rms_mm_s"], "mm/s", 1
+            ),
+            at_most(f"{name}.consistency", f"{q}: consistency", row["consistency"], CONSISTENCY_BAR, "", 3),
+            BarCheck(
+                f"{name}.converged",
+                f"{q}: converged",
+                f"≥ {th['converged']}/{th['trials']}",
+                f"{row['converged']}/{row['trials']}",
+                row["converged"] * th["trials"] >= th["converged"] * row["trials"],
+            ),
+        ]
+    return checks
 
 
 @dataclass(frozen=True)
@@ -257,4 +286,5 @@ def run_track1d(
         },
         "command_grid_mm_s": COMMAND_GRID_MM_S.tolist(),
     }
+    out["scorecard"] = [c.to_dict() for c in scorecard(out)]
     return out, artifacts

@@ -7,8 +7,10 @@ the runs, so a folder filled by several ``sensact reproduce`` runs gets one page
 from __future__ import annotations
 
 import html
+import json
 from pathlib import Path
 
+from sensact.evaluate.bars import BarCheck, checks_from_json, counts, miss_text
 from sensact.io.atomic import write_text
 from sensact.report.tables import Table
 
@@ -30,7 +32,9 @@ th { background: #f3f3f3; }
 img { max-width: 100%; border: 1px solid #eee; margin: 0.5em 0; }
 figure { margin: 0 0 1.5em; }
 figcaption { font-size: 0.85em; color: #555; }
+td.missed { color: #b00; font-weight: bold; }
 """
+MISSED = ' class="missed"'
 
 
 def tables_from_markdown(text: str) -> list[Table]:
@@ -55,16 +59,50 @@ def tables_from_markdown(text: str) -> list[Table]:
     return tables
 
 
+def folder_scorecards(out: Path) -> list[tuple[str, str, list[BarCheck]]]:
+    """(experiment, heading, its bars) for every experiment in ``out`` whose JSON holds a ``scorecard``,
+    in the thesis's order."""
+    found = []
+    for name, heading, _ in SECTIONS:
+        path = out / f"{name}.json"
+        if path.is_file():
+            rows = json.loads(path.read_text(encoding="utf-8")).get("scorecard")
+            if rows:
+                found.append((name, heading, checks_from_json(rows)))
+    return found
+
+
+def _overview_html(cards: list[tuple[str, str, list[BarCheck]]]) -> str:
+    """One row per experiment: its bars cleared, and each one missed."""
+    rows = []
+    for name, heading, checks in cards:
+        missed = "<br>".join(html.escape(miss_text(c)) for c in checks if c.cleared is False) or "none"
+        done, scored = counts(checks)
+        rows.append(
+            f'<tr><td><a href="#{name}">{html.escape(heading)}</a></td><td>{done} of {scored} cleared</td>'
+            f"<td>{missed}</td></tr>"
+        )
+    return (
+        "<h2>Bars</h2>\n<p>The bars are the thesis's published results (chapters 3-5) and, for the real robots, "
+        "sensact's own (docs/em-real.md); each section below lists its own.</p>\n"
+        f"<table><tr><th>experiment</th><th>bars</th><th>missed</th></tr>{''.join(rows)}</table>"
+    )
+
+
 def _table_html(table: Table) -> str:
     title, headers, rows = table
     head = "".join(f"<th>{html.escape(h)}</th>" for h in headers)
-    body = "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in r) + "</tr>" for r in rows)
+    body = "".join(
+        "<tr>" + "".join(f"<td{MISSED if c == 'missed' else ''}>{html.escape(c)}</td>" for c in r) + "</tr>"
+        for r in rows
+    )
     return f"<h3>{html.escape(title)}</h3>\n<table><tr>{head}</tr>{body}</table>"
 
 
 def write_html_report(out: Path) -> Path | None:
     """Write ``out/index.html`` from the experiments' files in ``out``; None when there are none."""
     sections, contents = [], []
+    cards = folder_scorecards(out)
     for name, heading, prefixes in SECTIONS:
         md = out / f"{name}.md"
         if not md.is_file():
@@ -91,6 +129,9 @@ def write_html_report(out: Path) -> Path | None:
         f"<style>{STYLE}</style></head><body>\n<h1>sensact results</h1>\n"
         "<p>Each table sets the thesis's numbers (Stronger 2008) beside ours; the JSON beside each section "
         "holds every number and the configuration that produced it.</p>\n"
-        f"<ul>{''.join(contents)}</ul>\n" + "\n".join(sections) + "\n</body></html>\n"
+        f"<ul>{''.join(contents)}</ul>\n"
+        + (_overview_html(cards) + "\n" if cards else "")
+        + "\n".join(sections)
+        + "\n</body></html>\n"
     )
     return write_text(out / "index.html", page)

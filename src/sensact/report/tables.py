@@ -6,6 +6,8 @@ import math
 from pathlib import Path
 from typing import Any
 
+from sensact.evaluate.bars import checks_from_json, counts
+
 Table = tuple[str, list[str], list[list[str]]]  # title, headers, rows
 
 
@@ -267,6 +269,20 @@ def car_tables(res: dict[str, Any]) -> list[Table]:
     stages = ", ".join(f"{k} {v:.1f} s" for k, v in res["seconds_by_stage"].items())
     rows.append(["time by stage", "angles 83 min (10.7 with the 23° bound), 34 min per iteration", stages, "-"])
     return [("Car and HDL-64E, sec. 5.4 and Table 5.1", ["quantity", "thesis", "ours", "ours from truth"], rows)]
+
+
+VERDICT = {True: "cleared", False: "missed", None: "not scored"}
+
+
+def scorecard_table(rows: list[dict[str, Any]]) -> Table:
+    """An experiment's ``scorecard`` (``evaluate.bars.BarCheck`` dicts) as a table titled with its count."""
+    checks = checks_from_json(rows)
+    done, scored = counts(checks)
+    return (
+        f"Bars: {done} of {scored} cleared",
+        ["quantity", "bar", "ours", "verdict"],
+        [[c.quantity, c.bar, c.ours, VERDICT[c.cleared]] for c in checks],
+    )
 
 
 def to_markdown(tables: list[Table]) -> str:
