@@ -116,9 +116,15 @@ def progress_bar() -> Iterator[Callable[[str, int, int | None], None]]:
         yield ProgressRows(bar)
 
 
+def titled_table(title: str) -> Table:
+    """A table at least as wide as its title (as the terminal allows), so that a narrow table's title is not
+    wrapped word by word."""
+    return Table(title=title, title_justify="left", min_width=min(len(title), console.width))
+
+
 def print_tables(tables: list[tuple[str, list[str], list[list[str]]]]) -> None:
     for title, headers, rows in tables:
-        t = Table(title=title, title_justify="left")
+        t = titled_table(title)
         for h in headers:
             t.add_column(h)
         for r in rows:

@@ -5,9 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from rich.table import Table
-
-from sensact.cli.base import console
+from sensact.cli.base import console, titled_table
 
 
 def print_em_model(m: Any) -> None:
@@ -23,7 +21,7 @@ def print_em_model(m: Any) -> None:
         console.print(f"  heading variance per step grows by {m.turn_var:.4g} rad^2 per rad/s of turning")
     a = m.action
     if isinstance(a, ActionTable):
-        t = Table(title="learned velocity of each action", title_justify="left")
+        t = titled_table("learned velocity of each action")
         for name in (*a.command_names, *a.velocity_names):
             t.add_column(name)
         for c, v in zip(a.commands, a.velocities, strict=True):
@@ -31,7 +29,7 @@ def print_em_model(m: Any) -> None:
     else:
         from sensact.models.linear_action import feature_names
 
-        t = Table(title=f"learned A(c) = Phi(c) beta ({a.basis}; delay {a.delay_steps} steps)", title_justify="left")
+        t = titled_table(f"learned A(c) = Phi(c) beta ({a.basis}; delay {a.delay_steps} steps)")
         t.add_column("feature")
         for name in a.velocity_names:
             t.add_column(name)
@@ -50,7 +48,7 @@ def print_truth_score(sc: dict[str, Any]) -> None:
     def mark(*keys: str) -> str:
         return "pass" if all(bars[k] for k in keys) else "[bold red]miss[/]"
 
-    t = Table(title=f"against ground truth ({sc['windows_scored']} windows of {sc['window_s']:.2g} s)")
+    t = titled_table(f"against ground truth ({sc['windows_scored']} windows of {sc['window_s']:.2g} s)")
     for col in ("quantity", "learned", "From-Truth", "ratio", "bar"):
         t.add_column(col)
     la, fa = a["learned"], a["from_truth"]
