@@ -11,6 +11,7 @@ from sensact.core.polyfit import (
     polyval,
     renormalize,
     solve_scaled_gram,
+    solve_scaled_grams,
     vander,
     weighted_lstsq,
     weighted_polyfit,
@@ -40,6 +41,15 @@ def test_scaled_gram_solve_matches_the_svd_one_and_refuses_when_singular():
     singular = np.column_stack([X, 2 * X[:, 1]])  # left to the caller, who solves from the rows
     Sw = singular * w[:, None]
     assert solve_scaled_gram(singular.T @ Sw, Sw.T @ y) is None
+    # batched, a singular system among them: the others as solved one at a time, the singular one flagged
+    Xs = [X, X[::2], np.column_stack([X[:, :2], X[:, 1]])]
+    grams = np.stack([A.T @ A for A in Xs])
+    rhs = np.stack([A.T @ y[: len(A)] for A in Xs])
+    coef, ok = solve_scaled_grams(grams, rhs)
+    np.testing.assert_array_equal(ok, [True, True, False])
+    for k in (0, 1):
+        np.testing.assert_allclose(coef[k], weighted_lstsq(Xs[k], y[: len(Xs[k])], np.ones(len(Xs[k]))), rtol=1e-9)
+    assert np.isnan(coef[2]).all()
 
 
 def test_affine_basis_matrix_is_exact():

@@ -13,7 +13,7 @@ def wrap_angle(a: np.ndarray | float) -> np.ndarray:
     return np.mod(np.asarray(a, dtype=float) + np.pi, TWO_PI) - np.pi
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def wrap(a):
     """Scalar ``wrap_angle`` for compiled loops."""
     return (a + np.pi) % TWO_PI - np.pi

@@ -63,12 +63,22 @@ def solve_scaled_gram(gram: np.ndarray, rhs: np.ndarray, max_cond: float = 1e10)
     where forming ``X'WX`` loses digits, so that the caller solves from the rows instead (EM's action
     M-step forms these sums once for every command delay). Unlike ``core.recursive``'s
     ``solve_normal_equations`` (the online learner's, compiled, with a ridge retry) it never regularizes."""
-    scale = np.sqrt(np.diag(gram))
-    scale[scale == 0] = 1.0
-    G = gram / np.outer(scale, scale)
-    if np.linalg.cond(G) < max_cond:
-        return np.linalg.solve(G, rhs / scale) / scale
-    return None
+    coef, ok = solve_scaled_grams(gram[None], rhs[None], max_cond)
+    return coef[0] if ok[0] else None
+
+
+def solve_scaled_grams(grams: np.ndarray, rhs: np.ndarray, max_cond: float = 1e10) -> tuple[np.ndarray, np.ndarray]:
+    """``solve_scaled_gram`` on a stack of systems, ``(B, c, c)`` and ``(B, c)``, in one call each to
+    numpy's batched SVD and solve: the solutions (NaN rows where not solved) and which were solved."""
+    scale = np.sqrt(np.diagonal(grams, axis1=1, axis2=2))
+    scale = np.where(scale == 0, 1.0, scale)
+    G = grams / (scale[:, :, None] * scale[:, None, :])
+    with np.errstate(divide="ignore", invalid="ignore"):  # a singular system's condition number is inf
+        ok = np.linalg.cond(G) < max_cond
+    out = np.full(rhs.shape, np.nan)
+    if ok.any():
+        out[ok] = np.linalg.solve(G[ok], (rhs[ok] / scale[ok])[..., None])[..., 0] / scale[ok]
+    return out, ok
 
 
 def affine_basis_matrix(degree: int, a: float, b: float) -> np.ndarray:

@@ -73,7 +73,7 @@ def apply_displacement(w: np.ndarray, disp: np.ndarray, mode: int = PLANAR) -> n
 # ---------------------------------------------------------------- compiled forms
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def poly_value_slope(coef, center, scale, x):
     """``f(x)`` and ``f'(x)`` for ascending coefficients in ``u = (x - center) / scale``."""
     u = (x - center) / scale
@@ -85,7 +85,7 @@ def poly_value_slope(coef, center, scale, x):
     return v, dv / scale
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def predict(mode, w, disp, out, F):
     """``out = w + R(theta) disp`` and its Jacobian ``F`` with respect to ``w`` (eqs. 2.24, 2.26)."""
     if mode == TRACK:
@@ -104,7 +104,7 @@ def predict(mode, w, disp, out, F):
     F[1, 2] = c * disp[0] - s * disp[1]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def motion_covariance(mode, theta, var_robot, Q):
     """The motion noise ``Sigma_m`` (robot frame, diagonal) rotated into the world frame."""
     if mode == TRACK:
@@ -123,7 +123,7 @@ def motion_covariance(mode, theta, var_robot, Q):
     Q[2, 2] = var_robot[2]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def displacement(mode, w1, w2, D, G):
     """``D(w1, w2)`` into ``D`` and its Jacobian ``G = [dD/dw1, dD/dw2]`` (n x 2n) into ``G``."""
     if mode == TRACK:
@@ -155,7 +155,7 @@ def displacement(mode, w1, w2, D, G):
     G[2, 5] = 1.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def landmark_range(mode, w, lx, ly):
     """Distance from the state ``w`` to the landmark (on a track, the state itself)."""
     if mode == TRACK:
@@ -163,7 +163,7 @@ def landmark_range(mode, w, lx, ly):
     return ((lx - w[0]) ** 2 + (ly - w[1]) ** 2) ** 0.5
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def observe_height(mode, w, lx, ly, coef, center, scale, gain, H):
     """Predicted reading ``f(dist(w)) + gain * dist(w)`` and its gradient ``H`` (eq. 4.19, first
     component; ``gain`` is the channel's bearing term at the measured bearing, 0 in the thesis)."""
@@ -182,7 +182,7 @@ def observe_height(mode, w, lx, ly, coef, center, scale, gain, H):
     return v + gain * r
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def observe_bearing(w, lx, ly, H):
     """Predicted bearing ``ang(w)`` (wrapped) and its gradient ``H`` (eq. 4.19, second component)."""
     dx = lx - w[0]

@@ -11,7 +11,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def cholesky_shifted(A, shift, L, n, floor):
     """Lower-triangular ``L`` with ``L L' = A[:n, :n] + shift I``. Returns False if a pivot is not finite
     and above ``floor`` (the matrix is not numerically positive definite)."""
@@ -33,13 +33,13 @@ def cholesky_shifted(A, shift, L, n, floor):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def cholesky(A, L, n):
     """Lower-triangular ``L`` with ``L L' = A[:n, :n]``. Returns False if ``A`` is not positive definite."""
     return cholesky_shifted(A, 0.0, L, n, 0.0)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def cholesky_solve_vec(L, b, x, n):
     """``x = (L L')^-1 b``; ``x`` may alias ``b``."""
     for i in range(n):
@@ -54,7 +54,7 @@ def cholesky_solve_vec(L, b, x, n):
         x[i] = s / L[i, i]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def forward_substitute(L, B, n, m):
     """``B <- L^-1 B`` for the lower-triangular ``L`` (``n x n``) and ``B`` (``n x m``)."""
     for j in range(m):
@@ -65,7 +65,7 @@ def forward_substitute(L, B, n, m):
             B[i, j] = s / L[i, i]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def cholesky_inverse(L, out, col, n):
     """``out = (L L')^-1`` using the work vector ``col``."""
     for j in range(n):
@@ -76,7 +76,7 @@ def cholesky_inverse(L, out, col, n):
             out[i, j] = col[i]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def lu_solve_inplace(A, B, n, m):
     """Solve ``A X = B`` for a general ``n x n`` ``A`` (partial pivoting) and ``n x m`` ``B``.
 
@@ -112,7 +112,7 @@ def lu_solve_inplace(A, B, n, m):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def add_sandwich(A, B, out, tmp, n):
     """``out += A B A'`` for ``n x n`` matrices, using the work array ``tmp``."""
     for i in range(n):
@@ -129,7 +129,7 @@ def add_sandwich(A, B, out, tmp, n):
             out[i, j] = s
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def symmetrize(A, n):
     for i in range(n):
         for j in range(i + 1, n):

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sensact.core.polyfit import solve_scaled_gram, weighted_lstsq
+from sensact.core.polyfit import solve_scaled_grams, weighted_lstsq
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import ActionModel, EMModel
 from sensact.models.linear_action import LinearActionModel, delayed
@@ -113,54 +113,67 @@ def _fits_by_delay(
 ) -> list[tuple[float, np.ndarray]]:
     """``(weighted squared error, beta)`` of ``linear_coefficients`` on ``delayed(Phi0, d)[:T-1]`` for
     each delay ``d``, from sums over the rows formed once per delay instead of a least-squares solve on
-    the rows for each (the M-step tries 16 delays every iteration on 27,000 steps).
+    the rows for each (the M-step tries 16 delays every iteration on 27,000 steps), and every delay's
+    small systems solved in one batched call.
 
     Delayed row t is ``Phi0[max(t - d, 0)]``, so ``X'WX = sum_{t >= d} w_t Phi0_{t-d} Phi0_{t-d}'`` plus
-    ``Phi0_0 Phi0_0'`` times the first ``d`` weights, one product of the weights with the rows' outer
-    products; ``X'Wy`` likewise, and the error is ``y'Wy - 2 beta'X'Wy + beta'X'WX beta``."""
+    ``Phi0_0 Phi0_0'`` times the first ``d`` weights; with a shared Sigma_m that is the weight times all
+    rows' outer products but the last ``d``, plus ``d`` times the first's. ``X'Wy`` likewise, and the
+    error is ``y'Wy - 2 beta'X'Wy + beta'X'WX beta``."""
     n_rows, n = disp_mean.shape
     F = Phi0.shape[1]
     free = np.ones((F, n), dtype=bool) if free is None else free
+    heads = [min(d, n_rows) for d in delays]
+    L = max(heads)
+    X = Phi0[:n_rows]
     w = 1.0 / var
     wy = w * disp_mean
-    wyy = np.einsum("ti,ti->i", wy, disp_mean)
-    outer = (Phi0[:, :, None] * Phi0[:, None, :]).reshape(len(Phi0), F * F)
-    shared = bool(np.all(var == var[0]))  # Sigma_m shared: the gram is the weight times a prefix sum
-    if shared:
-        outer_sums = np.concatenate([np.zeros((1, F * F)), np.cumsum(outer[:n_rows], axis=0)])
+    wyy = float(np.einsum("ti,ti->", wy, disp_mean))
+    first = np.outer(Phi0[0], Phi0[0])
+    wy_head = np.concatenate([np.zeros((1, n)), np.cumsum(wy[:L], axis=0)])  # sums of the first h rows
+    rhs = np.stack([wy[h:].T @ X[: n_rows - h] for h in heads]) + wy_head[heads][:, :, None] * Phi0[0]
+    if np.all(var == var[0]):  # Sigma_m shared: each gram is the one weight times sums of outer products
+        tail = X[n_rows - L :][::-1]  # the last rows, last first
+        tail_sums = np.concatenate([np.zeros((1, F, F)), np.cumsum(tail[:, :, None] * tail[:, None, :], axis=0)])
+        kept = (X.T @ X)[None] - tail_sums[heads] + np.asarray(heads, dtype=float)[:, None, None] * first
+        gram = w[0][None, :, None, None] * kept[:, None]
     else:
-        w_rows = np.ascontiguousarray(w.T)  # as rows, so that each delay's sums are one matrix product
-        w_head = np.concatenate([np.zeros((1, n)), np.cumsum(w, axis=0)])  # sums of the first d rows
-    wy_rows = np.ascontiguousarray(wy.T)
-    wy_head = np.concatenate([np.zeros((1, n)), np.cumsum(wy, axis=0)])
-    nonzero = Phi0 != 0.0
-    first_nonzero = np.where(nonzero.any(axis=0), nonzero.argmax(axis=0), len(Phi0))
-    out = []
-    for d in delays:
-        k = max(n_rows - d, 1)  # delayed rows read Phi0[0 .. k-1]
-        head = min(d, n_rows)
-        if shared:
-            gram = w[0][:, None] * (outer_sums[n_rows - head] + head * outer[0])
-        else:
-            gram = w_rows[:, head:] @ outer[: n_rows - head] + w_head[head][:, None] * outer[0]
-        gram = gram.reshape(n, F, F)
-        rhs = wy_rows[:, head:] @ Phi0[: n_rows - head] + wy_head[head][:, None] * Phi0[0]
-        used = first_nonzero < k  # a feature zero on every row read says nothing
-        beta = np.array(previous, dtype=float, copy=True)
+        outer = (X[:, :, None] * X[:, None, :]).reshape(n_rows, F * F)
+        w_head = np.concatenate([np.zeros((1, n)), np.cumsum(w[:L], axis=0)])
+        gram = np.stack([w[h:].T @ outer[: n_rows - h] for h in heads]).reshape(len(heads), n, F, F)
+        gram += w_head[heads][:, :, None, None] * first
+    # a feature zero on every row a delay reads says nothing at that delay (it keeps its coefficient)
+    reads = [max(n_rows - d, 1) for d in delays]
+    if X[: min(reads)].any(axis=0).all():
+        used = np.ones((len(delays), F), dtype=bool)
+    else:
+        nonzero = Phi0 != 0.0
+        first_nonzero = np.where(nonzero.any(axis=0), nonzero.argmax(axis=0), len(Phi0))
+        used = first_nonzero[None, :] < np.asarray(reads)[:, None]
+    betas = np.repeat(np.asarray(previous, dtype=float)[None], len(delays), axis=0)
+    betas[:, ~free] = 0.0
+    # one batched solve per distinct set of columns (usually one: every delay, every component)
+    systems: dict[bytes, list[tuple[int, int]]] = {}
+    for j in range(len(delays)):
         for i in range(n):
-            cols = used & free[:, i]
-            beta[~free[:, i], i] = 0.0
-            if not cols.any():
-                continue
-            coef = solve_scaled_gram(gram[i][np.ix_(cols, cols)] * dt * dt, rhs[i, cols] * dt)
-            if coef is None:
-                X = delayed(Phi0, d)[:n_rows, cols] * dt
-                coef = weighted_lstsq(X, disp_mean[:, i], w[:, i])
-            beta[cols, i] = coef
-        sse = float(np.sum(wyy - 2.0 * dt * np.einsum("fi,if->i", beta, rhs)))
-        sse += float(dt * dt * np.einsum("fi,ifg,gi->", beta, gram, beta))
-        out.append((sse, beta))
-    return out
+            cols = used[j] & free[:, i]
+            if cols.any():
+                systems.setdefault(cols.tobytes(), []).append((j, i))
+    for key, members in systems.items():
+        cols = np.frombuffer(key, dtype=bool)
+        js, cs = np.array([m[0] for m in members]), np.array([m[1] for m in members])
+        G = gram[js, cs][:, cols][:, :, cols] * (dt * dt)
+        coef, ok = solve_scaled_grams(G, rhs[js, cs][:, cols] * dt)
+        for k in np.flatnonzero(~ok):  # ill-conditioned sums: solve from the rows
+            coef[k] = weighted_lstsq(delayed(Phi0, delays[js[k]])[:n_rows, cols] * dt, disp_mean[:, cs[k]], w[:, cs[k]])
+        idx = np.flatnonzero(cols)
+        betas[js[:, None], idx[None, :], cs[:, None]] = coef
+    sse = (
+        wyy
+        - 2.0 * dt * np.einsum("dfi,dif->d", betas, rhs)
+        + dt * dt * np.einsum("dfi,difg,dgi->d", betas, gram, betas)
+    )
+    return [(float(sse[j]), betas[j]) for j in range(len(delays))]
 
 
 def motion_noise(
