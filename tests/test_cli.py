@@ -409,7 +409,7 @@ def test_learn_em_on_a_turtlebot_csv_recovers_the_gain_and_sonar(tmp_path):
     _write_turtlebot_csv(csv, with_range=True)
     res = runner.invoke(app, ["learn", "em", str(csv), "--set", "max_iterations=5"])
     said = " ".join(res.output.split())
-    assert res.exit_code == 0 and "raw_ir2: not scored (fewer than two 100-mm bins" in said, res.output
+    assert res.exit_code == 0 and "raw_ir2: not scored (readings in fewer than two 100-mm bins" in said, res.output
     assert "nan" not in said and "raw_ir1: " in said and "% of its" in said
 
 

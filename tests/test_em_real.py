@@ -1216,9 +1216,17 @@ def test_turtlebot_table_says_a_sensor_without_bins_is_not_scored():
     (title, _, rows) = next(t for t in real_tables(res) if t[0].startswith("Turtlebot"))
     cells = {r[0]: r[1:] for r in rows}
     assert title.startswith("Turtlebot run7.csv: EM in 1-D")
-    assert cells["sonar1 error, % of its span"] == ["1.23 % (1500 mm)", "2.50 %"]
+    assert cells["sonar1 error, % of its span"] == ["1.23 % of its 1500 mm span", "2.50 %"]
     for name in ("raw_ir2", "raw_ir3"):
-        assert cells[f"{name} error, % of its span"] == ["not scored (readings in fewer than two bins)", "-"]
+        not_scored = "not scored (readings in fewer than two 100-mm bins inside its window)"
+        assert cells[f"{name} error, % of its span"] == [not_scored, "-"]
+    flat = {"rms_pct_of_span": 478.0, "span_mm": 1200.0, "bins": 13, "bins_beyond_span": 1}
+    score["sensors"]["raw_ir1"] = flat | {"rms_pct_of_span_within": 11.33}
+    (_, _, rows) = next(t for t in real_tables(res) if t[0].startswith("Turtlebot"))
+    assert {r[0]: r[1] for r in rows}["raw_ir1 error, % of its span"] == (
+        "478.00 % of its 1200 mm span; 11.33 % without the 1 of its 13 bins off by more than the span, "
+        "where f is nearly flat and the reading hardly tells the distance"
+    )
     gain = "action gain (after the optimal scale)"
     assert cells[gain] == ["0.9000 (truth 0.9100, 1.10 % off)", "0.8000 (2.00 % off)"]
     # a log at one speed: neither gain is scored, each for its own reason
@@ -1238,6 +1246,11 @@ def test_turtlebot_em_clears_its_bars():
     summary, _ = run_turtlebot_em(TURTLEBOT)
     assert summary["score"]["gain_error_pct"] < 5.0
     assert summary["score"]["sensors"]["sonar1"]["rms_pct_of_span"] < 3.0
+    # raw_ir1's readings stop changing past about 1 m: there f is flat, one bin's error exceeds the span,
+    # and without it the sensor scores as its other bins do
+    ir1, sonar = summary["score"]["sensors"]["raw_ir1"], summary["score"]["sensors"]["sonar1"]
+    assert ir1["bins_beyond_span"] >= 1 and ir1["rms_pct_of_span"] > 100.0 > ir1["rms_pct_of_span_within"]
+    assert sonar["bins_beyond_span"] == 0 and sonar["rms_pct_of_span_within"] == sonar["rms_pct_of_span"]
 
 
 @pytest.mark.skipif(not MRCLAM.is_dir(), reason=f"MRCLAM data not found at {MRCLAM}")

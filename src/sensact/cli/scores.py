@@ -189,7 +189,7 @@ def evaluate_turtlebot_em(res: Any, data: Any, truth_mm: Any) -> dict[str, Any] 
         console.print(f"the range column has {int((~np.isfinite(truth_mm)).sum())} empty steps: not scored.")
         return None
     from sensact.experiments.turtlebot_em import score_turtlebot_em
-    from sensact.report.tables import gain_cell, one_command_reason
+    from sensact.report.tables import gain_cell, one_command_reason, sensor_span_cell
 
     sc = score_turtlebot_em(res, data, truth_mm)
     gain = gain_cell(
@@ -197,10 +197,7 @@ def evaluate_turtlebot_em(res: Any, data: Any, truth_mm: Any) -> dict[str, Any] 
     )
     console.print(f"vs range (optimal scale and offset): action gain {gain}; command delay {sc['delay_s']:.2f} s")
     for name, s in sc["sensors"].items():
-        if np.isfinite(s["rms_pct_of_span"]):
-            console.print(f"  {name}: {s['rms_pct_of_span']:.2f} % of its {s['span_mm']:.0f} mm span")
-        else:  # its window, mapped into mm, holds too few of the range column's distances
-            console.print(f"  {name}: not scored (fewer than two 100-mm bins of readings inside its window)")
+        console.print(f"  {name}: {sensor_span_cell(s)}")
     return sc
 
 

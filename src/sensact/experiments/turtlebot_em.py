@@ -11,7 +11,9 @@ learned state to the true range with the optimal scale and offset (as sec. 4.4.3
   true velocity (from ``range`` over 1 s windows) on the command; not scored when the log spends
   ``ONE_COMMAND_SHARE`` of its steps at one command, where that slope rests on the few others;
 * each **sensor**: over 100 mm bins of true distance inside the channel's window, the gap between the
-  learned f and the median reading, turned into distance by f's slope, as an RMS percent of the span.
+  learned f and the median reading, turned into distance by f's slope, as an RMS percent of the span;
+  ``bins_beyond_span`` counts the bins whose error exceeds the whole span, where f is nearly flat and the
+  reading hardly tells the distance (an IR sensor past its useful range).
 
 The chapter-3 online learner's numbers on the same file are reported beside it.
 """
@@ -56,6 +58,9 @@ def turtlebot_em_config(readings: tuple[str, ...] = EM_READINGS) -> EMConfig:
     )
 
 
+BIN_MM = 100.0  # the sensor scores' bins of true distance
+
+
 def _windowed_velocity(x: np.ndarray, dt: float, window: int) -> tuple[np.ndarray, np.ndarray]:
     idx = np.arange(0, len(x) - window, max(window // 2, 1))
     return idx, (x[idx + window] - x[idx]) / (window * dt)
@@ -89,7 +94,7 @@ def score_turtlebot_em(res: EMResult, data: LandmarkLog, truth_mm: np.ndarray) -
         lo = max(ch.valid_min * a + b, d_obs.min()) if math.isfinite(ch.valid_min) else d_obs.min()
         hi = min(ch.valid_max * a + b, d_obs.max()) if math.isfinite(ch.valid_max) else d_obs.max()
         lo, hi = min(lo, hi), max(lo, hi)
-        edges = np.arange(lo, hi + 100.0, 100.0)
+        edges = np.arange(lo, hi + BIN_MM, BIN_MM)
         errs, centers = [], []
         for e0, e1 in itertools.pairwise(edges):
             sel = (d_obs >= e0) & (d_obs < e1) & np.isfinite(data.obs_readings[:, col])
@@ -103,11 +108,17 @@ def score_turtlebot_em(res: EMResult, data: LandmarkLog, truth_mm: np.ndarray) -
             centers.append(dc)
         span = float(np.ptp(centers)) if len(centers) > 1 else float("nan")
         rms = float(np.sqrt(np.nanmean(np.square(errs)))) if errs else float("nan")
+        # an inverse confined to the window is never off by more than its span: a bin beyond that is one
+        # where f is nearly flat and the gap over its slope unbounded (an IR sensor past its useful range)
+        within = np.abs(errs) <= span if errs and np.isfinite(span) else np.ones(len(errs), dtype=bool)
+        rms_within = float(np.sqrt(np.mean(np.square(np.asarray(errs)[within])))) if within.any() else float("nan")
         out["sensors"][ch.name] = {
             "rms_mm": rms,
             "rms_pct_of_span": 100.0 * rms / span if span else float("nan"),
             "span_mm": span,
             "bins": len(centers),
+            "bins_beyond_span": int((~within).sum()),
+            "rms_pct_of_span_within": 100.0 * rms_within / span if span else float("nan"),  # without those
             "sigma": ch.sigma,
             "weight_used": int((post.weights[:, j] > 0).sum()),
         }

@@ -93,6 +93,22 @@ def track1d_tables(res: dict[str, Any]) -> list[Table]:
 NOT_TIMED = "not scored: no command held for 2 s"
 
 
+def sensor_span_cell(s: dict[str, Any]) -> str:
+    """A Turtlebot sensor's score (``turtlebot_em.score_turtlebot_em``): its error in % of its span, and
+    in how many bins f is so flat that the error exceeds the span."""
+    pct = s["rms_pct_of_span"]
+    if pct is None or not math.isfinite(pct):  # NaN in memory, null once read back
+        return "not scored (readings in fewer than two 100-mm bins inside its window)"
+    out = f"{pct:.2f} % of its {s['span_mm']:.0f} mm span"
+    k = s.get("bins_beyond_span")
+    if k:
+        out += (
+            f"; {s['rms_pct_of_span_within']:.2f} % without the {k} of its {s['bins']} bins off by more than the "
+            "span, where f is nearly flat and the reading hardly tells the distance"
+        )
+    return out
+
+
 def gain_cell(learned: float | None, true: float | None, error_pct: float | None, why: str = NOT_TIMED) -> str:
     """``learned (truth T, E % off)``, or ``learned (why)`` when the log could not score a gain."""
     if error_pct is None:
@@ -484,12 +500,7 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
         ]
         for name, s in sc["sensors"].items():
             c3 = f"{ch3['sensor_rms_pct']:.2f} %" if name == "sonar1" and ch3 else "-"
-            err = (
-                f"{s['rms_pct_of_span']:.2f} % ({s['span_mm']:.0f} mm)"
-                if s["rms_pct_of_span"] is not None and math.isfinite(s["rms_pct_of_span"])  # null once read back
-                else "not scored (readings in fewer than two bins)"
-            )
-            trows.append([f"{name} error, % of its span", err, c3])
+            trows.append([f"{name} error, % of its span", sensor_span_cell(s), c3])
         tables.append(
             (
                 f"Turtlebot {Path(tb['file']).name}: EM in 1-D against the chapter-3 learner",
