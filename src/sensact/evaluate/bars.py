@@ -43,11 +43,6 @@ def at_most(key: str, quantity: str, value: float, limit: float, unit: str = "",
     return BarCheck(key, quantity, f"≤ {limit:.{digits}f}{u}", f"{_num(v, digits)}{u}", bool(v <= limit))
 
 
-def at_least(key: str, quantity: str, value: float, limit: float, unit: str = "", digits: int = 2) -> BarCheck:
-    u, v = (f" {unit}" if unit else ""), _value(value)
-    return BarCheck(key, quantity, f"≥ {limit:.{digits}f}{u}", f"{_num(v, digits)}{u}", bool(v >= limit))
-
-
 def within_factor(key: str, quantity: str, ratio: float, factor: float, digits: int = 2) -> BarCheck:
     """``1/factor <= ratio <= factor`` (a learned value against the truth's, as their ratio)."""
     r = _value(ratio)

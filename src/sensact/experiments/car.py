@@ -76,7 +76,7 @@ def scorecard(summary: dict[str, Any]) -> list[BarCheck]:
                 f"{key}.from_truth",
                 f"{name} RMS against From-Truth's",
                 f"≤ {FROM_TRUTH_FACTOR} × {ft:.{digits}f} {unit}",
-                f"{ours:.{digits}f} {unit} ({ours / ft:.2f} ×)",
+                f"{ours:.{digits}f} {unit}" + (f" ({ours / ft:.2f} ×)" if ft > 0 else ""),
                 bool(ours <= FROM_TRUTH_FACTOR * ft),
             )
         )
