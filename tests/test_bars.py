@@ -77,9 +77,9 @@ def test_field2d_bars_hold_on_the_mean_and_name_the_worst_seed():
     ours = {k: sum(t[k] for t in trials) / 2 for k in keys} | {"trials": 2}
     checks = {c.key: c for c in field2d.scorecard({"ours": ours, "thesis": th, "per_trial": trials})}
     assert len(checks) == 10 and all(checks[f"mean.{k}"].cleared for k in keys)
-    assert checks["worst.vx_rms_mm_s"].quantity == "v_x RMS, worst seed (4)" and not checks["worst.vx_rms_mm_s"].cleared
+    assert checks["worst.vx_rms_mm_s"].quantity == "worst seed (4): v_x RMS" and not checks["worst.vx_rms_mm_s"].cleared
     assert checks["worst.vy_rms_mm_s"].cleared  # at the bar
-    assert checks["worst.sigma2_error_pct"].quantity == "sigma_2 error, worst seed (3)"
+    assert checks["worst.sigma2_error_pct"].quantity == "worst seed (3): sigma_2 error"
     assert not checks["worst.sigma2_error_pct"].cleared
     # the same misses as the per-seed lines
     missed = sorted(k.split(".")[1] for k, c in checks.items() if not c.cleared)

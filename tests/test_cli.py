@@ -243,9 +243,12 @@ def test_field2d_bar_misses_name_each_bar_a_trial_misses():
     ok |= {"sigma1_error_pct": 5.0, "sigma2_error_pct": 0.0, "seed": 2}
     assert bar_misses(ok) == []
     bad = ok | {"vx_rms_mm_s": 23.53, "sigma2_error_pct": 5.5}
-    assert bar_misses(bad) == ["seed 2: v_x 23.53 > 23.06 mm/s", "seed 2: sigma_2 5.5 % off > 5 %"]
+    assert bar_misses(bad) == [
+        "seed 2: v_x RMS 23.53 mm/s (bar ≤ 23.06 mm/s)",
+        "seed 2: sigma_2 error 5.5 % (bar ≤ 5.0 %)",
+    ]
     mean = {k: v for k, v in bad.items() if k != "seed"} | {"vtheta_rms_rad_s": 0.09}
-    assert bar_misses(mean)[1] == "mean: v_theta 0.090 > 0.086 rad/s"
+    assert bar_misses(mean)[1] == "mean: v_theta RMS 0.090 rad/s (bar ≤ 0.086 rad/s)"
 
 
 def test_simulate_car_then_learn_car_with_ros_export(tmp_path):

@@ -21,8 +21,8 @@ from sensact.report.figures1d import _save
 
 
 def _velocity_of_w_s(times: np.ndarray, w_s: np.ndarray, window_s: float = 1.0) -> np.ndarray:
-    """The slope of w_s over the observations within ``window_s`` of each step (NaN where too few): a
-    picture of the targets A is fitted to, not the learner's own filter."""
+    """The slope of w_s over the observations within ``window_s`` of each step (NaN where too few): what
+    S's estimates say of the velocity (eq. 3.2 fits A to w_s's path, not to these slopes)."""
     out = np.full(times.size, np.nan)
     ok = np.flatnonzero(np.isfinite(w_s))
     if ok.size < 3:
