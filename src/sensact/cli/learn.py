@@ -178,6 +178,20 @@ def learn_em_cmd(
         )
         + (f" ({lf.note})" if lf is not None and lf.note else "")
     )
+    if data.is_continuous and cfg.action_basis == "table" and data.geometry == "planar":
+        from sensact.errors import ConfigError
+
+        beside = lf is not None and (log / "em_config.yaml").is_file()
+        raise ConfigError(
+            f"{data.source} has continuous commands, and the action model is the thesis's table of discrete actions.",
+            field="action_basis",
+            fix=(
+                f"pass --config {log / 'em_config.yaml'} (the settings written beside the log)"
+                if beside
+                else "pass --set action_basis=affine (or cross, polynomial), or a --config with it (docs/em-real.md)"
+            )
+            + ".",
+        )
     if data.geometry == "track" and data.step_commands is not None:
         warn_if_one_command(data.step_commands[:, 0], data.source, data.command_names[0])
     start = initial_model(data, cfg)

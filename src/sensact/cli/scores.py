@@ -38,6 +38,26 @@ def print_em_model(m: Any) -> None:
     console.print(t)
 
 
+def print_simulated_score(model: Any, truth: dict[str, Any], dt_s: float) -> dict[str, Any]:
+    """Learned against the model a simulated differential drive really used (`sensact simulate diffdrive`)."""
+    from sensact.evaluate.simulated_robot import score_against_simulated
+
+    s = score_against_simulated(model, truth, dt_s)
+    sd, sd_true = s["motion_sd_per_step"]
+    console.print(
+        "vs the simulated model (learned / true): "
+        f"forward gain {s['forward_gain'][0]:.3f} / {s['forward_gain'][1]:.3f}, "
+        f"turn gain {s['turn_gain'][0]:.3f} / {s['turn_gain'][1]:.3f}, "
+        f"command delay {s['delay_steps'][0]} / {s['delay_steps'][1]} steps "
+        f"({s['delay_with_lag_steps']:.1f} with the lag's time constant); "
+        f"range sigma {s['range_sigma_mm'][0]:.1f} / {s['range_sigma_mm'][1]:.1f} mm, "
+        f"bearing sigma {s['bearing_sigma_rad'][0]:.4f} / {s['bearing_sigma_rad'][1]:.4f} rad; "
+        f"Sigma_m per step sideways {sd[0]:.2f} / {sd_true[0]:.2f} mm, forward {sd[1]:.2f} / {sd_true[1]:.2f} mm, "
+        f"heading {sd[2]:.4f} / {sd_true[2]:.4f} rad"
+    )
+    return s
+
+
 def print_truth_score(sc: dict[str, Any]) -> None:
     from sensact.experiments.real import bar_checks
     from sensact.report.tables import shared_by_motion
@@ -142,6 +162,9 @@ def evaluate_em(lf: Any, model: Any) -> dict[str, Any] | None:
         sc = score_against_truth(model, lf.data, *recorded)
         sc["bars"] = bar_checks(sc)
         print_truth_score(sc)
+        simulated = lf.meta.get("truth") or {}
+        if simulated.get("kind") == "diffdrive":
+            sc["simulated"] = print_simulated_score(model, simulated, lf.data.dt_s)
         return sc
     truth = lf.meta.get("truth")
     if not truth:

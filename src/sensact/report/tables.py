@@ -384,47 +384,93 @@ def _mrclam_title(res: dict[str, Any]) -> str:
     return "MRCLAM " + (", ".join(names) if names else "Dataset 6")
 
 
+def truth_score_headers(who: str, truth: str) -> list[str]:
+    """The columns of ``_truth_score_row``; ``truth`` names the recorded poses (Vicon, or the simulated ones)."""
+    return [
+        who,
+        "translation RMS mm/s",
+        "rotation RMS rad/s",
+        "command delay s, learned / From-Truth",
+        "range residual RMS mm",
+        "range sigma mm",
+        "bearing sigma rad",
+        f"path off {truth} mm, median (forward)",
+        "ridge moves mm, forward (the first as the held stage ends)",
+        "bars failed",
+    ]
+
+
+def _truth_score_row(name: str, score: dict[str, Any], em: dict[str, Any]) -> list[str]:
+    """One robot's ``score_against_truth``, learned / From-Truth (ratio), with the bars it failed."""
+    a, rg, b = score["action"], score["range"], score["bearing"]
+    la, fa = a["learned"], a["from_truth"]
+    return [
+        name,
+        f"{la['translation_rms_mm_s']:.1f} / {fa['translation_rms_mm_s']:.1f} ({a['ratio_translation']:.2f})",
+        f"{la['rotation_rms_rad_s']:.4f} / {fa['rotation_rms_rad_s']:.4f} ({a['ratio_rotation']:.2f})",
+        _delay_cell(a, em),
+        f"{rg['learned_residual_rms_mm']:.0f} / {rg['from_truth_residual_rms_mm']:.0f}",
+        f"{rg['sigma_learned_mm']:.0f} / {rg['sigma_truth_mm']:.0f} ({rg['sigma_ratio']:.2f})",
+        f"{b['sigma_learned_rad']:.4f} / {b['sigma_truth_rad']:.4f} ({b['sigma_ratio']:.2f})",
+        _path_cell(score),
+        _ridge_cell(em),
+        _failed_bars(score),
+    ]
+
+
+def diffdrive_tables(res: dict[str, Any]) -> list[Table]:
+    """Simulated differential drives: the MRCLAM table against their true poses, then the learned model
+    against the one the simulator used."""
+    seeds = res["seeds"]
+    rows = [_truth_score_row(name, r["score"], r["em"]) for name, r in seeds.items()]
+    sim_rows = []
+    for name, r in seeds.items():
+        s = r["simulated"]
+        sd, sd_true = s["motion_sd_per_step"]
+        sim_rows.append(
+            [
+                name,
+                f"{s['forward_gain'][0]:.3f} / {s['forward_gain'][1]:.3f}",
+                f"{s['forward_bias_mm_s'][0]:.1f} / {s['forward_bias_mm_s'][1]:.1f}",
+                f"{s['turn_gain'][0]:.3f} / {s['turn_gain'][1]:.3f}",
+                f"{s['delay_steps'][0]} / {s['delay_steps'][1]} ({s['delay_with_lag_steps']:.1f})",
+                f"{s['range_sigma_mm'][0]:.1f} / {s['range_sigma_mm'][1]:.1f} ({s['range_sigma_ratio']:.2f})",
+                f"{s['bearing_sigma_rad'][0]:.4f} / {s['bearing_sigma_rad'][1]:.4f} ({s['bearing_sigma_ratio']:.2f})",
+                ", ".join(f"{a:.3g} / {b:.3g}" for a, b in zip(sd, sd_true, strict=True)),
+                f"{r['em']['iterations']} ({r['em']['seconds']:.1f} s)",
+            ]
+        )
+    return [
+        (
+            "Simulated differential drives, MRCLAM's EM settings: learned / From-Truth (ratio)",
+            truth_score_headers("seed", "the true poses"),
+            rows,
+        ),
+        (
+            "The learned model / the simulated one (ratio)",
+            [
+                "seed",
+                "forward gain",
+                "forward bias mm/s",
+                "turn gain",
+                "command delay steps (with the lag's time constant)",
+                "range sigma mm",
+                "bearing sigma rad",
+                "Sigma_m sd per step: sideways mm, forward mm, heading rad",
+                "EM iterations",
+            ],
+            sim_rows,
+        ),
+    ]
+
+
 def real_tables(res: dict[str, Any]) -> list[Table]:
     """MRCLAM robots (learned against From-Truth) and the Turtlebot (EM beside chapter 3)."""
     tables: list[Table] = []
     title = _mrclam_title(res)
-    rows = []
-    for name, r in res.get("mrclam", {}).items():
-        a, rg, b = r["score"]["action"], r["score"]["range"], r["score"]["bearing"]
-        la, fa = a["learned"], a["from_truth"]
-        rows.append(
-            [
-                name,
-                f"{la['translation_rms_mm_s']:.1f} / {fa['translation_rms_mm_s']:.1f} ({a['ratio_translation']:.2f})",
-                f"{la['rotation_rms_rad_s']:.4f} / {fa['rotation_rms_rad_s']:.4f} ({a['ratio_rotation']:.2f})",
-                _delay_cell(a, r["em"]),
-                f"{rg['learned_residual_rms_mm']:.0f} / {rg['from_truth_residual_rms_mm']:.0f}",
-                f"{rg['sigma_learned_mm']:.0f} / {rg['sigma_truth_mm']:.0f} ({rg['sigma_ratio']:.2f})",
-                f"{b['sigma_learned_rad']:.4f} / {b['sigma_truth_rad']:.4f} ({b['sigma_ratio']:.2f})",
-                _path_cell(r["score"]),
-                _ridge_cell(r["em"]),
-                _failed_bars(r["score"]),
-            ]
-        )
+    rows = [_truth_score_row(name, r["score"], r["em"]) for name, r in res.get("mrclam", {}).items()]
     if rows:
-        tables.append(
-            (
-                f"{title}: learned / From-Truth (ratio)",
-                [
-                    "robot",
-                    "translation RMS mm/s",
-                    "rotation RMS rad/s",
-                    "command delay s, learned / From-Truth",
-                    "range residual RMS mm",
-                    "range sigma mm",
-                    "bearing sigma rad",
-                    "path off Vicon mm, median (forward)",
-                    "ridge moves mm, forward (the first as the held stage ends)",
-                    "bars failed",
-                ],
-                rows,
-            )
-        )
+        tables.append((f"{title}: learned / From-Truth (ratio)", truth_score_headers("robot", "Vicon"), rows))
     restarts = [(name, r, r["truth_restart"]) for name, r in res.get("mrclam", {}).items() if "truth_restart" in r]
     if restarts:
         tables.append(

@@ -1,0 +1,38 @@
+"""A model learned on a simulated differential drive (``sensact simulate diffdrive``) against the model
+the simulator really used (meta.json's ``truth``), beside the recorded-pose scores that real logs get
+(``evaluate.landmark_truth``): the truth's residual sigma is what a real log's bars compare with, the
+simulated sigma is what a perfect learner would find."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from sensact.models.em_model import EMModel
+from sensact.models.linear_action import LinearActionModel
+
+
+def score_against_simulated(model: EMModel, truth: dict[str, Any], dt_s: float) -> dict[str, Any]:
+    """Learned against true: the affine action's gains and biases, the command delay (which the lag
+    lengthens: a first-order lag of time constant tau delays a step by tau), Sigma_m's per-step sds,
+    the range channel's sigma and bearing terms, the bearing sigma; each sigma also as a ratio."""
+    if not isinstance(model.action, LinearActionModel) or model.action.basis != "affine":
+        raise ValueError("a simulated differential drive is scored with the affine action basis (em_config.yaml)")
+    beta, true_beta = model.action.coefficients, np.asarray(truth["action_coefficients"])
+    ch = model.sensor.channels[0]
+    sigma_b = model.sensor.sigma_bearing_rad
+    return {
+        "forward_gain": [float(beta[1, 1]), float(true_beta[1, 1])],
+        "forward_bias_mm_s": [float(beta[0, 1]), float(true_beta[0, 1])],
+        "turn_gain": [float(beta[2, 2]), float(true_beta[2, 2])],
+        "turn_bias_rad_s": [float(beta[0, 2]), float(true_beta[0, 2])],
+        "delay_steps": [int(model.action.delay_steps), int(truth["delay_steps"])],
+        "delay_with_lag_steps": float(truth["delay_steps"] + truth["lag_s"] / dt_s),
+        "motion_sd_per_step": [np.asarray(model.motion_sd).reshape(-1, 3)[0].tolist(), truth["motion_sd_per_step"]],
+        "range_bearing_terms": [list(ch.bearing_terms), truth["range_bearing_terms"]],
+        "range_sigma_mm": [float(ch.sigma), float(truth["range_sigma_mm"])],
+        "range_sigma_ratio": float(ch.sigma / truth["range_sigma_mm"]),
+        "bearing_sigma_rad": [float(sigma_b), float(truth["bearing_sigma_rad"])],
+        "bearing_sigma_ratio": float(sigma_b / truth["bearing_sigma_rad"]),
+    }

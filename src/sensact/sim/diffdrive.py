@@ -1,0 +1,270 @@
+"""A differential-drive robot among barcoded landmarks: the conditions of the MRCLAM logs that EM on real
+robots learns from (issue 5, docs/em-real.md), with a known model to recover.
+
+* The robot drives to random waypoints in a room ringed by landmarks, as MRCLAM's robots did: it turns
+  in place towards a waypoint far off its heading, drives at about 70-86 mm/s while steering at up
+  to 0.4 rad/s, and waits a few seconds at each waypoint. The controller reads the true pose (the
+  simulator's stand-in for the robot's own navigation).
+* The commands it logs are continuous ``(v, omega)``; the robot obeys them ``delay_s`` late, through a
+  first-order lag (a motor does not jump to a new speed), with an affine gain and bias. A
+  differential drive does not side-step: its sideways velocity is 0 on average.
+* Per-step motion noise in the robot frame (sideways, forward, heading), Gaussian.
+* A camera sees landmarks inside its field of view and range at a frame rate; each landmark in view
+  is detected with a probability. A sighting reads the range as ``gain d + offset + d (a_1 b + a_2
+  b^2)`` (a range from a barcode's apparent size, distorted across the image; ``b`` the measured
+  bearing) plus Gaussian noise, and the bearing plus Gaussian noise. A share of sightings are
+  misread: range and bearing anywhere in the camera's reach.
+* Optionally (``bearing_drift_sd_rad``, 0 by default), an effect the learner's model leaves out: a
+  camera yaw error that every sighting shares and that wanders over seconds. The truth's bearing
+  residual counts it as noise; a learner without ground truth can only read it as heading.
+
+Units are the learner's: mm, rad, s. The pose frame is sensact's (sec. 2.5.1): ``theta = 0`` faces
+world +y, the robot's forward axis is its +y.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from sensact.core.angles import wrap_angle
+from sensact.core.pose_models import landmark_bearing, landmark_distance
+from sensact.logs.landmark_log import LandmarkLog
+
+COMMAND_NAMES = ("v_mm_s", "omega_rad_s")
+
+
+def ring_of_landmarks(width_mm: float, length_mm: float, per_side: int) -> tuple[tuple[float, float], ...]:
+    """Landmarks evenly spaced along the walls of a ``width x length`` room centred on the origin,
+    ``per_side`` on each long wall and half as many on each short one (MRCLAM's 15 stand around a
+    room about 4 m x 9 m)."""
+    hw, hl = 0.5 * width_mm, 0.5 * length_mm
+    ys = np.linspace(-hl, hl, per_side)
+    xs = np.linspace(-hw, hw, max(per_side // 2, 2) + 2)[1:-1]
+    pts = [(-hw, y) for y in ys] + [(hw, y) for y in ys] + [(x, -hl) for x in xs] + [(x, hl) for x in xs]
+    return tuple((float(x), float(y)) for x, y in pts)
+
+
+@dataclass(frozen=True)
+class DiffDriveConfig:
+    """Every knob of the simulated robot. Overridable with ``--set name=value`` or ``--config``."""
+
+    seconds: float = 900.0  # MRCLAM Dataset 6 is about 890 s a robot
+    seed: int = 0
+    dt_s: float = 1.0 / 30.0  # the log's step (`convert mrclam`'s default)
+    room_width_mm: float = 4000.0
+    room_length_mm: float = 9000.0
+    landmarks_per_side: int = 5
+    margin_mm: float = 800.0  # waypoints stay this far inside the walls
+    start_pose: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    # the waypoint controller (its commands are what the log records)
+    speed_mm_s: float = 80.0
+    turn_rate_rad_s: float = 0.4
+    steer_gain: float = 1.0  # omega command per rad of heading error, up to turn_rate_rad_s
+    turn_in_place_rad: float = 0.5  # farther off the waypoint than this, turn without driving
+    arrive_mm: float = 200.0
+    max_wait_s: float = 8.0  # wait uniformly up to this long at each waypoint
+    # the true action model: the velocity the robot reaches from a command
+    forward_gain: float = 0.95
+    forward_bias_mm_s: float = 3.0
+    turn_gain: float = 0.92
+    turn_bias_rad_s: float = 0.004
+    delay_s: float = 0.2
+    lag_s: float = 0.1  # first-order lag's time constant (0 = none)
+    # per-step motion noise in the robot frame
+    sideways_sd_mm: float = 0.3
+    forward_sd_mm: float = 1.5
+    heading_sd_rad: float = 0.002
+    # the camera
+    frame_period_s: float = 0.24
+    fov_deg: float = 68.0
+    min_range_mm: float = 1000.0
+    max_range_mm: float = 7000.0
+    detect_probability: float = 0.3  # of each landmark in view, per frame
+    range_gain: float = 1.03
+    range_offset_mm: float = -40.0
+    range_bearing_terms: tuple[float, float] = (0.0, 0.08)  # a_1, a_2
+    range_sd_mm: float = 40.0
+    bearing_sd_rad: float = 0.006
+    misread_rate: float = 0.01
+    # an effect the learner's model leaves out (0 = none): a camera yaw error shared by every sighting that
+    # wanders slowly (Ornstein-Uhlenbeck, stationary sd and time constant), as MRCLAM robot 1's bearing
+    # residuals about Vicon hold (docs/em-real.md, Known limits); the truth's residual counts it as noise
+    bearing_drift_sd_rad: float = 0.0
+    bearing_drift_tau_s: float = 5.0
+
+    def __post_init__(self) -> None:
+        problems = []
+        if self.seconds <= 0 or self.dt_s <= 0 or self.frame_period_s < self.dt_s:
+            problems.append("seconds and dt_s must be > 0, frame_period_s >= dt_s")
+        if self.room_width_mm <= 2 * self.margin_mm or self.room_length_mm <= 2 * self.margin_mm:
+            problems.append("the room must be wider and longer than twice margin_mm")
+        if self.landmarks_per_side < 2:
+            problems.append("landmarks_per_side must be >= 2")
+        if not 0 < self.min_range_mm < self.max_range_mm:
+            problems.append("need 0 < min_range_mm < max_range_mm")
+        if not 0 < self.fov_deg < 360:
+            problems.append("fov_deg must be in (0, 360)")
+        if min(self.range_sd_mm, self.bearing_sd_rad) <= 0:
+            problems.append("range_sd_mm and bearing_sd_rad must be > 0")
+        if min(self.sideways_sd_mm, self.forward_sd_mm, self.heading_sd_rad, self.delay_s, self.lag_s) < 0:
+            problems.append("motion noise, delay_s and lag_s must be >= 0")
+        if self.bearing_drift_sd_rad < 0 or self.bearing_drift_tau_s <= 0:
+            problems.append("bearing_drift_sd_rad must be >= 0 and bearing_drift_tau_s > 0")
+        if not (0 <= self.detect_probability <= 1 and 0 <= self.misread_rate < 1):
+            problems.append("detect_probability must be in [0, 1] and misread_rate in [0, 1)")
+        if self.speed_mm_s <= 0 or self.turn_rate_rad_s <= 0 or self.arrive_mm <= 0:
+            problems.append("speed_mm_s, turn_rate_rad_s and arrive_mm must be > 0")
+        if problems:
+            raise ValueError("; ".join(problems))
+
+    @property
+    def landmarks_xy_mm(self) -> tuple[tuple[float, float], ...]:
+        return ring_of_landmarks(self.room_width_mm, self.room_length_mm, self.landmarks_per_side)
+
+    @property
+    def delay_steps(self) -> int:
+        return round(self.delay_s / self.dt_s)
+
+    def action_coefficients(self) -> np.ndarray:
+        """The true model in the learner's affine family (``LinearActionModel``): rows the features
+        ``1, v, omega``, columns ``v_x`` (sideways), ``v_y`` (forward), ``v_theta``, lag aside."""
+        return np.array(
+            [
+                [0.0, self.forward_bias_mm_s, self.turn_bias_rad_s],
+                [0.0, self.forward_gain, 0.0],
+                [0.0, 0.0, self.turn_gain],
+            ]
+        )
+
+    def range_reading(self, distance_mm: np.ndarray, bearing_rad: np.ndarray) -> np.ndarray:
+        """The noise-free range reading at a distance and a (measured) bearing."""
+        d, b = np.asarray(distance_mm, dtype=float), np.asarray(bearing_rad, dtype=float)
+        a1, a2 = self.range_bearing_terms
+        return self.range_gain * d + self.range_offset_mm + d * (a1 * b + a2 * b * b)
+
+    def truth(self) -> dict[str, Any]:
+        """What the simulated robot really is, for meta.json (scoring only, never learned from)."""
+        return {
+            "kind": "diffdrive",
+            "action_coefficients": self.action_coefficients().tolist(),
+            "delay_steps": self.delay_steps,
+            "lag_s": self.lag_s,
+            "motion_sd_per_step": [self.sideways_sd_mm, self.forward_sd_mm, self.heading_sd_rad],
+            "range_gain": self.range_gain,
+            "range_offset_mm": self.range_offset_mm,
+            "range_bearing_terms": list(self.range_bearing_terms),
+            "range_sigma_mm": self.range_sd_mm,
+            "bearing_sigma_rad": self.bearing_sd_rad,
+            "misread_rate": self.misread_rate,
+            "bearing_drift_sd_rad": self.bearing_drift_sd_rad,
+            "config": asdict(self),
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class DiffDriveRun:
+    config: DiffDriveConfig
+    commands: np.ndarray  # (T, 2) logged (v mm/s, omega rad/s), in force from step t to t+1
+    poses: np.ndarray  # (T, 3) true (x mm, y mm, theta rad), theta wrapped
+    obs_step: np.ndarray  # (K,)
+    obs_landmark: np.ndarray  # (K,)
+    obs_range_mm: np.ndarray
+    obs_bearing_rad: np.ndarray
+    obs_misread: np.ndarray  # (K,) True for a misread sighting
+
+    def log(self, source: str = "simulated differential drive") -> LandmarkLog:
+        T = len(self.commands)
+        return LandmarkLog(
+            "planar",
+            self.config.dt_s,
+            np.full(T, -1),
+            np.zeros((0, 2)),
+            COMMAND_NAMES,
+            self.obs_step,
+            self.obs_landmark,
+            self.obs_range_mm,
+            self.obs_bearing_rad,
+            np.asarray(self.config.landmarks_xy_mm),
+            source=source,
+            reading_names=("range_mm",),
+            step_commands=self.commands,
+        )
+
+    def groundtruth(self) -> dict[str, np.ndarray]:
+        """The true poses as groundtruth.csv's columns (what `convert mrclam` writes from Vicon)."""
+        return {"x_mm": self.poses[:, 0], "y_mm": self.poses[:, 1], "theta_rad": self.poses[:, 2]}
+
+
+def _drive(cfg: DiffDriveConfig, rng_route: np.random.Generator, noise: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Steer to random waypoints; the commands are logged, the robot follows them late and lagged."""
+    T = len(noise)
+    dt = cfg.dt_s
+    hw, hl = 0.5 * cfg.room_width_mm - cfg.margin_mm, 0.5 * cfg.room_length_mm - cfg.margin_mm
+    commands = np.zeros((T, 2))
+    poses = np.empty((T, 3))
+    x, y, th = (float(v) for v in cfg.start_pose)
+    goal = (rng_route.uniform(-hw, hw), rng_route.uniform(-hl, hl))
+    wait = 0
+    lag = 1.0 - math.exp(-dt / cfg.lag_s) if cfg.lag_s > 0 else 1.0
+    fwd, turn = 0.0, 0.0  # the velocities the robot has reached
+    k = cfg.delay_steps
+    for t in range(T):
+        poses[t] = (x, y, th)
+        v_cmd = w_cmd = 0.0
+        if wait > 0:
+            wait -= 1
+        elif math.hypot(goal[0] - x, goal[1] - y) < cfg.arrive_mm:
+            wait = int(rng_route.uniform(0, cfg.max_wait_s) / dt)
+            goal = (rng_route.uniform(-hw, hw), rng_route.uniform(-hl, hl))
+        else:
+            # the robot's forward axis points at theta + pi/2 in the world (sec. 2.5.1)
+            err = math.remainder(math.atan2(goal[1] - y, goal[0] - x) - th - 0.5 * math.pi, 2 * math.pi)
+            w_cmd = max(-cfg.turn_rate_rad_s, min(cfg.turn_rate_rad_s, cfg.steer_gain * err))
+            if abs(err) < cfg.turn_in_place_rad:
+                v_cmd = cfg.speed_mm_s * (1.0 - 0.3 * abs(err) / cfg.turn_in_place_rad)
+        commands[t] = (v_cmd, w_cmd)
+        v_late, w_late = commands[max(t - k, 0)]  # the first command stands in before it, as the learner's
+        fwd += lag * (cfg.forward_bias_mm_s + cfg.forward_gain * v_late - fwd)
+        turn += lag * (cfg.turn_bias_rad_s + cfg.turn_gain * w_late - turn)
+        # eq. 2.28: the step's displacement in the robot frame (sideways, forward, heading), rotated by theta
+        dx, dy, dth = noise[t, 0], fwd * dt + noise[t, 1], turn * dt + noise[t, 2]
+        c, s = math.cos(th), math.sin(th)
+        x, y, th = x + c * dx - s * dy, y + s * dx + c * dy, math.remainder(th + dth, 2 * math.pi)
+    return commands, poses
+
+
+def simulate_diffdrive(config: DiffDriveConfig | None = None) -> DiffDriveRun:
+    """Drive the room for ``config.seconds`` and record commands, sightings and the true poses."""
+    cfg = config or DiffDriveConfig()
+    rng_motion, rng_route, rng_cam, rng_misread, rng_drift = (
+        np.random.default_rng(s) for s in np.random.SeedSequence(cfg.seed).spawn(5)
+    )
+    T = round(cfg.seconds / cfg.dt_s) + 1
+    noise = rng_motion.normal(size=(T, 3)) * np.array([cfg.sideways_sd_mm, cfg.forward_sd_mm, cfg.heading_sd_rad])
+    commands, poses = _drive(cfg, rng_route, noise)
+
+    drift = np.zeros(T)
+    if cfg.bearing_drift_sd_rad > 0:
+        phi = math.exp(-cfg.dt_s / cfg.bearing_drift_tau_s)
+        kick = rng_drift.normal(size=T) * cfg.bearing_drift_sd_rad * math.sqrt(1 - phi * phi)
+        drift[0] = rng_drift.normal() * cfg.bearing_drift_sd_rad
+        for t in range(1, T):
+            drift[t] = phi * drift[t - 1] + kick[t]
+    lm = np.asarray(cfg.landmarks_xy_mm)
+    frames = np.arange(0, T, max(1, round(cfg.frame_period_s / cfg.dt_s)))
+    d = np.stack([landmark_distance(poses[frames], p) for p in lm], axis=1)  # (frames, landmarks)
+    b = np.stack([landmark_bearing(poses[frames], p) for p in lm], axis=1)
+    in_view = (np.abs(b) <= 0.5 * np.deg2rad(cfg.fov_deg)) & (d >= cfg.min_range_mm) & (d <= cfg.max_range_mm)
+    seen = in_view & (rng_cam.random(in_view.shape) < cfg.detect_probability)
+    fi, li = np.nonzero(seen)  # row-major: by frame, then landmark
+    bearing = wrap_angle(b[fi, li] + rng_cam.normal(size=fi.size) * cfg.bearing_sd_rad + drift[frames[fi]])
+    rng_mm = cfg.range_reading(d[fi, li], bearing) + rng_cam.normal(size=fi.size) * cfg.range_sd_mm
+    misread = rng_misread.random(fi.size) < cfg.misread_rate
+    half = 0.5 * np.deg2rad(cfg.fov_deg)
+    rng_mm[misread] = rng_misread.uniform(cfg.min_range_mm, cfg.max_range_mm, misread.sum())
+    bearing[misread] = rng_misread.uniform(-half, half, misread.sum())
+    return DiffDriveRun(cfg, commands, poses, frames[fi], li, rng_mm, bearing, misread)
