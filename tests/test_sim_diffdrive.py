@@ -145,6 +145,8 @@ def test_simulate_diffdrive_then_learn_em_scores_against_the_simulation(tmp_path
 
 
 def test_reproduce_diffdrive_writes_its_scorecard_and_figures(tmp_path):
+    res = runner.invoke(app, ["reproduce", "diffdrive", "--trials", "0", "--out", str(tmp_path)])
+    assert res.exit_code != 0 and "--trials" in res.output and not (tmp_path / "diffdrive.json").exists()
     res = runner.invoke(
         app,
         [

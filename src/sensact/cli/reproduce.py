@@ -68,6 +68,8 @@ def reproduce(
             field="EXPERIMENT",
             fix=f"choose one of {', '.join(EXPERIMENTS)}, or none for all.",
         )
+    if trials is not None and trials < 1:
+        raise ConfigError(f"--trials {trials} runs nothing.", field="--trials", fix="give 1 or more.")
     todo = [experiment] if experiment else list(EXPERIMENTS)
     if "track1d" in todo:
         _reproduce_track1d(out, trials or 15, seed, set_, config)
