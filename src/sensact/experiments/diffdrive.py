@@ -15,9 +15,8 @@ import numpy as np
 
 from sensact.config import config_to_dict
 from sensact.evaluate.bars import BarCheck
-from sensact.evaluate.landmark_truth import path_offset, score_against_truth
 from sensact.evaluate.simulated_robot import score_against_simulated
-from sensact.experiments.real import bar_checks, mrclam_config, robot_checks
+from sensact.experiments.real import evaluate_mrclam, mrclam_config, robot_checks
 from sensact.learn.em import EMConfig, EMResult, fit_em
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
@@ -68,12 +67,9 @@ def run_diffdrive(
                 progress(f"diffdrive {key}: EM iteration {it}, log-likelihood {ll:.1f}", it + 1, None)
 
         res = fit_em(robot.data, None, exp.learner, progress=on_iteration)
-        score = score_against_truth(res.model, robot.data, *robot.truth_poses())
-        score["path"] = path_offset(res.posteriors.mean_gamma, *robot.truth_poses())
-        score["bars"] = bar_checks(score)
         seeds[key] = {
             "em": res.summary(),
-            "score": score,
+            "score": evaluate_mrclam(robot, res),  # as a real robot is scored against Vicon
             "simulated": score_against_simulated(res.model, sim.truth(), sim.dt_s),
             "sightings": int(robot.data.n_observations),
             "misread": int(run.obs_misread.sum()),

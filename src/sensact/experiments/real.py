@@ -77,7 +77,9 @@ def mrclam_row_key(dataset: Path, robot: int, several: bool) -> str:
     return f"{dataset.name}/robot{robot}" if several else f"robot{robot}"
 
 
-def evaluate_mrclam(ml: MrclamLog, res: EMResult) -> dict[str, Any]:
+def evaluate_mrclam(ml: MrclamLog | Any, res: EMResult) -> dict[str, Any]:
+    """``score_against_truth`` with the smoothed path's offset and the bars, for any log with ``data`` and
+    ``truth_poses()``: an MRCLAM robot against Vicon, or a simulated one (experiments/diffdrive.py)."""
     poses, valid = ml.truth_poses()
     sc = score_against_truth(res.model, ml.data, poses, valid)
     sc["path"] = path_offset(res.posteriors.mean_gamma, poses, valid)
