@@ -9,6 +9,7 @@ import typer
 from typer.testing import CliRunner
 
 from sensact.cli import app
+from sensact.cli.base import one_line_paragraphs
 from sensact.evaluate.bars import counts, verdict_line
 from sensact.experiments import em1d, field2d, track1d
 from sensact.experiments.field2d import bar_misses
@@ -33,14 +34,29 @@ def test_every_command_has_help(path):
     assert "Usage" in res.output
 
 
-def test_every_commands_summary_in_its_groups_list_is_one_line():
-    # typer's rich help keeps a docstring's single line breaks in a group's command list, so a summary that
-    # wraps in the source breaks mid-sentence there; the summary is the first paragraph, the rest follows
-    assert len(COMMANDS) >= 13
+def test_every_commands_help_is_one_line_a_paragraph():
+    # typer's rich help keeps a docstring's single line breaks (in a group's command list, and in every
+    # paragraph after the first), so text that wraps in the source would break mid-sentence at 80 columns
+    assert len(COMMANDS) >= 14
     for path, command in COMMANDS:
-        summary = (command.short_help or command.help or "").split("\n\n")[0]
-        assert summary.strip(), path
-        assert "\n" not in summary.strip(), (path, summary)
+        paragraphs = (command.short_help or command.help or "").split("\n\n")
+        assert paragraphs[0].strip(), path
+        for p in paragraphs:
+            assert p.startswith("\b") or "\n" not in p.strip(), (path, p)
+
+
+def test_one_line_paragraphs_joins_lines_and_keeps_paragraphs_and_kept_blocks():
+    doc = """Summary that
+    wraps.
+
+    Body line one
+       and two.
+
+    \b
+    kept
+    lines"""
+    assert one_line_paragraphs(doc) == "Summary that wraps.\n\nBody line one and two.\n\n\b\nkept\nlines"
+    assert one_line_paragraphs(None) is None
 
 
 def test_simulate_then_learn(tmp_path):

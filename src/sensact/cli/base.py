@@ -5,6 +5,7 @@ and ``--set``."""
 from __future__ import annotations
 
 import functools
+import inspect
 import logging
 import sys
 from collections.abc import Callable, Iterator
@@ -63,7 +64,18 @@ def friendly(fn: F) -> F:
             err_console.print("interrupted; files already written are complete (atomic writes).")
             raise typer.Exit(130) from None
 
+    wrapper.__doc__ = one_line_paragraphs(fn.__doc__)
     return wrapper  # type: ignore[return-value]
+
+
+def one_line_paragraphs(doc: str | None) -> str | None:
+    """A docstring with each paragraph on one line, for ``--help`` to wrap at the terminal's width: Typer
+    keeps a docstring's own line breaks after the first paragraph, which at 80 columns breaks every
+    line twice. A paragraph starting with ``\\b`` (click's "keep my lines") is left as written."""
+    if not doc:
+        return doc
+    paragraphs = inspect.cleandoc(doc).split("\n\n")
+    return "\n\n".join(p if p.startswith("\b") else " ".join(p.split()) for p in paragraphs)
 
 
 @app.callback()

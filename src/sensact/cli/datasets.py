@@ -50,6 +50,60 @@ def convert_mrclam(
     console.print(f"wrote {out} and its EM settings {cfg}; learn with `sensact learn em {out} --config {cfg}`")
 
 
+@convert_app.command("csv")
+@friendly
+def convert_csv(
+    commands: Annotated[Path, typer.Option(help="t_s and one column per command, a row whenever one was sent.")],
+    sightings: Annotated[Path, typer.Option(help="t_s, landmark_id, one column per reading, optional bearing_rad.")],
+    landmarks: Annotated[Path, typer.Option(help="The map: id, x_m, y_m (or x_mm, y_mm).")],
+    truth: Annotated[
+        Path | None, typer.Option(help="Optional, for scoring only: t_s, x_m, y_m, theta_rad (0 facing +x).")
+    ] = None,
+    out: Annotated[Path, typer.Option("--out", help="The log folder to write.")] = Path("robot_log"),
+    dt: Annotated[float, typer.Option(help="Step (s); commands are held between their rows.")] = 1.0 / 30.0,
+) -> None:
+    """Write your robot's own timed CSV files as an EM log folder.
+
+    Times in seconds on one clock, rows in any order. Commands are held until the next row on a fixed
+    step, each sighting goes to the nearest step, truth is interpolated. Column suffixes give units:
+    _m and _m_s become mm and mm/s, _deg and _deg_s radians. Sightings of landmarks the map does not
+    list are dropped and counted. A differential drive with v_m_s, omega_rad_s and a range_m camera
+    also gets em_config.yaml (MRCLAM's settings) to start from; see docs/em-real.md."""
+    from sensact.io.landmark_log import write_landmark_log
+    from sensact.io.timed_csv import read_timed_csv
+
+    tl = read_timed_csv(commands, sightings, landmarks, truth, dt_s=dt)
+    console.print(tl.summary_line())
+    files = {"commands": str(commands), "sightings": str(sightings), "landmarks": str(landmarks)}
+    write_landmark_log(
+        out,
+        tl.data,
+        t0_s=0.0,
+        groundtruth=tl.groundtruth,
+        meta_extra={
+            "source": {"files": files | ({"truth": str(truth)} if truth else {}), "t0_s": tl.t0_s, "rows": tl.summary}
+        },
+    )
+    d = tl.data
+    if d.command_names == ("v_mm_s", "omega_rad_s") and d.reading_names == ("range_mm",):
+        from sensact.config import config_to_yaml
+        from sensact.experiments.real import mrclam_config
+        from sensact.io.atomic import write_text
+
+        cfg = out / "em_config.yaml"
+        write_text(cfg, config_to_yaml(mrclam_config(), MRCLAM_CONFIG_HEADER))
+        console.print(
+            f"wrote {out} and {cfg} (MRCLAM's settings, a starting point for a differential drive with a "
+            f"range-and-bearing camera); learn with `sensact learn em {out} --config {cfg}`"
+        )
+    else:
+        console.print(
+            f"wrote {out}; choose the model families for commands {', '.join(d.command_names)} and readings "
+            f"{', '.join(d.reading_names)} in a YAML file (docs/em-real.md, section 2) and learn with "
+            f"`sensact learn em {out} --config YOUR.yaml`"
+        )
+
+
 @evaluate_app.command("mrclam")
 @friendly
 def evaluate_mrclam_cmd(

@@ -65,7 +65,7 @@ def _steps(t: np.ndarray, t0: float, dt: float, path: Path, what: str) -> np.nda
             f"row {bad[0] + 2}: t_s = {t[bad[0]]} is not on the {dt} s step grid.",
             file=path / what,
             field="t_s",
-            fix="resample the log onto multiples of meta.json's dt_s.",
+            fix="resample the log onto multiples of meta.json's dt_s (`sensact convert csv` does it from timed CSVs).",
         )
     return k.astype(np.int64)
 

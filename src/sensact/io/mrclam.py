@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sensact.core.angles import wrap_angle
 from sensact.errors import LogFormatError
+from sensact.io.resample import HEADING_OFFSET_RAD, held_on_grid, nearest_steps, pose_truth_on_grid
 from sensact.logs.landmark_log import LandmarkLog
 
 ROBOT_SUBJECTS = range(1, 6)
@@ -96,11 +96,9 @@ def read_mrclam(folder: str | Path, robot: int, *, dt_s: float = 1.0 / 30.0) -> 
     barcodes = _table(folder / "Barcodes.dat", 2)
     marks = _table(folder / "Landmark_Groundtruth.dat", 5)
     odo = odo[np.argsort(odo[:, 0], kind="stable")]
-    t0 = odo[0, 0]
-    T = int(np.floor((odo[-1, 0] - t0) / dt_s)) + 1
-    times = t0 + np.arange(T) * dt_s
-    held = np.searchsorted(odo[:, 0], times + 1e-9, side="right") - 1  # zero-order hold
-    commands = np.column_stack([odo[held, 1] * 1000.0, odo[held, 2]])
+    t0, held = held_on_grid(odo[:, 0], odo[:, 1:3], dt_s)
+    commands = np.column_stack([held[:, 0] * 1000.0, held[:, 1]])
+    T = len(commands)
 
     subject_of = {int(b): int(s) for s, b in barcodes}
     landmark_ids = [int(s) for s in marks[:, 0]]
@@ -108,8 +106,7 @@ def read_mrclam(folder: str | Path, robot: int, *, dt_s: float = 1.0 / 30.0) -> 
     subjects = np.array([subject_of.get(int(b), -1) for b in meas[:, 1]])
     is_robot = np.isin(subjects, list(ROBOT_SUBJECTS))
     is_landmark = np.isin(subjects, landmark_ids)
-    step = np.rint((meas[:, 0] - t0) / dt_s).astype(np.int64)
-    inside = (step >= 0) & (step < T)
+    step, inside = nearest_steps(meas[:, 0], t0, dt_s, T)
     keep = is_landmark & inside
     order = np.argsort(step[keep], kind="stable")
     sel = np.flatnonzero(keep)[order]
@@ -129,18 +126,17 @@ def read_mrclam(folder: str | Path, robot: int, *, dt_s: float = 1.0 / 30.0) -> 
         ("range_mm",),
         commands,
     )
-    # Vicon on the step grid; a step is valid only where the nearest Vicon samples are close in time
-    tt = truth[:, 0]
-    heading = np.unwrap(truth[:, 3])
-    idx = np.clip(np.searchsorted(tt, times), 1, len(tt) - 1)
-    gap = tt[idx] - tt[idx - 1]
-    valid = (times >= tt[0]) & (times <= tt[-1]) & (gap < 0.1)
-    gt = {
-        "x_mm": np.interp(times, tt, truth[:, 1]) * 1000.0,
-        "y_mm": np.interp(times, tt, truth[:, 2]) * 1000.0,
-        "theta_rad": wrap_angle(np.interp(times, tt, heading) - 0.5 * np.pi),
-        "valid": valid.astype(float),
-    }
+    # Vicon on the step grid, valid where its samples around a step are under 0.1 s apart
+    gt = pose_truth_on_grid(
+        t0 + np.arange(T) * dt_s,
+        truth[:, 0],
+        truth[:, 1],
+        truth[:, 2],
+        truth[:, 3],
+        max_gap_s=0.1,
+        position_scale=1000.0,
+        heading_offset_rad=HEADING_OFFSET_RAD,
+    )
     summary = {
         "robot": robot,
         "odometry_rows": len(odo),

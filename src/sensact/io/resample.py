@@ -1,0 +1,60 @@
+"""Putting a robot's timed records onto EM's fixed step (sec. 4.1's time steps t = 0..T).
+
+Real logs are asynchronous: commands arrive when the controller sends them, a camera reads when it
+has a frame, motion capture samples at its own rate. EM needs one step ``dt``. Commands are held from
+their row until the next (a zero-order hold: what the motors were told), readings go to the nearest
+step, and ground truth is interpolated. ``sensact.io.mrclam`` and ``sensact.io.timed_csv`` share these.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sensact.core.angles import wrap_angle
+
+# sensact's planar frame (sec. 2.5.1) has theta = 0 facing world +y with the robot's forward axis its +y;
+# the usual robotics frame (ROS REP 103, MRCLAM) has theta = 0 facing +x and the robot driving along its
+# +x. Positions and bearings are the same in both; a heading is this much more in sensact's.
+HEADING_OFFSET_RAD = -0.5 * np.pi
+
+
+def held_on_grid(times: np.ndarray, values: np.ndarray, dt_s: float) -> tuple[float, np.ndarray]:
+    """``(t0, held)``: the grid starts at the first (sorted) command time and ends at the last; each
+    step takes the last row issued at or before it. ``times`` must be sorted."""
+    t0 = float(times[0])
+    T = int(np.floor((times[-1] - t0) / dt_s)) + 1
+    grid = t0 + np.arange(T) * dt_s
+    held = np.searchsorted(times, grid + 1e-9, side="right") - 1
+    return t0, values[held]
+
+
+def nearest_steps(times: np.ndarray, t0: float, dt_s: float, n_steps: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each time's nearest step and whether it lies on the grid (steps 0..n_steps-1)."""
+    step = np.rint((times - t0) / dt_s).astype(np.int64)
+    return step, (step >= 0) & (step < n_steps)
+
+
+def pose_truth_on_grid(
+    grid: np.ndarray,
+    t: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+    heading: np.ndarray,
+    *,
+    max_gap_s: float,
+    position_scale: float = 1.0,
+    heading_offset_rad: float = 0.0,
+) -> dict[str, np.ndarray]:
+    """Ground-truth poses linearly interpolated onto ``grid`` (the heading unwrapped first, then turned by
+        ``heading_offset_rad`` into sensact's frame and wrapped), with ``valid`` 1 only where the two samples
+        around a step are less than ``max_gap_s`` apart. Positions are multiplied by ``position_scale`` (to mm)
+    after the interpolation. ``t`` must be sorted."""
+    idx = np.clip(np.searchsorted(t, grid), 1, len(t) - 1)
+    gap = t[idx] - t[idx - 1]
+    valid = (grid >= t[0]) & (grid <= t[-1]) & (gap < max_gap_s)
+    return {
+        "x_mm": np.interp(grid, t, x) * position_scale,
+        "y_mm": np.interp(grid, t, y) * position_scale,
+        "theta_rad": wrap_angle(np.interp(grid, t, np.unwrap(heading)) + heading_offset_rad),
+        "valid": valid.astype(float),
+    }

@@ -1,0 +1,229 @@
+"""A robot's own timed CSV files as an EM log (``sensact convert csv``).
+
+A robot's records are rarely on one clock tick: commands are sent when the controller decides, a camera
+reads when it has a frame, motion capture samples at its own rate. Four CSV files with a header row,
+times in seconds on one clock, in any order, become a planar ``LandmarkLog`` on a fixed step:
+
+* ``commands.csv``: ``t_s`` and one column per command (e.g. ``v_m_s``, ``omega_rad_s``), a row whenever
+  a command was sent. Each is held until the next row (a zero-order hold) on the grid from the first
+  row's time to the last's.
+* ``sightings.csv``: ``t_s``, ``landmark_id``, one column per reading (e.g. ``range_m``; an empty cell
+  when that sensor did not read) and optionally ``bearing_rad`` (counterclockwise from the robot's
+  forward axis). Each row goes to the nearest step. Rows naming a landmark not in ``landmarks.csv``
+  (another robot, a false detection), outside the commands' span or with nothing read are dropped and
+  counted.
+* ``landmarks.csv``: ``id``, ``x``, ``y``: the map.
+* ``truth.csv`` (optional, for scoring only): ``t_s``, ``x``, ``y``, ``theta``, interpolated onto the grid.
+  ``theta`` is the usual robotics heading (ROS REP 103, MRCLAM: 0 facing world +x, counterclockwise,
+  the robot driving along its own +x) and is turned into sensact's frame.
+
+Units follow the column names' suffixes: ``_m`` and ``_m_s`` become ``_mm`` and ``_mm_s`` (times 1000:
+EM's defaults are in mm), ``_deg`` and ``_deg_s`` become ``_rad`` and ``_rad_s``; other names are kept
+as they are, in their own units.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sensact.errors import LogFormatError
+from sensact.io.csvtable import read_numeric_csv
+from sensact.io.resample import HEADING_OFFSET_RAD, held_on_grid, nearest_steps, pose_truth_on_grid
+from sensact.logs.landmark_log import LandmarkLog
+
+# a column name's unit suffix -> sensact's suffix and factor, the longer suffixes first
+UNIT_SUFFIXES = (
+    ("_m_s", "_mm_s", 1000.0),
+    ("_m", "_mm", 1000.0),
+    ("_deg_s", "_rad_s", np.pi / 180.0),
+    ("_deg", "_rad", np.pi / 180.0),
+)
+MIN_TRUTH_GAP_S = 0.1  # truth samples further apart than this (or five of their periods) leave a gap
+
+
+def in_sensact_units(name: str, values: np.ndarray) -> tuple[str, np.ndarray]:
+    """A column renamed and scaled by its unit suffix (``range_m`` -> ``range_mm``, times 1000)."""
+    for suffix, target, factor in UNIT_SUFFIXES:
+        if name.endswith(suffix):
+            return name[: -len(suffix)] + target, values * factor
+    return name, values
+
+
+def _table(path: Path, required: tuple[str, ...], what: str, example: str) -> dict[str, np.ndarray]:
+    if not path.is_file():
+        raise LogFormatError(
+            f"{what} not found.", file=path, fix=f"give a CSV file of {example} (docs/commands.md, convert csv)."
+        )
+    raw = read_numeric_csv(path, what=what)
+    table: dict[str, np.ndarray] = {}
+    for name, values in raw.items():
+        new, scaled = in_sensact_units(name, values)
+        if new in table:
+            raise LogFormatError(
+                f"two columns mean {new} ({name} and another in other units).",
+                file=path,
+                field=name,
+                fix="keep one of them.",
+            )
+        table[new] = scaled
+    missing = [c for c in required if c not in table]
+    if missing:
+        raise LogFormatError(
+            f"missing column {missing[0]}; found {', '.join(raw)}.",
+            file=path,
+            field=missing[0],
+            fix=f"{what} needs {example} (a _m suffix for metres, _deg for degrees; docs/commands.md, convert csv).",
+        )
+    return table
+
+
+def _finite(path: Path, table: dict[str, np.ndarray], columns: tuple[str, ...], fix: str) -> None:
+    for c in columns:
+        bad = np.flatnonzero(~np.isfinite(table[c]))
+        if bad.size:
+            raise LogFormatError(f"row {bad[0] + 2} has no value.", file=path, field=c, fix=fix)
+
+
+@dataclass(frozen=True, eq=False)
+class TimedLog:
+    data: LandmarkLog
+    t0_s: float  # the files' clock at step 0
+    groundtruth: dict[str, np.ndarray] | None  # x_mm, y_mm, theta_rad (sensact frame), valid, on the step grid
+    summary: dict[str, Any]  # rows kept and dropped, by reason
+
+    def summary_line(self) -> str:
+        s = self.summary
+        line = (
+            f"{s['command_rows']} command rows -> {self.data.n_steps} steps of {self.data.dt_s:.4g} s (the longest "
+            f"gap between rows, held: {s['longest_command_gap_s']:.3g} s); kept {s['kept']} of "
+            f"{s['sighting_rows']} sightings; dropped {s['dropped_unknown_landmark']} naming landmarks not in "
+            f"landmarks.csv{_ids(s['unknown_landmark_ids'])}, {s['dropped_outside_time']} outside the commands' "
+            f"span, {s['dropped_nothing_read']} with nothing read"
+        )
+        if self.groundtruth is not None:
+            line += f"; truth covers {100.0 * float(np.mean(self.groundtruth['valid'])):.0f} % of the steps"
+        return line
+
+
+def _ids(ids: list[float]) -> str:
+    more = ", ..." if len(ids) > 5 else ""
+    return f" (ids {', '.join(f'{i:g}' for i in ids[:5])}{more})" if ids else ""
+
+
+def read_timed_csv(
+    commands: str | Path,
+    sightings: str | Path,
+    landmarks: str | Path,
+    truth: str | Path | None = None,
+    *,
+    dt_s: float = 1.0 / 30.0,
+) -> TimedLog:
+    """The four files (see the module docstring) as a planar, continuous-command ``LandmarkLog``."""
+    commands, sightings, landmarks = Path(commands), Path(sightings), Path(landmarks)
+    if not (np.isfinite(dt_s) and dt_s > 0):
+        raise LogFormatError(f"dt = {dt_s} is not a step.", field="dt", fix="give a step in seconds, e.g. 0.0333.")
+
+    cmd = _table(commands, ("t_s",), "commands.csv", "t_s and one column per command")
+    names = tuple(c for c in cmd if c != "t_s")
+    if not names:
+        raise LogFormatError(
+            "no command columns besides t_s.", file=commands, fix="add one column per command, e.g. v_m_s,omega_rad_s."
+        )
+    _finite(commands, cmd, ("t_s", *names), "every row needs a time and a value in each command column.")
+    order = np.argsort(cmd["t_s"], kind="stable")
+    t_cmd = cmd["t_s"][order]
+    if t_cmd[-1] - t_cmd[0] < dt_s:
+        raise LogFormatError(
+            f"the commands span {t_cmd[-1] - t_cmd[0]:.3g} s, less than one step of {dt_s:.3g} s.",
+            file=commands,
+            field="t_s",
+            fix="give the whole run's commands, or a smaller --dt.",
+        )
+    t0, held = held_on_grid(t_cmd, np.column_stack([cmd[c][order] for c in names]), dt_s)
+    T = len(held)
+
+    lm = _table(landmarks, ("id", "x_mm", "y_mm"), "landmarks.csv", "id, x_m (or x_mm) and y_m (or y_mm)")
+    _finite(landmarks, lm, ("id", "x_mm", "y_mm"), "every landmark needs an id and a position.")
+    ids = lm["id"]
+    dup = [float(i) for i, n in zip(*np.unique(ids, return_counts=True), strict=True) if n > 1]
+    if dup:
+        raise LogFormatError(
+            f"landmark id {dup[0]:g} appears more than once.", file=landmarks, field="id", fix="give each one row."
+        )
+
+    obs = _table(sightings, ("t_s", "landmark_id"), "sightings.csv", "t_s, landmark_id and one column per reading")
+    _finite(sightings, obs, ("t_s", "landmark_id"), "every sighting needs a time and the landmark's id.")
+    bearing = obs.get("bearing_rad")
+    readings = tuple(c for c in obs if c not in ("t_s", "landmark_id", "bearing_rad"))
+    if not readings:
+        raise LogFormatError(
+            "no reading columns besides t_s, landmark_id and bearing_rad.",
+            file=sightings,
+            fix="add one column per reading, e.g. range_m (EM learns each reading's function of distance).",
+        )
+    values = np.column_stack([obs[r] for r in readings])
+    step, inside = nearest_steps(obs["t_s"], t0, dt_s, T)
+    known = np.isin(obs["landmark_id"], ids)
+    read = np.any(np.isfinite(values), axis=1) | (np.isfinite(bearing) if bearing is not None else False)
+    keep = known & inside & read
+    if not keep.any():
+        raise LogFormatError(
+            f"none of the {len(keep)} sightings is kept ({int((~known).sum())} name landmarks not in "
+            f"{landmarks.name}, {int((~inside).sum())} are outside the commands' span "
+            f"{t_cmd[0]:.6g}-{t_cmd[-1]:.6g} s).",
+            file=sightings,
+            fix="give sightings.csv and commands.csv times on one clock, and landmark ids that landmarks.csv lists.",
+        )
+    sel = np.flatnonzero(keep)[np.lexsort((obs["t_s"][keep], step[keep]))]  # by step, then by time
+    row_of = {float(v): j for j, v in enumerate(ids)}
+    data = LandmarkLog(
+        "planar",
+        dt_s,
+        np.full(T, -1, dtype=np.int64),
+        np.zeros((0, len(names))),
+        names,
+        step[sel],
+        np.array([row_of[float(v)] for v in obs["landmark_id"][sel]], dtype=np.int64),
+        values[sel],
+        bearing[sel] if bearing is not None else np.full(sel.size, np.nan),
+        np.column_stack([lm["x_mm"], lm["y_mm"]]),
+        tuple(f"{v:g}" for v in ids),
+        str(commands.parent),
+        readings,
+        held,
+    )
+    gt = None if truth is None else _truth_on_grid(Path(truth), t0 + np.arange(T) * dt_s)
+    summary: dict[str, Any] = {
+        "command_rows": len(t_cmd),
+        "longest_command_gap_s": float(np.max(np.diff(t_cmd), initial=0.0)),
+        "sighting_rows": len(keep),
+        "kept": int(keep.sum()),
+        "dropped_unknown_landmark": int((~known).sum()),
+        "unknown_landmark_ids": sorted({float(v) for v in obs["landmark_id"][~known]}),
+        "dropped_outside_time": int((known & ~inside).sum()),
+        "dropped_nothing_read": int((known & inside & ~read).sum()),
+    }
+    return TimedLog(data, t0, gt, summary)
+
+
+def _truth_on_grid(path: Path, grid: np.ndarray) -> dict[str, np.ndarray]:
+    tr = _table(path, ("t_s", "x_mm", "y_mm", "theta_rad"), "truth.csv", "t_s, x_m, y_m and theta_rad")
+    _finite(path, tr, ("t_s", "x_mm", "y_mm", "theta_rad"), "drop rows where the truth lost the robot.")
+    if len(tr["t_s"]) < 2:
+        raise LogFormatError("one row cannot be interpolated.", file=path, field="t_s", fix="give the whole run.")
+    order = np.argsort(tr["t_s"], kind="stable")
+    t = tr["t_s"][order]
+    period = float(np.median(np.diff(t)))
+    return pose_truth_on_grid(
+        grid,
+        t,
+        tr["x_mm"][order],
+        tr["y_mm"][order],
+        tr["theta_rad"][order],
+        max_gap_s=max(MIN_TRUTH_GAP_S, 5.0 * period),
+        heading_offset_rad=HEADING_OFFSET_RAD,
+    )

@@ -1,0 +1,249 @@
+"""io.timed_csv and `sensact convert csv`: a robot's own asynchronous CSV files as an EM log folder.
+
+Oracles: an exact reduction (a simulated log written as timed files, off the step grid and shuffled,
+converts back to the same log), an independent reference on real data (MRCLAM's files written as
+timed CSVs give what io.mrclam reads), and errors that name the file, the column and the fix.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from conftest import DATA, require
+from sensact.cli import app
+from sensact.errors import LogFormatError
+from sensact.io.landmark_log import read_landmark_log
+from sensact.io.timed_csv import in_sensact_units, read_timed_csv
+from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
+
+runner = CliRunner()
+T0 = 1234.5  # the files' own clock
+
+
+def _write(path, columns):
+    names = list(columns)
+    rows = np.column_stack([np.asarray(columns[n], dtype=float) for n in names])
+    lines = [",".join(names)] + [",".join("" if np.isnan(v) else repr(float(v)) for v in row) for row in rows]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.fixture(scope="module")
+def timed(tmp_path_factory):
+    """A simulated run written as a robot would log it: commands only when they change, sightings off the
+    grid and out of order, three sightings to drop, the map with ids of its own, truth heading from +x."""
+    run = simulate_diffdrive(DiffDriveConfig(seconds=60.0, seed=5))
+    d, dt = run.log(), run.config.dt_s
+    rng = np.random.default_rng(0)
+    folder = tmp_path_factory.mktemp("timed")
+    grid = T0 + np.arange(d.n_steps) * dt
+    sent = np.flatnonzero(np.r_[True, np.any(np.diff(d.step_commands, axis=0) != 0, axis=1)])
+    order = rng.permutation(sent)
+    _write(
+        folder / "commands.csv",
+        {"t_s": grid[order], "v_mm_s": d.step_commands[order, 0], "omega_rad_s": d.step_commands[order, 1]},
+    )
+    ids = 100.0 + 3.0 * np.arange(len(d.landmarks_xy))
+    t_obs = grid[d.obs_step] + rng.uniform(-0.4, 0.4, d.obs_step.size) * dt
+    extra_t = [grid[5], grid[-1] + 10.0, grid[7]]  # a landmark not on the map, after the run, nothing read
+    extra_id = [7.0, ids[0], ids[1]]
+    extra_r = [1000.0, 1000.0, np.nan]
+    perm = rng.permutation(d.obs_step.size + 3)
+    _write(
+        folder / "sightings.csv",
+        {
+            "t_s": np.r_[t_obs, extra_t][perm],
+            "landmark_id": np.r_[ids[d.obs_landmark], extra_id][perm],
+            "range_mm": np.r_[d.obs_readings[:, 0], extra_r][perm],
+            "bearing_rad": np.r_[d.obs_bearing_rad, 0.1, 0.1, np.nan][perm],
+        },
+    )
+    _write(folder / "landmarks.csv", {"id": ids, "x_mm": d.landmarks_xy[:, 0], "y_mm": d.landmarks_xy[:, 1]})
+    _write(
+        folder / "truth.csv",
+        {"t_s": grid, "x_mm": run.poses[:, 0], "y_mm": run.poses[:, 1], "theta_rad": run.poses[:, 2] + 0.5 * np.pi},
+    )
+    return run, folder
+
+
+def _same_sightings(a, b):
+    """The same sightings on the same steps; a step's order is the files' times, which the jitter shuffles."""
+    ia = np.lexsort((a.obs_landmark, a.obs_step))
+    ib = np.lexsort((b.obs_landmark, b.obs_step))
+    for k in ("obs_step", "obs_landmark", "obs_readings", "obs_bearing_rad"):
+        np.testing.assert_array_equal(getattr(a, k)[ia], getattr(b, k)[ib])
+
+
+def test_unit_suffixes_become_millimetres_and_radians():
+    x = np.array([1.5, -2.0])
+    for name, new, factor in [
+        ("range_m", "range_mm", 1000.0),
+        ("v_m_s", "v_mm_s", 1000.0),
+        ("bearing_deg", "bearing_rad", np.pi / 180),
+        ("omega_deg_s", "omega_rad_s", np.pi / 180),
+    ]:
+        got_name, got = in_sensact_units(name, x)
+        assert got_name == new
+        np.testing.assert_array_equal(got, x * factor)
+    for name in ("range_mm", "v_mm_s", "ir_volts", "bearing_rad", "height_px"):
+        assert in_sensact_units(name, x)[0] == name and in_sensact_units(name, x)[1] is x
+
+
+def test_a_simulated_log_written_off_the_grid_converts_back_exactly(timed):
+    run, folder = timed
+    f = {k: folder / f"{k}.csv" for k in ("commands", "sightings", "landmarks", "truth")}
+    tl = read_timed_csv(f["commands"], f["sightings"], f["landmarks"], f["truth"], dt_s=run.config.dt_s)
+    d, ref = tl.data, run.log()
+    assert tl.t0_s == T0 and d.n_steps == ref.n_steps and d.command_names == ("v_mm_s", "omega_rad_s")
+    np.testing.assert_array_equal(d.step_commands, ref.step_commands)
+    np.testing.assert_array_equal(d.landmarks_xy, ref.landmarks_xy)
+    assert np.all(np.diff(d.obs_step) >= 0)
+    _same_sightings(d, ref)
+    gt = tl.groundtruth
+    np.testing.assert_allclose(gt["x_mm"], run.poses[:, 0], atol=1e-9)
+    heading_err = np.angle(np.exp(1j * (gt["theta_rad"] - run.poses[:, 2])))
+    assert np.max(np.abs(heading_err)) < 1e-9 and np.all(gt["valid"] == 1)
+    s = tl.summary
+    assert (s["kept"], s["dropped_unknown_landmark"], s["dropped_outside_time"], s["dropped_nothing_read"]) == (
+        ref.obs_step.size,
+        1,
+        1,
+        1,
+    )
+    assert s["unknown_landmark_ids"] == [7.0] and s["command_rows"] < d.n_steps
+    assert f"kept {ref.obs_step.size} of {ref.obs_step.size + 3} sightings" in tl.summary_line()
+
+
+def test_convert_csv_writes_a_log_folder_learn_em_reads_with_mrclams_settings(timed, tmp_path):
+    _, folder = timed
+    sim = tmp_path / "sim"
+    res = runner.invoke(app, ["simulate", "diffdrive", "--out", str(sim), "--seconds", "60", "--seed", "5"])
+    assert res.exit_code == 0, res.output
+    out = tmp_path / "converted"
+    args = [f"--{k}={folder / f'{k}.csv'}" for k in ("commands", "sightings", "landmarks", "truth")]
+    res = runner.invoke(app, ["convert", "csv", *args, "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    flat = " ".join(res.output.split())
+    assert "dropped 1 naming landmarks not in landmarks.csv (ids 7)" in flat
+    assert f"sensact learn em {out} --config {out / 'em_config.yaml'}" in flat
+    a, b = read_landmark_log(out), read_landmark_log(sim)
+    np.testing.assert_array_equal(a.data.step_commands, b.data.step_commands)
+    np.testing.assert_array_equal(a.data.landmarks_xy, b.data.landmarks_xy)
+    _same_sightings(a.data, b.data)
+    pa, va = a.truth_poses()
+    pb, _ = b.truth_poses()
+    assert va.all() and np.max(np.abs(np.angle(np.exp(1j * (pa[:, 2] - pb[:, 2]))))) < 1e-9
+    assert (out / "em_config.yaml").read_text() == (sim / "em_config.yaml").read_text()
+    assert a.meta["source"]["rows"]["kept"] == b.data.obs_step.size
+
+
+def test_other_commands_and_readings_get_no_config_and_are_told_how_to_choose(tmp_path):
+    _write(tmp_path / "c.csv", {"t_s": [0.0, 1.0, 2.0], "left_wheel": [1.0, 2.0, 3.0], "right_wheel": [1, 1, 1]})
+    _write(
+        tmp_path / "s.csv",
+        {"t_s": [0.5, 1.5], "landmark_id": [1, 1], "sonar_m": [0.5, np.nan], "bearing_deg": [10.0, 20.0]},
+    )
+    _write(tmp_path / "l.csv", {"id": [1], "x_m": [2.0], "y_m": [0.0]})
+    out = tmp_path / "o"
+    res = runner.invoke(
+        app,
+        [
+            "convert",
+            "csv",
+            "--commands",
+            str(tmp_path / "c.csv"),
+            "--sightings",
+            str(tmp_path / "s.csv"),
+            "--landmarks",
+            str(tmp_path / "l.csv"),
+            "--out",
+            str(out),
+            "--dt",
+            "0.5",
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    assert "docs/em-real.md, section 2" in " ".join(res.output.split()) and not (out / "em_config.yaml").exists()
+    d = read_landmark_log(out).data
+    assert d.command_names == ("left_wheel", "right_wheel") and d.reading_names == ("sonar_mm",)
+    np.testing.assert_array_equal(d.step_commands[:, 0], [1.0, 1.0, 2.0, 2.0, 3.0])
+    np.testing.assert_array_equal(d.obs_step, [1, 3])
+    np.testing.assert_array_equal(d.obs_readings[:, 0], [500.0, np.nan])
+    np.testing.assert_allclose(d.obs_bearing_rad, np.radians([10.0, 20.0]))
+    np.testing.assert_array_equal(d.landmarks_xy, [[2000.0, 0.0]])
+
+
+@pytest.mark.parametrize(
+    ("name", "columns", "field", "words"),
+    [
+        ("commands", {"time": [0.0, 1.0], "v_m_s": [0.1, 0.2]}, "t_s", "missing column t_s"),
+        ("commands", {"t_s": [0.0, 1.0], "v_m_s": [0.1, np.nan]}, "v_mm_s", "row 3 has no value"),
+        ("commands", {"t_s": [0.0, 1.0]}, None, "no command columns"),
+        ("commands", {"t_s": [0.0, 0.01], "v_m_s": [0.1, 0.2]}, "t_s", "less than one step"),
+        ("landmarks", {"id": [1, 1], "x_m": [0, 1], "y_m": [0, 1]}, "id", "appears more than once"),
+        ("landmarks", {"id": [1], "x": [0], "y": [0]}, "x_mm", "missing column x_mm"),
+        (
+            "sightings",
+            {"t_s": [0.5], "landmark_id": [1], "range_m": [1.0], "range_mm": [1000.0]},
+            "range_mm",
+            "two columns mean range_mm",
+        ),
+        ("sightings", {"t_s": [0.5], "landmark_id": [1], "bearing_rad": [0.1]}, None, "no reading columns"),
+        ("sightings", {"t_s": [0.5], "landmark_id": [9], "range_m": [1.0]}, None, "none of the 1 sightings"),
+        ("truth", {"t_s": [0.5], "x_m": [0], "y_m": [0], "theta_rad": [0]}, "t_s", "one row cannot"),
+    ],
+)
+def test_bad_files_are_named_with_the_column_and_the_fix(tmp_path, name, columns, field, words):
+    files = {
+        "commands": {"t_s": [0.0, 1.0], "v_m_s": [0.1, 0.2]},
+        "sightings": {"t_s": [0.5], "landmark_id": [1], "range_m": [1.0]},
+        "landmarks": {"id": [1], "x_m": [2.0], "y_m": [0.0]},
+        "truth": {"t_s": [0.0, 1.0], "x_m": [0, 1], "y_m": [0, 0], "theta_rad": [0, 0]},
+    } | {name: columns}
+    paths = {k: _write(tmp_path / f"{k}.csv", v) for k, v in files.items()}
+    with pytest.raises(LogFormatError) as err:
+        read_timed_csv(paths["commands"], paths["sightings"], paths["landmarks"], paths["truth"], dt_s=0.1)
+    e = err.value
+    assert words in e.problem and e.fix
+    assert e.file == str(paths[name]) and e.field == field
+    res = runner.invoke(
+        app, ["convert", "csv", *[f"--{k}={p}" for k, p in paths.items()], "--out", str(tmp_path / "o"), "--dt", "0.1"]
+    )
+    assert res.exit_code != 0 and words in " ".join(res.output.split()) and "Traceback" not in res.output
+
+
+def test_mrclams_files_as_timed_csv_read_as_io_mrclam_reads_them(tmp_path):
+    """An independent reference: MRCLAM robot 1 written as a robot's own files (metres, the usual
+    heading frame, other robots' barcodes as ids the map lacks) converts to what read_mrclam gives."""
+    from sensact.io.mrclam import read_mrclam
+
+    folder = require(DATA / "mrclam" / "MRCLAM_Dataset6")
+    load = lambda n: np.loadtxt(folder / n, comments="#")  # noqa: E731
+    odo, meas, gt = load("Robot1_Odometry.dat"), load("Robot1_Measurement.dat"), load("Robot1_Groundtruth.dat")
+    barcodes, marks = load("Barcodes.dat"), load("Landmark_Groundtruth.dat")
+    subject = {b: s for s, b in barcodes}
+    _write(tmp_path / "c.csv", {"t_s": odo[:, 0], "v_m_s": odo[:, 1], "omega_rad_s": odo[:, 2]})
+    _write(
+        tmp_path / "s.csv",
+        {
+            "t_s": meas[:, 0],
+            "landmark_id": [subject.get(b, -1) for b in meas[:, 1]],
+            "range_m": meas[:, 2],
+            "bearing_rad": meas[:, 3],
+        },
+    )
+    _write(tmp_path / "l.csv", {"id": marks[:, 0], "x_m": marks[:, 1], "y_m": marks[:, 2]})
+    _write(tmp_path / "t.csv", {"t_s": gt[:, 0], "x_m": gt[:, 1], "y_m": gt[:, 2], "theta_rad": gt[:, 3]})
+    tl = read_timed_csv(tmp_path / "c.csv", tmp_path / "s.csv", tmp_path / "l.csv", tmp_path / "t.csv")
+    ml = read_mrclam(folder, 1)
+    a, b = tl.data, ml.data
+    assert tl.t0_s == ml.t0_s and a.n_steps == b.n_steps
+    for k in ("step_commands", "obs_step", "obs_landmark", "obs_readings", "obs_bearing_rad", "landmarks_xy"):
+        np.testing.assert_array_equal(getattr(a, k), getattr(b, k))
+    for k in ("x_mm", "y_mm", "theta_rad"):
+        np.testing.assert_allclose(tl.groundtruth[k], ml.groundtruth[k], atol=1e-9)
+    np.testing.assert_array_equal(tl.groundtruth["valid"], ml.groundtruth["valid"])
+    s, m = tl.summary, ml.summary
+    assert s["kept"] == m["kept"] and s["dropped_unknown_landmark"] == m["dropped_robot"] + m["dropped_unknown_barcode"]
