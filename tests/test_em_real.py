@@ -803,6 +803,7 @@ def test_mrclam_reader_and_log_folder_round_trip(tmp_path):
     assert run.exit_code == 0, run.output
     assert f"--config {tmp_path / 'c' / 'em_config.yaml'}" in run.output.replace("\n", "")
     assert build_config(EMConfig, tmp_path / "c" / "em_config.yaml") == mrclam_config()
+    assert (tmp_path / "c" / "overview.png").stat().st_size > 20_000  # the conversion, to check by eye
     np.testing.assert_array_equal(read_landmark_log(tmp_path / "c").data.obs_readings, back.data.obs_readings)
     np.testing.assert_allclose(back.data.step_commands, ml.data.step_commands)
     np.testing.assert_allclose(back.data.obs_readings, ml.data.obs_readings)

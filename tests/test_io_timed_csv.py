@@ -137,6 +137,7 @@ def test_convert_csv_writes_a_log_folder_learn_em_reads_with_mrclams_settings(ti
     assert va.all() and np.max(np.abs(np.angle(np.exp(1j * (pa[:, 2] - pb[:, 2]))))) < 1e-9
     assert (out / "em_config.yaml").read_text() == (sim / "em_config.yaml").read_text()
     assert a.meta["source"]["rows"]["kept"] == b.data.obs_step.size
+    assert f"drew {out / 'overview.png'}" in flat and (out / "overview.png").stat().st_size > 20_000
 
 
 def test_other_commands_and_readings_get_no_config_and_are_told_how_to_choose(tmp_path):
@@ -166,6 +167,7 @@ def test_other_commands_and_readings_get_no_config_and_are_told_how_to_choose(tm
     )
     assert res.exit_code == 0, res.output
     assert "docs/em-real.md, section 2" in " ".join(res.output.split()) and not (out / "em_config.yaml").exists()
+    assert (out / "overview.png").stat().st_size > 10_000  # drawn without a truth path too
     d = read_landmark_log(out).data
     assert d.command_names == ("left_wheel", "right_wheel") and d.reading_names == ("sonar_mm",)
     np.testing.assert_array_equal(d.step_commands[:, 0], [1.0, 1.0, 2.0, 2.0, 3.0])

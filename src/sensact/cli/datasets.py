@@ -4,7 +4,7 @@ scored against the dataset's own ground truth."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
@@ -47,7 +47,18 @@ def convert_mrclam(
     )
     cfg = out / "em_config.yaml"
     write_text(cfg, config_to_yaml(mrclam_config(), MRCLAM_CONFIG_HEADER))
-    console.print(f"wrote {out} and its EM settings {cfg}; learn with `sensact learn em {out} --config {cfg}`")
+    overview = _draw_overview(ml.data, ml.groundtruth, out, f"{dataset.name} robot {robot}")
+    console.print(
+        f"wrote {out}, its EM settings {cfg} and {overview}; learn with `sensact learn em {out} --config {cfg}`"
+    )
+
+
+def _draw_overview(data: Any, groundtruth: dict[str, Any] | None, out: Path, title: str) -> Path:
+    """OUT/overview.png: the commands, the sightings over time and the map with the recorded path, to
+    check a conversion by eye (mismatched clocks, a map in the wrong unit) before learning from it."""
+    from sensact.report.figures_log import figure_log_overview
+
+    return figure_log_overview(data, groundtruth, out / "overview.png", title)
 
 
 @convert_app.command("csv")
@@ -85,6 +96,7 @@ def convert_csv(
         },
     )
     d = tl.data
+    console.print(f"drew {_draw_overview(d, tl.groundtruth, out, out.resolve().name)}")
     if d.command_names == ("v_mm_s", "omega_rad_s") and d.reading_names == ("range_mm",):
         from sensact.config import config_to_yaml
         from sensact.experiments.real import mrclam_config

@@ -1,0 +1,70 @@
+"""A converted log at a glance, before anything is learned from it: the commands over time, when each
+landmark was seen, and the map with the recorded path. Two clocks that do not match, a map in the wrong
+unit or a robot that drives out of its landmarks' sight show here before they show as a poor model."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+
+from sensact.report.figures1d import _save
+
+MAX_COMMAND_PANELS = 3
+MAX_NAMED_LANDMARKS = 30
+MIN_MAP_HALF_MM = 1000.0  # a map of one landmark still shows a room around it
+
+
+def figure_log_overview(data: Any, groundtruth: dict[str, np.ndarray] | None, path: Path, title: str) -> Path:
+    """``data`` a planar ``LandmarkLog`` with continuous commands; ``groundtruth`` its x_mm, y_mm (and
+    valid) on the step grid, or None."""
+    t = np.arange(data.n_steps) * data.dt_s
+    names = data.command_names[:MAX_COMMAND_PANELS]
+    fig = plt.figure(figsize=(13, 2.2 * (len(names) + 1) + 0.6))
+    grid = fig.add_gridspec(len(names) + 1, 2, width_ratios=(1.7, 1.0))
+    axes = [fig.add_subplot(grid[j, 0]) for j in range(len(names) + 1)]
+    for j, (ax, name) in enumerate(zip(axes, names, strict=False)):
+        ax.plot(t, data.step_commands[:, j], lw=0.6, drawstyle="steps-post")
+        ax.set(ylabel=name, title=f"{title}: commands, held between their rows" if j == 0 else None)
+    seen = axes[-1]
+    n_marks = len(data.landmarks_xy)
+    seen.plot(data.obs_step * data.dt_s, data.obs_landmark, "|", ms=6, alpha=0.6)
+    seen.set(xlabel="time from the first command (s)", ylabel="landmark", title=f"{data.obs_step.size} sightings")
+    if n_marks <= MAX_NAMED_LANDMARKS and data.landmark_names:
+        seen.set_yticks(range(n_marks), data.landmark_names, fontsize=7)
+    for ax in axes:
+        ax.set_xlim(t[0], t[-1])
+        ax.grid(alpha=0.3)
+    for ax in axes[:-1]:
+        ax.tick_params(labelbottom=False)
+    world = fig.add_subplot(grid[:, 1])
+    xy = data.landmarks_xy
+    counts = np.bincount(data.obs_landmark, minlength=n_marks)
+    world.scatter(xy[:, 0], xy[:, 1], marker="^", s=60, c="tab:red", label="landmarks (how often seen)", zorder=3)
+    for j, (x, y) in enumerate(xy):
+        name = data.landmark_names[j] if data.landmark_names else str(j)
+        world.annotate(f"{name} ({counts[j]})", (x, y), textcoords="offset points", xytext=(4, 4), fontsize=7)
+    if groundtruth is not None:
+        ok = groundtruth.get("valid", np.ones(data.n_steps)) > 0.5
+        x = np.where(ok, groundtruth["x_mm"], np.nan)  # a gap in the truth stays a gap
+        y = np.where(ok, groundtruth["y_mm"], np.nan)
+        world.plot(x, y, lw=0.6, color="tab:blue", label=f"recorded path ({100 * ok.mean():.0f} % of the steps)")
+        start = int(np.argmax(ok)) if ok.any() else 0
+        world.plot(x[start], y[start], "o", color="tab:green", label="path start")
+    world.set(xlabel="x (mm)", ylabel="y (mm)", title="map" + (" and recorded path" if groundtruth is not None else ""))
+    lo, hi = xy.min(axis=0), xy.max(axis=0)
+    if groundtruth is not None:
+        lo = np.fmin(lo, [np.nanmin(x), np.nanmin(y)])
+        hi = np.fmax(hi, [np.nanmax(x), np.nanmax(y)])
+    mid, half = 0.5 * (lo + hi), np.maximum(0.55 * (hi - lo), MIN_MAP_HALF_MM)
+    world.update_datalim([mid - half, mid + half])  # the equal aspect then widens the shorter side
+    world.autoscale_view()
+    world.set_aspect("equal", adjustable="datalim")
+    world.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=2)  # clear of the map
+    world.grid(alpha=0.3)
+    return _save(fig, path)
