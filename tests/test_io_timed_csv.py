@@ -14,6 +14,7 @@ from typer.testing import CliRunner
 from conftest import DATA, require
 from sensact.cli import app
 from sensact.errors import LogFormatError
+from sensact.io.csvtable import read_numeric_csv
 from sensact.io.landmark_log import read_landmark_log
 from sensact.io.timed_csv import in_sensact_units, read_timed_csv
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
@@ -249,3 +250,24 @@ def test_mrclams_files_as_timed_csv_read_as_io_mrclam_reads_them(tmp_path):
     np.testing.assert_array_equal(tl.groundtruth["valid"], ml.groundtruth["valid"])
     s, m = tl.summary, ml.summary
     assert s["kept"] == m["kept"] and s["dropped_unknown_landmark"] == m["dropped_robot"] + m["dropped_unknown_barcode"]
+
+
+def test_a_log_without_bearings_gets_no_camera_settings_and_learn_em_names_what_needs_them(timed, tmp_path):
+    _, folder = timed
+    sight = read_numeric_csv(folder / "sightings.csv")
+    _write(tmp_path / "s.csv", {k: v for k, v in sight.items() if k != "bearing_rad"})
+    out = tmp_path / "o"
+    args = ["--commands", str(folder / "commands.csv"), "--landmarks", str(folder / "landmarks.csv")]
+    res = runner.invoke(app, ["convert", "csv", *args, "--sightings", str(tmp_path / "s.csv"), "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    assert not (out / "em_config.yaml").exists()  # MRCLAM's settings learn from the bearings
+    sim = tmp_path / "sim"
+    assert runner.invoke(app, ["simulate", "diffdrive", "--out", str(sim), "--seconds", "20"]).exit_code == 0
+    cfg = ["--config", str(sim / "em_config.yaml")]
+    res = runner.invoke(app, ["learn", "em", str(out), *cfg])
+    flat = " ".join(res.output.split())
+    assert res.exit_code == 2 and "channels[0].bearing_degree" in flat and "Traceback" not in res.output
+    no_terms = "channels=[{name: range_mm, degree: 3, start_intercept: 500, start_slope: 0.6, start_sigma: 1000}]"
+    res = runner.invoke(app, ["learn", "em", str(out), *cfg, "--set", no_terms])
+    flat = " ".join(res.output.split())
+    assert res.exit_code == 2 and "start_search_s" in flat and "start_prior_mean" in flat

@@ -80,6 +80,8 @@ def convert_csv(
     _m and _m_s become mm and mm/s, _deg and _deg_s radians. Sightings of landmarks the map does not
     list are dropped and counted. A differential drive with v_m_s, omega_rad_s and a range_m camera
     also gets em_config.yaml (MRCLAM's settings) to start from; see docs/em-real.md."""
+    import numpy as np
+
     from sensact.io.landmark_log import write_landmark_log
     from sensact.io.timed_csv import read_timed_csv
 
@@ -97,7 +99,8 @@ def convert_csv(
     )
     d = tl.data
     console.print(f"drew {_draw_overview(d, tl.groundtruth, out, out.resolve().name)}")
-    if d.command_names == ("v_mm_s", "omega_rad_s") and d.reading_names == ("range_mm",):
+    like_mrclam = d.command_names == ("v_mm_s", "omega_rad_s") and d.reading_names == ("range_mm",)
+    if like_mrclam and np.isfinite(d.obs_bearing_rad).any():  # MRCLAM's settings learn from the bearings
         from sensact.config import config_to_yaml
         from sensact.experiments.real import mrclam_config
         from sensact.io.atomic import write_text
