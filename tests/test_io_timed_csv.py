@@ -127,7 +127,7 @@ def test_convert_csv_writes_a_log_folder_learn_em_reads_with_mrclams_settings(ti
     res = runner.invoke(app, ["convert", "csv", *args, "--out", str(out)])
     assert res.exit_code == 0, res.output
     flat = " ".join(res.output.split())
-    assert "dropped 1 naming landmarks not in landmarks.csv (ids 7)" in flat
+    assert "dropped 1 naming landmarks not on the map (ids 7)" in flat
     assert f"sensact learn em {out} --config {out / 'em_config.yaml'}" in flat
     a, b = read_landmark_log(out), read_landmark_log(sim)
     np.testing.assert_array_equal(a.data.step_commands, b.data.step_commands)

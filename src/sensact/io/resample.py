@@ -46,8 +46,8 @@ def pose_truth_on_grid(
     heading_offset_rad: float = 0.0,
 ) -> dict[str, np.ndarray]:
     """Ground-truth poses linearly interpolated onto ``grid`` (the heading unwrapped first, then turned by
-        ``heading_offset_rad`` into sensact's frame and wrapped), with ``valid`` 1 only where the two samples
-        around a step are less than ``max_gap_s`` apart. Positions are multiplied by ``position_scale`` (to mm)
+    ``heading_offset_rad`` into sensact's frame and wrapped), with ``valid`` 1 only where the two samples
+    around a step are less than ``max_gap_s`` apart. Positions are multiplied by ``position_scale`` (to mm)
     after the interpolation. ``t`` must be sorted."""
     idx = np.clip(np.searchsorted(t, grid), 1, len(t) - 1)
     gap = t[idx] - t[idx - 1]

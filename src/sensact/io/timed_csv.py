@@ -100,8 +100,8 @@ class TimedLog:
         line = (
             f"{s['command_rows']} command rows -> {self.data.n_steps} steps of {self.data.dt_s:.4g} s (the longest "
             f"gap between rows, held: {s['longest_command_gap_s']:.3g} s); kept {s['kept']} of "
-            f"{s['sighting_rows']} sightings; dropped {s['dropped_unknown_landmark']} naming landmarks not in "
-            f"landmarks.csv{_ids(s['unknown_landmark_ids'])}, {s['dropped_outside_time']} outside the commands' "
+            f"{s['sighting_rows']} sightings; dropped {s['dropped_unknown_landmark']} naming landmarks not on "
+            f"the map{_ids(s['unknown_landmark_ids'])}, {s['dropped_outside_time']} outside the commands' "
             f"span, {s['dropped_nothing_read']} with nothing read"
         )
         if self.groundtruth is not None:

@@ -58,7 +58,7 @@ def figure_log_overview(data: Any, groundtruth: dict[str, np.ndarray] | None, pa
         world.plot(x[start], y[start], "o", color="tab:green", label="path start")
     world.set(xlabel="x (mm)", ylabel="y (mm)", title="map" + (" and recorded path" if groundtruth is not None else ""))
     lo, hi = xy.min(axis=0), xy.max(axis=0)
-    if groundtruth is not None:
+    if groundtruth is not None and ok.any():
         lo = np.fmin(lo, [np.nanmin(x), np.nanmin(y)])
         hi = np.fmax(hi, [np.nanmax(x), np.nanmax(y)])
     mid, half = 0.5 * (lo + hi), np.maximum(0.55 * (hi - lo), MIN_MAP_HALF_MM)
