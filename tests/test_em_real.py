@@ -1091,16 +1091,17 @@ def test_learn_em_on_a_folder_with_recorded_poses_draws_the_figures_against_them
         png = tmp_path / "fit" / f"model_{kind}.png"
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.name in run.output.replace("\n", "")
     assert titles and all(t.startswith("log (Set9 robot 4): ") for t in titles if t)
-    # a third command: no action curves, the other three figures
+    # a third command: a column of action curves for it too
     extra = np.column_stack([data.step_commands, np.random.default_rng(0).normal(size=data.n_steps)])
     data3 = replace(
         data, command_names=(*data.command_names, "tilt"), action_commands=np.zeros((0, 3)), step_commands=extra
     )
     lf3 = replace(lf, data=data3)
     m3 = initial_model(data3, _config())
+    n_titles = len(titles)
     paths = write_robot(lf3, m3, score_against_truth(m3, data3, poses, valid), tmp_path / "three", "three")
-    assert [p.name for p in paths] == ["three_range.png", "three_heading_noise.png", "three_bearing.png"]
-    assert not (tmp_path / "three_actions.png").exists()
+    assert [p.name for p in paths] == [f"three_{k}.png" for k in ("actions", "range", "heading_noise", "bearing")]
+    assert sum(t.endswith(" against tilt") for t in titles[n_titles:]) >= 2
     # the legends and titles name the ground truth as told: Vicon only where it is Vicon
     texts: dict[str, list[str]] = {}
 
@@ -1122,6 +1123,44 @@ def test_learn_em_on_a_folder_with_recorded_poses_draws_the_figures_against_them
     # one sighting a frame: no sd about a frame's mean (null in the JSON), so no camera line
     assert evaluation["truth_noise"]["bearing_within_frame_sd_rad"] is None
     assert not any("camera's own" in t for t in texts["gt_bearing.png"])
+
+
+@pytest.mark.parametrize("axle", [0.0, 235.0])
+def test_action_curves_draw_each_velocity_against_each_command(axle, monkeypatch):
+    """Whatever the commands: a row per velocity either model moves, a column per command. Each curve is
+    that velocity along one command with the others at their medians, so an affine model's curve has
+    that command's coefficient as its slope and every curve of a row passes through the velocity at the
+    medians; the command itself is drawn only where it asks for that velocity outright (v for the
+    forward speed, omega for the turn rate; no wheel speed alone)."""
+    from dataclasses import replace
+    from types import SimpleNamespace
+
+    from sensact.report import figures_real
+    from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
+
+    d = simulate_diffdrive(DiffDriveConfig(seconds=60, seed=2, wheel_axle_mm=axle)).log()
+    model = initial_model(d, _config())
+    rng = np.random.default_rng(1)
+    learned, from_truth = rng.normal(size=(3, 3)), rng.normal(size=(3, 3))
+    learned[:, 0] = 0.0  # no sideways motion learned; From-Truth's moves, so it gets a row
+    model = replace(model, action=replace(model.action, coefficients=learned))
+    drawn = {}
+    monkeypatch.setattr(figures_real, "_save", lambda fig, path: drawn.setdefault("fig", fig) and path)
+    score = {"action": {"from_truth_coefficients": from_truth.tolist()}}
+    figures_real.figure_action_curves(SimpleNamespace(data=d), model, score, Path("a.png"), "t")
+    axes = np.asarray(drawn["fig"].axes).reshape(3, 2)
+    at_medians = command_features("affine", 1, np.median(d.step_commands, axis=0)[None]) @ np.c_[learned, from_truth]
+    for r, j in enumerate([1, 2, 0]):  # forward, turn, sideways
+        for i, name in enumerate(d.command_names):
+            ax = axes[r, i]
+            lines = {ln.get_label(): ln for ln in ax.get_lines()}
+            for label, beta, k in (("learned (EM)", learned, j), ("From-Truth (Vicon)", from_truth, 3 + j)):
+                x, y = lines[label].get_data()
+                np.testing.assert_allclose(np.diff(y) / np.diff(x), beta[1 + i, j], rtol=1e-6, atol=1e-12)
+                np.testing.assert_allclose(np.interp(np.median(d.step_commands[:, i]), x, y), at_medians[0, k])
+            asks = (name, j) in {("v_mm_s", 1), ("omega_rad_s", 2)}
+            assert ("command" in lines) == asks, (name, j)
+    assert figures_real.action_panels(("v_x_mm_s", "v_y_mm_s", "v_theta_rad_s"), learned, learned) == [1, 2]
 
 
 def test_frame_shared_bearing_error_splits_a_frames_residuals():

@@ -141,6 +141,46 @@ def test_convert_csv_writes_a_log_folder_learn_em_reads_with_mrclams_settings(ti
     assert f"drew {out / 'overview.png'}" in flat and (out / "overview.png").stat().st_size > 20_000
 
 
+def test_wheel_speeds_in_metres_convert_to_what_simulate_diffdrive_logs_with_the_same_settings(timed, tmp_path):
+    """A robot driven wheel by wheel, logged in m/s, converts to the wheel-speed log of the same simulated
+    drive (`simulate diffdrive --set wheel_axle_mm=...`) and gets the same em_config.yaml: MRCLAM's
+    settings without the forward-from-v restriction, which wheel commands cannot express."""
+    _, folder = timed
+    axle = 235.0
+    c = read_numeric_csv(folder / "commands.csv")
+    half = 0.5 * axle * c["omega_rad_s"]
+    _write(
+        tmp_path / "wheels.csv",
+        {"t_s": c["t_s"], "left_m_s": (c["v_mm_s"] - half) / 1000, "right_m_s": (c["v_mm_s"] + half) / 1000},
+    )
+    sim, out = tmp_path / "sim", tmp_path / "converted"
+    res = runner.invoke(
+        app,
+        [
+            "simulate",
+            "diffdrive",
+            "--out",
+            str(sim),
+            "--seconds",
+            "60",
+            "--seed",
+            "5",
+            "--set",
+            f"wheel_axle_mm={axle}",
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    args = [f"--{k}={folder / f'{k}.csv'}" for k in ("sightings", "landmarks")]
+    res = runner.invoke(app, ["convert", "csv", f"--commands={tmp_path / 'wheels.csv'}", *args, "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    assert f"--config {out / 'em_config.yaml'}" in " ".join(res.output.split())
+    a, b = read_landmark_log(out).data, read_landmark_log(sim).data
+    assert a.command_names == b.command_names == ("left_mm_s", "right_mm_s")
+    np.testing.assert_allclose(a.step_commands, b.step_commands, rtol=0, atol=1e-9)
+    assert (out / "em_config.yaml").read_text() == (sim / "em_config.yaml").read_text()
+    assert "action_inputs" not in (out / "em_config.yaml").read_text().split("motion_sd_mm")[1]
+
+
 def test_other_commands_and_readings_get_no_config_and_are_told_how_to_choose(tmp_path):
     _write(tmp_path / "c.csv", {"t_s": [0.0, 1.0, 2.0], "left_wheel": [1.0, 2.0, 3.0], "right_wheel": [1, 1, 1]})
     _write(

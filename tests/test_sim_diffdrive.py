@@ -20,7 +20,7 @@ from sensact.experiments.real import bar_checks
 from sensact.io.landmark_log import read_landmark_log
 from sensact.models.em_model import EMModel
 from sensact.models.linear_action import LinearActionModel
-from sensact.sim.diffdrive import DiffDriveConfig, ring_of_landmarks, simulate_diffdrive
+from sensact.sim.diffdrive import DiffDriveConfig, from_wheel_coefficients, ring_of_landmarks, simulate_diffdrive
 
 runner = CliRunner()
 QUIET = dict(sideways_sd_mm=0.0, forward_sd_mm=0.0, heading_sd_rad=0.0, range_sd_mm=1e-12, bearing_sd_rad=1e-12)
@@ -94,7 +94,70 @@ def test_a_camera_yaw_drift_is_shared_and_slow():
     assert DiffDriveConfig().bearing_drift_sd_rad == 0.0
 
 
+def test_wheel_speeds_log_the_same_robot_on_other_commands(tmp_path):
+    """Exact reduction: with ``wheel_axle_mm`` the log holds the wheel speeds of the same drive
+    ((l + r) / 2 = v, (r - l) / B = omega); an affine model on them, rewritten on (v, omega), predicts the
+    same velocities; the simulated model's own velocities, fitted on the wheels by least squares (an
+    independent route), score its true gains exactly; and `simulate diffdrive` writes MRCLAM's settings
+    less the forward-from-v restriction, saying why."""
+    from sensact.config import config_from_dict, load_yaml_mapping
+    from sensact.learn.em import EMConfig
+    from sensact.learn.em.fit import initial_model
+    from sensact.models.linear_action import command_features
+
+    axle = 235.0
+    base = simulate_diffdrive(DiffDriveConfig(seconds=60, seed=4))
+    run = simulate_diffdrive(DiffDriveConfig(seconds=60, seed=4, wheel_axle_mm=axle))
+    d, vw = run.log(), base.commands
+    assert d.command_names == ("left_mm_s", "right_mm_s") and base.log().command_names == ("v_mm_s", "omega_rad_s")
+    np.testing.assert_array_equal(run.poses, base.poses)
+    np.testing.assert_array_equal(run.obs_bearing_rad, base.obs_bearing_rad)
+    np.testing.assert_allclose(d.step_commands.mean(axis=1), vw[:, 0], atol=1e-12)
+    np.testing.assert_allclose((d.step_commands[:, 1] - d.step_commands[:, 0]) / axle, vw[:, 1], atol=1e-15)
+    beta_w = np.random.default_rng(0).normal(size=(3, 3))
+    np.testing.assert_allclose(
+        command_features("affine", 1, d.step_commands) @ beta_w,
+        command_features("affine", 1, vw) @ from_wheel_coefficients(beta_w, axle),
+        rtol=1e-10,
+        atol=1e-9,
+    )
+    truth = run.config.truth()
+    assert truth["wheel_axle_mm"] == axle
+    true_velocities = command_features("affine", 1, vw) @ np.asarray(truth["action_coefficients"])
+    on_wheels = np.linalg.lstsq(command_features("affine", 1, d.step_commands), true_velocities, rcond=None)[0]
+    log_dir = tmp_path / "w"
+    res = runner.invoke(
+        app,
+        [
+            "simulate",
+            "diffdrive",
+            "--out",
+            str(log_dir),
+            "--seconds",
+            "60",
+            "--seed",
+            "4",
+            "--set",
+            "wheel_axle_mm=235",
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    assert "commands left_mm_s, right_mm_s" in " ".join(res.output.split())
+    text = (log_dir / "em_config.yaml").read_text()
+    assert "wheels' mean" in text and "action_inputs" not in load_yaml_mapping(log_dir / "em_config.yaml")
+    cfg = config_from_dict(EMConfig, load_yaml_mapping(log_dir / "em_config.yaml"))
+    assert cfg.action_inputs == () and cfg.action_zero_mean == ("v_x_mm_s",) and cfg.action_basis == "affine"
+    model = initial_model(d, cfg)
+    model = replace(model, action=replace(model.action, coefficients=on_wheels, delay_steps=truth["delay_steps"]))
+    s = score_against_simulated(model, truth, run.config.dt_s)
+    assert s["forward_gain"][0] == pytest.approx(s["forward_gain"][1], abs=1e-9)
+    assert s["turn_gain"][0] == pytest.approx(s["turn_gain"][1], abs=1e-9)
+    assert s["forward_bias_mm_s"][0] == pytest.approx(s["forward_bias_mm_s"][1], abs=1e-6)
+
+
 def test_bad_settings_are_named():
+    with pytest.raises(ValueError, match="wheel_axle_mm"):
+        DiffDriveConfig(wheel_axle_mm=-1.0)
     with pytest.raises(ValueError, match="margin_mm"):
         DiffDriveConfig(room_width_mm=1000.0)
     with pytest.raises(ValueError, match="min_range_mm"):

@@ -15,6 +15,14 @@ MRCLAM_CONFIG_HEADER = """The EM settings behind docs/em-real.md's MRCLAM result
 (sensact.experiments.real.mrclam_config()), as the fields that differ from EMConfig's defaults.
 Edit them for your robot (docs/em-real.md, section 2) and pass this file with --config;
 --set overrides single fields."""
+WHEELS_CONFIG_NOTE = """
+On wheel speeds (left_mm_s, right_mm_s) the forward speed is the wheels' mean, so MRCLAM's
+action_inputs (forward speed from v_mm_s alone) is left out."""
+
+
+def config_header(command_names: tuple[str, ...]) -> str:
+    """em_config.yaml's header for ``experiments.real.diffdrive_config``'s settings on these commands."""
+    return MRCLAM_CONFIG_HEADER + (WHEELS_CONFIG_NOTE if "left_mm_s" in command_names else "")
 
 
 @convert_app.command("mrclam")
@@ -78,8 +86,9 @@ def convert_csv(
     Times in seconds on one clock, rows in any order. Commands are held until the next row on a fixed
     step, each sighting goes to the nearest step, truth is interpolated. Column suffixes give units:
     _m and _m_s become mm and mm/s, _deg and _deg_s radians. Sightings of landmarks the map does not
-    list are dropped and counted. A differential drive with v_m_s, omega_rad_s and a range_m camera
-    also gets em_config.yaml (MRCLAM's settings) to start from; see docs/em-real.md."""
+    list are dropped and counted. A differential drive logged as v_m_s, omega_rad_s or as wheel speeds
+    left_m_s, right_m_s, with a range_m and bearing camera, also gets em_config.yaml (MRCLAM's settings)
+    to start from; see docs/em-real.md."""
     import numpy as np
 
     from sensact.io.landmark_log import write_landmark_log
@@ -99,14 +108,15 @@ def convert_csv(
     )
     d = tl.data
     console.print(f"drew {_draw_overview(d, tl.groundtruth, out, out.resolve().name)}")
-    like_mrclam = d.command_names == ("v_mm_s", "omega_rad_s") and d.reading_names == ("range_mm",)
-    if like_mrclam and np.isfinite(d.obs_bearing_rad).any():  # MRCLAM's settings learn from the bearings
+    from sensact.experiments.real import diffdrive_config
+
+    settings = diffdrive_config(d.command_names) if d.reading_names == ("range_mm",) else None
+    if settings is not None and np.isfinite(d.obs_bearing_rad).any():  # MRCLAM's settings learn from bearings
         from sensact.config import config_to_yaml
-        from sensact.experiments.real import mrclam_config
         from sensact.io.atomic import write_text
 
         cfg = out / "em_config.yaml"
-        write_text(cfg, config_to_yaml(mrclam_config(), MRCLAM_CONFIG_HEADER))
+        write_text(cfg, config_to_yaml(settings, config_header(d.command_names)))
         console.print(
             f"wrote {out} and {cfg} (MRCLAM's settings, a starting point for a differential drive with a "
             f"range-and-bearing camera); learn with `sensact learn em {out} --config {cfg}`"

@@ -98,22 +98,24 @@ def simulate_diffdrive_cmd(
 
     Writes the EM settings of the MRCLAM results beside it (em_config.yaml); `sensact learn em OUT
     --config OUT/em_config.yaml` then scores the learned model against the true poses and the
-    simulated model."""
-    from sensact.cli.datasets import MRCLAM_CONFIG_HEADER
+    simulated model. `--set wheel_axle_mm=235` logs the wheel speeds (left_mm_s, right_mm_s) instead
+    of v and omega, as a robot driven wheel by wheel is logged."""
+    from sensact.cli.datasets import config_header
     from sensact.config import config_to_yaml
-    from sensact.experiments.real import mrclam_config
+    from sensact.experiments.real import diffdrive_config
     from sensact.io.atomic import write_text
     from sensact.io.landmark_log import write_landmark_log
     from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
     cfg = layered_config(DiffDriveConfig, config, set_, seconds=seconds, seed=seed)
     run = simulate_diffdrive(cfg)
-    write_landmark_log(out, run.log(), groundtruth=run.groundtruth(), meta_extra={"truth": cfg.truth()})
+    log = run.log()
+    write_landmark_log(out, log, groundtruth=run.groundtruth(), meta_extra={"truth": cfg.truth()})
     em_cfg = out / "em_config.yaml"
-    write_text(em_cfg, config_to_yaml(mrclam_config(), MRCLAM_CONFIG_HEADER))
+    write_text(em_cfg, config_to_yaml(diffdrive_config(log.command_names), config_header(log.command_names)))
     console.print(
         f"wrote {out}: {len(run.commands)} steps of {cfg.dt_s:.4g} s, {run.obs_step.size} sightings of "
-        f"{len(cfg.landmarks_xy_mm)} landmarks ({int(run.obs_misread.sum())} misread), command delay "
-        f"{cfg.delay_s:g} s and lag {cfg.lag_s:g} s (seed {cfg.seed}); learn with "
-        f"`sensact learn em {out} --config {em_cfg}`"
+        f"{len(cfg.landmarks_xy_mm)} landmarks ({int(run.obs_misread.sum())} misread), commands "
+        f"{', '.join(log.command_names)}, command delay {cfg.delay_s:g} s and lag {cfg.lag_s:g} s (seed {cfg.seed}); "
+        f"learn with `sensact learn em {out} --config {em_cfg}`"
     )

@@ -11,6 +11,7 @@ import numpy as np
 
 from sensact.models.em_model import EMModel
 from sensact.models.linear_action import LinearActionModel
+from sensact.sim.diffdrive import from_wheel_coefficients
 
 
 def score_against_simulated(model: EMModel, truth: dict[str, Any], dt_s: float) -> dict[str, Any]:
@@ -20,6 +21,8 @@ def score_against_simulated(model: EMModel, truth: dict[str, Any], dt_s: float) 
     if not isinstance(model.action, LinearActionModel) or model.action.basis != "affine":
         raise ValueError("a simulated differential drive is scored with the affine action basis (em_config.yaml)")
     beta, true_beta = model.action.coefficients, np.asarray(truth["action_coefficients"])
+    if truth.get("wheel_axle_mm", 0.0) > 0:  # learned on the wheel speeds: the gains are on (v, omega)
+        beta = from_wheel_coefficients(beta, truth["wheel_axle_mm"])
     ch = model.sensor.channels[0]
     sigma_b = model.sensor.sigma_bearing_rad
     return {

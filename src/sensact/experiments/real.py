@@ -59,6 +59,19 @@ def mrclam_config() -> EMConfig:
     )  # EM runs until it converges (patience), as the thesis's does
 
 
+def diffdrive_config(command_names: tuple[str, ...]) -> EMConfig | None:
+    """MRCLAM's settings for a differential drive, logged either as (v, omega), as MRCLAM is, or as its
+    wheel speeds (left, right); None for other commands. On wheel speeds the forward speed is the wheels'
+    mean, so it uses both commands: ``action_inputs`` (forward from ``v_mm_s`` alone) is dropped, and the
+    affine basis holds the same family (a linear change of commands)."""
+    names = tuple(command_names)
+    if names == ("v_mm_s", "omega_rad_s"):
+        return mrclam_config()
+    if names == ("left_mm_s", "right_mm_s"):
+        return replace(mrclam_config(), action_inputs=())
+    return None
+
+
 def mrclam_folder(root: Path | None = None) -> Path:
     return (root or data_root()) / "mrclam" / "MRCLAM_Dataset6"
 

@@ -32,32 +32,63 @@ def _truth_at_sensor(ml: Any, score: dict[str, Any]) -> tuple[np.ndarray, np.nda
     return ok, at_sensor(poses[d.obs_step[ok]], mount), d.landmarks_xy[d.obs_landmark[ok]]
 
 
+_VELOCITY_LABELS = {  # the panel's title word and its axis
+    "v_x_mm_s": ("sideways velocity", "sideways velocity v_x (mm/s)"),
+    "v_y_mm_s": ("forward velocity", "forward velocity v_y (mm/s)"),
+    "v_theta_rad_s": ("turn rate", "turn rate v_theta (rad/s)"),
+}
+# A command asks for a velocity outright only when it is the log's one command in that velocity's unit: a
+# differential drive's v_mm_s is the forward speed it asks for, while two wheel speeds ask for none alone.
+_ASKED_BY_UNIT = {"v_y_mm_s": "_mm_s", "v_theta_rad_s": "_rad_s"}
+
+
+def action_panels(names: tuple[str, ...], beta_learned: np.ndarray, beta_truth: np.ndarray) -> list[int]:
+    """The velocity components worth a row of panels: forward, turn, then sideways, each only where the
+    learned model or From-Truth moves it (a component both hold at zero, as a differential drive's
+    sideways one, shows nothing)."""
+    order = sorted(range(len(names)), key=lambda j: ("v_y_mm_s", "v_theta_rad_s", "v_x_mm_s").index(names[j]))
+    moving = np.any(beta_learned != 0, axis=0) | np.any(beta_truth != 0, axis=0)
+    return [j for j in order if moving[j]]
+
+
 def figure_action_curves(
     ml: Any, model: Any, score: dict[str, Any], path: Path, title: str, truth: str = "Vicon"
 ) -> Path:
-    """Forward speed against the forward command (the turn command 0) and turn rate against the turn
-    command (the forward one at its median), learned and From-Truth, over the commands the robot used.
-    The log's two commands are taken as (forward, turn), as a differential drive's (v, omega) are."""
+    """Each velocity against each command, learned and From-Truth, over the range of that command the
+    robot used, every other command held at its median over the log (a differential drive's turn
+    command is then 0 and its forward one its cruising speed; a wheel the other wheel's usual speed).
+    A row per velocity that moves, a column per command, whatever the commands are."""
     act = model.action
     beta_ft = np.asarray(score["action"]["from_truth_coefficients"])
     c = ml.data.step_commands
-    fwd, turn = ml.data.command_names
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-    v = np.linspace(c[:, 0].min(), c[:, 0].max(), 50)
-    grid = np.column_stack([v, np.zeros_like(v)])
-    axes[0].plot(v, act.features(grid) @ act.coefficients[:, 1], label="learned (EM)")
-    axes[0].plot(v, act.features(grid) @ beta_ft[:, 1], "--", label=f"From-Truth ({truth})")
-    axes[0].plot(v, v, ":", color="0.5", label="command")
-    axes[0].set(xlabel=f"commanded {fwd}", ylabel="forward velocity v_y (mm/s)", title=f"{title}: forward")
-    w = np.linspace(c[:, 1].min(), c[:, 1].max(), 50)
-    grid = np.column_stack([np.full_like(w, np.median(c[:, 0])), w])
-    axes[1].plot(w, act.features(grid) @ act.coefficients[:, 2], label="learned (EM)")
-    axes[1].plot(w, act.features(grid) @ beta_ft[:, 2], "--", label=f"From-Truth ({truth})")
-    axes[1].plot(w, w, ":", color="0.5", label="command")
-    axes[1].set(xlabel=f"commanded {turn}", ylabel="turn rate v_theta (rad/s)", title=f"{title}: turning")
-    for ax in axes:
-        ax.legend(fontsize=8)
-        ax.grid(alpha=0.3)
+    commands = tuple(ml.data.command_names)
+    velocities = tuple(act.velocity_names)
+    rows = action_panels(velocities, act.coefficients, beta_ft)
+    held = np.median(c, axis=0)
+    fig, axes = plt.subplots(
+        len(rows), len(commands), figsize=(4.2 * len(commands) + 0.6, 3.4 * len(rows)), squeeze=False, sharey="row"
+    )  # a row shares its scale, so a command the velocity hardly depends on draws a flat line, not a zoomed one
+    for r, j in enumerate(rows):
+        unit = _ASKED_BY_UNIT.get(velocities[j])
+        asking = [n for n in commands if unit and n.endswith(unit)]
+        for i, name in enumerate(commands):
+            ax = axes[r, i]
+            x = np.linspace(c[:, i].min(), c[:, i].max(), 50)
+            grid = np.tile(held, (x.size, 1))
+            grid[:, i] = x
+            ax.plot(x, act.features(grid) @ act.coefficients[:, j], label="learned (EM)")
+            ax.plot(x, act.features(grid) @ beta_ft[:, j], "--", label=f"From-Truth ({truth})")
+            if asking == [name]:
+                ax.plot(x, x, ":", color="0.5", label="command")
+            others = ", ".join(f"{n} at {held[k]:.3g}" for k, n in enumerate(commands) if k != i)
+            word, axis = _VELOCITY_LABELS.get(velocities[j], (velocities[j], velocities[j]))
+            ax.set(
+                xlabel=f"commanded {name}" + (f" ({others})" if others else ""),
+                ylabel=axis,
+                title=f"{title}: {word} against {name}",
+            )
+            ax.legend(fontsize=7)
+            ax.grid(alpha=0.3)
     fig.tight_layout()
     return _save(fig, path)
 
@@ -259,17 +290,13 @@ def write_robot(
     truth: str = "Vicon",
 ) -> list[Path]:
     """One robot's four figures against its ground truth, which the legends call ``truth``:
-    ``<stem>_actions.png``, ``_range``, ``_heading_noise`` and ``_bearing``. The action curves need two
-    commands, read as (forward, turn); a robot with another number of commands gets the other three."""
+    ``<stem>_actions.png``, ``_range``, ``_heading_noise`` and ``_bearing``."""
 
     def at(kind: str) -> Path:
         return stem.with_name(f"{stem.name}_{kind}.png")
 
-    actions = []
-    if ml.data.step_commands.shape[1] == 2:
-        actions = [figure_action_curves(ml, model, score, at("actions"), name, truth)]
     return [
-        *actions,
+        figure_action_curves(ml, model, score, at("actions"), name, truth),
         figure_range_function(ml, model, score, at("range"), name, truth),
         figure_heading_noise(ml, model, score, at("heading_noise"), name, truth),
         figure_bearing_noise(ml, model, score, at("bearing"), name, posteriors, truth),

@@ -5,9 +5,10 @@ robots learns from (issue 5, docs/em-real.md), with a known model to recover.
   in place towards a waypoint far off its heading, drives at up to 80 mm/s (MRCLAM's: 67-86) while
   steering at up to 0.4 rad/s, and waits a few seconds at each waypoint. The controller reads the true pose (the
   simulator's stand-in for the robot's own navigation).
-* The commands it logs are continuous ``(v, omega)``; the robot obeys them ``delay_s`` late, through a
-  first-order lag (a motor does not jump to a new speed), with an affine gain and bias. A
-  differential drive does not side-step: its sideways velocity is 0 on average.
+* The commands it logs are continuous ``(v, omega)``, or (``wheel_axle_mm``) the wheel speeds they make;
+  the robot obeys them ``delay_s`` late, through a first-order lag (a motor does not jump to a new
+  speed), with an affine gain and bias. A differential drive does not side-step: its sideways
+  velocity is 0 on average.
 * Per-step motion noise in the robot frame (sideways, forward, heading), Gaussian.
 * A camera sees landmarks inside its field of view and range at a frame rate; each landmark in view
   is detected with a probability. A sighting reads the range as ``gain d + offset + d (a_1 b + a_2
@@ -36,6 +37,20 @@ from sensact.core.pose_models import landmark_bearing, landmark_distance
 from sensact.logs.landmark_log import LandmarkLog
 
 COMMAND_NAMES = ("v_mm_s", "omega_rad_s")
+WHEEL_COMMAND_NAMES = ("left_mm_s", "right_mm_s")
+
+
+def wheel_speeds(commands: np.ndarray, axle_mm: float) -> np.ndarray:
+    """``(v, omega)`` rows as the wheel speeds ``(v - omega B / 2, v + omega B / 2)`` of an axle ``B``."""
+    c = np.asarray(commands, dtype=float)
+    return np.column_stack([c[:, 0] - 0.5 * axle_mm * c[:, 1], c[:, 0] + 0.5 * axle_mm * c[:, 1]])
+
+
+def from_wheel_coefficients(beta: np.ndarray, axle_mm: float) -> np.ndarray:
+    """An affine model on the wheel speeds ``(1, left, right)`` rewritten on ``(1, v, omega)``: the same
+    velocities, since ``Phi_wheels = Phi_(v, omega) T`` with ``T`` the wheel map, so ``beta_(v, omega) = T beta``."""
+    h = 0.5 * axle_mm
+    return np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 1.0], [0.0, -h, h]]) @ np.asarray(beta, dtype=float)
 
 
 def ring_of_landmarks(width_mm: float, length_mm: float, per_side: int) -> tuple[tuple[float, float], ...]:
@@ -96,6 +111,9 @@ class DiffDriveConfig:
     # residuals about Vicon hold (docs/em-real.md, Known limits); the truth's residual counts it as noise
     bearing_drift_sd_rad: float = 0.0
     bearing_drift_tau_s: float = 5.0
+    # what the log records: 0 logs the controller's (v, omega); an axle length logs the wheel speeds
+    # (left_mm_s, right_mm_s) the same commands make on it, as a robot driven wheel by wheel is logged
+    wheel_axle_mm: float = 0.0
 
     def __post_init__(self) -> None:
         problems = []
@@ -113,6 +131,8 @@ class DiffDriveConfig:
             problems.append("range_sd_mm and bearing_sd_rad must be > 0")
         if min(self.sideways_sd_mm, self.forward_sd_mm, self.heading_sd_rad, self.delay_s, self.lag_s) < 0:
             problems.append("motion noise, delay_s and lag_s must be >= 0")
+        if self.wheel_axle_mm < 0:
+            problems.append("wheel_axle_mm must be >= 0 (0 logs v and omega)")
         if self.bearing_drift_sd_rad < 0 or self.bearing_drift_tau_s <= 0:
             problems.append("bearing_drift_sd_rad must be >= 0 and bearing_drift_tau_s > 0")
         if not (0 <= self.detect_probability <= 1 and 0 <= self.misread_rate < 1):
@@ -151,7 +171,8 @@ class DiffDriveConfig:
         """What the simulated robot really is, for meta.json (scoring only, never learned from)."""
         return {
             "kind": "diffdrive",
-            "action_coefficients": self.action_coefficients().tolist(),
+            "action_coefficients": self.action_coefficients().tolist(),  # on (1, v, omega), whatever is logged
+            "wheel_axle_mm": self.wheel_axle_mm,
             "delay_steps": self.delay_steps,
             "lag_s": self.lag_s,
             "motion_sd_per_step": [self.sideways_sd_mm, self.forward_sd_mm, self.heading_sd_rad],
@@ -165,7 +186,7 @@ class DiffDriveConfig:
 @dataclass(frozen=True, eq=False)
 class DiffDriveRun:
     config: DiffDriveConfig
-    commands: np.ndarray  # (T, 2) logged (v mm/s, omega rad/s), in force from step t to t+1
+    commands: np.ndarray  # (T, 2) the controller's (v mm/s, omega rad/s), in force from step t to t+1
     poses: np.ndarray  # (T, 3) true (x mm, y mm, theta rad), theta wrapped
     obs_step: np.ndarray  # (K,)
     obs_landmark: np.ndarray  # (K,)
@@ -173,14 +194,21 @@ class DiffDriveRun:
     obs_bearing_rad: np.ndarray
     obs_misread: np.ndarray  # (K,) True for a misread sighting
 
+    def logged_commands(self) -> tuple[tuple[str, ...], np.ndarray]:
+        """The commands as the log records them: (v, omega), or the wheel speeds (``wheel_axle_mm``)."""
+        if self.config.wheel_axle_mm > 0:
+            return WHEEL_COMMAND_NAMES, wheel_speeds(self.commands, self.config.wheel_axle_mm)
+        return COMMAND_NAMES, self.commands
+
     def log(self, source: str = "simulated differential drive") -> LandmarkLog:
         T = len(self.commands)
+        names, logged = self.logged_commands()
         return LandmarkLog(
             "planar",
             self.config.dt_s,
             np.full(T, -1),
             np.zeros((0, 2)),
-            COMMAND_NAMES,
+            names,
             self.obs_step,
             self.obs_landmark,
             self.obs_range_mm,
@@ -188,7 +216,7 @@ class DiffDriveRun:
             np.asarray(self.config.landmarks_xy_mm),
             source=source,
             reading_names=("range_mm",),
-            step_commands=self.commands,
+            step_commands=logged,
         )
 
     def groundtruth(self) -> dict[str, np.ndarray]:
