@@ -31,7 +31,9 @@ def convert_mrclam(
     dataset: Annotated[Path, typer.Argument(help="An MRCLAM dataset folder, e.g. .../MRCLAM_Dataset6.")],
     robot: Annotated[int, typer.Option(help="Robot 1-5.")] = 1,
     out: Annotated[Path, typer.Option("--out", help="The log folder to write.")] = Path("mrclam_log"),
-    dt: Annotated[float, typer.Option(help="Step (s); commands are held between their rows.")] = 1.0 / 30.0,
+    dt: Annotated[
+        float, typer.Option(help="Step (s), 1/30 by default; commands are held between their rows.", show_default=False)
+    ] = (1.0 / 30.0),
 ) -> None:
     """Write one MRCLAM robot as an EM log folder, with its EM settings in em_config.yaml.
 
@@ -79,7 +81,9 @@ def convert_csv(
         Path | None, typer.Option(help="Optional, for scoring only: t_s, x_m, y_m, theta_rad (0 facing +x).")
     ] = None,
     out: Annotated[Path, typer.Option("--out", help="The log folder to write.")] = Path("robot_log"),
-    dt: Annotated[float, typer.Option(help="Step (s); commands are held between their rows.")] = 1.0 / 30.0,
+    dt: Annotated[
+        float, typer.Option(help="Step (s), 1/30 by default; commands are held between their rows.", show_default=False)
+    ] = (1.0 / 30.0),
 ) -> None:
     """Write your robot's own timed CSV files as an EM log folder.
 
