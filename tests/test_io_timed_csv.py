@@ -114,6 +114,8 @@ def test_a_simulated_log_written_off_the_grid_converts_back_exactly(timed):
         1,
     )
     assert s["unknown_landmark_ids"] == [7.0] and s["command_rows"] < d.n_steps
+    assert s["dropped_after_commands"] == 1  # the one 10 s after the run, with how to keep such sightings
+    assert "1 after the last command row: a row at the log's end holds the last command to it" in tl.summary_line()
     assert f"kept {ref.obs_step.size} of {ref.obs_step.size + 3} sightings" in tl.summary_line()
 
 

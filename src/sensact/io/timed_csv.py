@@ -104,6 +104,11 @@ class TimedLog:
             f"the map{_ids(s['unknown_landmark_ids'])}, {s['dropped_outside_time']} outside the commands' "
             f"span, {s['dropped_nothing_read']} with nothing read"
         )
+        if s["dropped_after_commands"]:  # a robot that logs a command only when it changes ends on its last change
+            line += (
+                f" ({s['dropped_after_commands']} after the last command row: a row at the log's end holds the last "
+                "command to it)"
+            )
         if self.groundtruth is not None:
             line += f"; truth covers {100.0 * float(np.mean(self.groundtruth['valid'])):.0f} % of the steps"
         return line
@@ -205,6 +210,7 @@ def read_timed_csv(
         "dropped_unknown_landmark": int((~known).sum()),
         "unknown_landmark_ids": sorted({float(v) for v in obs["landmark_id"][~known]}),
         "dropped_outside_time": int((known & ~inside).sum()),
+        "dropped_after_commands": int((known & ~inside & (step > 0)).sum()),
         "dropped_nothing_read": int((known & inside & ~read).sum()),
     }
     return TimedLog(data, t0, gt, summary)
