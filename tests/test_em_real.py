@@ -1161,6 +1161,7 @@ def test_action_curves_draw_each_velocity_against_each_command(axle, monkeypatch
             asks = (name, j) in {("v_mm_s", 1), ("omega_rad_s", 2)}
             assert ("command" in lines) == asks, (name, j)
     assert figures_real.action_panels(("v_x_mm_s", "v_y_mm_s", "v_theta_rad_s"), learned, learned) == [1, 2]
+    assert figures_real.action_panels(("a", "v_theta_rad_s", "v_y_mm_s"), from_truth, from_truth) == [2, 1, 0]
 
 
 def test_frame_shared_bearing_error_splits_a_frames_residuals():

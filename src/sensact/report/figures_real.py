@@ -46,7 +46,8 @@ def action_panels(names: tuple[str, ...], beta_learned: np.ndarray, beta_truth: 
     """The velocity components worth a row of panels: forward, turn, then sideways, each only where the
     learned model or From-Truth moves it (a component both hold at zero, as a differential drive's
     sideways one, shows nothing)."""
-    order = sorted(range(len(names)), key=lambda j: ("v_y_mm_s", "v_theta_rad_s", "v_x_mm_s").index(names[j]))
+    first = ("v_y_mm_s", "v_theta_rad_s", "v_x_mm_s")
+    order = sorted(range(len(names)), key=lambda j: first.index(names[j]) if names[j] in first else len(first))
     moving = np.any(beta_learned != 0, axis=0) | np.any(beta_truth != 0, axis=0)
     return [j for j in order if moving[j]]
 
