@@ -313,3 +313,10 @@ def test_a_log_without_bearings_gets_no_camera_settings_and_learn_em_names_what_
     res = runner.invoke(app, ["learn", "em", str(out), *cfg, "--set", no_terms])
     flat = " ".join(res.output.split())
     assert res.exit_code == 2 and "start_search_s" in flat and "start_prior_mean" in flat
+    # the library refuses the same, so a script calling fit_em gets the line and not a failure deep in EM
+    from sensact.errors import ConfigError
+    from sensact.experiments.real import mrclam_config
+    from sensact.learn.em import fit_em
+
+    with pytest.raises(ConfigError, match=r"channels\[0\]\.bearing_degree: .* Fix: set bearing_degree: 0"):
+        fit_em(read_landmark_log(out).data, config=mrclam_config())

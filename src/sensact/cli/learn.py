@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
@@ -46,29 +46,6 @@ def warn_if_one_command(commands: np.ndarray, source: str, name: str, unit: str 
         "so the action model's slope rests on the few steps at others and a gain against ground truth is not "
         "scored; for a model to trust, drive at two or more speeds, each for a few seconds."
     )
-
-
-def refuse_bearing_settings(cfg: Any, source: str) -> None:
-    """A planar log without a single bearing cannot run settings that need one: a channel with bearing terms
-    predicts none of its readings (they count as missing), and the start search scores poses by bearings.
-    One line naming the field, before EM would fail on it."""
-    from sensact.errors import ConfigError
-
-    for i, ch in enumerate(cfg.channels):
-        if ch.bearing_degree > 0:
-            raise ConfigError(
-                f"{source} has no bearings, and channel {ch.name} has bearing terms (its reading depends on the "
-                "bearing), so none of its readings could be used.",
-                field=f"channels[{i}].bearing_degree",
-                fix="set bearing_degree: 0 for that channel in your --config.",
-            )
-    if cfg.start_search_s > 0:
-        raise ConfigError(
-            f"{source} has no bearings, and the start search scores start poses by them.",
-            field="start_search_s",
-            fix="pass --set start_search_s=0 and give where the robot starts: start_prior_mean (x mm, y mm, heading "
-            "rad) and start_prior_sd.",
-        )
 
 
 @learn_app.command("bootstrap")
@@ -166,6 +143,7 @@ def learn_em_cmd(
     from sensact.io.atomic import write_json, write_npz
     from sensact.io.landmark_log import read_landmark_log
     from sensact.learn.em import EMConfig, fit_em, initial_model
+    from sensact.learn.em.config import refuse_bearing_settings
 
     lf, turtlebot_truth = None, None
     if log.is_file() and log.suffix.lower() == ".csv":
@@ -218,7 +196,7 @@ def learn_em_cmd(
             + ".",
         )
     if data.geometry == "planar" and not np.isfinite(data.obs_bearing_rad).any():
-        refuse_bearing_settings(cfg, data.source)
+        refuse_bearing_settings(cfg, data.source)  # before the starting model, which would fail on it
     if data.geometry == "track" and data.step_commands is not None:
         warn_if_one_command(data.step_commands[:, 0], data.source, data.command_names[0])
     start = initial_model(data, cfg)

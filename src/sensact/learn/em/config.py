@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from sensact.errors import ConfigError
 from sensact.models.landmark_sensor import check_robust
 from sensact.models.linear_action import BASES
 
@@ -177,3 +178,24 @@ class EMConfig:
         if missing:
             raise ValueError(f"channels {missing} are not readings of this log (it has {list(reading_names)})")
         return self.channels
+
+
+def refuse_bearing_settings(config: EMConfig, source: str) -> None:
+    """A planar log without a single bearing cannot run settings that need one: a channel with bearing terms
+    predicts none of its readings (they count as missing), and the start search scores poses by bearings.
+    One line naming the field (``ConfigError``), before EM would fail on it."""
+    for i, ch in enumerate(config.channels):
+        if ch.bearing_degree > 0:
+            raise ConfigError(
+                f"{source} has no bearings, and channel {ch.name} has bearing terms (its reading depends on the "
+                "bearing), so none of its readings could be used.",
+                field=f"channels[{i}].bearing_degree",
+                fix="set bearing_degree: 0 for that channel in your --config.",
+            )
+    if config.start_search_s > 0:
+        raise ConfigError(
+            f"{source} has no bearings, and the start search scores start poses by them.",
+            field="start_search_s",
+            fix="pass --set start_search_s=0 and give where the robot starts: start_prior_mean (x mm, y mm, heading "
+            "rad) and start_prior_sd.",
+        )

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from sensact.learn.em.config import EMConfig
+from sensact.learn.em.config import EMConfig, refuse_bearing_settings
 from sensact.learn.em.delay_search import search_delay
 from sensact.learn.em.estep import Posteriors, e_step
 from sensact.learn.em.mstep import m_step
@@ -191,6 +191,8 @@ def fit_em(
             f"{data.source}: motion_sd_sideways_mm is a planar robot's sideways noise and a track has no sideways; "
             "remove it or set it to 0"
         )
+    if data.geometry == "planar" and not np.isfinite(data.obs_bearing_rad).any():
+        refuse_bearing_settings(cfg, data.source)
     model = initial or initial_model(data, cfg)
     rng = np.random.default_rng(cfg.seed)
     n = model.prior_mean.size
