@@ -303,6 +303,11 @@ def test_a_log_without_bearings_gets_no_camera_settings_and_learn_em_names_what_
     res = runner.invoke(app, ["convert", "csv", *args, "--sightings", str(tmp_path / "s.csv"), "--out", str(out)])
     assert res.exit_code == 0, res.output
     assert not (out / "em_config.yaml").exists()  # MRCLAM's settings learn from the bearings
+    (out / "em_config.yaml").write_text("motion_sd_mm: 2.0\n")  # a file of the user's, or an earlier run's
+    res = runner.invoke(app, ["convert", "csv", *args, "--sightings", str(tmp_path / "s.csv"), "--out", str(out)])
+    assert res.exit_code == 0 and "was there before and is left as it was" in " ".join(res.output.split())
+    assert (out / "em_config.yaml").read_text() == "motion_sd_mm: 2.0\n"
+    (out / "em_config.yaml").unlink()
     sim = tmp_path / "sim"
     assert runner.invoke(app, ["simulate", "diffdrive", "--out", str(sim), "--seconds", "20"]).exit_code == 0
     cfg = ["--config", str(sim / "em_config.yaml")]

@@ -131,6 +131,11 @@ def convert_csv(
             f"{', '.join(d.reading_names)} in a YAML file (docs/em-real.md, section 2) and learn with "
             f"`sensact learn em {out} --config YOUR.yaml`"
         )
+        if (out / "em_config.yaml").is_file():  # an earlier conversion's, or the user's own: not ours to delete
+            console.print(
+                f"[yellow]note:[/] {out / 'em_config.yaml'} was there before and is left as it was; check that it "
+                f"fits commands {', '.join(d.command_names)} before passing it to learn em"
+            )
 
 
 @evaluate_app.command("mrclam")
