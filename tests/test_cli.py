@@ -45,6 +45,17 @@ def test_every_commands_help_is_one_line_a_paragraph():
             assert p.startswith("\b") or "\n" not in p.strip(), (path, p)
 
 
+def test_every_command_has_its_section_in_the_command_docs():
+    """docs/commands.md has a section headed by each command that runs something (not a group)."""
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "commands.md").read_text()
+    headings = {line[3:].strip() for line in doc.splitlines() if line.startswith("## ")}
+    leaves = [p for p, c in COMMANDS if p and not getattr(c, "commands", None)]
+    missing = [" ".join(p) for p in leaves if f"`sensact {' '.join(p)}`" not in headings]
+    assert len(leaves) >= 12 and not missing, missing
+
+
 def test_one_line_paragraphs_joins_lines_and_keeps_paragraphs_and_kept_blocks():
     doc = """Summary that
     wraps.

@@ -205,6 +205,62 @@ def test_simulate_diffdrive_then_learn_em_scores_against_the_simulation(tmp_path
     assert "vs the simulated model (learned / true)" in " ".join(res.output.split())
     assert ev["bars"] == bar_checks(ev) and len(ev["bars"]) == 5
     assert (tmp_path / "m_bearing.png").stat().st_size > 10_000
+    # `evaluate log`: the same model on the same log scores exactly as learn em did (an exact reduction) ...
+    res = runner.invoke(app, ["evaluate", "log", str(log), "--model", str(model), "--out", str(tmp_path / "e.json")])
+    assert res.exit_code == 0, res.output
+    assert json.loads((tmp_path / "e.json").read_text()) == ev
+    assert (tmp_path / "e_actions.png").stat().st_size > 10_000
+    # ... and on another run of the robot it scores against that run's truth, with From-Truth fitted there
+    other = tmp_path / "dd4"
+    assert (
+        runner.invoke(app, ["simulate", "diffdrive", "--out", str(other), "--seconds", "90", "--seed", "4"]).exit_code
+        == 0
+    )
+    res = runner.invoke(app, ["evaluate", "log", str(other), "--model", str(model), "--out", str(tmp_path / "o.json")])
+    assert res.exit_code == 0, res.output
+    ev4 = json.loads((tmp_path / "o.json").read_text())
+    assert ev4["simulated"] == ev["simulated"]  # the model against the robot: the same robot, the same numbers
+    assert ev4["action"] != ev["action"] and ev4["bars"] == bar_checks(ev4)
+
+
+def test_evaluate_log_names_what_keeps_a_model_from_a_log(tmp_path):
+    """A model scores only on a log it could have been learned from; anything else is one line naming the
+    field and the fix, never a traceback: other commands, another step, a log with no truth, a bad file."""
+    from sensact.config import config_from_dict, load_yaml_mapping
+    from sensact.learn.em import EMConfig, fit_em
+
+    logs = {}
+    for name, extra in (("vw", []), ("wheels", ["--set", "wheel_axle_mm=235"]), ("coarse", ["--set", "dt_s=0.05"])):
+        logs[name] = tmp_path / name
+        res = runner.invoke(app, ["simulate", "diffdrive", "--out", str(logs[name]), "--seconds", "30", *extra])
+        assert res.exit_code == 0, res.output
+    lf = read_landmark_log(logs["vw"])
+    cfg = replace(
+        config_from_dict(EMConfig, load_yaml_mapping(logs["vw"] / "em_config.yaml")), max_iterations=2, start_search_s=0
+    )
+    fitted = fit_em(lf.data, config=cfg).model
+    model = tmp_path / "m.json"
+    model.write_text(json.dumps({"model": fitted.to_dict(), "dt_s": lf.data.dt_s}))
+    no_truth = tmp_path / "no_truth"
+    no_truth.mkdir()
+    for f in ("meta.json", "actions.csv", "observations.csv"):
+        (no_truth / f).write_bytes((logs["vw"] / f).read_bytes())
+    meta = json.loads((no_truth / "meta.json").read_text())
+    meta.pop("truth")
+    (no_truth / "meta.json").write_text(json.dumps(meta))
+    (tmp_path / "bad.json").write_text("{not json")
+    cases = [
+        (logs["wheels"], model, "action.command_names", "the model's commands are v_mm_s, omega_rad_s"),
+        (logs["coarse"], model, "dt_s", "--dt 0.03333333333"),
+        (no_truth, model, "groundtruth.csv", "has no ground truth"),
+        (logs["vw"], tmp_path / "bad.json", "bad.json", "not JSON"),
+        (logs["vw"], tmp_path / "none.json", "none.json", "file not found"),
+    ]
+    for folder, m, field, words in cases:
+        res = runner.invoke(app, ["evaluate", "log", str(folder), "--model", str(m)])
+        flat = " ".join(res.output.split())
+        assert res.exit_code == 2 and field in flat and words in flat and "Traceback" not in res.output, flat
+    assert runner.invoke(app, ["evaluate", "log", str(logs["vw"]), "--model", str(model)]).exit_code == 0
 
 
 def test_reproduce_diffdrive_writes_its_scorecard_and_figures(tmp_path):

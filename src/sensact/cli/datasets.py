@@ -9,7 +9,7 @@ from typing import Annotated, Any
 import typer
 
 from sensact.cli.base import console, convert_app, evaluate_app, friendly
-from sensact.cli.scores import print_truth_score
+from sensact.cli.scores import evaluate_em, print_truth_score
 
 MRCLAM_CONFIG_HEADER = """The EM settings behind docs/em-real.md's MRCLAM results
 (sensact.experiments.real.mrclam_config()), as the fields that differ from EMConfig's defaults.
@@ -154,19 +154,12 @@ def evaluate_mrclam_cmd(
     From-Truth is the same model families fitted directly to the ground truth. With --out, also draw
     the action curves, the range function, the heading noise and the bearing noise against Vicon's,
     as `reproduce real` does."""
-    import json
-
-    from sensact.errors import ModelFormatError
     from sensact.evaluate.landmark_truth import score_against_truth
     from sensact.experiments.real import bar_checks
     from sensact.io.atomic import write_json
     from sensact.io.mrclam import read_mrclam
-    from sensact.models.em_model import EMModel
 
-    if not model.is_file():
-        raise ModelFormatError("file not found.", file=model, fix="give the model.json `sensact learn em` wrote.")
-    doc = json.loads(model.read_text())
-    m = EMModel.from_dict(doc.get("model", doc), source=str(model))
+    doc, m = _read_em_model(model)
     ml = read_mrclam(dataset, robot, dt_s=float(doc.get("dt_s", 1.0 / 30.0)))
     sc = score_against_truth(m, ml.data, *ml.truth_poses())
     sc["bars"] = bar_checks(sc)
@@ -177,3 +170,103 @@ def evaluate_mrclam_cmd(
         write_json(out, sc)
         figures = write_robot(ml, m, sc, out.with_suffix(""), f"robot {robot}")
         console.print("wrote " + ", ".join(str(p) for p in (out, *figures)))
+
+
+def _read_em_model(model: Path) -> tuple[dict[str, Any], Any]:
+    """A model.json `sensact learn em` wrote: the whole document (its ``dt_s`` too) and the model."""
+    import json
+
+    from sensact.errors import ModelFormatError
+    from sensact.models.em_model import EMModel
+
+    if not model.is_file():
+        raise ModelFormatError("file not found.", file=model, fix="give the model.json `sensact learn em` wrote.")
+    try:
+        doc = json.loads(model.read_text())
+    except json.JSONDecodeError as exc:
+        raise ModelFormatError(
+            f"not JSON ({exc}).", file=model, fix="give the model.json `sensact learn em` wrote."
+        ) from None
+    if not isinstance(doc, dict):
+        raise ModelFormatError("not an EM model.", file=model, fix="give the model.json `sensact learn em` wrote.")
+    return doc, EMModel.from_dict(doc.get("model", doc), source=str(model))
+
+
+def refuse_model_for_log(doc: dict[str, Any], m: Any, data: Any, model: Path, log: Path) -> None:
+    """A model scores only on a log it could have been learned from: the same geometry, commands (or number
+    of actions), readings and step, since its delay is counted in steps. One line naming what differs."""
+    from sensact.errors import ModelFormatError
+    from sensact.models.action_table import ActionTable
+
+    def refuse(what: str, field: str, fix: str) -> None:
+        raise ModelFormatError(f"{what}, so it cannot be scored on {log}.", file=model, field=field, fix=fix)
+
+    relearn = f"score it on a log like the one it was learned from, or learn one on this log (sensact learn em {log})."
+    if m.geometry != data.geometry:
+        refuse(f"the model is {m.geometry} and the log {data.geometry}", "geometry", relearn)
+    if isinstance(m.action, ActionTable):
+        if data.is_continuous or m.action.n_actions != data.n_actions:
+            has = "continuous commands" if data.is_continuous else f"{data.n_actions} actions"
+            refuse(f"the model has a table of {m.action.n_actions} actions and the log {has}", "action", relearn)
+    elif tuple(m.action.command_names) != tuple(data.command_names):
+        refuse(
+            f"the model's commands are {', '.join(m.action.command_names)} and the log's "
+            f"{', '.join(data.command_names) or 'discrete actions'}",
+            "action.command_names",
+            relearn,
+        )
+    missing = [ch.name for ch in m.sensor.channels if ch.name not in data.reading_names]
+    if missing:
+        refuse(f"the log has no reading {missing[0]} (it has {', '.join(data.reading_names)})", "sensor", relearn)
+    dt = doc.get("dt_s")
+    if dt is not None and abs(float(dt) - data.dt_s) > 1e-9 * max(1.0, data.dt_s):
+        refuse(
+            f"the model was learned on steps of {float(dt):.6g} s and the log has {data.dt_s:.6g} s (the command "
+            "delay is counted in steps)",
+            "dt_s",
+            f"convert the log again with --dt {float(dt):.10g}.",
+        )
+
+
+@evaluate_app.command("log")
+@friendly
+def evaluate_log_cmd(
+    log: Annotated[Path, typer.Argument(help="A log folder with its ground truth (groundtruth.csv with poses).")],
+    model: Annotated[Path, typer.Option("--model", help="A model.json written by `sensact learn em`.")],
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", help="Write the scores here (JSON), and four figures beside it (OUT_actions.png, ...)."),
+    ] = None,
+) -> None:
+    """Score a model learned on one log against another log's ground truth, next to From-Truth.
+
+    The check that a model holds beyond the log it was learned from: learn on one run, score on the
+    next. The same table, bars and figures as `learn em` prints for a log with ground truth, with
+    From-Truth fitted on this log; the model must share the log's commands, readings and step."""
+    from sensact.errors import LogFormatError
+    from sensact.io.atomic import write_json
+    from sensact.io.landmark_log import read_landmark_log
+
+    if not log.is_dir():
+        raise LogFormatError(
+            "not a log folder.", file=log, fix="give a folder `convert csv`, `convert mrclam` or `simulate` wrote."
+        )
+    doc, m = _read_em_model(model)
+    lf = read_landmark_log(log)
+    refuse_model_for_log(doc, m, lf.data, model, log)
+    console.print(f"{model} on {lf.title(log)}: {lf.data.n_steps} steps, {lf.data.n_observations} observations")
+    sc = evaluate_em(lf, m)
+    if sc is None:
+        raise LogFormatError(
+            "has no ground truth to score against.",
+            file=log / "groundtruth.csv",
+            fix="add groundtruth.csv with t_s, x_mm, y_mm, theta_rad (convert csv --truth writes it).",
+        )
+    if out is not None:
+        write_json(out, sc)
+        written = [out]
+        if "truth_noise" in sc:  # scored against recorded poses: the figures too
+            from sensact.report.figures_real import write_robot
+
+            written += write_robot(lf, m, sc, out.with_suffix(""), lf.title(log), truth="ground truth")
+        console.print("wrote " + ", ".join(str(p) for p in written))
