@@ -1335,6 +1335,32 @@ def test_mrclam_robot1_from_an_unknown_start(tmp_path):
     t = row["truth_restart"]
     assert t["sightings_used"] == t["sightings_used_poor_start"]
     assert t["loglik_best"] - t["loglik_poor_start"] < 100.0
+    # `evaluate log` on real folders: on robot 1's own log it scores the model as the run did; robot 1's
+    # model on robot 3's log (the same kind of robot) holds the action bars (docs/em-real.md, the fleet)
+    from typer.testing import CliRunner
+
+    from sensact.io.landmark_log import write_landmark_log
+    from sensact.io.mrclam import read_mrclam
+
+    model = tmp_path / "m1.json"
+    model.write_text(json.dumps({"model": res.model.to_dict(), "dt_s": ml.data.dt_s}))
+    scores = {}
+    for robot in (1, 3):
+        m = read_mrclam(mrclam_folder(DATA), robot)
+        write_landmark_log(tmp_path / f"r{robot}", m.data, groundtruth=m.groundtruth)
+        out = tmp_path / f"e{robot}.json"
+        run = CliRunner().invoke(
+            cli.app, ["evaluate", "log", str(tmp_path / f"r{robot}"), "--model", str(model), "--out", str(out)]
+        )
+        assert run.exit_code == 0, run.output
+        scores[robot] = json.loads(out.read_text())
+    for key in ("action", "range", "bearing", "bars"):
+        assert scores[1][key] == row["score"][key], key
+    held = {k: v for k, v in scores[3]["bars"].items() if k.startswith("action")}
+    assert (
+        all(held.values())
+        and scores[3]["range"]["learned_residual_rms_mm"] > row["score"]["range"]["learned_residual_rms_mm"]
+    )
 
 
 def test_reproduce_real_runs_every_mrclam_dataset_it_finds(tmp_path):
