@@ -261,6 +261,22 @@ def test_evaluate_log_names_what_keeps_a_model_from_a_log(tmp_path):
         flat = " ".join(res.output.split())
         assert res.exit_code == 2 and field in flat and words in flat and "Traceback" not in res.output, flat
     assert runner.invoke(app, ["evaluate", "log", str(logs["vw"]), "--model", str(model)]).exit_code == 0
+    # a table of discrete actions scores only on a log whose actions are the same commands
+    track = tmp_path / "track"
+    assert (
+        runner.invoke(app, ["simulate", "track1d", "--seconds", "60", "--seed", "1", "--out", str(track)]).exit_code
+        == 0
+    )
+    table = tmp_path / "t.json"
+    res = runner.invoke(app, ["learn", "em", str(track), "--set", "max_iterations=2", "--out", str(table)])
+    assert res.exit_code == 0, res.output
+    assert runner.invoke(app, ["evaluate", "log", str(track), "--model", str(table)]).exit_code == 0
+    doc = json.loads(table.read_text())
+    doc["model"]["action"]["commands"] = [[1.5 * c for c in row] for row in doc["model"]["action"]["commands"]]
+    table.write_text(json.dumps(doc))
+    res = runner.invoke(app, ["evaluate", "log", str(track), "--model", str(table)])
+    flat = " ".join(res.output.split())
+    assert res.exit_code == 2 and "action.commands" in flat and "other commands" in flat, flat
 
 
 def test_reproduce_diffdrive_writes_its_scorecard_and_figures(tmp_path):

@@ -195,6 +195,8 @@ def _read_em_model(model: Path) -> tuple[dict[str, Any], Any]:
 def refuse_model_for_log(doc: dict[str, Any], m: Any, data: Any, model: Path, log: Path) -> None:
     """A model scores only on a log it could have been learned from: the same geometry, commands (or number
     of actions), readings and step, since its delay is counted in steps. One line naming what differs."""
+    import numpy as np
+
     from sensact.errors import ModelFormatError
     from sensact.models.action_table import ActionTable
 
@@ -208,6 +210,9 @@ def refuse_model_for_log(doc: dict[str, Any], m: Any, data: Any, model: Path, lo
         if data.is_continuous or m.action.n_actions != data.n_actions:
             has = "continuous commands" if data.is_continuous else f"{data.n_actions} actions"
             refuse(f"the model has a table of {m.action.n_actions} actions and the log {has}", "action", relearn)
+        if not np.allclose(m.action.commands, data.action_commands, rtol=1e-9, atol=1e-9):
+            # a track log bins its own commands: the same count of actions can mean other commands
+            refuse("the model's actions are other commands than the log's", "action.commands", relearn)
     elif tuple(m.action.command_names) != tuple(data.command_names):
         refuse(
             f"the model's commands are {', '.join(m.action.command_names)} and the log's "
