@@ -1361,6 +1361,19 @@ def test_mrclam_robot1_from_an_unknown_start(tmp_path):
         all(held.values())
         and scores[3]["range"]["learned_residual_rms_mm"] > row["score"]["range"]["learned_residual_rms_mm"]
     )
+    # `evaluate fleet` on the same two folders: each pair is the `evaluate log` score of it
+    from sensact.experiments.fleet import fleet_cell
+
+    out = tmp_path / "fleet.json"
+    run = CliRunner().invoke(
+        cli.app,
+        ["evaluate", "fleet", str(tmp_path / "r1"), str(tmp_path / "r3"), "--model", str(model), "--out", str(out)],
+    )
+    assert run.exit_code == 0, run.output
+    fleet = json.loads(out.read_text())
+    assert fleet["own"] == {} and fleet["summary"]["other"]["pairs"] == 2  # model.json names no log
+    for robot in (1, 3):
+        assert fleet["cells"]["m1"][f"r{robot}"] == json.loads(json.dumps(fleet_cell(scores[robot])))
 
 
 def test_reproduce_real_runs_every_mrclam_dataset_it_finds(tmp_path):
@@ -1392,6 +1405,17 @@ def test_reproduce_real_runs_every_mrclam_dataset_it_finds(tmp_path):
     assert any(s.startswith("MRCLAM MRCLAM_Dataset9/robot3: ") for s in res["skipped"])
     keys = [c["key"] for c in res["scorecard"]]  # every robot's bars, under its row's name
     assert len(keys) == 15 and keys[5] == "MRCLAM_Dataset6/robot3.action_translation_ratio"
+    # a dataset with two robots or more gets its fleet table: on its diagonal, each robot's own score
+    from sensact.experiments.fleet import fleet_cell
+
+    assert list(res["fleet"]) == ["MRCLAM_Dataset6"]  # Dataset 9 has one robot left
+    fleet = res["fleet"]["MRCLAM_Dataset6"]
+    assert fleet["models"] == fleet["logs"] == ["robot2", "robot3"] and fleet["own"] == {
+        "robot2": "robot2",
+        "robot3": "robot3",
+    }
+    for r in ("robot2", "robot3"):
+        assert fleet["cells"][r][r] == fleet_cell(res["mrclam"][f"MRCLAM_Dataset6/{r}"]["score"])
     del res["mrclam"]["MRCLAM_Dataset6/robot3"], art["mrclam"]["MRCLAM_Dataset6/robot3"]
     assert [r["dataset"] for r in res["mrclam"].values()] == ["MRCLAM_Dataset6", "MRCLAM_Dataset9"]
     # the same log and seed give the same fit under either name
@@ -1400,7 +1424,9 @@ def test_reproduce_real_runs_every_mrclam_dataset_it_finds(tmp_path):
     assert res["skipped"][-1] == f"Turtlebot: {root / 'turtlebot1d' / 'training1.csv'} not found"
     titles = [t[0] for t in real_tables(res)]
     assert titles[0] == "MRCLAM Dataset 6, Dataset 9: learned / From-Truth (ratio)"
+    assert any(t.startswith("MRCLAM_Dataset6, each robot's model on every robot's log") for t in titles)
     paths = figures_real.write_all(art, res, tmp_path)
     assert tmp_path / "real_mrclam_MRCLAM_Dataset9_robot2_range.png" in paths
     assert tmp_path / "real_mrclam_MRCLAM_Dataset9_robot2_bearing.png" in paths
+    assert tmp_path / "real_fleet_MRCLAM_Dataset6.png" in paths
     assert all(p.stat().st_size > 0 for p in paths)

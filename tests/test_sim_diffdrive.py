@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -309,3 +310,105 @@ def test_reproduce_diffdrive_writes_its_scorecard_and_figures(tmp_path):
         assert (tmp_path / f"diffdrive_seed0_{kind}.png").stat().st_size > 10_000
     assert (tmp_path / "diffdrive_loglik.png").is_file()
     assert 'id="diffdrive"' in (tmp_path / "index.html").read_text()
+
+
+def _true_model_file(log, path):
+    """The simulated robot's own action model (its coefficients and delay) in a model.json that says it was
+    learned on ``log``, on EM's start for the sensor: what a perfect learner of the action would write."""
+    from sensact.config import config_from_dict, load_yaml_mapping
+    from sensact.learn.em import EMConfig, initial_model
+
+    lf = read_landmark_log(log)
+    truth = lf.meta["truth"]
+    model = initial_model(lf.data, config_from_dict(EMConfig, load_yaml_mapping(log / "em_config.yaml")))
+    action = replace(
+        model.action, coefficients=np.array(truth["action_coefficients"]), delay_steps=truth["delay_steps"]
+    )
+    path.write_text(json.dumps({"model": replace(model, action=action).to_dict(), "log": str(log), "dt_s": 1 / 30}))
+    return path
+
+
+def test_evaluate_fleet_scores_every_model_on_every_log(tmp_path):
+    """Two robots of one kind whose motors differ (forward and turn gains 0.95 / 0.92 against 0.75 / 0.70),
+    each with its own true action model: every pair scores exactly as `evaluate log` scores it (an exact
+    reduction); each robot's own model is the better one on its log and clears the action bars, the other
+    robot's misses them; the pairs a model was learned on are found from model.json's ``log``."""
+    from sensact.experiments.fleet import fleet_cell
+
+    logs = {"slow": ["--set", "forward_gain=0.75", "--set", "turn_gain=0.70"], "std": []}
+    models = {}
+    for name, extra in logs.items():
+        res = runner.invoke(
+            app, ["simulate", "diffdrive", "--out", str(tmp_path / name), "--seconds", "90", "--seed", "3", *extra]
+        )
+        assert res.exit_code == 0, res.output
+        models[name] = _true_model_file(tmp_path / name, tmp_path / f"m_{name}.json")
+    out = tmp_path / "fleet.json"
+    args = [str(tmp_path / "std"), str(tmp_path / "slow")]
+    for name in ("std", "slow"):
+        args += ["--model", str(models[name])]
+    res = runner.invoke(app, ["evaluate", "fleet", *args, "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    fleet = json.loads(out.read_text())
+    assert fleet["logs"] == ["std", "slow"] and fleet["models"] == ["m_std", "m_slow"]
+    assert fleet["own"] == {"m_std": "std", "m_slow": "slow"}
+    for m in ("std", "slow"):
+        for g in ("std", "slow"):
+            e = tmp_path / f"e_{m}_{g}.json"
+            run = runner.invoke(app, ["evaluate", "log", str(tmp_path / g), "--model", str(models[m]), "--out", str(e)])
+            assert run.exit_code == 0, run.output
+            assert fleet["cells"][f"m_{m}"][g] == json.loads(json.dumps(fleet_cell(json.loads(e.read_text()))))
+    c = fleet["cells"]
+    for own, other in (("std", "slow"), ("slow", "std")):
+        mine, theirs = c[f"m_{own}"][own], c[f"m_{other}"][own]
+        assert mine["translation_ratio"] < 1.3 and theirs["translation_ratio"] > 1.5 * mine["translation_ratio"]
+        assert all(mine["bars"][k] for k in ("action_translation_ratio", "action_rotation_ratio"))
+        assert not theirs["bars"]["action_translation_ratio"]
+    s = fleet["summary"]
+    assert s["own"]["pairs"] == 2 and s["own"]["clear_action_bars"] == 2
+    assert s["other"]["pairs"] == 2 and s["other"]["clear_action_bars"] == 0
+    flat = " ".join(res.output.split())
+    assert "a robot's own model (2 pairs): 2 clear the action bars" in flat
+    assert "another robot's model (2 pairs): 0 clear the action bars" in flat
+    assert (tmp_path / "fleet.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # the Markdown table (reproduce real's) bolds a robot's own pair and marks each number past its bar
+    from sensact.report.tables import fleet_table
+
+    _, head, rows = fleet_table(fleet)
+    assert head == ["model \\ log", "std", "slow"] and rows[-1][0] == "From-Truth"
+    assert rows[0][1].startswith("**") and not rows[0][2].startswith("**")
+    tr = f"{c['m_std']['slow']['translation_ratio']:.2f}"
+    assert rows[0][2].startswith(f"{tr} (miss) / ") and f"{c['m_std']['std']['translation_ratio']:.2f} /" in rows[0][1]
+    # a model that does not fit one of the logs, or a log with nothing to score against, is one line
+    wheels = tmp_path / "wheels"
+    res = runner.invoke(
+        app, ["simulate", "diffdrive", "--out", str(wheels), "--seconds", "30", "--set", "wheel_axle_mm=235"]
+    )
+    assert res.exit_code == 0, res.output
+    res = runner.invoke(app, ["evaluate", "fleet", *args, str(wheels)])
+    flat = " ".join(res.output.split())
+    assert res.exit_code == 2 and "action.command_names" in flat and "Traceback" not in res.output, flat
+    (wheels / "groundtruth.csv").unlink()
+    res = runner.invoke(app, ["evaluate", "fleet", str(wheels), "--model", str(models["std"])])
+    flat = " ".join(res.output.split())
+    assert res.exit_code == 2 and "groundtruth.csv" in flat and "no recorded poses" in flat, flat
+
+
+def test_a_model_is_matched_to_the_log_it_names(tmp_path, monkeypatch):
+    """`learn em` records the log folder as it was given: a relative one matches the end of a log's full
+    path from any folder, ``.`` only the folder it is run from; another folder never matches."""
+    from sensact.cli.datasets import fleet_names, learned_on_log
+
+    (tmp_path / "fleet" / "r1").mkdir(parents=True)
+    (tmp_path / "other" / "r1").mkdir(parents=True)
+    monkeypatch.chdir(tmp_path)
+    assert learned_on_log({"log": "fleet/r1"}, tmp_path / "fleet" / "r1")
+    assert learned_on_log({"log": "r1"}, Path("fleet/r1"))
+    assert not learned_on_log({"log": "fleet/r1"}, tmp_path / "other" / "r1")
+    assert learned_on_log({"log": str(tmp_path / "fleet" / "r1")}, Path("fleet/r1"))
+    assert not learned_on_log({"log": "."}, Path("fleet/r1"))
+    monkeypatch.chdir(tmp_path / "fleet" / "r1")
+    assert learned_on_log({"log": "."}, tmp_path / "fleet" / "r1")
+    assert not learned_on_log({}, tmp_path / "fleet" / "r1")
+    # two logs of one name are told apart by their paths
+    assert fleet_names([Path("a/r1"), Path("b/r1"), Path("c/r2")], lambda p: p.name) == ["a/r1", "b/r1", "r2"]

@@ -275,3 +275,108 @@ def evaluate_log_cmd(
 
             written += write_robot(lf, m, sc, out.with_suffix(""), lf.title(log), truth="ground truth")
         console.print("wrote " + ", ".join(str(p) for p in written))
+
+
+def _read_log_with_truth(log: Path) -> Any:
+    """A log folder whose ground truth holds poses on a log of continuous commands: what a model is scored
+    against pair by pair (``score_against_truth``)."""
+    from sensact.errors import LogFormatError
+    from sensact.io.landmark_log import read_landmark_log
+
+    if not log.is_dir():
+        raise LogFormatError(
+            "not a log folder.", file=log, fix="give a folder `convert csv`, `convert mrclam` or `simulate` wrote."
+        )
+    lf = read_landmark_log(log)
+    if lf.truth_poses() is None or not lf.data.is_continuous:
+        raise LogFormatError(
+            "has no recorded poses to score a fleet against (a log of continuous commands with groundtruth.csv).",
+            file=log / "groundtruth.csv",
+            fix="add groundtruth.csv with t_s, x_mm, y_mm, theta_rad (convert csv --truth writes it), "
+            "or score a simulated log alone with `sensact evaluate log`.",
+        )
+    return lf
+
+
+def learned_on_log(doc: dict[str, Any], log: Path) -> bool:
+    """Whether model.json says it was learned on ``log``: ``learn em`` records the folder as it was given, so
+    a relative one matches the end of the log's full path (it may have been run from another folder)."""
+    recorded = doc.get("log")
+    if not recorded:
+        return False
+    path, full = Path(str(recorded)), log.resolve()
+    parts = tuple(q for q in path.parts if q != ".")
+    if path.is_absolute() or not parts or ".." in parts:  # "." or "../x" name a folder only from where it ran
+        return path.resolve() == full
+    return full.parts[-len(parts) :] == parts
+
+
+def fleet_names(paths: list[Path], name: Any) -> list[str]:
+    """Short, distinct names for the table: ``name(path)`` (a folder's or a file's own name), or the path as
+    given where two would share one."""
+    short = [name(p) for p in paths]
+    return [str(p) if short.count(s) > 1 else s for p, s in zip(paths, short, strict=True)]
+
+
+@evaluate_app.command("fleet")
+@friendly
+def evaluate_fleet_cmd(
+    logs: Annotated[
+        list[Path],
+        typer.Argument(help="Log folders with ground truth (groundtruth.csv with poses).", metavar="DIR"),
+    ],
+    model: Annotated[
+        list[Path], typer.Option("--model", help="A model.json written by `sensact learn em`; repeat for each model.")
+    ],
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", help="Write the scores here (JSON), and the grids beside it (OUT.png)."),
+    ] = None,
+) -> None:
+    """Score every model on every log: does one robot's model serve the others of its kind?
+
+    For a fleet of robots of one kind, each with a log and a model learned on it: each pair is scored as
+    `sensact evaluate log` scores it, against that log's ground truth with From-Truth fitted on that log.
+    The table gives, per pair, the translation and rotation RMS over From-Truth's, the range function's
+    residual about the truth and the bearing sigma over the truth's; a pair is a robot's own when the
+    model was learned on that log. Every model must share the logs' commands, readings and step."""
+    from sensact.cli.base import progress_bar
+    from sensact.experiments.fleet import score_fleet
+    from sensact.io.atomic import write_json
+
+    models, own = {}, {}
+    logs, model = list(dict.fromkeys(logs)), list(dict.fromkeys(model))  # a folder or file given twice counts once
+    read = {p: _read_log_with_truth(p) for p in logs}
+    log_names = dict(zip(logs, fleet_names(logs, lambda p: p.resolve().name), strict=True))
+    for path, name in zip(model, fleet_names(model, lambda p: p.stem), strict=True):
+        doc, m = _read_em_model(path)
+        for log, lf in read.items():
+            refuse_model_for_log(doc, m, lf.data, path, log)
+        models[name] = m
+        for log in logs:
+            if learned_on_log(doc, log):
+                own[name] = log_names[log]
+    n_m, n_l = len(models), len(read)
+    console.print(
+        f"{n_m} model{'s' * (n_m > 1)} on {n_l} log{'s' * (n_l > 1)}: "
+        + ", ".join(lf.title(p) for p, lf in read.items())
+    )
+    with progress_bar() as progress:
+        fleet = score_fleet(models, {log_names[p]: lf for p, lf in read.items()}, own, progress)
+    print_fleet(fleet)
+    if out is not None:
+        from sensact.report.figures_fleet import figure_fleet
+
+        write_json(out, fleet)
+        figure = figure_fleet(fleet, out.with_suffix(".png"))
+        console.print(f"wrote {out} and {figure}")
+
+
+def print_fleet(fleet: dict[str, Any]) -> None:
+    """The fleet table (a missed bar in red, a robot's own pair in bold) and what it says."""
+    from sensact.cli.base import print_tables
+    from sensact.report.tables import fleet_lines, fleet_table
+
+    print_tables([fleet_table(fleet, miss=lambda s: f"[red]{s}[/]", own=lambda s: f"[bold]{s}[/]")])
+    for line in fleet_lines(fleet):
+        console.print(line)

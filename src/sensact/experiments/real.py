@@ -211,6 +211,20 @@ def run_mrclam_robot(
     return row, ml, res
 
 
+def fleet_of_dataset(folder: Path, runs: dict[str, Any], several: bool) -> dict[str, Any] | None:
+    """Each robot's learned model of one dataset scored on every robot's log of it (``fleet.score_fleet``;
+    docs/em-real.md, "One robot's model on another robot"), or None with fewer than two robots."""
+    from sensact.experiments.fleet import score_fleet
+
+    keys = [k for k in runs if not several or k.startswith(f"{folder.name}/")]
+    if len(keys) < 2:
+        return None
+    name = {k: k.rsplit("/", 1)[-1] for k in keys}
+    return score_fleet(
+        {name[k]: runs[k][1].model for k in keys}, {name[k]: runs[k][0] for k in keys}, {name[k]: name[k] for k in keys}
+    )
+
+
 def run_real(
     root: Path | None = None,
     robots: tuple[int, ...] = ROBOTS,
@@ -244,6 +258,9 @@ def run_real(
                 row, ml, res = run_mrclam_robot(folder, robot, cfg, truth_restart=truth_restart)
                 out["mrclam"][key] = {"dataset": folder.name, **row}
                 artifacts["mrclam"][key] = (ml, res)
+            fleet = fleet_of_dataset(folder, artifacts["mrclam"], len(datasets) > 1)
+            if fleet is not None:
+                out.setdefault("fleet", {})[folder.name] = fleet
     else:
         out["skipped"].append(f"MRCLAM: no dataset folder (one holding Robot1_Odometry.dat) in {root / 'mrclam'}")
     tb = root / "turtlebot1d" / "training1.csv"

@@ -314,6 +314,12 @@ def write_all(art: dict[str, Any], res: dict[str, Any], out: Path) -> list[Path]
         runs[f"MRCLAM {name}"] = r
     if "turtlebot" in art:
         runs["Turtlebot"] = art["turtlebot"]
+    for dataset, fleet in res.get("fleet", {}).items():
+        from sensact.report.figures_fleet import figure_fleet
+
+        paths.append(
+            figure_fleet(fleet, out / f"real_fleet_{dataset}.png", f"{dataset}: each robot's model on every log")
+        )
     if runs:
         paths.append(figure_loglik(runs, out / "real_loglik.png"))
     return paths

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -464,6 +465,65 @@ def diffdrive_tables(res: dict[str, Any]) -> list[Table]:
     ]
 
 
+FLEET_TITLE = "translation / rotation RMS over From-Truth's, range residual about the truth, bearing sigma ratio"
+FLEET_BARS = {  # a fleet cell's part and the bars it answers to (experiments.real.robot_checks)
+    "translation": ("action_translation_ratio", "action_translation_abs"),
+    "rotation": ("action_rotation_ratio",),
+    "bearing": ("bearing_sigma",),
+}
+
+
+def fleet_table(
+    fleet: dict[str, Any],
+    title: str = FLEET_TITLE,
+    miss: Callable[[str], str] = lambda s: f"{s} (miss)",
+    own: Callable[[str], str] = lambda s: f"**{s}**",
+) -> Table:
+    """``experiments.fleet.score_fleet``'s pairs, a row per model and a column per log, and From-Truth's
+    range residual per log; ``miss`` marks a number that misses its bar, ``own`` a robot's own pair (the
+    console passes colour, Markdown the defaults)."""
+
+    def cell(m: str, g: str) -> str:
+        c = fleet["cells"][m][g]
+
+        def shown(text: str, part: str) -> str:
+            return text if all(c["bars"][b] for b in FLEET_BARS[part]) else miss(text)
+
+        tr, rot, b = (f"{c[k]:.2f}" for k in ("translation_ratio", "rotation_ratio", "bearing_sigma_ratio"))
+        text = (
+            f"{shown(tr, 'translation')} / {shown(rot, 'rotation')}, {c['range_residual_rms_mm']:.0f} mm, "
+            f"{shown(b, 'bearing')}"
+        )
+        return own(text) if fleet["own"].get(m) == g else text
+
+    first = fleet["models"][0]
+    rows = [[m, *(cell(m, g) for g in fleet["logs"])] for m in fleet["models"]]
+    rows.append(
+        ["From-Truth", *(f"{fleet['cells'][first][g]['range_from_truth_rms_mm']:.0f} mm" for g in fleet["logs"])]
+    )
+    return title, ["model \\ log", *fleet["logs"]], rows
+
+
+def fleet_lines(fleet: dict[str, Any]) -> list[str]:
+    """What the fleet table says over the robots' own pairs and over the others."""
+    lines = [
+        "bars: an action RMS at most 1.5 times From-Truth's (translation at most 50 mm/s), a sigma within a factor"
+        " of 1.5 of the truth's; the range residual has no bar (From-Truth's, the last row, is its floor)"
+    ]
+    for group, s in fleet["summary"].items():
+        if not s["pairs"]:
+            continue
+        lo, hi = s["range_residual_rms_mm"]
+        who = "a robot's own model" if group == "own" else "another robot's model" if fleet["own"] else "every pair"
+        lines.append(
+            f"{who} ({s['pairs']} pairs): {s['clear_action_bars']} clear the action bars "
+            f"(worst translation {s['translation_ratio_max']:.2f}, rotation {s['rotation_ratio_max']:.2f}), "
+            f"{s['clear_range_sigma_bar']} the range sigma bar, {s['clear_bearing_sigma_bar']} the bearing sigma "
+            f"bar; range residual {lo:.0f}-{hi:.0f} mm"
+        )
+    return lines
+
+
 def real_tables(res: dict[str, Any]) -> list[Table]:
     """MRCLAM robots (learned against From-Truth) and the Turtlebot (EM beside chapter 3)."""
     tables: list[Table] = []
@@ -532,6 +592,8 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
                 ],
             )
         )
+    for dataset, fleet in res.get("fleet", {}).items():
+        tables.append(fleet_table(fleet, f"{dataset}, each robot's model on every robot's log: {FLEET_TITLE}"))
     tb = res.get("turtlebot")
     if tb:
         sc, ch3 = tb["score"], tb.get("chapter3_sonar1", {})

@@ -1,0 +1,100 @@
+"""A fleet's models scored on every robot's log (``experiments.fleet.score_fleet``) as four grids, a row
+per model and a column per log: the translation and rotation ratios to From-Truth, the range residual
+about the truth, and the bearing sigma ratio. A pair that misses a bar is outlined in red, a robot's own
+pair is written in bold: which models carry over is seen at a glance."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.colors import LogNorm
+from matplotlib.patches import Rectangle
+from matplotlib.ticker import FuncFormatter
+
+from sensact.report.figures1d import _save
+from sensact.report.tables import FLEET_BARS
+
+# ratios are coloured on one scale about 1 (white), so that a figure of models that all carry over
+# looks quiet and a miss stands out; the bars are 1.5 and 1/1.5
+RATIO_SPAN = 2.0
+
+# (cell key, title, number format, the part of the cell whose bars it shows)
+PANELS = (
+    ("translation_ratio", "translation RMS / From-Truth's", "{:.2f}", "translation"),
+    ("rotation_ratio", "rotation RMS / From-Truth's", "{:.2f}", "rotation"),
+    ("range_residual_rms_mm", "range residual about the truth (mm)", "{:.0f}", None),
+    ("bearing_sigma_ratio", "bearing sigma / truth's residual", "{:.2f}", "bearing"),
+)
+
+
+def fleet_grid(fleet: dict[str, Any], key: str) -> np.ndarray:
+    """``(models, logs)``: one number of every pair."""
+    return np.array([[fleet["cells"][m][g][key] for g in fleet["logs"]] for m in fleet["models"]], dtype=float)
+
+
+def figure_fleet(fleet: dict[str, Any], path: Path, title: str = "models on logs") -> Path:
+    models, logs, own = fleet["models"], fleet["logs"], fleet.get("own", {})
+    n_m, n_l = len(models), len(logs)
+    w = max(3.2, 0.9 * n_l + 1.8)
+    fig, axes = plt.subplots(2, 2, figsize=(2 * w, 2 * max(2.6, 0.6 * n_m + 1.4)), squeeze=False)
+    for ax, (key, name, fmt, part) in zip(axes.ravel(), PANELS, strict=True):
+        grid = fleet_grid(fleet, key)
+        if key.endswith("_ratio"):
+            norm, cmap = LogNorm(1 / RATIO_SPAN, RATIO_SPAN, clip=True), "RdBu_r"
+        else:
+            positive = grid[np.isfinite(grid) & (grid > 0)]
+            lo = float(positive.min()) if positive.size else 1.0
+            hi = float(positive.max()) if positive.size else 10.0
+            norm, cmap = LogNorm(lo, max(hi, 1.01 * lo)), "viridis"
+        im = ax.imshow(grid, cmap=cmap, norm=norm, aspect="auto")
+        bar = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
+        if key.endswith("_ratio"):  # the bars' limits, where a model stops carrying over
+            ticks = [1 / RATIO_SPAN, 1 / 1.5, 1.0, 1.5, RATIO_SPAN]
+        else:
+            ticks = np.geomspace(norm.vmin, norm.vmax, 5)
+        bar.set_ticks(ticks)
+        bar.ax.yaxis.set_major_formatter(FuncFormatter(lambda x, _: f"{x:.2g}" if x < 10 else f"{x:.0f}"))
+        bar.ax.yaxis.set_minor_formatter(FuncFormatter(lambda x, _: ""))
+        if key == "range_residual_rms_mm":  # From-Truth's residual on each log, the floor a model could reach
+            floor = [fleet["cells"][models[0]][g]["range_from_truth_rms_mm"] for g in logs]
+            name += "\n(From-Truth's under each log)"
+            labels = [f"{g}\n{f:.0f}" for g, f in zip(logs, floor, strict=True)]
+        else:
+            labels = list(logs)
+        ax.set_xticks(range(n_l), labels, fontsize=8)
+        ax.set_yticks(range(n_m), models, fontsize=8)
+        ax.set(xlabel="scored on the log of", ylabel="model learned on", title=name)
+        for i, m in enumerate(models):
+            for j, g in enumerate(logs):
+                cell = fleet["cells"][m][g]
+                miss = part is not None and not all(cell["bars"][b] for b in FLEET_BARS[part])
+                color = "white" if _dark(im, grid[i, j]) else "black"
+                ax.text(
+                    j,
+                    i,
+                    fmt.format(grid[i, j]),
+                    ha="center",
+                    va="center",
+                    fontsize=8,
+                    color=color,
+                    fontweight="bold" if own.get(m) == g else "normal",
+                )
+                if miss:
+                    ax.add_patch(Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, ec="red", lw=2.5))
+    fig.suptitle(f"{title}: red outline, a bar missed; bold, a robot's own model", fontsize=10)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def _dark(im: Any, value: float) -> bool:
+    """Whether a cell's colour is dark enough to need white text."""
+    if not np.isfinite(value):
+        return False
+    r, g, b, _ = im.cmap(im.norm(value))
+    return 0.299 * r + 0.587 * g + 0.114 * b < 0.5
