@@ -138,7 +138,6 @@ def learn_em_cmd(
     """Learn the action model, sensor functions f and noise sigmas by EM (ch. 4).
 
     Ctrl-C stops early and still writes the most likely model so far."""
-    import numpy as np
 
     from sensact.io.atomic import write_json, write_npz
     from sensact.io.landmark_log import read_landmark_log
@@ -195,8 +194,7 @@ def learn_em_cmd(
             )
             + ".",
         )
-    if data.geometry == "planar" and not np.isfinite(data.obs_bearing_rad).any():
-        refuse_bearing_settings(cfg, data.source)  # before the starting model, which would fail on it
+    refuse_bearing_settings(cfg, data)  # before the starting model, which would fail on it
     if data.geometry == "track" and data.step_commands is not None:
         warn_if_one_command(data.step_commands[:, 0], data.source, data.command_names[0])
     start = initial_model(data, cfg)

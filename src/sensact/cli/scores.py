@@ -59,8 +59,8 @@ def print_simulated_score(model: Any, truth: dict[str, Any], dt_s: float) -> dic
 
 
 def print_truth_score(sc: dict[str, Any]) -> None:
-    from sensact.experiments.real import bar_checks
-    from sensact.report.tables import shared_by_motion
+    from sensact.experiments.real import BARS, bar_checks
+    from sensact.report.tables import bars_sentence, shared_by_motion
 
     a, r, b = sc["action"], sc["range"], sc["bearing"]
     bars = bar_checks(sc)
@@ -109,10 +109,7 @@ def print_truth_score(sc: dict[str, Any]) -> None:
         mark("bearing_sigma"),
     )
     console.print(t)
-    console.print(
-        "bar: an action RMS at most 1.5 times From-Truth's (translation at most 50 mm/s), a sigma within a"
-        " factor of 1.5 of the truth's (docs/em-real.md)"
-    )
+    console.print(f"bar: {bars_sentence(BARS)} (docs/em-real.md)")
     n = sc.get("truth_noise")
     if n:
         within = n["bearing_within_frame_sd_rad"]

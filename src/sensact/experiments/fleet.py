@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from sensact.evaluate.landmark_truth import score_against_truth
-from sensact.experiments.real import bar_checks
+from sensact.experiments.real import BARS, bar_checks
 
 # the bars' own keys for the action model and for the sensor
 ACTION_BARS = ("action_translation_ratio", "action_rotation_ratio", "action_translation_abs")
@@ -58,6 +58,7 @@ def score_fleet(
             if progress:
                 progress("scoring models on logs", done, total)
     return {
+        "bars": dict(BARS),
         "models": list(models),
         "logs": list(logs),
         "own": own,

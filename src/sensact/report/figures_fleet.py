@@ -21,7 +21,7 @@ from sensact.report.figures1d import _save
 from sensact.report.tables import FLEET_BARS
 
 # ratios are coloured on one scale about 1 (white), so that a figure of models that all carry over
-# looks quiet and a miss stands out; the bars are 1.5 and 1/1.5
+# looks quiet and a miss stands out; the colour bar marks the bars (the fleet's ``bars``)
 RATIO_SPAN = 2.0
 
 # (cell key, title, number format, the part of the cell whose bars it shows)
@@ -55,7 +55,8 @@ def figure_fleet(fleet: dict[str, Any], path: Path, title: str = "models on logs
         im = ax.imshow(grid, cmap=cmap, norm=norm, aspect="auto")
         bar = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
         if key.endswith("_ratio"):  # the bars' limits, where a model stops carrying over
-            ticks = [1 / RATIO_SPAN, 1 / 1.5, 1.0, 1.5, RATIO_SPAN]
+            f, most = fleet["bars"]["sigma_factor"], fleet["bars"]["action_ratio_max"]
+            ticks = sorted({1 / RATIO_SPAN, 1 / f, 1.0, f, most, RATIO_SPAN})
         else:
             ticks = np.geomspace(norm.vmin, norm.vmax, 5)
         bar.set_ticks(ticks)

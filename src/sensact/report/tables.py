@@ -504,11 +504,20 @@ def fleet_table(
     return title, ["model \\ log", *fleet["logs"]], rows
 
 
+def bars_sentence(bars: dict[str, float]) -> str:
+    """The real-data bars (``experiments.real.BARS``) in words."""
+    return (
+        f"an action RMS at most {bars['action_ratio_max']:g} times From-Truth's (translation at most "
+        f"{bars['action_translation_max_mm_s']:g} mm/s), a sigma within a factor of {bars['sigma_factor']:g} of "
+        "the truth's"
+    )
+
+
 def fleet_lines(fleet: dict[str, Any]) -> list[str]:
     """What the fleet table says over the robots' own pairs and over the others."""
     lines = [
-        "bars: an action RMS at most 1.5 times From-Truth's (translation at most 50 mm/s), a sigma within a factor"
-        " of 1.5 of the truth's; the range residual has no bar (From-Truth's, the last row, is its floor)"
+        f"bars: {bars_sentence(fleet['bars'])}; the range residual has no bar (From-Truth's, the last row, is its "
+        "floor)"
     ]
     for group, s in fleet["summary"].items():
         if not s["pairs"]:

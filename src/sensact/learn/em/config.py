@@ -8,6 +8,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
 
 from sensact.errors import ConfigError
 from sensact.models.landmark_sensor import check_robust
@@ -180,10 +183,13 @@ class EMConfig:
         return self.channels
 
 
-def refuse_bearing_settings(config: EMConfig, source: str) -> None:
-    """A planar log without a single bearing cannot run settings that need one: a channel with bearing terms
-    predicts none of its readings (they count as missing), and the start search scores poses by bearings.
-    One line naming the field (``ConfigError``), before EM would fail on it."""
+def refuse_bearing_settings(config: EMConfig, data: Any) -> None:
+    """A planar log (``LandmarkLog``) without a single bearing cannot run settings that need one: a channel
+    with bearing terms predicts none of its readings (they count as missing), and the start search scores
+    poses by bearings. One line naming the field (``ConfigError``), before EM would fail on it."""
+    if data.geometry != "planar" or np.isfinite(data.obs_bearing_rad).any():
+        return
+    source = data.source
     for i, ch in enumerate(config.channels):
         if ch.bearing_degree > 0:
             raise ConfigError(

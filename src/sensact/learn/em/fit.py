@@ -191,8 +191,7 @@ def fit_em(
             f"{data.source}: motion_sd_sideways_mm is a planar robot's sideways noise and a track has no sideways; "
             "remove it or set it to 0"
         )
-    if data.geometry == "planar" and not np.isfinite(data.obs_bearing_rad).any():
-        refuse_bearing_settings(cfg, data.source)
+    refuse_bearing_settings(cfg, data)
     model = initial or initial_model(data, cfg)
     rng = np.random.default_rng(cfg.seed)
     n = model.prior_mean.size
