@@ -490,6 +490,15 @@ def test_learn_em_refuses_a_turtlebot_csv_out_of_order(tmp_path):
     (tmp_path / "notes.txt").write_text("x")
     res = runner.invoke(app, ["learn", "em", str(tmp_path / "notes.txt")])
     assert res.exit_code == 2 and "EM reads a log folder or a Turtlebot CSV file" in res.output
+    # a track folder of one step: both learners name the file and the field
+    one = tmp_path / "one"
+    assert runner.invoke(app, ["simulate", "track1d", "--seconds", "5", "--out", str(one)]).exit_code == 0
+    for name in ("actions.csv", "observations.csv"):
+        (one / name).write_text("\n".join((one / name).read_text().splitlines()[:2]) + "\n")
+    for learner in ("bootstrap", "em"):
+        res = runner.invoke(app, ["learn", learner, str(one)])
+        flat = " ".join(res.output.split())
+        assert res.exit_code == 2 and "actions.csv: t_s:" in flat and "at least two rows (it has 1)" in flat, flat
 
 
 def test_a_fit_stopped_at_the_cap_says_how_fast_it_was_climbing():

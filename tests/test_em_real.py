@@ -16,6 +16,7 @@ from sensact.cli.base import console
 from sensact.cli.scores import print_truth_score
 from sensact.config import config_from_dict
 from sensact.core.pose_models import apply_displacement, landmark_bearing, landmark_distance
+from sensact.errors import ConfigError
 from sensact.learn.em import EMConfig, e_step, fit_em, initial_model
 from sensact.learn.em.actions import linear_action_update, linear_coefficients, step_motion_var, table_velocities
 from sensact.learn.em.config import ChannelConfig
@@ -535,7 +536,7 @@ def test_fit_searches_the_ridge_when_the_held_stage_ends_and_every_so_often_afte
         _config(ridge_search_mm=-1.0)
     with pytest.raises(ValueError, match="ridge_search"):
         _config(search_every=0)
-    with pytest.raises(ValueError, match=r"t\.csv: ridge_search_mm .* needs a planar log"):
+    with pytest.raises(ConfigError, match=r"t\.csv: ridge_search_mm: .* needs a planar log"):
         fit_em(_tiny_track(), None, EMConfig(ridge_search_mm=100.0))
     # the report lists each search's move, and a dash for a run without the search
     rows = {
@@ -568,7 +569,7 @@ def test_sideways_motion_noise_starts_apart_from_the_forward():
     assert fixed.model.motion_sd.tolist() == [[0.5, 10.0, 0.05]]
     with pytest.raises(ValueError, match="motion_sd_sideways_mm must be >= 0"):
         _config(motion_sd_sideways_mm=-1.0)
-    with pytest.raises(ValueError, match=r"t\.csv: motion_sd_sideways_mm .* a track has no sideways"):
+    with pytest.raises(ConfigError, match=r"t\.csv: motion_sd_sideways_mm: .* a track has no sideways"):
         fit_em(_tiny_track(), None, EMConfig(motion_sd_sideways_mm=0.5))
 
 
@@ -662,7 +663,7 @@ def _tiny_track() -> LandmarkLog:
 
 def test_turning_noise_needs_a_planar_shared_model():
     track = _tiny_track()
-    with pytest.raises(ValueError, match="motion_noise=turning needs a planar log"):
+    with pytest.raises(ConfigError, match=r"motion_noise: .* a track has no heading"):
         initial_model(track, EMConfig(motion_noise="turning"))
     data, _ = _simulate(1, T=300)
     m = initial_model(data, _config(motion_noise="turning"))

@@ -280,6 +280,60 @@ def test_evaluate_log_names_what_keeps_a_model_from_a_log(tmp_path):
     assert res.exit_code == 2 and "action.commands" in flat and "other commands" in flat, flat
 
 
+def test_learn_em_names_settings_and_logs_it_cannot_learn_from(tmp_path):
+    """A setting that does not suit the log, or a log too short for its model, is one line naming the
+    file, the field and the fix before EM runs, never a traceback; a log whose recorded poses are too
+    broken up to score is still learned, and says why it was not scored."""
+    dd, track = tmp_path / "dd", tmp_path / "track"
+    assert runner.invoke(app, ["simulate", "diffdrive", "--seconds", "30", "--out", str(dd)]).exit_code == 0
+    assert runner.invoke(app, ["simulate", "track1d", "--seconds", "20", "--out", str(track)]).exit_code == 0
+    cfg = dd / "em_config.yaml"
+    renamed = tmp_path / "renamed.yaml"
+    renamed.write_text(cfg.read_text().replace("name: range_mm", "name: sonar9"))
+    assert "sonar9" in renamed.read_text()
+    short = tmp_path / "short"
+    short.mkdir()
+    for f in ("meta.json", "observations.csv", "groundtruth.csv"):
+        (short / f).write_bytes((dd / f).read_bytes())
+    (short / "actions.csv").write_text("\n".join((dd / "actions.csv").read_text().splitlines()[:4]) + "\n")
+    bad_step = tmp_path / "bad_step"
+    bad_step.mkdir()
+    for f in ("actions.csv", "observations.csv"):
+        (bad_step / f).write_bytes((dd / f).read_bytes())
+    meta = json.loads((dd / "meta.json").read_text())
+    (bad_step / "meta.json").write_text(json.dumps({**meta, "dt_s": -1}))
+    cases = [
+        ([track, "--set", "ridge_search_mm=300"], "track: ridge_search_mm:", "set ridge_search_mm: 0"),
+        ([track, "--set", "motion_noise=turning"], "track: motion_noise:", "use motion_noise: shared"),
+        ([track, "--set", "motion_sd_sideways_mm=3"], "track: motion_sd_sideways_mm:", "no sideways"),
+        ([track, "--set", "action_basis=affine"], "track: action_basis:", "use action_basis: table"),
+        ([dd, "--config", renamed], "channels[].name:", "name the log's readings: range_mm"),
+        ([dd, "--config", cfg, "--set", 'action_inputs=["v_y_mm_s:w"]'], "action_inputs", "omega_rad_s"),
+        ([short, "--config", cfg], "short: range_mm:", "readings of range_mm, and its model has 7 parameters"),
+        ([bad_step], "meta.json: dt_s:", "must be a positive number"),
+    ]
+    for args, field, words in cases:
+        res = runner.invoke(app, ["learn", "em", *map(str, args)])
+        flat = " ".join(res.output.split())
+        assert res.exit_code == 2 and field in flat and words in flat and "Traceback" not in res.output, flat
+    broken = tmp_path / "broken"
+    broken.mkdir()
+    for f in ("meta.json", "actions.csv", "observations.csv"):
+        (broken / f).write_bytes((dd / f).read_bytes())
+    rows = (dd / "groundtruth.csv").read_text().splitlines()
+    (broken / "groundtruth.csv").write_text(
+        "\n".join([rows[0] + ",valid"] + [f"{r},{k % 2}" for k, r in enumerate(rows[1:])]) + "\n"
+    )
+    out = tmp_path / "m.json"
+    res = runner.invoke(
+        app, ["learn", "em", str(broken), "--config", str(cfg), "--set", "max_iterations=2", "--out", str(out)]
+    )
+    flat = " ".join(res.output.split())
+    assert res.exit_code == 0, flat
+    assert "not scored against the recorded poses" in flat and "groundtruth.csv: t_s: no 30-step window" in flat
+    assert json.loads(out.read_text())["evaluation"] is None
+
+
 def test_reproduce_diffdrive_writes_its_scorecard_and_figures(tmp_path):
     res = runner.invoke(app, ["reproduce", "diffdrive", "--trials", "0", "--out", str(tmp_path)])
     assert res.exit_code != 0 and "--trials" in res.output and not (tmp_path / "diffdrive.json").exists()

@@ -34,8 +34,9 @@ class SensactError(Exception):
         return " ".join(text.split())
 
 
-class ConfigError(SensactError):
-    """A configuration field, YAML file or ``--set`` override is invalid."""
+class ConfigError(SensactError, ValueError):
+    """A configuration field, YAML file or ``--set`` override is invalid, or does not suit the log it is
+    used on. Also a ``ValueError``, which is what a library caller expects from a bad argument."""
 
 
 class LogFormatError(SensactError):

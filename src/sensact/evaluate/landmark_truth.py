@@ -49,6 +49,7 @@ from scipy.optimize import least_squares
 from sensact.core.angles import wrap_angle
 from sensact.core.polyfit import weighted_lstsq
 from sensact.core.pose_models import apply_displacement, landmark_bearing, landmark_distance, relative_displacement
+from sensact.errors import LogFormatError
 from sensact.learn.em.actions import linear_coefficients, turning_variance
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
@@ -265,7 +266,13 @@ def from_truth_windows(
     ``(N, window, F)`` features of ``action``'s family over the windows with that command delay."""
     starts = window_starts(truth_valid, window)
     if starts.size == 0:
-        raise ValueError(f"no window of {window} steps has valid truth throughout")
+        raise LogFormatError(
+            f"no {window}-step window has recorded poses throughout, and the action model is scored over such "
+            "windows (dead-reckoned from the truth at each one's start).",
+            file=f"{data.source}/groundtruth.csv",
+            field="t_s",
+            fix=f"score on a log with at least {window} consecutive steps of recorded poses.",
+        )
     idx = starts[:, None] + np.arange(window)  # (N, W)
     D_true = relative_displacement(truth_poses[starts], truth_poses[starts + window])
     Phi0 = action.step_features(data.step_commands, 0)

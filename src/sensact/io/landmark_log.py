@@ -137,6 +137,13 @@ def _planar(path: Path, meta: dict[str, Any]) -> LandmarkLogFile:
             field=str(exc).strip("'"),
             fix='see docs/commands.md, "Log folders for EM"; `sensact simulate field2d --out DIR` writes an example.',
         ) from None
+    if not (np.isfinite(dt) and dt > 0):
+        raise LogFormatError(
+            f"dt_s is {meta['dt_s']!r}; the fixed step must be a positive number of seconds.",
+            file=mpath,
+            field="dt_s",
+            fix="set dt_s to the step the CSVs' t_s are on (e.g. 0.0333 for 30 Hz).",
+        )
     act_grid, cmd_grid, t0, T = _commands_on_grid(path, act, dt, len(table))
     lm_col, b_col = cols.get("landmark", "landmark_id"), cols.get("bearing")
     readings = list(cols.get("readings") or [cols.get("height", "height_px")])

@@ -154,12 +154,12 @@ def read_track_log(path: str | Path, sensor: str | None = None) -> TrackLog:
     actions = read_numeric_csv(path / "actions.csv", ["t_s", cmd_col], what="actions.csv")
     obs = read_numeric_csv(path / "observations.csv", ["t_s", obs_col], what="observations.csv")
     t_a, c = actions["t_s"], actions[cmd_col]
-    if np.any(~np.isfinite(t_a)) or np.any(np.diff(t_a) <= 0):
+    if np.any(~np.isfinite(t_a)) or np.any(np.diff(t_a) <= 0) or t_a.size < 2:
         raise LogFormatError(
-            "t_s must be finite and strictly increasing.",
+            f"t_s must be finite and strictly increasing, over at least two rows (it has {t_a.size}).",
             file=path / "actions.csv",
             field="t_s",
-            fix="sort the rows by time and remove duplicates.",
+            fix="sort the rows by time and remove duplicates; a log needs at least two steps.",
         )
     if np.any(~np.isfinite(c)):
         bad = int(np.flatnonzero(~np.isfinite(c))[0]) + 2

@@ -179,7 +179,11 @@ class EMConfig:
             )
         missing = [c.name for c in self.channels if c.name not in reading_names]
         if missing:
-            raise ValueError(f"channels {missing} are not readings of this log (it has {list(reading_names)})")
+            raise ConfigError(
+                f"channel(s) {', '.join(missing)} are not readings of this log.",
+                field="channels[].name",
+                fix=f"name the log's readings: {', '.join(reading_names)}.",
+            )
         return self.channels
 
 

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from sensact.errors import ConfigError, LogFormatError
 from sensact.learn.em.config import EMConfig, refuse_bearing_settings
 from sensact.learn.em.delay_search import search_delay
 from sensact.learn.em.estep import Posteriors, e_step
@@ -76,11 +77,21 @@ def initial_model(data: LandmarkLog, config: EMConfig) -> EMModel:
     names = PLANAR_VELOCITY_NAMES if n == 3 else TRACK_VELOCITY_NAMES
     if config.action_basis == "table":
         if data.n_actions == 0:
-            raise ValueError(f"{data.source} has continuous commands: set action_basis to affine, cross or polynomial")
+            raise ConfigError(
+                "The log has continuous commands, and the action model is a table of discrete actions.",
+                file=data.source,
+                field="action_basis",
+                fix="set action_basis to affine, cross or polynomial (docs/em-real.md).",
+            )
         action = ActionTable(data.action_commands, np.zeros((data.n_actions, n)), data.command_names, names)
     else:
         if data.step_commands is None:
-            raise ValueError(f"{data.source} has discrete actions only: use action_basis=table")
+            raise ConfigError(
+                f"The log has discrete actions only, and {config.action_basis} needs command columns.",
+                file=data.source,
+                field="action_basis",
+                fix="use action_basis: table (the thesis's table of discrete actions).",
+            )
         try:
             action = LinearActionModel.zero(
                 config.action_basis,
@@ -91,7 +102,13 @@ def initial_model(data: LandmarkLog, config: EMConfig) -> EMModel:
                 config.action_inputs,
             )
         except ValueError as exc:
-            raise ValueError(f"{data.source}: action model config: {exc}") from None
+            raise ConfigError(
+                f"{exc}.",
+                file=data.source,
+                field="action_zero_mean / action_inputs",
+                fix=f"name only the log's commands ({', '.join(data.command_names)}) and velocity components "
+                f"({', '.join(names)}).",
+            ) from None
     sensor = starting_sensor(data, config)
     mean = np.asarray(config.start_prior_mean[:n], dtype=float)
     cov = np.diag(np.asarray(config.start_prior_sd[:n], dtype=float) ** 2)
@@ -109,7 +126,12 @@ def initial_model(data: LandmarkLog, config: EMConfig) -> EMModel:
     turn_var = None
     if config.motion_noise == "turning":
         if data.geometry != "planar":
-            raise ValueError(f"{data.source}: motion_noise=turning needs a planar log (a heading); use shared")
+            raise ConfigError(
+                "motion_noise turning scales the heading noise by the turn; a track has no heading.",
+                file=data.source,
+                field="motion_noise",
+                fix="use motion_noise: shared.",
+            )
         turn_var = 0.0  # the start: no turn dependence, the M-step learns it once Sigma_m is freed
     return EMModel(data.geometry, action, sensor, mean, cov, motion_sd, turn_var)
 
@@ -125,6 +147,25 @@ def motion_sd_start(config: EMConfig, n: int) -> np.ndarray:
 
 def motion_sd_floor(config: EMConfig, n: int) -> np.ndarray:
     return np.array([config.motion_sd_floor_mm] * min(n, 2) + ([config.motion_sd_floor_rad] if n == 3 else []))
+
+
+def refuse_too_few_readings(model: EMModel, data: LandmarkLog) -> None:
+    """Each channel's M-step (eqs. 4.25-4.28) fits its f_i and sigma_i to the channel's readings: with
+    no more readings than those parameters the fit has nothing left over to measure the noise by, and EM
+    would report a sigma of nothing. One line naming the channel (``LogFormatError``), before EM."""
+    for j, ch in enumerate(model.sensor.channels):
+        col = data.reading_names.index(ch.name) if ch.name in data.reading_names else j
+        n = int(np.isfinite(data.obs_readings.reshape(data.n_observations, -1)[:, col]).sum())
+        p = ch.function.degree + 1 + len(ch.bearing_terms) + 1
+        if n <= p:
+            raise LogFormatError(
+                f"{n} readings of {ch.name}, and its model has {p} parameters (f of degree {ch.function.degree}"
+                + (f", {len(ch.bearing_terms)} bearing terms" if ch.bearing_terms else "")
+                + ", sigma) to learn from them.",
+                file=data.source,
+                field=ch.name,
+                fix="give a longer log, or lower the channel's degree in --config.",
+            )
 
 
 @dataclass(frozen=True, eq=False)
@@ -182,17 +223,22 @@ def fit_em(
     """Learn the action table, the sensor model and the prior from ``data`` by EM (Algorithm of ch. 4)."""
     cfg = config or EMConfig()
     if cfg.ridge_search_mm > 0 and data.geometry != "planar":
-        raise ValueError(
-            f"{data.source}: ridge_search_mm moves the path along the robot's heading and needs a planar log; "
-            "set ridge_search_mm: 0 for a track"
+        raise ConfigError(
+            "ridge_search_mm moves the path along the robot's heading and needs a planar log.",
+            file=data.source,
+            field="ridge_search_mm",
+            fix="set ridge_search_mm: 0 for a track.",
         )
     if cfg.motion_sd_sideways_mm > 0 and data.geometry != "planar":
-        raise ValueError(
-            f"{data.source}: motion_sd_sideways_mm is a planar robot's sideways noise and a track has no sideways; "
-            "remove it or set it to 0"
+        raise ConfigError(
+            "motion_sd_sideways_mm is a planar robot's sideways noise, and a track has no sideways.",
+            file=data.source,
+            field="motion_sd_sideways_mm",
+            fix="remove it or set it to 0.",
         )
     refuse_bearing_settings(cfg, data)
     model = initial or initial_model(data, cfg)
+    refuse_too_few_readings(model, data)
     rng = np.random.default_rng(cfg.seed)
     n = model.prior_mean.size
     if cfg.motion_noise == "fixed":  # the thesis: Sigma_m is the configured constant, whatever the start says
@@ -235,9 +281,11 @@ def fit_em(
             if it == 0:
                 obs_use = post.obs_used
                 if data.n_observations and not post.weights.any():
-                    raise ValueError(
-                        f"{data.source}: the starting model uses no reading at all; check each channel's "
-                        "valid_min/valid_max (in the state's unit) against its starting line"
+                    raise ConfigError(
+                        "the starting model uses no reading at all.",
+                        file=data.source,
+                        field="channels[].valid_min / valid_max",
+                        fix="check each channel's window (in the state's unit) against its starting line.",
                     )
             if not post.ok:
                 reason = "diverged"

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from sensact.core.angles import wrap_angle
+from sensact.errors import ConfigError
 from sensact.learn.em.config import EMConfig
 from sensact.learn.em.estep import e_step
 from sensact.logs.landmark_log import LandmarkLog
@@ -81,7 +82,12 @@ def start_candidates(data: LandmarkLog, model: EMModel, config: EMConfig) -> tup
             if post.ok and np.isfinite(post.loglik):
                 scored.append((post.loglik, prior_mean))
     if not scored:
-        raise ValueError(f"{data.source}: no start candidate gave a finite likelihood; set start_prior_mean by hand")
+        raise ConfigError(
+            "no start candidate gave a finite likelihood.",
+            file=data.source,
+            field="start_search_s",
+            fix="set start_search_s: 0 and give start_prior_mean (x mm, y mm, heading rad) and start_prior_sd.",
+        )
     scored.sort(key=lambda s: -s[0])
     chosen: list[tuple[float, np.ndarray]] = []
     for ll, mean in scored:
