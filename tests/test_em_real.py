@@ -838,6 +838,13 @@ def test_mrclam_reader_and_log_folder_round_trip(tmp_path):
             score["bars"]["bearing_sigma"],
         )
     ]
+    # a model of other commands (wheel speeds) is refused in one line, with how to learn one on the robot
+    wheels = model.read_text().replace("v_mm_s", "left_mm_s").replace("omega_rad_s", "right_mm_s")
+    (tmp_path / "wheels.json").write_text(wheels)
+    run = CliRunner().invoke(cli.app, ["evaluate", "mrclam", str(MRCLAM), "--model", str(tmp_path / "wheels.json")])
+    flat = " ".join(run.output.split())
+    assert run.exit_code == 2 and "wheels.json: action.command_names:" in flat and "Traceback" not in run.output
+    assert f"sensact convert mrclam {MRCLAM} --robot 1 --out DIR" in flat, flat
     # beside the JSON, the four figures `reproduce real` draws per robot; with no EM run to take the
     # smoothed path from, the bearing figure has Vicon's residuals alone, the ones the bar scores
     for kind in ("actions", "range", "heading_noise", "bearing"):

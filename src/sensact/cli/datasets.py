@@ -161,6 +161,11 @@ def evaluate_mrclam_cmd(
 
     doc, m = _read_em_model(model)
     ml = read_mrclam(dataset, robot, dt_s=float(doc.get("dt_s", 1.0 / 30.0)))
+    learn = (
+        f"sensact convert mrclam {dataset} --robot {robot} --out DIR, then "
+        "sensact learn em DIR --config DIR/em_config.yaml"
+    )
+    refuse_model_for_log(doc, m, ml.data, model, f"{dataset} robot {robot}", learn)
     sc = score_against_truth(m, ml.data, *ml.truth_poses())
     sc["bars"] = bar_checks(sc)
     print_truth_score(sc)
@@ -192,9 +197,12 @@ def _read_em_model(model: Path) -> tuple[dict[str, Any], Any]:
     return doc, EMModel.from_dict(doc.get("model", doc), source=str(model))
 
 
-def refuse_model_for_log(doc: dict[str, Any], m: Any, data: Any, model: Path, log: Path) -> None:
+def refuse_model_for_log(
+    doc: dict[str, Any], m: Any, data: Any, model: Path, log: Path | str, learn: str | None = None
+) -> None:
     """A model scores only on a log it could have been learned from: the same geometry, commands (or number
-    of actions), readings and step, since its delay is counted in steps. One line naming what differs."""
+    of actions), readings and step, since its delay is counted in steps. One line naming what differs;
+    ``learn`` is the command that learns a model on ``log``."""
     import numpy as np
 
     from sensact.errors import ModelFormatError
@@ -203,7 +211,8 @@ def refuse_model_for_log(doc: dict[str, Any], m: Any, data: Any, model: Path, lo
     def refuse(what: str, field: str, fix: str) -> None:
         raise ModelFormatError(f"{what}, so it cannot be scored on {log}.", file=model, field=field, fix=fix)
 
-    relearn = f"score it on a log like the one it was learned from, or learn one on this log (sensact learn em {log})."
+    learn = learn or f"sensact learn em {log}"
+    relearn = f"score it on a log like the one it was learned from, or learn one on this log ({learn})."
     if m.geometry != data.geometry:
         refuse(f"the model is {m.geometry} and the log {data.geometry}", "geometry", relearn)
     if isinstance(m.action, ActionTable):
