@@ -114,6 +114,10 @@ def test_simulate_then_learn(tmp_path):
         (["simulate", "field2d", "--out", "x", "--setting", "mars"], "unknown setting"),
         (["learn", "em", "/nonexistent/log"], "EM reads a log folder; not found"),
         (["learn", "em", ".", "--set", "patience=0"], "patience"),
+        *(
+            (["simulate", sim, "--out", "x", "--seconds", "0"], "--seconds: seconds")
+            for sim in ("track1d", "field2d", "diffdrive", "car")
+        ),
     ],
 )
 def test_bad_input_is_one_line_without_traceback(args, needle):

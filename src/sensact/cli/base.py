@@ -176,10 +176,20 @@ def layered_config(cls: type, config: Path | None, sets: list[str] | None, base:
     import dataclasses
 
     from sensact.config import build_config
+    from sensact.errors import ConfigError
 
     cfg = build_config(cls, config, sets or [], base=base)
     flags = {k: v for k, v in flags.items() if v is not None}
-    return dataclasses.replace(cfg, **flags) if flags else cfg
+    try:
+        return dataclasses.replace(cfg, **flags) if flags else cfg
+    except ValueError as exc:  # the config's own checks, on what the flags gave it
+        names = [f"--{k.replace('_', '-')}" for k in flags]
+        given = ", ".join(
+            f"{n} {v:g}" if isinstance(v, float) else f"{n} {v}" for n, v in zip(names, flags.values(), strict=True)
+        )
+        raise ConfigError(
+            f"{exc} (given {given}).", field=", ".join(names), fix="see the command's --help for each option."
+        ) from None
 
 
 def split_fields(set_: list[str] | None, config: Path | None, learner_cls: type) -> tuple[dict, dict]:
