@@ -234,6 +234,11 @@ def test_angle_median_and_offset():
     assert abs(angle_median(a)) > 3.0  # the wrap-around cluster wins
     motion = np.array([[np.cos(1.2), np.sin(1.2), 0.0]] * 5 + [[0.01, 0.0, 0.0]])
     assert offset_from_motion(motion * 2.0, 0.5) == pytest.approx(np.pi / 2 - 1.2)
+    # a drive that never reaches the speed says so, with the setting to lower (not a bare ValueError)
+    from sensact.errors import LogFormatError
+
+    with pytest.raises(LogFormatError, match=r"min_speed_m_s: .*the fastest: 0\.02 m/s"):
+        offset_from_motion(motion[-1:], 0.5)
 
 
 def test_factory_comparison_takes_out_one_mount_yaw():

@@ -499,10 +499,27 @@ def test_learn_em_refuses_a_turtlebot_csv_out_of_order(tmp_path):
     assert runner.invoke(app, ["simulate", "track1d", "--seconds", "5", "--out", str(one)]).exit_code == 0
     for name in ("actions.csv", "observations.csv"):
         (one / name).write_text("\n".join((one / name).read_text().splitlines()[:2]) + "\n")
+    # and a track whose sensor never read, or a Turtlebot CSV whose sonar1 never did
+    blind = tmp_path / "blind"
+    assert runner.invoke(app, ["simulate", "track1d", "--seconds", "5", "--out", str(blind)]).exit_code == 0
+    rows = (blind / "observations.csv").read_text().splitlines()
+    (blind / "observations.csv").write_text("\n".join([rows[0], *(r.split(",")[0] + "," for r in rows[1:])]) + "\n")
+    _write_turtlebot_csv(csv, with_range=True)
+    table = [r.split(",") for r in csv.read_text().splitlines()]
+    col = table[0].index("sonar1")
+    csv.write_text(
+        "\n".join(",".join([*r[:col], "", *r[col + 1 :]]) if k else ",".join(r) for k, r in enumerate(table))
+    )
     for learner in ("bootstrap", "em"):
         res = runner.invoke(app, ["learn", learner, str(one)])
         flat = " ".join(res.output.split())
         assert res.exit_code == 2 and "actions.csv: t_s:" in flat and "at least two rows (it has 1)" in flat, flat
+        res = runner.invoke(app, ["learn", learner, str(blind)])
+        flat = " ".join(res.output.split())
+        assert res.exit_code == 2 and "observations.csv: height_px: no reading of height_px" in flat, flat
+        res = runner.invoke(app, ["learn", learner, str(csv)])
+        flat = " ".join(res.output.split())
+        assert res.exit_code == 2 and "robot.csv: sonar1:" in flat and "Traceback" not in res.output, flat
 
 
 def test_a_fit_stopped_at_the_cap_says_how_fast_it_was_climbing():

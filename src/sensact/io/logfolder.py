@@ -172,6 +172,13 @@ def read_track_log(path: str | Path, sensor: str | None = None) -> TrackLog:
     t_o, o = obs["t_s"], obs[obs_col]
     ok = np.isfinite(t_o) & np.isfinite(o) & (t_o >= t_a[0])
     t_o, o = t_o[ok], o[ok]
+    if t_o.size == 0:
+        raise LogFormatError(
+            f"no reading of {obs_col} from the first action row's time on.",
+            file=path / "observations.csv",
+            field=obs_col,
+            fix="give a log whose sensor read something, on the same clock as actions.csv.",
+        )
     times = np.union1d(t_a, t_o)
     commands = c[np.searchsorted(t_a, times, side="right") - 1]
     observations = np.full(len(times), np.nan)

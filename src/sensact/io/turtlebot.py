@@ -123,6 +123,13 @@ def read_turtlebot_csv(path: str | Path, sensor: str = "sonar1") -> TrackLog:
             f"unknown sensor {sensor!r}.", file=path, field="sensor", fix=f"choose one of {', '.join(UNITS)}."
         )
     cols = _read_checked(path, (sensor,))
+    if not np.isfinite(cols[sensor]).any():
+        raise LogFormatError(
+            f"the {sensor} column holds no reading.",
+            file=path,
+            field=sensor,
+            fix="choose a sensor that read something with --sensor, or check the file's columns.",
+        )
     return TrackLog(
         cols["time"],
         cols["velocity_command"],

@@ -18,6 +18,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from sensact.core.angles import wrap_angle
+from sensact.errors import LogFormatError
 
 
 @dataclass(frozen=True)
@@ -146,5 +147,11 @@ def offset_from_motion(motion: np.ndarray, dt_s: float, min_speed_m_s: float = 2
     speed = np.hypot(motion[:, 0], motion[:, 1]) / dt_s
     fast = speed > min_speed_m_s
     if not fast.any():
-        raise ValueError("no motion faster than min_speed_m_s: C cannot be found")
+        fastest = float(speed.max()) if speed.size else 0.0
+        raise LogFormatError(
+            f"the scans show no motion faster than {min_speed_m_s:g} m/s (the fastest: {fastest:.2f} m/s), and only "
+            "faster motions say which way the car's forward is (sec. 5.2, footnote 4).",
+            field="min_speed_m_s",
+            fix="give a drive that reaches that speed, or lower it with --set min_speed_m_s=...",
+        )
     return float(wrap_angle(np.pi / 2 - angle_median(np.arctan2(motion[fast, 1], motion[fast, 0]))))

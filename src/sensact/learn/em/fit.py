@@ -155,7 +155,8 @@ def refuse_too_few_readings(model: EMModel, data: LandmarkLog) -> None:
     would report a sigma of nothing. One line naming the channel (``LogFormatError``), before EM."""
     for j, ch in enumerate(model.sensor.channels):
         col = data.reading_names.index(ch.name) if ch.name in data.reading_names else j
-        n = int(np.isfinite(data.obs_readings.reshape(data.n_observations, -1)[:, col]).sum())
+        readings = data.obs_readings if data.obs_readings.ndim == 2 else data.obs_readings[:, None]
+        n = int(np.isfinite(readings[:, col]).sum())
         p = ch.function.degree + 1 + len(ch.bearing_terms) + 1
         if n <= p:
             raise LogFormatError(
