@@ -127,6 +127,19 @@ def test_bad_input_is_one_line_without_traceback(args, needle):
     assert "Traceback" not in res.output
 
 
+def test_a_path_the_system_refuses_is_one_line(tmp_path):
+    """An --out under a file (or any path the system refuses) names the path and the fix, like bad input."""
+    blocker = tmp_path / "results"
+    blocker.write_text("not a folder")
+    for args in (["simulate", "track1d", "--seconds", "5"], ["reproduce", "track1d", "--trials", "1"]):
+        res = runner.invoke(app, [*args, "--out", str(blocker / "sub")])
+        flat = " ".join(res.output.split())
+        assert res.exit_code == 2 and f"{blocker}" in flat and "a file stands where a folder is needed" in flat, flat
+        assert "Traceback" not in res.output
+    res = runner.invoke(app, ["--debug", "simulate", "track1d", "--seconds", "5", "--out", str(blocker / "sub")])
+    assert isinstance(res.exception, OSError)  # --debug still shows what the system raised
+
+
 def test_debug_shows_the_traceback():
     res = runner.invoke(app, ["--debug", "learn", "bootstrap", "/nonexistent/log"])
     assert res.exit_code != 0 and res.exception is not None

@@ -60,12 +60,35 @@ def friendly(fn: F) -> F:
                 raise
             err_console.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
             raise typer.Exit(2) from None
+        except OSError as exc:  # a path the system refused: an --out over a file, no permission, a full disk
+            if _state["debug"]:
+                raise
+            err_console.print(f"[bold red]error:[/] {os_error_line(exc)}", highlight=False, soft_wrap=True)
+            raise typer.Exit(2) from None
         except KeyboardInterrupt:
             err_console.print("interrupted; files already written are complete (atomic writes).")
             raise typer.Exit(130) from None
 
     wrapper.__doc__ = one_line_paragraphs(fn.__doc__)
     return wrapper  # type: ignore[return-value]
+
+
+def os_error_line(exc: OSError) -> str:
+    """The file, what the system said, and a fix for the usual causes, as every other error is shown."""
+    import errno
+
+    fixes = {
+        errno.EEXIST: "a file stands where a folder is needed; choose another --out or move the file.",
+        errno.ENOTDIR: "a file stands where a folder is needed; choose another --out or move the file.",
+        errno.EISDIR: "give a file here, not a folder.",
+        errno.EACCES: "choose a path you may read or write, or change its permissions.",
+        errno.EPERM: "choose a path you may read or write, or change its permissions.",
+        errno.ENOSPC: "free some space, or write the results to another disk with --out.",
+        errno.ENOENT: "check the path.",
+    }
+    fix = fixes.get(exc.errno or 0, "check the path and the permissions.")
+    where = exc.filename if exc.filename is not None else "(no file named)"
+    return str(SensactError(f"{exc.strerror or exc}.", file=str(where), fix=fix))
 
 
 def one_line_paragraphs(doc: str | None) -> str | None:
