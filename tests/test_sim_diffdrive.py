@@ -302,6 +302,17 @@ def test_learn_em_names_settings_and_logs_it_cannot_learn_from(tmp_path):
         (bad_step / f).write_bytes((dd / f).read_bytes())
     meta = json.loads((dd / "meta.json").read_text())
     (bad_step / "meta.json").write_text(json.dumps({**meta, "dt_s": -1}))
+    no_commands = tmp_path / "no_commands"
+    no_commands.mkdir()
+    for f in ("actions.csv", "observations.csv"):
+        (no_commands / f).write_bytes((dd / f).read_bytes())
+    (no_commands / "meta.json").write_text(json.dumps({**meta, "actions": {"columns": []}}))
+    bad_map = tmp_path / "bad_map"
+    bad_map.mkdir()
+    for f in ("actions.csv", "observations.csv"):
+        (bad_map / f).write_bytes((dd / f).read_bytes())
+    marks = [{**m, "x_mm": "east"} for m in meta["landmarks"]]
+    (bad_map / "meta.json").write_text(json.dumps({**meta, "landmarks": marks}))
     cases = [
         ([track, "--set", "ridge_search_mm=300"], "track: ridge_search_mm:", "set ridge_search_mm: 0"),
         ([track, "--set", "motion_noise=turning"], "track: motion_noise:", "use motion_noise: shared"),
@@ -311,6 +322,8 @@ def test_learn_em_names_settings_and_logs_it_cannot_learn_from(tmp_path):
         ([dd, "--config", cfg, "--set", 'action_inputs=["v_y_mm_s:w"]'], "action_inputs", "omega_rad_s"),
         ([short, "--config", cfg], "short: range_mm:", "readings of range_mm, and its model has 7 parameters"),
         ([bad_step], "meta.json: dt_s:", "must be a positive number"),
+        ([no_commands, "--config", cfg], "meta.json: actions.columns:", "at least one command column"),
+        ([bad_map, "--config", cfg], "meta.json: landmarks:", "landmarks: malformed (could not convert string"),
     ]
     for args, field, words in cases:
         res = runner.invoke(app, ["learn", "em", *map(str, args)])

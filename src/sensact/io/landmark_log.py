@@ -116,8 +116,10 @@ def _planar(path: Path, meta: dict[str, Any]) -> LandmarkLogFile:
     """A landmark log folder (planar, or a track declared with ``"geometry": "track"``)."""
     mpath = path / "meta.json"
     geometry = meta.get("geometry", "planar")
+    part = "dt_s"  # the part of meta.json being read, for the error
     try:
         dt = float(meta["dt_s"])
+        part = "actions"
         act = meta["actions"]
         if "columns" in act:
             table = np.zeros((0, len(act["columns"])))
@@ -125,18 +127,27 @@ def _planar(path: Path, meta: dict[str, Any]) -> LandmarkLogFile:
         else:
             table = np.asarray(act["table"], dtype=float)
             names = tuple(act.get("names") or [f"c{j}" for j in range(table.shape[1])])
+        part = "landmarks"
         marks = meta["landmarks"] if geometry == "planar" else meta.get("landmarks", [{"id": 0, "x_mm": 0, "y_mm": 0}])
         ids = [int(m["id"]) for m in marks]
         xy = np.array([[float(m["x_mm"]), float(m["y_mm"])] for m in marks])
         cols = meta.get("observations", {})
     except (KeyError, TypeError, ValueError, IndexError) as exc:
+        what = f"{exc} is missing" if isinstance(exc, KeyError) else f"malformed ({exc})"
         raise LogFormatError(
-            "a landmark log needs dt_s, actions (a table or command columns) and landmarks "
-            f"({exc!r} is missing or malformed).",
+            f"a landmark log needs dt_s, actions (a table or command columns) and landmarks (id, x_mm, y_mm); "
+            f"{part}: {what}.",
             file=mpath,
-            field=str(exc).strip("'"),
+            field=part,
             fix='see docs/commands.md, "Log folders for EM"; `sensact simulate field2d --out DIR` writes an example.',
         ) from None
+    if "columns" in act and not names:
+        raise LogFormatError(
+            "actions.columns is empty: EM needs at least one command column.",
+            file=mpath,
+            field="actions.columns",
+            fix='name the command columns of actions.csv, e.g. ["v_mm_s", "omega_rad_s"].',
+        )
     if not (np.isfinite(dt) and dt > 0):
         raise LogFormatError(
             f"dt_s is {meta['dt_s']!r}; the fixed step must be a positive number of seconds.",
