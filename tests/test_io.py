@@ -88,6 +88,11 @@ def test_atomic_writes_leave_no_temporary_files(tmp_path):
     with pytest.raises(TypeError):
         write_npz(tmp_path / "b.npz", w=np.array([object()]))
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.npz", "r.json"]
+    # a written file has the mode any new file gets (mkstemp's own is private, 0600), the same as open()'s
+    (tmp_path / "plain.txt").write_text("x")
+    plain = (tmp_path / "plain.txt").stat().st_mode & 0o777
+    assert (tmp_path / "r.json").stat().st_mode & 0o777 == plain
+    assert (tmp_path / "a.npz").stat().st_mode & 0o777 == plain
 
 
 def test_polynomial_json_round_trip_and_power_form():

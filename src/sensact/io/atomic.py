@@ -13,6 +13,16 @@ from typing import IO, Any
 import numpy as np
 
 
+def _process_umask() -> int:
+    mask = os.umask(0)  # reading the umask means setting it; put it straight back
+    os.umask(mask)
+    return mask
+
+
+# mkstemp makes its file private (0600); a written result gets the mode any new file of the user's gets
+_FILE_MODE = 0o666 & ~_process_umask()
+
+
 def _atomic(path: str | Path, mode: str, write: Callable[[IO[Any]], None]) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -22,6 +32,7 @@ def _atomic(path: str | Path, mode: str, write: Callable[[IO[Any]], None]) -> Pa
             write(handle)
             handle.flush()
             os.fsync(handle.fileno())
+        os.chmod(tmp, _FILE_MODE)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
