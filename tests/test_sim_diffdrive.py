@@ -345,6 +345,10 @@ def test_learn_em_names_settings_and_logs_it_cannot_learn_from(tmp_path):
     assert res.exit_code == 0, flat
     assert "not scored against the recorded poses" in flat and "groundtruth.csv: t_s: no 30-step window" in flat
     assert json.loads(out.read_text())["evaluation"] is None
+    # scoring that model there on purpose is what fails, naming the file
+    res = runner.invoke(app, ["evaluate", "log", str(broken), "--model", str(out)])
+    flat = " ".join(res.output.split())
+    assert res.exit_code == 2 and "groundtruth.csv: t_s: no 30-step window" in flat and "not scored" not in flat, flat
 
 
 def test_reproduce_diffdrive_writes_its_scorecard_and_figures(tmp_path):

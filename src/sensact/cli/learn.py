@@ -240,7 +240,9 @@ def learn_em_cmd(
             f"log-likelihood {r['loglik_before']:.1f} -> {r['loglik_after']:.1f} ({r['e_steps']} E-steps)"
         )
     print_em_model(m)
-    evaluation = evaluate_em(lf, m) if lf is not None else evaluate_turtlebot_em(res, data, turtlebot_truth)
+    evaluation = (
+        evaluate_em(lf, m, learned_here=True) if lf is not None else evaluate_turtlebot_em(res, data, turtlebot_truth)
+    )
     if out is not None:
         write_json(
             out,
