@@ -112,7 +112,7 @@ def test_simulate_then_learn(tmp_path):
         (["reproduce", "real", "--data", "/nonexistent", "--set", "seconds=3"], "seconds is not an EM setting"),
         (["reproduce", "real", "--data", "/nonexistent", "--set", "motion_noise=wobbly"], "motion_noise must be"),
         (["simulate", "field2d", "--out", "x", "--setting", "mars"], "unknown setting"),
-        (["learn", "em", "/nonexistent/log"], "EM reads a log folder; not found"),
+        (["learn", "em", "/nonexistent/log"], "not a log folder: not found"),
         (["learn", "em", ".", "--set", "patience=0"], "patience"),
         *(
             (["simulate", sim, "--out", "x", "--seconds", "0"], "--seconds: seconds")

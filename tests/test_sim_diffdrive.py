@@ -250,12 +250,14 @@ def test_evaluate_log_names_what_keeps_a_model_from_a_log(tmp_path):
     meta.pop("truth")
     (no_truth / "meta.json").write_text(json.dumps(meta))
     (tmp_path / "bad.json").write_text("{not json")
+    (tmp_path / "list.json").write_text("[1, 2]")
     cases = [
         (logs["wheels"], model, "action.command_names", "the model's commands are v_mm_s, omega_rad_s"),
         (logs["coarse"], model, "dt_s", "--dt 0.03333333333"),
         (no_truth, model, "groundtruth.csv", "has no ground truth"),
-        (logs["vw"], tmp_path / "bad.json", "bad.json", "not JSON"),
-        (logs["vw"], tmp_path / "none.json", "none.json", "file not found"),
+        (logs["vw"], tmp_path / "bad.json", "bad.json", "not valid JSON (line 1)"),
+        (logs["vw"], tmp_path / "none.json", "none.json", "none.json not found"),
+        (logs["vw"], tmp_path / "list.json", "list.json", "not a JSON object (it holds a list)"),
     ]
     for folder, m, field, words in cases:
         res = runner.invoke(app, ["evaluate", "log", str(folder), "--model", str(m)])

@@ -179,21 +179,11 @@ def evaluate_mrclam_cmd(
 
 def _read_em_model(model: Path) -> tuple[dict[str, Any], Any]:
     """A model.json `sensact learn em` wrote: the whole document (its ``dt_s`` too) and the model."""
-    import json
-
     from sensact.errors import ModelFormatError
+    from sensact.io.jsonfile import read_json_object
     from sensact.models.em_model import EMModel
 
-    if not model.is_file():
-        raise ModelFormatError("file not found.", file=model, fix="give the model.json `sensact learn em` wrote.")
-    try:
-        doc = json.loads(model.read_text())
-    except json.JSONDecodeError as exc:
-        raise ModelFormatError(
-            f"not JSON ({exc}).", file=model, fix="give the model.json `sensact learn em` wrote."
-        ) from None
-    if not isinstance(doc, dict):
-        raise ModelFormatError("not an EM model.", file=model, fix="give the model.json `sensact learn em` wrote.")
+    doc = read_json_object(model, ModelFormatError, "give the model.json `sensact learn em` wrote.")
     return doc, EMModel.from_dict(doc.get("model", doc), source=str(model))
 
 
@@ -261,10 +251,6 @@ def evaluate_log_cmd(
     from sensact.io.atomic import write_json
     from sensact.io.landmark_log import read_landmark_log
 
-    if not log.is_dir():
-        raise LogFormatError(
-            "not a log folder.", file=log, fix="give a folder `convert csv`, `convert mrclam` or `simulate` wrote."
-        )
     doc, m = _read_em_model(model)
     lf = read_landmark_log(log)
     refuse_model_for_log(doc, m, lf.data, model, log)
@@ -292,10 +278,6 @@ def _read_log_with_truth(log: Path) -> Any:
     from sensact.errors import LogFormatError
     from sensact.io.landmark_log import read_landmark_log
 
-    if not log.is_dir():
-        raise LogFormatError(
-            "not a log folder.", file=log, fix="give a folder `convert csv`, `convert mrclam` or `simulate` wrote."
-        )
     lf = read_landmark_log(log)
     if lf.truth_poses() is None or not lf.data.is_continuous:
         raise LogFormatError(

@@ -228,9 +228,10 @@ def read_landmark_log(path: str | Path, *, command_bins: int = 21) -> LandmarkLo
     path = Path(path)
     if not path.is_dir():
         raise LogFormatError(
-            "EM reads a log folder; " + ("this is a file." if path.exists() else "not found."),
+            "not a log folder: " + ("this is a file." if path.exists() else "not found."),
             file=path,
-            fix="give a folder with meta.json, actions.csv and observations.csv.",
+            fix="give a folder with meta.json, actions.csv and observations.csv (`convert csv`, `convert mrclam` or "
+            "`simulate` writes one).",
         )
     meta = read_meta(path, example="`sensact simulate field2d --out DIR` (or `sensact convert mrclam`)")
     if meta.get("geometry") in ("planar", "track") or meta.get("platform") == "field2d":

@@ -13,7 +13,6 @@
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -23,6 +22,7 @@ import numpy as np
 from sensact.errors import LogFormatError
 from sensact.io.atomic import write_json, write_text
 from sensact.io.csvtable import read_numeric_csv
+from sensact.io.jsonfile import read_json_object
 
 LOG_FORMAT = "sensact-log"
 LOG_VERSION = 1
@@ -94,19 +94,9 @@ def write_log_folder(
 def read_meta(folder: str | Path, example: str = "`sensact simulate track1d --out DIR`") -> dict[str, Any]:
     """``example``: what writes a folder of the kind the caller reads, for the fix."""
     path = Path(folder) / "meta.json"
-    if not path.is_file():
-        raise LogFormatError(
-            "meta.json not found.",
-            file=path,
-            fix=f"a log folder needs meta.json; {example} writes an example.",
-        )
-    try:
-        meta = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise LogFormatError(
-            f"not valid JSON (line {exc.lineno}).", file=path, fix="repair or rewrite meta.json."
-        ) from None
-    if not isinstance(meta, dict) or meta.get("format") != LOG_FORMAT:
+    missing = f"a log folder needs meta.json; {example} writes an example."
+    meta = read_json_object(path, LogFormatError, "repair or rewrite meta.json.", missing)
+    if meta.get("format") != LOG_FORMAT:
         raise LogFormatError(
             f"'format' is not {LOG_FORMAT!r}.",
             file=path,
