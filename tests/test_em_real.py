@@ -17,7 +17,7 @@ from sensact.cli.scores import print_truth_score
 from sensact.config import config_from_dict
 from sensact.core.pose_models import apply_displacement, landmark_bearing, landmark_distance
 from sensact.errors import ConfigError
-from sensact.learn.em import EMConfig, e_step, fit_em, initial_model
+from sensact.learn.em import EMConfig, e_step, fit_em, initial_model, log_likelihood
 from sensact.learn.em.actions import linear_action_update, linear_coefficients, step_motion_var, table_velocities
 from sensact.learn.em.config import ChannelConfig
 from sensact.learn.em.delay_search import search_delay, with_delay
@@ -393,17 +393,20 @@ def test_ridge_search_finds_a_model_moved_behind_and_never_lowers_the_likelihood
     def evaluate(m):
         return e_step(m, data)
 
+    def score(m):
+        return log_likelihood(m, data)
+
     behind = shifted_forward(res.model, -250.0)
-    model, post, info = search_ridge(behind, evaluate(behind), evaluate, 500.0)
+    model, post, info = search_ridge(behind, evaluate(behind), score, evaluate, 500.0)
     assert info["shift_mm"] == pytest.approx(250.0, abs=40.0)
     assert post.loglik == info["loglik_after"] > info["loglik_before"] + 10.0
     assert model.prior_mean == pytest.approx(res.model.prior_mean, abs=45.0)
-    _, _, info0 = search_ridge(res.model, evaluate(res.model), evaluate, 500.0)
+    _, _, info0 = search_ridge(res.model, evaluate(res.model), score, evaluate, 500.0)
     assert abs(info0["shift_mm"]) < 40.0 and info0["loglik_after"] >= info0["loglik_before"]
-    assert 0 < info0["e_steps"] <= 30 and info0["expansions"] == 0
+    assert 0 < info0["forward_passes"] <= 30 and info0["expansions"] == 0
     # beyond the bracket: the search starts again from its edge until the peak is inside
     far = shifted_forward(res.model, -900.0)
-    model, post, info = search_ridge(far, evaluate(far), evaluate, 500.0)
+    model, post, info = search_ridge(far, evaluate(far), score, evaluate, 500.0)
     assert info["shift_mm"] == pytest.approx(900.0, abs=40.0) and info["expansions"] >= 1
     assert post.loglik == info["loglik_after"] > info["loglik_before"] + 10.0
     assert model.prior_mean == pytest.approx(res.model.prior_mean, abs=45.0)
@@ -425,15 +428,18 @@ def test_delay_search_finds_the_command_delay_and_never_lowers_the_likelihood(de
     def evaluate(m):
         return e_step(m, data)
 
+    def score(m):
+        return log_likelihood(m, data)
+
     for wrong in (0, 15):
         start = with_delay(res.model, wrong)
-        model, post, info = search_delay(start, evaluate(start), evaluate, 15)
+        model, post, info = search_delay(start, evaluate(start), score, evaluate, 15)
         assert info["delay_from"] == wrong and abs(info["delay_to"] - 6) <= 1
         assert model.action.delay_steps == info["delay_to"]
         assert np.array_equal(model.action.coefficients, res.model.action.coefficients)
         assert post.loglik == info["loglik_after"] > info["loglik_before"] + 10.0
-        assert info["e_steps"] <= 10  # 0, 3, ..., 15, then the best one's neighbours
-    same, _, info0 = search_delay(res.model, evaluate(res.model), evaluate, 15)
+        assert info["forward_passes"] <= 10  # 0, 3, ..., 15, then the best one's neighbours
+    same, _, info0 = search_delay(res.model, evaluate(res.model), score, evaluate, 15)
     assert info0["loglik_after"] >= info0["loglik_before"]
     assert abs(same.action.delay_steps - res.model.action.delay_steps) <= 1
     # a robot without a delay: searched from the same config, EM learns none

@@ -8,10 +8,10 @@ from scipy.stats import multivariate_normal
 
 from reference_ekf import reference_ekf
 from sensact.core.pose_models import landmark_bearing, landmark_distance
-from sensact.learn.em import e_step, initial_model
+from sensact.learn.em import e_step, initial_model, log_likelihood
 from sensact.learn.em.config import EMConfig
 from sensact.logs.landmark_log import LandmarkLog
-from sensact.models.landmark_sensor import LandmarkSensor
+from sensact.models.landmark_sensor import LandmarkSensor, ReadingChannel
 from sensact.models.polynomial import Polynomial1D
 
 SM = 10.0  # motion sd per step, mm
@@ -179,3 +179,26 @@ def test_the_passes_are_compiled_for_a_track_and_a_planar_pose_only():
     assert ekf_smoother_for(1) is not ekf_smoother_for(3)
     with pytest.raises(ValueError, match=r"1 \(track\) or 3 \(planar\) numbers, not 2"):
         ekf_smoother_for(2)
+
+
+def test_the_forward_pass_alone_gives_the_e_steps_likelihood_bit_for_bit():
+    """Exact reduction: ``log_likelihood`` (what the searches compare) is eq. 4.14 from the forward pass
+    alone, the very number ``e_step`` returns, on a track, on the field with Student-t heights and
+    gated bearings, and with observations masked; a filter that fails is -inf, not a number."""
+    data, model = _linear_track()[:2]
+    assert log_likelihood(model, data) == e_step(model, data).loglik
+    _run, data, model = _planar_case(T=600)
+    (ch,) = model.sensor.channels
+    robust = model.replace(
+        sensor=LandmarkSensor(
+            (ReadingChannel(ch.name, ch.function, ch.sigma, robust="student_t", robust_param=4.0),), 0.5, "gate", 2.0
+        )
+    )
+    mask = np.arange(data.n_observations) % 3 != 0
+    for m in (model, robust):
+        full = e_step(m, data)
+        assert full.ok and log_likelihood(m, data) == full.loglik
+        assert log_likelihood(m, data, obs_use=mask) == e_step(m, data, obs_use=mask).loglik
+    assert e_step(robust, data).weights[:, 1].min() == 0.0  # the gate did drop bearings
+    broken = model.replace(prior_cov=-model.prior_cov)
+    assert not e_step(broken, data).ok and log_likelihood(broken, data) == -np.inf

@@ -232,12 +232,12 @@ def learn_em_cmd(
     for r in res.ridge or []:
         console.print(
             f"ridge search at iteration {r['iteration']}: path and f moved {r['shift_mm']:+.0f} mm forward, "
-            f"log-likelihood {r['loglik_before']:.1f} -> {r['loglik_after']:.1f} ({r['e_steps']} E-steps)"
+            f"log-likelihood {r['loglik_before']:.1f} -> {r['loglik_after']:.1f} ({r['forward_passes']} forward passes)"
         )
     for r in res.delay_search or []:
         console.print(
             f"delay search at iteration {r['iteration']}: command delay {r['delay_from']} -> {r['delay_to']} steps, "
-            f"log-likelihood {r['loglik_before']:.1f} -> {r['loglik_after']:.1f} ({r['e_steps']} E-steps)"
+            f"log-likelihood {r['loglik_before']:.1f} -> {r['loglik_after']:.1f} ({r['forward_passes']} forward passes)"
         )
     print_em_model(m)
     evaluation = (

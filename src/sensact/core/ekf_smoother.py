@@ -179,9 +179,12 @@ def _compiled_for(n_state: int):
         P_g,
         d_mu,
         d_P,
+        smooth,
     ):
         """Run the E-step passes; fill ``mu_a, P_a`` (alpha), ``mu_g, P_g`` (gamma) and ``d_mu, d_P``
-        (mean and covariance of ``D(w_t, w_t+1)`` under xi). Returns ``(status, loglik, n_used)``.
+        (mean and covariance of ``D(w_t, w_t+1)`` under xi). Returns ``(status, loglik, n_used)``. With
+        ``smooth`` False only the forward pass runs (alpha and the likelihood, a quarter of the time): the
+        gamma and xi arrays are left untouched and may be of any length.
 
         ``step_velocity[t]`` and ``step_motion_var[t]`` (robot frame, diagonal) are the action model's mean
         velocity and the motion noise from step ``t`` to ``t+1``. Observation rows ``obs_ptr[t]:obs_ptr[t+1]``
@@ -270,6 +273,9 @@ def _compiled_for(n_state: int):
                 for j in range(n):
                     P[i, j] = Q[i, j]
             symmetrize(P, n)
+
+        if not smooth:
+            return OK, loglik, n_used
 
         # ---------------- backward: beta_t (eq. 4.4), gamma_t (4.9, 4.10), xi_t (4.11, 4.12)
         Y = np.zeros((n, n))

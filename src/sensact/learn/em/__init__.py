@@ -8,7 +8,7 @@ likelihood).
 """
 
 from sensact.learn.em.config import EMConfig
-from sensact.learn.em.estep import Posteriors, e_step, motion_variance
+from sensact.learn.em.estep import Posteriors, e_step, log_likelihood, motion_variance
 from sensact.learn.em.fit import EMResult, fit_em, initial_model
 from sensact.learn.em.mstep import m_step
 from sensact.logs.landmark_log import LandmarkLog
@@ -21,6 +21,7 @@ __all__ = [
     "e_step",
     "fit_em",
     "initial_model",
+    "log_likelihood",
     "m_step",
     "motion_variance",
 ]

@@ -6,9 +6,10 @@ those displacements are mostly the motion model's own prediction, made with the 
 M-step hands that delay back: EM barely moves it. On MRCLAM robot 4 it stayed at 1 step while the
 E-step likelihood peaks at 7 (196 log-units higher), From-Truth's delay (docs/em-real.md).
 
-``search_delay`` asks the likelihood instead: it runs the E-step with the current coefficients at
-every ``stride``-th delay (and the largest), then at the best one's neighbours, and keeps the most
-likely delay. It never lowers the likelihood; on MRCLAM (0-15 steps) it costs 8-10 E-steps.
+``search_delay`` asks the likelihood instead: it runs the E-step's forward pass with the current
+coefficients at every ``stride``-th delay (and the largest), then at the best one's neighbours, and
+keeps the most likely delay, whose E-step it then runs whole. It never lowers the likelihood; on MRCLAM
+(0-15 steps) it costs 8-10 forward passes.
 ``fit_em`` runs it on the ridge search's schedule.
 """
 
@@ -34,36 +35,42 @@ def with_delay(model: EMModel, delay_steps: int) -> EMModel:
 def search_delay(
     model: EMModel,
     post: Posteriors,
+    loglik: Callable[[EMModel], float],
     evaluate: Callable[[EMModel], Posteriors],
     max_delay: int,
     stride: int = COARSE_STRIDE,
 ) -> tuple[EMModel, Posteriors, dict[str, Any]]:
-    """The delay in ``0..max_delay`` whose E-step (``evaluate``) is the most likely, with the model and
-    its E-step; ``model`` and ``post`` themselves when no other delay is more likely."""
+    """The delay in ``0..max_delay`` whose likelihood (``loglik``, the forward pass) is the highest, with
+    the model and its E-step (``evaluate``); ``model`` and ``post`` themselves when no other delay is
+    more likely."""
     current = int(model.action.delay_steps)
-    tried: dict[int, Posteriors] = {current: post}
+    tried = {current: float(post.loglik) if post.ok and np.isfinite(post.loglik) else -np.inf}
 
-    def loglik(delay: int) -> float:
+    def score(delay: int) -> float:
         if delay not in tried:
-            tried[delay] = evaluate(with_delay(model, delay))
-        p = tried[delay]
-        return p.loglik if p.ok and np.isfinite(p.loglik) else -np.inf
+            tried[delay] = loglik(with_delay(model, delay))
+        return tried[delay]
 
     for delay in sorted({*range(0, max_delay + 1, max(stride, 1)), max_delay}):
-        loglik(delay)
-    coarse = max(tried, key=loglik)
+        score(delay)
+    coarse = max(tried, key=score)
     for delay in range(max(coarse - stride + 1, 0), min(coarse + stride - 1, max_delay) + 1):
-        loglik(delay)
-    best = max(tried, key=loglik)
-    if loglik(best) <= loglik(current):
+        score(delay)
+    best = max(tried, key=score)
+    if score(best) <= score(current):
         best = current
     info = {
         "delay_from": current,
         "delay_to": best,
         "loglik_before": float(post.loglik),
-        "loglik_after": float(tried[best].loglik),
-        "e_steps": len(tried) - 1,
+        "loglik_after": float(tried[best]),
+        "forward_passes": len(tried) - 1,  # the kept delay is then smoothed once
     }
     if best == current:
         return model, post, info
-    return with_delay(model, best), tried[best], info
+    moved = with_delay(model, best)
+    kept = evaluate(moved)
+    if not kept.ok:  # its forward pass ran, its smoother did not: stay
+        info["delay_to"], info["loglik_after"] = current, float(post.loglik)
+        return model, post, info
+    return moved, kept, info

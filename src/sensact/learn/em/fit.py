@@ -19,7 +19,7 @@ import numpy as np
 from sensact.errors import ConfigError, LogFormatError
 from sensact.learn.em.config import EMConfig, refuse_bearing_settings
 from sensact.learn.em.delay_search import search_delay
-from sensact.learn.em.estep import Posteriors, e_step
+from sensact.learn.em.estep import Posteriors, e_step, log_likelihood
 from sensact.learn.em.mstep import m_step
 from sensact.learn.em.ridge import search_ridge
 from sensact.learn.em.start import race_starts, start_candidates
@@ -274,7 +274,7 @@ def fit_em(
     try:
         for it in range(max(cfg.max_iterations - spent, 1)):  # the race's iterations count
             post = e_step(
-                model if refining else model.replace(sensor=model.sensor.gaussian()),
+                _stage_model(model, refining),
                 data,
                 obs_use=obs_use,
                 prune_rad_per_step=cfg.prune_rad_per_step if it == 0 else 0.0,
@@ -306,11 +306,12 @@ def fit_em(
             again = since >= 0 and it > since and (it - since) % cfg.search_every == 0
             if (cfg.ridge_search_mm > 0 or searches_delay) and (ending_held or again):
                 evaluate = partial(_stage_e_step, data=data, obs_use=obs_use, robust=refining)
+                score = partial(_stage_loglik, data=data, obs_use=obs_use, robust=refining)
                 if cfg.ridge_search_mm > 0:
-                    model, post, info = search_ridge(model, post, evaluate, cfg.ridge_search_mm)
+                    model, post, info = search_ridge(model, post, score, evaluate, cfg.ridge_search_mm)
                     ridge_info.append({"iteration": it, **info})
                 if searches_delay:
-                    model, post, info = search_delay(model, post, evaluate, max_delay)
+                    model, post, info = search_delay(model, post, score, evaluate, max_delay)
                     delay_info.append({"iteration": it, **info})
                 logliks[-1] = post.loglik  # lambda_it is now the moved model (its likelihood before: info)
                 if post.loglik > best_ll:
@@ -358,9 +359,18 @@ def fit_em(
     )
 
 
+def _stage_model(model: EMModel, robust: bool) -> EMModel:
+    """The model the loop's current stage runs: Gaussian readings while held, the configured ones after."""
+    return model if robust else model.replace(sensor=model.sensor.gaussian())
+
+
 def _stage_e_step(model: EMModel, data: LandmarkLog, obs_use: np.ndarray, robust: bool) -> Posteriors:
-    """The E-step the loop's current stage runs: Gaussian readings while held, the configured ones after."""
-    return e_step(model if robust else model.replace(sensor=model.sensor.gaussian()), data, obs_use=obs_use)
+    return e_step(_stage_model(model, robust), data, obs_use=obs_use)
+
+
+def _stage_loglik(model: EMModel, data: LandmarkLog, obs_use: np.ndarray, robust: bool) -> float:
+    """``_stage_e_step``'s likelihood from its forward pass alone (the searches compare, then smooth one)."""
+    return log_likelihood(_stage_model(model, robust), data, obs_use=obs_use)
 
 
 def _action_parameters(model: EMModel) -> np.ndarray:

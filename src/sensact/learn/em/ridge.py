@@ -9,12 +9,12 @@ millimetres behind the robot and ``f`` off by as much.
 
 ``search_ridge`` moves along the ridge in one step: it maximizes the E-step's own
 ``log P(O | C, lambda)`` over ``delta`` with scipy's bounded scalar search, and keeps the move only if
-the likelihood rises. Every evaluation is one E-step (6-8 of them on MRCLAM), and the search never
-lowers the likelihood. A best shift at the bracket's edge has not found the peak, so the search
-starts again from there, up to ``MAX_EXPANSIONS`` times (on half of MRCLAM robot 4's log the first
-search moved 495 mm, the edge, and the path stayed 157 mm behind the robot). ``fit_em`` runs it
-when the held stage ends and every ``search_every`` iterations after (from the start when nothing is
-held), because EM keeps sliding back along the ridge between searches.
+the likelihood rises. Every evaluation is the E-step's forward pass alone (6-8 of them on MRCLAM), and only the shift
+it keeps is smoothed; the search never lowers the likelihood. A best shift at the bracket's edge has not
+found the peak, so the search starts again from there, up to ``MAX_EXPANSIONS`` times (on half of MRCLAM
+robot 4's log the first search moved 495 mm, the edge, and the path stayed 157 mm behind the robot).
+``fit_em`` runs it when the held stage ends and every ``search_every`` iterations after (from the start
+when nothing is held), because EM keeps sliding back along the ridge between searches.
 """
 
 from __future__ import annotations
@@ -50,38 +50,49 @@ def shifted_forward(model: EMModel, delta_mm: float) -> EMModel:
 
 
 def search_ridge(
-    model: EMModel, post: Posteriors, evaluate: Callable[[EMModel], Posteriors], half_width_mm: float
+    model: EMModel,
+    post: Posteriors,
+    loglik: Callable[[EMModel], float],
+    evaluate: Callable[[EMModel], Posteriors],
+    half_width_mm: float,
 ) -> tuple[EMModel, Posteriors, dict[str, Any]]:
     """The model along the ridge through ``model`` (whose E-step gave ``post``) with the highest
     likelihood found, and its E-step; ``model`` and ``post`` themselves when no shift raises the
-    likelihood. Each bracket is ``+-half_width_mm`` about the last move; ``evaluate`` is the E-step of
-    the loop's current stage."""
-    info = {"shift_mm": 0.0, "loglik_before": float(post.loglik), "e_steps": 0, "expansions": 0}
+    likelihood. Each bracket is ``+-half_width_mm`` about the last move. ``loglik`` scores a shifted model
+    (the forward pass of the loop's current stage); ``evaluate`` runs the whole E-step on the one kept."""
+    info = {"shift_mm": 0.0, "loglik_before": float(post.loglik), "forward_passes": 0, "expansions": 0}
+    start_model, best_ll = model, post.loglik if post.ok and np.isfinite(post.loglik) else -np.inf
     for expansion in range(MAX_EXPANSIONS + 1):
-        best, best_post, e_steps = _bracket_search(model, post, evaluate, half_width_mm)
-        info["e_steps"] += e_steps
+        best, best_ll, passes = _bracket_search(model, best_ll, loglik, half_width_mm)
+        info["forward_passes"] += passes
         if best == 0.0:
             break
-        model, post = shifted_forward(model, best), best_post
+        model = shifted_forward(model, best)
         info["shift_mm"] += best
         info["expansions"] = expansion
         if abs(best) < half_width_mm - 2 * RIDGE_TOLERANCE_MM:  # inside the bracket: the peak
             break
+    if model is not start_model:
+        kept = evaluate(model)
+        if kept.ok:
+            post = kept
+        else:  # its forward pass ran, its smoother did not: stay
+            model, info["shift_mm"] = start_model, 0.0
     info["loglik_after"] = float(post.loglik)
     return model, post, info
 
 
 def _bracket_search(
-    model: EMModel, post: Posteriors, evaluate: Callable[[EMModel], Posteriors], half_width_mm: float
-) -> tuple[float, Posteriors, int]:
-    """The most likely shift within ``+-half_width_mm`` (0 if none beats ``model``), its E-step, and
-    the number of E-steps run."""
-    tried: dict[float, Posteriors] = {0.0: post}
+    model: EMModel, current: float, loglik: Callable[[EMModel], float], half_width_mm: float
+) -> tuple[float, float, int]:
+    """The most likely shift within ``+-half_width_mm`` (0 if none beats ``model``, whose likelihood is
+    ``current``), its likelihood, and the number of passes run."""
+    tried: dict[float, float] = {0.0: current}
 
     def negative_loglik(delta: float) -> float:
-        p = evaluate(shifted_forward(model, delta))
-        tried[float(delta)] = p
-        return -p.loglik if p.ok and np.isfinite(p.loglik) else np.inf
+        ll = loglik(shifted_forward(model, delta))
+        tried[float(delta)] = ll
+        return -ll if np.isfinite(ll) else np.inf
 
     minimize_scalar(
         negative_loglik,
@@ -89,6 +100,5 @@ def _bracket_search(
         method="bounded",
         options={"xatol": RIDGE_TOLERANCE_MM},
     )
-    ok = {d: p for d, p in tried.items() if p.ok and np.isfinite(p.loglik)}
-    best = max(ok, key=lambda d: ok[d].loglik)
-    return best, ok[best], len(tried) - 1
+    best = max(tried, key=lambda d: tried[d])
+    return best, tried[best], len(tried) - 1

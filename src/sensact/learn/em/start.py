@@ -4,8 +4,8 @@ A real log begins wherever the robot happened to be. With a landmark map and bea
 only lock on from a start near the truth, so the start is chosen in two rounds:
 
 1. ``start_candidates`` scores a grid of starting positions over the mapped area by
-   ``log P(O | C, lambda)`` of the first ``start_search_s`` seconds under the starting model, the
-   E-step's own likelihood. At each position the heading is the one that makes the first bearing
+   ``log P(O | C, lambda)`` of the first ``start_search_s`` seconds under the starting model, the E-step's own
+   likelihood (its forward pass). At each position the heading is the one that makes the first bearing
    exact, so only positions need a grid. The best few, each at least a few grid cells from the others,
    go on. A window's likelihood alone cannot choose among them: under the starting model the robot does
    not move, and a robot that drives toward the landmarks it sees changes their bearings hardly at all.
@@ -34,7 +34,7 @@ import numpy as np
 from sensact.core.angles import wrap_angle
 from sensact.errors import ConfigError
 from sensact.learn.em.config import EMConfig
-from sensact.learn.em.estep import e_step
+from sensact.learn.em.estep import log_likelihood
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 
@@ -78,9 +78,9 @@ def start_candidates(data: LandmarkLog, model: EMModel, config: EMConfig) -> tup
             # held by the starting model (no motion) until that sighting
             theta = float(wrap_angle(np.arctan2(d[1], d[0]) - 0.5 * np.pi - data.obs_bearing_rad[k0]))
             prior_mean = np.array([x, y, theta])
-            post = e_step(scorer.replace(prior_mean=prior_mean, prior_cov=cov), window)
-            if post.ok and np.isfinite(post.loglik):
-                scored.append((post.loglik, prior_mean))
+            ll = log_likelihood(scorer.replace(prior_mean=prior_mean, prior_cov=cov), window)
+            if np.isfinite(ll):
+                scored.append((ll, prior_mean))
     if not scored:
         raise ConfigError(
             "no start candidate gave a finite likelihood.",
