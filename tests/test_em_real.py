@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import math
 import threading
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -410,6 +411,10 @@ def test_ridge_search_finds_a_model_moved_behind_and_never_lowers_the_likelihood
     assert info["shift_mm"] == pytest.approx(900.0, abs=40.0) and info["expansions"] >= 1
     assert post.loglik == info["loglik_after"] > info["loglik_before"] + 10.0
     assert model.prior_mean == pytest.approx(res.model.prior_mean, abs=45.0)
+    # the shift it found is smoothed once; a smoother that fails there leaves the model where it was
+    start = evaluate(behind)
+    model, post, info = search_ridge(behind, start, score, lambda m: replace(start, ok=False), 500.0)
+    assert model is behind and post is start and info["shift_mm"] == 0.0
 
 
 @pytest.fixture(scope="module")
@@ -439,6 +444,10 @@ def test_delay_search_finds_the_command_delay_and_never_lowers_the_likelihood(de
         assert np.array_equal(model.action.coefficients, res.model.action.coefficients)
         assert post.loglik == info["loglik_after"] > info["loglik_before"] + 10.0
         assert info["forward_passes"] <= 10  # 0, 3, ..., 15, then the best one's neighbours
+    start = with_delay(res.model, 0)
+    first = evaluate(start)
+    model, post, info = search_delay(start, first, score, lambda m: replace(first, ok=False), 15)
+    assert model is start and post is first and info["delay_to"] == 0  # its smoother failed: stay
     same, _, info0 = search_delay(res.model, evaluate(res.model), score, evaluate, 15)
     assert info0["loglik_after"] >= info0["loglik_before"]
     assert abs(same.action.delay_steps - res.model.action.delay_steps) <= 1
