@@ -153,9 +153,9 @@ def refuse_too_few_readings(model: EMModel, data: LandmarkLog) -> None:
     """Each channel's M-step (eqs. 4.25-4.28) fits its f_i and sigma_i to the channel's readings: with
     no more readings than those parameters the fit has nothing left over to measure the noise by, and EM
     would report a sigma of nothing. One line naming the channel (``LogFormatError``), before EM."""
+    readings = data.obs_readings if data.obs_readings.ndim == 2 else data.obs_readings[:, None]
     for j, ch in enumerate(model.sensor.channels):
         col = data.reading_names.index(ch.name) if ch.name in data.reading_names else j
-        readings = data.obs_readings if data.obs_readings.ndim == 2 else data.obs_readings[:, None]
         n = int(np.isfinite(readings[:, col]).sum())
         p = ch.function.degree + 1 + len(ch.bearing_terms) + 1
         if n <= p:
