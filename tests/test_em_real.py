@@ -1053,6 +1053,10 @@ def test_truth_residuals_are_taken_at_the_sensor():
     assert n["learned_translation_drift_mm"] == pytest.approx(math.sqrt(30) * model.motion_sd[0, :2])
     side, fwd = n["learned_translation_drift_mm"]
     assert f"(Sigma_m: {side:.1f} / {fwd:.1f})" in " ".join(out.get().split())
+    # this robot turns nearly all the time: too few straight frames to set its truth's heading against
+    # its direction of travel, and the line says nothing of it
+    assert n["truth_heading_error"]["frames"] < 20 and math.isnan(n["truth_heading_error"]["variance_rad2"])
+    assert "the truth's own heading" not in out.get()
 
 
 def test_learn_em_on_a_folder_with_recorded_poses_draws_the_figures_against_them(tmp_path, monkeypatch):
@@ -1453,3 +1457,85 @@ def test_reproduce_real_runs_every_mrclam_dataset_it_finds(tmp_path):
     assert tmp_path / "real_mrclam_MRCLAM_Dataset9_robot2_bearing.png" in paths
     assert tmp_path / "real_fleet_MRCLAM_Dataset6.png" in paths
     assert all(p.stat().st_size > 0 for p in paths)
+
+
+def _straight_and_turning_drive(rng, T, dt, yaw_gap):
+    """A robot driving 10-s straight stretches at 100 mm/s joined by 2-s turns in place; its true
+    headings, and the truth's positions (0.3 mm of noise) with a heading ``yaw_gap`` off its wheels."""
+    heading = np.zeros(T)
+    speed = np.zeros(T)
+    t = 0
+    while t < T:
+        speed[t : t + 300] = 100.0
+        rate = rng.uniform(-0.5, 0.5)
+        heading[t + 300 : t + 360] = rate * dt
+        t += 360
+    heading = np.cumsum(heading)
+    step = np.column_stack([-np.sin(heading), np.cos(heading)]) * (speed * dt)[:, None]  # theta 0 faces +y
+    xy = np.cumsum(step, axis=0) + rng.normal(size=(T, 2)) * 0.3
+    return heading, np.column_stack([xy, heading + yaw_gap])
+
+
+def _slow(rng, T, sd, tau_steps):
+    phi = np.exp(-1.0 / tau_steps)
+    z = rng.normal(size=T) * sd * np.sqrt(1 - phi**2)
+    out = np.empty(T)
+    out[0] = rng.normal() * sd
+    for i in range(1, T):
+        out[i] = phi * out[i - 1] + z[i]
+    return out
+
+
+def test_truth_heading_error_recovers_the_truths_own_heading_error_not_the_sensors():
+    """Seeded recovery: the truth's heading carries a slow error (sd 0.005 rad, 2 s) that every bearing
+    residual against it holds, beside a camera sway (sd 0.004, 2 s) and white noise that it does not.
+    Minus the covariance of a frame's mean residual with the truth's travel-minus-heading gap recovers
+    the first (2.5e-5 rad^2) and not the others; with a perfect truth heading it is about 0. The
+    turns in place are left out, and the constant yaw between the truth's frame and the wheels is the
+    median gap."""
+    from sensact.cli.scores import truth_heading_clause
+    from sensact.evaluate.landmark_truth import truth_heading_error
+    from sensact.report.tables import truth_heading_cell
+
+    rng = np.random.default_rng(11)
+    dt, T = 1 / 30, 36000
+    _, poses = _straight_and_turning_drive(rng, T, dt, yaw_gap=0.012)
+    error = _slow(rng, T, 0.005, 60)
+    frames = np.arange(20, T - 20, 5)
+    sway = _slow(rng, T, 0.004, 60)[frames]
+    own = rng.normal(size=frames.size) * 0.004
+    valid = np.ones(T, dtype=bool)
+    valid[18000:18100] = False  # a gap in the truth: its frames' windows are not used
+
+    with_error = poses.copy()
+    with_error[:, 2] += error
+    got = truth_heading_error(with_error, valid, error[frames] + sway + own, frames, dt, 30)
+    assert got["variance_rad2"] == pytest.approx(2.5e-5, rel=0.25)
+    assert got["interval_rad2"][0] < got["variance_rad2"] < got["interval_rad2"][1]
+    assert got["median_gap_rad"] == pytest.approx(-0.012, abs=0.002)
+    straight = frames.size * 300 / 360
+    assert 0.8 * straight < got["frames"] < straight
+    assert 0.3 < got["share"] < 0.7  # the sway and the camera's own noise are the rest
+    assert truth_heading_cell({"truth_heading_error": got}) == (
+        f"{np.sqrt(got['variance_rad2']):.4f} ({got['share']:.0%})"
+    )
+    assert truth_heading_clause({"truth_heading_error": got}).startswith(
+        f"; driving straight, the truth's own heading is off by {np.sqrt(got['variance_rad2']):.4f} rad "
+        f"(sd; {got['share']:.0%} of the frame means' variance)"
+    )
+
+    perfect = truth_heading_error(poses, valid, sway + own, frames, dt, 30)
+    assert abs(perfect["variance_rad2"]) < 0.1 * 2.5e-5
+    # too few straight frames: nothing to say, and the report says so
+    few = truth_heading_error(with_error, valid, own[:10], frames[:10], dt, 30)
+    assert few["frames"] < 20 and math.isnan(few["variance_rad2"])
+    assert truth_heading_cell({"truth_heading_error": few}) == "-" and truth_heading_cell({}) == "-"
+    assert truth_heading_clause({"truth_heading_error": few}) == "" and truth_heading_clause({}) == ""
+    written = {"truth_heading_error": {**few, "variance_rad2": None, "share": None}}  # NaN is null in JSON
+    assert truth_heading_cell(written) == "-" and truth_heading_clause(written) == ""
+    # a robot that side-steps (a legged one) travels off its heading: those windows are not heading errors
+    strafing = with_error.copy()
+    strafing[(np.arange(T) // 600) % 3 == 1, 2] += 0.5
+    assert truth_heading_error(strafing, valid, error[frames] + sway + own, frames, dt, 30)["variance_rad2"] == (
+        pytest.approx(2.5e-5, rel=0.35)
+    )

@@ -3,6 +3,7 @@ the ground truth a log carries (never used for learning)."""
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from sensact.cli.base import console, titled_table
@@ -56,6 +57,21 @@ def print_simulated_score(model: Any, truth: dict[str, Any], dt_s: float) -> dic
         f"heading {sd[2]:.4f} / {sd_true[2]:.4f} rad"
     )
     return s
+
+
+def truth_heading_clause(n: dict[str, Any]) -> str:
+    """'; driving straight, the truth's own heading is off by ...': the truth's own heading error
+    (``truth_heading_error``) for the truth's-noise line; empty where it could not be measured."""
+    from sensact.report.tables import truth_heading_cell
+
+    if truth_heading_cell(n) == "-":
+        return ""
+    e = n["truth_heading_error"]
+    return (
+        f"; driving straight, the truth's own heading is off by {math.sqrt(max(e['variance_rad2'], 0.0)):.4f} rad "
+        f"(sd; {e['share']:.0%} of the frame means' variance), which the truth's residual counts and no learned "
+        "sigma can"
+    )
 
 
 def print_truth_score(sc: dict[str, Any]) -> None:
@@ -131,6 +147,7 @@ def print_truth_score(sc: dict[str, Any]) -> None:
             f"{n['learned_translation_drift_mm'][0]:.1f} / {n['learned_translation_drift_mm'][1]:.1f}); "
             f"bearing residuals of frames 1-5 windows apart correlate at {n['bearing_frame_correlation']:.2f}; "
             + frame_split
+            + truth_heading_clause(n)
             + " (docs/em-real.md, Known limits)"
         )
     m = sc.get("sensor_mount")

@@ -351,6 +351,16 @@ def translation_drift_cell(n: dict[str, Any]) -> str:
     return f"{truth[0]:.1f} / {truth[1]:.1f}; {learned[0]:.1f} / {learned[1]:.1f}"
 
 
+def truth_heading_cell(n: dict[str, Any]) -> str:
+    """'0.0063 (51%)': the truth's own heading error on straight stretches, sd rad, and its share of the
+    frame means' bearing residual variance; '-' where too few frames or for results written before it."""
+    e = n.get("truth_heading_error") or {}
+    var = e.get("variance_rad2")
+    if var is None or var != var:  # NaN, null once written to JSON
+        return "-"
+    return f"{math.sqrt(max(var, 0.0)):.4f} ({e['share']:.0%})"
+
+
 def _shared_cell(n: dict[str, Any]) -> str:
     if "bearing_within_frame_sd_rad" not in n:
         return "-"
@@ -582,6 +592,7 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
                     "sideways / forward miss per 1 s mm, truth; Sigma_m",
                     "bearing residual correlation, frames 1-5 s apart",
                     "bearing residual about its frame's mean, sd rad; frame-shared variance (by motion)",
+                    "the truth's own heading error driving straight, sd rad (share of the frame means' variance)",
                     "sensor on the robot, forward mm / right mm / yaw rad; "
                     "bearing residual at the truth's origin rad (learned sigma / it)",
                 ],
@@ -594,6 +605,7 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
                         translation_drift_cell(n),
                         f"{n['bearing_frame_correlation']:.2f}",
                         _shared_cell(n),
+                        truth_heading_cell(n),
                         _mount_cell(res["mrclam"][name]["score"]),
                     ]
                     for name, n in noise
