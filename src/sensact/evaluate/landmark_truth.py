@@ -190,6 +190,7 @@ TRAVEL_MIN_CHORD_MM = 30.0
 # legged robot takes, not a heading error; on MRCLAM the gaps' sd is 0.02 rad
 TRAVEL_MAX_GAP_RAD = 0.1
 TRAVEL_MIN_FRAMES = 20
+TRAVEL_BLOCK_WINDOWS = 10
 
 
 def truth_heading_error(
@@ -210,7 +211,7 @@ def truth_heading_error(
     only one of the two, so minus their covariance estimates ``e``'s variance. For a robot that travels
     along its heading (a differential drive, a car), over the frames whose window is valid, nearly
     straight (``TRAVEL_STRAIGHT_RAD_S``), long enough to have a direction and not a side-step:
-    that variance, a 90 % bootstrap interval (``seed``), its share of the frame means' variance and the
+    that variance, a 90 % block-bootstrap interval (``seed``), its share of the frame means' variance and the
     median gap (a constant angle between the truth's frame and the wheels' direction, which a sensor
     mount fit does not see). NaN with fewer than ``TRAVEL_MIN_FRAMES`` frames."""
     uniq, inv = np.unique(steps, return_inverse=True)
@@ -234,13 +235,19 @@ def truth_heading_error(
     if n < TRAVEL_MIN_FRAMES:
         return {"frames": n, "variance_rad2": nan, "interval_rad2": [nan, nan], "share": nan, "median_gap_rad": nan}
     r, g = mean_res[use], gap[use]
+    # the bootstrap resamples blocks of TRAVEL_BLOCK_WINDOWS windows, not frames: neighbouring frames share
+    # their windows and the errors persist for seconds, so frames drawn one by one would narrow the interval
+    _, block = np.unique(mid[use] // (TRAVEL_BLOCK_WINDOWS * window), return_inverse=True)
+    sums = np.stack([np.bincount(block, weights=w) for w in (np.ones(n), r, g, r * g)])
 
-    def error_variance(i: np.ndarray) -> float:
-        return float(-np.mean((r[i] - r[i].mean()) * (g[i] - g[i].mean())))
+    def error_variance(counts: np.ndarray) -> float:
+        k, sr, sg, srg = sums @ counts
+        return float(-(srg / k - (sr / k) * (sg / k)))
 
+    nb = sums.shape[1]
     rng = np.random.default_rng(seed)
-    boot = [error_variance(rng.integers(0, n, n)) for _ in range(400)]
-    var = error_variance(np.arange(n))
+    boot = [error_variance(np.bincount(rng.integers(0, nb, nb), minlength=nb)) for _ in range(400)]
+    var = error_variance(np.ones(nb))
     return {
         "frames": n,
         "variance_rad2": var,
