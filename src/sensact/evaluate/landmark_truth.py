@@ -59,12 +59,23 @@ from sensact.models.landmark_sensor import reading_features
 from sensact.models.linear_action import LinearActionModel, delayed
 
 
+def valid_throughout(valid: np.ndarray, first: np.ndarray, last: np.ndarray) -> np.ndarray:
+    """Whether the truth is valid at every step from ``first`` to ``last`` (inclusive), per pair."""
+    bad = np.concatenate([[0], np.cumsum(~np.asarray(valid, dtype=bool))])
+    return bad[last + 1] - bad[first] == 0
+
+
 def window_starts(valid: np.ndarray, window: int) -> np.ndarray:
     """Start steps of the half-overlapping windows of ``window`` steps whose truth is valid throughout."""
     T = len(valid)
     starts = np.arange(0, T - window, max(window // 2, 1))
-    bad = np.concatenate([[0], np.cumsum(~np.asarray(valid, dtype=bool))])
-    return starts[bad[starts + window + 1] - bad[starts] == 0]
+    return starts[valid_throughout(valid, starts, starts + window)]
+
+
+def frame_means(residuals: np.ndarray, frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each frame's step (sorted) and the mean of its sightings' residuals."""
+    uniq, inv = np.unique(frames, return_inverse=True)
+    return uniq, np.bincount(inv, weights=residuals) / np.bincount(inv)
 
 
 def dead_reckon(velocities: np.ndarray, dt: float) -> np.ndarray:
@@ -214,15 +225,13 @@ def truth_heading_error(
     that variance, a 90 % block-bootstrap interval (``seed``), its share of the frame means' variance and the
     median gap (a constant angle between the truth's frame and the wheels' direction, which a sensor
     mount fit does not see). NaN with fewer than ``TRAVEL_MIN_FRAMES`` frames."""
-    uniq, inv = np.unique(steps, return_inverse=True)
-    mean_res = np.bincount(inv, weights=bearing_res) / np.bincount(inv)
+    uniq, mean_res = frame_means(bearing_res, steps)
     half = max(window // 2, 1)
     lo, hi = uniq - half, uniq + half
     T = len(truth_poses)
     inside = (lo >= 0) & (hi < T)
     lo, hi, mid, mean_res = lo[inside], hi[inside], uniq[inside], mean_res[inside]
-    bad = np.concatenate([[0], np.cumsum(~np.asarray(truth_valid, dtype=bool))])
-    valid = bad[hi + 1] - bad[lo] == 0
+    valid = valid_throughout(truth_valid, lo, hi)
     # the chord in the frame of the heading at the middle: (right, forward), as relative_displacement has it
     chord = relative_displacement(np.column_stack([truth_poses[lo, :2], truth_poses[mid, 2]]), truth_poses[hi])
     gap = np.arctan2(-chord[:, 0], chord[:, 1])  # counterclockwise, like a heading
@@ -297,8 +306,7 @@ def truth_noise_structure(
     # the fit EM's "turning" Sigma_m makes of its steps, here on whole windows
     a, b = turning_variance(drift**2, turn, 1e-6 * drift.var(), (drift.var(), 0.0))
     busy = float(np.percentile(turn, 90))
-    uniq, inv = np.unique(frames, return_inverse=True)
-    mean_res = np.bincount(inv, weights=bearing_res) / np.bincount(inv)
+    uniq, mean_res = frame_means(bearing_res, frames)
     nxt = np.searchsorted(uniq, uniq + window)  # the first frame at least one window later
     ok = (nxt < len(uniq)) & (uniq[np.minimum(nxt, len(uniq) - 1)] - uniq <= 5 * window)
     corr = float(np.corrcoef(mean_res[ok], mean_res[nxt[ok]])[0, 1]) if ok.sum() > 2 else float("nan")
@@ -451,7 +459,7 @@ def score_against_truth(
         sighting_motion(truth_poses, b_steps, data.dt_s, window),
     )
     structure["truth_heading_error"] = truth_heading_error(
-        truth_poses, truth_valid > 0, b_res[b_keep], b_steps, data.dt_s, window
+        truth_poses, truth_valid, b_res[b_keep], b_steps, data.dt_s, window
     )
     # the learned Sigma_m's drift over the same windows: window * (a + b |turn|) in variance
     a_step = float(np.mean(model.motion_sd[:, 2] ** 2))
