@@ -8,6 +8,7 @@ import math
 import threading
 from dataclasses import replace
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -22,8 +23,9 @@ from sensact.learn.em import EMConfig, e_step, fit_em, initial_model, log_likeli
 from sensact.learn.em.actions import linear_action_update, linear_coefficients, step_motion_var, table_velocities
 from sensact.learn.em.config import ChannelConfig
 from sensact.learn.em.delay_search import search_delay, with_delay
+from sensact.learn.em.mstep import sample_gamma
 from sensact.learn.em.ridge import search_ridge, shifted_forward
-from sensact.learn.em.start import race_starts, start_candidates
+from sensact.learn.em.start import race_starts, search_grid, start_candidates
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 from sensact.models.linear_action import LinearActionModel, command_features, delayed, one_hot
@@ -597,6 +599,72 @@ def test_start_search_candidates_are_distinct_and_one_is_near_the_start():
     gaps = np.hypot(*(means[:, None, :2] - means[None, :, :2]).transpose(2, 0, 1))
     assert gaps[~np.eye(6, dtype=bool)].min() >= 2.5 * cfg.start_search_grid_mm
     assert np.hypot(*(means[:, :2] - poses[0, :2]).T).min() <= math.sqrt(2) * cfg.start_search_grid_mm  # a cell
+
+
+def _turn(xy: np.ndarray, angle: float, shift=(0.0, 0.0)) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return np.asarray(xy) @ np.array([[c, s], [-s, c]]) + shift
+
+
+def test_start_search_grid_turns_and_moves_with_the_map():
+    """Invariant: the grid is the map's own, so turning and moving the map turns and moves the grid
+    point for point; it covers every landmark and four cells around the map, and keeps off the
+    first sighting's landmark. One landmark, or one at the centroid, still give a grid."""
+    g = 500.0
+    grid = search_grid(LANDMARKS, LANDMARKS[1], g)
+    for angle, shift in [(1.0, (5000.0, -3000.0)), (-2.5, (0.0, 0.0)), (math.pi / 2, (-120.0, 7.0))]:
+        moved = search_grid(_turn(LANDMARKS, angle, shift), _turn(LANDMARKS[1], angle, shift), g)
+        np.testing.assert_allclose(moved, _turn(grid, angle, shift), atol=1e-6)
+    near = np.hypot(*(grid[:, None, :] - LANDMARKS[None, :, :]).transpose(2, 0, 1)).min(axis=0)
+    assert near[[0, 2, 3, 4]].max() <= g / math.sqrt(2) + 1e-9  # every other landmark is in a cell of it
+    assert np.hypot(*(grid - LANDMARKS[1]).T).min() >= 1.5 * g  # the four cells about the landmark are left out
+    # the grid reaches four cells past the map along its own axes: past the farthest landmark too
+    assert np.hypot(*(grid - LANDMARKS[1]).T).max() >= np.hypot(*(LANDMARKS - LANDMARKS[1]).T).max() + 4 * g
+    one = search_grid(LANDMARKS[:1], LANDMARKS[0], g)
+    assert len(one) == 10 * 10 - 4 and np.allclose(one.mean(axis=0), LANDMARKS[0])
+    ring = np.array([[0.0, 0.0], [1000.0, 0.0], [-1000.0, 0.0]])  # the first landmark is the centroid
+    assert len(search_grid(ring, ring[0], g)) > 0
+
+
+def test_pose_samples_turn_with_the_map():
+    """Invariant: the M-step's poses (sec. 4.3.2) drawn from a posterior turned with the map are the
+    same draws turned, for the same seed; their spread is still Sigma_gamma."""
+    rng = np.random.default_rng(3)
+    k = 40
+    mean = np.column_stack([rng.normal(size=(k, 2)) * 1000, rng.uniform(-3, 3, k)])
+    a = rng.normal(size=(k, 3, 3)) * [30.0, 30.0, 0.01]
+    cov = a @ a.transpose(0, 2, 1) + np.diag([1.0, 1.0, 1e-6])
+    angle = 1.0
+    rot = np.eye(3)
+    rot[:2, :2] = [[math.cos(angle), -math.sin(angle)], [math.sin(angle), math.cos(angle)]]
+    turned = SimpleNamespace(mean_gamma=mean @ rot.T + [5000.0, -3000.0, angle], cov_gamma=rot @ cov @ rot.T)
+    here = sample_gamma(SimpleNamespace(mean_gamma=mean, cov_gamma=cov), np.arange(k), 5, np.random.default_rng(0))
+    there = sample_gamma(turned, np.arange(k), 5, np.random.default_rng(0))
+    np.testing.assert_allclose(there, here @ rot.T + [5000.0, -3000.0, angle], atol=1e-6)
+    many = sample_gamma(SimpleNamespace(mean_gamma=mean[:1], cov_gamma=cov[:1]), np.zeros(200_000, int), 1, rng)[0]
+    scale = np.sqrt(np.outer(np.diag(cov[0]), np.diag(cov[0])))
+    assert np.abs((np.cov(many.T) - cov[0]) / scale).max() < 0.01
+
+
+def test_a_turned_and_moved_map_learns_the_same_model():
+    """Invariant: the map's frame is arbitrary, so a log whose map is turned by 1 rad and moved 5 m
+    learns the same action model, sensor model and Sigma_m from the same poor start (start search,
+    race and all), and starts at the same pose turned with the map."""
+    data, _ = _simulate(6, T=3000)
+    moved = replace(data, landmarks_xy=_turn(data.landmarks_xy, 1.0, (5000.0, -3000.0)))
+    cfg = _config(start_search_s=20.0, start_candidates=3, start_trial_iterations=5, max_iterations=30)
+    here, there = fit_em(data, None, cfg), fit_em(moved, None, cfg)
+    a, b = here.model, there.model
+    assert here.iterations == there.iterations > 0
+    np.testing.assert_allclose(b.action.coefficients, a.action.coefficients, rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(b.motion_sd, a.motion_sd, rtol=1e-6)
+    for cb, ca in zip(b.sensor.channels, a.sensor.channels, strict=True):
+        np.testing.assert_allclose(cb.function.coef, ca.function.coef, rtol=1e-6, atol=1e-9)
+        assert cb.sigma == pytest.approx(ca.sigma, rel=1e-6)
+    assert b.sensor.sigma_bearing_rad == pytest.approx(a.sensor.sigma_bearing_rad, rel=1e-6)
+    assert here.loglik_best == pytest.approx(there.loglik_best, abs=1e-6 * abs(here.loglik_best))
+    np.testing.assert_allclose(b.prior_mean[:2], _turn(a.prior_mean[:2], 1.0, (5000.0, -3000.0)), atol=1e-3)
+    assert float(np.angle(np.exp(1j * (b.prior_mean[2] - a.prior_mean[2] - 1.0)))) == pytest.approx(0.0, abs=1e-9)
 
 
 def test_model_json_round_trip(continuous_fit):

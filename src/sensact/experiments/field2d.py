@@ -145,7 +145,7 @@ def score_checks(score: dict[str, Any], who: str) -> list[BarCheck]:
 
 
 def bar_misses(score: dict[str, Any]) -> list[str]:
-    """Which bars ``score`` (one trial's, or the mean's) misses, one line each ("seed 2: v_x RMS 23.53 mm/s
+    """Which bars ``score`` (one trial's, or the mean's) misses, one line each ("seed 2: v_x RMS 23.48 mm/s
     (bar ≤ 23.06 mm/s)"); empty when it clears them all."""
     who = f"seed {score['seed']}" if "seed" in score else "mean"
     return [miss_text(c) for c in score_checks(score, who) if not c.cleared]

@@ -33,14 +33,39 @@ def sample_gamma(post: Posteriors, steps: np.ndarray, n_samples: int, rng: np.ra
     """``n_samples`` poses per step from N(mu_gamma,t, Sigma_gamma,t) as mu + L z (sec. 4.3.2).
 
     Returns ``(n_samples, len(steps), n)``. numpy's normal generator stands in for Box-Muller.
+    Any square root L of Sigma_gamma draws the same poses in distribution. On a plane L is the
+    Cholesky factor of the covariance in the robot's own frame (at the mean heading), turned into the
+    map's: then a map turned together with its log draws the same poses turned, so the learned model
+    does not depend on which way the map's axes point.
     """
     mu = post.mean_gamma[steps]
     cov = post.cov_gamma[steps]
     n = mu.shape[1]
+    if n == 3:
+        c, s = np.cos(mu[:, 2]), np.sin(mu[:, 2])
+        cov = _into_robot_frame(cov, c, s)
     jitter = 1e-12 * np.maximum(np.trace(cov, axis1=1, axis2=2), 1e-300)[:, None, None] * np.eye(n)
     L = np.linalg.cholesky(cov + jitter)
     z = rng.standard_normal((n_samples, len(steps), n))
-    return mu[None] + np.einsum("kij,skj->ski", L, z)
+    offsets = np.einsum("kij,skj->ski", L, z)
+    if n == 3:
+        right, ahead = offsets[..., 0].copy(), offsets[..., 1]
+        offsets[..., 0] = c * right - s * ahead
+        offsets[..., 1] = s * right + c * ahead
+    return mu[None] + offsets
+
+
+def _into_robot_frame(cov: np.ndarray, c: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """``T' Sigma T`` for each planar pose covariance, ``T`` the turn by the heading (cos ``c``, sin
+    ``s``) in x-y; written out, since numpy's batched 3 x 3 products are several times slower."""
+    out = cov.copy()
+    xx, xy, yy = cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]
+    out[:, 0, 0] = c * c * xx + 2 * c * s * xy + s * s * yy
+    out[:, 1, 1] = s * s * xx - 2 * c * s * xy + c * c * yy
+    out[:, 0, 1] = out[:, 1, 0] = (c * c - s * s) * xy + c * s * (yy - xx)
+    out[:, 0, 2] = out[:, 2, 0] = c * cov[:, 0, 2] + s * cov[:, 1, 2]
+    out[:, 1, 2] = out[:, 2, 1] = c * cov[:, 1, 2] - s * cov[:, 0, 2]
+    return out
 
 
 def sensor_model(

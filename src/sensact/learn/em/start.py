@@ -3,7 +3,8 @@
 A real log begins wherever the robot happened to be. With a landmark map and bearings, the EKF can
 only lock on from a start near the truth, so the start is chosen in two rounds:
 
-1. ``start_candidates`` scores a grid of starting positions over the mapped area by
+1. ``start_candidates`` scores a grid of starting positions over the mapped area (``search_grid``, laid
+   in the map's own frame so that it turns with the map) by
    ``log P(O | C, lambda)`` of the first ``start_search_s`` seconds under the starting model, the E-step's own
    likelihood (its forward pass). At each position the heading is the one that makes the first bearing
    exact, so only positions need a grid. The best few, each at least a few grid cells from the others,
@@ -53,11 +54,8 @@ def start_candidates(data: LandmarkLog, model: EMModel, config: EMConfig) -> tup
     k0 = first[0]
     lm = data.landmarks_xy
     g = config.start_search_grid_mm
-    lo = lm.min(axis=0) - 4 * g
-    hi = lm.max(axis=0) + 4 * g
-    xs = np.arange(lo[0], hi[0] + g / 2, g)
-    ys = np.arange(lo[1], hi[1] + g / 2, g)
     target = lm[data.obs_landmark[k0]]
+    points = search_grid(lm, target, g)
     cov = np.diag([g**2, g**2, 0.3**2])
     # the starting f is a guess, so the search trusts the bearings alone: the readings get a spread
     # that makes them uninformative; Gaussian bearings, so that no candidate can discount the sightings
@@ -68,19 +66,16 @@ def start_candidates(data: LandmarkLog, model: EMModel, config: EMConfig) -> tup
     )
     scorer = model.replace(sensor=vague)
     scored: list[tuple[float, np.ndarray]] = []
-    for x in xs:
-        for y in ys:
-            d = target - (x, y)
-            if np.hypot(*d) < g:
-                continue
-            # the heading that puts the first sighting's landmark at its measured bearing (sec. 2.5.1:
-            # theta = 0 faces +y, bearings counterclockwise from forward); the robot's heading is
-            # held by the starting model (no motion) until that sighting
-            theta = float(wrap_angle(np.arctan2(d[1], d[0]) - 0.5 * np.pi - data.obs_bearing_rad[k0]))
-            prior_mean = np.array([x, y, theta])
-            ll = log_likelihood(scorer.replace(prior_mean=prior_mean, prior_cov=cov), window)
-            if np.isfinite(ll):
-                scored.append((ll, prior_mean))
+    for x, y in points:
+        d = target - (x, y)
+        # the heading that puts the first sighting's landmark at its measured bearing (sec. 2.5.1:
+        # theta = 0 faces +y, bearings counterclockwise from forward); the robot's heading is
+        # held by the starting model (no motion) until that sighting
+        theta = float(wrap_angle(np.arctan2(d[1], d[0]) - 0.5 * np.pi - data.obs_bearing_rad[k0]))
+        prior_mean = np.array([x, y, theta])
+        ll = log_likelihood(scorer.replace(prior_mean=prior_mean, prior_cov=cov), window)
+        if np.isfinite(ll):
+            scored.append((ll, prior_mean))
     if not scored:
         raise ConfigError(
             "no start candidate gave a finite likelihood.",
@@ -102,6 +97,31 @@ def start_candidates(data: LandmarkLog, model: EMModel, config: EMConfig) -> tup
         "candidates": [{"prior_mean": m.tolist(), "window_loglik": float(ll)} for ll, m in chosen],
     }
     return [model.replace(prior_mean=m, prior_cov=cov) for _, m in chosen], info
+
+
+def search_grid(landmarks_xy: np.ndarray, target_xy: np.ndarray, cell_mm: float) -> np.ndarray:
+    """The start search's positions (n x 2): square cells of ``cell_mm`` over the mapped area and
+    four cells around it, in a frame the map itself sets, so that moving and turning the map and its
+    log together moves and turns the grid with them (an axis-aligned grid would score other
+    positions in a turned map, and EM would start elsewhere). The frame: its origin at the first
+    sighting's landmark, its first axis towards the landmarks' centroid (towards the farthest
+    landmark when the centroid is that landmark; the map's x-axis when it is the only one). Points
+    sit at cell centres, half a cell off the landmark in each axis, and the four within a cell of it
+    are left out: a start on the landmark has no bearing to it."""
+    rel = landmarks_xy - target_xy
+    toward = rel.mean(axis=0)
+    if np.hypot(*toward) < 1e-6 * cell_mm:
+        far = np.hypot(rel[:, 0], rel[:, 1])
+        toward = rel[int(np.argmax(far))] if far.max() > 1e-6 * cell_mm else np.array([1.0, 0.0])
+    u = toward / np.hypot(*toward)
+    axes = np.array([u, [-u[1], u[0]]])  # rows: the grid's axes, counterclockwise, so a rotation
+    local = rel @ axes.T
+    lo = np.floor(local.min(axis=0) / cell_mm - 4.5)
+    hi = np.ceil(local.max(axis=0) / cell_mm + 4.5)
+    i, j = np.meshgrid(np.arange(lo[0], hi[0]) + 0.5, np.arange(lo[1], hi[1]) + 0.5, indexing="ij")
+    cells = np.column_stack([i.ravel(), j.ravel()])
+    cells = cells[np.hypot(cells[:, 0], cells[:, 1]) >= 1.0]
+    return target_xy + (cells * cell_mm) @ axes
 
 
 # (data, starting model, config) -> an EMResult; fit_em, passed in to keep the layers one-way
