@@ -325,3 +325,32 @@ def test_a_log_without_bearings_gets_no_camera_settings_and_learn_em_names_what_
 
     with pytest.raises(ConfigError, match=r"channels\[0\]\.bearing_degree: .* Fix: set bearing_degree: 0"):
         fit_em(read_landmark_log(out).data, config=mrclam_config())
+
+
+def test_the_clocks_origin_moves_no_row_to_another_step():
+    """Invariant: a log timed from an epoch (MRCLAM: 1.2e9 s, in ms) puts every command and reading on
+    the step it takes when timed from 0. Ties are common at 30 Hz with ms times: a command on a step
+    boundary holds from that step, a reading halfway between two steps goes to the later one."""
+    from sensact.io.resample import held_on_grid, nearest_steps
+
+    rng = np.random.default_rng(0)
+    dt = 1 / 30
+    # ms times, a fifth of them on a step boundary (every 0.1 s is 3 steps) or halfway (odd 0.05 s)
+    rel_cmd = np.unique(np.concatenate([np.round(rng.uniform(0, 60, 800), 3), np.arange(0, 60, 0.1).round(3)]))
+    rel_obs = np.unique(np.concatenate([np.round(rng.uniform(0, 60, 300), 3), np.arange(0.05, 60, 0.1).round(3)]))
+    values = rng.normal(size=(rel_cmd.size, 2))
+    for origin in (1248444187.156, 1.7e9 + 0.001, 12345.678):
+        # as a file gives them: the decimal text's nearest float
+        epoch_cmd = np.array([float(f"{origin + r:.3f}") for r in rel_cmd])
+        epoch_obs = np.array([float(f"{origin + r:.3f}") for r in rel_obs])
+        t0_rel, held_rel = held_on_grid(rel_cmd, values, dt)
+        t0_epoch, held_epoch = held_on_grid(epoch_cmd, values, dt)
+        np.testing.assert_array_equal(held_epoch, held_rel)
+        steps_rel, _ = nearest_steps(rel_obs, t0_rel, dt, len(held_rel))
+        steps_epoch, _ = nearest_steps(epoch_obs, t0_epoch, dt, len(held_epoch))
+        np.testing.assert_array_equal(steps_epoch, steps_rel)
+    # the ties: 0.1 s is step 3 exactly, so the command logged then holds from step 3; 0.05 s is 1.5 steps
+    times = np.array([0.0, 0.1, 0.2])
+    _, held = held_on_grid(times, np.array([[1.0], [2.0], [3.0]]), dt)
+    assert held[:, 0].tolist() == [1.0, 1.0, 1.0, 2.0, 2.0, 2.0, 3.0]
+    assert nearest_steps(np.array([0.05, 0.15]), 0.0, dt, 7)[0].tolist() == [2, 5]

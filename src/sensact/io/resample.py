@@ -22,16 +22,28 @@ def held_on_grid(times: np.ndarray, values: np.ndarray, dt_s: float) -> tuple[fl
     """``(t0, held)``: the grid starts at the first (sorted) command time and ends at the last; each
     step takes the last row issued at or before it. ``times`` must be sorted."""
     t0 = float(times[0])
-    T = int(np.floor((times[-1] - t0) / dt_s)) + 1
+    tol = clock_tolerance_s(times)
+    T = int(np.floor((times[-1] - t0 + tol) / dt_s)) + 1
     grid = t0 + np.arange(T) * dt_s
-    held = np.searchsorted(times, grid + 1e-9, side="right") - 1
+    held = np.searchsorted(times, grid + tol, side="right") - 1
     return t0, values[held]
 
 
 def nearest_steps(times: np.ndarray, t0: float, dt_s: float, n_steps: int) -> tuple[np.ndarray, np.ndarray]:
-    """Each time's nearest step and whether it lies on the grid (steps 0..n_steps-1)."""
-    step = np.rint((times - t0) / dt_s).astype(np.int64)
+    """Each time's nearest step (halfway between two: the later) and whether it lies on the grid
+    (steps 0..n_steps-1)."""
+    step = np.floor((times - t0 + clock_tolerance_s(times)) / dt_s + 0.5).astype(np.int64)
     return step, (step >= 0) & (step < n_steps)
+
+
+def clock_tolerance_s(times: np.ndarray) -> float:
+    """How far apart two times may be and still be the same instant. A log's clock often counts from
+    an epoch (MRCLAM: 1.2e9 s, in ms), where a float carries 2.4e-7 s of rounding; a row logged on
+    a step boundary, or halfway between two steps, would then fall on either side by the rounding,
+    and the same log would put other rows on other steps depending on its clock's origin. Times
+    within a few of the clock's rounding steps (or 1 ns) count as equal, and such ties go to the later step."""
+    scale = float(np.max(np.abs(times))) if len(times) else 0.0
+    return max(1e-9, 8.0 * float(np.spacing(scale)))
 
 
 def pose_truth_on_grid(
