@@ -7,7 +7,7 @@ import numpy as np
 
 from sensact.core.angles import wrap_angle
 from sensact.core.polyfit import weighted_lstsq
-from sensact.core.pose_models import landmark_bearing, landmark_distance
+from sensact.core.pose_models import apply_displacement, landmark_bearing, landmark_distance
 from sensact.learn.em.actions import (
     linear_action_update,
     motion_noise,
@@ -48,10 +48,8 @@ def sample_gamma(post: Posteriors, steps: np.ndarray, n_samples: int, rng: np.ra
     L = np.linalg.cholesky(cov + jitter)
     z = rng.standard_normal((n_samples, len(steps), n))
     offsets = np.einsum("kij,skj->ski", L, z)
-    if n == 3:
-        right, ahead = offsets[..., 0].copy(), offsets[..., 1]
-        offsets[..., 0] = c * right - s * ahead
-        offsets[..., 1] = s * right + c * ahead
+    if n == 3:  # the robot-frame offsets, applied at the mean pose as a motion is
+        return np.stack([apply_displacement(mu, d) for d in offsets])
     return mu[None] + offsets
 
 
