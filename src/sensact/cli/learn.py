@@ -240,6 +240,13 @@ def learn_em_cmd(
             f"log-likelihood {r['loglik_before']:.1f} -> {r['loglik_after']:.1f} ({r['forward_passes']} forward passes)"
         )
     print_em_model(m)
+    turned = []
+    if res.posteriors is not None:
+        from sensact.learn.em.checks import describe_turns, range_function_turns
+
+        turned = range_function_turns(m, res.posteriors, data)
+        if turned:
+            console.print(f"[yellow]{describe_turns(turned)}[/]")
     evaluation = (
         evaluate_em(lf, m, learned_here=True) if lf is not None else evaluate_turtlebot_em(res, data, turtlebot_truth)
     )
@@ -252,6 +259,7 @@ def learn_em_cmd(
                 "log": data.source,
                 "dt_s": data.dt_s,
                 "evaluation": evaluation,
+                "range_function_turns": turned,  # learn/em/checks.py: a sign that EM lost the robot
             },
         )
         write_npz(

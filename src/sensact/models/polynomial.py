@@ -48,6 +48,22 @@ class Polynomial1D:
     def is_finite(self) -> bool:
         return bool(np.all(np.isfinite(self.coef)))
 
+    def turning_points(self, lo: float, hi: float) -> np.ndarray:
+        """The ``x`` strictly inside ``(lo, hi)`` where ``p`` turns (its slope changes sign), ascending."""
+        slope = np.polynomial.polynomial.polyder(np.asarray(self.coef))
+        if slope.size < 2 or not np.any(slope[1:]):
+            return np.empty(0)
+        roots = np.polynomial.polynomial.polyroots(np.trim_zeros(slope, "b"))
+        u = np.sort(roots.real[np.abs(roots.imag) <= 1e-9 * np.maximum(1.0, np.abs(roots.real))])
+        x = self.center + self.scale * u
+        inside = (x > lo) & (x < hi)
+        x, u = x[inside], u[inside]
+        # a double root touches zero without a turn: the slope's sign either side tells
+        eps = 1e-6 * np.maximum(1.0, np.abs(u))
+        left = np.polynomial.polynomial.polyval(u - eps, slope)
+        right = np.polynomial.polynomial.polyval(u + eps, slope)
+        return x[np.sign(left) * np.sign(right) < 0]
+
     def describe(self, name: str = "p", digits: int = 6) -> str:
         """``p(x) = a0 + a1 x + ...`` in plain powers."""
         terms = []

@@ -1,0 +1,58 @@
+"""Signs, without ground truth, that EM lost the robot (beyond the thesis).
+
+From a poor start EM can settle in a basin where the smoothed path keeps far from the landmarks and
+each channel's polynomial f bends to map the readings onto the wrong distances. A range sensor's f
+rises (or falls) with distance; one that turns over within the distances it was fitted on is not a
+sensor, it is f absorbing a wrong path. On MRCLAM Dataset 6 cut into quarters every fit that lost
+its robot by metres had such an f, and none that found it (docs/em-real.md, "Short logs").
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from sensact.core.pose_models import landmark_distance
+from sensact.learn.em.estep import Posteriors
+from sensact.logs.landmark_log import LandmarkLog
+from sensact.models.em_model import EMModel
+
+DISTANCE_PERCENTILES = (2.0, 98.0)  # the fitted distances, their few extremes left out
+
+
+def range_function_turns(model: EMModel, post: Posteriors, data: LandmarkLog) -> list[dict[str, Any]]:
+    """Each channel of a planar log whose learned f turns over inside the distances of the sightings it
+    used (from the smoothed path): its name, the distances where it turns and the distances' span."""
+    if data.geometry != "planar" or not data.n_observations:
+        return []
+    use = np.asarray(post.obs_used, dtype=bool)
+    poses = post.mean_gamma[data.obs_step[use]]
+    dist = landmark_distance(poses, data.landmarks_xy[data.obs_landmark[use]])
+    turned = []
+    for j, ch in enumerate(model.sensor.channels):
+        col = data.reading_names.index(ch.name) if ch.name in data.reading_names else j
+        d = dist[np.isfinite(data.obs_readings[use, col])]
+        d = d[(d >= ch.valid_min) & (d <= ch.valid_max)]  # f applies within the window only
+        if d.size < 2:
+            continue
+        lo, hi = np.percentile(d, DISTANCE_PERCENTILES)
+        turns = ch.function.turning_points(float(lo), float(hi))
+        if turns.size:
+            turned.append({"channel": ch.name, "turns_at_mm": turns.tolist(), "distances_mm": [float(lo), float(hi)]})
+    return turned
+
+
+def describe_turns(turned: list[dict[str, Any]]) -> str:
+    """One line for the user: which f turned over where, what it likely means, what to try."""
+    parts = [
+        f"{t['channel']}'s f turns over at {', '.join(f'{x:.0f}' for x in t['turns_at_mm'])} mm, inside the "
+        f"{t['distances_mm'][0]:.0f}-{t['distances_mm'][1]:.0f} mm it was fitted on"
+        for t in turned
+    ]
+    return (
+        "warning: "
+        + "; ".join(parts)
+        + ". A range sensor's f does not turn: EM has probably lost the robot (a local optimum). Try a longer "
+        "log, or a smaller start_sigma for the channel in --config (docs/em-real.md, Short logs)."
+    )
