@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from sensact.core.pose_models import landmark_distance
-from sensact.learn.em.estep import Posteriors
+from sensact.learn.em.estep import Posteriors, channel_columns
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 
@@ -30,9 +30,9 @@ def range_function_turns(model: EMModel, post: Posteriors, data: LandmarkLog) ->
     poses = post.mean_gamma[data.obs_step[use]]
     dist = landmark_distance(poses, data.landmarks_xy[data.obs_landmark[use]])
     turned = []
+    readings = data.obs_readings[use][:, channel_columns(model.sensor, data)]
     for j, ch in enumerate(model.sensor.channels):
-        col = data.reading_names.index(ch.name) if ch.name in data.reading_names else j
-        d = dist[np.isfinite(data.obs_readings[use, col])]
+        d = dist[np.isfinite(readings[:, j])]
         d = d[(d >= ch.valid_min) & (d <= ch.valid_max)]  # f applies within the window only
         if d.size < 2:
             continue
