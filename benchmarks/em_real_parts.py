@@ -1,13 +1,16 @@
 """EM from the poor start on parts of real logs: does it still find the robot when the log is short?
 
     python benchmarks/em_real_parts.py [--parts 4] [--robots 1 2 3 4 5] [--range-start-sigma MM]
+                                       [--turn-restarts N]
 
 Cuts each robot's MRCLAM Dataset 6 log (about 15 minutes) into ``--parts`` equal spans of steps and
 runs `sensact reproduce real`'s EM on each alone, from the same poor start. Prints, per part, how far
 the smoothed path is from Vicon (median), whether the learned range function turns over within its
-fitted distances (learn/em/checks.py, the sign a user sees without ground truth), the log-likelihood
-and the time; then how many parts lost the robot (median over 500 mm). ``--range-start-sigma``
-replaces the range channel's start sigma (100 mm by default, docs/em-real.md "Short logs").
+fitted distances (learn/em/checks.py, the sign a user sees without ground truth), how many times EM
+started again because it did (``turn_restarts``, 2 by default) and which run was kept, the
+log-likelihood and the time; then how many parts lost the robot (median over 500 mm).
+``--range-start-sigma`` replaces the range channel's start sigma (100 mm by default) and
+``--turn-restarts`` the number of restarts (0: none); docs/em-real.md "Short logs".
 Needs ../shared/data/mrclam (or $SENSACT_DATA). About 3 minutes for 20 quarters on 2 cores.
 """
 
@@ -35,6 +38,7 @@ def main() -> None:
     parser.add_argument("--parts", type=int, default=4)
     parser.add_argument("--robots", type=int, nargs="+", default=[1, 2, 3, 4, 5])
     parser.add_argument("--range-start-sigma", type=float, default=None)
+    parser.add_argument("--turn-restarts", type=int, default=None)
     args = parser.parse_args()
     folder = mrclam_folder()
     if not folder.is_dir():
@@ -42,8 +46,15 @@ def main() -> None:
     cfg = mrclam_config()
     if args.range_start_sigma is not None:
         cfg = replace(cfg, channels=(replace(cfg.channels[0], start_sigma=args.range_start_sigma),))
-    print(f"range channel start sigma {cfg.channels[0].start_sigma:g} mm; {args.parts} parts per robot")
-    print("robot part  steps  sightings  path off Vicon mm  f turns  log-likelihood  iterations  seconds")
+    if args.turn_restarts is not None:
+        cfg = replace(cfg, turn_restarts=args.turn_restarts)
+    print(
+        f"range channel start sigma {cfg.channels[0].start_sigma:g} mm; at most {cfg.turn_restarts} restarts "
+        f"while f turns; {args.parts} parts per robot"
+    )
+    print(
+        "robot part  steps  sightings  path off Vicon mm  f turns  restarts (kept)  log-likelihood  iterations  seconds"
+    )
     lost = total = 0
     for robot in args.robots:
         ml = read_mrclam(folder, robot)
@@ -56,11 +67,14 @@ def main() -> None:
             seconds = time.perf_counter() - t0
             off = path_offset(res.posteriors.mean_gamma, poses[a:b], valid[a:b])["median_mm"]
             turns = range_function_turns(res.model, res.posteriors, part)
+            runs = res.restarts or []
+            restarted = f"{len(runs) - 1} ({next(i for i, r in enumerate(runs) if r['kept'])})" if runs else "0"
             lost += off > LOST_MM
             total += 1
             print(
                 f"{robot:5d} {k + 1:4d} {part.n_steps:6d} {part.n_observations:10d} {off:18.0f}  "
-                f"{'yes' if turns else 'no':>7s} {res.loglik_best:15.1f} {res.iterations:11d} {seconds:8.1f}",
+                f"{'yes' if turns else 'no':>7s} {restarted:>16s} {res.loglik_best:15.1f} {res.iterations:11d} "
+                f"{seconds:8.1f}",
                 flush=True,
             )
     print(f"lost the robot (path over {LOST_MM:g} mm from Vicon): {lost} of {total} parts")

@@ -727,6 +727,56 @@ def test_a_range_function_that_turns_within_its_distances_is_flagged(continuous_
     assert range_function_turns(with_f(f, valid_max=mid - 1.5 * a), res.posteriors, data) == []
 
 
+def test_em_restarts_from_a_tighter_start_while_f_turns_and_keeps_the_most_likely_fit(monkeypatch):
+    """fit.restart_while_f_turns, with the turn check replaced by one that flags the first ``flagged``
+    fits: each restart's start sigma is a third of the last, no more than ``turn_restarts`` restarts run,
+    none once f does not turn, and the fit kept is the most likely one, scored on the sightings every run
+    used (each run's own likelihood here: nothing is pruned)."""
+    import sensact.learn.em.fit as fit_module
+
+    data, _ = _simulate(3, T=2400)
+    calls = {"n": 0, "flagged": 0}
+
+    def flags_the_first(model, post, log):
+        calls["n"] += 1
+        turn = [{"channel": "range_mm", "turns_at_mm": [2000.0], "distances_mm": [1000.0, 3000.0]}]
+        return turn if calls["n"] <= calls["flagged"] else []
+
+    monkeypatch.setattr(fit_module, "range_function_turns", flags_the_first)
+    heard = []
+    for restarts, flagged, runs in ((2, 9, 3), (2, 1, 2), (0, 9, 1), (3, 0, 1)):
+        calls.update(n=0, flagged=flagged)
+        # from a vague start, the tighter restarts climb faster in 10 iterations: the most likely run is
+        # neither the first nor always the last, so keeping either would fail
+        wide = (ChannelConfig("range_mm", 1, 0.0, 0.8, 3000.0),)
+        cfg = _config(max_iterations=10, turn_restarts=restarts, channels=wide)
+        res = fit_em(data, None, cfg, on_restart=lambda k, turned, sigmas: heard.append((k, sigmas)))
+        if runs == 1:
+            assert res.restarts is None
+            continue
+        info = res.restarts
+        assert len(info) == runs and [r["start_sigma"]["range_mm"] for r in info] == pytest.approx(
+            [3000.0 / 3**k for k in range(runs)], rel=1e-12
+        )
+        assert [bool(r["f_turns"]) for r in info] == [True] * (runs - 1) + [runs - 1 < flagged]
+        kept = [r for r in info if r["kept"]]
+        assert len(kept) == 1 and kept[0]["loglik"] == max(r["loglik"] for r in info) and not info[0]["kept"]
+        assert res.loglik_best == pytest.approx(kept[0]["loglik"], abs=1e-6 * abs(res.loglik_best))
+        assert all(r["loglik"] == pytest.approx(r["loglik_best"], abs=1e-6 * abs(r["loglik"])) for r in info)
+        # the kept model, its likelihood computed again from the forward pass alone
+        assert log_likelihood(res.model, data) == pytest.approx(kept[0]["loglik"], abs=1e-6 * abs(res.loglik_best))
+    assert [k for k, _ in heard] == [1, 2, 1] and heard[1][1]["range_mm"] == pytest.approx(3000.0 / 9)
+    assert "restarts" in res.summary()
+    # what `learn em` and `reproduce real` show of the last two-run fit
+    from sensact.report.tables import kept_run_cell, restart_runs_cell
+
+    calls.update(n=0, flagged=1)
+    two = fit_em(data, None, replace(cfg, turn_restarts=1))
+    cell = restart_runs_cell(two.restarts)
+    assert cell.startswith("range_mm 3000: ") and "(f turned); range_mm 1000: " in cell
+    assert kept_run_cell(two.restarts) == ("restart 1" if two.restarts[1]["kept"] else "the first run")
+
+
 def test_model_json_round_trip(continuous_fit):
     m = continuous_fit[2].model
     again = EMModel.from_dict(m.to_dict())
@@ -919,6 +969,45 @@ def test_a_config_written_as_yaml_reads_back_exactly(tmp_path):
 
 
 @pytest.mark.skipif(not MRCLAM.is_dir(), reason=f"MRCLAM data not found at {MRCLAM}")
+def test_a_robot_that_sees_no_landmark_is_refused_in_one_line_and_reproduce_goes_on(tmp_path):
+    """Dataset 6 with robot 3's camera seeing only other robots: `convert mrclam` warns, `fit_em` refuses
+    the log in one line naming the sightings, and `reproduce real`'s run records why robot 3 was not run
+    (its table "Not run") instead of stopping every robot's run on it."""
+    from typer.testing import CliRunner
+
+    from sensact.errors import LogFormatError
+    from sensact.experiments.real import mrclam_config, run_real
+    from sensact.io.mrclam import read_mrclam
+    from sensact.report.tables import real_tables
+
+    folder = tmp_path / "data" / "mrclam" / MRCLAM.name
+    folder.mkdir(parents=True)
+    for f in MRCLAM.iterdir():
+        (folder / f.name).symlink_to(f)
+    robots = {
+        int(b)
+        for s, b, *_ in (ln.split() for ln in (MRCLAM / "Barcodes.dat").read_text().splitlines())
+        if s.isdigit() and int(s) <= 5
+    }
+    lines = (MRCLAM / "Robot3_Measurement.dat").read_text().splitlines(keepends=True)
+    (folder / "Robot3_Measurement.dat").unlink()
+    (folder / "Robot3_Measurement.dat").write_text(
+        "".join(ln for ln in lines if ln.startswith("#") or int(ln.split()[1]) in robots)
+    )
+    run = CliRunner().invoke(cli.app, ["convert", "mrclam", str(folder), "--robot", "3", "--out", str(tmp_path / "c")])
+    flat = " ".join(run.output.split())
+    assert run.exit_code == 0 and "kept 0 landmark sightings" in flat and "robot 3 sees no landmark" in flat, flat
+    with pytest.raises(LogFormatError, match=r"Robot3: observations: the log has no landmark sightings.* Fix: "):
+        fit_em(read_mrclam(folder, 3).data, None, mrclam_config())
+    out, _ = run_real(tmp_path / "data", robots=(3,))
+    assert out["mrclam"] == {} and out["scorecard"] == []
+    assert out["skipped"][0].startswith("MRCLAM robot3: ") and "no landmark sightings" in out["skipped"][0]
+    title, headers, rows = real_tables(out)[-1]
+    assert headers == ["what", "why"]
+    assert title == "Not run" and rows[0][0] == "MRCLAM robot3" and "no landmark sightings" in rows[0][1]
+
+
+@pytest.mark.skipif(not MRCLAM.is_dir(), reason=f"MRCLAM data not found at {MRCLAM}")
 def test_mrclam_reader_and_log_folder_round_trip(tmp_path):
     from sensact.io.landmark_log import read_landmark_log, write_landmark_log
     from sensact.io.mrclam import read_mrclam
@@ -1002,11 +1091,12 @@ def test_mrclam_reader_and_log_folder_round_trip(tmp_path):
 
 
 @pytest.mark.skipif(not MRCLAM.is_dir(), reason=f"MRCLAM data not found at {MRCLAM}")
-def test_a_short_real_log_finds_its_robot_and_a_lost_fit_says_so(tmp_path):
+def test_a_short_real_log_finds_its_robot_and_a_lost_fit_says_so_and_starts_again(tmp_path):
     """The first quarter of MRCLAM robot 1 (3.7 minutes) from the poor start: with mrclam_config()'s
-    range start sigma EM finds the robot; with the tenfold vaguer start it had before, the first E-step
-    trusts the bearings alone, EM puts the robot metres away, and `learn em` says its f turned over
-    (docs/em-real.md, Short logs)."""
+    range start sigma EM finds the robot. With the tenfold vaguer start it had before and no restart,
+    the first E-step trusts the bearings alone, EM puts the robot metres away and its f turns over; with
+    mrclam_config()'s restarts, `learn em` says so, starts again from a third of that sigma, and keeps
+    the far more likely fit, which found the robot (docs/em-real.md, Short logs)."""
     from typer.testing import CliRunner
 
     from sensact.config import config_to_yaml
@@ -1022,12 +1112,15 @@ def test_a_short_real_log_finds_its_robot_and_a_lost_fit_says_so(tmp_path):
     poses, valid = ml.truth_poses()
     res = fit_em(part, None, mrclam_config())
     assert path_offset(res.posteriors.mean_gamma, poses[:stop], valid[:stop])["median_mm"] < 150.0
-    assert range_function_turns(res.model, res.posteriors, part) == []
-    # the vaguer start, through the command a user runs
-    gt = {k: v[:stop] for k, v in ml.groundtruth.items()}
-    write_landmark_log(tmp_path / "q1", part, groundtruth=gt)
+    assert range_function_turns(res.model, res.posteriors, part) == [] and res.restarts is None
     cfg = mrclam_config()
     vague = replace(cfg, channels=(replace(cfg.channels[0], start_sigma=1000.0),))
+    lost = fit_em(part, None, replace(vague, turn_restarts=0))
+    assert path_offset(lost.posteriors.mean_gamma, poses[:stop], valid[:stop])["median_mm"] > 1000.0
+    assert range_function_turns(lost.model, lost.posteriors, part)[0]["channel"] == "range_mm"
+    # the vaguer start with the restarts, through the command a user runs
+    gt = {k: v[:stop] for k, v in ml.groundtruth.items()}
+    write_landmark_log(tmp_path / "q1", part, groundtruth=gt)
     (tmp_path / "vague.yaml").write_text(config_to_yaml(vague))
     out = tmp_path / "m.json"
     run = CliRunner().invoke(
@@ -1035,10 +1128,16 @@ def test_a_short_real_log_finds_its_robot_and_a_lost_fit_says_so(tmp_path):
     )
     assert run.exit_code == 0, run.output
     flat = " ".join(run.output.split())
-    assert "range_mm's f turns over at" in flat and "EM has probably lost the robot" in flat, flat
+    assert "range_mm's f turns over at" in flat and "EM starts again with range_mm's start sigma 333" in flat, flat
     written = json.loads(out.read_text())
-    assert written["range_function_turns"][0]["channel"] == "range_mm"
-    assert written["evaluation"]["range"]["sigma_ratio"] > 3.0 and not written["evaluation"]["bars"]["range_sigma"]
+    runs = written["summary"]["restarts"]
+    assert runs[0]["start_sigma"]["range_mm"] == 1000.0 and runs[0]["f_turns"] and not runs[0]["kept"]
+    assert runs[0]["loglik"] == pytest.approx(lost.loglik_best, abs=1e-6)  # the same run, all sightings kept
+    kept = next(r for r in runs if r["kept"])
+    assert kept["loglik"] > runs[0]["loglik"] + 100.0 and not kept["f_turns"]
+    assert written["range_function_turns"] == [] and "EM has probably lost the robot (a local" not in flat
+    rng_score = written["evaluation"]["range"]  # lost, f was metres off From-Truth's and its sigma over 3 times
+    assert rng_score["learned_vs_from_truth_rms_mm"] < 300.0 and rng_score["sigma_ratio"] < 1.5, rng_score
 
 
 def test_bar_checks_hold_at_their_edges():

@@ -48,6 +48,11 @@ def convert_mrclam(
 
     ml = read_mrclam(dataset, robot, dt_s=dt)
     console.print(ml.summary_line())
+    if not ml.data.n_observations:
+        console.print(
+            f"[yellow]warning: robot {robot} sees no landmark, so `sensact learn em` has nothing to learn from "
+            "this log; its odometry and Vicon are written all the same.[/]"
+        )
     write_landmark_log(
         out,
         ml.data,

@@ -142,7 +142,9 @@ def learn_em_cmd(
     from sensact.io.atomic import write_json, write_npz
     from sensact.io.landmark_log import read_landmark_log
     from sensact.learn.em import EMConfig, fit_em, initial_model
+    from sensact.learn.em.checks import describe_turns, range_function_turns
     from sensact.learn.em.config import refuse_bearing_settings
+    from sensact.report.tables import kept_run_cell, restart_runs_cell
 
     lf, turtlebot_truth = None, None
     if log.is_file() and log.suffix.lower() == ".csv":
@@ -214,6 +216,11 @@ def learn_em_cmd(
                 it + 1,
                 None,
             ),
+            on_restart=lambda k, turned, sigmas: console.print(
+                f"[yellow]{describe_turns(turned, advice=False)}[/] EM starts again with "
+                + ", ".join(f"{name}'s start sigma {s:.4g}" for name, s in sigmas.items())
+                + f" (restart {k} of at most {cfg.turn_restarts}; turn_restarts in --config)"
+            ),
         )
     m = res.model
     console.print(
@@ -239,11 +246,14 @@ def learn_em_cmd(
             f"delay search at iteration {r['iteration']}: command delay {r['delay_from']} -> {r['delay_to']} steps, "
             f"log-likelihood {r['loglik_before']:.1f} -> {r['loglik_after']:.1f} ({r['forward_passes']} forward passes)"
         )
+    if res.restarts:
+        console.print(
+            f"runs by start sigma, log-likelihood on the sightings all kept: {restart_runs_cell(res.restarts)}; "
+            f"kept the most likely, {kept_run_cell(res.restarts)}"
+        )
     print_em_model(m)
     turned = []
     if res.posteriors is not None:
-        from sensact.learn.em.checks import describe_turns, range_function_turns
-
         turned = range_function_turns(m, res.posteriors, data)
         if turned:
             console.print(f"[yellow]{describe_turns(turned)}[/]")

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from sensact.config import config_to_dict
+from sensact.errors import LogFormatError
 from sensact.evaluate.bars import BarCheck, at_most, within_factor
 from sensact.evaluate.landmark_truth import path_offset, score_against_truth
 from sensact.experiments.shared_data import data_root
@@ -58,6 +59,7 @@ def mrclam_config() -> EMConfig:
         bearing_robust_param=4.0,
         start_search_s=30.0,
         ridge_search_mm=500.0,  # one cell of the start search's grid: how far off the start may be
+        turn_restarts=2,  # a fit whose range f turns over lost the robot: again from a tighter start
     )  # EM runs until it converges (patience), as the thesis's does
 
 
@@ -257,7 +259,11 @@ def run_real(
                     continue
                 if progress:
                     progress(f"MRCLAM {key}" + (" (and its restart from the truth)" if truth_restart else ""))
-                row, ml, res = run_mrclam_robot(folder, robot, cfg, truth_restart=truth_restart)
+                try:
+                    row, ml, res = run_mrclam_robot(folder, robot, cfg, truth_restart=truth_restart)
+                except LogFormatError as exc:  # this robot's log (e.g. no landmark sightings), not the settings
+                    out["skipped"].append(f"MRCLAM {key}: {exc}")
+                    continue
                 out["mrclam"][key] = {"dataset": folder.name, **row}
                 artifacts["mrclam"][key] = (ml, res)
             fleet = fleet_of_dataset(folder, artifacts["mrclam"], len(datasets) > 1)

@@ -543,6 +543,22 @@ def fleet_lines(fleet: dict[str, Any]) -> list[str]:
     return lines
 
 
+def restart_runs_cell(runs: list[dict[str, Any]]) -> str:
+    """Each run of ``fit.restart_while_f_turns``: its channels' start sigmas and its likelihood."""
+    return "; ".join(
+        ", ".join(f"{name} {s:.4g}" for name, s in r["start_sigma"].items())
+        + f": {r['loglik']:.1f}"
+        + (" (f turned)" if r["f_turns"] else "")
+        for r in runs
+    )
+
+
+def kept_run_cell(runs: list[dict[str, Any]]) -> str:
+    """Which run ``fit.restart_while_f_turns`` kept."""
+    k = next(i for i, r in enumerate(runs) if r["kept"])
+    return "the first run" if k == 0 else f"restart {k}"
+
+
 def real_tables(res: dict[str, Any]) -> list[Table]:
     """MRCLAM robots (learned against From-Truth) and the Turtlebot (EM beside chapter 3)."""
     tables: list[Table] = []
@@ -637,4 +653,16 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
                 trows,
             )
         )
+    restarted = [(name, r["em"]["restarts"]) for name, r in res.get("mrclam", {}).items() if r["em"].get("restarts")]
+    if restarted:
+        tables.append(
+            (
+                f"{title}: EM started again because a range function turned over (learn/em/checks.py)",
+                ["robot", "start sigma: log-likelihood on the sightings all runs kept", "kept"],
+                [[name, restart_runs_cell(runs), kept_run_cell(runs)] for name, runs in restarted],
+            )
+        )
+    skipped = [line.partition(": ") for line in res.get("skipped", [])]
+    if skipped:
+        tables.append(("Not run", ["what", "why"], [[what, why] for what, _, why in skipped]))
     return tables

@@ -43,16 +43,17 @@ def range_function_turns(model: EMModel, post: Posteriors, data: LandmarkLog) ->
     return turned
 
 
-def describe_turns(turned: list[dict[str, Any]]) -> str:
-    """One line for the user: which f turned over where, what it likely means, what to try."""
+def describe_turns(turned: list[dict[str, Any]], advice: bool = True) -> str:
+    """One line for the user: which f turned over where, what it likely means and (``advice``) what to try."""
     parts = [
         f"{t['channel']}'s f turns over at {', '.join(f'{x:.0f}' for x in t['turns_at_mm'])} mm, inside the "
         f"{t['distances_mm'][0]:.0f}-{t['distances_mm'][1]:.0f} mm it was fitted on"
         for t in turned
     ]
+    line = "warning: " + "; ".join(parts) + ". A range sensor's f does not turn: EM has probably lost the robot"
+    if not advice:
+        return line + "."
     return (
-        "warning: "
-        + "; ".join(parts)
-        + ". A range sensor's f does not turn: EM has probably lost the robot (a local optimum). Try a longer "
-        "log, or a smaller start_sigma for the channel in --config (docs/em-real.md, Short logs)."
+        line + " (a local optimum). Try a longer log, or a smaller start_sigma for the channel (or more "
+        "turn_restarts) in --config (docs/em-real.md, Short logs)."
     )

@@ -115,6 +115,10 @@ class EMConfig:
     # only when a delay is learned):
     delay_search: bool = True
     search_every: int = 50
+    # when a channel's learned f turns over within the distances it was fitted on (a planar log;
+    # learn/em/checks.py), the sign that EM lost the robot, EM starts again with that channel's start
+    # sigma a third of the last, up to this many times, and keeps the most likely fit (0 = never, the thesis)
+    turn_restarts: int = 0
 
     def __post_init__(self) -> None:
         problems = []
@@ -156,6 +160,8 @@ class EMConfig:
             problems.append("start_search_s must be >= 0 and start_search_grid_mm > 0")
         if self.start_candidates < 1 or self.start_trial_iterations < 1:
             problems.append("start_candidates and start_trial_iterations must be >= 1")
+        if self.turn_restarts < 0:
+            problems.append("turn_restarts must be >= 0 (0 = no restart)")
         if not self.ridge_search_mm >= 0 or self.search_every < 1:
             problems.append("ridge_search_mm must be >= 0 (0 = no ridge search) and search_every >= 1")
         try:

@@ -3,7 +3,8 @@
 The likelihood of an approximate EM fluctuates, so the loop stops when ``patience`` iterations (50 in
 the thesis) pass without a new best ``log P(O | C, lambda)``, or at ``max_iterations``. Outliers are
 pruned in the first iteration only, and stay pruned. Ctrl-C ends the loop cleanly with the best model
-so far (``stop_reason == "interrupted"``).
+so far (``stop_reason == "interrupted"``). Beyond the thesis, ``turn_restarts`` runs the loop again from
+a tighter start when a range function turned over (``restart_while_f_turns``).
 """
 
 from __future__ import annotations
@@ -11,12 +12,14 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
+from dataclasses import replace as dc_replace
 from functools import partial
 from typing import Any
 
 import numpy as np
 
 from sensact.errors import ConfigError, LogFormatError
+from sensact.learn.em.checks import range_function_turns
 from sensact.learn.em.config import EMConfig, refuse_bearing_settings
 from sensact.learn.em.delay_search import search_delay
 from sensact.learn.em.estep import Posteriors, e_step, log_likelihood
@@ -32,6 +35,8 @@ from sensact.models.polynomial import Polynomial1D
 
 # (iteration, loglik, best loglik, iterations since the best) -> None
 Progress = Callable[[int, float, float, int], None]
+# (restart number from 1, the last fit's turned channels (checks.range_function_turns), their new start sigmas)
+OnRestart = Callable[[int, list[dict[str, Any]], dict[str, float]], None]
 
 PLANAR_VELOCITY_NAMES = ("v_x_mm_s", "v_y_mm_s", "v_theta_rad_s")
 TRACK_VELOCITY_NAMES = ("v_mm_s",)
@@ -149,6 +154,19 @@ def motion_sd_floor(config: EMConfig, n: int) -> np.ndarray:
     return np.array([config.motion_sd_floor_mm] * min(n, 2) + ([config.motion_sd_floor_rad] if n == 3 else []))
 
 
+def refuse_no_sightings(data: LandmarkLog) -> None:
+    """EM learns every sensor model, and places the robot, from the sightings of mapped landmarks (secs.
+    4.2-4.3): a log with none has nothing to learn from. One line (``LogFormatError``), before EM."""
+    if not data.n_observations:
+        raise LogFormatError(
+            "the log has no landmark sightings, and EM learns the sensor model and places the robot from them.",
+            file=data.source,
+            field="observations",
+            fix="give a log in which the robot sees landmarks of the map (MRCLAM: Measurement.dat rows whose "
+            "barcode is a landmark's, not another robot's).",
+        )
+
+
 def refuse_too_few_readings(model: EMModel, data: LandmarkLog) -> None:
     """Each channel's M-step (eqs. 4.25-4.28) fits its f_i and sigma_i to the channel's readings: with
     no more readings than those parameters the fit has nothing left over to measure the noise by, and EM
@@ -187,6 +205,7 @@ class EMResult:
     freed_at: int = -1  # the iteration after which Sigma_m, the terms and robust readings were freed (-1: never held)
     ridge: list[dict[str, Any]] | None = None  # each ridge search: its iteration, shift, likelihoods (ridge.py)
     delay_search: list[dict[str, Any]] | None = None  # each delay search: its iteration, delays, likelihoods
+    restarts: list[dict[str, Any]] | None = None  # each run while f turned over (restart_while_f_turns)
 
     @property
     def iterations(self) -> int:
@@ -210,6 +229,7 @@ class EMResult:
             "freed_at": self.freed_at,
             "ridge": self.ridge,
             "delay_search": self.delay_search,
+            "restarts": self.restarts,
             "config": asdict(self.config),
         }
 
@@ -220,8 +240,81 @@ def fit_em(
     config: EMConfig | None = None,
     *,
     progress: Progress | None = None,
+    on_restart: OnRestart | None = None,
 ) -> EMResult:
-    """Learn the action table, the sensor model and the prior from ``data`` by EM (Algorithm of ch. 4)."""
+    """Learn the action table, the sensor model and the prior from ``data`` by EM (Algorithm of ch. 4);
+    with ``turn_restarts``, EM again from a tighter start while a channel's f turns over (``on_restart``
+    hears of each restart before it runs)."""
+    cfg = config or EMConfig()
+    res = fit_em_once(data, initial, cfg, progress=progress)
+    if cfg.turn_restarts == 0 or data.geometry != "planar":
+        return res
+    return restart_while_f_turns(data, initial or initial_model(data, cfg), cfg, res, progress, on_restart)
+
+
+# each restart's start sigma for a channel whose f turned: a third of the last one's (docs/em-real.md,
+# Short logs: on quarter-length MRCLAM logs, trusting the poor line's readings more held the robot's scale)
+RESTART_SIGMA_FACTOR = 1.0 / 3.0
+
+
+def restart_while_f_turns(
+    data: LandmarkLog,
+    start: EMModel,
+    cfg: EMConfig,
+    first: EMResult,
+    progress: Progress | None = None,
+    on_restart: OnRestart | None = None,
+) -> EMResult:
+    """Beyond the thesis: while the last fit has a channel whose f turns over within its distances
+    (``checks.range_function_turns``), EM again from ``start`` with that channel's start sigma a third of
+    the last one's, at most ``cfg.turn_restarts`` times. EM maximizes the likelihood, so the fit kept is
+    the most likely one, each scored with the configured readings model on the sightings that every run
+    kept after its first-iteration prune. ``restarts`` of the result lists every run."""
+    runs, turns, sigmas = [first], [], []
+    for k in range(cfg.turn_restarts + 1):
+        last = runs[-1]
+        turns.append([] if last.posteriors is None else range_function_turns(last.model, last.posteriors, data))
+        sigmas.append({ch.name: ch.sigma for ch in start.sensor.channels})
+        if not turns[-1] or k == cfg.turn_restarts:
+            break
+        turned = {t["channel"] for t in turns[-1]}
+        channels = tuple(
+            dc_replace(ch, sigma=ch.sigma * RESTART_SIGMA_FACTOR) if ch.name in turned else ch
+            for ch in start.sensor.channels
+        )
+        start = start.replace(sensor=dc_replace(start.sensor, channels=channels))
+        if on_restart is not None:
+            on_restart(k + 1, turns[-1], {ch.name: ch.sigma for ch in channels if ch.name in turned})
+        runs.append(fit_em_once(data, start, cfg, progress=progress))
+    if len(runs) == 1:
+        return first
+    scored = [r for r in runs if r.posteriors is not None]
+    common = np.logical_and.reduce([r.posteriors.obs_used for r in scored])
+    scores = [_stage_loglik(r.model, data, common, robust=True) if r.posteriors is not None else -np.inf for r in runs]
+    best = int(np.argmax(scores))
+    info = [
+        {
+            "start_sigma": sigmas[i],
+            "loglik": float(scores[i]),
+            "loglik_best": r.loglik_best,
+            "iterations": r.iterations,
+            "stop_reason": r.stop_reason,
+            "f_turns": turns[i],
+            "kept": i == best,
+        }
+        for i, r in enumerate(runs)
+    ]
+    return dc_replace(runs[best], restarts=info, seconds=sum(r.seconds for r in runs))
+
+
+def fit_em_once(
+    data: LandmarkLog,
+    initial: EMModel | None = None,
+    config: EMConfig | None = None,
+    *,
+    progress: Progress | None = None,
+) -> EMResult:
+    """One EM run from one start (the Algorithm of ch. 4, with the start search and searches configured)."""
     cfg = config or EMConfig()
     if cfg.ridge_search_mm > 0 and data.geometry != "planar":
         raise ConfigError(
@@ -237,6 +330,7 @@ def fit_em(
             field="motion_sd_sideways_mm",
             fix="remove it or set it to 0.",
         )
+    refuse_no_sightings(data)
     refuse_bearing_settings(cfg, data)
     model = initial or initial_model(data, cfg)
     refuse_too_few_readings(model, data)
@@ -250,7 +344,7 @@ def fit_em(
         candidates, start_info = start_candidates(data, model, cfg)
         model = candidates[0]
         if len(candidates) > 1:
-            model, start_info["race"] = race_starts(data, candidates, cfg, fit_em)
+            model, start_info["race"] = race_starts(data, candidates, cfg, fit_em_once)
             spent = start_info["race"]["winner_iterations"]  # before this fit's history begins
         start_info["prior_mean"] = model.prior_mean.tolist()
     floor = np.array([cfg.prior_floor_sd[0] ** 2] * min(n, 2) + ([cfg.prior_floor_sd[1] ** 2] if n == 3 else []))
