@@ -1136,6 +1136,7 @@ def test_a_short_real_log_finds_its_robot_and_a_lost_fit_says_so_and_starts_agai
     kept = next(r for r in runs if r["kept"])
     assert kept["loglik"] > runs[0]["loglik"] + 100.0 and not kept["f_turns"]
     assert written["range_function_turns"] == [] and "EM has probably lost the robot (a local" not in flat
+    assert "smoothed path off the recorded poses: median" in flat and written["evaluation"]["path"]["median_mm"] < 150.0
     rng_score = written["evaluation"]["range"]  # lost, f was metres off From-Truth's and its sigma over 3 times
     assert rng_score["learned_vs_from_truth_rms_mm"] < 300.0 and rng_score["sigma_ratio"] < 1.5, rng_score
 

@@ -258,7 +258,9 @@ def learn_em_cmd(
         if turned:
             console.print(f"[yellow]{describe_turns(turned)}[/]")
     evaluation = (
-        evaluate_em(lf, m, learned_here=True) if lf is not None else evaluate_turtlebot_em(res, data, turtlebot_truth)
+        evaluate_em(lf, m, learned_here=True, path=None if res.posteriors is None else res.posteriors.mean_gamma)
+        if lf is not None
+        else evaluate_turtlebot_em(res, data, turtlebot_truth)
     )
     if out is not None:
         write_json(

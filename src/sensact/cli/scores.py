@@ -162,11 +162,12 @@ def print_truth_score(sc: dict[str, Any]) -> None:
         console.print("bars: " + ", ".join(f"{k} {'pass' if v else 'FAIL'}" for k, v in sc["bars"].items()))
 
 
-def evaluate_em(lf: Any, model: Any, *, learned_here: bool = False) -> dict[str, Any] | None:
+def evaluate_em(lf: Any, model: Any, *, learned_here: bool = False, path: Any = None) -> dict[str, Any] | None:
     """Errors against the log's ground truth (never used for learning): its recorded poses
     (groundtruth.csv, as `convert mrclam` writes from Vicon) for a continuous-command model, else the true
     model a simulated log's meta.json carries. ``learned_here``: the model was just learned on this log,
-    so recorded poses too broken up to score leave it unscored, with a line saying why, instead of failing."""
+    so recorded poses too broken up to score leave it unscored, with a line saying why, instead of failing.
+    ``path``: EM's smoothed poses (one per step), scored against the recorded poses as ``path``."""
     import numpy as np
 
     recorded = lf.truth_poses()
@@ -184,6 +185,16 @@ def evaluate_em(lf: Any, model: Any, *, learned_here: bool = False) -> dict[str,
             return None
         sc["bars"] = bar_checks(sc)
         print_truth_score(sc)
+        if path is not None:
+            from sensact.evaluate.landmark_truth import path_offset
+
+            sc["path"] = path_offset(np.asarray(path), *recorded)
+            p = sc["path"]
+            console.print(
+                f"smoothed path off the recorded poses: median {p['median_mm']:.0f} mm (forward "
+                f"{p['forward_median_mm']:+.0f} mm, right {p['right_median_mm']:+.0f} mm; metres off means EM "
+                "lost the robot: docs/em-real.md, Short logs)"
+            )
         simulated = lf.meta.get("truth") or {}
         if simulated.get("kind") == "diffdrive":
             sc["simulated"] = print_simulated_score(model, simulated, lf.data.dt_s)
