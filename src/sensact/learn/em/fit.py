@@ -375,7 +375,7 @@ def fit_em_once(
             )
             if it == 0:
                 obs_use = post.obs_used
-                if data.n_observations and not post.weights.any():
+                if not post.weights.any():  # there are sightings (refuse_no_sightings), but none used
                     raise ConfigError(
                         "the starting model uses no reading at all.",
                         file=data.source,
