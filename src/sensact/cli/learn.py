@@ -227,6 +227,12 @@ def learn_em_cmd(
         f"stopped: [bold]{res.stop_reason}[/] after {res.iterations} iterations ({res.seconds:.1f} s); "
         f"best log-likelihood {res.loglik_best:.1f} at iteration {res.best_iteration}"
         + (f"; {res.n_pruned} observations pruned" if res.n_pruned else "")
+        + (
+            f" ({res.n_pruned_when_freed} when the robust readings took over: bearing more than "
+            f"{cfg.prune_rad_per_step:g} rad off the smoothed path; prune_when_freed)"
+            if res.n_pruned_when_freed
+            else ""
+        )
     )
     race = (res.start_search or {}).get("race")
     if res.stop_reason == "max_iterations":

@@ -407,6 +407,7 @@ def truth_score_headers(who: str, truth: str) -> list[str]:
         "bearing sigma rad",
         f"path off {truth} mm, median (forward)",
         "ridge moves mm, forward (the first as the held stage ends)",
+        "sightings pruned of all (of them when the robust readings took over)",
         "bars failed",
     ]
 
@@ -425,6 +426,7 @@ def _truth_score_row(name: str, score: dict[str, Any], em: dict[str, Any]) -> li
         f"{b['sigma_learned_rad']:.4f} / {b['sigma_truth_rad']:.4f} ({b['sigma_ratio']:.2f})",
         _path_cell(score),
         _ridge_cell(em),
+        f"{em['n_pruned']} of {em['n_observations']} ({em.get('n_pruned_when_freed', 0)})",
         _failed_bars(score),
     ]
 

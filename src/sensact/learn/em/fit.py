@@ -24,6 +24,7 @@ from sensact.learn.em.config import EMConfig, refuse_bearing_settings
 from sensact.learn.em.delay_search import search_delay
 from sensact.learn.em.estep import Posteriors, e_step, log_likelihood
 from sensact.learn.em.mstep import m_step
+from sensact.learn.em.outliers import bearing_outliers
 from sensact.learn.em.ridge import search_ridge
 from sensact.learn.em.start import race_starts, start_candidates
 from sensact.logs.landmark_log import LandmarkLog
@@ -206,6 +207,7 @@ class EMResult:
     ridge: list[dict[str, Any]] | None = None  # each ridge search: its iteration, shift, likelihoods (ridge.py)
     delay_search: list[dict[str, Any]] | None = None  # each delay search: its iteration, delays, likelihoods
     restarts: list[dict[str, Any]] | None = None  # each run while f turned over (restart_while_f_turns)
+    n_pruned_when_freed: int = 0  # of n_pruned, those the gate dropped again when the robust readings took over
 
     @property
     def iterations(self) -> int:
@@ -224,6 +226,7 @@ class EMResult:
             "loglik_best": self.loglik_best,
             "n_observations": self.n_observations,
             "n_pruned": self.n_pruned,
+            "n_pruned_when_freed": self.n_pruned_when_freed,
             "seconds": self.seconds,
             "start_search": self.start_search,
             "freed_at": self.freed_at,
@@ -360,6 +363,7 @@ def fit_em_once(
     refine_from = cfg.refine_from - spent
     refining = not staged or refine_from <= 0
     freed_at = -1
+    n_late = 0
     ridge_info: list[dict[str, Any]] = []
     delay_info: list[dict[str, Any]] = []
     max_delay = round(cfg.action_delay_max_s / data.dt_s)
@@ -414,6 +418,11 @@ def fit_em_once(
                 refining, freed_at = True, it  # converged with Sigma_m and the terms held: free them
                 if model.sensor.is_robust:
                     best_ll = -np.inf  # the robust likelihood is another function: its own best from here
+                    if cfg.prune_when_freed:  # what the first iteration's gate could not see (outliers.py)
+                        late = bearing_outliers(post, data, cfg.prune_rad_per_step)
+                        n_late = int(late.sum())
+                        obs_use = obs_use & ~late
+                        post = dc_replace(post, obs_used=obs_use)  # this M-step leaves them out already
             if it - max(best_it, freed_at) >= cfg.patience:
                 reason = "converged"
                 break
@@ -450,6 +459,7 @@ def fit_em_once(
         freed_at,
         ridge_info or None,
         delay_info or None,
+        n_pruned_when_freed=n_late,
     )
 
 
