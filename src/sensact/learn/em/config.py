@@ -99,7 +99,8 @@ class EMConfig:
     # absorb the range change), so the thesis's fixed-Sigma_m model pins the trajectory first
     refine_from: int = 100
     # when the robust readings take over from the Gaussian ones, apply prune_rad_per_step's gate again to
-    # every sighting's bearing about the smoothed pose of its own step (k = 1; learn/em/outliers.py)
+    # every sighting's bearing about the smoothed pose of its own step (k = 1; learn/em/outliers.py); a
+    # config without robust readings (or without a held stage) has no such moment, and this does nothing
     prune_when_freed: bool = False
     # choose pi(w_0) among a grid of poses by the forward likelihood of the first seconds (0 = off);
     # for a log with no idea where the robot starts (planar, with a landmark map)
