@@ -227,6 +227,26 @@ def test_simulate_diffdrive_then_learn_em_scores_against_the_simulation(tmp_path
     assert ev4["action"] != ev["action"] and ev4["bars"] == bar_checks(ev4)
 
 
+def test_learn_em_says_how_many_misreads_the_gate_dropped_and_offers_joint_student_t(tmp_path):
+    """A race as long as refine_from ends the held stage at the fit's first iteration, and the gate runs
+    then; `learn em` says how many it dropped and suggests joint_student_t, and with it set the model
+    keeps the setting and the suggestion is gone."""
+    log = tmp_path / "dd"
+    res = runner.invoke(app, ["simulate", "diffdrive", "--out", str(log), "--seconds", "120", "--seed", "3"])
+    assert res.exit_code == 0, res.output
+    short = ["max_iterations=40", "start_candidates=2", "refine_from=20"]  # the race: 20 held iterations
+    for joint in (False, True):
+        sets = [*short, f"joint_student_t={str(joint).lower()}"]
+        args = ["learn", "em", str(log), "--out", str(tmp_path / "m.json"), "--config", str(log / "em_config.yaml")]
+        res = runner.invoke(app, args + [a for x in sets for a in ("--set", x)])
+        assert res.exit_code == 0, res.output
+        flat = " ".join(res.output.split())
+        doc = json.loads((tmp_path / "m.json").read_text())
+        assert doc["summary"]["n_pruned_when_freed"] == 1 and "(1 when the robust readings took over" in flat
+        assert doc["model"]["sensor"]["joint_student_t"] is joint
+        assert ("--set joint_student_t=true" in flat) is not joint
+
+
 def test_evaluate_log_names_what_keeps_a_model_from_a_log(tmp_path):
     """A model scores only on a log it could have been learned from; anything else is one line naming the
     field and the fix, never a traceback: other commands, another step, a log with no truth, a bad file."""

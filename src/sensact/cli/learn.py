@@ -234,6 +234,12 @@ def learn_em_cmd(
             else ""
         )
     )
+    if res.n_pruned_when_freed and not cfg.joint_student_t and res.model.sensor.student_t_params:
+        console.print(
+            "[yellow]sightings that far off are misread barcodes;[/] a misread one whose bearing happens to fit "
+            "still counts in bearing. If there are many, --set joint_student_t=true lets its range discount the "
+            "whole sighting (docs/em-real.md, section 2)."
+        )
     race = (res.start_search or {}).get("race")
     if res.stop_reason == "max_iterations":
         raced = race["winner_iterations"] if race else 0

@@ -25,8 +25,10 @@ Gaussian conditioning).
 
 Robust channels (an extension beyond the thesis, ``docs/em-real.md``): a Student-t channel updates with
 variance ``r / w``, ``w = (nu + 1) / (nu + e^2 / S)`` from the innovation ``e`` and its variance ``S``,
-and adds the Student-t log density; a gated channel drops a reading beyond ``gate`` innovation sigmas
-and adds the Gaussian log density at the gate, so that the likelihood cannot grow by gating more.
+and adds the Student-t log density; joint Student-t readings (``STUDENT_T_JOINT``) share one weight, that
+of their sighting's innovations as one multivariate t (``_joint_weight``), and update first; a gated
+channel drops a reading beyond ``gate`` innovation sigmas and adds the Gaussian log density at the gate,
+so that the likelihood cannot grow by gating more.
 
 Angles inside the passes are not wrapped, so that theta is one continuous coordinate for the
 information-form algebra; only differences and innovations are wrapped.
@@ -65,6 +67,7 @@ SINGULAR = 2
 GAUSSIAN = 0
 STUDENT_T = 1
 GATE = 2
+STUDENT_T_JOINT = 3  # a Student-t reading that shares its sighting's one weight (``_joint_weight``)
 
 
 @njit(cache=True, error_model="numpy")
@@ -94,6 +97,44 @@ def _reading_weight(kind, param, nu, S):
         if q > param * param:
             return 0.0, -0.5 * (param * param + np.log(2.0 * np.pi * S))
     return 1.0, -0.5 * (nu * nu / S + np.log(2.0 * np.pi * S))
+
+
+@njit(cache=True, error_model="numpy")
+def _joint_weight(Hj, ej, rj, d, P, n, S, L, y, param):
+    """One weight for a sighting's ``d`` Student-t readings, read as one multivariate t with ``param``
+    degrees of freedom (Lange, Little and Taylor 1989): ``w = (param + d) / (param + q)``, ``q = e' S^-1 e``
+    over the innovations ``ej`` (rows ``Hj``, variances ``rj``) at the prediction, ``S = Hj P Hj' + diag(rj)``.
+    Returns ``(w, log density, ok)``; with ``d = 1`` it is ``_reading_weight``'s Student-t, bit for bit
+    in exact arithmetic."""
+    for a in range(d):
+        for b in range(a + 1):
+            s = 0.0
+            for i in range(n):
+                for j in range(n):
+                    s += Hj[a, i] * P[i, j] * Hj[b, j]
+            S[a, b] = s
+            S[b, a] = s
+        S[a, a] += rj[a]
+    if not cholesky(S, L, d):
+        return 0.0, 0.0, False
+    q = 0.0
+    logdet = 0.0
+    for a in range(d):
+        s = ej[a]
+        for b in range(a):
+            s -= L[a, b] * y[b]
+        y[a] = s / L[a, a]
+        q += y[a] * y[a]
+        logdet += 2.0 * np.log(L[a, a])
+    w = (param + d) / (param + q)
+    ld = (
+        math.lgamma(0.5 * (param + d))
+        - math.lgamma(0.5 * param)
+        - 0.5 * d * np.log(param * np.pi)
+        - 0.5 * logdet
+        - 0.5 * (param + d) * np.log1p(q / param)
+    )
+    return w, ld, True
 
 
 @njit(cache=True, error_model="numpy")
@@ -218,6 +259,16 @@ def _compiled_for(n_state: int):
 
         # ---------------- forward: alpha_t (eq. 4.3) and the likelihood (eq. 4.14)
         C = obs_readings.shape[1]
+        joint_param = 0.0  # the joint Student-t's degrees of freedom; 0: no reading is joint
+        for c in range(C + 1):
+            if robust_kind[c] == STUDENT_T_JOINT:
+                joint_param = robust_param[c]
+        Hj = np.zeros((C + 1, n))
+        ej = np.zeros(C + 1)
+        rj = np.zeros(C + 1)
+        Sj = np.zeros((C + 1, C + 1))
+        Lj = np.zeros((C + 1, C + 1))
+        yj = np.zeros(C + 1)
         for t in range(T):
             for k in range(obs_ptr[t], obs_ptr[t + 1]):
                 for c in range(C + 1):
@@ -239,23 +290,61 @@ def _compiled_for(n_state: int):
                 last_obs = t
                 n_used += 1
                 dist = landmark_range(mode, m, lx, ly)  # the windows are judged once, at the prediction
-                for c in range(C):
-                    if not np.isfinite(obs_readings[k, c]) or dist < window_lo[c] or dist > window_hi[c]:
-                        continue
-                    f_c = observe_height(mode, m, lx, ly, coefs[c], centers[c], scales[c], obs_gain[k, c], H)
-                    nu = obs_readings[k, c] - f_c
-                    w, ld = _reading_weight(robust_kind[c], robust_param[c], nu, _hph(P, H, n) + reading_var[c])
-                    loglik += ld
-                    if w > 0.0:
-                        weights[k, c] = w
-                        _scalar_update(m, P, H, nu, reading_var[c] / w, n, PH, K, A, tmp, tmp2)
-                if has_b:
-                    nu = wrap(obs_bearing[k] - observe_bearing(m, lx, ly, H))
-                    w, ld = _reading_weight(robust_kind[C], robust_param[C], nu, _hph(P, H, n) + var_bearing)
-                    loglik += ld
-                    if w > 0.0:
-                        weights[k, C] = w
-                        _scalar_update(m, P, H, nu, var_bearing / w, n, PH, K, A, tmp, tmp2)
+                w_joint = 1.0
+                if joint_param > 0.0:
+                    # the sighting's joint readings are one multivariate t, judged at the prediction: a
+                    # misread barcode spoils its range and its bearing together (docs/em-real.md)
+                    d = 0
+                    for c in range(C + 1):
+                        if robust_kind[c] != STUDENT_T_JOINT:
+                            continue
+                        if c < C:
+                            if not np.isfinite(obs_readings[k, c]) or dist < window_lo[c] or dist > window_hi[c]:
+                                continue
+                            f_c = observe_height(mode, m, lx, ly, coefs[c], centers[c], scales[c], obs_gain[k, c], H)
+                            ej[d] = obs_readings[k, c] - f_c
+                            rj[d] = reading_var[c]
+                        else:
+                            if not has_b:
+                                continue
+                            ej[d] = wrap(obs_bearing[k] - observe_bearing(m, lx, ly, H))
+                            rj[d] = var_bearing
+                        for i in range(n):
+                            Hj[d, i] = H[i]
+                        d += 1
+                    if d > 0:
+                        w_joint, ld, ok = _joint_weight(Hj, ej, rj, d, P, n, Sj, Lj, yj, joint_param)
+                        if not ok:
+                            return NOT_POSITIVE_DEFINITE, loglik, n_used
+                        loglik += ld
+                # the joint readings update first, so that the others' densities are conditional on them
+                # (the chain rule); without joint readings the second round is the whole, as before
+                for joint_round in (True, False):
+                    for c in range(C):
+                        if (robust_kind[c] == STUDENT_T_JOINT) != joint_round:
+                            continue
+                        if not np.isfinite(obs_readings[k, c]) or dist < window_lo[c] or dist > window_hi[c]:
+                            continue
+                        f_c = observe_height(mode, m, lx, ly, coefs[c], centers[c], scales[c], obs_gain[k, c], H)
+                        nu = obs_readings[k, c] - f_c
+                        if joint_round:
+                            w = w_joint
+                        else:
+                            w, ld = _reading_weight(robust_kind[c], robust_param[c], nu, _hph(P, H, n) + reading_var[c])
+                            loglik += ld
+                        if w > 0.0:
+                            weights[k, c] = w
+                            _scalar_update(m, P, H, nu, reading_var[c] / w, n, PH, K, A, tmp, tmp2)
+                    if has_b and (robust_kind[C] == STUDENT_T_JOINT) == joint_round:
+                        nu = wrap(obs_bearing[k] - observe_bearing(m, lx, ly, H))
+                        if joint_round:
+                            w = w_joint
+                        else:
+                            w, ld = _reading_weight(robust_kind[C], robust_param[C], nu, _hph(P, H, n) + var_bearing)
+                            loglik += ld
+                        if w > 0.0:
+                            weights[k, C] = w
+                            _scalar_update(m, P, H, nu, var_bearing / w, n, PH, K, A, tmp, tmp2)
             for i in range(n):
                 mu_a[t, i] = m[i]
                 for j in range(n):

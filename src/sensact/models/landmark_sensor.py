@@ -128,6 +128,10 @@ class LandmarkSensor:
     sigma_bearing_rad: float | None = None  # None when the sensor reports no bearing (1-D)
     bearing_robust: str = "none"
     bearing_robust_param: float = 0.0
+    # a sighting's Student-t readings share one weight, as one multivariate t (core/ekf_smoother.py): a
+    # misread barcode spoils all of a sighting's readings at once, so a reading the others show to be
+    # false does not count in full because it alone happens to fit
+    joint_student_t: bool = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "channels", tuple(self.channels))
@@ -136,6 +140,17 @@ class LandmarkSensor:
         if self.sigma_bearing_rad is not None and not self.sigma_bearing_rad > 0:
             raise ValueError("sigma_bearing_rad must be > 0")
         check_robust(self.bearing_robust, self.bearing_robust_param, "bearing")
+        if self.joint_student_t and len(set(self.student_t_params)) > 1:
+            raise ValueError(
+                "joint_student_t needs one degrees of freedom for every student_t reading, not "
+                f"{sorted(set(self.student_t_params))}"
+            )
+
+    @property
+    def student_t_params(self) -> list[float]:
+        """The degrees of freedom of each Student-t reading, the channels' then the bearing's."""
+        params = [c.robust_param for c in self.channels if c.robust == "student_t"]
+        return params + ([self.bearing_robust_param] if self.bearing_robust == "student_t" else [])
 
     @classmethod
     def single(cls, height: Polynomial1D, sigma_height_px: float, sigma_bearing_rad: float | None = None):
@@ -167,7 +182,7 @@ class LandmarkSensor:
     def gaussian(self) -> LandmarkSensor:
         """The same sensor with every reading Gaussian (the thesis's observation model)."""
         chans = tuple(replace(c, robust="none", robust_param=0.0) for c in self.channels)
-        return replace(self, channels=chans, bearing_robust="none", bearing_robust_param=0.0)
+        return replace(self, channels=chans, bearing_robust="none", bearing_robust_param=0.0, joint_student_t=False)
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -176,6 +191,7 @@ class LandmarkSensor:
             "sigma_bearing_rad": self.sigma_bearing_rad,
             "bearing_robust": self.bearing_robust,
             "bearing_robust_param": self.bearing_robust_param,
+            "joint_student_t": self.joint_student_t,
         }
 
     @classmethod
@@ -196,6 +212,7 @@ class LandmarkSensor:
                 sb,
                 str(data.get("bearing_robust", "none")),
                 float(data.get("bearing_robust_param", 0.0)),
+                bool(data.get("joint_student_t", False)),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise ModelFormatError(

@@ -93,6 +93,10 @@ class EMConfig:
     channels: tuple[ChannelConfig, ...] = ()
     bearing_robust: str = "none"
     bearing_robust_param: float = 0.0
+    # a sighting's student_t readings (its range channels and its bearing) share one weight, as one
+    # multivariate t: a reading its sighting's others show to be false does not count in full because it
+    # alone happens to fit (a misread barcode; docs/em-real.md). Every student_t reading needs the same nu
+    joint_student_t: bool = False
     # a learned Sigma_m and the channels' bearing terms are held at their start before this iteration, or
     # until EM has converged without them: learned from a poor start, both let EM settle on a trajectory
     # shifted behind the robot (a wide Sigma_m lets the shifted point slide sideways in turns; the terms
@@ -172,6 +176,13 @@ class EMConfig:
             check_robust(self.bearing_robust, self.bearing_robust_param, "bearing")
         except ValueError as exc:
             problems.append(str(exc))
+        nus = {c.robust_param for c in self.channels if c.robust == "student_t"}
+        nus |= {self.bearing_robust_param} if self.bearing_robust == "student_t" else set()
+        if self.joint_student_t and len(nus) > 1:
+            problems.append(
+                f"joint_student_t reads a sighting as one multivariate t, so every student_t reading needs the same "
+                f"robust_param (degrees of freedom), not {sorted(nus)}"
+            )
         if problems:
             raise ValueError("; ".join(problems))
 

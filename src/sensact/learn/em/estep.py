@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sensact.core.ekf_smoother import GATE, GAUSSIAN, OK, STUDENT_T, ekf_smoother_for
+from sensact.core.ekf_smoother import GATE, GAUSSIAN, OK, STUDENT_T, STUDENT_T_JOINT, ekf_smoother_for
 from sensact.learn.em.actions import step_motion_var, step_velocity
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
@@ -130,6 +130,8 @@ def _run_passes(
     for i, ch in enumerate(chans):
         coefs[i, : ch.function.degree + 1] = ch.function.coef
     kinds = np.array([ROBUST_CODES[c.robust] for c in chans] + [ROBUST_CODES[sensor.bearing_robust]], dtype=np.int64)
+    if sensor.joint_student_t:
+        kinds[kinds == STUDENT_T] = STUDENT_T_JOINT
     params = np.array([c.robust_param for c in chans] + [sensor.bearing_robust_param], dtype=float)
     velocity = step_velocity(model.action, data)
     if motion_var is None:

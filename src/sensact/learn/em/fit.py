@@ -75,7 +75,9 @@ def starting_sensor(data: LandmarkLog, config: EMConfig) -> LandmarkSensor:
             )
         )
     sigma_b = config.start_sigma_bearing_rad if data.geometry == "planar" else None
-    return LandmarkSensor(tuple(channels), sigma_b, config.bearing_robust, config.bearing_robust_param)
+    return LandmarkSensor(
+        tuple(channels), sigma_b, config.bearing_robust, config.bearing_robust_param, config.joint_student_t
+    )
 
 
 def initial_model(data: LandmarkLog, config: EMConfig) -> EMModel:
@@ -362,7 +364,9 @@ def fit_em_once(
     learns_sigma_m = cfg.motion_noise != "fixed"
     staged = learns_sigma_m or model.sensor.is_robust or any(c.bearing_terms for c in model.sensor.channels)
     refine_from = cfg.refine_from - spent
-    refining = not staged or refine_from <= 0
+    # a race as long as refine_from has held the stage already: it ends at this fit's first iteration (so the
+    # searches and prune_when_freed run then); refine_from 0 with no race holds nothing
+    refining = not staged or (refine_from <= 0 and spent == 0)
     freed_at = -1
     n_late = 0
     ridge_info: list[dict[str, Any]] = []
