@@ -41,6 +41,13 @@ def check_robust(kind: str, param: float, what: str) -> None:
         raise ValueError(f"{what}: robust_param (Student-t degrees of freedom or gate in sigmas) must be > 0")
 
 
+def student_t_params(channels: Sequence[Any], bearing_robust: str, bearing_robust_param: float) -> list[float]:
+    """The degrees of freedom of each Student-t reading among ``channels`` (anything with ``robust`` and
+    ``robust_param``: a sensor's channels or a config's), then the bearing's."""
+    params = [c.robust_param for c in channels if c.robust == "student_t"]
+    return params + ([bearing_robust_param] if bearing_robust == "student_t" else [])
+
+
 def reading_features(
     dist: np.ndarray, bearing: np.ndarray, degree: int, n_terms: int, center: float, scale: float
 ) -> np.ndarray:
@@ -149,8 +156,7 @@ class LandmarkSensor:
     @property
     def student_t_params(self) -> list[float]:
         """The degrees of freedom of each Student-t reading, the channels' then the bearing's."""
-        params = [c.robust_param for c in self.channels if c.robust == "student_t"]
-        return params + ([self.bearing_robust_param] if self.bearing_robust == "student_t" else [])
+        return student_t_params(self.channels, self.bearing_robust, self.bearing_robust_param)
 
     @classmethod
     def single(cls, height: Polynomial1D, sigma_height_px: float, sigma_bearing_rad: float | None = None):

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from sensact.errors import ConfigError
-from sensact.models.landmark_sensor import check_robust
+from sensact.models.landmark_sensor import check_robust, student_t_params
 from sensact.models.linear_action import BASES
 
 ACTION_BASES = ("table", *BASES)
@@ -176,8 +176,7 @@ class EMConfig:
             check_robust(self.bearing_robust, self.bearing_robust_param, "bearing")
         except ValueError as exc:
             problems.append(str(exc))
-        nus = {c.robust_param for c in self.channels if c.robust == "student_t"}
-        nus |= {self.bearing_robust_param} if self.bearing_robust == "student_t" else set()
+        nus = set(student_t_params(self.channels, self.bearing_robust, self.bearing_robust_param))
         if self.joint_student_t and len(nus) > 1:
             problems.append(
                 f"joint_student_t reads a sighting as one multivariate t, so every student_t reading needs the same "
