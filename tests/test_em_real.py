@@ -25,7 +25,7 @@ from sensact.learn.em.config import ChannelConfig
 from sensact.learn.em.delay_search import search_delay, with_delay
 from sensact.learn.em.mstep import sample_gamma
 from sensact.learn.em.ridge import search_ridge, shifted_forward
-from sensact.learn.em.start import race_starts, search_grid, start_candidates
+from sensact.learn.em.start import race_starts, race_trials, search_grid, start_candidates
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 from sensact.models.linear_action import LinearActionModel, command_features, delayed, one_hot
@@ -310,14 +310,21 @@ def test_start_race_halves_the_field_on_the_held_gaussian_likelihood():
         seen.append(trial_cfg)
         return Trial(model.replace(prior_mean=model.prior_mean + np.array([0.0, 1.0, 0.0])), trial_cfg)
 
-    model, info = race_starts(data, cands, cfg, run)
+    heard = []
+    model, info = race_starts(data, cands, cfg, run, on_trial=lambda done, planned: heard.append((done, planned)))
     assert [len(r) for r in info["rounds"]] == [6, 3, 2] and info["winner"] == 2
+    assert heard == [(k, 11) for k in range(1, 12)]  # every trial heard of once, in order, out of 6 + 3 + 2
     assert set(info["rounds"][1]) == {"2", "4", "5"} and set(info["rounds"][2]) == {"2", "4"}
     assert model.prior_mean[0] == 6.0 and model.prior_mean[1] == 3.0  # the winner's model after 3 rounds
     assert info["winner_iterations"] == 3 * cfg.start_trial_iterations
     for t in seen:
         assert t.max_iterations == cfg.start_trial_iterations and t.prune_rad_per_step == 0.0
         assert t.refine_from > t.max_iterations and t.patience > t.max_iterations and t.start_search_s == 0.0
+
+
+def test_race_trials_counts_each_round_until_two_are_left():
+    """The progress bar's total: a field of n, then halves rounded up, until two are left."""
+    assert [race_trials(n) for n in (1, 2, 3, 4, 5, 6, 7, 9)] == [1, 2, 5, 6, 10, 11, 13, 19]
 
 
 def test_start_race_does_not_rerun_a_trial_that_found_nothing_better():
@@ -340,8 +347,10 @@ def test_start_race_does_not_rerun_a_trial_that_found_nothing_better():
             return Trial(model, trial_cfg.max_iterations)
         return Trial(model.replace(prior_mean=model.prior_mean + np.array([0.0, 1.0, 0.0])), trial_cfg.max_iterations)
 
-    model, info = race_starts(data, cands, cfg, run)
+    heard = []
+    model, info = race_starts(data, cands, cfg, run, on_trial=lambda done, planned: heard.append((done, planned)))
     assert [len(r) for r in info["rounds"]] == [4, 2] and info["winner"] == 1
+    assert heard == [(1, 6), (2, 6), (3, 6), (4, 6), (5, 6), (6, 6)]  # the stalled one's second trial: done unrun
     assert runs.count(5.0) == 1 and runs.count(4.0) == 2  # the stalled one ran once, the other twice
     assert info["rounds"][0]["1"] == info["rounds"][1]["1"] == 500.0
     assert info["winner_iterations"] == 2 * cfg.start_trial_iterations
@@ -653,9 +662,22 @@ def test_a_turned_and_moved_map_learns_the_same_model():
     data, _ = _simulate(6, T=3000)
     moved = replace(data, landmarks_xy=_turn(data.landmarks_xy, 1.0, (5000.0, -3000.0)))
     cfg = _config(start_search_s=20.0, start_candidates=3, start_trial_iterations=5, max_iterations=30)
-    here, there = fit_em(data, None, cfg), fit_em(moved, None, cfg)
+    heard = []
+    here = fit_em(
+        data,
+        None,
+        cfg,
+        progress=lambda it, *_: heard.append(("iteration", it)),
+        on_race=lambda done, planned: heard.append(("race", done, planned)),
+    )
+    there = fit_em(moved, None, cfg)
     a, b = here.model, there.model
     assert here.iterations == there.iterations > 0
+    # the start race's progress, every trial of its rounds, before the first iteration's
+    race = [h for h in heard if h[0] == "race"]
+    trials = sum(len(r) for r in here.start_search["race"]["rounds"])
+    assert race == [("race", k, 5) for k in range(1, trials + 1)] and heard[: len(race)] == race
+    assert heard[len(race)] == ("iteration", 0)
     np.testing.assert_allclose(b.action.coefficients, a.action.coefficients, rtol=1e-6, atol=1e-9)
     np.testing.assert_allclose(b.motion_sd, a.motion_sd, rtol=1e-6)
     for cb, ca in zip(b.sensor.channels, a.sensor.channels, strict=True):

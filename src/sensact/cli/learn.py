@@ -204,7 +204,7 @@ def learn_em_cmd(
         console.print(
             f"finding the start pose: a {cfg.start_search_grid_mm:g} mm grid scored on the first "
             f"{cfg.start_search_s:g} s, then EM from its {cfg.start_candidates} best, the better half kept every "
-            f"{cfg.start_trial_iterations} iterations (no bar until one is left)"
+            f"{cfg.start_trial_iterations} iterations"
         )
     with progress_bar() as progress:
         res = fit_em(
@@ -215,6 +215,9 @@ def learn_em_cmd(
                 f"EM: log-likelihood {ll:.1f} (best {best:.1f}, {since} of {cfg.patience} iterations since)",
                 it + 1,
                 None,
+            ),
+            on_race=lambda done, planned: progress(
+                f"start race: EM from each start, {cfg.start_trial_iterations} iterations a trial", done, planned
             ),
             on_restart=lambda k, turned, sigmas: console.print(
                 f"[yellow]{describe_turns(turned, advice=False)}[/] EM starts again with "

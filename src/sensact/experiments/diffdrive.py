@@ -66,7 +66,11 @@ def run_diffdrive(
             if progress:
                 progress(f"diffdrive {key}: EM iteration {it}, log-likelihood {ll:.1f}", it + 1, None)
 
-        res = fit_em(robot.data, None, exp.learner, progress=on_iteration)
+        def on_race(done: int, planned: int, key: str = key) -> None:
+            if progress:
+                progress(f"diffdrive {key}: start race", done, planned)
+
+        res = fit_em(robot.data, None, exp.learner, progress=on_iteration, on_race=on_race)
         seeds[key] = {
             "em": res.summary(),
             "score": evaluate_mrclam(robot, res),  # as a real robot is scored against Vicon

@@ -27,7 +27,7 @@ from sensact.learn.em.estep import Posteriors, e_step, log_likelihood
 from sensact.learn.em.mstep import m_step
 from sensact.learn.em.outliers import bearing_outliers
 from sensact.learn.em.ridge import search_ridge
-from sensact.learn.em.start import race_starts, start_candidates
+from sensact.learn.em.start import OnTrial, race_starts, start_candidates
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.action_table import ActionTable
 from sensact.models.em_model import EMModel
@@ -247,15 +247,19 @@ def fit_em(
     *,
     progress: Progress | None = None,
     on_restart: OnRestart | None = None,
+    on_race: OnTrial | None = None,
 ) -> EMResult:
     """Learn the action table, the sensor model and the prior from ``data`` by EM (Algorithm of ch. 4);
     with ``turn_restarts``, EM again from a tighter start while a channel's f turns over (``on_restart``
-    hears of each restart before it runs)."""
+    hears of each restart before it runs). ``on_race`` hears of the start race's trials
+    (``start.race_starts``), before ``progress`` hears of the first iteration."""
     cfg = config or EMConfig()
-    res = fit_em_once(data, initial, cfg, progress=progress)
+    res = fit_em_once(data, initial, cfg, progress=progress, on_race=on_race)
     if cfg.turn_restarts == 0 or data.geometry != "planar":
         return res
-    return restart_while_f_turns(data, initial or initial_model(data, cfg), cfg, res, progress, on_restart)
+    return restart_while_f_turns(
+        data, initial or initial_model(data, cfg), cfg, res, progress, on_restart, on_race=on_race
+    )
 
 
 # each restart's start sigma for a channel whose f turned: a third of the last one's (docs/em-real.md,
@@ -270,6 +274,8 @@ def restart_while_f_turns(
     first: EMResult,
     progress: Progress | None = None,
     on_restart: OnRestart | None = None,
+    *,
+    on_race: OnTrial | None = None,
 ) -> EMResult:
     """Beyond the thesis: while the last fit has a channel whose f turns over within its distances
     (``checks.range_function_turns``), EM again from ``start`` with that channel's start sigma a third of
@@ -291,7 +297,7 @@ def restart_while_f_turns(
         start = start.replace(sensor=dc_replace(start.sensor, channels=channels))
         if on_restart is not None:
             on_restart(k + 1, turns[-1], {ch.name: ch.sigma for ch in channels if ch.name in turned})
-        runs.append(fit_em_once(data, start, cfg, progress=progress))
+        runs.append(fit_em_once(data, start, cfg, progress=progress, on_race=on_race))
     if len(runs) == 1:
         return first
     scored = [r for r in runs if r.posteriors is not None]
@@ -319,6 +325,7 @@ def fit_em_once(
     config: EMConfig | None = None,
     *,
     progress: Progress | None = None,
+    on_race: OnTrial | None = None,
 ) -> EMResult:
     """One EM run from one start (the Algorithm of ch. 4, with the start search and searches configured)."""
     cfg = config or EMConfig()
@@ -350,7 +357,7 @@ def fit_em_once(
         candidates, start_info = start_candidates(data, model, cfg)
         model = candidates[0]
         if len(candidates) > 1:
-            model, start_info["race"] = race_starts(data, candidates, cfg, fit_em_once)
+            model, start_info["race"] = race_starts(data, candidates, cfg, fit_em_once, on_trial=on_race)
             spent = start_info["race"]["winner_iterations"]  # before this fit's history begins
         start_info["prior_mean"] = model.prior_mean.tolist()
     floor = np.array([cfg.prior_floor_sd[0] ** 2] * min(n, 2) + ([cfg.prior_floor_sd[1] ** 2] if n == 3 else []))

@@ -126,15 +126,33 @@ def search_grid(landmarks_xy: np.ndarray, target_xy: np.ndarray, cell_mm: float)
 
 # (data, starting model, config) -> an EMResult; fit_em, passed in to keep the layers one-way
 RunEM = Callable[[LandmarkLog, EMModel, EMConfig], Any]
+# (trials done, trials the race holds at most) -> None; a stalled trial is done without running
+OnTrial = Callable[[int, int], None]
+
+
+def race_trials(n_candidates: int) -> int:
+    """How many trials a race of ``n_candidates`` holds at most: a round for each field, halved until two
+    are left (``race_starts``); fewer when every start loses the robot at once."""
+    total, field = n_candidates, n_candidates
+    while field > 2:
+        field = math.ceil(field / 2)
+        total += field
+    return total
 
 
 def race_starts(
-    data: LandmarkLog, candidates: list[EMModel], config: EMConfig, run: RunEM, workers: int | None = None
+    data: LandmarkLog,
+    candidates: list[EMModel],
+    config: EMConfig,
+    run: RunEM,
+    workers: int | None = None,
+    on_trial: OnTrial | None = None,
 ) -> tuple[EMModel, dict[str, Any]]:
     """The candidate whose held EM reaches the highest whole-log likelihood, as its model after the
     race, and the race: each round's scores, the winner and its iterations. The field is halved every
     ``start_trial_iterations`` until two are left, and the better of those wins. ``workers`` threads
-    run a round's trials (one per core by default)."""
+    run a round's trials (one per core by default); ``on_trial`` hears of each trial as it is done,
+    in the order of the field."""
     trial = replace(
         config,
         start_search_s=0.0,
@@ -148,11 +166,21 @@ def race_starts(
     spent = [0] * len(candidates)
     rounds: list[dict[str, float]] = []
     stalled: dict[int, float] = {}  # candidates whose last trial found nothing better than its start
+    planned, done = race_trials(len(candidates)), 0
     with ThreadPoolExecutor(max_workers=max(min(len(candidates), workers or os.cpu_count() or 1), 1)) as pool:
         while True:
             to_run = [i for i in alive if i not in stalled]
             # the trial is deterministic (seeded), so a stalled one would repeat itself from the same model
-            results = dict(zip(to_run, pool.map(lambda i: run(data, models[i], trial), to_run), strict=True))
+            if len(to_run) < len(alive):
+                done += len(alive) - len(to_run)
+                if on_trial is not None:
+                    on_trial(done, planned)
+            results = {}
+            for i, res in zip(to_run, pool.map(lambda i: run(data, models[i], trial), to_run), strict=True):
+                results[i] = res
+                done += 1
+                if on_trial is not None:
+                    on_trial(done, planned)
             scores = {}
             for i in alive:
                 if i in stalled:
