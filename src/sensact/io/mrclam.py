@@ -96,6 +96,7 @@ def read_mrclam(folder: str | Path, robot: int, *, dt_s: float = 1.0 / 30.0) -> 
     barcodes = _table(folder / "Barcodes.dat", 2)
     marks = _table(folder / "Landmark_Groundtruth.dat", 5)
     odo = odo[np.argsort(odo[:, 0], kind="stable")]
+    truth = truth[np.argsort(truth[:, 0], kind="stable")]  # interpolated below, which needs its times in order
     t0, held = held_on_grid(odo[:, 0], odo[:, 1:3], dt_s)
     commands = np.column_stack([held[:, 0] * 1000.0, held[:, 1]])
     T = len(commands)
