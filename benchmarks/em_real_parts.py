@@ -10,7 +10,7 @@ fitted distances (learn/em/checks.py, the sign a user sees without ground truth)
 started again because it did (``turn_restarts``, 2 by default) and which run was kept, the
 log-likelihood and the time; then how many parts lost the robot (median over 500 mm).
 ``--range-start-sigma`` replaces the range channel's start sigma (100 mm by default) and
-``--turn-restarts`` the number of restarts (0: none); docs/em-real.md "Short logs".
+``--turn-restarts`` the number of restarts (0: none); docs/em-real-results.md "Short logs".
 Needs ../shared/data/mrclam (or $SENSACT_DATA). About 3 minutes for 20 quarters on 2 cores.
 """
 

@@ -1138,7 +1138,7 @@ def test_a_short_real_log_finds_its_robot_and_a_lost_fit_says_so_and_starts_agai
     range start sigma EM finds the robot. With the tenfold vaguer start it had before and no restart,
     the first E-step trusts the bearings alone, EM puts the robot metres away and its f turns over; with
     mrclam_config()'s restarts, `learn em` says so, starts again from a third of that sigma, and keeps
-    the far more likely fit, which found the robot (docs/em-real.md, Short logs)."""
+    the far more likely fit, which found the robot (docs/em-real-results.md, Short logs)."""
     from typer.testing import CliRunner
 
     from sensact.config import config_to_yaml
@@ -1637,7 +1637,7 @@ def test_mrclam_robot1_from_an_unknown_start(tmp_path):
     window score is flat across the grid; Student-t bearings from the start lose it even from the
     true pose), and stops 0.3 m behind the robot without the ridge search. Its action and range bars
     hold in either case and after the truth restart, so those are asserted; its bearing bar is not,
-    as it passes only in the poorer basin (docs/em-real.md)."""
+    as it passes only in the poorer basin (docs/em-real-results.md)."""
     from sensact.experiments.real import mrclam_folder, run_mrclam_robot
 
     row, ml, res = run_mrclam_robot(mrclam_folder(DATA), 1, truth_restart=True)
@@ -1675,7 +1675,7 @@ def test_mrclam_robot1_from_an_unknown_start(tmp_path):
     assert t["sightings_used"] == t["sightings_used_poor_start"]
     assert t["loglik_best"] - t["loglik_poor_start"] < 100.0
     # `evaluate log` on real folders: on robot 1's own log it scores the model as the run did; robot 1's
-    # model on robot 3's log (the same kind of robot) holds the action bars (docs/em-real.md, the fleet)
+    # model on robot 3's log (the same kind of robot) holds the action bars (docs/em-real-results.md, the fleet)
     from typer.testing import CliRunner
 
     from sensact.io.landmark_log import write_landmark_log

@@ -11,7 +11,7 @@ import typer
 from sensact.cli.base import console, convert_app, evaluate_app, friendly
 from sensact.cli.scores import evaluate_em, print_truth_score
 
-MRCLAM_CONFIG_HEADER = """The EM settings behind docs/em-real.md's MRCLAM results
+MRCLAM_CONFIG_HEADER = """The EM settings behind docs/em-real-results.md's MRCLAM results
 (sensact.experiments.real.mrclam_config()), as the fields that differ from EMConfig's defaults.
 Edit them for your robot (docs/em-real.md, section 2) and pass this file with --config;
 --set overrides single fields."""

@@ -148,7 +148,7 @@ def print_truth_score(sc: dict[str, Any]) -> None:
             f"bearing residuals of frames 1-5 windows apart correlate at {n['bearing_frame_correlation']:.2f}; "
             + frame_split
             + truth_heading_clause(n)
-            + " (docs/em-real.md, Known limits)"
+            + " (docs/em-real-results.md, Known limits)"
         )
     m = sc.get("sensor_mount")
     if m:
@@ -193,7 +193,7 @@ def evaluate_em(lf: Any, model: Any, *, learned_here: bool = False, path: Any = 
             console.print(
                 f"smoothed path off the recorded poses: median {p['median_mm']:.0f} mm (forward "
                 f"{p['forward_median_mm']:+.0f} mm, right {p['right_median_mm']:+.0f} mm; metres off means EM "
-                "lost the robot: docs/em-real.md, Short logs)"
+                "lost the robot: docs/em-real-results.md, Short logs)"
             )
         simulated = lf.meta.get("truth") or {}
         if simulated.get("kind") == "diffdrive":

@@ -282,7 +282,7 @@ def _compiled_for(n_state: int):
                     nu = wrap(obs_bearing[k] - observe_bearing(m, lx, ly, H))
                     # sec. 4.4.1's k as written: steps since the previous sighting kept, so a second sighting
                     # in the same frame has k = 0 and is dropped unless its innovation is exactly 0 (on
-                    # MRCLAM this keeps one sighting per frame; docs/em-real.md, "Known limits")
+                    # MRCLAM this keeps one sighting per frame; docs/em-real-results.md, "Known limits")
                     steps = t - last_obs if last_obs >= 0 else t + 1
                     if abs(nu) > prune_rad_per_step * steps:
                         obs_use[k] = False

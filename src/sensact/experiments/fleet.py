@@ -4,7 +4,7 @@ each): does one robot's learned model serve another robot of its kind?
 Each pair is ``score_against_truth`` of the model on the log, with From-Truth fitted on that log, and
 the real-data bars (``real.bar_checks``). A pair is the robot's *own* when the model was learned on that
 log. MRCLAM's five robots are one kind of robot: their action models carry over, their cameras' range
-functions do not (docs/em-real.md, "One robot's model on another robot").
+functions do not (docs/em-real-results.md, "One robot's model on another robot").
 """
 
 from __future__ import annotations

@@ -52,7 +52,7 @@ def mrclam_config() -> EMConfig:
         motion_sd_rad=0.01,
         channels=(
             # the start sigma a few times the readings' noise, as sec. 4.4.1's 10 px against 1.59 px: a
-            # tenfold vaguer one lost the robot on 6 of 20 quarter-length logs (docs/em-real.md, Short logs)
+            # tenfold vaguer one lost the robot on 6 of 20 quarter-length logs (docs/em-real-results.md, Short logs)
             ChannelConfig("range_mm", 3, 500.0, 0.6, 100.0, robust="student_t", robust_param=4.0, bearing_degree=2),
         ),
         bearing_robust="student_t",
@@ -218,7 +218,7 @@ def run_mrclam_robot(
 
 def fleet_of_dataset(folder: Path, runs: dict[str, Any], several: bool) -> dict[str, Any] | None:
     """Each robot's learned model of one dataset scored on every robot's log of it (``fleet.score_fleet``;
-    docs/em-real.md, "One robot's model on another robot"), or None with fewer than two robots."""
+    docs/em-real-results.md, "One robot's model on another robot"), or None with fewer than two robots."""
     from sensact.experiments.fleet import score_fleet
 
     keys = [k for k in runs if not several or k.startswith(f"{folder.name}/")]

@@ -601,7 +601,7 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
     if any(n for _, n in noise):
         tables.append(
             (
-                f"{title}: what the truth says about the noise (see docs/em-real.md, Known limits)",
+                f"{title}: what the truth says about the noise (see docs/em-real-results.md, Known limits)",
                 [
                     "robot",
                     "heading drift per 1 s at rest rad, truth / Sigma_m",

@@ -4,7 +4,7 @@ From a poor start EM can settle in a basin where the smoothed path keeps far fro
 each channel's polynomial f bends to map the readings onto the wrong distances. A range sensor's f
 rises (or falls) with distance; one that turns over within the distances it was fitted on is not a
 sensor, it is f absorbing a wrong path. On MRCLAM Dataset 6 cut into quarters every fit that lost
-its robot by metres had such an f, and none that found it (docs/em-real.md, "Short logs").
+its robot by metres had such an f, and none that found it (docs/em-real-results.md, "Short logs").
 """
 
 from __future__ import annotations
@@ -55,5 +55,5 @@ def describe_turns(turned: list[dict[str, Any]], advice: bool = True) -> str:
         return line + "."
     return (
         line + " (a local optimum). Try a longer log, or a smaller start_sigma for the channel (or more "
-        "turn_restarts) in --config (docs/em-real.md, Short logs)."
+        "turn_restarts) in --config (docs/em-real-results.md, Short logs)."
     )

@@ -86,7 +86,7 @@ class EMConfig:
     motion_sd_floor_mm: float = 0.05
     motion_sd_floor_rad: float = 5e-4
     # Sigma_m's sideways sd per step on a planar log, if not motion_sd_mm (0 = motion_sd_mm). The
-    # sightings hardly pin it, so a learned Sigma_m keeps about its start (docs/em-real.md, Known limits):
+    # sightings hardly pin it, so a learned Sigma_m keeps about its start (docs/em-real-results.md, Known limits):
     # a differential drive, which cannot side-step, can start it small
     motion_sd_sideways_mm: float = 0.0
     # reading channels; empty = the thesis's one beacon-height channel from the start_height_* fields

@@ -262,7 +262,7 @@ def fit_em(
     )
 
 
-# each restart's start sigma for a channel whose f turned: a third of the last one's (docs/em-real.md,
+# each restart's start sigma for a channel whose f turned: a third of the last one's (docs/em-real-results.md,
 # Short logs: on quarter-length MRCLAM logs, trusting the poor line's readings more held the robot's scale)
 RESTART_SIGMA_FACTOR = 1.0 / 3.0
 
