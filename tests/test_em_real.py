@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import threading
 from dataclasses import replace
 from pathlib import Path
@@ -1739,7 +1740,14 @@ def test_reproduce_real_runs_every_mrclam_dataset_it_finds(tmp_path):
     assert [d.name for d in mrclam_datasets(root)] == ["MRCLAM_Dataset6", "MRCLAM_Dataset9"]
     cfg = replace(mrclam_config(), start_search_s=0.0, max_iterations=3)
     (root / "mrclam" / "MRCLAM_Dataset9" / "Robot3_Odometry.dat").unlink()  # a robot missing is skipped
-    res, art = run_real(root, robots=(2, 3), config=cfg)
+    heard: list[str] = []
+    res, art = run_real(root, robots=(2, 3), config=cfg, progress=heard.append)
+    # the status line names each robot, then its iterations (no start search here, so no race)
+    first = heard.index("MRCLAM MRCLAM_Dataset6/robot2")
+    assert re.fullmatch(
+        r"MRCLAM MRCLAM_Dataset6/robot2: EM iteration 0, best log-likelihood -?\d+\.\d", heard[first + 1]
+    )
+    assert sum(m.startswith("MRCLAM MRCLAM_Dataset9/robot2: EM iteration ") for m in heard) == 3
     assert list(res["mrclam"]) == ["MRCLAM_Dataset6/robot2", "MRCLAM_Dataset6/robot3", "MRCLAM_Dataset9/robot2"]
     assert any(s.startswith("MRCLAM MRCLAM_Dataset9/robot3: ") for s in res["skipped"])
     keys = [c["key"] for c in res["scorecard"]]  # every robot's bars, under its row's name
