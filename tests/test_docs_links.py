@@ -1,6 +1,6 @@
 """Invariants of the documentation's cross-references: every docs page that the code, the tests, the
-README or another page names exists, and every section it names there ("Short logs", section 2) is in
-that page. The pages are split and renamed as they grow; a message that sends a user to a section
+README or another page names exists, and every section it names there ("Short logs", section 2), or
+that a page names in itself ("Short logs" above), is in that page. The pages are split and renamed as they grow; a message that sends a user to a section
 that moved is a defect no other test sees."""
 
 import re
@@ -57,3 +57,26 @@ def test_a_named_page_and_section_exist(where, page, num, name):
         # the name must head something (a heading, a bold label or a paragraph), not merely occur
         start = r"^[#\s*-]*" + r"\s+".join(re.escape(w) for w in name.split())
         assert re.search(start, text, re.M), f'{where} names "{name}" in {page}, where nothing starts with it'
+
+
+# a page's own section, named as `"Section" above`, `below, "Section"` or `("Section")`
+_OWN = re.compile(
+    r"\"(?P<a>[A-Z][^\"\n]{2,80})\"\s+(?:above|below)|(?:above|below),\s+\"(?P<b>[A-Z][^\"\n]{2,80})\""
+    r"|\(\"(?P<c>[A-Z][^\"\n]{2,80})\"\)"
+)
+OWN_REFERENCES = [
+    (page.name, m["a"] or m["b"] or m["c"])
+    for page in sorted(DOCS.glob("*.md"))
+    for m in _OWN.finditer(page.read_text(encoding="utf-8"))
+]
+
+
+def test_the_own_page_references_are_found():
+    assert ("em-real-results.md", "Short logs") in OWN_REFERENCES
+    assert ("em-real.md", "Misread barcodes") in OWN_REFERENCES
+
+
+@pytest.mark.parametrize("page,name", OWN_REFERENCES, ids=[f"{p}:{n}" for p, n in OWN_REFERENCES])
+def test_a_section_named_above_or_below_is_in_the_same_page(page, name):
+    start = r"^[#\s*-]*" + r"\s+".join(re.escape(w) for w in name.split())
+    assert re.search(start, (DOCS / page).read_text(encoding="utf-8"), re.M), f'{page} names "{name}", not in it'
