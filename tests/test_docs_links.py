@@ -1,7 +1,7 @@
 """Invariants of the documentation's cross-references: every docs page that the code, the tests, the
 README or another page names exists, and every section it names there ("Short logs", section 2), or
-that a page names in itself ("Short logs" above), is in that page. The pages are split and renamed as they grow; a message that sends a user to a section
-that moved is a defect no other test sees."""
+that a page names in itself ("Short logs" above), is in that page. The pages are split and renamed as
+they grow; a message that sends a user to a section that moved is a defect no other test sees."""
 
 import re
 from pathlib import Path
