@@ -183,7 +183,31 @@ def test_wheel_speeds_in_metres_convert_to_what_simulate_diffdrive_logs_with_the
     assert "action_inputs" not in (out / "em_config.yaml").read_text().split("motion_sd_mm")[1]
 
 
-def test_other_commands_and_readings_get_no_config_and_are_told_how_to_choose(tmp_path):
+def test_a_legged_robots_commands_convert_with_the_sideways_velocity_free(timed, tmp_path):
+    """Commands that are not a differential drive's, as a legged robot's (v, v_left, omega) in m/s, get the
+    settings `simulate diffdrive --set sidestep_mm_s=...` writes for the same commands: MRCLAM's, with every
+    velocity affine in every command, and the converted commands are the simulated log's."""
+    _, folder = timed
+    sim, out = tmp_path / "sim", tmp_path / "converted"
+    args = ["--seconds", "60", "--seed", "5", "--set", "sidestep_mm_s=60"]
+    res = runner.invoke(app, ["simulate", "diffdrive", "--out", str(sim), *args])
+    assert res.exit_code == 0, res.output
+    d = read_landmark_log(sim).data
+    grid = T0 + np.arange(d.n_steps) * d.dt_s
+    v, left, w = d.step_commands.T
+    _write(tmp_path / "legs.csv", {"t_s": grid, "v_m_s": v / 1000, "v_left_m_s": left / 1000, "omega_rad_s": w})
+    more = [f"--{k}={folder / f'{k}.csv'}" for k in ("sightings", "landmarks")]
+    res = runner.invoke(app, ["convert", "csv", f"--commands={tmp_path / 'legs.csv'}", *more, "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    flat = " ".join(res.output.split())
+    assert "a robot that can side-step on commands v_mm_s, v_left_mm_s, omega_rad_s" in flat
+    a = read_landmark_log(out).data
+    assert a.command_names == d.command_names
+    np.testing.assert_allclose(a.step_commands, d.step_commands, rtol=1e-12, atol=1e-9)
+    assert (out / "em_config.yaml").read_text() == (sim / "em_config.yaml").read_text()
+
+
+def test_other_readings_get_no_config_and_are_told_how_to_choose(tmp_path):
     _write(tmp_path / "c.csv", {"t_s": [0.0, 1.0, 2.0], "left_wheel": [1.0, 2.0, 3.0], "right_wheel": [1, 1, 1]})
     _write(
         tmp_path / "s.csv",

@@ -17,7 +17,7 @@ from sensact.core.pose_models import apply_displacement, landmark_bearing, landm
 from sensact.evaluate.bars import verdict_line
 from sensact.evaluate.simulated_robot import score_against_simulated
 from sensact.experiments import diffdrive
-from sensact.experiments.real import bar_checks
+from sensact.experiments.real import bar_checks, mrclam_config, planar_config
 from sensact.io.landmark_log import read_landmark_log
 from sensact.models.em_model import EMModel
 from sensact.models.linear_action import LinearActionModel
@@ -27,22 +27,27 @@ runner = CliRunner()
 QUIET = dict(sideways_sd_mm=0.0, forward_sd_mm=0.0, heading_sd_rad=0.0, range_sd_mm=1e-12, bearing_sd_rad=1e-12)
 
 
-def test_the_truth_it_writes_is_the_robot_it_drives():
+@pytest.mark.parametrize(("sidestep", "seed"), [(0.0, 2), (60.0, 4)])
+def test_the_truth_it_writes_is_the_robot_it_drives(sidestep, seed):
     """Exact reduction: without noise or lag, the affine model of ``truth()`` at its delay, dead-reckoned
-    from the logged commands, is the simulated path, and each sighting reads ``range_reading``."""
-    cfg = DiffDriveConfig(seconds=120, seed=2, lag_s=0.0, misread_rate=0.0, **QUIET)
+    from the logged commands, is the simulated path, and each sighting reads ``range_reading``; for a
+    differential drive and for a robot that side-steps (``v_left`` to its left, a negative ``v_x``)."""
+    cfg = DiffDriveConfig(seconds=120, seed=seed, lag_s=0.0, misread_rate=0.0, sidestep_mm_s=sidestep, **QUIET)
     run = simulate_diffdrive(cfg)
     t = cfg.truth()
+    names, logged = run.logged_commands()
+    assert tuple(t["command_names"]) == names == cfg.command_names
     model = LinearActionModel(
         "affine",
         1,
         np.array(t["action_coefficients"]),
-        ("v_mm_s", "omega_rad_s"),
+        names,
         ("vx", "vy", "vt"),
         delay_steps=t["delay_steps"],
     )
     assert t["delay_steps"] == 6
-    v = model.step_features(run.commands) @ model.coefficients
+    assert (np.abs(run.side_commands).max() > 10.0) == (sidestep > 0)  # it side-steps within these 120 s
+    v = model.step_features(logged) @ model.coefficients
     w = run.poses[0]
     for k in range(len(run.commands) - 1):
         w = apply_displacement(w, v[k] * cfg.dt_s)[0]
@@ -75,6 +80,33 @@ def test_it_drives_like_an_mrclam_robot():
     frames = np.unique(run.obs_step)
     assert np.all(frames % round(cfg.frame_period_s / cfg.dt_s) == 0)
     assert len(ring_of_landmarks(4000, 9000, 5)) == 14
+
+
+def test_a_robot_that_side_steps_walks_at_some_waypoints_without_turning():
+    """Invariants of ``sidestep_mm_s`` (a legged robot's commands): at some waypoints it walks straight at
+    the waypoint, forward (or back) and sideways on the ellipse of its two top speeds, never turning; at
+    the others it turns and drives as a differential drive does. The robot's own sideways travel follows
+    the sideways command at its gain. Without the option nothing moves sideways on command."""
+    cfg = DiffDriveConfig(seconds=300, seed=2, sidestep_mm_s=60.0, sideways_sd_mm=0.0, lag_s=0.0)
+    run = simulate_diffdrive(cfg)
+    names, logged = run.logged_commands()
+    assert names == ("v_mm_s", "v_left_mm_s", "omega_rad_s") and logged.shape == (len(run.poses), 3)
+    v, w = run.commands.T
+    crab = run.side_commands != 0
+    assert 0.1 < crab.mean() < 0.9 and np.mean(w != 0) > 0.1  # both kinds of waypoint
+    assert np.all(w[crab] == 0) and np.abs(run.side_commands).max() <= cfg.sidestep_mm_s
+    np.testing.assert_allclose((v[crab] / cfg.speed_mm_s) ** 2 + (run.side_commands[crab] / 60.0) ** 2, 1.0)
+    assert v[crab].min() < 0  # a waypoint behind it is walked to backwards
+    # the true sideways travel per step, in the robot frame (x to its right: sec. 2.5.1), against the command
+    step = np.diff(run.poses[:, :2], axis=0)
+    th = run.poses[:-1, 2]
+    right = (np.cos(th) * step[:, 0] + np.sin(th) * step[:, 1]) / cfg.dt_s
+    late = np.r_[np.zeros(cfg.delay_steps), run.side_commands[: -cfg.delay_steps - 1]]
+    gain = -np.polyfit(late, right, 1)[0]
+    assert gain == pytest.approx(cfg.sideways_gain, rel=1e-6)
+    plain = simulate_diffdrive(DiffDriveConfig(seconds=60, seed=2))
+    assert plain.logged_commands()[0] == ("v_mm_s", "omega_rad_s") and not plain.side_commands.any()
+    assert np.array(DiffDriveConfig().truth()["action_coefficients"]).shape == (3, 3)
 
 
 def test_a_camera_yaw_drift_is_shared_and_slow():
@@ -163,6 +195,10 @@ def test_bad_settings_are_named():
         DiffDriveConfig(room_width_mm=1000.0)
     with pytest.raises(ValueError, match="min_range_mm"):
         DiffDriveConfig(min_range_mm=8000.0)
+    with pytest.raises(ValueError, match="wheel_axle_mm"):
+        DiffDriveConfig(sidestep_mm_s=60.0, wheel_axle_mm=235.0)
+    with pytest.raises(ValueError, match="crab_share"):
+        DiffDriveConfig(sidestep_mm_s=60.0, crab_share=1.5)
 
 
 def test_em_with_mrclams_settings_recovers_the_simulated_robot():
@@ -183,6 +219,29 @@ def test_em_with_mrclams_settings_recovers_the_simulated_robot():
     assert 0.75 < s["range_sigma_ratio"] < 1.0
     _, res = art["robots"]["seed1"]
     assert s == score_against_simulated(res.model, replace(exp.simulator, seed=1).truth(), exp.simulator.dt_s)
+
+
+def test_em_learns_a_robot_that_side_steps_with_every_velocity_free():
+    """Seeded recovery on a robot the differential drive's settings do not describe: a legged robot's
+    (v, v_left, omega). The settings for any other commands (``planar_config``) free the sideways mean
+    and the inputs; the whole learner then clears every bar and recovers all three gains."""
+    names = ("v_mm_s", "v_left_mm_s", "omega_rad_s")
+    learner = planar_config(names)
+    assert learner.action_zero_mean == () and learner.action_inputs == ()
+    assert (
+        replace(learner, action_zero_mean=mrclam_config().action_zero_mean, action_inputs=mrclam_config().action_inputs)
+        == mrclam_config()
+    )
+    assert planar_config(("v_mm_s", "omega_rad_s")) == mrclam_config()
+    sim = DiffDriveConfig(seconds=300, sidestep_mm_s=60.0)
+    out, _ = diffdrive.run_diffdrive(diffdrive.DiffDriveExperiment(trials=1, seed=2, simulator=sim, learner=learner))
+    checks = diffdrive.scorecard(out)
+    assert len(checks) == 5 and all(c.cleared for c in checks), verdict_line(checks)
+    s = out["seeds"]["seed2"]["simulated"]
+    for gain in ("forward_gain", "turn_gain", "sideways_gain"):
+        assert s[gain][0] == pytest.approx(s[gain][1], rel=0.03), gain
+    assert s["sideways_gain"][1] == sim.sideways_gain
+    assert out["seeds"]["seed2"]["score"]["path"]["median_mm"] < 100.0
 
 
 def test_simulate_diffdrive_then_learn_em_scores_against_the_simulation(tmp_path):
@@ -406,6 +465,40 @@ def test_reproduce_diffdrive_writes_its_scorecard_and_figures(tmp_path):
         assert (tmp_path / f"diffdrive_seed0_{kind}.png").stat().st_size > 10_000
     assert (tmp_path / "diffdrive_loglik.png").is_file()
     assert 'id="diffdrive"' in (tmp_path / "index.html").read_text()
+
+
+def test_a_side_stepping_robot_from_simulate_to_learn_em_and_reproduce(tmp_path):
+    """The CLI on a legged robot's commands: `simulate diffdrive --set sidestep_mm_s=60` writes the settings
+    for any other commands (the sideways velocity free, and says why), `learn em` reports the sideways gain
+    against the simulated one, and `reproduce diffdrive` learns with the same settings and tabulates it."""
+    from sensact.config import config_from_dict, load_yaml_mapping
+    from sensact.learn.em import EMConfig
+
+    log, model = tmp_path / "legged", tmp_path / "m.json"
+    side = ["--set", "sidestep_mm_s=60"]
+    res = runner.invoke(app, ["simulate", "diffdrive", "--out", str(log), "--seconds", "90", "--seed", "4", *side])
+    assert res.exit_code == 0, res.output
+    assert "commands v_mm_s, v_left_mm_s, omega_rad_s" in " ".join(res.output.split())
+    text = (log / "em_config.yaml").read_text()
+    assert config_from_dict(EMConfig, load_yaml_mapping(log / "em_config.yaml")) == planar_config(
+        ("v_mm_s", "v_left_mm_s", "omega_rad_s")
+    )
+    assert "#   v_mm_s, v_left_mm_s, omega_rad_s" in text and "add action_zero_mean: [v_x_mm_s]" in text
+    cfg = ["--config", str(log / "em_config.yaml"), "--set", "max_iterations=40", "--set", "start_candidates=2"]
+    res = runner.invoke(app, ["learn", "em", str(log), "--out", str(model), *cfg])
+    assert res.exit_code == 0, res.output
+    ev = json.loads(model.read_text())["evaluation"]
+    g = ev["simulated"]["sideways_gain"]
+    assert g[1] == 0.85 and f"sideways gain {g[0]:.3f} / 0.850" in " ".join(res.output.split())
+    out = tmp_path / "R"
+    fast = ["--set", "seconds=90", "--set", "max_iterations=30", "--set", "start_candidates=2"]
+    res = runner.invoke(app, ["reproduce", "diffdrive", "--trials", "1", "--out", str(out), *side, *fast])
+    assert res.exit_code == 0, res.output
+    dd = json.loads((out / "diffdrive.json").read_text())
+    assert dd["config"]["learner"]["action_zero_mean"] == [] and dd["config"]["learner"]["action_inputs"] == []
+    md = (out / "diffdrive.md").read_text()
+    assert "sideways_gain" in dd["seeds"]["seed0"]["simulated"] and "| sideways gain |" in md
+    assert "Simulated side-stepping robots" in md
 
 
 def _true_model_file(log, path):

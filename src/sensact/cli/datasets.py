@@ -18,10 +18,20 @@ Edit them for your robot (docs/em-real.md, section 2) and pass this file with --
 WHEELS_CONFIG_NOTE = """
 On wheel speeds (left_mm_s, right_mm_s) the forward speed is the wheels' mean, so MRCLAM's
 action_inputs (forward speed from v_mm_s alone) is left out."""
+FREE_MOTION_NOTE = """
+These commands are not a differential drive's (v_mm_s, omega_rad_s, or left_mm_s, right_mm_s):
+  {names}
+so every velocity, sideways too, is affine in every command, as for a robot that can side-step
+(a legged one): MRCLAM's action_zero_mean and action_inputs are left out. If yours cannot
+side-step, add action_zero_mean: [v_x_mm_s] (docs/em-real.md, section 2)."""
 
 
 def config_header(command_names: tuple[str, ...]) -> str:
-    """em_config.yaml's header for ``experiments.real.diffdrive_config``'s settings on these commands."""
+    """em_config.yaml's header for ``experiments.real.planar_config``'s settings on these commands."""
+    from sensact.experiments.real import diffdrive_config
+
+    if diffdrive_config(command_names) is None:
+        return MRCLAM_CONFIG_HEADER + FREE_MOTION_NOTE.format(names=", ".join(command_names))
     return MRCLAM_CONFIG_HEADER + (WHEELS_CONFIG_NOTE if "left_mm_s" in command_names else "")
 
 
@@ -95,9 +105,10 @@ def convert_csv(
     Times in seconds on one clock, rows in any order. Commands are held until the next row on a fixed
     step, each sighting goes to the nearest step, truth is interpolated. Column suffixes give units:
     _m and _m_s become mm and mm/s, _deg and _deg_s radians. Sightings of landmarks the map does not
-    list are dropped and counted. A differential drive logged as v_m_s, omega_rad_s or as wheel speeds
-    left_m_s, right_m_s, with a range_m and bearing camera, also gets em_config.yaml (MRCLAM's settings)
-    to start from; see docs/em-real.md."""
+    list are dropped and counted. A robot with a range_m and bearing camera also gets em_config.yaml
+    (MRCLAM's settings) to start from: a differential drive's when the commands are v_m_s, omega_rad_s
+    or the wheel speeds left_m_s, right_m_s; on any other commands, as a legged robot's (v, v_left,
+    omega), every velocity, sideways too, affine in every command. See docs/em-real.md."""
     import numpy as np
 
     from sensact.io.landmark_log import write_landmark_log
@@ -117,17 +128,22 @@ def convert_csv(
     )
     d = tl.data
     console.print(f"drew {_draw_overview(d, tl.groundtruth, out, out.resolve().name)}")
-    from sensact.experiments.real import diffdrive_config
+    from sensact.experiments.real import diffdrive_config, planar_config
 
-    settings = diffdrive_config(d.command_names) if d.reading_names == ("range_mm",) else None
-    if settings is not None and np.isfinite(d.obs_bearing_rad).any():  # MRCLAM's settings learn from bearings
+    # MRCLAM's settings learn from a range-and-bearing camera; other readings need their own channels
+    if d.reading_names == ("range_mm",) and np.isfinite(d.obs_bearing_rad).any():
         from sensact.config import config_to_yaml
         from sensact.io.atomic import write_text
 
         cfg = out / "em_config.yaml"
-        write_text(cfg, config_to_yaml(settings, config_header(d.command_names)))
+        write_text(cfg, config_to_yaml(planar_config(d.command_names), config_header(d.command_names)))
+        kind = (
+            "a differential drive"
+            if diffdrive_config(d.command_names)
+            else f"a robot that can side-step on commands {', '.join(d.command_names)}"
+        )
         console.print(
-            f"wrote {out} and {cfg} (MRCLAM's settings, a starting point for a differential drive with a "
+            f"wrote {out} and {cfg} (MRCLAM's settings, a starting point for {kind} with a "
             f"range-and-bearing camera); learn with `sensact learn em {out} --config {cfg}`"
         )
     else:

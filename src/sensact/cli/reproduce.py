@@ -152,6 +152,7 @@ def _reproduce_diffdrive(out: Path, trials: int, seed: int, set_: list[str] | No
     """MRCLAM's EM settings on simulated differential drives; ``--set`` reaches both the learner and the
     simulator (``sim.diffdrive.DiffDriveConfig``), whichever has the field."""
     from sensact.experiments.diffdrive import DiffDriveExperiment, run_diffdrive
+    from sensact.experiments.real import planar_config
     from sensact.learn.em import EMConfig
     from sensact.report import figures_real
     from sensact.report.tables import diffdrive_tables
@@ -159,11 +160,13 @@ def _reproduce_diffdrive(out: Path, trials: int, seed: int, set_: list[str] | No
 
     base = DiffDriveExperiment()
     learner_f, sim_f = split_fields(set_, config, EMConfig)
+    simulator = merged(DiffDriveConfig, base.simulator, sim_f)
     exp = DiffDriveExperiment(
         trials=trials,
         seed=seed,
-        simulator=merged(DiffDriveConfig, base.simulator, sim_f),
-        learner=merged(EMConfig, base.learner, learner_f),
+        simulator=simulator,
+        # the settings `simulate diffdrive` writes for the commands logged (wheel speeds, a side-stepper's)
+        learner=merged(EMConfig, planar_config(simulator.logged_command_names), learner_f),
     )
     with progress_bar() as progress:
         res, art = run_diffdrive(exp, progress)

@@ -40,7 +40,7 @@ def print_em_model(m: Any) -> None:
 
 
 def print_simulated_score(model: Any, truth: dict[str, Any], dt_s: float) -> dict[str, Any]:
-    """Learned against the model a simulated differential drive really used (`sensact simulate diffdrive`)."""
+    """Learned against the model a simulated robot really used (`sensact simulate diffdrive`)."""
     from sensact.evaluate.simulated_robot import score_against_simulated
 
     s = score_against_simulated(model, truth, dt_s)
@@ -49,7 +49,8 @@ def print_simulated_score(model: Any, truth: dict[str, Any], dt_s: float) -> dic
         "vs the simulated model (learned / true): "
         f"forward gain {s['forward_gain'][0]:.3f} / {s['forward_gain'][1]:.3f}, "
         f"turn gain {s['turn_gain'][0]:.3f} / {s['turn_gain'][1]:.3f}, "
-        f"command delay {s['delay_steps'][0]} / {s['delay_steps'][1]} steps "
+        + (f"sideways gain {s['sideways_gain'][0]:.3f} / {s['sideways_gain'][1]:.3f}, " if "sideways_gain" in s else "")
+        + f"command delay {s['delay_steps'][0]} / {s['delay_steps'][1]} steps "
         f"({s['delay_with_lag_steps']:.1f} with the lag's time constant); "
         f"range sigma {s['range_sigma_mm'][0]:.1f} / {s['range_sigma_mm'][1]:.1f} mm, "
         f"bearing sigma {s['bearing_sigma_rad'][0]:.4f} / {s['bearing_sigma_rad'][1]:.4f} rad; "

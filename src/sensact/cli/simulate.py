@@ -99,10 +99,12 @@ def simulate_diffdrive_cmd(
     Writes the EM settings of the MRCLAM results beside it (em_config.yaml); `sensact learn em OUT
     --config OUT/em_config.yaml` then scores the learned model against the true poses and the
     simulated model. `--set wheel_axle_mm=235` logs the wheel speeds (left_mm_s, right_mm_s) instead
-    of v and omega, as a robot driven wheel by wheel is logged."""
+    of v and omega, as a robot driven wheel by wheel is logged. `--set sidestep_mm_s=60` makes a
+    robot that can side-step, as a legged one, logged as (v_mm_s, v_left_mm_s, omega_rad_s), with
+    settings in which every velocity, sideways too, is affine in every command."""
     from sensact.cli.datasets import config_header
     from sensact.config import config_to_yaml
-    from sensact.experiments.real import diffdrive_config
+    from sensact.experiments.real import planar_config
     from sensact.io.atomic import write_text
     from sensact.io.landmark_log import write_landmark_log
     from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
@@ -112,7 +114,7 @@ def simulate_diffdrive_cmd(
     log = run.log()
     write_landmark_log(out, log, groundtruth=run.groundtruth(), meta_extra={"truth": cfg.truth()})
     em_cfg = out / "em_config.yaml"
-    write_text(em_cfg, config_to_yaml(diffdrive_config(log.command_names), config_header(log.command_names)))
+    write_text(em_cfg, config_to_yaml(planar_config(log.command_names), config_header(log.command_names)))
     console.print(
         f"wrote {out}: {len(run.commands)} steps of {cfg.dt_s:.4g} s, {run.obs_step.size} sightings of "
         f"{len(cfg.landmarks_xy_mm)} landmarks ({int(run.obs_misread.sum())} misread), commands "

@@ -1,7 +1,7 @@
-"""A model learned on a simulated differential drive (``sensact simulate diffdrive``) against the model
-the simulator really used (meta.json's ``truth``), beside the recorded-pose scores that real logs get
-(``evaluate.landmark_truth``): the truth's residual sigma is what a real log's bars compare with, the
-simulated sigma is what a perfect learner would find."""
+"""A model learned on a simulated differential drive or side-stepping robot (``sensact simulate
+diffdrive``) against the model the simulator really used (meta.json's ``truth``), beside the
+recorded-pose scores that real logs get (``evaluate.landmark_truth``): the truth's residual sigma is
+what a real log's bars compare with, the simulated sigma is what a perfect learner would find."""
 
 from __future__ import annotations
 
@@ -15,7 +15,8 @@ from sensact.sim.diffdrive import from_wheel_coefficients
 
 
 def score_against_simulated(model: EMModel, truth: dict[str, Any], dt_s: float) -> dict[str, Any]:
-    """Learned against true: the affine action's gains and biases, the command delay (which the lag
+    """Learned against true: the affine action's gains and biases (and the sideways gain of a robot that
+    side-steps), the command delay (which the lag
     lengthens: a first-order lag of time constant tau delays a step by tau), Sigma_m's per-step sds,
     the range channel's sigma and bearing terms, the bearing sigma; each sigma also as a ratio."""
     if not isinstance(model.action, LinearActionModel) or model.action.basis != "affine":
@@ -23,13 +24,23 @@ def score_against_simulated(model: EMModel, truth: dict[str, Any], dt_s: float) 
     beta, true_beta = model.action.coefficients, np.asarray(truth["action_coefficients"])
     if truth.get("wheel_axle_mm", 0.0) > 0:  # learned on the wheel speeds: the gains are on (v, omega)
         beta = from_wheel_coefficients(beta, truth["wheel_axle_mm"])
+    if beta.shape != true_beta.shape:
+        raise ValueError(
+            f"the model has {beta.shape[0] - 1} commands and the simulated robot {true_beta.shape[0] - 1}: "
+            "learn it on the simulated log's own commands"
+        )
+    turn = true_beta.shape[0] - 1  # omega's row: (1, v, omega), or (1, v, v_left, omega) for a side-stepper
     ch = model.sensor.channels[0]
     sigma_b = model.sensor.sigma_bearing_rad
+    sideways = {}
+    if turn == 3:  # v_left's row; sideways is v_x, to the right (sec. 2.5.1), so a step left is -v_x
+        sideways = {"sideways_gain": [-float(beta[2, 0]), -float(true_beta[2, 0])]}
     return {
         "forward_gain": [float(beta[1, 1]), float(true_beta[1, 1])],
         "forward_bias_mm_s": [float(beta[0, 1]), float(true_beta[0, 1])],
-        "turn_gain": [float(beta[2, 2]), float(true_beta[2, 2])],
+        "turn_gain": [float(beta[turn, 2]), float(true_beta[turn, 2])],
         "turn_bias_rad_s": [float(beta[0, 2]), float(true_beta[0, 2])],
+        **sideways,
         "delay_steps": [int(model.action.delay_steps), int(truth["delay_steps"])],
         "delay_with_lag_steps": float(truth["delay_steps"] + truth["lag_s"] / dt_s),
         "motion_sd_per_step": [np.asarray(model.motion_sd).reshape(-1, 3)[0].tolist(), truth["motion_sd_per_step"]],

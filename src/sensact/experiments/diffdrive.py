@@ -60,7 +60,7 @@ def run_diffdrive(
         sim = replace(exp.simulator, seed=exp.seed + k)
         key = f"seed{sim.seed}"
         run = simulate_diffdrive(sim)
-        robot = SimulatedRobot(run.log(f"simulated differential drive, seed {sim.seed}"), run.poses)
+        robot = SimulatedRobot(run.log(f"simulated {sim.robot_kind}, seed {sim.seed}"), run.poses)
 
         def on_iteration(it: int, ll: float, best: float, since: int, key: str = key) -> None:
             if progress:

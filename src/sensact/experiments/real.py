@@ -77,6 +77,14 @@ def diffdrive_config(command_names: tuple[str, ...]) -> EMConfig | None:
     return None
 
 
+def planar_config(command_names: tuple[str, ...]) -> EMConfig:
+    """A starting point for any robot with a range-and-bearing camera: ``diffdrive_config`` on a
+    differential drive's commands; on any others, MRCLAM's settings with every velocity, sideways too,
+    affine in every command, since nothing says the robot cannot side-step (a legged robot's
+    ``(v, v_left, omega)``; ``sensact simulate diffdrive --set sidestep_mm_s=60``)."""
+    return diffdrive_config(command_names) or replace(mrclam_config(), action_zero_mean=(), action_inputs=())
+
+
 def mrclam_folder(root: Path | None = None) -> Path:
     return (root or data_root()) / "mrclam" / "MRCLAM_Dataset6"
 

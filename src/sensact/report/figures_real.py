@@ -84,7 +84,7 @@ def figure_action_curves(
             others = ", ".join(f"{n} at {held[k]:.3g}" for k, n in enumerate(commands) if k != i)
             word, axis = _VELOCITY_LABELS.get(velocities[j], (velocities[j], velocities[j]))
             ax.set(
-                xlabel=f"commanded {name}" + (f" ({others})" if others else ""),
+                xlabel=f"commanded {name}" + (f"\n({others})" if others else ""),  # a line of its own: 3 columns fit
                 ylabel=axis,
                 title=f"{title}: {word} against {name}",
             )

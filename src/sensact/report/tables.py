@@ -432,20 +432,23 @@ def _truth_score_row(name: str, score: dict[str, Any], em: dict[str, Any]) -> li
 
 
 def diffdrive_tables(res: dict[str, Any]) -> list[Table]:
-    """Simulated differential drives: the MRCLAM table against their true poses, then the learned model
-    against the one the simulator used."""
+    """Simulated differential drives (or side-stepping robots): the MRCLAM table against their true poses,
+    then the learned model against the one the simulator used."""
     seeds = res["seeds"]
     rows = [_truth_score_row(name, r["score"], r["em"]) for name, r in seeds.items()]
+    sideways = any("sideways_gain" in r["simulated"] for r in seeds.values())  # a robot that side-steps
     sim_rows = []
     for name, r in seeds.items():
         s = r["simulated"]
         sd, sd_true = s["motion_sd_per_step"]
+        side = s.get("sideways_gain")
         sim_rows.append(
             [
                 name,
                 f"{s['forward_gain'][0]:.3f} / {s['forward_gain'][1]:.3f}",
                 f"{s['forward_bias_mm_s'][0]:.1f} / {s['forward_bias_mm_s'][1]:.1f}",
                 f"{s['turn_gain'][0]:.3f} / {s['turn_gain'][1]:.3f}",
+                *([f"{side[0]:.3f} / {side[1]:.3f}" if side else "-"] if sideways else []),
                 f"{s['delay_steps'][0]} / {s['delay_steps'][1]} ({s['delay_with_lag_steps']:.1f})",
                 f"{s['range_sigma_mm'][0]:.1f} / {s['range_sigma_mm'][1]:.1f} ({s['range_sigma_ratio']:.2f})",
                 f"{s['bearing_sigma_rad'][0]:.4f} / {s['bearing_sigma_rad'][1]:.4f} ({s['bearing_sigma_ratio']:.2f})",
@@ -453,9 +456,10 @@ def diffdrive_tables(res: dict[str, Any]) -> list[Table]:
                 f"{r['em']['iterations']} ({r['em']['seconds']:.1f} s)",
             ]
         )
+    robots = "side-stepping robots" if res["config"]["simulator"].get("sidestep_mm_s", 0) > 0 else "differential drives"
     return [
         (
-            "Simulated differential drives, MRCLAM's EM settings: learned / From-Truth (ratio)",
+            f"Simulated {robots}, MRCLAM's EM settings: learned / From-Truth (ratio)",
             truth_score_headers("seed", "the true poses"),
             rows,
         ),
@@ -466,6 +470,7 @@ def diffdrive_tables(res: dict[str, Any]) -> list[Table]:
                 "forward gain",
                 "forward bias mm/s",
                 "turn gain",
+                *(["sideways gain"] if sideways else []),
                 "command delay steps (with the lag's time constant)",
                 "range sigma mm",
                 "bearing sigma rad",

@@ -5,7 +5,9 @@ robots learns from (issue 5, docs/em-real.md), with a known model to recover.
   in place towards a waypoint far off its heading, drives at up to 80 mm/s (MRCLAM's: 67-86) while
   steering at up to 0.4 rad/s, and waits a few seconds at each waypoint. The controller reads the true pose (the
   simulator's stand-in for the robot's own navigation).
-* The commands it logs are continuous ``(v, omega)``, or (``wheel_axle_mm``) the wheel speeds they make;
+* The commands it logs are continuous ``(v, omega)``, or (``wheel_axle_mm``) the wheel speeds they make,
+  or (``sidestep_mm_s``, a robot that can side-step, as a legged one) ``(v, v_left, omega)``: such a robot
+  walks at some waypoints straight at the waypoint without turning, forward and sideways at once;
   the robot obeys them ``delay_s`` late, through a first-order lag (a motor does not jump to a new
   speed), with an affine gain and bias. A differential drive does not side-step: its sideways
   velocity is 0 on average.
@@ -38,6 +40,7 @@ from sensact.logs.landmark_log import LandmarkLog
 
 COMMAND_NAMES = ("v_mm_s", "omega_rad_s")
 WHEEL_COMMAND_NAMES = ("left_mm_s", "right_mm_s")
+SIDESTEP_COMMAND_NAMES = ("v_mm_s", "v_left_mm_s", "omega_rad_s")  # v_left: to the robot's left (ROS REP 103)
 
 
 def wheel_speeds(commands: np.ndarray, axle_mm: float) -> np.ndarray:
@@ -114,6 +117,13 @@ class DiffDriveConfig:
     # what the log records: 0 logs the controller's (v, omega); an axle length logs the wheel speeds
     # (left_mm_s, right_mm_s) the same commands make on it, as a robot driven wheel by wheel is logged
     wheel_axle_mm: float = 0.0
+    # a robot that can side-step, as a legged one does (0 = a differential drive, which cannot): the controller's
+    # largest sideways command, logged as v_left_mm_s; at a share of the waypoints (crab_share) it walks straight
+    # at the waypoint without turning. The robot's sideways velocity is sideways_gain v_left + sideways_bias_mm_s
+    sidestep_mm_s: float = 0.0
+    crab_share: float = 0.5
+    sideways_gain: float = 0.85
+    sideways_bias_mm_s: float = 0.0
 
     def __post_init__(self) -> None:
         problems = []
@@ -133,6 +143,12 @@ class DiffDriveConfig:
             problems.append("motion noise, delay_s and lag_s must be >= 0")
         if self.wheel_axle_mm < 0:
             problems.append("wheel_axle_mm must be >= 0 (0 logs v and omega)")
+        if self.sidestep_mm_s < 0 or not 0 <= self.crab_share <= 1:
+            problems.append("sidestep_mm_s must be >= 0 (0 = a differential drive) and crab_share in [0, 1]")
+        if self.sidestep_mm_s > 0 and self.wheel_axle_mm > 0:
+            problems.append(
+                "a robot that side-steps (sidestep_mm_s > 0) is not logged by two wheels' speeds (wheel_axle_mm)"
+            )
         if self.bearing_drift_sd_rad < 0 or self.bearing_drift_tau_s <= 0:
             problems.append("bearing_drift_sd_rad must be >= 0 and bearing_drift_tau_s > 0")
         if not (0 <= self.detect_probability <= 1 and 0 <= self.misread_rate < 1):
@@ -150,16 +166,34 @@ class DiffDriveConfig:
     def delay_steps(self) -> int:
         return round(self.delay_s / self.dt_s)
 
+    @property
+    def command_names(self) -> tuple[str, ...]:
+        """The controller's commands, the rows of ``action_coefficients`` after the constant."""
+        return SIDESTEP_COMMAND_NAMES if self.sidestep_mm_s > 0 else COMMAND_NAMES
+
+    @property
+    def robot_kind(self) -> str:
+        return "side-stepping robot" if self.sidestep_mm_s > 0 else "differential drive"
+
+    @property
+    def logged_command_names(self) -> tuple[str, ...]:
+        """The commands as the log records them: the controller's, or the wheel speeds they make."""
+        return WHEEL_COMMAND_NAMES if self.wheel_axle_mm > 0 else self.command_names
+
     def action_coefficients(self) -> np.ndarray:
         """The true model in the learner's affine family (``LinearActionModel``): rows the features
-        ``1, v, omega``, columns ``v_x`` (sideways), ``v_y`` (forward), ``v_theta``, lag aside."""
-        return np.array(
-            [
-                [0.0, self.forward_bias_mm_s, self.turn_bias_rad_s],
-                [0.0, self.forward_gain, 0.0],
-                [0.0, 0.0, self.turn_gain],
-            ]
-        )
+        ``1, v, omega`` (``1, v, v_left, omega`` for a robot that side-steps), columns ``v_x`` (sideways,
+        to the robot's right: sec. 2.5.1's frame, so a step to the left is a negative ``v_x``), ``v_y``
+        (forward), ``v_theta``, lag aside."""
+        side_bias = self.sideways_bias_mm_s if self.sidestep_mm_s > 0 else 0.0  # a differential drive's is 0
+        rows = [
+            [0.0 - side_bias, self.forward_bias_mm_s, self.turn_bias_rad_s],
+            [0.0, self.forward_gain, 0.0],
+            [0.0, 0.0, self.turn_gain],
+        ]
+        if self.sidestep_mm_s > 0:
+            rows.insert(2, [-self.sideways_gain, 0.0, 0.0])
+        return np.array(rows)
 
     def range_reading(self, distance_mm: np.ndarray, bearing_rad: np.ndarray) -> np.ndarray:
         """The noise-free range reading at a distance and a (measured) bearing."""
@@ -171,7 +205,8 @@ class DiffDriveConfig:
         """What the simulated robot really is, for meta.json (scoring only, never learned from)."""
         return {
             "kind": "diffdrive",
-            "action_coefficients": self.action_coefficients().tolist(),  # on (1, v, omega), whatever is logged
+            "command_names": list(self.command_names),
+            "action_coefficients": self.action_coefficients().tolist(),  # on (1, *command_names), whatever is logged
             "wheel_axle_mm": self.wheel_axle_mm,
             "delay_steps": self.delay_steps,
             "lag_s": self.lag_s,
@@ -193,28 +228,33 @@ class DiffDriveRun:
     obs_range_mm: np.ndarray
     obs_bearing_rad: np.ndarray
     obs_misread: np.ndarray  # (K,) True for a misread sighting
+    side_commands: np.ndarray  # (T,) the controller's v_left (mm/s), all 0 for a differential drive
 
     def logged_commands(self) -> tuple[tuple[str, ...], np.ndarray]:
-        """The commands as the log records them: (v, omega), or the wheel speeds (``wheel_axle_mm``)."""
+        """The commands as the log records them: (v, omega), the wheel speeds (``wheel_axle_mm``), or
+        (v, v_left, omega) for a robot that side-steps (``sidestep_mm_s``)."""
+        names = self.config.logged_command_names
         if self.config.wheel_axle_mm > 0:
-            return WHEEL_COMMAND_NAMES, wheel_speeds(self.commands, self.config.wheel_axle_mm)
-        return COMMAND_NAMES, self.commands
+            return names, wheel_speeds(self.commands, self.config.wheel_axle_mm)
+        if self.config.sidestep_mm_s > 0:
+            return names, np.column_stack([self.commands[:, 0], self.side_commands, self.commands[:, 1]])
+        return names, self.commands
 
-    def log(self, source: str = "simulated differential drive") -> LandmarkLog:
+    def log(self, source: str | None = None) -> LandmarkLog:
         T = len(self.commands)
         names, logged = self.logged_commands()
         return LandmarkLog(
             "planar",
             self.config.dt_s,
             np.full(T, -1),
-            np.zeros((0, 2)),
+            np.zeros((0, len(names))),
             names,
             self.obs_step,
             self.obs_landmark,
             self.obs_range_mm,
             self.obs_bearing_rad,
             np.asarray(self.config.landmarks_xy_mm),
-            source=source,
+            source=source or f"simulated {self.config.robot_kind}",
             reading_names=("range_mm",),
             step_commands=logged,
         )
@@ -224,42 +264,60 @@ class DiffDriveRun:
         return {"x_mm": self.poses[:, 0], "y_mm": self.poses[:, 1], "theta_rad": self.poses[:, 2]}
 
 
-def _drive(cfg: DiffDriveConfig, rng_route: np.random.Generator, noise: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Steer to random waypoints; the commands are logged, the robot follows them late and lagged."""
+def _drive(
+    cfg: DiffDriveConfig, rng_route: np.random.Generator, noise: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Steer to random waypoints; the commands are logged, the robot follows them late and lagged.
+    Returns the (v, omega) commands, the sideways commands (v_left) and the true poses."""
     T = len(noise)
     dt = cfg.dt_s
     hw, hl = 0.5 * cfg.room_width_mm - cfg.margin_mm, 0.5 * cfg.room_length_mm - cfg.margin_mm
     commands = np.zeros((T, 2))
+    side = np.zeros(T)
     poses = np.empty((T, 3))
     x, y, th = (float(v) for v in cfg.start_pose)
-    goal = (rng_route.uniform(-hw, hw), rng_route.uniform(-hl, hl))
+    sidesteps = cfg.sidestep_mm_s > 0
+
+    def new_goal() -> tuple[float, float, bool]:
+        goal = (rng_route.uniform(-hw, hw), rng_route.uniform(-hl, hl))
+        # a differential drive draws nothing more, so that its route is the same with or without this option
+        return (*goal, bool(sidesteps and rng_route.random() < cfg.crab_share))
+
+    gx, gy, crab = new_goal()
     wait = 0
     lag = 1.0 - math.exp(-dt / cfg.lag_s) if cfg.lag_s > 0 else 1.0
-    fwd, turn = 0.0, 0.0  # the velocities the robot has reached
+    fwd, turn, left = 0.0, 0.0, 0.0  # the velocities the robot has reached
     k = cfg.delay_steps
     for t in range(T):
         poses[t] = (x, y, th)
-        v_cmd = w_cmd = 0.0
+        v_cmd = w_cmd = l_cmd = 0.0
         if wait > 0:
             wait -= 1
-        elif math.hypot(goal[0] - x, goal[1] - y) < cfg.arrive_mm:
+        elif math.hypot(gx - x, gy - y) < cfg.arrive_mm:
             wait = int(rng_route.uniform(0, cfg.max_wait_s) / dt)
-            goal = (rng_route.uniform(-hw, hw), rng_route.uniform(-hl, hl))
+            gx, gy, crab = new_goal()
         else:
             # the robot's forward axis points at theta + pi/2 in the world (sec. 2.5.1)
-            err = math.remainder(math.atan2(goal[1] - y, goal[0] - x) - th - 0.5 * math.pi, 2 * math.pi)
-            w_cmd = max(-cfg.turn_rate_rad_s, min(cfg.turn_rate_rad_s, cfg.steer_gain * err))
-            if abs(err) < cfg.turn_in_place_rad:
-                v_cmd = cfg.speed_mm_s * (1.0 - 0.3 * abs(err) / cfg.turn_in_place_rad)
+            err = math.remainder(math.atan2(gy - y, gx - x) - th - 0.5 * math.pi, 2 * math.pi)
+            if crab:  # walk at the waypoint as it lies, forward (or back) and to the side, without turning
+                v_cmd, l_cmd = cfg.speed_mm_s * math.cos(err), cfg.sidestep_mm_s * math.sin(err)
+            else:
+                w_cmd = max(-cfg.turn_rate_rad_s, min(cfg.turn_rate_rad_s, cfg.steer_gain * err))
+                if abs(err) < cfg.turn_in_place_rad:
+                    v_cmd = cfg.speed_mm_s * (1.0 - 0.3 * abs(err) / cfg.turn_in_place_rad)
         commands[t] = (v_cmd, w_cmd)
-        v_late, w_late = commands[max(t - k, 0)]  # the first command stands in before it, as the learner's
+        side[t] = l_cmd
+        late = max(t - k, 0)  # the first command stands in before it, as the learner's
+        v_late, w_late = commands[late]
         fwd += lag * (cfg.forward_bias_mm_s + cfg.forward_gain * v_late - fwd)
         turn += lag * (cfg.turn_bias_rad_s + cfg.turn_gain * w_late - turn)
-        # eq. 2.28: the step's displacement in the robot frame (sideways, forward, heading), rotated by theta
-        dx, dy, dth = noise[t, 0], fwd * dt + noise[t, 1], turn * dt + noise[t, 2]
+        if sidesteps:
+            left += lag * (cfg.sideways_bias_mm_s + cfg.sideways_gain * side[late] - left)
+        # eq. 2.28: the step's displacement in the robot frame (sideways to the right, forward, heading), rotated
+        dx, dy, dth = noise[t, 0] - left * dt, fwd * dt + noise[t, 1], turn * dt + noise[t, 2]
         c, s = math.cos(th), math.sin(th)
         x, y, th = x + c * dx - s * dy, y + s * dx + c * dy, math.remainder(th + dth, 2 * math.pi)
-    return commands, poses
+    return commands, side, poses
 
 
 def simulate_diffdrive(config: DiffDriveConfig | None = None) -> DiffDriveRun:
@@ -270,7 +328,7 @@ def simulate_diffdrive(config: DiffDriveConfig | None = None) -> DiffDriveRun:
     )
     T = round(cfg.seconds / cfg.dt_s) + 1
     noise = rng_motion.normal(size=(T, 3)) * np.array([cfg.sideways_sd_mm, cfg.forward_sd_mm, cfg.heading_sd_rad])
-    commands, poses = _drive(cfg, rng_route, noise)
+    commands, side, poses = _drive(cfg, rng_route, noise)
 
     drift = np.zeros(T)
     if cfg.bearing_drift_sd_rad > 0:  # AR(1) of the OU process on the step grid, started stationary
@@ -291,4 +349,4 @@ def simulate_diffdrive(config: DiffDriveConfig | None = None) -> DiffDriveRun:
     half = 0.5 * np.deg2rad(cfg.fov_deg)
     rng_mm[misread] = rng_misread.uniform(cfg.min_range_mm, cfg.max_range_mm, misread.sum())
     bearing[misread] = rng_misread.uniform(-half, half, misread.sum())
-    return DiffDriveRun(cfg, commands, poses, frames[fi], li, rng_mm, bearing, misread)
+    return DiffDriveRun(cfg, commands, poses, frames[fi], li, rng_mm, bearing, misread, side)
