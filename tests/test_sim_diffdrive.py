@@ -32,7 +32,8 @@ def test_the_truth_it_writes_is_the_robot_it_drives(sidestep, seed):
     """Exact reduction: without noise or lag, the affine model of ``truth()`` at its delay, dead-reckoned
     from the logged commands, is the simulated path, and each sighting reads ``range_reading``; for a
     differential drive and for a robot that side-steps (``v_left`` to its left, a negative ``v_x``)."""
-    cfg = DiffDriveConfig(seconds=120, seed=seed, lag_s=0.0, misread_rate=0.0, sidestep_mm_s=sidestep, **QUIET)
+    side = {"sidestep_mm_s": sidestep, "sideways_bias_mm_s": 4.0} if sidestep else {}  # a drift to the left
+    cfg = DiffDriveConfig(seconds=120, seed=seed, lag_s=0.0, misread_rate=0.0, **side, **QUIET)
     run = simulate_diffdrive(cfg)
     t = cfg.truth()
     names, logged = run.logged_commands()

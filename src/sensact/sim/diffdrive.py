@@ -185,9 +185,10 @@ class DiffDriveConfig:
         ``1, v, omega`` (``1, v, v_left, omega`` for a robot that side-steps), columns ``v_x`` (sideways,
         to the robot's right: sec. 2.5.1's frame, so a step to the left is a negative ``v_x``), ``v_y``
         (forward), ``v_theta``, lag aside."""
-        side_bias = self.sideways_bias_mm_s if self.sidestep_mm_s > 0 else 0.0  # a differential drive's is 0
+        # v_x is to the right: a bias to the left is negative (and a differential drive's 0.0, not -0.0)
+        right_bias = -self.sideways_bias_mm_s if self.sidestep_mm_s > 0 and self.sideways_bias_mm_s else 0.0
         rows = [
-            [0.0 - side_bias, self.forward_bias_mm_s, self.turn_bias_rad_s],
+            [right_bias, self.forward_bias_mm_s, self.turn_bias_rad_s],
             [0.0, self.forward_gain, 0.0],
             [0.0, 0.0, self.turn_gain],
         ]
