@@ -33,7 +33,7 @@ def _truth_at_sensor(ml: Any, score: dict[str, Any]) -> tuple[np.ndarray, np.nda
 
 
 _VELOCITY_LABELS = {  # the panel's title word and its axis
-    "v_x_mm_s": ("sideways velocity", "sideways velocity v_x (mm/s)"),
+    "v_x_mm_s": ("sideways velocity", "sideways velocity v_x, + right (mm/s)"),  # sec. 2.5.1: a left step is < 0
     "v_y_mm_s": ("forward velocity", "forward velocity v_y (mm/s)"),
     "v_theta_rad_s": ("turn rate", "turn rate v_theta (rad/s)"),
 }
