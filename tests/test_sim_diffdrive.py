@@ -17,8 +17,10 @@ from sensact.core.pose_models import apply_displacement, landmark_bearing, landm
 from sensact.evaluate.bars import verdict_line
 from sensact.evaluate.simulated_robot import score_against_simulated
 from sensact.experiments import diffdrive
-from sensact.experiments.real import bar_checks, mrclam_config, planar_config
+from sensact.experiments.real import bar_checks, evaluate_mrclam, mrclam_config, planar_config
 from sensact.io.landmark_log import read_landmark_log
+from sensact.learn.em import fit_em
+from sensact.learn.em.checks import describe_held_sideways, held_sideways_noise
 from sensact.models.em_model import EMModel
 from sensact.models.linear_action import LinearActionModel
 from sensact.sim.diffdrive import DiffDriveConfig, from_wheel_coefficients, ring_of_landmarks, simulate_diffdrive
@@ -220,6 +222,7 @@ def test_em_with_mrclams_settings_recovers_the_simulated_robot():
     assert 0.75 < s["range_sigma_ratio"] < 1.0
     _, res = art["robots"]["seed1"]
     assert s == score_against_simulated(res.model, replace(exp.simulator, seed=1).truth(), exp.simulator.dt_s)
+    assert held_sideways_noise(res.model) is None  # a differential drive held to no sideways mean is right
 
 
 def test_em_learns_a_robot_that_side_steps_with_every_velocity_free():
@@ -235,7 +238,7 @@ def test_em_learns_a_robot_that_side_steps_with_every_velocity_free():
     )
     assert planar_config(("v_mm_s", "omega_rad_s")) == mrclam_config()
     sim = DiffDriveConfig(seconds=300, sidestep_mm_s=60.0)
-    out, _ = diffdrive.run_diffdrive(diffdrive.DiffDriveExperiment(trials=1, seed=2, simulator=sim, learner=learner))
+    out, art = diffdrive.run_diffdrive(diffdrive.DiffDriveExperiment(trials=1, seed=2, simulator=sim, learner=learner))
     checks = diffdrive.scorecard(out)
     assert len(checks) == 5 and all(c.cleared for c in checks), verdict_line(checks)
     s = out["seeds"]["seed2"]["simulated"]
@@ -243,6 +246,19 @@ def test_em_learns_a_robot_that_side_steps_with_every_velocity_free():
         assert s[gain][0] == pytest.approx(s[gain][1], rel=0.03), gain
     assert s["sideways_gain"][1] == sim.sideways_gain
     assert out["seeds"]["seed2"]["score"]["path"]["median_mm"] < 100.0
+    robot, res = art["robots"]["seed2"]
+    assert held_sideways_noise(res.model) is None
+    # held to a differential drive's zero sideways mean, the same robot still clears the action bars (From-Truth
+    # is fitted in that family too), but its side-steps become sideways motion noise, which learn em points out
+    held = fit_em(robot.data, None, mrclam_config())
+    sc = evaluate_mrclam(robot, held)
+    assert sc["bars"]["action_translation_ratio"] and sc["bars"]["action_rotation_ratio"]
+    assert (
+        sc["action"]["learned"]["translation_rms_mm_s"]
+        > 2 * out["seeds"]["seed2"]["score"]["action"]["learned"]["translation_rms_mm_s"]
+    )
+    note = held_sideways_noise(held.model)
+    assert note is not None and note["ratio"] > 2.0 and "drop v_x_mm_s" in describe_held_sideways(note)
 
 
 def test_simulate_diffdrive_then_learn_em_scores_against_the_simulation(tmp_path):

@@ -142,7 +142,12 @@ def learn_em_cmd(
     from sensact.io.atomic import write_json, write_npz
     from sensact.io.landmark_log import read_landmark_log
     from sensact.learn.em import EMConfig, fit_em, initial_model
-    from sensact.learn.em.checks import describe_turns, range_function_turns
+    from sensact.learn.em.checks import (
+        describe_held_sideways,
+        describe_turns,
+        held_sideways_noise,
+        range_function_turns,
+    )
     from sensact.learn.em.config import refuse_bearing_settings
     from sensact.report.tables import kept_run_cell, restart_runs_cell
 
@@ -272,6 +277,9 @@ def learn_em_cmd(
         turned = range_function_turns(m, res.posteriors, data)
         if turned:
             console.print(f"[yellow]{describe_turns(turned)}[/]")
+    held = held_sideways_noise(m)
+    if held:
+        console.print(describe_held_sideways(held), style="yellow", markup=False)  # it quotes a YAML list
     evaluation = (
         evaluate_em(lf, m, learned_here=True, path=None if res.posteriors is None else res.posteriors.mean_gamma)
         if lf is not None
@@ -287,6 +295,7 @@ def learn_em_cmd(
                 "dt_s": data.dt_s,
                 "evaluation": evaluation,
                 "range_function_turns": turned,  # learn/em/checks.py: a sign that EM lost the robot
+                "held_sideways_noise": held,  # ... and that a robot that side-steps is held to no sideways mean
             },
         )
         write_npz(

@@ -1,4 +1,5 @@
-"""Signs, without ground truth, that EM lost the robot (beyond the thesis).
+"""Signs, without ground truth, that EM lost the robot or that the action family does not fit it
+(beyond the thesis).
 
 From a poor start EM can settle in a basin where the smoothed path keeps far from the landmarks and
 each channel's polynomial f bends to map the readings onto the wrong distances. A range sensor's f
@@ -19,6 +20,10 @@ from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 
 DISTANCE_PERCENTILES = (2.0, 98.0)  # the fitted distances, their few extremes left out
+# learned sideways over forward Sigma_m sd above which a held sideways mean is suspect: 1.0-1.5 on MRCLAM's
+# five robots and 1.1 on simulated ones; 3.2 on a simulated side-stepper held to no sideways mean
+# (docs/em-real.md, "A robot that can side-step")
+SIDEWAYS_NOISE_RATIO = 2.0
 
 
 def range_function_turns(model: EMModel, post: Posteriors, data: LandmarkLog) -> list[dict[str, Any]]:
@@ -56,4 +61,32 @@ def describe_turns(turned: list[dict[str, Any]], advice: bool = True) -> str:
     return (
         line + " (a local optimum). Try a longer log, or a smaller start_sigma for the channel (or more "
         "turn_restarts) in --config (docs/em-real-results.md, Short logs)."
+    )
+
+
+def held_sideways_noise(model: EMModel) -> dict[str, float] | None:
+    """The learned sideways and forward Sigma_m sds when the action model holds the sideways mean at 0
+    (``action_zero_mean``) and the sideways one is over ``SIDEWAYS_NOISE_RATIO`` times the other: a robot
+    that side-steps, whose side-steps the model cannot make, so the M-step reads them as motion noise.
+    The action bars cannot show it, since From-Truth is fitted in the same family."""
+    action = model.action
+    if (
+        model.geometry != "planar"
+        or model.motion_sd.shape[0] != 1
+        or "v_x_mm_s" not in getattr(action, "zero_mean", ())
+    ):
+        return None
+    sideways, forward = (float(v) for v in model.motion_sd[0, :2])
+    if sideways <= SIDEWAYS_NOISE_RATIO * forward:
+        return None
+    return {"sideways_mm": sideways, "forward_mm": forward, "ratio": sideways / forward}
+
+
+def describe_held_sideways(held: dict[str, float]) -> str:
+    return (
+        f"note: the learned sideways motion noise is {held['ratio']:.1f} times the forward one "
+        f"({held['sideways_mm']:.2f} against {held['forward_mm']:.2f} mm a step) while the action model holds "
+        "the sideways velocity at 0 (action_zero_mean: [v_x_mm_s]). If the robot can side-step, its side-steps "
+        "are read as noise, and the bars cannot tell (From-Truth is fitted in the same family): drop v_x_mm_s "
+        'from action_zero_mean (docs/em-real.md, section 2, "A robot that can side-step").'
     )
