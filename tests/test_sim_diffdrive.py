@@ -518,6 +518,19 @@ def test_a_side_stepping_robot_from_simulate_to_learn_em_and_reproduce(tmp_path)
     assert "Simulated side-stepping robots" in md
 
 
+def test_reproduce_diffdrive_on_wheel_speeds_learns_with_the_wheel_settings(tmp_path):
+    """`reproduce diffdrive --set wheel_axle_mm=...` learns with what `simulate diffdrive` writes for wheel
+    speeds (MRCLAM's settings without the forward-from-v restriction, which names a command a wheel log
+    lacks; before, it stopped there)."""
+    fast = ["--set", "seconds=60", "--set", "max_iterations=5", "--set", "start_candidates=2"]
+    res = runner.invoke(
+        app, ["reproduce", "diffdrive", "--trials", "1", "--out", str(tmp_path), "--set", "wheel_axle_mm=235", *fast]
+    )
+    assert res.exit_code == 0, res.output
+    learner = json.loads((tmp_path / "diffdrive.json").read_text())["config"]["learner"]
+    assert learner["action_inputs"] == [] and learner["action_zero_mean"] == ["v_x_mm_s"]
+
+
 def _true_model_file(log, path):
     """The simulated robot's own action model (its coefficients and delay) in a model.json that says it was
     learned on ``log``, on EM's start for the sensor: what a perfect learner of the action would write."""
