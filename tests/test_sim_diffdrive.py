@@ -222,7 +222,7 @@ def test_em_with_mrclams_settings_recovers_the_simulated_robot():
     assert 0.75 < s["range_sigma_ratio"] < 1.0
     _, res = art["robots"]["seed1"]
     assert s == score_against_simulated(res.model, replace(exp.simulator, seed=1).truth(), exp.simulator.dt_s)
-    assert held_sideways_noise(res.model) is None  # a differential drive held to no sideways mean is right
+    assert held_sideways_noise(res.model, "shared") is None  # a differential drive held to no sideways mean is right
 
 
 def test_em_learns_a_robot_that_side_steps_with_every_velocity_free():
@@ -247,7 +247,7 @@ def test_em_learns_a_robot_that_side_steps_with_every_velocity_free():
     assert s["sideways_gain"][1] == sim.sideways_gain
     assert out["seeds"]["seed2"]["score"]["path"]["median_mm"] < 100.0
     robot, res = art["robots"]["seed2"]
-    assert held_sideways_noise(res.model) is None
+    assert held_sideways_noise(res.model, "shared") is None
     # held to a differential drive's zero sideways mean, the same robot still clears the action bars (From-Truth
     # is fitted in that family too), but its side-steps become sideways motion noise, which learn em points out
     held = fit_em(robot.data, None, mrclam_config())
@@ -257,7 +257,8 @@ def test_em_learns_a_robot_that_side_steps_with_every_velocity_free():
         sc["action"]["learned"]["translation_rms_mm_s"]
         > 2 * out["seeds"]["seed2"]["score"]["action"]["learned"]["translation_rms_mm_s"]
     )
-    note = held_sideways_noise(held.model)
+    note = held_sideways_noise(held.model, "shared")
+    assert held_sideways_noise(held.model, "fixed") is None  # Sigma_m not learned: the config's own sds
     assert note is not None and note["ratio"] > 2.0 and "drop v_x_mm_s" in describe_held_sideways(note)
 
 

@@ -277,7 +277,7 @@ def learn_em_cmd(
         turned = range_function_turns(m, res.posteriors, data)
         if turned:
             console.print(f"[yellow]{describe_turns(turned)}[/]")
-    held = held_sideways_noise(m)
+    held = held_sideways_noise(m, cfg.motion_noise)
     if held:
         console.print(describe_held_sideways(held), style="yellow", markup=False)  # it quotes a YAML list
     evaluation = (

@@ -16,9 +16,9 @@ from sensact.sim.diffdrive import from_wheel_coefficients
 
 def score_against_simulated(model: EMModel, truth: dict[str, Any], dt_s: float) -> dict[str, Any]:
     """Learned against true: the affine action's gains and biases (and the sideways gain of a robot that
-    side-steps), the command delay (which the lag
-    lengthens: a first-order lag of time constant tau delays a step by tau), Sigma_m's per-step sds,
-    the range channel's sigma and bearing terms, the bearing sigma; each sigma also as a ratio."""
+    side-steps), the command delay (which the lag lengthens: a first-order lag of time constant tau
+    delays a step by tau), Sigma_m's per-step sds, the range channel's sigma and bearing terms, the
+    bearing sigma; each sigma also as a ratio."""
     if not isinstance(model.action, LinearActionModel) or model.action.basis != "affine":
         raise ValueError("a simulated differential drive is scored with the affine action basis (em_config.yaml)")
     beta, true_beta = model.action.coefficients, np.asarray(truth["action_coefficients"])

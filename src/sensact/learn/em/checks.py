@@ -64,17 +64,14 @@ def describe_turns(turned: list[dict[str, Any]], advice: bool = True) -> str:
     )
 
 
-def held_sideways_noise(model: EMModel) -> dict[str, float] | None:
+def held_sideways_noise(model: EMModel, motion_noise: str) -> dict[str, float] | None:
     """The learned sideways and forward Sigma_m sds when the action model holds the sideways mean at 0
     (``action_zero_mean``) and the sideways one is over ``SIDEWAYS_NOISE_RATIO`` times the other: a robot
     that side-steps, whose side-steps the model cannot make, so the M-step reads them as motion noise.
-    The action bars cannot show it, since From-Truth is fitted in the same family."""
-    action = model.action
-    if (
-        model.geometry != "planar"
-        or model.motion_sd.shape[0] != 1
-        or "v_x_mm_s" not in getattr(action, "zero_mean", ())
-    ):
+    The action bars cannot show it, since From-Truth is fitted in the same family. None when Sigma_m was
+    not learned (``motion_noise`` ``fixed``: its sds are the config's)."""
+    held = "v_x_mm_s" in getattr(model.action, "zero_mean", ())
+    if motion_noise == "fixed" or model.geometry != "planar" or model.motion_sd.shape[0] != 1 or not held:
         return None
     sideways, forward = (float(v) for v in model.motion_sd[0, :2])
     if sideways <= SIDEWAYS_NOISE_RATIO * forward:
