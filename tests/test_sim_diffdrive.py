@@ -98,7 +98,9 @@ def test_a_robot_that_side_steps_walks_at_some_waypoints_without_turning():
     crab = run.side_commands != 0
     assert 0.1 < crab.mean() < 0.9 and np.mean(w != 0) > 0.1  # both kinds of waypoint
     assert np.all(w[crab] == 0) and np.abs(run.side_commands).max() <= cfg.sidestep_mm_s
-    np.testing.assert_allclose((v[crab] / cfg.speed_mm_s) ** 2 + (run.side_commands[crab] / 60.0) ** 2, 1.0)
+    np.testing.assert_allclose(
+        (v[crab] / cfg.speed_mm_s) ** 2 + (run.side_commands[crab] / cfg.sidestep_mm_s) ** 2, 1.0
+    )
     assert v[crab].min() < 0  # a waypoint behind it is walked to backwards
     # the true sideways travel per step, in the robot frame (x to its right: sec. 2.5.1), against the command
     step = np.diff(run.poses[:, :2], axis=0)

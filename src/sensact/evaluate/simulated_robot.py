@@ -11,7 +11,7 @@ import numpy as np
 
 from sensact.models.em_model import EMModel
 from sensact.models.linear_action import LinearActionModel
-from sensact.sim.diffdrive import from_wheel_coefficients
+from sensact.sim.diffdrive import COMMAND_NAMES, from_wheel_coefficients
 
 
 def score_against_simulated(model: EMModel, truth: dict[str, Any], dt_s: float) -> dict[str, Any]:
@@ -29,12 +29,16 @@ def score_against_simulated(model: EMModel, truth: dict[str, Any], dt_s: float) 
             f"the model has {beta.shape[0] - 1} commands and the simulated robot {true_beta.shape[0] - 1}: "
             "learn it on the simulated log's own commands"
         )
-    turn = true_beta.shape[0] - 1  # omega's row: (1, v, omega), or (1, v, v_left, omega) for a side-stepper
+    # the coefficient rows: the constant, then the controller's commands (logs written before they were named
+    # in the truth are differential drives)
+    rows = ["1", *truth.get("command_names", COMMAND_NAMES)]
+    turn = rows.index("omega_rad_s")
     ch = model.sensor.channels[0]
     sigma_b = model.sensor.sigma_bearing_rad
     sideways = {}
-    if turn == 3:  # v_left's row; sideways is v_x, to the right (sec. 2.5.1), so a step left is -v_x
-        sideways = {"sideways_gain": [-float(beta[2, 0]), -float(true_beta[2, 0])]}
+    if "v_left_mm_s" in rows:  # sideways is v_x, to the right (sec. 2.5.1), so a step to the left is -v_x
+        k = rows.index("v_left_mm_s")
+        sideways = {"sideways_gain": [-float(beta[k, 0]), -float(true_beta[k, 0])]}
     return {
         "forward_gain": [float(beta[1, 1]), float(true_beta[1, 1])],
         "forward_bias_mm_s": [float(beta[0, 1]), float(true_beta[0, 1])],
