@@ -1768,7 +1768,7 @@ def test_reproduce_real_runs_every_mrclam_dataset_it_finds(tmp_path):
     # the same log and seed give the same fit under either name
     a, b = (r["em"]["loglik_best"] for r in res["mrclam"].values())
     assert a == b
-    assert res["skipped"][-1] == f"Turtlebot: {root / 'turtlebot1d' / 'training1.csv'} not found"
+    assert res["skipped"][-1] == f"Turtlebot: no training*.csv in {root / 'turtlebot1d'}"
     titles = [t[0] for t in real_tables(res)]
     assert titles[0] == "MRCLAM Dataset 6, Dataset 9: learned / From-Truth (ratio)"
     assert any(t.startswith("MRCLAM_Dataset6, each robot's model on every robot's log") for t in titles)
@@ -1777,6 +1777,59 @@ def test_reproduce_real_runs_every_mrclam_dataset_it_finds(tmp_path):
     assert tmp_path / "real_mrclam_MRCLAM_Dataset9_robot2_bearing.png" in paths
     assert tmp_path / "real_fleet_MRCLAM_Dataset6.png" in paths
     assert all(p.stat().st_size > 0 for p in paths)
+
+
+def test_reproduce_real_runs_every_turtlebot_training_log_it_finds(tmp_path, monkeypatch):
+    """The same command on the course's other training logs: every DATA/turtlebot1d/training*.csv is
+    learned and scored with the same bars, training1.csv as real.json's "turtlebot" and the others
+    under "turtlebot_more_logs", each with its own bars, table and likelihood line."""
+    from sensact.experiments.real import run_real, turtlebot_logs
+    from sensact.report import figures_real
+    from sensact.report.tables import real_tables
+
+    base = tmp_path / "data" / "turtlebot1d"
+    base.mkdir(parents=True)
+    assert turtlebot_logs(tmp_path / "data") == []
+    for name in ("training10.csv", "training2.csv", "training1.csv", "calibration.csv", "training_notes"):
+        (base / name).write_text("")
+    (base / "training3.csv").mkdir()  # a folder is not a log
+    assert [p.name for p in turtlebot_logs(tmp_path / "data")] == ["training1.csv", "training2.csv", "training10.csv"]
+    if not TURTLEBOT.is_file():
+        pytest.skip(f"Turtlebot data not found at {TURTLEBOT}")
+    for f in base.iterdir():
+        f.rmdir() if f.is_dir() else f.unlink()
+    short = "".join(TURTLEBOT.read_text().splitlines(keepends=True)[:1500])  # about 90 s of the log
+    for name in ("training1.csv", "training2.csv"):
+        (base / name).write_text(short)
+    heard: list[str] = []
+    res, art = run_real(tmp_path / "data", progress=heard.append)
+    assert "Turtlebot EM on training1.csv" in heard and "Turtlebot EM on training2.csv" in heard
+    assert Path(res["turtlebot"]["file"]).name == "training1.csv"
+    assert list(res["turtlebot_more_logs"]) == ["training2"]
+    more = res["turtlebot_more_logs"]["training2"]
+    # the same log under either name: the same fit and the same scores
+    assert more["em"]["loglik_best"] == res["turtlebot"]["em"]["loglik_best"]
+    assert more["score"] == res["turtlebot"]["score"] and "chapter3_sonar1" in more
+    keys = [c["key"] for c in res["scorecard"]]
+    assert keys == ["turtlebot.gain", "turtlebot.sensor", "turtlebot/training2.gain", "turtlebot/training2.sensor"]
+    cards = res["scorecard"]
+    assert [c["cleared"] for c in cards[:2]] == [c["cleared"] for c in cards[2:]]
+    assert cards[2]["quantity"].startswith("Turtlebot training2: ")
+    titles = [t[0] for t in real_tables(res) if t[0].startswith("Turtlebot")]
+    assert titles == [
+        f"Turtlebot {n}: EM in 1-D against the chapter-3 learner" for n in ("training1.csv", "training2.csv")
+    ]
+    assert any(s.startswith("MRCLAM: no dataset folder") for s in res["skipped"])
+    (tmp_path / "out").mkdir()
+    drawn: list[str] = []
+    loglik = figures_real.figure_loglik
+    monkeypatch.setattr(figures_real, "figure_loglik", lambda runs, path: drawn.extend(runs) or loglik(runs, path))
+    paths = figures_real.write_all(art, res, tmp_path / "out")
+    assert paths == [tmp_path / "out" / "real_loglik.png"] and paths[0].stat().st_size > 0
+    assert drawn == ["Turtlebot training1", "Turtlebot training2"]
+    (base / "training1.csv").unlink(), (base / "training2.csv").unlink()
+    res, _ = run_real(tmp_path / "data")
+    assert "turtlebot" not in res and res["skipped"][-1] == f"Turtlebot: no training*.csv in {base}"
 
 
 def _straight_and_turning_drive(rng, T, dt, yaw_gap):

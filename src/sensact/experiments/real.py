@@ -18,6 +18,7 @@ camera, not fits to Dataset 6:
 
 from __future__ import annotations
 
+import re
 import time
 from collections.abc import Callable
 from dataclasses import replace
@@ -98,6 +99,21 @@ def mrclam_datasets(root: Path) -> list[Path]:
     return sorted(d for d in base.iterdir() if d.is_dir() and (d / "Robot1_Odometry.dat").is_file())
 
 
+def turtlebot_logs(root: Path) -> list[Path]:
+    """Every Turtlebot log with a recorded range to learn from and score: ``root/turtlebot1d/training*.csv``
+    in natural order (``training1.csv`` first, the issue's log, then ``training2.csv``, ...), so that the
+    same command runs on whichever of the course's training logs a data folder holds. ``calibration.csv``
+    is not one: it holds one speed, so its gain cannot be scored (docs/em-real-results.md)."""
+    base = root / "turtlebot1d"
+    if not base.is_dir():
+        return []
+
+    def natural(p: Path) -> list[Any]:
+        return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", p.name)]
+
+    return sorted((p for p in base.glob("training*.csv") if p.is_file()), key=natural)
+
+
 def mrclam_row_key(dataset: Path, robot: int, several: bool) -> str:
     """``robotN`` when one dataset is run (real.json's keys for Dataset 6 alone), else ``<dataset>/robotN``."""
     return f"{dataset.name}/robot{robot}" if several else f"robot{robot}"
@@ -142,12 +158,14 @@ def bar_checks(sc: dict[str, Any]) -> dict[str, bool]:
 
 
 def scorecard(summary: dict[str, Any]) -> list[BarCheck]:
-    """Issue 5's bars on ``real.json``: every MRCLAM robot's, then the Turtlebot's."""
+    """Issue 5's bars on ``real.json``: every MRCLAM robot's, then each Turtlebot log's."""
     from sensact.experiments.turtlebot_em import scorecard as turtlebot_scorecard
 
     checks = [c for key, row in summary["mrclam"].items() for c in robot_checks(row["score"], key)]
     if "turtlebot" in summary:
         checks += turtlebot_scorecard(summary["turtlebot"])
+    for name, more in summary.get("turtlebot_more_logs", {}).items():
+        checks += turtlebot_scorecard(more, name)
     return checks
 
 
@@ -247,9 +265,9 @@ def run_real(
     truth_restart: bool = False,
 ) -> tuple[dict[str, Any], dict[str, Any]]:
     """Every robot of every MRCLAM dataset under ``root/mrclam`` (Dataset 6 here; with ``config``,
-    default ``mrclam_config()``) and the Turtlebot; skips what is missing. ``truth_restart`` adds
-    ``restart_from_truth`` per robot. Rows are keyed ``robotN``, or ``<dataset>/robotN`` when the folder
-    holds more than one dataset."""
+    default ``mrclam_config()``) and every Turtlebot training log (``turtlebot_logs``); skips what is
+    missing. ``truth_restart`` adds ``restart_from_truth`` per robot. Rows are keyed ``robotN``, or
+    ``<dataset>/robotN`` when the folder holds more than one dataset."""
     from sensact.experiments.turtlebot_em import run_turtlebot_em
 
     t0 = time.perf_counter()
@@ -294,19 +312,23 @@ def run_real(
                 out.setdefault("fleet", {})[folder.name] = fleet
     else:
         out["skipped"].append(f"MRCLAM: no dataset folder (one holding Robot1_Odometry.dat) in {root / 'mrclam'}")
-    tb = root / "turtlebot1d" / "training1.csv"
-    if tb.is_file():
-        if progress:
-            progress("Turtlebot EM")
-        summary, res = run_turtlebot_em(tb)
-        out["turtlebot"] = summary
-        artifacts["turtlebot"] = res
-        from sensact.experiments.turtlebot import run_turtlebot
+    from sensact.experiments.turtlebot import run_turtlebot
 
+    # the first log is real.json's "turtlebot" (the issue's training1.csv); any others, each with the
+    # same bars, go under "turtlebot_more_logs" by file stem
+    for k, tb in enumerate(turtlebot_logs(root)):
+        if progress:
+            progress(f"Turtlebot EM on {tb.name}")
+        summary, res = run_turtlebot_em(tb)
         ch3, _ = run_turtlebot(tb, ("sonar1",))
-        out["turtlebot"]["chapter3_sonar1"] = ch3["rows"]["sonar1"]
-    else:
-        out["skipped"].append(f"Turtlebot: {tb} not found")
+        summary["chapter3_sonar1"] = ch3["rows"]["sonar1"]
+        if k == 0:
+            out["turtlebot"], artifacts["turtlebot"] = summary, res
+        else:
+            out.setdefault("turtlebot_more_logs", {})[tb.stem] = summary
+            artifacts.setdefault("turtlebot_more_logs", {})[tb.stem] = res
+    if "turtlebot" not in out:
+        out["skipped"].append(f"Turtlebot: no training*.csv in {root / 'turtlebot1d'}")
     out["scorecard"] = [c.to_dict() for c in scorecard(out)]
     out["seconds"] = time.perf_counter() - t0
     return out, artifacts

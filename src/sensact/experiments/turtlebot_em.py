@@ -130,19 +130,21 @@ GAIN_BAR_PCT = 5.0
 SENSOR_BAR_PCT = 3.0
 
 
-def scorecard(summary: dict[str, Any]) -> list[BarCheck]:
-    """The Turtlebot's bars on ``run_turtlebot_em``'s summary: the gain, and the best-scored sensor."""
+def scorecard(summary: dict[str, Any], name: str | None = None) -> list[BarCheck]:
+    """The Turtlebot's bars on ``run_turtlebot_em``'s summary: the gain, and the best-scored sensor. With
+    ``name`` (a log beside the issue's ``training1.csv``) the keys and questions carry it."""
     sc = summary["score"]
-    gain_q = "Turtlebot: action gain error"
+    key, who = (f"turtlebot/{name}", f"Turtlebot {name}") if name else ("turtlebot", "Turtlebot")
+    gain_q = f"{who}: action gain error"
     gain_bar = f"≤ {GAIN_BAR_PCT:.2f} %"
     if sc["gain_error_pct"] is None:
-        gain = not_scored("turtlebot.gain", gain_q, gain_bar, "the log holds one command")
+        gain = not_scored(f"{key}.gain", gain_q, gain_bar, "the log holds one command")
     else:
-        gain = at_most("turtlebot.gain", gain_q, sc["gain_error_pct"], GAIN_BAR_PCT, "%")
+        gain = at_most(f"{key}.gain", gain_q, sc["gain_error_pct"], GAIN_BAR_PCT, "%")
     pcts = {k: v["rms_pct_of_span"] for k, v in sc["sensors"].items() if np.isfinite(v["rms_pct_of_span"])}
     best = min(pcts, key=pcts.__getitem__, default=None)
-    sensor_q = f"Turtlebot: best sensor ({best}), % of its span" if best else "Turtlebot: best sensor, % of its span"
-    sensor = at_most("turtlebot.sensor", sensor_q, pcts.get(best, float("nan")), SENSOR_BAR_PCT, "%")
+    sensor_q = f"{who}: best sensor ({best}), % of its span" if best else f"{who}: best sensor, % of its span"
+    sensor = at_most(f"{key}.sensor", sensor_q, pcts.get(best, float("nan")), SENSOR_BAR_PCT, "%")
     return [gain, sensor]
 
 

@@ -312,8 +312,11 @@ def write_all(art: dict[str, Any], res: dict[str, Any], out: Path) -> list[Path]
         stem, name = out / f"real_mrclam_{key.replace('/', '_')}", key.replace("/", " ").replace("robot", "robot ")
         paths += write_robot(ml, r.model, score, stem, name, r.posteriors)
         runs[f"MRCLAM {name}"] = r
-    if "turtlebot" in art:
-        runs["Turtlebot"] = art["turtlebot"]
+    more = art.get("turtlebot_more_logs", {})
+    if "turtlebot" in art:  # named by its log when others are drawn beside it
+        runs["Turtlebot" + (f" {Path(res['turtlebot']['file']).stem}" if more else "")] = art["turtlebot"]
+    for name, r in more.items():
+        runs[f"Turtlebot {name}"] = r
     for dataset, fleet in res.get("fleet", {}).items():
         from sensact.report.figures_fleet import figure_fleet
 

@@ -638,8 +638,8 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
         )
     for dataset, fleet in res.get("fleet", {}).items():
         tables.append(fleet_table(fleet, f"{dataset}, each robot's model on every robot's log: {FLEET_TITLE}"))
-    tb = res.get("turtlebot")
-    if tb:
+    turtlebots = [res["turtlebot"], *res.get("turtlebot_more_logs", {}).values()] if res.get("turtlebot") else []
+    for tb in turtlebots:  # the training1.csv, then any other training log, a table each
         sc, ch3 = tb["score"], tb.get("chapter3_sonar1", {})
         share = sc.get("one_command_share", 0.0)  # absent from results written before it was measured
         trows = [
