@@ -240,7 +240,10 @@ def test_em_learns_a_robot_that_side_steps_with_every_velocity_free():
     )
     assert planar_config(("v_mm_s", "omega_rad_s")) == mrclam_config()
     sim = DiffDriveConfig(seconds=300, sidestep_mm_s=60.0)
-    out, art = diffdrive.run_diffdrive(diffdrive.DiffDriveExperiment(trials=1, seed=2, simulator=sim, learner=learner))
+    # with no learner given, the experiment learns with the settings `simulate diffdrive` writes
+    assert diffdrive.DiffDriveExperiment(simulator=sim).learner_config == learner
+    assert diffdrive.DiffDriveExperiment().learner_config == mrclam_config()
+    out, art = diffdrive.run_diffdrive(diffdrive.DiffDriveExperiment(trials=1, seed=2, simulator=sim))
     checks = diffdrive.scorecard(out)
     assert len(checks) == 5 and all(c.cleared for c in checks), verdict_line(checks)
     s = out["seeds"]["seed2"]["simulated"]

@@ -152,22 +152,16 @@ def _reproduce_diffdrive(out: Path, trials: int, seed: int, set_: list[str] | No
     """MRCLAM's EM settings on simulated differential drives; ``--set`` reaches both the learner and the
     simulator (``sim.diffdrive.DiffDriveConfig``), whichever has the field."""
     from sensact.experiments.diffdrive import DiffDriveExperiment, run_diffdrive
-    from sensact.experiments.real import planar_config
     from sensact.learn.em import EMConfig
     from sensact.report import figures_real
     from sensact.report.tables import diffdrive_tables
     from sensact.sim.diffdrive import DiffDriveConfig
 
-    base = DiffDriveExperiment()
     learner_f, sim_f = split_fields(set_, config, EMConfig)
-    simulator = merged(DiffDriveConfig, base.simulator, sim_f)
-    exp = DiffDriveExperiment(
-        trials=trials,
-        seed=seed,
-        simulator=simulator,
-        # the settings `simulate diffdrive` writes for the commands logged (wheel speeds, a side-stepper's)
-        learner=merged(EMConfig, planar_config(simulator.logged_command_names), learner_f),
-    )
+    simulator = merged(DiffDriveConfig, DiffDriveConfig(), sim_f)
+    # the settings `simulate diffdrive` writes for the commands logged (wheel speeds, a side-stepper's)
+    learner = merged(EMConfig, DiffDriveExperiment(simulator=simulator).learner_config, learner_f)
+    exp = DiffDriveExperiment(trials=trials, seed=seed, simulator=simulator, learner=learner)
     with progress_bar() as progress:
         res, art = run_diffdrive(exp, progress)
     write_results(out, "diffdrive", res, diffdrive_tables(res))

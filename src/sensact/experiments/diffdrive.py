@@ -1,7 +1,8 @@
-"""EM on real robots, in simulation: the MRCLAM settings (``experiments.real.mrclam_config``) on simulated
-differential drives (``sim.diffdrive``) whose true model is known, scored by the very code and bars
-that score the MRCLAM robots against Vicon (issue 5). Where a real robot misses a bar, this says
-whether the learner would clear it on a robot that is what its model families assume.
+"""EM on real robots, in simulation: the MRCLAM settings (``experiments.real.mrclam_config``, or
+``planar_config``'s for a side-stepper's commands) on simulated differential drives (``sim.diffdrive``)
+whose true model is known, scored by the very code and bars that score the MRCLAM robots against Vicon
+(issue 5). Where a real robot misses a bar, this says whether the learner would clear it on a robot
+that is what its model families assume.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import numpy as np
 from sensact.config import config_to_dict
 from sensact.evaluate.bars import BarCheck
 from sensact.evaluate.simulated_robot import score_against_simulated
-from sensact.experiments.real import evaluate_mrclam, mrclam_config, robot_checks
+from sensact.experiments.real import evaluate_mrclam, planar_config, robot_checks
 from sensact.learn.em import EMConfig, EMResult, fit_em
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
@@ -26,10 +27,18 @@ ProgressFn = Callable[[str, int, int | None], None]
 
 @dataclass(frozen=True)
 class DiffDriveExperiment:
+    """``learner`` None: the settings ``sensact simulate diffdrive`` writes for the simulator's logged
+    commands (``experiments.real.planar_config``: MRCLAM's on a differential drive's (v, omega), every
+    velocity free on a side-stepper's)."""
+
     trials: int = 3
     seed: int = 0
     simulator: DiffDriveConfig = field(default_factory=DiffDriveConfig)
-    learner: EMConfig = field(default_factory=mrclam_config)
+    learner: EMConfig | None = None
+
+    @property
+    def learner_config(self) -> EMConfig:
+        return self.learner or planar_config(self.simulator.logged_command_names)
 
 
 @dataclass(frozen=True, eq=False)
@@ -70,7 +79,7 @@ def run_diffdrive(
             if progress:
                 progress(f"diffdrive {key}: start race", done, planned)
 
-        res = fit_em(robot.data, None, exp.learner, progress=on_iteration, on_race=on_race)
+        res = fit_em(robot.data, None, exp.learner_config, progress=on_iteration, on_race=on_race)
         seeds[key] = {
             "em": res.summary(),
             "score": evaluate_mrclam(robot, res),  # as a real robot is scored against Vicon
@@ -82,7 +91,7 @@ def run_diffdrive(
     out: dict[str, Any] = {
         "experiment": "diffdrive",
         "seeds": seeds,
-        "config": {"simulator": config_to_dict(exp.simulator), "learner": config_to_dict(exp.learner)},
+        "config": {"simulator": config_to_dict(exp.simulator), "learner": config_to_dict(exp.learner_config)},
         "seconds": time.perf_counter() - t0,
     }
     out["scorecard"] = [c.to_dict() for c in scorecard(out)]
