@@ -1801,8 +1801,15 @@ def test_reproduce_real_runs_every_turtlebot_training_log_it_finds(tmp_path, mon
     short = "".join(TURTLEBOT.read_text().splitlines(keepends=True)[:1500])  # about 90 s of the log
     for name in ("training1.csv", "training2.csv"):
         (base / name).write_text(short)
+    # a log without the recorded range cannot be scored: one line says so, and the others still run
+    rows = [line.split(",") for line in short.splitlines()]
+    col = rows[0].index("range")
+    (base / "training3.csv").write_text("".join(",".join(r[:col] + r[col + 1 :]) + "\n" for r in rows))
     heard: list[str] = []
     res, art = run_real(tmp_path / "data", progress=heard.append)
+    assert f"Turtlebot training3.csv: {base / 'training3.csv'}: range: the log has no recorded range" in "".join(
+        res["skipped"]
+    )
     assert "Turtlebot EM on training1.csv" in heard and "Turtlebot EM on training2.csv" in heard
     assert Path(res["turtlebot"]["file"]).name == "training1.csv"
     assert list(res["turtlebot_more_logs"]) == ["training2"]
@@ -1827,7 +1834,8 @@ def test_reproduce_real_runs_every_turtlebot_training_log_it_finds(tmp_path, mon
     paths = figures_real.write_all(art, res, tmp_path / "out")
     assert paths == [tmp_path / "out" / "real_loglik.png"] and paths[0].stat().st_size > 0
     assert drawn == ["Turtlebot training1", "Turtlebot training2"]
-    (base / "training1.csv").unlink(), (base / "training2.csv").unlink()
+    for name in ("training1.csv", "training2.csv", "training3.csv"):
+        (base / name).unlink()
     res, _ = run_real(tmp_path / "data")
     assert "turtlebot" not in res and res["skipped"][-1] == f"Turtlebot: no training*.csv in {base}"
 

@@ -314,15 +314,19 @@ def run_real(
         out["skipped"].append(f"MRCLAM: no dataset folder (one holding Robot1_Odometry.dat) in {root / 'mrclam'}")
     from sensact.experiments.turtlebot import run_turtlebot
 
-    # the first log is real.json's "turtlebot" (the training1.csv); any others, each with the
+    # the first log run is real.json's "turtlebot" (the training1.csv); any others, each with the
     # same bars, go under "turtlebot_more_logs" by file stem
-    for k, tb in enumerate(turtlebot_logs(root)):
+    for tb in turtlebot_logs(root):
         if progress:
             progress(f"Turtlebot EM on {tb.name}")
-        summary, res = run_turtlebot_em(tb)
+        try:
+            summary, res = run_turtlebot_em(tb)
+        except LogFormatError as exc:  # this log (e.g. no range to score against), not the settings
+            out["skipped"].append(f"Turtlebot {tb.name}: {exc}")
+            continue
         ch3, _ = run_turtlebot(tb, ("sonar1",))
         summary["chapter3_sonar1"] = ch3["rows"]["sonar1"]
-        if k == 0:
+        if "turtlebot" not in out:
             out["turtlebot"], artifacts["turtlebot"] = summary, res
         else:
             out.setdefault("turtlebot_more_logs", {})[tb.stem] = summary

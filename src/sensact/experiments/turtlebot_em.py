@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from sensact.config import config_to_dict
+from sensact.errors import LogFormatError
 from sensact.evaluate.bars import BarCheck, at_most, not_scored
 from sensact.evaluate.measured import ONE_COMMAND_SHARE, dominant_command
 from sensact.io.turtlebot import EM_READINGS, SPEC_RANGE_M, read_turtlebot_landmark_log
@@ -151,6 +152,13 @@ def scorecard(summary: dict[str, Any], name: str | None = None) -> list[BarCheck
 def run_turtlebot_em(csv_path: str | Path, config: EMConfig | None = None) -> tuple[dict[str, Any], EMResult]:
     t0 = time.perf_counter()
     data, truth = read_turtlebot_landmark_log(csv_path)
+    if not np.isfinite(truth).any():  # checked before the fit: without it nothing can be scored
+        raise LogFormatError(
+            "the log has no recorded range to score the learned models against.",
+            file=csv_path,
+            field="range",
+            fix="add the range column (m), or learn from the log with `sensact learn em FILE` (no scores).",
+        )
     cfg = config or turtlebot_em_config(data.reading_names)
     res = fit_em(data, None, cfg)
     score = score_turtlebot_em(res, data, truth)
