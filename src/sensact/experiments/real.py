@@ -100,10 +100,11 @@ def mrclam_datasets(root: Path) -> list[Path]:
 
 
 def turtlebot_logs(root: Path) -> list[Path]:
-    """Every Turtlebot log with a recorded range to learn from and score: ``root/turtlebot1d/training*.csv``
-    in natural order (``training1.csv`` first, the issue's log, then ``training2.csv``, ...), so that the
-    same command runs on whichever of the course's training logs a data folder holds. ``calibration.csv``
-    is not one: it holds one speed, so its gain cannot be scored (docs/em-real-results.md)."""
+    """Every Turtlebot training log, ``root/turtlebot1d/training*.csv``, in natural order (``training1.csv``
+    first, the issue's log, then ``training2.csv``, ...), so that the same command runs on whichever of the
+    course's training logs a data folder holds (one without a recorded range is refused by
+    ``run_turtlebot_em``). ``calibration.csv`` is not one: it holds one speed, so its gain cannot be
+    scored (docs/em-real-results.md)."""
     base = root / "turtlebot1d"
     if not base.is_dir():
         return []
