@@ -485,6 +485,45 @@ def test_learn_em_on_a_turtlebot_csv_learns_the_sensors_it_has(tmp_path):
     assert res.exit_code == 2 and "robot.csv: sonar1: EM on a Turtlebot CSV needs the sonar1 column" in said
 
 
+def test_reproduce_turtlebot_runs_algorithm_1_on_every_training_log_it_finds(tmp_path):
+    import shutil
+
+    folder = tmp_path / "data" / "turtlebot1d"
+    folder.mkdir(parents=True)
+    _write_turtlebot_csv(folder / "training1.csv", with_range=True)
+    shutil.copy(folder / "training1.csv", folder / "training2.csv")  # the same log under another name
+    _write_turtlebot_csv(folder / "training3.csv", with_range=False)
+    _write_turtlebot_csv(folder / "calibration.csv", with_range=True, one_speed=True)  # not a training log
+    out = tmp_path / "r"
+    res = runner.invoke(app, ["reproduce", "turtlebot", "--data", str(tmp_path / "data"), "--out", str(out)])
+    said = " ".join(res.output.split())
+    assert res.exit_code == 0, res.output
+    assert "not run: training3.csv: " in said and "range: the log has no recorded range" in said
+    summary = json.loads((out / "turtlebot.json").read_text())
+    assert summary["file"].endswith("training1.csv") and list(summary["more_logs"]) == ["training2"]
+    assert len(summary["skipped_logs"]) == 1 and summary["skipped_logs"][0].startswith("training3.csv: ")
+    again = summary["more_logs"]["training2"]
+    assert again["file"].endswith("training2.csv") and again["rows"] == summary["rows"]
+    tables = (out / "turtlebot.md").read_text()
+    assert "Turtlebot training1.csv, Algorithm 1" in tables and "Turtlebot training2.csv, Algorithm 1" in tables
+    assert "training3.csv, Algorithm 1" not in tables and "calibration.csv" not in tables
+    assert (out / "turtlebot_models.png").stat().st_size > 10_000
+    assert (out / "turtlebot_models_training2.png").stat().st_size > 10_000
+    assert not (out / "turtlebot_models_training1.png").exists()
+    # a folder whose only training log cannot be scored: one line naming the file and the field
+    (folder / "training1.csv").unlink()
+    (folder / "training2.csv").unlink()
+    res = runner.invoke(app, ["reproduce", "turtlebot", "--data", str(tmp_path / "data"), "--out", str(out)])
+    said = " ".join(res.output.split())
+    assert res.exit_code == 2 and "training3.csv: range: the log has no recorded range" in said, res.output
+    assert "learn bootstrap FILE" in said and "Traceback" not in res.output
+    # and one with no training log at all
+    (folder / "training3.csv").unlink()
+    res = runner.invoke(app, ["reproduce", "turtlebot", "--data", str(tmp_path / "data"), "--out", str(out)])
+    said = " ".join(res.output.split())
+    assert res.exit_code == 2 and "no Turtlebot training log (training*.csv) found" in said, res.output
+
+
 def test_a_file_that_is_not_text_is_one_line_naming_it(tmp_path):
     binary = tmp_path / "capture.csv"
     binary.write_bytes(b"\x00\xff\xfe\x10 not text")

@@ -1783,7 +1783,8 @@ def test_reproduce_real_runs_every_turtlebot_training_log_it_finds(tmp_path, mon
     """The same command on the course's other training logs: every DATA/turtlebot1d/training*.csv is
     learned and scored with the same bars, training1.csv as real.json's "turtlebot" and the others
     under "turtlebot_more_logs", each with its own bars, table and likelihood line."""
-    from sensact.experiments.real import run_real, turtlebot_logs
+    from sensact.experiments.real import run_real
+    from sensact.experiments.shared_data import turtlebot_logs
     from sensact.report import figures_real
     from sensact.report.tables import real_tables
 

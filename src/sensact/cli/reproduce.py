@@ -74,17 +74,20 @@ def reproduce(
     if "track1d" in todo:
         _reproduce_track1d(out, trials or 15, seed, set_, config)
     if "turtlebot" in todo:
-        csv = _data_dir(data) / "turtlebot1d" / "training1.csv"
-        if not csv.is_file():
+        from sensact.experiments.shared_data import turtlebot_logs
+
+        root = _data_dir(data)
+        folder, logs = root / "turtlebot1d", turtlebot_logs(root)
+        if not logs:
             if experiment == "turtlebot":
                 raise SensactError(
-                    "Turtlebot data not found.",
-                    file=csv,
+                    "no Turtlebot training log (training*.csv) found.",
+                    file=folder,
                     fix="pass --data DIR (the folder holding turtlebot1d/) or set SENSACT_DATA.",
                 )
-            console.print(f"skipping turtlebot: {csv} not found (pass --data DIR to include it)")
+            console.print(f"skipping turtlebot: no training*.csv in {folder} (pass --data DIR to include it)")
         else:
-            _reproduce_turtlebot(out, csv)
+            _reproduce_turtlebot(out, logs)
     if "field2d" in todo:
         _reproduce_field2d(out, trials or 5, seed, set_, config)
     if "em1d" in todo:
@@ -350,14 +353,23 @@ def _reproduce_track1d(out: Path, trials: int, seed: int, set_: list[str] | None
     console.print(f"wrote {out / 'track1d.json'}, {out / 'track1d.md'} and figures in {out} ({res['seconds']:.1f} s)")
 
 
-def _reproduce_turtlebot(out: Path, csv: Path) -> None:
-    from sensact.experiments.turtlebot import run_turtlebot
+def _reproduce_turtlebot(out: Path, logs: list[Path]) -> None:
+    """Algorithm 1 on every training log: turtlebot.json and turtlebot_models.png for the first (the
+    issue's training1.csv), ``more_logs`` and ``turtlebot_models_<stem>.png`` for the others."""
+    from sensact.experiments.turtlebot import run_turtlebot_logs
     from sensact.report.figures1d import figure_real
     from sensact.report.tables import turtlebot_tables
 
-    res, runs = run_turtlebot(csv)
-    if res["skipped_sensors"]:
-        console.print(f"{csv} has no column {', '.join(res['skipped_sensors'])}: run without them")
+    with console.status("Algorithm 1 on the Turtlebot") as status:
+        res, runs = run_turtlebot_logs(logs, progress=status.update)
+    for one in (res, *res.get("more_logs", {}).values()):
+        if one["skipped_sensors"]:
+            console.print(f"{one['file']} has no column {', '.join(one['skipped_sensors'])}: run without them")
+    for line in res["skipped_logs"]:
+        console.print(f"not run: {line}", markup=False)
     write_results(out, "turtlebot", res, turtlebot_tables(res))
-    figure_real(runs, out / "turtlebot_models.png")
-    console.print(f"wrote {out / 'turtlebot.json'} and {out / 'turtlebot_models.png'}")
+    written = [out / "turtlebot.json", out / "turtlebot.md"]
+    for i, (stem, by_sensor) in enumerate(runs.items()):
+        name = "turtlebot_models.png" if i == 0 else f"turtlebot_models_{stem}.png"
+        written.append(figure_real(by_sensor, out / name))
+    console.print(f"wrote {', '.join(str(p) for p in written[:-1])} and {written[-1]}", markup=False)

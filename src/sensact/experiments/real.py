@@ -18,7 +18,6 @@ camera, not fits to Dataset 6:
 
 from __future__ import annotations
 
-import re
 import time
 from collections.abc import Callable
 from dataclasses import replace
@@ -31,7 +30,7 @@ from sensact.config import config_to_dict
 from sensact.errors import LogFormatError
 from sensact.evaluate.bars import BarCheck, at_most, within_factor
 from sensact.evaluate.landmark_truth import path_offset, score_against_truth
-from sensact.experiments.shared_data import data_root
+from sensact.experiments.shared_data import data_root, turtlebot_logs
 from sensact.io.mrclam import MrclamLog, read_mrclam
 from sensact.learn.em import EMConfig, EMResult, fit_em
 from sensact.learn.em.config import ChannelConfig
@@ -97,22 +96,6 @@ def mrclam_datasets(root: Path) -> list[Path]:
     if not base.is_dir():
         return []
     return sorted(d for d in base.iterdir() if d.is_dir() and (d / "Robot1_Odometry.dat").is_file())
-
-
-def turtlebot_logs(root: Path) -> list[Path]:
-    """Every Turtlebot training log, ``root/turtlebot1d/training*.csv``, in natural order (``training1.csv``
-    first, the issue's log, then ``training2.csv``, ...), so that the same command runs on whichever of the
-    course's training logs a data folder holds (one without a recorded range is refused by
-    ``run_turtlebot_em``). ``calibration.csv`` is not one: it holds one speed, so its gain cannot be
-    scored (docs/em-real-results.md)."""
-    base = root / "turtlebot1d"
-    if not base.is_dir():
-        return []
-
-    def natural(p: Path) -> list[Any]:
-        return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", p.name)]
-
-    return sorted((p for p in base.glob("training*.csv") if p.is_file()), key=natural)
 
 
 def mrclam_row_key(dataset: Path, robot: int, several: bool) -> str:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -21,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from sensact.config import config_to_dict
+from sensact.errors import LogFormatError
 from sensact.evaluate.measured import MeasuredAction, MeasuredSensor, measure_action, measure_sensor
 from sensact.evaluate.scaled import ModelPairScore, fit_scale, score_models
 from sensact.io.logfolder import TrackLog, read_track_log
@@ -89,6 +91,13 @@ def run_turtlebot(
         sensors = tuple(s for s in sensors if s in present)
     for sensor in sensors:
         log = read_track_log(csv_path, sensor=sensor)
+        if log.true_position is None or not np.isfinite(log.true_position).any():  # before learning: nothing to score
+            raise LogFormatError(
+                "the log has no recorded range to score the learned models against.",
+                file=csv_path,
+                field="range",
+                fix="add the range column (m), or learn from the log with `sensact learn bootstrap FILE` (no scores).",
+            )
         cfg = learner_for(sensor, base)
         res = learn_bootstrap(
             log.times_s, log.commands, log.observations, cfg, units=(log.command_unit, log.observation_unit, "w")
@@ -119,3 +128,39 @@ def run_turtlebot(
         }
     out = {"experiment": "turtlebot", "file": str(csv_path), "rows": rows, "skipped_sensors": skipped}
     return out | {"seconds": time.perf_counter() - t0}, runs
+
+
+def run_turtlebot_logs(
+    csv_paths: list[Path], progress: Callable[[str], None] | None = None
+) -> tuple[dict[str, Any], dict[str, dict[str, RealRun]]]:
+    """``run_turtlebot`` on each training log (``shared_data.turtlebot_logs``). The first log that can be
+    scored is the result itself (turtlebot.json as for ``training1.csv`` alone); the others go under
+    ``more_logs`` by file stem, and a log that cannot be scored (a ``LogFormatError``: no range, none of
+    the sensors) under ``skipped_logs`` while the others run. The runs are keyed by stem. When no log
+    can be scored, the first log's error is raised."""
+    t0 = time.perf_counter()
+    out: dict[str, Any] | None = None
+    runs: dict[str, dict[str, RealRun]] = {}
+    skipped: list[str] = []
+    first_error: LogFormatError | None = None
+    for path in csv_paths:
+        if progress:
+            progress(f"Algorithm 1 on {path.name}")
+        try:
+            res, by_sensor = run_turtlebot(path)
+        except LogFormatError as exc:
+            first_error = first_error or exc
+            skipped.append(f"{path.name}: {exc}")
+            continue
+        runs[path.stem] = by_sensor
+        if out is None:
+            out = res
+        else:
+            out.setdefault("more_logs", {})[path.stem] = res
+    if out is None:
+        if first_error is None:
+            raise ValueError("run_turtlebot_logs needs at least one log")
+        raise first_error
+    out["skipped_logs"] = skipped
+    out["seconds"] = time.perf_counter() - t0
+    return out, runs

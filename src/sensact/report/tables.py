@@ -123,6 +123,11 @@ def one_command_reason(share: float) -> str:
 
 
 def turtlebot_tables(res: dict[str, Any]) -> list[Table]:
+    """One table per training log: the first log's, then each of ``more_logs``."""
+    return [_turtlebot_table(r) for r in (res, *res.get("more_logs", {}).values())]
+
+
+def _turtlebot_table(res: dict[str, Any]) -> Table:
     rows = []
     for name, r in res["rows"].items():
         rows.append(
@@ -136,21 +141,11 @@ def turtlebot_tables(res: dict[str, Any]) -> list[Table]:
                 f"{r['n_gated']}/{r['n_observations']}",
             ]
         )
-    return [
-        (
-            f"Turtlebot {Path(res['file']).name}, Algorithm 1 (errors after the optimal scale)",
-            [
-                "sensor",
-                "sensor RMS (% of span)",
-                "best cubic",
-                "action RMS",
-                "gain learned / true",
-                "consistency",
-                "gated",
-            ],
-            rows,
-        )
-    ]
+    return (
+        f"Turtlebot {Path(res['file']).name}, Algorithm 1 (errors after the optimal scale)",
+        ["sensor", "sensor RMS (% of span)", "best cubic", "action RMS", "gain learned / true", "consistency", "gated"],
+        rows,
+    )
 
 
 def _f(x: Any, digits: int = 2) -> str:
