@@ -5,8 +5,8 @@
 
 Cuts each robot's MRCLAM Dataset 6 log (about 15 minutes) into ``--parts`` equal spans of steps and
 runs `sensact reproduce real`'s EM on each alone, from the same poor start. Prints, per part, how far
-the smoothed path is from Vicon (median), whether the learned range function turns over within its
-fitted distances (learn/em/checks.py, the sign a user sees without ground truth), how many times EM
+the smoothed path is from Vicon (median), whether the learned range function turns over or bends within
+its fitted distances (learn/em/checks.py, the signs a user sees without ground truth), how many times EM
 started again because it did (``turn_restarts``, 2 by default) and which run was kept, the
 log-likelihood and the time; then how many parts lost the robot (median over 500 mm).
 ``--range-start-sigma`` replaces the range channel's start sigma (100 mm by default) and
@@ -28,9 +28,15 @@ from sensact.evaluate.landmark_truth import path_offset
 from sensact.experiments.real import mrclam_config, mrclam_folder
 from sensact.io.mrclam import read_mrclam
 from sensact.learn.em import fit_em
-from sensact.learn.em.checks import range_function_turns
+from sensact.learn.em.checks import lost_fit_signs
 
 LOST_MM = 500.0  # a path this far from Vicon (median) has lost the robot: a start-search cell
+
+
+def _kinds(signs: list[dict]) -> str:
+    """What the kept fit's f did: ``turns``, ``bends``, both, or ``no``."""
+    kinds = [k for k, key in (("turns", "turns_at_mm"), ("bends", "slopes")) if any(key in t for t in signs)]
+    return "+".join(kinds) or "no"
 
 
 def main() -> None:
@@ -50,10 +56,10 @@ def main() -> None:
         cfg = replace(cfg, turn_restarts=args.turn_restarts)
     print(
         f"range channel start sigma {cfg.channels[0].start_sigma:g} mm; at most {cfg.turn_restarts} restarts "
-        f"while f turns; {args.parts} parts per robot"
+        f"while f turns or bends; {args.parts} parts per robot"
     )
     print(
-        "robot part  steps  sightings  path off Vicon mm  f turns  restarts (kept)  log-likelihood  iterations  seconds"
+        "robot part  steps  sightings  path off Vicon mm  f lost  restarts (kept)  log-likelihood  iterations  seconds"
     )
     lost = total = 0
     for robot in args.robots:
@@ -66,14 +72,14 @@ def main() -> None:
             res = fit_em(part, None, cfg)
             seconds = time.perf_counter() - t0
             off = path_offset(res.posteriors.mean_gamma, poses[a:b], valid[a:b])["median_mm"]
-            turns = range_function_turns(res.model, res.posteriors, part)
+            turns = lost_fit_signs(res.model, res.posteriors, part)
             runs = res.restarts or []
             restarted = f"{len(runs) - 1} ({next(i for i, r in enumerate(runs) if r['kept'])})" if runs else "0"
             lost += off > LOST_MM
             total += 1
             print(
                 f"{robot:5d} {k + 1:4d} {part.n_steps:6d} {part.n_observations:10d} {off:18.0f}  "
-                f"{'yes' if turns else 'no':>7s} {restarted:>16s} {res.loglik_best:15.1f} {res.iterations:11d} "
+                f"{_kinds(turns):>6s} {restarted:>16s} {res.loglik_best:15.1f} {res.iterations:11d} "
                 f"{seconds:8.1f}",
                 flush=True,
             )

@@ -719,11 +719,85 @@ def test_turning_points_are_where_the_slope_changes_sign():
         assert Polynomial1D(coef, center=0.7, scale=3.0).turning_points(-10.0, 10.0).size == 0, coef
 
 
+def test_slope_range_is_the_least_and_greatest_slope_over_the_interval():
+    """Polynomial1D.slope_range against an independent reference: the slope on a dense grid."""
+    from sensact.models.polynomial import Polynomial1D
+
+    f = _turning_cubic(2.0, 1.5)  # slope 3 (x - 1)(x - 3): least -3 at x = 2
+    assert f.slope_range(0.0, 4.0) == pytest.approx((-3.0, 9.0), abs=1e-9)
+    assert f.slope_range(3.0, 5.0) == pytest.approx((0.0, 24.0), abs=1e-9)  # the slope's turn outside
+    for coef, lo, hi in (((1.0, -0.4, 0.3, 0.05), -2.0, 3.0), ((2.0, 1.3, -0.2), 0.0, 9.0), ((3.0, 2.0), -5.0, 5.0)):
+        g = Polynomial1D(coef, center=0.7, scale=3.0)
+        x = np.linspace(lo, hi, 400_001)
+        slope = np.gradient(g(x), x)
+        assert g.slope_range(lo, hi) == pytest.approx((slope.min(), slope.max()), abs=1e-6), coef
+        np.testing.assert_allclose(g.slope(x[1:-1]), slope[1:-1], atol=1e-6)
+    assert Polynomial1D((5.0,)).slope_range(0.0, 1.0) == (0.0, 0.0)
+
+
+def test_a_length_reading_whose_slope_changes_with_distance_is_flagged(continuous_fit):
+    """learn/em/checks.py: the fit that found the robot has an f of one slope; an f whose slope changes
+    threefold over the fitted distances without turning is flagged when the channel reads a length in the
+    map's unit (``_mm``), not when it is a line off by a scale, not under another unit, and an f that
+    turns is ``range_function_turns``'s alone; ``lost_fit_signs`` holds both."""
+    from sensact.learn.em.checks import (
+        BEND_RATIO,
+        describe_lost_fit,
+        lost_fit_signs,
+        range_function_bends,
+        range_function_turns,
+    )
+    from sensact.models.polynomial import Polynomial1D
+
+    data, _poses, res = continuous_fit
+    assert range_function_bends(res.model, res.posteriors, data) == []
+    assert lost_fit_signs(res.model, res.posteriors, data) == []
+    use = res.posteriors.obs_used
+    d = landmark_distance(res.posteriors.mean_gamma[data.obs_step[use]], LANDMARKS[data.obs_landmark[use]])
+    lo, hi = np.percentile(d, [2, 98])
+    f0 = res.model.sensor.channels[0].function
+
+    def with_f(f, name="range_mm"):
+        ch = replace(res.model.sensor.channels[0], function=f, name=name)
+        return res.model.replace(sensor=replace(res.model.sensor, channels=(ch,)))
+
+    def quadratic(slope_lo, slope_hi):
+        """lo + a (x - lo) + b (x - lo)^2, its slope slope_lo at lo and slope_hi at hi, stored in
+        u = (x - center) / scale as the fit stores f."""
+        a, b, e = slope_lo, 0.5 * (slope_hi - slope_lo) / (hi - lo), f0.center - lo
+        coef = (lo + a * e + b * e**2, (a + 2 * b * e) * f0.scale, b * f0.scale**2)
+        return Polynomial1D(coef, center=f0.center, scale=f0.scale)
+
+    bent = quadratic(0.6, 1.8)
+    assert bent(np.array([lo]))[0] == pytest.approx(lo) and bent.slope(np.array([lo, hi])) == pytest.approx([0.6, 1.8])
+    signs = range_function_bends(with_f(bent), res.posteriors, data)
+    assert len(signs) == 1 and signs[0]["channel"] == "range_mm"
+    np.testing.assert_allclose(signs[0]["slopes"], [0.6, 1.8], rtol=1e-9)
+    np.testing.assert_allclose(signs[0]["distances_mm"], [lo, hi])
+    assert range_function_turns(with_f(bent), res.posteriors, data) == []
+    assert lost_fit_signs(with_f(bent), res.posteriors, data) == signs
+    said = describe_lost_fit(signs)
+    assert "range_mm's f changes its slope from 0.60 to 1.80" in said and "start_sigma" in said
+    assert "off by a scale, but not by one that changes with distance" in said
+    # at the ratio, a steeper or a falling line, and a bend under another unit: not flagged
+    assert range_function_bends(with_f(quadratic(0.6, 0.6 * BEND_RATIO * 0.99)), res.posteriors, data) == []
+    for line in (Polynomial1D((100.0, 2.5 * f0.scale), f0.center, f0.scale), Polynomial1D((9e3, -0.4 * f0.scale))):
+        assert range_function_bends(with_f(line), res.posteriors, data) == []
+    assert range_function_bends(with_f(bent, name="height_px"), res.posteriors, data) == []
+    # a falling reading bent threefold is flagged too
+    falling = Polynomial1D(tuple(-c for c in bent.coef), center=f0.center, scale=f0.scale)
+    assert range_function_bends(with_f(falling), res.posteriors, data)[0]["slopes"] == pytest.approx([-1.8, -0.6])
+    # an f that turns is a turn, not a bend
+    turning = _turning_cubic(f0.center, f0.scale, at=0.5 * (lo + hi) - 0.2 * (hi - lo), width=0.1 * (hi - lo))
+    signs = lost_fit_signs(with_f(turning), res.posteriors, data)
+    assert len(signs) == 1 and "turns_at_mm" in signs[0] and "does not turn" in describe_lost_fit(signs)
+
+
 def test_a_range_function_that_turns_within_its_distances_is_flagged(continuous_fit):
     """learn/em/checks.py: the fit that found the robot has a rising f; the same fit with an f that turns
     inside the fitted distances is flagged there, and not when the turn is outside them or outside the
     channel's window."""
-    from sensact.learn.em.checks import describe_turns, range_function_turns
+    from sensact.learn.em.checks import describe_lost_fit, range_function_turns
 
     data, _poses, res = continuous_fit
     assert range_function_turns(res.model, res.posteriors, data) == []
@@ -744,14 +818,14 @@ def test_a_range_function_that_turns_within_its_distances_is_flagged(continuous_
     assert len(turned) == 1 and turned[0]["channel"] == "range_mm"
     np.testing.assert_allclose(turned[0]["turns_at_mm"], [mid - a, mid + a], rtol=1e-9)
     np.testing.assert_allclose(turned[0]["distances_mm"], [lo, hi])
-    assert "turns over at" in describe_turns(turned) and "start_sigma" in describe_turns(turned)
+    assert "turns over at" in describe_lost_fit(turned) and "start_sigma" in describe_lost_fit(turned)
     far = _turning_cubic(f0.center, f0.scale, at=hi + 2.0 * a, width=a)  # turns at hi + 3a and hi + 5a
     assert range_function_turns(with_f(far), res.posteriors, data) == []
     assert range_function_turns(with_f(f, valid_max=mid - 1.5 * a), res.posteriors, data) == []
 
 
 def test_em_restarts_from_a_tighter_start_while_f_turns_and_keeps_the_most_likely_fit(monkeypatch):
-    """fit.restart_while_f_turns, with the turn check replaced by one that flags the first ``flagged``
+    """fit.restart_while_lost, with the turn check replaced by one that flags the first ``flagged``
     fits: each restart's start sigma is a third of the last, no more than ``turn_restarts`` restarts run,
     none once f does not turn, and the fit kept is the most likely one, scored on the sightings every run
     used (each run's own likelihood here: nothing is pruned)."""
@@ -765,7 +839,7 @@ def test_em_restarts_from_a_tighter_start_while_f_turns_and_keeps_the_most_likel
         turn = [{"channel": "range_mm", "turns_at_mm": [2000.0], "distances_mm": [1000.0, 3000.0]}]
         return turn if calls["n"] <= calls["flagged"] else []
 
-    monkeypatch.setattr(fit_module, "range_function_turns", flags_the_first)
+    monkeypatch.setattr(fit_module, "lost_fit_signs", flags_the_first)
     heard = []
     for restarts, flagged, runs in ((2, 9, 3), (2, 1, 2), (0, 9, 1), (3, 0, 1)):
         calls.update(n=0, flagged=flagged)
@@ -798,6 +872,11 @@ def test_em_restarts_from_a_tighter_start_while_f_turns_and_keeps_the_most_likel
     cell = restart_runs_cell(two.restarts)
     assert cell.startswith("range_mm 3000: ") and "(f turned); range_mm 1000: " in cell
     assert kept_run_cell(two.restarts) == ("restart 1" if two.restarts[1]["kept"] else "the first run")
+    bend = {"channel": "range_mm", "slopes": [0.7, 2.1], "distances_mm": [1000.0, 3000.0]}
+    both = [dict(two.restarts[0], f_turns=[bend]), dict(two.restarts[1], f_turns=[bend, *two.restarts[0]["f_turns"]])]
+    assert "(f bent); range_mm 1000: " in restart_runs_cell(both) and restart_runs_cell(both).endswith(
+        "(f turned and bent)"
+    )
 
 
 def test_model_json_round_trip(continuous_fit):
@@ -1134,6 +1213,36 @@ def test_mrclam_reader_reads_vicon_rows_in_any_order(tmp_path):
 
 
 @pytest.mark.skipif(not MRCLAM.is_dir(), reason=f"MRCLAM data not found at {MRCLAM}")
+def test_a_lost_fit_whose_f_bends_without_turning_starts_again_and_finds_its_robot():
+    """Real data: robot 4's second quarter of Dataset 6 (as benchmarks/em_real_parts.py cuts it) is lost
+    from MRCLAM's start with an f that rises throughout but whose slope changes about threefold; the bend
+    check sees it, and the restart from a third of the start sigma finds the robot with a far higher
+    likelihood (docs/em-real-results.md, "What you see without ground truth")."""
+    from sensact.evaluate.landmark_truth import path_offset
+    from sensact.experiments.real import mrclam_config
+    from sensact.io.mrclam import read_mrclam
+    from sensact.learn.em import initial_model
+    from sensact.learn.em.checks import range_function_bends, range_function_turns
+    from sensact.learn.em.fit import restart_while_lost
+
+    ml = read_mrclam(MRCLAM, 4)
+    a, b = np.linspace(0, ml.data.n_steps, 5).round().astype(int)[1:3]
+    part = ml.data.slice_steps(int(a), int(b))
+    poses, valid = ml.truth_poses()
+    cfg = mrclam_config()
+    lost = fit_em(part, None, replace(cfg, turn_restarts=0))
+    assert path_offset(lost.posteriors.mean_gamma, poses[a:b], valid[a:b])["median_mm"] > 500.0
+    assert range_function_turns(lost.model, lost.posteriors, part) == []
+    bent = range_function_bends(lost.model, lost.posteriors, part)
+    assert [t["channel"] for t in bent] == ["range_mm"] and bent[0]["slopes"][1] > 2.0 * bent[0]["slopes"][0] > 0
+    res = restart_while_lost(part, initial_model(part, cfg), cfg, lost)
+    runs = res.restarts
+    assert runs[0]["f_turns"] == bent and runs[1]["start_sigma"]["range_mm"] == pytest.approx(100.0 / 3)
+    assert runs[1]["kept"] and not runs[1]["f_turns"] and runs[1]["loglik"] > runs[0]["loglik"] + 100.0
+    assert path_offset(res.posteriors.mean_gamma, poses[a:b], valid[a:b])["median_mm"] < 300.0
+
+
+@pytest.mark.skipif(not MRCLAM.is_dir(), reason=f"MRCLAM data not found at {MRCLAM}")
 def test_a_short_real_log_finds_its_robot_and_a_lost_fit_says_so_and_starts_again(tmp_path):
     """The first quarter of MRCLAM robot 1 (3.7 minutes) from the poor start: with mrclam_config()'s
     range start sigma EM finds the robot. With the tenfold vaguer start it had before and no restart,
@@ -1178,7 +1287,8 @@ def test_a_short_real_log_finds_its_robot_and_a_lost_fit_says_so_and_starts_agai
     assert runs[0]["loglik"] == pytest.approx(lost.loglik_best, abs=1e-6)  # the same run, all sightings kept
     kept = next(r for r in runs if r["kept"])
     assert kept["loglik"] > runs[0]["loglik"] + 100.0 and not kept["f_turns"]
-    assert written["range_function_turns"] == [] and "EM has probably lost the robot (a local" not in flat
+    assert written["range_function_turns"] == written["range_function_bends"] == []
+    assert "EM has probably lost the robot (a local" not in flat
     assert "smoothed path off the recorded poses: median" in flat and written["evaluation"]["path"]["median_mm"] < 150.0
     rng_score = written["evaluation"]["range"]  # lost, f was metres off From-Truth's and its sigma over 3 times
     assert rng_score["learned_vs_from_truth_rms_mm"] < 300.0 and rng_score["sigma_ratio"] < 1.5, rng_score

@@ -144,9 +144,9 @@ def learn_em_cmd(
     from sensact.learn.em import EMConfig, fit_em, initial_model
     from sensact.learn.em.checks import (
         describe_held_sideways,
-        describe_turns,
+        describe_lost_fit,
         held_sideways_noise,
-        range_function_turns,
+        lost_fit_signs,
     )
     from sensact.learn.em.config import refuse_bearing_settings
     from sensact.report.tables import kept_run_cell, restart_runs_cell
@@ -225,7 +225,7 @@ def learn_em_cmd(
                 f"start race: EM from each start, {cfg.start_trial_iterations} iterations a trial", done, planned
             ),
             on_restart=lambda k, turned, sigmas: console.print(
-                f"[yellow]{describe_turns(turned, advice=False)}[/] EM starts again with "
+                f"[yellow]{describe_lost_fit(turned, advice=False)}[/] EM starts again with "
                 + ", ".join(f"{name}'s start sigma {s:.4g}" for name, s in sigmas.items())
                 + f" (restart {k} of at most {cfg.turn_restarts}; turn_restarts in --config)"
             ),
@@ -272,11 +272,11 @@ def learn_em_cmd(
             f"kept the most likely, {kept_run_cell(res.restarts)}"
         )
     print_em_model(m)
-    turned = []
+    signs = []
     if res.posteriors is not None:
-        turned = range_function_turns(m, res.posteriors, data)
-        if turned:
-            console.print(f"[yellow]{describe_turns(turned)}[/]")
+        signs = lost_fit_signs(m, res.posteriors, data)
+        if signs:
+            console.print(f"[yellow]{describe_lost_fit(signs)}[/]")
     held = held_sideways_noise(m, cfg.motion_noise)
     if held:
         console.print(describe_held_sideways(held), style="yellow", markup=False)  # it quotes a YAML list
@@ -294,7 +294,9 @@ def learn_em_cmd(
                 "log": data.source,
                 "dt_s": data.dt_s,
                 "evaluation": evaluation,
-                "range_function_turns": turned,  # learn/em/checks.py: a sign that EM lost the robot
+                # learn/em/checks.py: signs that EM lost the robot
+                "range_function_turns": [t for t in signs if "turns_at_mm" in t],
+                "range_function_bends": [t for t in signs if "slopes" in t],
                 "held_sideways_noise": held,  # ... and that a robot that side-steps is held to no sideways mean
             },
         )

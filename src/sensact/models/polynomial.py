@@ -48,6 +48,22 @@ class Polynomial1D:
     def is_finite(self) -> bool:
         return bool(np.all(np.isfinite(self.coef)))
 
+    def slope(self, x: np.ndarray | float) -> np.ndarray:
+        """``dp/dx`` at ``x``."""
+        der = np.polynomial.polynomial.polyder(np.asarray(self.coef))
+        return polyval(der, (np.asarray(x, dtype=float) - self.center) / self.scale) / self.scale
+
+    def slope_range(self, lo: float, hi: float) -> tuple[float, float]:
+        """The least and the greatest ``dp/dx`` over ``[lo, hi]``: at an end, or where the slope itself turns."""
+        curvature = np.polynomial.polynomial.polyder(np.asarray(self.coef), 2)
+        x = [lo, hi]
+        if curvature.size and np.any(curvature):
+            roots = np.polynomial.polynomial.polyroots(np.trim_zeros(curvature, "b"))
+            real = roots.real[np.abs(roots.imag) <= 1e-9 * np.maximum(1.0, np.abs(roots.real))]
+            x += [float(v) for v in self.center + self.scale * real if lo < v < hi]
+        slopes = self.slope(np.array(x))
+        return float(slopes.min()), float(slopes.max())
+
     def turning_points(self, lo: float, hi: float) -> np.ndarray:
         """The ``x`` strictly inside ``(lo, hi)`` where ``p`` turns (its slope changes sign), ascending."""
         slope = np.polynomial.polynomial.polyder(np.asarray(self.coef))

@@ -546,17 +546,23 @@ def fleet_lines(fleet: dict[str, Any]) -> list[str]:
 
 
 def restart_runs_cell(runs: list[dict[str, Any]]) -> str:
-    """Each run of ``fit.restart_while_f_turns``: its channels' start sigmas and its likelihood."""
+    """Each run of ``fit.restart_while_lost``: its channels' start sigmas and its likelihood."""
     return "; ".join(
         ", ".join(f"{name} {s:.4g}" for name, s in r["start_sigma"].items())
         + f": {r['loglik']:.1f}"
-        + (" (f turned)" if r["f_turns"] else "")
+        + (f" (f {' and '.join(_lost_signs(r['f_turns']))})" if r["f_turns"] else "")
         for r in runs
     )
 
 
+def _lost_signs(signs: list[dict[str, Any]]) -> list[str]:
+    """``turned``, ``bent`` or both, for a run's ``checks.lost_fit_signs``."""
+    kinds = {"turned" if "turns_at_mm" in t else "bent" for t in signs}
+    return [k for k in ("turned", "bent") if k in kinds]
+
+
 def kept_run_cell(runs: list[dict[str, Any]]) -> str:
-    """Which run ``fit.restart_while_f_turns`` kept."""
+    """Which run ``fit.restart_while_lost`` kept."""
     k = next(i for i, r in enumerate(runs) if r["kept"])
     return "the first run" if k == 0 else f"restart {k}"
 

@@ -6,6 +6,8 @@ each channel's polynomial f bends to map the readings onto the wrong distances. 
 rises (or falls) with distance; one that turns over within the distances it was fitted on is not a
 sensor, it is f absorbing a wrong path. On MRCLAM Dataset 6 cut into quarters every fit that lost
 its robot by metres had such an f, and none that found it (docs/em-real-results.md, "Short logs").
+A channel that reads a length in the map's own unit gives a second sign: its f may be off by a scale,
+but the scale does not change with distance, so an f whose slope does is bent by a wrong path.
 """
 
 from __future__ import annotations
@@ -20,10 +22,33 @@ from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 
 DISTANCE_PERCENTILES = (2.0, 98.0)  # the fitted distances, their few extremes left out
+# the least and greatest slope of a length-reading channel's f over its fitted distances, greatest over least:
+# 1.00-1.15 on the MRCLAM fits that found their robot (5 whole logs, 19 of 20 quarters, 14 of 15 thirds; robot
+# 4's second third 182 mm off Vicon: 1.70), 2.91 on the quarter that lost it (1055 mm) with an f that
+# does not turn (docs/em-real-results.md, "What you see without ground truth")
+BEND_RATIO = 2.0
+LENGTH_SUFFIX = "_mm"  # a reading in the map's unit, as sensact names one (io/timed_csv.py: range_m -> range_mm)
 # learned sideways over forward Sigma_m sd above which a held sideways mean is suspect: 1.0-1.5 on MRCLAM's
 # five robots and 1.1 on simulated ones; 3.2 on a simulated side-stepper held to no sideways mean
 # (docs/em-real.md, "A robot that can side-step")
 SIDEWAYS_NOISE_RATIO = 2.0
+
+
+def _fitted_distances(model: EMModel, post: Posteriors, data: LandmarkLog) -> list[tuple[Any, tuple[float, float]]]:
+    """Each channel with the span (``DISTANCE_PERCENTILES``) of the distances, from the smoothed path, of
+    the sightings it used within its window; channels with fewer than two are left out."""
+    use = np.asarray(post.obs_used, dtype=bool)
+    poses = post.mean_gamma[data.obs_step[use]]
+    dist = landmark_distance(poses, data.landmarks_xy[data.obs_landmark[use]])
+    readings = data.obs_readings[use][:, channel_columns(model.sensor, data)]
+    out = []
+    for j, ch in enumerate(model.sensor.channels):
+        d = dist[np.isfinite(readings[:, j])]
+        d = d[(d >= ch.valid_min) & (d <= ch.valid_max)]  # f applies within the window only
+        if d.size >= 2:
+            lo, hi = np.percentile(d, DISTANCE_PERCENTILES)
+            out.append((ch, (float(lo), float(hi))))
+    return out
 
 
 def range_function_turns(model: EMModel, post: Posteriors, data: LandmarkLog) -> list[dict[str, Any]]:
@@ -31,31 +56,58 @@ def range_function_turns(model: EMModel, post: Posteriors, data: LandmarkLog) ->
     used (from the smoothed path): its name, the distances where it turns and the distances' span."""
     if data.geometry != "planar" or not data.n_observations:
         return []
-    use = np.asarray(post.obs_used, dtype=bool)
-    poses = post.mean_gamma[data.obs_step[use]]
-    dist = landmark_distance(poses, data.landmarks_xy[data.obs_landmark[use]])
     turned = []
-    readings = data.obs_readings[use][:, channel_columns(model.sensor, data)]
-    for j, ch in enumerate(model.sensor.channels):
-        d = dist[np.isfinite(readings[:, j])]
-        d = d[(d >= ch.valid_min) & (d <= ch.valid_max)]  # f applies within the window only
-        if d.size < 2:
-            continue
-        lo, hi = np.percentile(d, DISTANCE_PERCENTILES)
-        turns = ch.function.turning_points(float(lo), float(hi))
+    for ch, (lo, hi) in _fitted_distances(model, post, data):
+        turns = ch.function.turning_points(lo, hi)
         if turns.size:
-            turned.append({"channel": ch.name, "turns_at_mm": turns.tolist(), "distances_mm": [float(lo), float(hi)]})
+            turned.append({"channel": ch.name, "turns_at_mm": turns.tolist(), "distances_mm": [lo, hi]})
     return turned
 
 
-def describe_turns(turned: list[dict[str, Any]], advice: bool = True) -> str:
-    """One line for the user: which f turned over where, what it likely means and (``advice``) what to try."""
+def range_function_bends(model: EMModel, post: Posteriors, data: LandmarkLog) -> list[dict[str, Any]]:
+    """Each channel of a planar log that reads a length in the map's unit (its name ends in ``_mm``)
+    whose learned f's slope over the distances of the sightings it used (from the smoothed path) changes
+    by more than ``BEND_RATIO`` times without turning over: its name, the least and greatest slope and
+    the distances' span. A sensor off by a scale has one slope; one that turns is
+    ``range_function_turns``'s."""
+    if data.geometry != "planar" or not data.n_observations:
+        return []
+    bent = []
+    for ch, (lo, hi) in _fitted_distances(model, post, data):
+        if not ch.name.endswith(LENGTH_SUFFIX):
+            continue
+        least, greatest = ch.function.slope_range(lo, hi)
+        if least * greatest <= 0:  # it turns or goes flat: not a bend
+            continue
+        if max(abs(least), abs(greatest)) > BEND_RATIO * min(abs(least), abs(greatest)):
+            bent.append({"channel": ch.name, "slopes": [least, greatest], "distances_mm": [lo, hi]})
+    return bent
+
+
+def lost_fit_signs(model: EMModel, post: Posteriors, data: LandmarkLog) -> list[dict[str, Any]]:
+    """Every channel whose f turns over (``range_function_turns``) or bends (``range_function_bends``)
+    within its fitted distances: the signs, without ground truth, that EM lost the robot."""
+    return range_function_turns(model, post, data) + range_function_bends(model, post, data)
+
+
+def describe_lost_fit(signs: list[dict[str, Any]], advice: bool = True) -> str:
+    """One line for the user: which f turned over or bent where, what it likely means and (``advice``)
+    what to try."""
     parts = [
-        f"{t['channel']}'s f turns over at {', '.join(f'{x:.0f}' for x in t['turns_at_mm'])} mm, inside the "
-        f"{t['distances_mm'][0]:.0f}-{t['distances_mm'][1]:.0f} mm it was fitted on"
-        for t in turned
+        (
+            f"{t['channel']}'s f turns over at {', '.join(f'{x:.0f}' for x in t['turns_at_mm'])} mm"
+            if "turns_at_mm" in t
+            else f"{t['channel']}'s f changes its slope from {t['slopes'][0]:.2f} to {t['slopes'][1]:.2f}"
+        )
+        + f", inside the {t['distances_mm'][0]:.0f}-{t['distances_mm'][1]:.0f} mm it was fitted on"
+        for t in signs
     ]
-    line = "warning: " + "; ".join(parts) + ". A range sensor's f does not turn: EM has probably lost the robot"
+    why = []
+    if any("turns_at_mm" in t for t in signs):
+        why.append("A range sensor's f does not turn")
+    if any("slopes" in t for t in signs):
+        why.append("A reading in the map's unit may be off by a scale, but not by one that changes with distance")
+    line = "warning: " + "; ".join(parts) + ". " + "; ".join(why) + ": EM has probably lost the robot"
     if not advice:
         return line + "."
     return (

@@ -5,7 +5,7 @@ the thesis) pass without a new best ``log P(O | C, lambda)``, or at ``max_iterat
 pruned in the first iteration (and, with ``prune_when_freed``, once more when the robust readings take
 over), and stay pruned. Ctrl-C ends the loop cleanly with the best model
 so far (``stop_reason == "interrupted"``). Beyond the thesis, ``turn_restarts`` runs the loop again from
-a tighter start when a range function turned over (``restart_while_f_turns``).
+a tighter start when a range function turned over or bent (``restart_while_lost``).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from sensact.errors import ConfigError, LogFormatError
-from sensact.learn.em.checks import range_function_turns
+from sensact.learn.em.checks import lost_fit_signs
 from sensact.learn.em.config import EMConfig, refuse_bearing_settings
 from sensact.learn.em.delay_search import search_delay
 from sensact.learn.em.estep import Posteriors, e_step, log_likelihood
@@ -37,7 +37,7 @@ from sensact.models.polynomial import Polynomial1D
 
 # (iteration, loglik, best loglik, iterations since the best) -> None
 Progress = Callable[[int, float, float, int], None]
-# (restart number from 1, the last fit's turned channels (checks.range_function_turns), their new start sigmas)
+# (restart number from 1, the last fit's turned or bent channels (checks.lost_fit_signs), their new start sigmas)
 OnRestart = Callable[[int, list[dict[str, Any]], dict[str, float]], None]
 
 PLANAR_VELOCITY_NAMES = ("v_x_mm_s", "v_y_mm_s", "v_theta_rad_s")
@@ -209,7 +209,7 @@ class EMResult:
     freed_at: int = -1  # the iteration after which Sigma_m, the terms and robust readings were freed (-1: never held)
     ridge: list[dict[str, Any]] | None = None  # each ridge search: its iteration, shift, likelihoods (ridge.py)
     delay_search: list[dict[str, Any]] | None = None  # each delay search: its iteration, delays, likelihoods
-    restarts: list[dict[str, Any]] | None = None  # each run while f turned over (restart_while_f_turns)
+    restarts: list[dict[str, Any]] | None = None  # each run while f turned over or bent (restart_while_lost)
     n_pruned_when_freed: int = 0  # of n_pruned, those the gate dropped again when the robust readings took over
 
     @property
@@ -250,24 +250,24 @@ def fit_em(
     on_race: OnTrial | None = None,
 ) -> EMResult:
     """Learn the action table, the sensor model and the prior from ``data`` by EM (Algorithm of ch. 4);
-    with ``turn_restarts``, EM again from a tighter start while a channel's f turns over (``on_restart``
+    with ``turn_restarts``, EM again from a tighter start while a channel's f turns over or bends (``on_restart``
     hears of each restart before it runs). ``on_race`` hears of the start race's trials
     (``start.race_starts``), before ``progress`` hears of the first iteration."""
     cfg = config or EMConfig()
     res = fit_em_once(data, initial, cfg, progress=progress, on_race=on_race)
     if cfg.turn_restarts == 0 or data.geometry != "planar":
         return res
-    return restart_while_f_turns(
+    return restart_while_lost(
         data, initial or initial_model(data, cfg), cfg, res, progress, on_restart, on_race=on_race
     )
 
 
-# each restart's start sigma for a channel whose f turned: a third of the last one's (docs/em-real-results.md,
+# each restart's start sigma for a channel whose f turned or bent: a third of the last one's (docs/em-real-results.md,
 # Short logs: on quarter-length MRCLAM logs, trusting the poor line's readings more held the robot's scale)
 RESTART_SIGMA_FACTOR = 1.0 / 3.0
 
 
-def restart_while_f_turns(
+def restart_while_lost(
     data: LandmarkLog,
     start: EMModel,
     cfg: EMConfig,
@@ -277,15 +277,15 @@ def restart_while_f_turns(
     *,
     on_race: OnTrial | None = None,
 ) -> EMResult:
-    """Beyond the thesis: while the last fit has a channel whose f turns over within its distances
-    (``checks.range_function_turns``), EM again from ``start`` with that channel's start sigma a third of
+    """Beyond the thesis: while the last fit has a channel whose f turns over or bends within its distances
+    (``checks.lost_fit_signs``), EM again from ``start`` with that channel's start sigma a third of
     the last one's, at most ``cfg.turn_restarts`` times. EM maximizes the likelihood, so the fit kept is
     the most likely one, each scored with the configured readings model on the sightings that every run
     kept after its first-iteration prune. ``restarts`` of the result lists every run."""
     runs, turns, sigmas = [first], [], []
     for k in range(cfg.turn_restarts + 1):
         last = runs[-1]
-        turns.append([] if last.posteriors is None else range_function_turns(last.model, last.posteriors, data))
+        turns.append([] if last.posteriors is None else lost_fit_signs(last.model, last.posteriors, data))
         sigmas.append({ch.name: ch.sigma for ch in start.sensor.channels})
         if not turns[-1] or k == cfg.turn_restarts:
             break
