@@ -1,0 +1,106 @@
+"""EM on MRCLAM Dataset 6 with fewer landmarks: does each robot still find itself, and do the bars hold?
+
+    python benchmarks/em_real_landmarks.py [--maps 8:2 6:0 6:1] [--robots 1 2 3 4 5]
+
+Each map ``K:S`` keeps K of the dataset's 15 landmarks, drawn by ``numpy.random.default_rng(S)``
+without replacement; a scratch copy of the dataset (links to its files, ``Landmark_Groundtruth.dat``
+cut to the kept landmarks) is read as `sensact reproduce real` reads it, so the sightings of the
+other landmarks are dropped as unknown barcodes. Runs `reproduce real`'s EM (``mrclam_config()``)
+on each robot and prints, per robot, the sightings kept, how far the smoothed path is from Vicon
+(median), the restarts (``turn_restarts``: each run's start sigma and log-likelihood, the kept one
+marked), the log-likelihood and which bars failed; then each map's bars cleared.
+Needs ../shared/data/mrclam (or $SENSACT_DATA). About 1.5 minutes a map on 2 cores.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from sensact.errors import LogFormatError
+from sensact.experiments.real import mrclam_config, mrclam_folder, run_mrclam_robot
+from sensact.report.tables import kept_run_cell, restart_runs_cell
+
+LANDMARK_FILE = "Landmark_Groundtruth.dat"
+
+
+def landmark_ids(path: Path) -> list[int]:
+    return [int(line.split()[0]) for line in path.read_text().splitlines() if line.strip() and not line.startswith("#")]
+
+
+def cut_copy(dataset: Path, keep: list[int], dest: Path) -> Path:
+    """``dest/<dataset name>``: links to every file of ``dataset`` but the landmark file, which keeps the
+    comment lines and the rows of ``keep``."""
+    out = dest / dataset.name
+    out.mkdir(parents=True)
+    for f in dataset.iterdir():
+        if f.name != LANDMARK_FILE:
+            (out / f.name).symlink_to(f.resolve())
+    lines = (dataset / LANDMARK_FILE).read_text().splitlines()
+    kept = [ln for ln in lines if ln.startswith("#") or not ln.strip() or int(ln.split()[0]) in keep]
+    (out / LANDMARK_FILE).write_text("\n".join(kept) + "\n")
+    return out
+
+
+def parse_map(text: str) -> tuple[int, int]:
+    try:
+        keep, seed = (int(v) for v in text.split(":"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a map as KEEP:SEED, e.g. 6:1") from None
+    if keep < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: keep at least one landmark")
+    return keep, seed
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--maps", type=parse_map, nargs="+", default=[(8, 2), (6, 0), (6, 1)])
+    parser.add_argument("--robots", type=int, nargs="+", default=[1, 2, 3, 4, 5])
+    args = parser.parse_args()
+    folder = mrclam_folder()
+    if not folder.is_dir():
+        sys.exit(f"MRCLAM data not found at {folder}; set SENSACT_DATA")
+    ids = landmark_ids(folder / LANDMARK_FILE)
+    cfg = mrclam_config()
+    for keep, seed in args.maps:
+        if keep > len(ids):
+            sys.exit(f"map {keep}:{seed}: the dataset has {len(ids)} landmarks")
+        kept = sorted(int(i) for i in np.random.default_rng(seed).choice(ids, keep, replace=False))
+        print(f"map {keep}:{seed}: landmarks {', '.join(map(str, kept))}", flush=True)
+        print(
+            "robot  sightings  path off Vicon mm  log-likelihood  seconds  bars failed  "
+            "restarts (start sigma: log-likelihood)"
+        )
+        cleared = total = 0
+        with tempfile.TemporaryDirectory() as tmp:
+            copy = cut_copy(folder, kept, Path(tmp))
+            for robot in args.robots:
+                t0 = time.perf_counter()
+                try:
+                    row, ml, res = run_mrclam_robot(copy, robot, cfg)
+                except LogFormatError as exc:  # e.g. a robot that sees none of the kept landmarks
+                    print(f"{robot:5d}  not run: {exc}", flush=True)
+                    continue
+                bars = row["score"]["bars"]
+                failed = [k for k, ok in bars.items() if not ok]
+                cleared += sum(bool(ok) for ok in bars.values())
+                total += len(bars)
+                runs = "-"
+                if res.restarts:
+                    runs = f"{restart_runs_cell(res.restarts)}; kept {kept_run_cell(res.restarts)}"
+                print(
+                    f"{robot:5d} {ml.data.n_observations:10d} {row['score']['path']['median_mm']:18.0f} "
+                    f"{res.loglik_best:15.1f} {time.perf_counter() - t0:8.1f}  "
+                    f"{', '.join(failed) or 'none':11s}  {runs}",
+                    flush=True,
+                )
+        print(f"map {keep}:{seed}: bars {cleared} of {total} cleared", flush=True)
+
+
+if __name__ == "__main__":
+    main()
