@@ -777,7 +777,7 @@ def test_a_length_reading_whose_slope_changes_with_distance_is_flagged(continuou
     assert range_function_turns(with_f(bent), res.posteriors, data) == []
     assert lost_fit_signs(with_f(bent), res.posteriors, data) == signs
     said = describe_lost_fit(signs)
-    assert "range_mm's f changes its slope from 0.60 to 1.80" in said and "start_sigma" in said
+    assert "range_mm's f has slopes from 0.60 to 1.80 mm per mm, inside the" in said and "start_sigma" in said
     assert "off by a scale, but not by one that changes with distance" in said
     # at the ratio, a steeper or a falling line, and a bend under another unit: not flagged
     assert range_function_bends(with_f(quadratic(0.6, 0.6 * BEND_RATIO * 0.99)), res.posteriors, data) == []

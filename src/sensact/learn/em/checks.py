@@ -97,7 +97,7 @@ def describe_lost_fit(signs: list[dict[str, Any]], advice: bool = True) -> str:
         (
             f"{t['channel']}'s f turns over at {', '.join(f'{x:.0f}' for x in t['turns_at_mm'])} mm"
             if "turns_at_mm" in t
-            else f"{t['channel']}'s f changes its slope from {t['slopes'][0]:.2f} to {t['slopes'][1]:.2f}"
+            else f"{t['channel']}'s f has slopes from {t['slopes'][0]:.2f} to {t['slopes'][1]:.2f} mm per mm"
         )
         + f", inside the {t['distances_mm'][0]:.0f}-{t['distances_mm'][1]:.0f} mm it was fitted on"
         for t in signs
