@@ -35,8 +35,8 @@ LOST_MM = 500.0  # a path this far from Vicon (median) has lost the robot: a sta
 
 def _kinds(signs: list[dict]) -> str:
     """What the kept fit's f did: ``turns``, ``bends``, both, or ``no``."""
-    kinds = [k for k, key in (("turns", "turns_at_mm"), ("bends", "slopes")) if any(key in t for t in signs)]
-    return "+".join(kinds) or "no"
+    kinds = {t["sign"] for t in signs}
+    return "+".join(k for k in ("turns", "bends") if k in kinds) or "no"
 
 
 def main() -> None:

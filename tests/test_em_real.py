@@ -771,7 +771,7 @@ def test_a_length_reading_whose_slope_changes_with_distance_is_flagged(continuou
     bent = quadratic(0.6, 1.8)
     assert bent(np.array([lo]))[0] == pytest.approx(lo) and bent.slope(np.array([lo, hi])) == pytest.approx([0.6, 1.8])
     signs = range_function_bends(with_f(bent), res.posteriors, data)
-    assert len(signs) == 1 and signs[0]["channel"] == "range_mm"
+    assert len(signs) == 1 and signs[0]["channel"] == "range_mm" and signs[0]["sign"] == "bends"
     np.testing.assert_allclose(signs[0]["slopes"], [0.6, 1.8], rtol=1e-9)
     np.testing.assert_allclose(signs[0]["distances_mm"], [lo, hi])
     assert range_function_turns(with_f(bent), res.posteriors, data) == []
@@ -790,7 +790,7 @@ def test_a_length_reading_whose_slope_changes_with_distance_is_flagged(continuou
     # an f that turns is a turn, not a bend
     turning = _turning_cubic(f0.center, f0.scale, at=0.5 * (lo + hi) - 0.2 * (hi - lo), width=0.1 * (hi - lo))
     signs = lost_fit_signs(with_f(turning), res.posteriors, data)
-    assert len(signs) == 1 and "turns_at_mm" in signs[0] and "does not turn" in describe_lost_fit(signs)
+    assert len(signs) == 1 and signs[0]["sign"] == "turns" and "does not turn" in describe_lost_fit(signs)
 
 
 def test_a_range_function_that_turns_within_its_distances_is_flagged(continuous_fit):
@@ -836,7 +836,7 @@ def test_em_restarts_from_a_tighter_start_while_f_turns_and_keeps_the_most_likel
 
     def flags_the_first(model, post, log):
         calls["n"] += 1
-        turn = [{"channel": "range_mm", "turns_at_mm": [2000.0], "distances_mm": [1000.0, 3000.0]}]
+        turn = [{"channel": "range_mm", "sign": "turns", "turns_at_mm": [2000.0], "distances_mm": [1000.0, 3000.0]}]
         return turn if calls["n"] <= calls["flagged"] else []
 
     monkeypatch.setattr(fit_module, "lost_fit_signs", flags_the_first)
@@ -872,7 +872,7 @@ def test_em_restarts_from_a_tighter_start_while_f_turns_and_keeps_the_most_likel
     cell = restart_runs_cell(two.restarts)
     assert cell.startswith("range_mm 3000: ") and "(f turned); range_mm 1000: " in cell
     assert kept_run_cell(two.restarts) == ("restart 1" if two.restarts[1]["kept"] else "the first run")
-    bend = {"channel": "range_mm", "slopes": [0.7, 2.1], "distances_mm": [1000.0, 3000.0]}
+    bend = {"channel": "range_mm", "sign": "bends", "slopes": [0.7, 2.1], "distances_mm": [1000.0, 3000.0]}
     both = [dict(two.restarts[0], f_turns=[bend]), dict(two.restarts[1], f_turns=[bend, *two.restarts[0]["f_turns"]])]
     assert "(f bent); range_mm 1000: " in restart_runs_cell(both) and restart_runs_cell(both).endswith(
         "(f turned and bent)"

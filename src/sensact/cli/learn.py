@@ -295,8 +295,8 @@ def learn_em_cmd(
                 "dt_s": data.dt_s,
                 "evaluation": evaluation,
                 # learn/em/checks.py: signs that EM lost the robot
-                "range_function_turns": [t for t in signs if "turns_at_mm" in t],
-                "range_function_bends": [t for t in signs if "slopes" in t],
+                "range_function_turns": [t for t in signs if t["sign"] == "turns"],
+                "range_function_bends": [t for t in signs if t["sign"] == "bends"],
                 "held_sideways_noise": held,  # ... and that a robot that side-steps is held to no sideways mean
             },
         )

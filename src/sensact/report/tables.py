@@ -557,8 +557,8 @@ def restart_runs_cell(runs: list[dict[str, Any]]) -> str:
 
 def _lost_signs(signs: list[dict[str, Any]]) -> list[str]:
     """``turned``, ``bent`` or both, for a run's ``checks.lost_fit_signs``."""
-    kinds = {"turned" if "turns_at_mm" in t else "bent" for t in signs}
-    return [k for k in ("turned", "bent") if k in kinds]
+    kinds = {t["sign"] for t in signs}
+    return [word for sign, word in (("turns", "turned"), ("bends", "bent")) if sign in kinds]
 
 
 def kept_run_cell(runs: list[dict[str, Any]]) -> str:

@@ -35,8 +35,10 @@ SIDEWAYS_NOISE_RATIO = 2.0
 
 
 def _fitted_distances(model: EMModel, post: Posteriors, data: LandmarkLog) -> list[tuple[Any, tuple[float, float]]]:
-    """Each channel with the span (``DISTANCE_PERCENTILES``) of the distances, from the smoothed path, of
-    the sightings it used within its window; channels with fewer than two are left out."""
+    """Each channel of a planar log with the span (``DISTANCE_PERCENTILES``) of the distances, from the
+    smoothed path, of the sightings it used within its window; channels with fewer than two are left out."""
+    if data.geometry != "planar" or not data.n_observations:
+        return []
     use = np.asarray(post.obs_used, dtype=bool)
     poses = post.mean_gamma[data.obs_step[use]]
     dist = landmark_distance(poses, data.landmarks_xy[data.obs_landmark[use]])
@@ -51,17 +53,34 @@ def _fitted_distances(model: EMModel, post: Posteriors, data: LandmarkLog) -> li
     return out
 
 
+def _turns(fitted: list[tuple[Any, tuple[float, float]]]) -> list[dict[str, Any]]:
+    turned = []
+    for ch, (lo, hi) in fitted:
+        turns = ch.function.turning_points(lo, hi)
+        if turns.size:
+            turned.append(
+                {"channel": ch.name, "sign": "turns", "turns_at_mm": turns.tolist(), "distances_mm": [lo, hi]}
+            )
+    return turned
+
+
+def _bends(fitted: list[tuple[Any, tuple[float, float]]]) -> list[dict[str, Any]]:
+    bent = []
+    for ch, (lo, hi) in fitted:
+        if not ch.name.endswith(LENGTH_SUFFIX):
+            continue
+        least, greatest = ch.function.slope_range(lo, hi)
+        if least * greatest <= 0:  # it turns or goes flat: not a bend
+            continue
+        if max(abs(least), abs(greatest)) > BEND_RATIO * min(abs(least), abs(greatest)):
+            bent.append({"channel": ch.name, "sign": "bends", "slopes": [least, greatest], "distances_mm": [lo, hi]})
+    return bent
+
+
 def range_function_turns(model: EMModel, post: Posteriors, data: LandmarkLog) -> list[dict[str, Any]]:
     """Each channel of a planar log whose learned f turns over inside the distances of the sightings it
     used (from the smoothed path): its name, the distances where it turns and the distances' span."""
-    if data.geometry != "planar" or not data.n_observations:
-        return []
-    turned = []
-    for ch, (lo, hi) in _fitted_distances(model, post, data):
-        turns = ch.function.turning_points(lo, hi)
-        if turns.size:
-            turned.append({"channel": ch.name, "turns_at_mm": turns.tolist(), "distances_mm": [lo, hi]})
-    return turned
+    return _turns(_fitted_distances(model, post, data))
 
 
 def range_function_bends(model: EMModel, post: Posteriors, data: LandmarkLog) -> list[dict[str, Any]]:
@@ -70,24 +89,14 @@ def range_function_bends(model: EMModel, post: Posteriors, data: LandmarkLog) ->
     by more than ``BEND_RATIO`` times without turning over: its name, the least and greatest slope and
     the distances' span. A sensor off by a scale has one slope; one that turns is
     ``range_function_turns``'s."""
-    if data.geometry != "planar" or not data.n_observations:
-        return []
-    bent = []
-    for ch, (lo, hi) in _fitted_distances(model, post, data):
-        if not ch.name.endswith(LENGTH_SUFFIX):
-            continue
-        least, greatest = ch.function.slope_range(lo, hi)
-        if least * greatest <= 0:  # it turns or goes flat: not a bend
-            continue
-        if max(abs(least), abs(greatest)) > BEND_RATIO * min(abs(least), abs(greatest)):
-            bent.append({"channel": ch.name, "slopes": [least, greatest], "distances_mm": [lo, hi]})
-    return bent
+    return _bends(_fitted_distances(model, post, data))
 
 
 def lost_fit_signs(model: EMModel, post: Posteriors, data: LandmarkLog) -> list[dict[str, Any]]:
-    """Every channel whose f turns over (``range_function_turns``) or bends (``range_function_bends``)
-    within its fitted distances: the signs, without ground truth, that EM lost the robot."""
-    return range_function_turns(model, post, data) + range_function_bends(model, post, data)
+    """Every channel whose f turns over (``sign`` "turns") or bends ("bends") within its fitted
+    distances: the signs, without ground truth, that EM lost the robot."""
+    fitted = _fitted_distances(model, post, data)
+    return _turns(fitted) + _bends(fitted)
 
 
 def describe_lost_fit(signs: list[dict[str, Any]], advice: bool = True) -> str:
@@ -96,16 +105,16 @@ def describe_lost_fit(signs: list[dict[str, Any]], advice: bool = True) -> str:
     parts = [
         (
             f"{t['channel']}'s f turns over at {', '.join(f'{x:.0f}' for x in t['turns_at_mm'])} mm"
-            if "turns_at_mm" in t
+            if t["sign"] == "turns"
             else f"{t['channel']}'s f has slopes from {t['slopes'][0]:.2f} to {t['slopes'][1]:.2f} mm per mm"
         )
         + f", inside the {t['distances_mm'][0]:.0f}-{t['distances_mm'][1]:.0f} mm it was fitted on"
         for t in signs
     ]
     why = []
-    if any("turns_at_mm" in t for t in signs):
+    if any(t["sign"] == "turns" for t in signs):
         why.append("A range sensor's f does not turn")
-    if any("slopes" in t for t in signs):
+    if any(t["sign"] == "bends" for t in signs):
         why.append("A reading in the map's unit may be off by a scale, but not by one that changes with distance")
     line = "warning: " + "; ".join(parts) + ". " + "; ".join(why) + ": EM has probably lost the robot"
     if not advice:
