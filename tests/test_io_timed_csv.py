@@ -13,10 +13,12 @@ from typer.testing import CliRunner
 
 from conftest import DATA, require
 from sensact.cli import app
+from sensact.config import build_config
 from sensact.errors import LogFormatError
 from sensact.io.csvtable import read_numeric_csv
 from sensact.io.landmark_log import read_landmark_log
 from sensact.io.timed_csv import in_sensact_units, read_timed_csv
+from sensact.learn.em import EMConfig
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
 runner = CliRunner()
@@ -319,6 +321,10 @@ def test_mrclams_files_as_timed_csv_read_as_io_mrclam_reads_them(tmp_path):
 
 
 def test_a_log_without_bearings_gets_no_camera_settings_and_learn_em_names_what_needs_them(timed, tmp_path):
+    """A range-only log gets MRCLAM's settings without the bearings, with the start pose to set; a file
+    already there (the start pose the user set in it) is left; the camera's settings are refused in one line."""
+    from sensact.experiments.real import range_only_config
+
     _, folder = timed
     sight = read_numeric_csv(folder / "sightings.csv")
     _write(tmp_path / "s.csv", {k: v for k, v in sight.items() if k != "bearing_rad"})
@@ -326,7 +332,12 @@ def test_a_log_without_bearings_gets_no_camera_settings_and_learn_em_names_what_
     args = ["--commands", str(folder / "commands.csv"), "--landmarks", str(folder / "landmarks.csv")]
     res = runner.invoke(app, ["convert", "csv", *args, "--sightings", str(tmp_path / "s.csv"), "--out", str(out)])
     assert res.exit_code == 0, res.output
-    assert not (out / "em_config.yaml").exists()  # MRCLAM's settings learn from the bearings
+    assert "set start_prior_mean in" in " ".join(res.output.split())
+    written = build_config(EMConfig, out / "em_config.yaml")
+    assert written == range_only_config(("v_mm_s", "omega_rad_s"), (0.0, 0.0, 0.0))
+    assert written.start_search_s == 0 and written.channels[0].bearing_degree == 0 and not written.prune_when_freed
+    text = (out / "em_config.yaml").read_text()
+    assert "start_prior_mean: [0.0, 0.0, 0.0]" in text and "bearing_robust" not in text  # shown, though a default
     (out / "em_config.yaml").write_text("motion_sd_mm: 2.0\n")  # a file of the user's, or an earlier run's
     res = runner.invoke(app, ["convert", "csv", *args, "--sightings", str(tmp_path / "s.csv"), "--out", str(out)])
     assert res.exit_code == 0 and "was there before and is left as it was" in " ".join(res.output.split())

@@ -24,17 +24,21 @@ def config_to_dict(config: Any) -> dict[str, Any]:
     return json.loads(json.dumps(dataclasses.asdict(config)))
 
 
-def config_to_yaml(config: Any, header: str = "") -> str:
-    """The fields of ``config`` (and of the configs nested in it) that differ from their defaults, as a
-    YAML file that ``build_config`` reads back to ``config``; ``header`` becomes its leading comment."""
+def config_to_yaml(config: Any, header: str = "", always: tuple[str, ...] = ()) -> str:
+    """The fields of ``config`` (and of the configs nested in it) that differ from their defaults, and
+    the top-level fields named in ``always`` (ones the user should see and set), as a YAML file that
+    ``build_config`` reads back to ``config``; ``header`` becomes its leading comment."""
     import yaml
 
-    def changed(obj: Any) -> Any:
+    def changed(obj: Any, keep: tuple[str, ...] = ()) -> Any:
         if not dataclasses.is_dataclass(obj):
             return [changed(x) for x in obj] if isinstance(obj, tuple | list) else obj
         out = {}
         for f in dataclasses.fields(obj):
             value = getattr(obj, f.name)
+            if f.name in keep:
+                out[f.name] = changed(value)
+                continue
             if f.default is not dataclasses.MISSING and value == f.default:
                 continue
             if f.default_factory is not dataclasses.MISSING and value == f.default_factory():
@@ -42,7 +46,7 @@ def config_to_yaml(config: Any, header: str = "") -> str:
             out[f.name] = changed(value)
         return out
 
-    text = yaml.safe_dump(json.loads(json.dumps(changed(config))), sort_keys=False, default_flow_style=None)
+    text = yaml.safe_dump(json.loads(json.dumps(changed(config, always))), sort_keys=False, default_flow_style=None)
     comment = "".join(f"# {line}\n".replace("# \n", "#\n") for line in header.splitlines())
     return comment + text
 

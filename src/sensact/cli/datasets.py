@@ -26,13 +26,23 @@ so every velocity, sideways too, is affine in every command, as for a robot that
 side-step, add action_zero_mean: [v_x_mm_s] (docs/em-real.md, section 2)."""
 
 
-def config_header(command_names: tuple[str, ...]) -> str:
-    """em_config.yaml's header for ``experiments.real.planar_config``'s settings on these commands."""
+RANGE_ONLY_NOTE = """
+The sensor reads ranges alone (no bearing column), so the range channel has no bearing terms and no
+bearing settings are set. Nor can EM search for the start pose, which it scores by the bearings:
+start_prior_mean is where the robot starts (x mm, y mm, heading rad; heading 0 faces the map's +y,
+counterclockwise), within start_prior_sd (docs/em-real.md, section 2, "A sensor without bearings")."""
+
+
+def config_header(command_names: tuple[str, ...], range_only: bool = False) -> str:
+    """em_config.yaml's header for ``experiments.real.planar_config``'s settings on these commands (with
+    ``range_only``, ``range_only_config``'s)."""
     from sensact.experiments.real import diffdrive_config
 
     if diffdrive_config(command_names) is None:
-        return MRCLAM_CONFIG_HEADER + FREE_MOTION_NOTE.format(names=", ".join(command_names))
-    return MRCLAM_CONFIG_HEADER + (WHEELS_CONFIG_NOTE if "left_mm_s" in command_names else "")
+        head = MRCLAM_CONFIG_HEADER + FREE_MOTION_NOTE.format(names=", ".join(command_names))
+    else:
+        head = MRCLAM_CONFIG_HEADER + (WHEELS_CONFIG_NOTE if "left_mm_s" in command_names else "")
+    return head + (RANGE_ONLY_NOTE if range_only else "")
 
 
 @convert_app.command("mrclam")
@@ -108,7 +118,8 @@ def convert_csv(
     list are dropped and counted. A robot with a range_m and bearing camera also gets em_config.yaml
     (MRCLAM's settings) to start from: a differential drive's when the commands are v_m_s, omega_rad_s
     or the wheel speeds left_m_s, right_m_s; on any other commands, as a legged robot's (v, v_left,
-    omega), every velocity, sideways too, affine in every command. See docs/em-real.md."""
+    omega), every velocity, sideways too, affine in every command. A robot with range_m alone (radio
+    beacons) gets the same without the bearings, in which to set where it starts. See docs/em-real.md."""
     import numpy as np
 
     from sensact.io.landmark_log import write_landmark_log
@@ -128,35 +139,54 @@ def convert_csv(
     )
     d = tl.data
     console.print(f"drew {_draw_overview(d, tl.groundtruth, out, out.resolve().name)}")
-    from sensact.experiments.real import diffdrive_config, planar_config
+    from sensact.experiments.real import planar_config, range_only_config
 
-    # MRCLAM's settings learn from a range-and-bearing camera; other readings need their own channels
+    # MRCLAM's settings learn from a range-and-bearing camera, or without its bearings from a range sensor
+    # (radio beacons); other readings need their own channels
+    cfg = out / "em_config.yaml"
+    kept = cfg.is_file()  # an earlier conversion's, or the user's own, or the start pose set in it: not ours to replace
     if d.reading_names == ("range_mm",) and np.isfinite(d.obs_bearing_rad).any():
         from sensact.config import config_to_yaml
         from sensact.io.atomic import write_text
 
-        cfg = out / "em_config.yaml"
         write_text(cfg, config_to_yaml(planar_config(d.command_names), config_header(d.command_names)))
-        kind = (
-            "a differential drive"
-            if diffdrive_config(d.command_names)
-            else f"a robot that can side-step on commands {', '.join(d.command_names)}"
-        )
         console.print(
-            f"wrote {out} and {cfg} (MRCLAM's settings, a starting point for {kind} with a "
+            f"wrote {out} and {cfg} (MRCLAM's settings, a starting point for {_robot_kind(d.command_names)} with a "
             f"range-and-bearing camera); learn with `sensact learn em {out} --config {cfg}`"
         )
-    else:
+        return
+    if d.reading_names == ("range_mm",) and not kept:
+        from sensact.config import config_to_yaml
+        from sensact.io.atomic import write_text
+
+        settings = range_only_config(d.command_names, (0.0, 0.0, 0.0))
+        start = ("start_prior_mean", "start_prior_sd")
+        write_text(cfg, config_to_yaml(settings, config_header(d.command_names, range_only=True), start))
         console.print(
-            f"wrote {out}; choose the model families for commands {', '.join(d.command_names)} and readings "
-            f"{', '.join(d.reading_names)} in a YAML file (docs/em-real.md, section 2) and learn with "
-            f"`sensact learn em {out} --config YOUR.yaml`"
+            f"wrote {out} and {cfg} (MRCLAM's settings without the bearings, a starting point for "
+            f"{_robot_kind(d.command_names)} with a range-only sensor). The sightings have no bearings, so EM "
+            f"cannot search for where the robot starts: set start_prior_mean in {cfg} to its start (x mm, y mm, "
+            f"heading rad; heading 0 faces the map's +y), then learn with `sensact learn em {out} --config {cfg}`"
         )
-        if (out / "em_config.yaml").is_file():  # an earlier conversion's, or the user's own: not ours to delete
-            console.print(
-                f"[yellow]note:[/] {out / 'em_config.yaml'} was there before and is left as it was; check that it "
-                f"fits commands {', '.join(d.command_names)} before passing it to learn em"
-            )
+        return
+    console.print(
+        f"wrote {out}; choose the model families for commands {', '.join(d.command_names)} and readings "
+        f"{', '.join(d.reading_names)} in a YAML file (docs/em-real.md, section 2) and learn with "
+        f"`sensact learn em {out} --config YOUR.yaml`"
+    )
+    if kept:
+        console.print(
+            f"[yellow]note:[/] {cfg} was there before and is left as it was; check that it "
+            f"fits commands {', '.join(d.command_names)} before passing it to learn em"
+        )
+
+
+def _robot_kind(command_names: tuple[str, ...]) -> str:
+    from sensact.experiments.real import diffdrive_config
+
+    if diffdrive_config(command_names):
+        return "a differential drive"
+    return f"a robot that can side-step on commands {', '.join(command_names)}"
 
 
 @evaluate_app.command("mrclam")

@@ -242,6 +242,13 @@ def learn_em_cmd(
             else ""
         )
     )
+    if res.turned_to_face_forward:
+        console.print(
+            "the sensor reads no bearing, so a robot driving backward while facing the other way reads the same: "
+            "EM ended so, and the model is reported turned by pi, driving forward (the same likelihood; "
+            'docs/em-real.md, section 2, "A sensor without bearings")',
+            markup=False,
+        )
     if res.n_pruned_when_freed and not cfg.joint_student_t and res.model.sensor.student_t_params:
         console.print(
             "[yellow]sightings that far off are misread barcodes;[/] a misread one whose bearing happens to fit "

@@ -52,9 +52,13 @@ def print_simulated_score(model: Any, truth: dict[str, Any], dt_s: float) -> dic
         + (f"sideways gain {s['sideways_gain'][0]:.3f} / {s['sideways_gain'][1]:.3f}, " if "sideways_gain" in s else "")
         + f"command delay {s['delay_steps'][0]} / {s['delay_steps'][1]} steps "
         f"({s['delay_with_lag_steps']:.1f} with the lag's time constant); "
-        f"range sigma {s['range_sigma_mm'][0]:.1f} / {s['range_sigma_mm'][1]:.1f} mm, "
-        f"bearing sigma {s['bearing_sigma_rad'][0]:.4f} / {s['bearing_sigma_rad'][1]:.4f} rad; "
-        f"Sigma_m per step sideways {sd[0]:.2f} / {sd_true[0]:.2f} mm, forward {sd[1]:.2f} / {sd_true[1]:.2f} mm, "
+        f"range sigma {s['range_sigma_mm'][0]:.1f} / {s['range_sigma_mm'][1]:.1f} mm"
+        + (
+            f", bearing sigma {s['bearing_sigma_rad'][0]:.4f} / {s['bearing_sigma_rad'][1]:.4f} rad"
+            if "bearing_sigma_rad" in s
+            else ""
+        )
+        + f"; Sigma_m per step sideways {sd[0]:.2f} / {sd_true[0]:.2f} mm, forward {sd[1]:.2f} / {sd_true[1]:.2f} mm, "
         f"heading {sd[2]:.4f} / {sd_true[2]:.4f} rad"
     )
     return s
@@ -118,19 +122,22 @@ def print_truth_score(sc: dict[str, Any]) -> None:
         f"{r['sigma_ratio']:.2f}",
         mark("range_sigma"),
     )
-    t.add_row(
-        "bearing sigma (rad)",
-        f"{b['sigma_learned_rad']:.4f}",
-        f"{b['sigma_truth_rad']:.4f}",
-        f"{b['sigma_ratio']:.2f}",
-        mark("bearing_sigma"),
-    )
+    if b is not None:  # None: a sensor that reads ranges alone
+        t.add_row(
+            "bearing sigma (rad)",
+            f"{b['sigma_learned_rad']:.4f}",
+            f"{b['sigma_truth_rad']:.4f}",
+            f"{b['sigma_ratio']:.2f}",
+            mark("bearing_sigma"),
+        )
     console.print(t)
     console.print(f"bar: {bars_sentence(BARS)} (docs/em-real.md)")
     n = sc.get("truth_noise")
     if n:
         within = n["bearing_within_frame_sd_rad"]
-        if within is None or within != within:  # NaN, null in JSON: no frame with two sightings
+        if b is None:
+            frame_split = ""
+        elif within is None or within != within:  # NaN, null in JSON: no frame with two sightings
             frame_split = "no frame has two sightings, so no part shared by a frame can be split off"
         else:
             frame_split = (
@@ -145,10 +152,14 @@ def print_truth_score(sc: dict[str, Any]) -> None:
             f"{n['learned_heading_drift_turning_rad']:.4f}); "
             f"position missed per {sc['window_s']:.2g} s, sideways / forward "
             f"{n['translation_drift_rms_mm'][0]:.1f} / {n['translation_drift_rms_mm'][1]:.1f} mm (Sigma_m: "
-            f"{n['learned_translation_drift_mm'][0]:.1f} / {n['learned_translation_drift_mm'][1]:.1f}); "
-            f"bearing residuals of frames 1-5 windows apart correlate at {n['bearing_frame_correlation']:.2f}; "
-            + frame_split
-            + truth_heading_clause(n)
+            f"{n['learned_translation_drift_mm'][0]:.1f} / {n['learned_translation_drift_mm'][1]:.1f})"
+            + (
+                f"; bearing residuals of frames 1-5 windows apart correlate at {n['bearing_frame_correlation']:.2f}; "
+                + frame_split
+                + truth_heading_clause(n)
+                if b is not None
+                else ""
+            )
             + " (docs/em-real-results.md, Known limits)"
         )
     m = sc.get("sensor_mount")

@@ -101,10 +101,12 @@ def simulate_diffdrive_cmd(
     simulated model. `--set wheel_axle_mm=235` logs the wheel speeds (left_mm_s, right_mm_s) instead
     of v and omega, as a robot driven wheel by wheel is logged. `--set sidestep_mm_s=60` makes a
     robot that can side-step, as a legged one, logged as (v_mm_s, v_left_mm_s, omega_rad_s), with
-    settings in which every velocity, sideways too, is affine in every command."""
+    settings in which every velocity, sideways too, is affine in every command. `--set sensor=radio`
+    reads ranges alone, in every direction (UWB anchors, sonar beacons): no bearings in the log, and
+    settings without them that start EM where the robot was put (start_pose)."""
     from sensact.cli.datasets import config_header
     from sensact.config import config_to_yaml
-    from sensact.experiments.real import planar_config
+    from sensact.experiments.diffdrive import simulator_settings
     from sensact.io.atomic import write_text
     from sensact.io.landmark_log import write_landmark_log
     from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
@@ -114,7 +116,9 @@ def simulate_diffdrive_cmd(
     log = run.log()
     write_landmark_log(out, log, groundtruth=run.groundtruth(), meta_extra={"truth": cfg.truth()})
     em_cfg = out / "em_config.yaml"
-    write_text(em_cfg, config_to_yaml(planar_config(log.command_names), config_header(log.command_names)))
+    start = () if cfg.reads_bearing else ("start_prior_mean", "start_prior_sd")  # a radio's: where the robot was put
+    header = config_header(log.command_names, range_only=not cfg.reads_bearing)
+    write_text(em_cfg, config_to_yaml(simulator_settings(cfg), header, start))
     console.print(
         f"wrote {out}: {len(run.commands)} steps of {cfg.dt_s:.4g} s, {run.obs_step.size} sightings of "
         f"{len(cfg.landmarks_xy_mm)} landmarks ({int(run.obs_misread.sum())} misread), commands "

@@ -24,6 +24,9 @@ do on that data; the learned model is judged next to it:
   sees), so From-Truth fits the sensor's mount, ``(lateral mm, forward mm, yaw rad)`` in the truth's
   robot frame, to the bearings by least squares (``fit_sensor_mount``), and both sensor scores use
   the truth's poses moved by it. The residuals at the truth's origin are reported beside them.
+  A sensor that reads no bearing (ranges alone, as radio beacons give) has neither a bearing score
+  nor a pose fitted by its bearings: ``bearing`` and ``sensor_mount`` are None, its range scored at
+  the truth's origin.
 * **sigmas:** the truth residual sigma is the RMS of the trimmed residuals (range: about From-Truth's f;
   bearing: about zero at the sensor's pose, as eq. 4.28 has no bearing bias). Trimming drops
   residuals beyond ``trim`` robust sigmas (1.4826 MAD) of the median, repeated until nothing
@@ -418,7 +421,9 @@ def score_against_truth(
     at_origin = truth_poses[data.obs_step[rows]]
     lm = data.landmarks_xy[data.obs_landmark[rows]]
     bearing = data.obs_bearing_rad[rows]
-    mount = fit_sensor_mount(at_origin, lm, bearing, trim) if fit_mount else np.zeros(3)
+    # a range-only sensor (radio beacons) has no bearing to score, nor to fit its pose on the robot by
+    reads_bearing = model.sensor.sigma_bearing_rad is not None and bool(np.isfinite(bearing).any())
+    mount = fit_sensor_mount(at_origin, lm, bearing, trim) if fit_mount and reads_bearing else np.zeros(3)
     poses = at_sensor(at_origin, mount)
     d = landmark_distance(poses, lm)
     reading = data.obs_readings[rows, 0]
@@ -440,14 +445,28 @@ def score_against_truth(
     r_ft = reading[keep] - pred_ft[keep]
     learned_keep = chan.predict(d[keep], bearing[keep])
     r_learned = reading[keep] - learned_keep
-    b_res = wrap_angle(bearing - landmark_bearing(poses, lm))
-    b_keep = trimmed(b_res, trim)
-    sb_true = _rms(b_res[b_keep])
-    b_res0 = wrap_angle(bearing - landmark_bearing(at_origin, lm))
-    b_keep0 = trimmed(b_res0, trim)
-    sb_origin = _rms(b_res0[b_keep0])
     sr_true = _rms(r_ft)
-    sb = model.sensor.sigma_bearing_rad or float("nan")
+    b_res, b_keep = np.empty(0), np.zeros(0, dtype=bool)
+    bearing_score = None
+    if reads_bearing:
+        b_res = wrap_angle(bearing - landmark_bearing(poses, lm))
+        b_keep = trimmed(b_res, trim)
+        sb_true = _rms(b_res[b_keep])
+        b_res0 = wrap_angle(bearing - landmark_bearing(at_origin, lm))
+        b_keep0 = trimmed(b_res0, trim)
+        sb_origin = _rms(b_res0[b_keep0])
+        sb = model.sensor.sigma_bearing_rad
+        bearing_score = {
+            "sightings_trimmed": int(np.isfinite(b_res).sum() - b_keep.sum()),
+            "sigma_learned_rad": sb,
+            "sigma_truth_rad": sb_true,
+            "sigma_ratio": sb / sb_true,
+            "truth_median_rad": float(np.median(b_res[b_keep])),
+            # the same residuals at the truth's origin, where the sensor is not
+            "truth_origin_sigma_rad": sb_origin,
+            "truth_origin_mean_rad": float(np.mean(b_res0[b_keep0])),
+            "truth_origin_sigma_ratio": sb / sb_origin,
+        }
     b_steps = data.obs_step[rows][b_keep]
     structure = truth_noise_structure(
         Phi_ft @ beta_ft,
@@ -498,17 +517,11 @@ def score_against_truth(
             "from_truth_function": ft.function.to_dict(),
             "from_truth_bearing_terms": list(ft.bearing_terms),
         },
-        "bearing": {
-            "sightings_trimmed": int(np.isfinite(b_res).sum() - b_keep.sum()),
-            "sigma_learned_rad": sb,
-            "sigma_truth_rad": sb_true,
-            "sigma_ratio": sb / sb_true,
-            "truth_median_rad": float(np.median(b_res[b_keep])),
-            # the same residuals at the truth's origin, where the sensor is not
-            "truth_origin_sigma_rad": sb_origin,
-            "truth_origin_mean_rad": float(np.mean(b_res0[b_keep0])),
-            "truth_origin_sigma_ratio": sb / sb_origin,
-        },
-        "sensor_mount": {"lateral_mm": float(mount[0]), "forward_mm": float(mount[1]), "yaw_rad": float(mount[2])},
+        "bearing": bearing_score,  # None: the sensor reads no bearing
+        "sensor_mount": (
+            {"lateral_mm": float(mount[0]), "forward_mm": float(mount[1]), "yaw_rad": float(mount[2])}
+            if reads_bearing
+            else None
+        ),
         "truth_noise": structure,
     }

@@ -18,7 +18,7 @@ def score_against_simulated(model: EMModel, truth: dict[str, Any], dt_s: float) 
     """Learned against true: the affine action's gains and biases (and the sideways gain of a robot that
     side-steps), the command delay (which the lag lengthens: a first-order lag of time constant tau
     delays a step by tau), Sigma_m's per-step sds, the range channel's sigma and bearing terms, the
-    bearing sigma; each sigma also as a ratio."""
+    bearing sigma (when the model reads bearings); each sigma also as a ratio."""
     if not isinstance(model.action, LinearActionModel) or model.action.basis != "affine":
         raise ValueError("a simulated differential drive is scored with the affine action basis (em_config.yaml)")
     beta, true_beta = model.action.coefficients, np.asarray(truth["action_coefficients"])
@@ -35,6 +35,12 @@ def score_against_simulated(model: EMModel, truth: dict[str, Any], dt_s: float) 
     turn = rows.index("omega_rad_s")
     ch = model.sensor.channels[0]
     sigma_b = model.sensor.sigma_bearing_rad
+    bearing = {}
+    if sigma_b is not None and truth.get("bearing_sigma_rad") is not None:
+        bearing = {
+            "bearing_sigma_rad": [float(sigma_b), float(truth["bearing_sigma_rad"])],
+            "bearing_sigma_ratio": float(sigma_b / truth["bearing_sigma_rad"]),
+        }
     sideways = {}
     if "v_left_mm_s" in rows:  # sideways is v_x, to the right (sec. 2.5.1), so a step to the left is -v_x
         k = rows.index("v_left_mm_s")
@@ -51,6 +57,5 @@ def score_against_simulated(model: EMModel, truth: dict[str, Any], dt_s: float) 
         "range_bearing_terms": [list(ch.bearing_terms), truth["range_bearing_terms"]],
         "range_sigma_mm": [float(ch.sigma), float(truth["range_sigma_mm"])],
         "range_sigma_ratio": float(ch.sigma / truth["range_sigma_mm"]),
-        "bearing_sigma_rad": [float(sigma_b), float(truth["bearing_sigma_rad"])],
-        "bearing_sigma_ratio": float(sigma_b / truth["bearing_sigma_rad"]),
+        **bearing,
     }

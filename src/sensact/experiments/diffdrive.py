@@ -17,7 +17,7 @@ import numpy as np
 from sensact.config import config_to_dict
 from sensact.evaluate.bars import BarCheck
 from sensact.evaluate.simulated_robot import score_against_simulated
-from sensact.experiments.real import evaluate_mrclam, planar_config, robot_checks
+from sensact.experiments.real import evaluate_mrclam, planar_config, range_only_config, robot_checks
 from sensact.learn.em import EMConfig, EMResult, fit_em
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
@@ -28,8 +28,7 @@ ProgressFn = Callable[[str, int, int | None], None]
 @dataclass(frozen=True)
 class DiffDriveExperiment:
     """``learner`` None: the settings ``sensact simulate diffdrive`` writes for the simulator's logged
-    commands (``experiments.real.planar_config``: MRCLAM's on a differential drive's (v, omega), every
-    velocity free on a side-stepper's)."""
+    commands (``simulator_settings``)."""
 
     trials: int = 3
     seed: int = 0
@@ -38,7 +37,17 @@ class DiffDriveExperiment:
 
     @property
     def learner_config(self) -> EMConfig:
-        return self.learner or planar_config(self.simulator.logged_command_names)
+        return self.learner or simulator_settings(self.simulator)
+
+
+def simulator_settings(sim: DiffDriveConfig) -> EMConfig:
+    """The EM settings for a simulated robot's log, as ``sensact simulate diffdrive`` writes them:
+    ``experiments.real.planar_config`` for its logged commands (MRCLAM's on a differential drive's, every
+    velocity free on a side-stepper's), or for a radio sensor ``range_only_config`` from where the robot
+    was put."""
+    if sim.reads_bearing:
+        return planar_config(sim.logged_command_names)
+    return range_only_config(sim.logged_command_names, sim.start_pose)
 
 
 @dataclass(frozen=True, eq=False)

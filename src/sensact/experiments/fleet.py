@@ -33,7 +33,7 @@ def fleet_cell(sc: dict[str, Any]) -> dict[str, Any]:
         "range_residual_rms_mm": r["learned_residual_rms_mm"],
         "range_from_truth_rms_mm": r["from_truth_residual_rms_mm"],
         "range_sigma_ratio": r["sigma_ratio"],
-        "bearing_sigma_ratio": b["sigma_ratio"],
+        "bearing_sigma_ratio": None if b is None else b["sigma_ratio"],  # None: the model reads no bearing
         "bars": bar_checks(sc),
     }
 
@@ -84,7 +84,8 @@ def fleet_summary(cells: dict[str, dict[str, Any]], own: Mapping[str, str]) -> d
             "pairs": len(cs),
             "clear_action_bars": sum(all(c["bars"][k] for k in ACTION_BARS) for c in cs),
             "clear_range_sigma_bar": sum(c["bars"]["range_sigma"] for c in cs),
-            "clear_bearing_sigma_bar": sum(c["bars"]["bearing_sigma"] for c in cs),
+            "clear_bearing_sigma_bar": sum(c["bars"].get("bearing_sigma", False) for c in cs),
+            "bearing_pairs": sum("bearing_sigma" in c["bars"] for c in cs),
             "translation_ratio_max": float(max(c["translation_ratio"] for c in cs)),
             "rotation_ratio_max": float(max(c["rotation_ratio"] for c in cs)),
             "range_residual_rms_mm": [float(np.min(rng)), float(np.max(rng))],

@@ -271,7 +271,7 @@ def write_landmark_log(
     obs: dict[str, np.ndarray] = {"t_s": times[data.obs_step], "landmark_id": data.obs_landmark.astype(float)}
     obs.update({r: data.obs_readings[:, j] for j, r in enumerate(data.reading_names)})
     cols: dict[str, Any] = {"landmark": "landmark_id", "readings": list(data.reading_names)}
-    if data.geometry == "planar":
+    if data.geometry == "planar" and np.isfinite(data.obs_bearing_rad).any():  # a range-only sensor's log has none
         obs["bearing_rad"] = data.obs_bearing_rad
         cols["bearing"] = "bearing_rad"
     names = data.landmark_names or tuple(str(j) for j in range(len(data.landmarks_xy)))

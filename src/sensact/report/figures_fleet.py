@@ -74,12 +74,13 @@ def figure_fleet(fleet: dict[str, Any], path: Path, title: str = "models on logs
         for i, m in enumerate(models):
             for j, g in enumerate(logs):
                 cell = fleet["cells"][m][g]
-                miss = part is not None and not all(cell["bars"][b] for b in FLEET_BARS[part])
+                # a model that reads no bearing has no bearing bar (and no number: "-")
+                miss = part is not None and not all(cell["bars"].get(b, True) for b in FLEET_BARS[part])
                 color = "white" if _dark(im, grid[i, j]) else "black"
                 ax.text(
                     j,
                     i,
-                    fmt.format(grid[i, j]),
+                    fmt.format(grid[i, j]) if np.isfinite(grid[i, j]) else "-",
                     ha="center",
                     va="center",
                     fontsize=8,

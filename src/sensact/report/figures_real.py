@@ -27,7 +27,7 @@ def _truth_at_sensor(ml: Any, score: dict[str, Any]) -> tuple[np.ndarray, np.nda
     d = ml.data
     poses, valid = ml.truth_poses()
     ok = valid[d.obs_step] > 0
-    m = score.get("sensor_mount", {})
+    m = score.get("sensor_mount") or {}  # None: no bearings to fit it by, the truth's origin
     mount = [m.get("lateral_mm", 0.0), m.get("forward_mm", 0.0), m.get("yaw_rad", 0.0)]
     return ok, at_sensor(poses[d.obs_step[ok]], mount), d.landmarks_xy[d.obs_landmark[ok]]
 
@@ -290,18 +290,20 @@ def write_robot(
     posteriors: Any = None,
     truth: str = "Vicon",
 ) -> list[Path]:
-    """One robot's four figures against its ground truth, which the legends call ``truth``:
-    ``<stem>_actions.png``, ``_range``, ``_heading_noise`` and ``_bearing``."""
+    """One robot's figures against its ground truth, which the legends call ``truth``:
+    ``<stem>_actions.png``, ``_range``, ``_heading_noise`` and, for a sensor that reads bearings, ``_bearing``."""
 
     def at(kind: str) -> Path:
         return stem.with_name(f"{stem.name}_{kind}.png")
 
-    return [
+    paths = [
         figure_action_curves(ml, model, score, at("actions"), name, truth),
         figure_range_function(ml, model, score, at("range"), name, truth),
         figure_heading_noise(ml, model, score, at("heading_noise"), name, truth),
-        figure_bearing_noise(ml, model, score, at("bearing"), name, posteriors, truth),
     ]
+    if score["bearing"] is not None:
+        paths.append(figure_bearing_noise(ml, model, score, at("bearing"), name, posteriors, truth))
+    return paths
 
 
 def write_all(art: dict[str, Any], res: dict[str, Any], out: Path) -> list[Path]:

@@ -316,7 +316,7 @@ def _drift_cell(n: dict[str, Any], when: str) -> str:
 
 def _mount_cell(score: dict[str, Any]) -> str:
     m, b = score.get("sensor_mount"), score["bearing"]
-    if m is None:  # results written before the sensor's pose was fitted
+    if m is None or b is None:  # results written before the sensor's pose was fitted, or no bearings to fit it by
         return "-"
     return (
         f"{m['forward_mm']:.0f} / {m['lateral_mm']:.0f} / {m['yaw_rad']:+.4f}; "
@@ -418,12 +418,20 @@ def _truth_score_row(name: str, score: dict[str, Any], em: dict[str, Any]) -> li
         _delay_cell(a, em),
         f"{rg['learned_residual_rms_mm']:.0f} / {rg['from_truth_residual_rms_mm']:.0f}",
         f"{rg['sigma_learned_mm']:.0f} / {rg['sigma_truth_mm']:.0f} ({rg['sigma_ratio']:.2f})",
-        f"{b['sigma_learned_rad']:.4f} / {b['sigma_truth_rad']:.4f} ({b['sigma_ratio']:.2f})",
+        "-" if b is None else f"{b['sigma_learned_rad']:.4f} / {b['sigma_truth_rad']:.4f} ({b['sigma_ratio']:.2f})",
         _path_cell(score),
         _ridge_cell(em),
         f"{em['n_pruned']} of {em['n_observations']} ({em.get('n_pruned_when_freed', 0)})",
         _failed_bars(score),
     ]
+
+
+def _sim_bearing_cell(s: dict[str, Any]) -> str:
+    """The learned bearing sigma / the simulated one (ratio); "-" for a range-only sensor."""
+    if "bearing_sigma_rad" not in s:
+        return "-"
+    learned, true = s["bearing_sigma_rad"]
+    return f"{learned:.4f} / {true:.4f} ({s['bearing_sigma_ratio']:.2f})"
 
 
 def diffdrive_tables(res: dict[str, Any]) -> list[Table]:
@@ -446,7 +454,7 @@ def diffdrive_tables(res: dict[str, Any]) -> list[Table]:
                 *([f"{side[0]:.3f} / {side[1]:.3f}" if side else "-"] if sideways else []),
                 f"{s['delay_steps'][0]} / {s['delay_steps'][1]} ({s['delay_with_lag_steps']:.1f})",
                 f"{s['range_sigma_mm'][0]:.1f} / {s['range_sigma_mm'][1]:.1f} ({s['range_sigma_ratio']:.2f})",
-                f"{s['bearing_sigma_rad'][0]:.4f} / {s['bearing_sigma_rad'][1]:.4f} ({s['bearing_sigma_ratio']:.2f})",
+                _sim_bearing_cell(s),
                 ", ".join(f"{a:.3g} / {b:.3g}" for a, b in zip(sd, sd_true, strict=True)),
                 f"{r['em']['iterations']} ({r['em']['seconds']:.1f} s)",
             ]
@@ -501,10 +509,10 @@ def fleet_table(
         def shown(text: str, part: str) -> str:
             return text if all(c["bars"][b] for b in FLEET_BARS[part]) else miss(text)
 
-        tr, rot, b = (f"{c[k]:.2f}" for k in ("translation_ratio", "rotation_ratio", "bearing_sigma_ratio"))
-        text = (
-            f"{shown(tr, 'translation')} / {shown(rot, 'rotation')}, {c['range_residual_rms_mm']:.0f} mm, "
-            f"{shown(b, 'bearing')}"
+        tr, rot = (f"{c[k]:.2f}" for k in ("translation_ratio", "rotation_ratio"))
+        b = c["bearing_sigma_ratio"]
+        text = f"{shown(tr, 'translation')} / {shown(rot, 'rotation')}, {c['range_residual_rms_mm']:.0f} mm, " + (
+            "no bearing" if b is None else shown(f"{b:.2f}", "bearing")
         )
         return own(text) if fleet["own"].get(m) == g else text
 
@@ -540,7 +548,13 @@ def fleet_lines(fleet: dict[str, Any]) -> list[str]:
             f"{who} ({s['pairs']} pairs): {s['clear_action_bars']} clear the action bars "
             f"(worst translation {s['translation_ratio_max']:.2f}, rotation {s['rotation_ratio_max']:.2f}), "
             f"{s['clear_range_sigma_bar']} the range sigma bar, {s['clear_bearing_sigma_bar']} the bearing sigma "
-            f"bar; range residual {lo:.0f}-{hi:.0f} mm"
+            "bar"
+            + (
+                f" (of the {s['bearing_pairs']} pairs whose model reads bearings)"
+                if s.get("bearing_pairs", s["pairs"]) < s["pairs"]
+                else ""
+            )
+            + f"; range residual {lo:.0f}-{hi:.0f} mm"
         )
     return lines
 

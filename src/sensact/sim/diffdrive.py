@@ -17,6 +17,9 @@ robots learns from (issue 5, docs/em-real.md), with a known model to recover.
   b^2)`` (a range from a barcode's apparent size, distorted across the image; ``b`` the measured
   bearing) plus Gaussian noise, and the bearing plus Gaussian noise. A share of sightings are
   misread: range and bearing anywhere in the camera's reach.
+* Or (``sensor: radio``) a range-only sensor, as UWB anchors or sonar beacons: every landmark in
+  range, in any direction, is read at the frame rate with the detection probability, as ``gain d +
+  offset`` plus noise, and the log has no bearings; a misread range is anywhere in reach.
 * Optionally (``bearing_drift_sd_rad``, 0 by default), an effect the learner's model leaves out: a
   camera yaw error that every sighting shares and that wanders over seconds. The truth's bearing
   residual counts it as noise; a learner without ground truth can only read it as heading.
@@ -41,6 +44,7 @@ from sensact.logs.landmark_log import LandmarkLog
 COMMAND_NAMES = ("v_mm_s", "omega_rad_s")
 WHEEL_COMMAND_NAMES = ("left_mm_s", "right_mm_s")
 SIDESTEP_COMMAND_NAMES = ("v_mm_s", "v_left_mm_s", "omega_rad_s")  # v_left: to the robot's left (ROS REP 103)
+SENSORS = ("camera", "radio")
 
 
 def wheel_speeds(commands: np.ndarray, axle_mm: float) -> np.ndarray:
@@ -97,7 +101,10 @@ class DiffDriveConfig:
     sideways_sd_mm: float = 0.3
     forward_sd_mm: float = 1.5
     heading_sd_rad: float = 0.002
-    # the camera
+    # the sensor: "camera" (range and bearing inside fov_deg, the range distorted across the image by
+    # range_bearing_terms) or "radio" (range alone, in every direction: fov_deg, the bearing terms and
+    # the bearing's noise and drift do not apply, and the log has no bearings)
+    sensor: str = "camera"
     frame_period_s: float = 0.24
     fov_deg: float = 68.0
     min_range_mm: float = 1000.0
@@ -149,6 +156,8 @@ class DiffDriveConfig:
             problems.append(
                 "a robot that side-steps (sidestep_mm_s > 0) is not logged by two wheels' speeds (wheel_axle_mm)"
             )
+        if self.sensor not in SENSORS:
+            problems.append(f"sensor must be one of {', '.join(SENSORS)}, not {self.sensor!r}")
         if self.bearing_drift_sd_rad < 0 or self.bearing_drift_tau_s <= 0:
             problems.append("bearing_drift_sd_rad must be >= 0 and bearing_drift_tau_s > 0")
         if not (0 <= self.detect_probability <= 1 and 0 <= self.misread_rate < 1):
@@ -170,6 +179,10 @@ class DiffDriveConfig:
     def command_names(self) -> tuple[str, ...]:
         """The controller's commands, the rows of ``action_coefficients`` after the constant."""
         return SIDESTEP_COMMAND_NAMES if self.sidestep_mm_s > 0 else COMMAND_NAMES
+
+    @property
+    def reads_bearing(self) -> bool:
+        return self.sensor == "camera"
 
     @property
     def robot_kind(self) -> str:
@@ -199,7 +212,7 @@ class DiffDriveConfig:
     def range_reading(self, distance_mm: np.ndarray, bearing_rad: np.ndarray) -> np.ndarray:
         """The noise-free range reading at a distance and a (measured) bearing."""
         d, b = np.asarray(distance_mm, dtype=float), np.asarray(bearing_rad, dtype=float)
-        a1, a2 = self.range_bearing_terms
+        a1, a2 = self.range_bearing_terms if self.reads_bearing else (0.0, 0.0)
         return self.range_gain * d + self.range_offset_mm + d * (a1 * b + a2 * b * b)
 
     def truth(self) -> dict[str, Any]:
@@ -212,9 +225,9 @@ class DiffDriveConfig:
             "delay_steps": self.delay_steps,
             "lag_s": self.lag_s,
             "motion_sd_per_step": [self.sideways_sd_mm, self.forward_sd_mm, self.heading_sd_rad],
-            "range_bearing_terms": list(self.range_bearing_terms),
+            "range_bearing_terms": list(self.range_bearing_terms) if self.reads_bearing else [],
             "range_sigma_mm": self.range_sd_mm,
-            "bearing_sigma_rad": self.bearing_sd_rad,
+            "bearing_sigma_rad": self.bearing_sd_rad if self.reads_bearing else None,
             "config": asdict(self),  # the rest: range gain and offset, misreads, drift, the room, ...
         }
 
@@ -253,7 +266,7 @@ class DiffDriveRun:
             self.obs_step,
             self.obs_landmark,
             self.obs_range_mm,
-            self.obs_bearing_rad,
+            self.obs_bearing_rad if self.config.reads_bearing else np.full(self.obs_step.size, np.nan),
             np.asarray(self.config.landmarks_xy_mm),
             source=source or f"simulated {self.config.robot_kind}",
             reading_names=("range_mm",),
@@ -341,7 +354,9 @@ def simulate_diffdrive(config: DiffDriveConfig | None = None) -> DiffDriveRun:
     frames = np.arange(0, T, max(1, round(cfg.frame_period_s / cfg.dt_s)))
     d = np.stack([landmark_distance(poses[frames], p) for p in lm], axis=1)  # (frames, landmarks)
     b = np.stack([landmark_bearing(poses[frames], p) for p in lm], axis=1)
-    in_view = (np.abs(b) <= 0.5 * np.deg2rad(cfg.fov_deg)) & (d >= cfg.min_range_mm) & (d <= cfg.max_range_mm)
+    in_view = (d >= cfg.min_range_mm) & (d <= cfg.max_range_mm)
+    if cfg.reads_bearing:
+        in_view &= np.abs(b) <= 0.5 * np.deg2rad(cfg.fov_deg)
     seen = in_view & (rng_cam.random(in_view.shape) < cfg.detect_probability)
     fi, li = np.nonzero(seen)  # row-major: by frame, then landmark
     bearing = wrap_angle(b[fi, li] + rng_cam.normal(size=fi.size) * cfg.bearing_sd_rad + drift[frames[fi]])

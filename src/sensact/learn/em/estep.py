@@ -158,7 +158,8 @@ def _run_passes(
         data.obs_landmark,
         readings,
         gain,
-        data.obs_bearing_rad,
+        # a sensor without sigma_2 (a range-only one) reads no bearing, whatever the log holds
+        data.obs_bearing_rad if sb is not None else np.full(data.n_observations, np.nan),
         use,
         data.landmarks_xy if len(data.landmarks_xy) else np.zeros((1, 2)),
         coefs,

@@ -24,6 +24,7 @@ from sensact.learn.em.checks import lost_fit_signs
 from sensact.learn.em.config import EMConfig, refuse_bearing_settings
 from sensact.learn.em.delay_search import search_delay
 from sensact.learn.em.estep import Posteriors, e_step, log_likelihood
+from sensact.learn.em.forward import FLIP, drives_backward, turned_model, turned_posteriors
 from sensact.learn.em.mstep import m_step
 from sensact.learn.em.outliers import bearing_outliers
 from sensact.learn.em.ridge import search_ridge
@@ -55,7 +56,8 @@ def starting_height(config: EMConfig) -> Polynomial1D:
 
 
 def starting_sensor(data: LandmarkLog, config: EMConfig) -> LandmarkSensor:
-    """Every channel starts from its poor straight line (sec. 4.4.1); the bearing from 0.2 rad."""
+    """Every channel starts from its poor straight line (sec. 4.4.1); the bearing, when the log has any,
+    from 0.2 rad."""
     channels = []
     unit = "" if config.channels else "px"
     for cc in config.channel_configs(data.reading_names):
@@ -74,10 +76,11 @@ def starting_sensor(data: LandmarkLog, config: EMConfig) -> LandmarkSensor:
                 (0.0,) * cc.bearing_degree,
             )
         )
-    sigma_b = config.start_sigma_bearing_rad if data.geometry == "planar" else None
-    return LandmarkSensor(
-        tuple(channels), sigma_b, config.bearing_robust, config.bearing_robust_param, config.joint_student_t
-    )
+    if data.geometry == "planar" and np.isfinite(data.obs_bearing_rad).any():
+        sigma_b, robust = config.start_sigma_bearing_rad, (config.bearing_robust, config.bearing_robust_param)
+    else:  # a track, or a range-only sensor (radio beacons): no bearing to learn a sigma_2 for
+        sigma_b, robust = None, ("none", 0.0)
+    return LandmarkSensor(tuple(channels), sigma_b, *robust, config.joint_student_t)
 
 
 def initial_model(data: LandmarkLog, config: EMConfig) -> EMModel:
@@ -211,6 +214,8 @@ class EMResult:
     delay_search: list[dict[str, Any]] | None = None  # each delay search: its iteration, delays, likelihoods
     restarts: list[dict[str, Any]] | None = None  # each run while f turned over or bent (restart_while_lost)
     n_pruned_when_freed: int = 0  # of n_pruned, those the gate dropped again when the robust readings took over
+    # a range-only fit that ended facing backward, reported turned by pi (forward.py; the same likelihood)
+    turned_to_face_forward: bool = False
 
     @property
     def iterations(self) -> int:
@@ -236,6 +241,7 @@ class EMResult:
             "ridge": self.ridge,
             "delay_search": self.delay_search,
             "restarts": self.restarts,
+            **({"turned_to_face_forward": True} if self.turned_to_face_forward else {}),
             "config": asdict(self.config),
         }
 
@@ -252,13 +258,29 @@ def fit_em(
     """Learn the action table, the sensor model and the prior from ``data`` by EM (Algorithm of ch. 4);
     with ``turn_restarts``, EM again from a tighter start while a channel's f turns over or bends (``on_restart``
     hears of each restart before it runs). ``on_race`` hears of the start race's trials
-    (``start.race_starts``), before ``progress`` hears of the first iteration."""
+    (``start.race_starts``), before ``progress`` hears of the first iteration. A fit whose sensor reads no
+    bearing is reported facing the way the robot drives (``facing_forward``)."""
     cfg = config or EMConfig()
     res = fit_em_once(data, initial, cfg, progress=progress, on_race=on_race)
     if cfg.turn_restarts == 0 or data.geometry != "planar":
-        return res
-    return restart_while_lost(
+        return facing_forward(res, data)
+    lost = restart_while_lost(
         data, initial or initial_model(data, cfg), cfg, res, progress, on_restart, on_race=on_race
+    )
+    return facing_forward(lost, data)
+
+
+def facing_forward(res: EMResult, data: LandmarkLog) -> EMResult:
+    """``res`` with its robot facing the way it drives, when its sensor cannot tell (``forward.py``):
+    the model, its posteriors and its action history turned by pi, ``turned_to_face_forward`` set."""
+    if not drives_backward(res.model, data):
+        return res
+    return dc_replace(
+        res,
+        model=turned_model(res.model),
+        posteriors=None if res.posteriors is None else turned_posteriors(res.posteriors),
+        velocity_history=res.velocity_history * FLIP,  # planar: (iterations, A, 3)
+        turned_to_face_forward=True,
     )
 
 

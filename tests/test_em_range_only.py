@@ -1,0 +1,123 @@
+"""A robot whose sensor reads ranges alone (UWB anchors, sonar beacons): `simulate diffdrive --set
+sensor=radio`, EM without bearings (learn/em/forward.py), and its scores and figures without a bearing."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from sensact.cli import app
+from sensact.config import build_config
+from sensact.core.angles import wrap_angle
+from sensact.evaluate.landmark_truth import path_offset, score_against_truth
+from sensact.experiments.real import bar_checks, range_only_config
+from sensact.io.landmark_log import read_landmark_log
+from sensact.learn.em import EMConfig, fit_em, initial_model
+from sensact.learn.em.estep import e_step, log_likelihood
+from sensact.learn.em.forward import drives_backward, turned_model, turned_posteriors
+from sensact.sim.diffdrive import COMMAND_NAMES, DiffDriveConfig, simulate_diffdrive
+
+runner = CliRunner()
+
+
+def true_model(run, config: EMConfig):
+    """The simulated robot's own action model and range line, from EM's starting model's families."""
+    data = run.log()
+    start = initial_model(data, config)
+    action = start.action.with_coefficients(run.config.action_coefficients())
+    ch = start.sensor.channels[0]
+    line = ch.function.__class__((run.config.range_offset_mm, run.config.range_gain, 0.0, 0.0))
+    sensor = start.sensor.with_fits([(line, run.config.range_sd_mm, ch.bearing_terms)], start.sensor.sigma_bearing_rad)
+    return data, start.replace(action=action, sensor=sensor)
+
+
+def test_a_range_only_model_turned_by_pi_reads_the_same_and_a_camera_model_does_not():
+    """Exact invariant (forward.py): without bearings, the robot facing the other way and driving
+    backward has the same likelihood, and its posteriors are the first's turned; with bearings the
+    heading is seen, and the two differ by thousands of log-units."""
+    radio = simulate_diffdrive(DiffDriveConfig(seconds=60, seed=2, sensor="radio"))
+    data, model = true_model(radio, range_only_config(COMMAND_NAMES, (0.0, 0.0, 0.0)))
+    assert model.sensor.sigma_bearing_rad is None and not np.isfinite(data.obs_bearing_rad).any()
+    turned = turned_model(model)
+    assert turned.action.coefficients[1, 1] == -model.action.coefficients[1, 1]
+    assert abs(turned.prior_mean[2]) == pytest.approx(np.pi)
+    ll, ll_turned = log_likelihood(model, data), log_likelihood(turned, data)
+    assert np.isfinite(ll) and ll_turned == pytest.approx(ll, rel=1e-9)
+    assert not drives_backward(model, data) and drives_backward(turned, data)
+    post, post_turned = e_step(model, data), e_step(turned, data)
+    expect = turned_posteriors(post)
+    np.testing.assert_allclose(post_turned.mean_gamma[:, :2], expect.mean_gamma[:, :2], atol=1e-6)
+    np.testing.assert_allclose(wrap_angle(post_turned.mean_gamma[:, 2] - expect.mean_gamma[:, 2]), 0.0, atol=1e-9)
+    np.testing.assert_allclose(post_turned.disp_mean, expect.disp_mean, atol=1e-6)
+    np.testing.assert_allclose(post_turned.disp_cov, expect.disp_cov, atol=1e-9)
+
+    camera = simulate_diffdrive(DiffDriveConfig(seconds=60, seed=2))
+    cdata, cmodel = true_model(camera, replace(range_only_config(COMMAND_NAMES, (0.0, 0.0, 0.0)), channels=()))
+    fits = [(c.function, c.sigma, ()) for c in cmodel.sensor.channels]
+    cmodel = cmodel.replace(sensor=cmodel.sensor.with_fits(fits, 0.006))
+    assert log_likelihood(turned_model(cmodel), cdata) < log_likelihood(cmodel, cdata) - 1000.0
+    assert not drives_backward(turned_model(cmodel), cdata)  # a camera's model is never turned
+
+
+@pytest.mark.parametrize("heading", [0.0, 3.0])
+def test_em_learns_a_range_only_robot_facing_the_way_it_drives(heading):
+    """Seeded recovery: five minutes of a robot with a radio range sensor (every landmark in reach, no
+    bearings), learned from where it was put. From a start heading near the truth's, or one that faces
+    it nearly backward, EM finds the robot's path and model; the backward one is reported turned by pi."""
+    run = simulate_diffdrive(DiffDriveConfig(seconds=300, seed=1, sensor="radio"))
+    cfg = replace(range_only_config(COMMAND_NAMES, (0.0, 0.0, heading)), max_iterations=300)
+    res = fit_em(run.log(), config=cfg)
+    m = res.model
+    assert m.sensor.sigma_bearing_rad is None
+    assert res.turned_to_face_forward == (heading == 3.0)
+    assert ("turned_to_face_forward" in res.summary()) == (heading == 3.0)
+    truth = run.config
+    assert m.action.coefficients[1, 1] == pytest.approx(truth.forward_gain, rel=0.02)
+    assert m.action.coefficients[2, 2] == pytest.approx(truth.turn_gain, rel=0.02)
+    assert m.sensor.channels[0].sigma == pytest.approx(truth.range_sd_mm, rel=0.25)
+    poses = run.poses
+    offset = path_offset(res.posteriors.mean_gamma, poses, np.ones(len(poses)))
+    assert offset["median_mm"] < 30.0
+    # the reported headings are the robot's own
+    assert np.median(np.abs(wrap_angle(res.posteriors.mean_gamma[:, 2] - poses[:, 2]))) < 0.05
+
+
+def test_simulate_a_radio_robot_then_learn_and_score_it_without_a_bearing(tmp_path):
+    """`simulate diffdrive --set sensor=radio` writes a log without bearings and settings that start where
+    the robot was put; `learn em --out` scores it with no bearing row, bar or figure (a traceback before)."""
+    log, model = tmp_path / "radio", tmp_path / "m.json"
+    res = runner.invoke(app, ["simulate", "diffdrive", "--out", str(log), "--seconds", "60", "--set", "sensor=radio"])
+    assert res.exit_code == 0, res.output
+    lf = read_landmark_log(log)
+    assert not np.isfinite(lf.data.obs_bearing_rad).any()
+    assert "bearing_rad" not in (log / "observations.csv").read_text().splitlines()[0]
+    assert lf.meta["truth"]["bearing_sigma_rad"] is None and lf.meta["truth"]["range_bearing_terms"] == []
+    assert build_config(EMConfig, log / "em_config.yaml") == range_only_config(COMMAND_NAMES, (0.0, 0.0, 0.0))
+    assert "start_prior_mean: [0.0, 0.0, 0.0]" in (log / "em_config.yaml").read_text()
+    args = ["learn", "em", str(log), "--config", str(log / "em_config.yaml"), "--set", "max_iterations=30"]
+    res = runner.invoke(app, [*args, "--out", str(model)])
+    assert res.exit_code == 0, res.output
+    assert "Traceback" not in res.output and "bearing" not in res.output.split("against ground truth")[1]
+    ev = json.loads(model.read_text())["evaluation"]
+    assert ev["bearing"] is None and ev["sensor_mount"] is None
+    assert ev["bars"] == bar_checks(ev) and "bearing_sigma" not in ev["bars"] and len(ev["bars"]) == 4
+    assert "bearing_sigma_rad" not in ev["simulated"]
+    assert sorted(p.name for p in tmp_path.glob("m_*.png")) == ["m_actions.png", "m_heading_noise.png", "m_range.png"]
+    # the library's score agrees, and a camera's model on this log has no bearing to be scored on either
+    learned = json.loads(model.read_text())["model"]
+    assert learned["sensor"]["sigma_bearing_rad"] is None
+    poses, valid = lf.truth_poses()
+    from sensact.models.em_model import EMModel
+
+    sc = score_against_truth(EMModel.from_dict(learned), lf.data, poses, valid)
+    assert sc["bearing"] is None and set(bar_checks(sc)) == set(ev["bars"])
+    # `evaluate log` and `evaluate fleet` score it too (the fleet cell without a bearing ratio)
+    res = runner.invoke(app, ["evaluate", "log", str(log), "--model", str(model), "--out", str(tmp_path / "e.json")])
+    assert res.exit_code == 0, res.output
+    res = runner.invoke(app, ["evaluate", "fleet", str(log), "--model", str(model), "--out", str(tmp_path / "f.json")])
+    assert res.exit_code == 0, res.output
+    assert "no bearing" in res.output and (tmp_path / "f.png").stat().st_size > 10_000
