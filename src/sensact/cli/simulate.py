@@ -121,7 +121,9 @@ def simulate_diffdrive_cmd(
     write_text(em_cfg, config_to_yaml(simulator_settings(cfg), header, start))
     console.print(
         f"wrote {out}: {len(run.commands)} steps of {cfg.dt_s:.4g} s, {run.obs_step.size} sightings of "
-        f"{len(cfg.landmarks_xy_mm)} landmarks ({int(run.obs_misread.sum())} misread), commands "
-        f"{', '.join(log.command_names)}, command delay {cfg.delay_s:g} s and lag {cfg.lag_s:g} s (seed {cfg.seed}); "
+        f"{len(cfg.landmarks_xy_mm)} landmarks ({int(run.obs_misread.sum())} misread"
+        + ("" if cfg.reads_bearing else "; ranges alone, no bearings")
+        + "), commands "
+        + f"{', '.join(log.command_names)}, command delay {cfg.delay_s:g} s and lag {cfg.lag_s:g} s (seed {cfg.seed}); "
         f"learn with `sensact learn em {out} --config {em_cfg}`"
     )
