@@ -25,8 +25,8 @@ THESIS_STEPS_PER_S = 20.0  # "processed as they were received, at a frequency of
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--hours", type=float, default=1.0)
-    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--hours", type=float, default=1.0, help="length of the simulated log")
+    ap.add_argument("--repeat", type=int, default=5, help="timed runs; the best is reported")
     ap.add_argument("--json", type=str, default=None, help="also write the numbers here")
     args = ap.parse_args()
 

@@ -27,8 +27,8 @@ THESIS_S = {"laser_angles": 83 * 60, "laser_angles_23deg": 10.7 * 60, "per_itera
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seconds", type=float, default=200.0)
-    ap.add_argument("--json", type=str, default=None)
+    ap.add_argument("--seconds", type=float, default=200.0, help="length of the simulated drive")
+    ap.add_argument("--json", type=str, default=None, help="also write the numbers here")
     args = ap.parse_args()
     cfg = CarConfig(seconds=args.seconds)
     with tempfile.TemporaryDirectory() as tmp:

@@ -58,9 +58,15 @@ def parse_map(text: str) -> tuple[int, int]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser()
-    parser.add_argument("--maps", type=parse_map, nargs="+", default=[(8, 2), (6, 0), (6, 1)])
-    parser.add_argument("--robots", type=int, nargs="+", default=[1, 2, 3, 4, 5])
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--maps",
+        type=parse_map,
+        nargs="+",
+        default=[(8, 2), (6, 0), (6, 1)],
+        help="maps as KEEP:SEED: keep KEEP of the 15 landmarks, drawn with that seed (default 8:2 6:0 6:1)",
+    )
+    parser.add_argument("--robots", type=int, nargs="+", default=[1, 2, 3, 4, 5], help="MRCLAM robots (default all)")
     args = parser.parse_args()
     folder = mrclam_folder()
     if not folder.is_dir():

@@ -40,11 +40,11 @@ def _kinds(signs: list[dict]) -> str:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser()
-    parser.add_argument("--parts", type=int, default=4)
-    parser.add_argument("--robots", type=int, nargs="+", default=[1, 2, 3, 4, 5])
-    parser.add_argument("--range-start-sigma", type=float, default=None)
-    parser.add_argument("--turn-restarts", type=int, default=None)
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--parts", type=int, default=4, help="equal spans to cut each log into")
+    parser.add_argument("--robots", type=int, nargs="+", default=[1, 2, 3, 4, 5], help="MRCLAM robots (default all)")
+    parser.add_argument("--range-start-sigma", type=float, default=None, help="the range start sigma, mm (default 100)")
+    parser.add_argument("--turn-restarts", type=int, default=None, help="restarts of a lost fit (default 2)")
     args = parser.parse_args()
     folder = mrclam_folder()
     if not folder.is_dir():

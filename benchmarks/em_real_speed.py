@@ -22,8 +22,8 @@ from sensact.learn.em import e_step, fit_em, initial_model, m_step
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser()
-    parser.add_argument("--robot", type=int, default=3)
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--robot", type=int, default=3, help="MRCLAM robot 1-5")
     args = parser.parse_args()
     folder = mrclam_folder()
     if not folder.is_dir():

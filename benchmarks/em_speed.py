@@ -37,7 +37,7 @@ THESIS_SIM_ITERATIONS = 959
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--repeat", type=int, default=7)
+    ap.add_argument("--repeat", type=int, default=7, help="timed E-steps and iterations; the median is reported")
     ap.add_argument("--json", type=str, default=None, help="also write the numbers here")
     args = ap.parse_args()
 
