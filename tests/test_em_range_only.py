@@ -56,9 +56,10 @@ def test_a_range_only_model_turned_by_pi_reads_the_same_and_a_camera_model_does_
     np.testing.assert_allclose(post_turned.disp_cov, expect.disp_cov, atol=1e-9)
 
     camera = simulate_diffdrive(DiffDriveConfig(seconds=60, seed=2))
-    cdata, cmodel = true_model(camera, replace(range_only_config(COMMAND_NAMES, (0.0, 0.0, 0.0)), channels=()))
-    fits = [(c.function, c.sigma, ()) for c in cmodel.sensor.channels]
-    cmodel = cmodel.replace(sensor=cmodel.sensor.with_fits(fits, 0.006))
+    cdata, cmodel = true_model(camera, range_only_config(COMMAND_NAMES, (0.0, 0.0, 0.0)))
+    assert cmodel.sensor.sigma_bearing_rad is not None  # the camera's log has bearings: the model reads them
+    fits = [(c.function, c.sigma, c.bearing_terms) for c in cmodel.sensor.channels]
+    cmodel = cmodel.replace(sensor=cmodel.sensor.with_fits(fits, camera.config.bearing_sd_rad))
     assert log_likelihood(turned_model(cmodel), cdata) < log_likelihood(cmodel, cdata) - 1000.0
     assert not drives_backward(turned_model(cmodel), cdata)  # a camera's model is never turned
 

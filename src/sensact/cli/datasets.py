@@ -139,16 +139,15 @@ def convert_csv(
     )
     d = tl.data
     console.print(f"drew {_draw_overview(d, tl.groundtruth, out, out.resolve().name)}")
+    from sensact.config import config_to_yaml
     from sensact.experiments.real import planar_config, range_only_config
+    from sensact.io.atomic import write_text
 
     # MRCLAM's settings learn from a range-and-bearing camera, or without its bearings from a range sensor
     # (radio beacons); other readings need their own channels
     cfg = out / "em_config.yaml"
     kept = cfg.is_file()  # an earlier conversion's, or the user's own, or the start pose set in it: not ours to replace
     if d.reading_names == ("range_mm",) and np.isfinite(d.obs_bearing_rad).any():
-        from sensact.config import config_to_yaml
-        from sensact.io.atomic import write_text
-
         write_text(cfg, config_to_yaml(planar_config(d.command_names), config_header(d.command_names)))
         console.print(
             f"wrote {out} and {cfg} (MRCLAM's settings, a starting point for {_robot_kind(d.command_names)} with a "
@@ -156,9 +155,6 @@ def convert_csv(
         )
         return
     if d.reading_names == ("range_mm",) and not kept:
-        from sensact.config import config_to_yaml
-        from sensact.io.atomic import write_text
-
         settings = range_only_config(d.command_names, (0.0, 0.0, 0.0))
         start = ("start_prior_mean", "start_prior_sd")
         write_text(cfg, config_to_yaml(settings, config_header(d.command_names, range_only=True), start))

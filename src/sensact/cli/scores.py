@@ -135,9 +135,7 @@ def print_truth_score(sc: dict[str, Any]) -> None:
     n = sc.get("truth_noise")
     if n:
         within = n["bearing_within_frame_sd_rad"]
-        if b is None:
-            frame_split = ""
-        elif within is None or within != within:  # NaN, null in JSON: no frame with two sightings
+        if within is None or within != within:  # NaN, null in JSON: no frame with two sightings
             frame_split = "no frame has two sightings, so no part shared by a frame can be split off"
         else:
             frame_split = (
