@@ -184,6 +184,59 @@ def test_action_update_picks_the_delay_and_beta_that_least_squares_on_the_delaye
     assert not X5[:, 2].any()
 
 
+@pytest.mark.parametrize("weights", ["shared", "per_step"])
+def test_combined_inputs_on_wheel_speeds_are_the_v_omega_restriction(weights):
+    """Exact reduction: wheel speeds with the turn rate held to ``(right-left)`` and the forward speed to
+    ``(left+right)`` are (v, omega) with ``v_theta:omega`` and ``v_y:v`` in other units, so the M-step on
+    either log, at every delay, moves the robot alike; the wheels' turn coefficients are exactly
+    opposite whatever the axle (``models/linear_action.py``)."""
+    rng = np.random.default_rng(11)
+    T, dt, axle = 700, 0.05, 235.0
+    wheels = rng.normal(200.0, 80.0, size=(T, 2))
+    vw = np.column_stack([wheels.mean(axis=1), (wheels[:, 1] - wheels[:, 0]) / 250.0])  # a nominal axle
+    velocities = ("v_x_mm_s", "v_y_mm_s", "v_theta_rad_s")
+    true_vel = np.column_stack([np.zeros(T), 0.95 * wheels.mean(axis=1), 0.92 * (wheels[:, 1] - wheels[:, 0]) / axle])
+    disp = delayed(true_vel, 3)[:-1] * dt + rng.normal(scale=[0.2, 0.2, 0.002], size=(T - 1, 3))
+    var = rng.uniform(0.5, 2.0, size=(T - 1, 3)) * [1.0, 1.0, 1e-4]
+    if weights == "shared":
+        var = np.broadcast_to(var[0], var.shape)
+    fits = {}
+    for names, commands, inputs in (
+        (
+            ("left_mm_s", "right_mm_s"),
+            wheels,
+            ("v_y_mm_s:(left_mm_s+right_mm_s)", "v_theta_rad_s:(right_mm_s-left_mm_s)"),
+        ),
+        (("v_mm_s", "omega_rad_s"), vw, ("v_y_mm_s:v_mm_s", "v_theta_rad_s:omega_rad_s")),
+    ):
+        act = LinearActionModel.zero("affine", 1, names, velocities, zero_mean=("v_x_mm_s",), inputs=inputs)
+        data = LandmarkLog(
+            "planar", dt, np.full(T, -1), np.zeros((0, 2)), names, [], [], [], [], np.zeros((1, 2)),
+            reading_names=("r",), step_commands=commands,
+        )  # fmt: skip
+        fits[names[0]] = (act, commands, linear_action_update(act, data, disp, var, 6))
+    (act_w, wheels, got_w), (_, vw, got_vw) = fits["left_mm_s"], fits["v_mm_s"]
+    assert got_w.delay_steps == got_vw.delay_steps == 3
+    np.testing.assert_allclose(got_w.features(wheels) @ got_w.coefficients, got_vw.features(vw) @ got_vw.coefficients,
+                               rtol=1e-9, atol=1e-9)  # fmt: skip
+    beta = got_w.coefficients
+    assert beta[1, 2] == -beta[2, 2] and beta[1, 1] == beta[2, 1] and not beta[:, 0].any()
+    assert abs(beta[2, 2] * axle / 0.92 - 1.0) < 0.02 and abs(beta[1, 1] * 2 / 0.95 - 1.0) < 0.02  # the true model
+    np.testing.assert_array_equal(act_w.free_coefficients, [[False, True, True]] * 3)
+    again = LinearActionModel.from_dict(got_w.to_dict())
+    assert again.inputs == act_w.inputs and set(again.combined_inputs) == {1, 2}
+    for bad, message in (
+        ("v_theta_rad_s:(right_mm_s-lft)", "'lft'"),
+        ("v_theta_rad_s:(right_mm_s*left_mm_s)", "right_mm_s\\*left_mm_s"),
+        ("v_theta_rad_s:(right_mm_s-right_mm_s)", "write a combined input"),
+        ("v_theta_rad_s:right_mm_s-left_mm_s", "bracketed, as \\(right_mm_s-left_mm_s\\)"),
+    ):
+        with pytest.raises(ValueError, match=message):
+            LinearActionModel.zero("affine", 1, ("left_mm_s", "right_mm_s"), velocities, inputs=(bad,))
+    with pytest.raises(ValueError, match="needs the affine action basis"):
+        LinearActionModel.zero("cross", 1, ("left_mm_s", "right_mm_s"), velocities, inputs=(act_w.inputs[1],))
+
+
 def test_action_inputs_fit_each_velocity_on_its_own_commands():
     """Independent reference: with ``inputs`` each component is the weighted least squares on its own
     columns (numpy's lstsq), and the coefficients it may not use are exactly zero."""

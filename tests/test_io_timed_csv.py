@@ -148,7 +148,7 @@ def test_convert_csv_writes_a_log_folder_learn_em_reads_with_mrclams_settings(ti
 def test_wheel_speeds_in_metres_convert_to_what_simulate_diffdrive_logs_with_the_same_settings(timed, tmp_path):
     """A robot driven wheel by wheel, logged in m/s, converts to the wheel-speed log of the same simulated
     drive (`simulate diffdrive --set wheel_axle_mm=...`) and gets the same em_config.yaml: MRCLAM's
-    settings without the forward-from-v restriction, which wheel commands cannot express."""
+    settings with the forward speed from the wheels' sum, as MRCLAM's is from v."""
     _, folder = timed
     axle = 235.0
     c = read_numeric_csv(folder / "commands.csv")
@@ -182,7 +182,7 @@ def test_wheel_speeds_in_metres_convert_to_what_simulate_diffdrive_logs_with_the
     assert a.command_names == b.command_names == ("left_mm_s", "right_mm_s")
     np.testing.assert_allclose(a.step_commands, b.step_commands, rtol=0, atol=1e-9)
     assert (out / "em_config.yaml").read_text() == (sim / "em_config.yaml").read_text()
-    assert "action_inputs" not in (out / "em_config.yaml").read_text().split("motion_sd_mm")[1]
+    assert "action_inputs: ['v_y_mm_s:(left_mm_s+right_mm_s)']" in (out / "em_config.yaml").read_text()
 
 
 def test_a_legged_robots_commands_convert_with_the_sideways_velocity_free(timed, tmp_path):

@@ -182,9 +182,10 @@ def test_wheel_speeds_log_the_same_robot_on_other_commands(tmp_path):
     assert res.exit_code == 0, res.output
     assert "commands left_mm_s, right_mm_s" in " ".join(res.output.split())
     text = (log_dir / "em_config.yaml").read_text()
-    assert "wheels' mean" in text and "action_inputs" not in load_yaml_mapping(log_dir / "em_config.yaml")
+    assert "wheels' mean" in text
     cfg = config_from_dict(EMConfig, load_yaml_mapping(log_dir / "em_config.yaml"))
-    assert cfg.action_inputs == () and cfg.action_zero_mean == ("v_x_mm_s",) and cfg.action_basis == "affine"
+    assert cfg.action_inputs == ("v_y_mm_s:(left_mm_s+right_mm_s)",)  # the forward speed from the wheels' sum
+    assert cfg.action_zero_mean == ("v_x_mm_s",) and cfg.action_basis == "affine"
     model = initial_model(d, cfg)
     model = replace(model, action=replace(model.action, coefficients=on_wheels, delay_steps=truth["delay_steps"]))
     s = score_against_simulated(model, truth, run.config.dt_s)
@@ -524,17 +525,44 @@ def test_a_side_stepping_robot_from_simulate_to_learn_em_and_reproduce(tmp_path)
     assert "Simulated side-stepping robots" in md
 
 
+@pytest.mark.parametrize("sensor", ["camera", "radio"])
+def test_wheel_speeds_learn_what_v_and_omega_learn(sensor):
+    """Exact reduction: the settings for wheel speeds hold the forward speed to the wheels' sum (and, for
+    a sensor without bearings, the turn rate to their difference): the family of (v, omega)'s settings,
+    forward from v (and turn from omega), in other commands. So EM on one drive logged either way has the
+    same likelihood at every iteration and moves the robot alike."""
+    from sensact.learn.em.actions import step_velocity
+
+    base = DiffDriveConfig(seconds=60, seed=4, sensor=sensor)
+    fits = []
+    for axle in (0.0, 235.0):
+        sim = replace(base, wheel_axle_mm=axle)
+        log = simulate_diffdrive(sim).log()
+        res = fit_em(log, None, replace(diffdrive.simulator_settings(sim), max_iterations=6, start_candidates=2))
+        fits.append((log, res))
+    (log_vw, vw), (log_w, w) = fits
+    assert log_w.command_names == ("left_mm_s", "right_mm_s")
+    np.testing.assert_allclose(w.loglik_history, vw.loglik_history, rtol=1e-9)
+    np.testing.assert_allclose(
+        step_velocity(w.model.action, log_w), step_velocity(vw.model.action, log_vw), rtol=1e-6, atol=1e-9
+    )
+    beta = w.model.action.coefficients  # rows 1, left, right
+    assert beta[1, 1] == beta[2, 1] and (sensor == "camera") != (beta[1, 2] == -beta[2, 2])
+
+
 def test_reproduce_diffdrive_on_wheel_speeds_learns_with_the_wheel_settings(tmp_path):
     """`reproduce diffdrive --set wheel_axle_mm=...` learns with what `simulate diffdrive` writes for wheel
-    speeds (MRCLAM's settings without the forward-from-v restriction, which names a command a wheel log
-    lacks; before, it stopped there)."""
+    speeds (MRCLAM's settings with the forward speed from the wheels' sum instead of from v, a command a
+    wheel log lacks; before, it stopped there)."""
     fast = ["--set", "seconds=60", "--set", "max_iterations=5", "--set", "start_candidates=2"]
     res = runner.invoke(
         app, ["reproduce", "diffdrive", "--trials", "1", "--out", str(tmp_path), "--set", "wheel_axle_mm=235", *fast]
     )
     assert res.exit_code == 0, res.output
     learner = json.loads((tmp_path / "diffdrive.json").read_text())["config"]["learner"]
-    assert learner["action_inputs"] == [] and learner["action_zero_mean"] == ["v_x_mm_s"]
+    assert learner["action_inputs"] == ["v_y_mm_s:(left_mm_s+right_mm_s)"] and learner["action_zero_mean"] == [
+        "v_x_mm_s"
+    ]
 
 
 def _true_model_file(log, path):

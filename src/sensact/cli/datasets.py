@@ -16,8 +16,8 @@ MRCLAM_CONFIG_HEADER = """The EM settings behind docs/em-real-results.md's MRCLA
 Edit them for your robot (docs/em-real.md, section 2) and pass this file with --config;
 --set overrides single fields."""
 WHEELS_CONFIG_NOTE = """
-On wheel speeds (left_mm_s, right_mm_s) the forward speed is the wheels' mean, so MRCLAM's
-action_inputs (forward speed from v_mm_s alone) is left out."""
+On wheel speeds (left_mm_s, right_mm_s) the forward speed is the wheels' mean, so it depends on their
+sum alone, (left_mm_s+right_mm_s), as MRCLAM's depends on v_mm_s alone."""
 FREE_MOTION_NOTE = """
 These commands are not a differential drive's (v_mm_s, omega_rad_s, or left_mm_s, right_mm_s):
   {names}
@@ -30,7 +30,9 @@ RANGE_ONLY_NOTE = """
 The sensor reads ranges alone (no bearing column), so the range channel has no bearing terms and no
 bearing settings are set. Nor can EM search for the start pose, which it scores by the bearings:
 start_prior_mean is where the robot starts (x mm, y mm, heading rad; heading 0 faces the map's +y,
-counterclockwise), within start_prior_sd (docs/em-real.md, section 2, "A sensor without bearings")."""
+counterclockwise), within start_prior_sd. The turn rate depends on the turn command alone (omega_rad_s,
+or on wheel speeds their difference), which ranges cannot show (docs/em-real.md, section 2, "A sensor
+without bearings")."""
 
 
 def config_header(command_names: tuple[str, ...], range_only: bool = False) -> str:

@@ -398,6 +398,7 @@ def score_against_truth(
 
     # From-Truth: the same family, its command delay included, fitted to the truth windows
     ft = None
+    free, combined = act.free_coefficients, act.combined_inputs
     for delay in range(max_delay_steps + 1):
         Phi = window_features(delay)
         sums = Phi.sum(axis=1)
@@ -407,7 +408,8 @@ def score_against_truth(
             np.ones_like(D_true),
             data.dt_s,
             np.zeros_like(act.coefficients),
-            act.free_coefficients,
+            free,
+            combined,
         )
         sse = float(np.sum((sums @ beta * data.dt_s - D_true) ** 2 / D_true.var(axis=0)))
         if ft is None or sse < ft[0]:

@@ -36,6 +36,7 @@ from sensact.learn.em import EMConfig, EMResult, fit_em
 from sensact.learn.em.config import ChannelConfig
 from sensact.models.em_model import EMModel
 from sensact.models.polynomial import Polynomial1D
+from sensact.sim.diffdrive import WHEEL_COMMAND_NAMES
 
 ROBOTS = (1, 2, 3, 4, 5)
 BARS = {"action_ratio_max": 1.5, "action_translation_max_mm_s": 50.0, "sigma_factor": 1.5}
@@ -67,13 +68,14 @@ def mrclam_config() -> EMConfig:
 def diffdrive_config(command_names: tuple[str, ...]) -> EMConfig | None:
     """MRCLAM's settings for a differential drive, logged either as (v, omega), as MRCLAM is, or as its
     wheel speeds (left, right); None for other commands. On wheel speeds the forward speed is the wheels'
-    mean, so it uses both commands: ``action_inputs`` (forward from ``v_mm_s`` alone) is dropped, and the
-    affine basis holds the same family (a linear change of commands)."""
+    mean, so it depends on their sum alone (``(left_mm_s+right_mm_s)``, as on ``v_mm_s`` alone): the
+    same family as on (v, omega), a linear change of commands, so the units a robot logs its commands
+    in do not change what it learns."""
     names = tuple(command_names)
     if names == ("v_mm_s", "omega_rad_s"):
         return mrclam_config()
-    if names == ("left_mm_s", "right_mm_s"):
-        return replace(mrclam_config(), action_inputs=())
+    if names == WHEEL_COMMAND_NAMES:
+        return replace(mrclam_config(), action_inputs=("v_y_mm_s:(left_mm_s+right_mm_s)",))
     return None
 
 
@@ -92,10 +94,14 @@ def range_only_config(command_names: tuple[str, ...], start_pose: tuple[float, f
     the robot was put, which the user knows and a range-only log cannot tell. With an ``omega_rad_s``
     command the turn rate depends on it alone: ranges show the heading only through the direction of
     travel, and a turn rate free in the forward command let EM settle on a robot that turns whenever
-    it stops (docs/em-real.md, section 2, "A sensor without bearings")."""
+    it stops (docs/em-real.md, section 2, "A sensor without bearings"). On wheel speeds the same holds
+    the turn rate to the wheels' difference and the forward speed to their sum, whatever the axle."""
     base = planar_config(command_names)
     channels = tuple(replace(c, bearing_degree=0) for c in base.channels)
-    turn = ("v_theta_rad_s:omega_rad_s",) if "omega_rad_s" in command_names else ()
+    if "omega_rad_s" in command_names:
+        turn: tuple[str, ...] = ("v_theta_rad_s:omega_rad_s",)
+    else:
+        turn = ("v_theta_rad_s:(right_mm_s-left_mm_s)",) if tuple(command_names) == WHEEL_COMMAND_NAMES else ()
     return replace(
         base,
         action_inputs=base.action_inputs + turn,

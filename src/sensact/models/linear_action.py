@@ -20,7 +20,10 @@ speed is the wheels' mean and its turn rate their difference, so a turn command 
 forward only through a wheel mismatch, a few mm/s per rad/s for a 0.25-m axle. Left free, that column
 lets EM track a point off the axle: the point is carried forward or back as the robot turns (MRCLAM
 robot 4 learned 117 mm/s per rad/s; its Vicon-derived value is 0.9). Components not named use every
-command.
+command. A bracketed sum or difference of commands is one input, for the affine basis: on wheel speeds
+``"v_theta_rad_s:(right_mm_s-left_mm_s)"`` lets the turn rate depend on the wheels' difference alone, as
+``"v_theta_rad_s:omega_rad_s"`` does on (v, omega), whatever the axle's length (the fitted coefficients
+of the two wheels are equal and opposite).
 
 The discrete action table is the same model with a one-hot basis (``one_hot``), which is how the
 M-step's weighted least squares reduces to eq. 4.18.
@@ -28,6 +31,7 @@ M-step's weighted least squares reduces to eq. 4.18.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, replace
 from itertools import combinations_with_replacement
 from typing import Any
@@ -74,24 +78,53 @@ def delayed(step_commands: np.ndarray, delay_steps: int) -> np.ndarray:
     return np.concatenate([np.repeat(c[:1], delay_steps, axis=0), c[:-delay_steps]])[: len(c)]
 
 
+def _terms(text: str) -> list[str]:
+    """``text`` split at each ``+`` outside brackets."""
+    terms, depth, start = [], 0, 0
+    for k, ch in enumerate(text):
+        depth += (ch == "(") - (ch == ")")
+        if ch == "+" and depth == 0:
+            terms.append(text[start:k])
+            start = k + 1
+    return [t.strip() for t in [*terms, text[start:]] if t.strip()]
+
+
+def _term_weights(entry: str, term: str, command_names: tuple[str, ...]) -> np.ndarray:
+    """One input as weights over the commands: a command's name, or ``(a-b+c)`` with unit weights."""
+    inner = term[1:-1] if term.startswith("(") and term.endswith(")") else None
+    signed = [("+", term)] if inner is None else re.findall(r"([+-]?)\s*([^+\-\s()]+)", inner)
+    weights = np.zeros(len(command_names))
+    for sign, name in signed:
+        if name not in command_names:
+            hint = f"; a combined input is bracketed, as ({name})" if inner is None and "-" in name else ""
+            raise ValueError(f"inputs entry {entry!r} names {name!r}, not one of {list(command_names)}{hint}")
+        weights[command_names.index(name)] += -1.0 if sign == "-" else 1.0
+    if inner is not None and (
+        not weights.any() or "".join(s + n for s, n in signed).lstrip("+") != inner.replace(" ", "")
+    ):
+        raise ValueError(f"inputs entry {entry!r}: write a combined input as (command-command) or (command+command)")
+    return weights
+
+
 def parse_inputs(
     inputs: tuple[str, ...], command_names: tuple[str, ...], velocity_names: tuple[str, ...]
-) -> dict[str, set[int]]:
-    """``{velocity: indices of the commands it may use}`` from ``("velocity:command+command", ...)``."""
-    out: dict[str, set[int]] = {}
+) -> dict[str, list[np.ndarray]]:
+    """``{velocity: each input it may use, as weights over the commands}`` from
+    ``("velocity:input+input", ...)``, an input being a command or a bracketed sum or difference."""
+    out: dict[str, list[np.ndarray]] = {}
     for entry in inputs:
-        velocity, sep, commands = str(entry).partition(":")
-        names = [c.strip() for c in commands.split("+") if c.strip()]
+        velocity, sep, rest = str(entry).partition(":")
         if not sep or velocity.strip() not in velocity_names or velocity.strip() in out:
             raise ValueError(
                 f"inputs entry {entry!r} must be 'velocity:command+command' with one of {list(velocity_names)}, "
                 "each velocity named once"
             )
-        bad = [c for c in names if c not in command_names]
-        if bad:
-            raise ValueError(f"inputs entry {entry!r} names {bad[0]!r}, not one of {list(command_names)}")
-        out[velocity.strip()] = {command_names.index(c) for c in names}
+        out[velocity.strip()] = [_term_weights(entry, t, command_names) for t in _terms(rest)]
     return out
+
+
+def _is_command(weights: np.ndarray) -> bool:
+    return int(np.count_nonzero(weights)) == 1 and float(weights.sum()) == 1.0
 
 
 def feature_names(basis: str, degree: int, command_names: tuple[str, ...]) -> list[str]:
@@ -115,7 +148,10 @@ class LinearActionModel:
         unknown = [v for v in self.zero_mean if v not in self.velocity_names]
         if unknown:
             raise ValueError(f"zero_mean names {unknown[0]!r}, not one of {list(self.velocity_names)}")
-        parse_inputs(self.inputs, tuple(self.command_names), tuple(self.velocity_names))
+        allowed = parse_inputs(self.inputs, tuple(self.command_names), tuple(self.velocity_names))
+        combined = any(not _is_command(w) for terms in allowed.values() for w in terms)
+        if combined and self.basis != "affine":
+            raise ValueError(f"a combined input such as (a-b) needs the affine action basis, not {self.basis!r}")
         if self.delay_steps < 0:
             raise ValueError("delay_steps must be >= 0")
         beta = np.atleast_2d(np.asarray(self.coefficients, dtype=float))
@@ -142,12 +178,34 @@ class LinearActionModel:
         allowed = parse_inputs(self.inputs, self.command_names, self.velocity_names)
         monomials = _monomials(self.basis, len(self.command_names), self.degree)
         free = np.ones((len(monomials), len(self.velocity_names)), dtype=bool)
+        combined = self.combined_inputs
         for i, v in enumerate(self.velocity_names):
             if v in self.zero_mean:
                 free[:, i] = False
+            elif i in combined:
+                free[:, i] = combined[i].any(axis=1)
             elif v in allowed:
-                free[:, i] = [all(c in allowed[v] for c in m) for m in monomials]
+                used = {int(np.flatnonzero(w)[0]) for w in allowed[v]}
+                free[:, i] = [all(c in used for c in m) for m in monomials]
         return free
+
+    @property
+    def combined_inputs(self) -> dict[int, np.ndarray]:
+        """``{component: P}`` for each velocity restricted to a combined input such as ``(a-b)``: its
+        coefficients are ``P theta``, the affine basis's constant and one column per input (the M-step
+        fits ``theta``); other components are described by ``free_coefficients`` alone."""
+        allowed = parse_inputs(self.inputs, self.command_names, self.velocity_names)
+        out: dict[int, np.ndarray] = {}
+        for i, v in enumerate(self.velocity_names):
+            terms = allowed.get(v, [])
+            if v in self.zero_mean or all(_is_command(w) for w in terms):
+                continue
+            P = np.zeros((1 + len(self.command_names), 1 + len(terms)))
+            P[0, 0] = 1.0  # the constant always stays
+            for k, w in enumerate(terms):
+                P[1:, 1 + k] = w
+            out[i] = P
+        return out
 
     def features(self, commands: np.ndarray) -> np.ndarray:
         return command_features(self.basis, self.degree, commands)

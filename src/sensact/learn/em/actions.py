@@ -78,15 +78,18 @@ def linear_coefficients(
     dt: float,
     previous: np.ndarray,
     free: np.ndarray | None = None,
+    combined: dict[int, np.ndarray] | None = None,
 ) -> np.ndarray:
     """beta minimizing ``sum_t (Dbar_t,i - Phi_t beta_i dt)^2 / var_t,i`` for each component i.
 
     ``features`` is ``(T-1, F)``, ``disp_mean`` and ``var`` ``(T-1, n)``. Features that never vary keep
     their previous coefficients: they are zero at every step, so the log says nothing about them.
     Coefficients not ``free`` (``(F, n)`` bool, as ``LinearActionModel.free_coefficients``) are held at
-    zero; each component is fitted on its free columns only (the components are independent).
+    zero; each component is fitted on its free columns only (the components are independent). A
+    component in ``combined`` (``LinearActionModel.combined_inputs``) is ``beta_i = P theta``, fitted on
+    the columns ``Phi P`` (an input zero on every row gets 0, not its previous coefficient).
     """
-    return _fits_by_delay(features, disp_mean, var, dt, previous, free, [0])[0][1]
+    return _fits_by_delay(features, disp_mean, var, dt, previous, free, [0], combined)[0][1]
 
 
 def linear_action_update(
@@ -97,7 +100,8 @@ def linear_action_update(
     same expected log-likelihood, maximized over a discrete parameter too)."""
     delays = list(range(max_delay + 1)) if max_delay > 0 else [action.delay_steps]
     Phi0 = action.step_features(data.step_commands, 0)
-    fits = _fits_by_delay(Phi0, disp_mean, var, data.dt_s, action.coefficients, action.free_coefficients, delays)
+    free, combined = action.free_coefficients, action.combined_inputs
+    fits = _fits_by_delay(Phi0, disp_mean, var, data.dt_s, action.coefficients, free, delays, combined)
     best = min(range(len(fits)), key=lambda k: fits[k][0])  # the first of equals, as a strict < keeps
     return action.with_coefficients(fits[best][1], delays[best])
 
@@ -110,6 +114,7 @@ def _fits_by_delay(
     previous: np.ndarray,
     free: np.ndarray | None,
     delays: list[int],
+    combined: dict[int, np.ndarray] | None = None,
 ) -> list[tuple[float, np.ndarray]]:
     """``(weighted squared error, beta)`` of ``linear_coefficients`` on ``delayed(Phi0, d)[:T-1]`` for
     each delay ``d``, from sums over the rows formed once per delay instead of a least-squares solve on
@@ -154,8 +159,11 @@ def _fits_by_delay(
     betas[:, ~free] = 0.0
     # one batched solve per distinct set of columns (usually one: every delay, every component)
     systems: dict[bytes, list[tuple[int, int]]] = {}
+    combined = combined or {}
     for j in range(len(delays)):
         for i in range(n):
+            if i in combined:
+                continue
             cols = used[j] & free[:, i]
             if cols.any():
                 systems.setdefault(cols.tobytes(), []).append((j, i))
@@ -168,6 +176,12 @@ def _fits_by_delay(
             coef[k] = weighted_lstsq(delayed(Phi0, delays[js[k]])[:n_rows, cols] * dt, disp_mean[:, cs[k]], w[:, cs[k]])
         idx = np.flatnonzero(cols)
         betas[js[:, None], idx[None, :], cs[:, None]] = coef
+    for i, P in combined.items():  # beta_i = P theta: the sums projected onto P's columns
+        G = np.einsum("fa,dfg,gb->dab", P, gram[:, i], P) * (dt * dt)
+        coef, ok = solve_scaled_grams(G, np.einsum("fa,df->da", P, rhs[:, i]) * dt)
+        for k in np.flatnonzero(~ok):
+            coef[k] = weighted_lstsq(delayed(Phi0, delays[k])[:n_rows] @ P * dt, disp_mean[:, i], w[:, i])
+        betas[:, :, i] = coef @ P.T
     sse = (
         wyy
         - 2.0 * dt * np.einsum("dfi,dif->d", betas, rhs)

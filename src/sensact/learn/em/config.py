@@ -78,7 +78,8 @@ class EMConfig:
     # velocity components whose mean is held at 0, e.g. ("v_x_mm_s",): a differential drive cannot side-step
     action_zero_mean: tuple[str, ...] = ()
     # "velocity:command+command" entries: that velocity depends on those commands only, e.g.
-    # ("v_y_mm_s:v_mm_s", "v_theta_rad_s:omega_rad_s") for a differential drive (models/linear_action.py)
+    # ("v_y_mm_s:v_mm_s", "v_theta_rad_s:omega_rad_s") for a differential drive; a bracketed sum or
+    # difference is one input, "v_theta_rad_s:(right_mm_s-left_mm_s)" on wheel speeds (models/linear_action.py)
     action_inputs: tuple[str, ...] = ()
     # Sigma_m: "fixed" (the thesis), or learned "shared" or "per_action", or "turning" (shared, with a
     # heading variance a + b |turn rate|: EMModel.turn_var), never below the floor
