@@ -76,6 +76,7 @@ def test_em_learns_a_range_only_robot_facing_the_way_it_drives(heading):
     assert m.sensor.sigma_bearing_rad is None
     assert res.turned_to_face_forward == (heading == 3.0)
     assert ("turned_to_face_forward" in res.summary()) == (heading == 3.0)
+    assert res.start_moved is None and "start_moved" not in res.summary()  # the start was where it was given
     truth = run.config
     assert m.action.coefficients[1, 1] == pytest.approx(truth.forward_gain, rel=0.02)
     assert m.action.coefficients[2, 2] == pytest.approx(truth.turn_gain, rel=0.02)
@@ -85,6 +86,26 @@ def test_em_learns_a_range_only_robot_facing_the_way_it_drives(heading):
     assert offset["median_mm"] < 30.0
     # the reported headings are the robot's own
     assert np.median(np.abs(wrap_angle(res.posteriors.mean_gamma[:, 2] - poses[:, 2]))) < 0.05
+
+
+def test_a_range_only_start_metres_off_runs_again_from_where_em_moved_it():
+    """Seeded recovery (given_start.py): from a start 3.2 m off, EM finds the path with a wrong turn
+    model (the heading noise carries the turns; the turn gain -1.12) and moves the start to within
+    150 mm of the true one; EM again from there finds the model, which is kept as the more likely."""
+    run = simulate_diffdrive(DiffDriveConfig(seconds=300, seed=1, sensor="radio"))
+    cfg = replace(range_only_config(COMMAND_NAMES, (-1000.0, 3000.0, 0.0)), max_iterations=300)
+    heard = []
+    res = fit_em(run.log(), config=cfg, on_start_moved=lambda mm, mean: heard.append((mm, mean)))
+    moved = res.start_moved
+    assert len(heard) == 1 and heard[0][0] == moved["moved_mm"] and moved["moved_mm"] > 3 * 300.0
+    assert np.hypot(*moved["learned"][:2]) < 300.0 and moved["given"] == [-1000.0, 3000.0, 0.0]
+    assert moved["kept"] == "again" and moved["loglik"][1] > moved["loglik"][0] + 100.0
+    assert res.summary()["start_moved"] == moved
+    m, truth = res.model, run.config
+    assert m.action.coefficients[2, 2] == pytest.approx(truth.turn_gain, rel=0.02)
+    assert m.action.coefficients[1, 1] == pytest.approx(truth.forward_gain, rel=0.02)
+    offset = path_offset(res.posteriors.mean_gamma, run.poses, np.ones(len(run.poses)))
+    assert offset["median_mm"] < 30.0
 
 
 def test_simulate_a_radio_robot_then_learn_and_score_it_without_a_bearing(tmp_path):

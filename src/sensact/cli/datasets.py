@@ -30,9 +30,9 @@ RANGE_ONLY_NOTE = """
 The sensor reads ranges alone (no bearing column), so the range channel has no bearing terms and no
 bearing settings are set. Nor can EM search for the start pose, which it scores by the bearings:
 start_prior_mean is where the robot starts (x mm, y mm, heading rad; heading 0 faces the map's +y,
-counterclockwise), within start_prior_sd. The turn rate depends on the turn command alone (omega_rad_s,
-or on wheel speeds their difference), which ranges cannot show (docs/em-real.md, section 2, "A sensor
-without bearings")."""
+counterclockwise), within start_prior_sd; when EM moves it metres, it runs again from there. The
+turn rate depends on the turn command alone (omega_rad_s, or on wheel speeds their difference), which
+ranges cannot show (docs/em-real.md, section 2, "A sensor without bearings")."""
 
 
 def config_header(command_names: tuple[str, ...], range_only: bool = False) -> str:

@@ -229,6 +229,14 @@ def learn_em_cmd(
                 + ", ".join(f"{name}'s start sigma {s:.4g}" for name, s in sigmas.items())
                 + f" (restart {k} of at most {cfg.turn_restarts}; turn_restarts in --config)"
             ),
+            on_start_moved=lambda mm, mean: console.print(
+                f"EM moved the start {mm / 1000:.1f} m from start_prior_mean, to x {mean[0]:.0f} mm, "
+                f"y {mean[1]:.0f} mm, heading {mean[2]:.3f} rad: a start that far off can find the path with a "
+                'wrong turn model, so EM runs again from there (docs/em-real.md, section 2, "A sensor without '
+                'bearings")',
+                style="yellow",
+                markup=False,
+            ),
         )
     m = res.model
     console.print(
@@ -242,6 +250,12 @@ def learn_em_cmd(
             else ""
         )
     )
+    if res.start_moved:
+        first, again = res.start_moved["loglik"]
+        console.print(
+            f"runs from the given start and from where EM moved it: log-likelihood {first:.1f} and {again:.1f}; "
+            f"kept the {'second' if res.start_moved['kept'] == 'again' else 'first'}"
+        )
     if res.turned_to_face_forward:
         console.print(
             "the sensor reads no bearing, so a robot driving backward while facing the other way reads the same: "

@@ -91,7 +91,8 @@ def range_only_config(command_names: tuple[str, ...], start_pose: tuple[float, f
     """``planar_config`` for a sensor that reads ranges alone (UWB anchors, sonar beacons): the range
     channel without bearing terms and no bearing settings. The start search scores start poses by the
     bearings, so EM starts from ``start_pose`` (x mm, y mm, heading rad, theta = 0 facing +y): where
-    the robot was put, which the user knows and a range-only log cannot tell. With an ``omega_rad_s``
+    the robot was put, which the user knows and a range-only log cannot tell (``fit_em`` runs again from
+    the start EM learned when that moved metres: ``learn/em/given_start.py``). With an ``omega_rad_s``
     command the turn rate depends on it alone: ranges show the heading only through the direction of
     travel, and a turn rate free in the forward command let EM settle on a robot that turns whenever
     it stops (docs/em-real.md, section 2, "A sensor without bearings"). On wheel speeds the same holds

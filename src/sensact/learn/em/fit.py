@@ -5,7 +5,8 @@ the thesis) pass without a new best ``log P(O | C, lambda)``, or at ``max_iterat
 pruned in the first iteration (and, with ``prune_when_freed``, once more when the robust readings take
 over), and stay pruned. Ctrl-C ends the loop cleanly with the best model
 so far (``stop_reason == "interrupted"``). Beyond the thesis, ``turn_restarts`` runs the loop again from
-a tighter start when a range function turned over or bent (``restart_while_lost``).
+a tighter start when a range function turned over or bent (``restart_while_lost``), and on a range-only
+log from the start EM learned when the given one moved metres (``given_start.py``).
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from sensact.learn.em.config import EMConfig, refuse_bearing_settings
 from sensact.learn.em.delay_search import search_delay
 from sensact.learn.em.estep import Posteriors, e_step, log_likelihood
 from sensact.learn.em.forward import FLIP, drives_backward, turned_model, turned_posteriors
+from sensact.learn.em.given_start import start_moved_mm
 from sensact.learn.em.mstep import m_step
 from sensact.learn.em.outliers import bearing_outliers
 from sensact.learn.em.ridge import search_ridge
@@ -40,6 +42,8 @@ from sensact.models.polynomial import Polynomial1D
 Progress = Callable[[int, float, float, int], None]
 # (restart number from 1, the last fit's turned or bent channels (checks.lost_fit_signs), their new start sigmas)
 OnRestart = Callable[[int, list[dict[str, Any]], dict[str, float]], None]
+# (how far the given start moved, mm; the learned start EM runs again from) -> None
+OnStartMoved = Callable[[float, np.ndarray], None]
 
 PLANAR_VELOCITY_NAMES = ("v_x_mm_s", "v_y_mm_s", "v_theta_rad_s")
 TRACK_VELOCITY_NAMES = ("v_mm_s",)
@@ -216,6 +220,8 @@ class EMResult:
     n_pruned_when_freed: int = 0  # of n_pruned, those the gate dropped again when the robust readings took over
     # a range-only fit that ended facing backward, reported turned by pi (forward.py; the same likelihood)
     turned_to_face_forward: bool = False
+    # a range-only fit whose given start moved metres: the start, where EM put it, both runs' likelihoods
+    start_moved: dict[str, Any] | None = None
 
     @property
     def iterations(self) -> int:
@@ -242,6 +248,7 @@ class EMResult:
             "delay_search": self.delay_search,
             "restarts": self.restarts,
             **({"turned_to_face_forward": True} if self.turned_to_face_forward else {}),
+            **({"start_moved": self.start_moved} if self.start_moved else {}),
             "config": asdict(self.config),
         }
 
@@ -254,20 +261,64 @@ def fit_em(
     progress: Progress | None = None,
     on_restart: OnRestart | None = None,
     on_race: OnTrial | None = None,
+    on_start_moved: OnStartMoved | None = None,
 ) -> EMResult:
     """Learn the action table, the sensor model and the prior from ``data`` by EM (Algorithm of ch. 4);
     with ``turn_restarts``, EM again from a tighter start while a channel's f turns over or bends (``on_restart``
     hears of each restart before it runs). ``on_race`` hears of the start race's trials
     (``start.race_starts``), before ``progress`` hears of the first iteration. A fit whose sensor reads no
-    bearing is reported facing the way the robot drives (``facing_forward``)."""
+    bearing runs again from its learned start when that moved metres from the given one
+    (``given_start.py``; ``on_start_moved`` hears of it first), and is reported facing the way the robot
+    drives (``facing_forward``)."""
     cfg = config or EMConfig()
+    res = facing_forward(_fit_while_lost(data, initial, cfg, progress, on_restart, on_race), data)
+    start = initial or initial_model(data, cfg)
+    moved = None if res.stop_reason == "interrupted" else start_moved_mm(start, res.model, data, cfg)
+    if moved is not None:  # a range-only start metres off: again from where EM put it (given_start.py)
+        if on_start_moved is not None:
+            on_start_moved(moved, res.model.prior_mean.copy())
+        again = _fit_while_lost(
+            data, start.replace(prior_mean=res.model.prior_mean.copy()), cfg, progress, on_restart, on_race
+        )
+        best, scores = most_likely([res, again], data)
+        info = {
+            "given": start.prior_mean.tolist(),
+            "learned": res.model.prior_mean.tolist(),
+            "moved_mm": moved,
+            "loglik": [float(s) for s in scores],
+            "kept": ["first", "again"][best],
+        }
+        res = dc_replace([res, again][best], start_moved=info, seconds=res.seconds + again.seconds)
+    return facing_forward(res, data)
+
+
+def _fit_while_lost(
+    data: LandmarkLog,
+    initial: EMModel | None,
+    cfg: EMConfig,
+    progress: Progress | None,
+    on_restart: OnRestart | None,
+    on_race: OnTrial | None,
+) -> EMResult:
+    """``fit_em_once``, and with ``turn_restarts`` on a planar log ``restart_while_lost``."""
     res = fit_em_once(data, initial, cfg, progress=progress, on_race=on_race)
     if cfg.turn_restarts == 0 or data.geometry != "planar":
-        return facing_forward(res, data)
-    lost = restart_while_lost(
+        return res
+    return restart_while_lost(
         data, initial or initial_model(data, cfg), cfg, res, progress, on_restart, on_race=on_race
     )
-    return facing_forward(lost, data)
+
+
+def most_likely(runs: list[EMResult], data: LandmarkLog) -> tuple[int, list[float]]:
+    """Which of ``runs`` is the most likely, and each one's log-likelihood with the configured readings
+    model on the sightings that every run kept after its first-iteration prune (runs without
+    posteriors score -inf)."""
+    scored = [r for r in runs if r.posteriors is not None]
+    if not scored:
+        return 0, [-np.inf] * len(runs)
+    common = np.logical_and.reduce([r.posteriors.obs_used for r in scored])
+    scores = [_stage_loglik(r.model, data, common, robust=True) if r.posteriors is not None else -np.inf for r in runs]
+    return int(np.argmax(scores)), scores
 
 
 def facing_forward(res: EMResult, data: LandmarkLog) -> EMResult:
@@ -322,10 +373,7 @@ def restart_while_lost(
         runs.append(fit_em_once(data, start, cfg, progress=progress, on_race=on_race))
     if len(runs) == 1:
         return first
-    scored = [r for r in runs if r.posteriors is not None]
-    common = np.logical_and.reduce([r.posteriors.obs_used for r in scored])
-    scores = [_stage_loglik(r.model, data, common, robust=True) if r.posteriors is not None else -np.inf for r in runs]
-    best = int(np.argmax(scores))
+    best, scores = most_likely(runs, data)
     info = [
         {
             "start_sigma": sigmas[i],
