@@ -88,6 +88,25 @@ def test_em_learns_a_range_only_robot_facing_the_way_it_drives(heading):
     assert np.median(np.abs(wrap_angle(res.posteriors.mean_gamma[:, 2] - poses[:, 2]))) < 0.05
 
 
+def test_only_a_range_only_start_given_and_moved_past_three_sds_counts_as_moved():
+    """Exact reduction (given_start.py): the distance is returned only past three of the prior's position
+    sd, on a planar log read without bearings whose start was given; a camera's or a searched start never."""
+    from sensact.learn.em.given_start import start_moved_mm
+
+    radio = simulate_diffdrive(DiffDriveConfig(seconds=20, seed=2, sensor="radio")).log()
+    camera = simulate_diffdrive(DiffDriveConfig(seconds=20, seed=2)).log()
+    cfg = range_only_config(COMMAND_NAMES, (100.0, -200.0, 0.5))  # start_prior_sd 300 mm
+    start = initial_model(radio, cfg)
+    at = start.replace(prior_mean=start.prior_mean + np.array([540.0, 720.0, 2.0]))  # 900 mm: not past
+    past = start.replace(prior_mean=start.prior_mean + np.array([540.0, 721.0, 0.0]))
+    assert start_moved_mm(start, at, radio, cfg) is None
+    assert start_moved_mm(start, past, radio, cfg) == pytest.approx(np.hypot(540.0, 721.0))
+    assert start_moved_mm(start, past, radio, replace(cfg, start_search_s=30.0)) is None
+    cam_start = initial_model(camera, cfg)
+    assert cam_start.sensor.sigma_bearing_rad is not None
+    assert start_moved_mm(cam_start, cam_start.replace(prior_mean=past.prior_mean), camera, cfg) is None
+
+
 def test_a_range_only_start_metres_off_runs_again_from_where_em_moved_it():
     """Seeded recovery (given_start.py): from a start 3.2 m off, EM finds the path with a wrong turn
     model (the heading noise carries the turns; the turn gain -1.12) and moves the start to within
