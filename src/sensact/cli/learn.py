@@ -149,6 +149,7 @@ def learn_em_cmd(
         lost_fit_signs,
     )
     from sensact.learn.em.config import refuse_bearing_settings
+    from sensact.models.wheel_drive import as_differential_drive
     from sensact.report.tables import kept_run_cell, restart_runs_cell
 
     lf, turtlebot_truth = None, None
@@ -319,6 +320,7 @@ def learn_em_cmd(
                 "range_function_turns": [t for t in signs if t["sign"] == "turns"],
                 "range_function_bends": [t for t in signs if t["sign"] == "bends"],
                 "held_sideways_noise": held,  # ... and that a robot that side-steps is held to no sideways mean
+                "differential_drive": as_differential_drive(m.action),  # on wheel speeds: gain, axle, wheel ratio
             },
         )
         write_npz(

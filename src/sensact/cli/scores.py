@@ -11,6 +11,7 @@ from sensact.cli.base import console, titled_table
 
 def print_em_model(m: Any) -> None:
     from sensact.models.action_table import ActionTable
+    from sensact.models.wheel_drive import as_differential_drive
 
     for ch in m.sensor.channels:
         console.print(f"  {ch.name}: " + ch.function.describe("f") + f", sigma = {ch.sigma:.4g}")
@@ -37,6 +38,26 @@ def print_em_model(m: Any) -> None:
         for fname, row in zip(feature_names(a.basis, a.degree, a.command_names), a.coefficients, strict=True):
             t.add_row(fname, *(f"{x:.4g}" for x in row))
     console.print(t)
+    drive = as_differential_drive(a)
+    if drive is not None:
+        console.print(describe_differential_drive(drive), markup=False)
+
+
+def describe_differential_drive(drive: dict[str, float | None]) -> str:
+    """``models.wheel_drive.as_differential_drive`` in a sentence."""
+    axle, ratio = drive["axle_mm"], drive["wheel_ratio"]
+    return (
+        f"as a differential drive: forward speed {drive['forward_gain']:.4g} times the wheels' mean "
+        f"({drive['forward_bias_mm_s']:+.3g} mm/s), "
+        + (
+            "a turn rate that does not follow the wheels' difference"
+            if axle is None
+            else f"turning as on an axle of {axle:.4g} mm"
+        )
+        + f" ({drive['turn_bias_rad_s']:+.3g} rad/s), "
+        + ("" if ratio is None else f"the right wheel {ratio:.4g} times the left, ")
+        + f"driving straight at 100 mm/s turning {100 * drive['curvature_rad_per_mm']:+.3g} rad/s"
+    )
 
 
 def print_simulated_score(model: Any, truth: dict[str, Any], dt_s: float) -> dict[str, Any]:

@@ -36,7 +36,7 @@ from sensact.learn.em import EMConfig, EMResult, fit_em
 from sensact.learn.em.config import ChannelConfig
 from sensact.models.em_model import EMModel
 from sensact.models.polynomial import Polynomial1D
-from sensact.sim.diffdrive import WHEEL_COMMAND_NAMES
+from sensact.models.wheel_drive import WHEEL_COMMAND_NAMES
 
 ROBOTS = (1, 2, 3, 4, 5)
 BARS = {"action_ratio_max": 1.5, "action_translation_max_mm_s": 50.0, "sigma_factor": 1.5}

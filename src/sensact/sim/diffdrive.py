@@ -40,9 +40,9 @@ from scipy.signal import lfilter
 from sensact.core.angles import wrap_angle
 from sensact.core.pose_models import landmark_bearing, landmark_distance
 from sensact.logs.landmark_log import LandmarkLog
+from sensact.models.wheel_drive import WHEEL_COMMAND_NAMES
 
 COMMAND_NAMES = ("v_mm_s", "omega_rad_s")
-WHEEL_COMMAND_NAMES = ("left_mm_s", "right_mm_s")
 SIDESTEP_COMMAND_NAMES = ("v_mm_s", "v_left_mm_s", "omega_rad_s")  # v_left: to the robot's left (ROS REP 103)
 SENSORS = ("camera", "radio")
 

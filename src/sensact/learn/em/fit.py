@@ -33,7 +33,7 @@ from sensact.learn.em.ridge import search_ridge
 from sensact.learn.em.start import OnTrial, race_starts, start_candidates
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.action_table import ActionTable
-from sensact.models.em_model import EMModel
+from sensact.models.em_model import PLANAR_VELOCITY_NAMES, TRACK_VELOCITY_NAMES, EMModel
 from sensact.models.landmark_sensor import LandmarkSensor, ReadingChannel
 from sensact.models.linear_action import LinearActionModel
 from sensact.models.polynomial import Polynomial1D
@@ -44,9 +44,6 @@ Progress = Callable[[int, float, float, int], None]
 OnRestart = Callable[[int, list[dict[str, Any]], dict[str, float]], None]
 # (how far the given start moved, mm; the learned start EM runs again from) -> None
 OnStartMoved = Callable[[float, np.ndarray], None]
-
-PLANAR_VELOCITY_NAMES = ("v_x_mm_s", "v_y_mm_s", "v_theta_rad_s")
-TRACK_VELOCITY_NAMES = ("v_mm_s",)
 
 
 def starting_height(config: EMConfig) -> Polynomial1D:

@@ -1,0 +1,52 @@
+"""A learned model on wheel speeds read as a differential drive's numbers (models/wheel_drive.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sensact.cli.scores import describe_differential_drive
+from sensact.models.em_model import PLANAR_VELOCITY_NAMES
+from sensact.models.linear_action import LinearActionModel
+from sensact.models.wheel_drive import WHEEL_COMMAND_NAMES, as_differential_drive
+from sensact.sim.diffdrive import DiffDriveConfig, from_wheel_coefficients
+
+
+def wheel_model(beta: np.ndarray, inputs: tuple[str, ...] = ()) -> LinearActionModel:
+    return LinearActionModel("affine", 1, beta, WHEEL_COMMAND_NAMES, PLANAR_VELOCITY_NAMES, 0, (), inputs)
+
+
+def test_a_physical_drive_reads_back_its_wheel_gains_and_axle():
+    """Exact reduction: wheels moving 0.93 and 0.97 times their commands on a 250-mm axle give a forward
+    gain of their mean, that axle, their ratio, and the curvature (g_r - g_l) / B of driving straight."""
+    g_l, g_r, axle = 0.93, 0.97, 250.0
+    beta = np.array([[0.0, 2.0, 0.003], [0.0, g_l / 2, -g_l / axle], [0.0, g_r / 2, g_r / axle]])
+    drive = as_differential_drive(wheel_model(beta))
+    assert drive["forward_gain"] == pytest.approx(0.95, rel=1e-12)
+    assert drive["axle_mm"] == pytest.approx(axle, rel=1e-12)
+    assert drive["wheel_ratio"] == pytest.approx(g_r / g_l, rel=1e-12)
+    assert drive["curvature_rad_per_mm"] == pytest.approx((g_r - g_l) / axle, rel=1e-12)
+    assert drive["forward_bias_mm_s"] == 2.0 and drive["turn_bias_rad_s"] == 0.003
+    text = describe_differential_drive(drive)
+    assert "axle of 250 mm" in text and f"right wheel {g_r / g_l:.4g} times the left" in text
+
+
+def test_the_simulated_drive_on_wheel_speeds_turns_as_its_axle_over_the_turn_gain():
+    """Independent reference (sim.diffdrive.from_wheel_coefficients): the simulated (v, omega) model on
+    a 235-mm axle's wheel speeds has the forward gain 0.95 and turns as on an axle of 235 x 0.95 / 0.92,
+    its wheels alike; held to the wheels' difference, the ratio is not reported (it is 1 by fiat)."""
+    sim = DiffDriveConfig(wheel_axle_mm=235.0)
+    beta_vw = sim.action_coefficients()
+    beta_w = np.linalg.solve(from_wheel_coefficients(np.eye(3), 235.0), beta_vw)  # T beta_w = beta_vw
+    drive = as_differential_drive(wheel_model(beta_w))
+    assert drive["forward_gain"] == pytest.approx(sim.forward_gain, rel=1e-12)
+    assert drive["axle_mm"] == pytest.approx(235.0 * sim.forward_gain / sim.turn_gain, rel=1e-12)
+    assert drive["wheel_ratio"] == pytest.approx(1.0, rel=1e-12) and abs(drive["curvature_rad_per_mm"]) < 1e-15
+    held = as_differential_drive(wheel_model(beta_w, ("v_theta_rad_s:(right_mm_s-left_mm_s)",)))
+    assert held["wheel_ratio"] is None and held["axle_mm"] == pytest.approx(drive["axle_mm"], rel=1e-12)
+    assert "right wheel" not in describe_differential_drive(held)
+    no_turn = beta_w.copy()
+    no_turn[1:, 2] = 0.0
+    assert as_differential_drive(wheel_model(no_turn))["axle_mm"] is None
+    on_vw = LinearActionModel("affine", 1, beta_vw, ("v_mm_s", "omega_rad_s"), PLANAR_VELOCITY_NAMES)
+    assert as_differential_drive(on_vw) is None
