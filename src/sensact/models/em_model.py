@@ -22,10 +22,10 @@ from sensact.models.linear_action import LinearActionModel
 
 Geometry = Literal["planar", "track"]
 ActionModel = ActionTable | LinearActionModel
-# the thesis's fixed Sigma_m per step (sec. 4.4.1: 10 mm, 10 mm, 0.1 rad)
 # the robot-frame velocities a planar model moves by (sideways, forward, turn; theta = 0 faces +y) and a track's
 PLANAR_VELOCITY_NAMES = ("v_x_mm_s", "v_y_mm_s", "v_theta_rad_s")
 TRACK_VELOCITY_NAMES = ("v_mm_s",)
+# the thesis's fixed Sigma_m per step (sec. 4.4.1: 10 mm, 10 mm, 0.1 rad)
 THESIS_MOTION_SD = {"planar": (10.0, 10.0, 0.1), "track": (10.0,)}
 
 
