@@ -29,13 +29,16 @@ runner = CliRunner()
 QUIET = dict(sideways_sd_mm=0.0, forward_sd_mm=0.0, heading_sd_rad=0.0, range_sd_mm=1e-12, bearing_sd_rad=1e-12)
 
 
-@pytest.mark.parametrize(("sidestep", "seed"), [(0.0, 2), (60.0, 4)])
-def test_the_truth_it_writes_is_the_robot_it_drives(sidestep, seed):
+@pytest.mark.parametrize(("sidestep", "seed", "curve"), [(0.0, 2, 0.0), (60.0, 4, 0.0), (0.0, 3, 0.0003)])
+def test_the_truth_it_writes_is_the_robot_it_drives(sidestep, seed, curve):
     """Exact reduction: without noise or lag, the affine model of ``truth()`` at its delay, dead-reckoned
     from the logged commands, is the simulated path, and each sighting reads ``range_reading``; for a
-    differential drive and for a robot that side-steps (``v_left`` to its left, a negative ``v_x``)."""
+    differential drive, one that curves when driving straight (a wheel mismatch) and a robot that
+    side-steps (``v_left`` to its left, a negative ``v_x``)."""
     side = {"sidestep_mm_s": sidestep, "sideways_bias_mm_s": 4.0} if sidestep else {}  # a drift to the left
-    cfg = DiffDriveConfig(seconds=120, seed=seed, lag_s=0.0, misread_rate=0.0, **side, **QUIET)
+    cfg = DiffDriveConfig(
+        seconds=120, seed=seed, lag_s=0.0, misread_rate=0.0, straight_turn_rad_per_mm=curve, **side, **QUIET
+    )
     run = simulate_diffdrive(cfg)
     t = cfg.truth()
     names, logged = run.logged_commands()

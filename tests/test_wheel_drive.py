@@ -50,3 +50,23 @@ def test_the_simulated_drive_on_wheel_speeds_turns_as_its_axle_over_the_turn_gai
     assert as_differential_drive(wheel_model(no_turn))["axle_mm"] is None
     on_vw = LinearActionModel("affine", 1, beta_vw, ("v_mm_s", "omega_rad_s"), PLANAR_VELOCITY_NAMES)
     assert as_differential_drive(on_vw) is None
+
+
+def test_em_on_wheel_speeds_reads_back_a_wheel_mismatch():
+    """Seeded recovery: a simulated drive that turns 0.0003 rad/s per mm/s of forward command (the curve of
+    a wheel mismatch), logged by its wheel speeds on a 235-mm axle and learned with the settings `simulate
+    diffdrive` writes (the camera pins the curve), reads back the curve within 10 %, the wheels' ratio
+    within 0.01 and the axle within 2 %."""
+    from sensact.experiments.diffdrive import simulator_settings
+    from sensact.learn.em import fit_em
+    from sensact.sim.diffdrive import simulate_diffdrive
+
+    sim = DiffDriveConfig(seed=1, seconds=600, wheel_axle_mm=235.0, straight_turn_rad_per_mm=0.0003)
+    res = fit_em(simulate_diffdrive(sim).log(), None, simulator_settings(sim))
+    drive = as_differential_drive(res.model.action)
+    per_difference = sim.turn_gain / 235.0  # rad/s per mm/s of (right - left)
+    half = 0.5 * sim.straight_turn_rad_per_mm
+    assert drive["curvature_rad_per_mm"] == pytest.approx(sim.straight_turn_rad_per_mm, rel=0.1)
+    assert drive["wheel_ratio"] == pytest.approx((per_difference + half) / (per_difference - half), abs=0.01)
+    assert drive["axle_mm"] == pytest.approx(235.0 * sim.forward_gain / sim.turn_gain, rel=0.02)
+    assert drive["forward_gain"] == pytest.approx(sim.forward_gain, rel=0.02)

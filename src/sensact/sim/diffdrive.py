@@ -95,6 +95,8 @@ class DiffDriveConfig:
     forward_bias_mm_s: float = 3.0
     turn_gain: float = 0.92
     turn_bias_rad_s: float = 0.004
+    # turn rate per mm/s of forward command: the curve a wheel mismatch gives a robot told to drive straight
+    straight_turn_rad_per_mm: float = 0.0
     delay_s: float = 0.2
     lag_s: float = 0.1  # first-order lag's time constant (0 = none)
     # per-step motion noise in the robot frame
@@ -202,7 +204,7 @@ class DiffDriveConfig:
         right_bias = -self.sideways_bias_mm_s if self.sidestep_mm_s > 0 and self.sideways_bias_mm_s else 0.0
         rows = [
             [right_bias, self.forward_bias_mm_s, self.turn_bias_rad_s],
-            [0.0, self.forward_gain, 0.0],
+            [0.0, self.forward_gain, self.straight_turn_rad_per_mm],
             [0.0, 0.0, self.turn_gain],
         ]
         if self.sidestep_mm_s > 0:
@@ -324,7 +326,10 @@ def _drive(
         late = max(t - k, 0)  # the first command stands in before it, as the learner's
         v_late, w_late = commands[late]
         fwd += lag * (cfg.forward_bias_mm_s + cfg.forward_gain * v_late - fwd)
-        turn += lag * (cfg.turn_bias_rad_s + cfg.turn_gain * w_late - turn)
+        reached = cfg.turn_bias_rad_s + cfg.turn_gain * w_late
+        if cfg.straight_turn_rad_per_mm:
+            reached += cfg.straight_turn_rad_per_mm * v_late
+        turn += lag * (reached - turn)
         if sidesteps:
             left += lag * (cfg.sideways_bias_mm_s + cfg.sideways_gain * side[late] - left)
         # eq. 2.28: the step's displacement in the robot frame (sideways to the right, forward, heading), rotated
