@@ -16,10 +16,10 @@ MRCLAM_CONFIG_HEADER = """The EM settings behind docs/em-real-results.md's MRCLA
 Edit them for your robot (docs/em-real.md, section 2) and pass this file with --config;
 --set overrides single fields."""
 WHEELS_CONFIG_NOTE = """
-On wheel speeds (left_mm_s, right_mm_s) the forward speed is the wheels' mean, so it depends on their
-sum alone, (left_mm_s+right_mm_s), as MRCLAM's depends on v_mm_s alone."""
+On wheel speeds ({left}, {right}) the forward speed is the wheels' mean, so it depends on their
+sum alone, ({left}+{right}), as MRCLAM's depends on v_mm_s alone."""
 FREE_MOTION_NOTE = """
-These commands are not a differential drive's (v_mm_s, omega_rad_s, or left_mm_s, right_mm_s):
+These commands are not a differential drive's (v_mm_s, omega_rad_s, or its wheels, left_X, right_X):
   {names}
 so every velocity, sideways too, is affine in every command, as for a robot that can side-step
 (a legged one): MRCLAM's action_zero_mean and action_inputs are left out. If yours cannot
@@ -39,11 +39,13 @@ def config_header(command_names: tuple[str, ...], range_only: bool = False) -> s
     """em_config.yaml's header for ``experiments.real.planar_config``'s settings on these commands (with
     ``range_only``, ``range_only_config``'s)."""
     from sensact.experiments.real import diffdrive_config
+    from sensact.models.wheel_drive import wheel_pair
 
+    pair = wheel_pair(command_names)
     if diffdrive_config(command_names) is None:
         head = MRCLAM_CONFIG_HEADER + FREE_MOTION_NOTE.format(names=", ".join(command_names))
     else:
-        head = MRCLAM_CONFIG_HEADER + (WHEELS_CONFIG_NOTE if "left_mm_s" in command_names else "")
+        head = MRCLAM_CONFIG_HEADER + ("" if pair is None else WHEELS_CONFIG_NOTE.format(left=pair[0], right=pair[1]))
     return head + (RANGE_ONLY_NOTE if range_only else "")
 
 

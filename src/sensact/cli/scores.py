@@ -43,12 +43,19 @@ def print_em_model(m: Any) -> None:
         console.print(describe_differential_drive(drive), markup=False)
 
 
-def describe_differential_drive(drive: dict[str, float | None]) -> str:
+def describe_differential_drive(drive: dict[str, Any]) -> str:
     """``models.wheel_drive.as_differential_drive`` in a sentence."""
-    axle, ratio = drive["axle_mm"], drive["wheel_ratio"]
+    axle, ratio, unit = drive["axle_mm"], drive["wheel_ratio"], drive["unit"]
+    # turn rate over forward speed, both per unit of the wheels' mean: the heading lost per metre driven straight
+    per_metre = 1000.0 * drive["curvature_rad_per_unit"] / drive["forward_gain"] if drive["forward_gain"] else math.nan
+    forward = (
+        f"forward speed {drive['forward_gain']:.4g} times the wheels' mean"
+        if unit == "mm_s"
+        else f"forward speed {drive['forward_gain']:.4g} mm/s per {unit} of the wheels' mean"
+        + (" (their mean radius, mm)" if unit == "rad_s" else "")
+    )
     return (
-        f"as a differential drive: forward speed {drive['forward_gain']:.4g} times the wheels' mean "
-        f"({drive['forward_bias_mm_s']:+.3g} mm/s), "
+        f"as a differential drive: {forward} ({drive['forward_bias_mm_s']:+.3g} mm/s), "
         + (
             "a turn rate that does not follow the wheels' difference"
             if axle is None
@@ -56,7 +63,7 @@ def describe_differential_drive(drive: dict[str, float | None]) -> str:
         )
         + f" ({drive['turn_bias_rad_s']:+.3g} rad/s), "
         + ("" if ratio is None else f"the right wheel {ratio:.4g} times the left, ")
-        + f"driving straight at 100 mm/s turning {100 * drive['curvature_rad_per_mm']:+.3g} rad/s"
+        + f"driving straight turning {per_metre:+.3g} rad per metre"
     )
 
 

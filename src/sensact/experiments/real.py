@@ -36,7 +36,7 @@ from sensact.learn.em import EMConfig, EMResult, fit_em
 from sensact.learn.em.config import ChannelConfig
 from sensact.models.em_model import EMModel
 from sensact.models.polynomial import Polynomial1D
-from sensact.models.wheel_drive import WHEEL_COMMAND_NAMES
+from sensact.models.wheel_drive import wheel_pair
 
 ROBOTS = (1, 2, 3, 4, 5)
 BARS = {"action_ratio_max": 1.5, "action_translation_max_mm_s": 50.0, "sigma_factor": 1.5}
@@ -67,15 +67,17 @@ def mrclam_config() -> EMConfig:
 
 def diffdrive_config(command_names: tuple[str, ...]) -> EMConfig | None:
     """MRCLAM's settings for a differential drive, logged either as (v, omega), as MRCLAM is, or as its
-    wheel speeds (left, right); None for other commands. On wheel speeds the forward speed is the wheels'
+    wheel speeds (``models.wheel_drive.wheel_pair``: ``left_mm_s, right_mm_s``, or the wheels' turning
+    rates in any one unit); None for other commands. On wheel speeds the forward speed is the wheels'
     mean, so it depends on their sum alone (``(left_mm_s+right_mm_s)``, as on ``v_mm_s`` alone): the
     same family as on (v, omega), a linear change of commands, so the units a robot logs its commands
     in do not change what it learns."""
     names = tuple(command_names)
     if names == ("v_mm_s", "omega_rad_s"):
         return mrclam_config()
-    if names == WHEEL_COMMAND_NAMES:
-        return replace(mrclam_config(), action_inputs=("v_y_mm_s:(left_mm_s+right_mm_s)",))
+    pair = wheel_pair(names)
+    if pair is not None:
+        return replace(mrclam_config(), action_inputs=(f"v_y_mm_s:({pair[0]}+{pair[1]})",))
     return None
 
 
@@ -102,7 +104,8 @@ def range_only_config(command_names: tuple[str, ...], start_pose: tuple[float, f
     if "omega_rad_s" in command_names:
         turn: tuple[str, ...] = ("v_theta_rad_s:omega_rad_s",)
     else:
-        turn = ("v_theta_rad_s:(right_mm_s-left_mm_s)",) if tuple(command_names) == WHEEL_COMMAND_NAMES else ()
+        pair = wheel_pair(command_names)
+        turn = () if pair is None else (f"v_theta_rad_s:({pair[1]}-{pair[0]})",)
     return replace(
         base,
         action_inputs=base.action_inputs + turn,
