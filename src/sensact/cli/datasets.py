@@ -166,7 +166,8 @@ def convert_csv(
             f"wrote {out} and {cfg} (MRCLAM's settings without the bearings, a starting point for "
             f"{_robot_kind(d.command_names)} with a range-only sensor). The sightings have no bearings, so EM "
             f"cannot search for where the robot starts: set start_prior_mean in {cfg} to its start (x mm, y mm, "
-            f"heading rad; heading 0 faces the map's +y), then learn with `sensact learn em {out} --config {cfg}`"
+            f"heading rad; heading 0 faces the map's +y; a start metres off costs a second run), then learn with "
+            f"`sensact learn em {out} --config {cfg}`"
         )
         return
     console.print(
