@@ -6,9 +6,9 @@
 Cuts each robot's MRCLAM Dataset 6 log (about 15 minutes) into ``--parts`` equal spans of steps and
 runs `sensact reproduce real`'s EM on each alone, from the same poor start. Prints, per part, how far
 the smoothed path is from Vicon (median), whether the learned range function turns over or bends within
-its fitted distances (learn/em/checks.py, the signs a user sees without ground truth), how many times EM
-started again because it did (``turn_restarts``, 2 by default) and which run was kept, the
-log-likelihood and the time; then how many parts lost the robot (median over 500 mm).
+its fitted distances or EM did not settle (learn/em/checks.py, the signs a user sees without ground
+truth), how many times EM started again because of them (``turn_restarts``, 2 by default) and which run
+was kept, the log-likelihood and the time; then how many parts lost the robot (median over 500 mm).
 ``--range-start-sigma`` replaces the range channel's start sigma (100 mm by default) and
 ``--turn-restarts`` the number of restarts (0: none); docs/em-real-results.md "Short logs".
 Needs ../shared/data/mrclam (or $SENSACT_DATA). About 3 minutes for 20 quarters on 2 cores.
@@ -34,9 +34,9 @@ LOST_MM = 500.0  # a path this far from Vicon (median) has lost the robot: a sta
 
 
 def _kinds(signs: list[dict]) -> str:
-    """What the kept fit's f did: ``turns``, ``bends``, both, or ``no``."""
+    """What the kept fit showed: ``turns``, ``bends``, ``unsettled``, those joined by ``+``, or ``no``."""
     kinds = {t["sign"] for t in signs}
-    return "+".join(k for k in ("turns", "bends") if k in kinds) or "no"
+    return "+".join(k for k in ("turns", "bends", "unsettled") if k in kinds) or "no"
 
 
 def main() -> None:
@@ -56,10 +56,11 @@ def main() -> None:
         cfg = replace(cfg, turn_restarts=args.turn_restarts)
     print(
         f"range channel start sigma {cfg.channels[0].start_sigma:g} mm; at most {cfg.turn_restarts} restarts "
-        f"while f turns or bends; {args.parts} parts per robot"
+        f"while f turns or bends or EM does not settle; {args.parts} parts per robot"
     )
     print(
-        "robot part  steps  sightings  path off Vicon mm  f lost  restarts (kept)  log-likelihood  iterations  seconds"
+        "robot part  steps  sightings  path off Vicon mm  lost sign  restarts (kept)  log-likelihood  "
+        "iterations  seconds"
     )
     lost = total = 0
     for robot in args.robots:
@@ -72,14 +73,14 @@ def main() -> None:
             res = fit_em(part, None, cfg)
             seconds = time.perf_counter() - t0
             off = path_offset(res.posteriors.mean_gamma, poses[a:b], valid[a:b])["median_mm"]
-            turns = lost_fit_signs(res.model, res.posteriors, part)
+            turns = lost_fit_signs(res.model, res.posteriors, part, res.loglik_history, res.best_iteration)
             runs = res.restarts or []
             restarted = f"{len(runs) - 1} ({next(i for i, r in enumerate(runs) if r['kept'])})" if runs else "0"
             lost += off > LOST_MM
             total += 1
             print(
                 f"{robot:5d} {k + 1:4d} {part.n_steps:6d} {part.n_observations:10d} {off:18.0f}  "
-                f"{_kinds(turns):>6s} {restarted:>16s} {res.loglik_best:15.1f} {res.iterations:11d} "
+                f"{_kinds(turns):>9s} {restarted:>16s} {res.loglik_best:15.1f} {res.iterations:11d} "
                 f"{seconds:8.1f}",
                 flush=True,
             )

@@ -877,6 +877,44 @@ def test_a_range_function_that_turns_within_its_distances_is_flagged(continuous_
     assert range_function_turns(with_f(f, valid_max=mid - 1.5 * a), res.posteriors, data) == []
 
 
+def test_a_fit_whose_likelihood_keeps_falling_far_below_its_best_has_not_settled(continuous_fit):
+    """learn/em/checks.py ``unsettled_fit``: the mean fall below the best over the iterations after it, per
+    sighting used, against ``UNSETTLED_PER_SIGHTING`` (exact on built histories); the fit that found the
+    robot has not that sign, the same fit with a history that thrashes after its best has, and says so;
+    a 1-D log's history is not judged."""
+    from sensact.learn.em.checks import UNSETTLED_PER_SIGHTING, describe_lost_fit, lost_fit_signs, unsettled_fit
+
+    n = 1000
+    limit = UNSETTLED_PER_SIGHTING * n
+    at_limit = np.array([-900.0, -500.0, -500.0 - 0.5 * limit, -500.0 - 1.5 * limit])  # falls 0.5 and 1.5 limit
+    assert unsettled_fit(at_limit, 1, n) == []  # a mean fall of the limit itself
+    over = at_limit.copy()
+    over[3] -= 1e-6 * limit
+    (sign,) = unsettled_fit(over, 1, n)
+    assert sign["sign"] == "unsettled" and sign["best_iteration"] == 1 and sign["iterations_after"] == 2
+    assert sign["mean_fall"] == pytest.approx(limit * (1 + 0.5e-6)) and sign["per_sighting"] == pytest.approx(
+        sign["mean_fall"] / n
+    )
+    assert unsettled_fit(over, 3, n) == [] and unsettled_fit(over, 1, 0) == []  # nothing after the best; no sighting
+    assert unsettled_fit(over, 1, 2 * n) == []  # the same falls over twice the sightings
+
+    data, _poses, res = continuous_fit
+    h, b = res.loglik_history, res.best_iteration
+    assert b < h.size - 1 and lost_fit_signs(res.model, res.posteriors, data, h, b) == []
+    used = int(res.posteriors.obs_used.sum())
+    thrashing = h.copy()
+    thrashing[b + 1 :] -= 2.0 * UNSETTLED_PER_SIGHTING * used
+    signs = lost_fit_signs(res.model, res.posteriors, data, thrashing, b)
+    assert [s["sign"] for s in signs] == ["unsettled"] and "channel" not in signs[0]
+    assert signs[0]["per_sighting"] == pytest.approx(2.0 * UNSETTLED_PER_SIGHTING + np.mean(h[b] - h[b + 1 :]) / used)
+    said = describe_lost_fit(signs)
+    assert f"iterations after its best ({b}) EM's log-likelihood stayed on average" in said
+    assert "moves little from it: EM has probably lost the robot" in said
+    assert lost_fit_signs(res.model, res.posteriors, data) == []  # without the history, the f signs alone
+    track = replace(data, geometry="track")
+    assert unsettled_fit(thrashing, b, used) and lost_fit_signs(res.model, res.posteriors, track, thrashing, b) == []
+
+
 def test_em_restarts_from_a_tighter_start_while_f_turns_and_keeps_the_most_likely_fit(monkeypatch):
     """fit.restart_while_lost, with the turn check replaced by one that flags the first ``flagged``
     fits: each restart's start sigma is a third of the last, no more than ``turn_restarts`` restarts run,
@@ -887,9 +925,13 @@ def test_em_restarts_from_a_tighter_start_while_f_turns_and_keeps_the_most_likel
     data, _ = _simulate(3, T=2400)
     calls = {"n": 0, "flagged": 0}
 
-    def flags_the_first(model, post, log):
+    def flags_the_first(model, post, log, *history):
         calls["n"] += 1
         turn = [{"channel": "range_mm", "sign": "turns", "turns_at_mm": [2000.0], "distances_mm": [1000.0, 3000.0]}]
+        if calls.get("unsettled"):  # checks.unsettled_fit's sign names no channel
+            turn = [
+                {"sign": "unsettled", "best_iteration": 5, "iterations_after": 4, "mean_fall": 9e3, "per_sighting": 2}
+            ]
         return turn if calls["n"] <= calls["flagged"] else []
 
     monkeypatch.setattr(fit_module, "lost_fit_signs", flags_the_first)
@@ -917,6 +959,13 @@ def test_em_restarts_from_a_tighter_start_while_f_turns_and_keeps_the_most_likel
         assert log_likelihood(res.model, data) == pytest.approx(kept[0]["loglik"], abs=1e-6 * abs(res.loglik_best))
     assert [k for k, _ in heard] == [1, 2, 1] and heard[1][1]["range_mm"] == pytest.approx(3000.0 / 9)
     assert "restarts" in res.summary()
+    # a fit that did not settle names no channel: every channel starts a third as vague
+    calls.update(n=0, flagged=1, unsettled=True)
+    heard.clear()
+    res = fit_em(data, None, replace(cfg, turn_restarts=2), on_restart=lambda k, signs, sigmas: heard.append(sigmas))
+    assert heard == [{"range_mm": pytest.approx(1000.0)}] and len(res.restarts) == 2
+    assert [r["f_turns"][0]["sign"] for r in res.restarts[:1]] == ["unsettled"] and not res.restarts[1]["f_turns"]
+    calls["unsettled"] = False
     # what `learn em` and `reproduce real` show of the last two-run fit
     from sensact.report.tables import kept_run_cell, restart_runs_cell
 
@@ -925,6 +974,15 @@ def test_em_restarts_from_a_tighter_start_while_f_turns_and_keeps_the_most_likel
     cell = restart_runs_cell(two.restarts)
     assert cell.startswith("range_mm 3000: ") and "(f turned); range_mm 1000: " in cell
     assert kept_run_cell(two.restarts) == ("restart 1" if two.restarts[1]["kept"] else "the first run")
+    unsettled = {
+        "sign": "unsettled",
+        "best_iteration": 5,
+        "iterations_after": 4,
+        "mean_fall": 900.0,
+        "per_sighting": 1.0,
+    }
+    cell = restart_runs_cell([dict(two.restarts[0], f_turns=[unsettled]), two.restarts[1]])
+    assert cell.startswith("range_mm 3000: ") and "(EM unsettled); range_mm 1000: " in cell
     bend = {"channel": "range_mm", "sign": "bends", "slopes": [0.7, 2.1], "distances_mm": [1000.0, 3000.0]}
     both = [dict(two.restarts[0], f_turns=[bend]), dict(two.restarts[1], f_turns=[bend, *two.restarts[0]["f_turns"]])]
     assert "(f bent); range_mm 1000: " in restart_runs_cell(both) and restart_runs_cell(both).endswith(
@@ -1296,6 +1354,42 @@ def test_a_lost_fit_whose_f_bends_without_turning_starts_again_and_finds_its_rob
 
 
 @pytest.mark.skipif(not MRCLAM.is_dir(), reason=f"MRCLAM data not found at {MRCLAM}")
+def test_a_lost_fit_that_never_settles_starts_again_and_finds_its_robot(tmp_path):
+    """Real data: Dataset 6 with 8 of its 15 landmarks (``benchmarks/em_real_landmarks.py --maps 8:2``).
+    Robot 4 is lost from MRCLAM's start with an f that neither turns nor bends, while its likelihood keeps
+    falling far below its best; that sign restarts EM from a third of the start sigma, which finds the
+    robot with a far higher likelihood (docs/em-real-results.md, "Fewer landmarks")."""
+    from sensact.evaluate.landmark_truth import path_offset
+    from sensact.experiments.real import mrclam_config
+    from sensact.io.mrclam import read_mrclam
+    from sensact.learn.em import initial_model
+    from sensact.learn.em.checks import lost_fit_signs
+    from sensact.learn.em.fit import restart_while_lost
+
+    copy = tmp_path / MRCLAM.name
+    copy.mkdir()
+    for f in MRCLAM.iterdir():
+        if f.name != "Landmark_Groundtruth.dat":
+            (copy / f.name).symlink_to(f.resolve())
+    kept = {7, 8, 9, 10, 12, 16, 19, 20}  # numpy.random.default_rng(2), as the benchmark draws them
+    rows = (MRCLAM / "Landmark_Groundtruth.dat").read_text().splitlines()
+    rows = [r for r in rows if r.startswith("#") or not r.strip() or int(r.split()[0]) in kept]
+    (copy / "Landmark_Groundtruth.dat").write_text("\n".join(rows) + "\n")
+    ml = read_mrclam(copy, 4)
+    poses, valid = ml.truth_poses()
+    cfg = mrclam_config()
+    lost = fit_em(ml.data, None, replace(cfg, turn_restarts=0))
+    assert path_offset(lost.posteriors.mean_gamma, poses, valid)["median_mm"] > 500.0
+    signs = lost_fit_signs(lost.model, lost.posteriors, ml.data, lost.loglik_history, lost.best_iteration)
+    assert [s["sign"] for s in signs] == ["unsettled"] and signs[0]["per_sighting"] > 0.5
+    res = restart_while_lost(ml.data, initial_model(ml.data, cfg), cfg, lost)
+    runs = res.restarts
+    assert runs[0]["f_turns"] == signs and runs[1]["start_sigma"]["range_mm"] == pytest.approx(100.0 / 3)
+    assert runs[1]["kept"] and not runs[1]["f_turns"] and runs[1]["loglik"] > runs[0]["loglik"] + 1000.0
+    assert path_offset(res.posteriors.mean_gamma, poses, valid)["median_mm"] < 150.0
+
+
+@pytest.mark.skipif(not MRCLAM.is_dir(), reason=f"MRCLAM data not found at {MRCLAM}")
 def test_a_short_real_log_finds_its_robot_and_a_lost_fit_says_so_and_starts_again(tmp_path):
     """The first quarter of MRCLAM robot 1 (3.7 minutes) from the poor start: with mrclam_config()'s
     range start sigma EM finds the robot. With the tenfold vaguer start it had before and no restart,
@@ -1340,7 +1434,7 @@ def test_a_short_real_log_finds_its_robot_and_a_lost_fit_says_so_and_starts_agai
     assert runs[0]["loglik"] == pytest.approx(lost.loglik_best, abs=1e-6)  # the same run, all sightings kept
     kept = next(r for r in runs if r["kept"])
     assert kept["loglik"] > runs[0]["loglik"] + 100.0 and not kept["f_turns"]
-    assert written["range_function_turns"] == written["range_function_bends"] == []
+    assert written["range_function_turns"] == written["range_function_bends"] == [] and written["em_unsettled"] is None
     assert "EM has probably lost the robot (a local" not in flat
     assert "smoothed path off the recorded poses: median" in flat and written["evaluation"]["path"]["median_mm"] < 150.0
     rng_score = written["evaluation"]["range"]  # lost, f was metres off From-Truth's and its sigma over 3 times

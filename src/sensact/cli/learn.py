@@ -296,7 +296,7 @@ def learn_em_cmd(
     print_em_model(m)
     signs = []
     if res.posteriors is not None:
-        signs = lost_fit_signs(m, res.posteriors, data)
+        signs = lost_fit_signs(m, res.posteriors, data, res.loglik_history, res.best_iteration)
         if signs:
             console.print(f"[yellow]{describe_lost_fit(signs)}[/]")
     held = held_sideways_noise(m, cfg.motion_noise)
@@ -319,6 +319,7 @@ def learn_em_cmd(
                 # learn/em/checks.py: signs that EM lost the robot
                 "range_function_turns": [t for t in signs if t["sign"] == "turns"],
                 "range_function_bends": [t for t in signs if t["sign"] == "bends"],
+                "em_unsettled": next((t for t in signs if t["sign"] == "unsettled"), None),
                 "held_sideways_noise": held,  # ... and that a robot that side-steps is held to no sideways mean
                 "differential_drive": as_differential_drive(m.action),  # on wheel speeds: gain, axle, wheel ratio
             },

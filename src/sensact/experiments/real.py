@@ -60,7 +60,8 @@ def mrclam_config() -> EMConfig:
         bearing_robust_param=4.0,
         start_search_s=30.0,
         ridge_search_mm=500.0,  # one cell of the start search's grid: how far off the start may be
-        turn_restarts=2,  # a fit whose range f turns over or bends lost the robot: again from a tighter start
+        turn_restarts=2,  # a fit whose range f turns over or bends, or that never settles, lost the robot: again
+        # from a tighter start
         prune_when_freed=True,  # misread barcodes seconds after the last sighting pass the first gate
     )  # EM runs until it converges (patience), as the thesis's does
 

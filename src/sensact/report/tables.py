@@ -564,15 +564,17 @@ def restart_runs_cell(runs: list[dict[str, Any]]) -> str:
     return "; ".join(
         ", ".join(f"{name} {s:.4g}" for name, s in r["start_sigma"].items())
         + f": {r['loglik']:.1f}"
-        + (f" (f {' and '.join(_lost_signs(r['f_turns']))})" if r["f_turns"] else "")
+        + (f" ({_lost_signs(r['f_turns'])})" if r["f_turns"] else "")
         for r in runs
     )
 
 
-def _lost_signs(signs: list[dict[str, Any]]) -> list[str]:
-    """``turned``, ``bent`` or both, for a run's ``checks.lost_fit_signs``."""
+def _lost_signs(signs: list[dict[str, Any]]) -> str:
+    """``f turned``, ``f bent``, ``f turned and bent``, ``EM unsettled`` or one of the first three and it,
+    for a run's ``checks.lost_fit_signs``."""
     kinds = {t["sign"] for t in signs}
-    return [word for sign, word in (("turns", "turned"), ("bends", "bent")) if sign in kinds]
+    f = [word for sign, word in (("turns", "turned"), ("bends", "bent")) if sign in kinds]
+    return "; ".join(([f"f {' and '.join(f)}"] if f else []) + (["EM unsettled"] if "unsettled" in kinds else []))
 
 
 def kept_run_cell(runs: list[dict[str, Any]]) -> str:

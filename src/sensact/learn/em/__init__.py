@@ -1,10 +1,16 @@
 """Chapter 4: EM with an extended Kalman smoother.
 
-``estep`` (sec. 4.2) -> ``mstep`` (sec. 4.3) -> ``fit`` (the loop, secs. 4.1 and 4.4.1). The compiled
-forward and backward passes live in ``sensact.core.ekf_smoother``. Beyond the thesis, for real logs:
-``start`` (where the robot starts: a grid and a race), ``ridge`` (a line search along the path's
-trade-off with the range functions' offset) and ``delay_search`` (the command delay, chosen by the
-likelihood).
+``estep`` (sec. 4.2) -> ``mstep`` (sec. 4.3, its action and motion-noise updates in ``actions``) ->
+``fit`` (the loop, secs. 4.1 and 4.4.1), with ``config`` its settings. The compiled forward and backward
+passes live in ``sensact.core.ekf_smoother``. Beyond the thesis, for real logs:
+
+* ``start``: where the robot starts, when nobody says (a grid and a race); ``given_start``: a start the
+  user gave, for a sensor without bearings, and when EM moved it;
+* ``ridge``: a line search along the path's trade-off with the range functions' offset;
+* ``delay_search``: the command delay, chosen by the likelihood;
+* ``outliers``: sec. 4.4.1's gate again when the robust readings take over;
+* ``checks``: signs, without ground truth, that a fit lost its robot;
+* ``forward``: which way is forward for a robot whose sensor reads no bearing.
 """
 
 from sensact.learn.em.config import EMConfig

@@ -8,6 +8,9 @@ sensor, it is f absorbing a wrong path. On MRCLAM Dataset 6 cut into quarters ev
 its robot by metres had such an f, and none that found it (docs/em-real-results.md, "Short logs").
 A channel that reads a length in the map's own unit gives a second sign: its f may be off by a scale,
 but the scale does not change with distance, so an f whose slope does is bent by a wrong path.
+A third sign needs no channel: EM at a model that fits its log moves little from it, so each iteration
+after the best stays close to the best's likelihood; one that keeps falling far below it again and again
+has not settled anywhere (``unsettled_fit``).
 """
 
 from __future__ import annotations
@@ -32,6 +35,13 @@ LENGTH_SUFFIX = "_mm"  # a reading in the map's unit, as sensact names one (io/t
 # five robots and 1.1 on simulated ones; 3.2 on a simulated side-stepper held to no sideways mean
 # (docs/em-real.md, "A robot that can side-step")
 SIDEWAYS_NOISE_RATIO = 2.0
+# the mean fall of the log-likelihood below the best iteration's over the iterations after it, per sighting used,
+# above which EM has not settled: 0.008-0.029 on the 51 MRCLAM fits without restarts that found their robot (5
+# whole logs, 12 robots on three thinned maps, 34 quarters from a 100- or 1000-mm range start sigma), 0.002-0.005
+# on six simulated differential drives, under 2e-4 on the thesis's field; 0.03-1.45 on the 9 that lost it, 1.45 on
+# robot 4 on a map thinned to 8 landmarks (1360 mm off Vicon), whose f neither turns nor bends; the others above
+# the limit also turned or bent (docs/em-real-results.md, "Fewer landmarks")
+UNSETTLED_PER_SIGHTING = 0.1
 
 
 def _fitted_distances(model: EMModel, post: Posteriors, data: LandmarkLog) -> list[tuple[Any, tuple[float, float]]]:
@@ -92,30 +102,57 @@ def range_function_bends(model: EMModel, post: Posteriors, data: LandmarkLog) ->
     return _bends(_fitted_distances(model, post, data))
 
 
-def lost_fit_signs(model: EMModel, post: Posteriors, data: LandmarkLog) -> list[dict[str, Any]]:
+def unsettled_fit(loglik_history: np.ndarray, best_iteration: int, n_used: int) -> list[dict[str, Any]]:
+    """``[{"sign": "unsettled", ...}]`` when the iterations after the best fell on average more than
+    ``UNSETTLED_PER_SIGHTING`` log-units per sighting used below the best's likelihood (the best
+    iteration, how many followed it, the mean fall and the fall per sighting); else ``[]``, also when no
+    iteration followed the best (a fit stopped at ``max_iterations`` while climbing)."""
+    history = np.asarray(loglik_history, dtype=float)
+    after = history[best_iteration + 1 :]
+    if after.size == 0 or n_used <= 0:
+        return []
+    fall = float(np.mean(history[best_iteration] - after))
+    if fall <= UNSETTLED_PER_SIGHTING * n_used:
+        return []
+    return [
+        {
+            "sign": "unsettled",
+            "best_iteration": int(best_iteration),
+            "iterations_after": int(after.size),
+            "mean_fall": fall,
+            "per_sighting": fall / n_used,
+        }
+    ]
+
+
+def lost_fit_signs(
+    model: EMModel,
+    post: Posteriors,
+    data: LandmarkLog,
+    loglik_history: np.ndarray | None = None,
+    best_iteration: int = 0,
+) -> list[dict[str, Any]]:
     """Every channel whose f turns over (``sign`` "turns") or bends ("bends") within its fitted
-    distances: the signs, without ground truth, that EM lost the robot."""
+    distances, and with the fit's ``loglik_history`` on a planar log, ``unsettled_fit``'s sign (it names
+    no channel): the signs, without ground truth, that EM lost the robot."""
     fitted = _fitted_distances(model, post, data)
-    return _turns(fitted) + _bends(fitted)
+    signs = _turns(fitted) + _bends(fitted)
+    if loglik_history is not None and data.geometry == "planar":
+        signs += unsettled_fit(loglik_history, best_iteration, int(np.count_nonzero(post.obs_used)))
+    return signs
 
 
 def describe_lost_fit(signs: list[dict[str, Any]], advice: bool = True) -> str:
     """One line for the user: which f turned over or bent where, what it likely means and (``advice``)
     what to try."""
-    parts = [
-        (
-            f"{t['channel']}'s f turns over at {', '.join(f'{x:.0f}' for x in t['turns_at_mm'])} mm"
-            if t["sign"] == "turns"
-            else f"{t['channel']}'s f has slopes from {t['slopes'][0]:.2f} to {t['slopes'][1]:.2f} mm per mm"
-        )
-        + f", inside the {t['distances_mm'][0]:.0f}-{t['distances_mm'][1]:.0f} mm it was fitted on"
-        for t in signs
-    ]
+    parts = [_describe_sign(t) for t in signs]
     why = []
     if any(t["sign"] == "turns" for t in signs):
         why.append("A range sensor's f does not turn")
     if any(t["sign"] == "bends" for t in signs):
         why.append("A reading in the map's unit may be off by a scale, but not by one that changes with distance")
+    if any(t["sign"] == "unsettled" for t in signs):
+        why.append("EM at a model that fits the log moves little from it")
     line = "warning: " + "; ".join(parts) + ". " + "; ".join(why) + ": EM has probably lost the robot"
     if not advice:
         return line + "."
@@ -123,6 +160,19 @@ def describe_lost_fit(signs: list[dict[str, Any]], advice: bool = True) -> str:
         line + " (a local optimum). Try a longer log, or a smaller start_sigma for the channel (or more "
         "turn_restarts) in --config (docs/em-real-results.md, Short logs)."
     )
+
+
+def _describe_sign(t: dict[str, Any]) -> str:
+    if t["sign"] == "unsettled":
+        return (
+            f"in the {t['iterations_after']} iterations after its best ({t['best_iteration']}) EM's log-likelihood "
+            f"stayed on average {t['mean_fall']:.0f} below it ({t['per_sighting']:.2f} a sighting)"
+        )
+    if t["sign"] == "turns":
+        shape = f"{t['channel']}'s f turns over at {', '.join(f'{x:.0f}' for x in t['turns_at_mm'])} mm"
+    else:
+        shape = f"{t['channel']}'s f has slopes from {t['slopes'][0]:.2f} to {t['slopes'][1]:.2f} mm per mm"
+    return shape + f", inside the {t['distances_mm'][0]:.0f}-{t['distances_mm'][1]:.0f} mm it was fitted on"
 
 
 def held_sideways_noise(model: EMModel, motion_noise: str) -> dict[str, float] | None:

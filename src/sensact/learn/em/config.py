@@ -125,9 +125,10 @@ class EMConfig:
     delay_search: bool = True
     search_every: int = 50
     # when a channel's learned f turns over, or (a reading in the map's unit) bends, within the distances
-    # it was fitted on (a planar log; learn/em/checks.py), the signs that EM lost the robot, EM starts
-    # again with that channel's start sigma a third of the last, up to this many times, and keeps the most
-    # likely fit (0 = never, the thesis)
+    # it was fitted on, or EM's likelihood after its best stays far below it (a planar log;
+    # learn/em/checks.py), the signs that EM lost the robot, EM starts again with that channel's (when EM
+    # did not settle, every channel's) start sigma a third of the last, up to this many times, and keeps
+    # the most likely fit (0 = never, the thesis)
     turn_restarts: int = 0
 
     def __post_init__(self) -> None:

@@ -40,7 +40,7 @@ from sensact.models.polynomial import Polynomial1D
 
 # (iteration, loglik, best loglik, iterations since the best) -> None
 Progress = Callable[[int, float, float, int], None]
-# (restart number from 1, the last fit's turned or bent channels (checks.lost_fit_signs), their new start sigmas)
+# (restart number from 1, the last fit's signs of being lost (checks.lost_fit_signs), the new start sigmas)
 OnRestart = Callable[[int, list[dict[str, Any]], dict[str, float]], None]
 # (how far the given start moved, mm; the learned start EM runs again from) -> None
 OnStartMoved = Callable[[float, np.ndarray], None]
@@ -213,7 +213,7 @@ class EMResult:
     freed_at: int = -1  # the iteration after which Sigma_m, the terms and robust readings were freed (-1: never held)
     ridge: list[dict[str, Any]] | None = None  # each ridge search: its iteration, shift, likelihoods (ridge.py)
     delay_search: list[dict[str, Any]] | None = None  # each delay search: its iteration, delays, likelihoods
-    restarts: list[dict[str, Any]] | None = None  # each run while f turned over or bent (restart_while_lost)
+    restarts: list[dict[str, Any]] | None = None  # each run while the fit looked lost (restart_while_lost)
     n_pruned_when_freed: int = 0  # of n_pruned, those the gate dropped again when the robust readings took over
     # a range-only fit that ended facing backward, reported turned by pi (forward.py; the same likelihood)
     turned_to_face_forward: bool = False
@@ -332,8 +332,9 @@ def facing_forward(res: EMResult, data: LandmarkLog) -> EMResult:
     )
 
 
-# each restart's start sigma for a channel whose f turned or bent: a third of the last one's (docs/em-real-results.md,
-# Short logs: on quarter-length MRCLAM logs, trusting the poor line's readings more held the robot's scale)
+# each restart's start sigma for a channel whose f turned or bent (every channel's when EM did not settle): a third of
+# the last one's (docs/em-real-results.md, Short logs: on quarter-length MRCLAM logs, trusting the poor line's
+# readings more held the robot's scale)
 RESTART_SIGMA_FACTOR = 1.0 / 3.0
 
 
@@ -347,19 +348,26 @@ def restart_while_lost(
     *,
     on_race: OnTrial | None = None,
 ) -> EMResult:
-    """Beyond the thesis: while the last fit has a channel whose f turns over or bends within its distances
-    (``checks.lost_fit_signs``), EM again from ``start`` with that channel's start sigma a third of
-    the last one's, at most ``cfg.turn_restarts`` times. EM maximizes the likelihood, so the fit kept is
+    """Beyond the thesis: while the last fit has a channel whose f turns over or bends within its distances,
+    or has not settled (``checks.lost_fit_signs``), EM again from ``start`` with that channel's start sigma
+    (every channel's when the fit has not settled) a third of the last one's, at most ``cfg.turn_restarts``
+    times. EM maximizes the likelihood, so the fit kept is
     the most likely one, each scored with the configured readings model on the sightings that every run
     kept after its first-iteration prune. ``restarts`` of the result lists every run."""
     runs, turns, sigmas = [first], [], []
     for k in range(cfg.turn_restarts + 1):
         last = runs[-1]
-        turns.append([] if last.posteriors is None else lost_fit_signs(last.model, last.posteriors, data))
+        turns.append(
+            []
+            if last.posteriors is None
+            else lost_fit_signs(last.model, last.posteriors, data, last.loglik_history, last.best_iteration)
+        )
         sigmas.append({ch.name: ch.sigma for ch in start.sensor.channels})
         if not turns[-1] or k == cfg.turn_restarts:
             break
-        turned = {t["channel"] for t in turns[-1]}
+        turned = {t["channel"] for t in turns[-1] if "channel" in t}
+        if any("channel" not in t for t in turns[-1]):  # an unsettled fit names no channel: every one
+            turned = {ch.name for ch in start.sensor.channels}
         channels = tuple(
             dc_replace(ch, sigma=ch.sigma * RESTART_SIGMA_FACTOR) if ch.name in turned else ch
             for ch in start.sensor.channels
