@@ -908,7 +908,7 @@ def test_a_fit_whose_likelihood_keeps_falling_far_below_its_best_has_not_settled
     assert [s["sign"] for s in signs] == ["unsettled"] and "channel" not in signs[0]
     assert signs[0]["per_sighting"] == pytest.approx(2.0 * UNSETTLED_PER_SIGHTING + np.mean(h[b] - h[b + 1 :]) / used)
     said = describe_lost_fit(signs)
-    assert f"iterations after its best ({b}) EM's log-likelihood stayed on average" in said
+    assert f"iterations after its best one ({b}) EM's log-likelihood stayed on average" in said
     assert "moves little from it: EM has probably lost the robot" in said
     assert lost_fit_signs(res.model, res.posteriors, data) == []  # without the history, the f signs alone
     track = replace(data, geometry="track")

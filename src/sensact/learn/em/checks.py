@@ -165,8 +165,8 @@ def describe_lost_fit(signs: list[dict[str, Any]], advice: bool = True) -> str:
 def _describe_sign(t: dict[str, Any]) -> str:
     if t["sign"] == "unsettled":
         return (
-            f"in the {t['iterations_after']} iterations after its best ({t['best_iteration']}) EM's log-likelihood "
-            f"stayed on average {t['mean_fall']:.0f} below it ({t['per_sighting']:.2f} a sighting)"
+            f"in the {t['iterations_after']} iterations after its best one ({t['best_iteration']}) EM's "
+            f"log-likelihood stayed on average {t['mean_fall']:.0f} below the best ({t['per_sighting']:.2f} a sighting)"
         )
     if t["sign"] == "turns":
         shape = f"{t['channel']}'s f turns over at {', '.join(f'{x:.0f}' for x in t['turns_at_mm'])} mm"
