@@ -966,6 +966,16 @@ def test_em_restarts_from_a_tighter_start_while_f_turns_and_keeps_the_most_likel
     assert heard == [{"range_mm": pytest.approx(1000.0)}] and len(res.restarts) == 2
     assert [r["f_turns"][0]["sign"] for r in res.restarts[:1]] == ["unsettled"] and not res.restarts[1]["f_turns"]
     calls["unsettled"] = False
+
+    # Ctrl-C ends the fit: no restart after it, whatever the signs
+    def interrupt(it, ll, best, since):
+        if it == 3:
+            raise KeyboardInterrupt
+
+    calls.update(n=0, flagged=9)
+    heard.clear()
+    res = fit_em(data, None, cfg, progress=interrupt, on_restart=lambda k, signs, sigmas: heard.append(sigmas))
+    assert res.stop_reason == "interrupted" and res.restarts is None and heard == [] and calls["n"] == 1
     # what `learn em` and `reproduce real` show of the last two-run fit
     from sensact.report.tables import kept_run_cell, restart_runs_cell
 

@@ -261,12 +261,12 @@ def fit_em(
     on_start_moved: OnStartMoved | None = None,
 ) -> EMResult:
     """Learn the action table, the sensor model and the prior from ``data`` by EM (Algorithm of ch. 4);
-    with ``turn_restarts``, EM again from a tighter start while a channel's f turns over or bends (``on_restart``
-    hears of each restart before it runs). ``on_race`` hears of the start race's trials
-    (``start.race_starts``), before ``progress`` hears of the first iteration. A fit whose sensor reads no
-    bearing runs again from its learned start when that moved metres from the given one
-    (``given_start.py``; ``on_start_moved`` hears of it first), and is reported facing the way the robot
-    drives (``facing_forward``)."""
+    with ``turn_restarts``, EM again from a tighter start while a channel's f turns over or bends or EM did not
+    settle (``on_restart`` hears of each restart before it runs; none after Ctrl-C). ``on_race`` hears of the
+    start race's trials (``start.race_starts``), before ``progress`` hears of the first iteration. A fit
+    whose sensor reads no bearing runs again from its learned start when that moved metres from the given
+    one (``given_start.py``; ``on_start_moved`` hears of it first), and is reported facing the way the
+    robot drives (``facing_forward``)."""
     cfg = config or EMConfig()
     res = facing_forward(_fit_while_lost(data, initial, cfg, progress, on_restart, on_race), data)
     start = initial or initial_model(data, cfg)
@@ -363,7 +363,7 @@ def restart_while_lost(
             else lost_fit_signs(last.model, last.posteriors, data, last.loglik_history, last.best_iteration)
         )
         sigmas.append({ch.name: ch.sigma for ch in start.sensor.channels})
-        if not turns[-1] or k == cfg.turn_restarts:
+        if not turns[-1] or k == cfg.turn_restarts or last.stop_reason == "interrupted":  # Ctrl-C ends it all
             break
         turned = {t["channel"] for t in turns[-1] if "channel" in t}
         if any("channel" not in t for t in turns[-1]):  # an unsettled fit names no channel: every one
