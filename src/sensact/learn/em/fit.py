@@ -351,9 +351,9 @@ def restart_while_lost(
     """Beyond the thesis: while the last fit has a channel whose f turns over or bends within its distances,
     or has not settled (``checks.lost_fit_signs``), EM again from ``start`` with that channel's start sigma
     (every channel's when the fit has not settled) a third of the last one's, at most ``cfg.turn_restarts``
-    times. EM maximizes the likelihood, so the fit kept is
-    the most likely one, each scored with the configured readings model on the sightings that every run
-    kept after its first-iteration prune. ``restarts`` of the result lists every run."""
+    times, and none after Ctrl-C. EM maximizes the likelihood, so the fit kept is the most likely one, each
+    scored with the configured readings model on the sightings that every run kept after its
+    first-iteration prune. ``restarts`` of the result lists every run."""
     runs, turns, sigmas = [first], [], []
     for k in range(cfg.turn_restarts + 1):
         last = runs[-1]
