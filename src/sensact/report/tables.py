@@ -681,7 +681,7 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
     if restarted:
         tables.append(
             (
-                f"{title}: EM started again because a range function turned over (learn/em/checks.py)",
+                f"{title}: EM started again because the fit looked lost (learn/em/checks.py)",
                 ["robot", "start sigma: log-likelihood on the sightings all runs kept", "kept"],
                 [[name, restart_runs_cell(runs), kept_run_cell(runs)] for name, runs in restarted],
             )

@@ -3,9 +3,9 @@
 The likelihood of an approximate EM fluctuates, so the loop stops when ``patience`` iterations (50 in
 the thesis) pass without a new best ``log P(O | C, lambda)``, or at ``max_iterations``. Outliers are
 pruned in the first iteration (and, with ``prune_when_freed``, once more when the robust readings take
-over), and stay pruned. Ctrl-C ends the loop cleanly with the best model
-so far (``stop_reason == "interrupted"``). Beyond the thesis, ``turn_restarts`` runs the loop again from
-a tighter start when a range function turned over or bent (``restart_while_lost``), and on a range-only
+over), and stay pruned. Ctrl-C ends the loop cleanly with the best model so far (``stop_reason ==
+"interrupted"``). Beyond the thesis, ``turn_restarts`` runs the loop again from a tighter start when a
+range function turned over or bent or EM did not settle (``restart_while_lost``), and on a range-only
 log from the start EM learned when the given one moved metres (``given_start.py``).
 """
 
