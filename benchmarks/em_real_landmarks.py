@@ -1,14 +1,16 @@
 """EM on MRCLAM Dataset 6 with fewer landmarks: does each robot still find itself, and do the bars hold?
 
-    python benchmarks/em_real_landmarks.py [--maps 8:2 6:0 6:1] [--robots 1 2 3 4 5]
+    python benchmarks/em_real_landmarks.py [--maps 8:2 6:0 6:1] [--robots 1 2 3 4 5] [--turn-restarts N]
 
 Each map ``K:S`` keeps K of the dataset's 15 landmarks, drawn by ``numpy.random.default_rng(S)``
 without replacement; a scratch copy of the dataset (links to its files, ``Landmark_Groundtruth.dat``
 cut to the kept landmarks) is read as `sensact reproduce real` reads it, so the sightings of the
 other landmarks are dropped as unknown barcodes. Runs `reproduce real`'s EM (``mrclam_config()``)
 on each robot and prints, per robot, the sightings kept, how far the smoothed path is from Vicon
-(median), the restarts (``turn_restarts``: each run's start sigma and log-likelihood, the kept one
-marked), the log-likelihood and which bars failed; then each map's bars cleared.
+(median), the restarts (``turn_restarts``, 2 by default, 0 none: each run's start sigma and
+log-likelihood, the kept one marked), the kept fit's mean fall of the likelihood after its best per
+sighting used (``fall/sighting``; learn/em/checks.py calls a fit unsettled over 0.1), the
+log-likelihood and which bars failed; then each map's bars cleared.
 Needs ../shared/data/mrclam (or $SENSACT_DATA). About 1.5 minutes a map on 2 cores.
 """
 
@@ -18,12 +20,14 @@ import argparse
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from sensact.errors import LogFormatError
 from sensact.experiments.real import mrclam_config, mrclam_folder, run_mrclam_robot
+from sensact.learn.em.checks import fall_per_sighting
 from sensact.report.tables import kept_run_cell, restart_runs_cell
 
 LANDMARK_FILE = "Landmark_Groundtruth.dat"
@@ -67,19 +71,22 @@ def main() -> None:
         help="maps as KEEP:SEED: keep KEEP of the 15 landmarks, drawn with that seed (default 8:2 6:0 6:1)",
     )
     parser.add_argument("--robots", type=int, nargs="+", default=[1, 2, 3, 4, 5], help="MRCLAM robots (default all)")
+    parser.add_argument("--turn-restarts", type=int, default=None, help="restarts of a lost fit (default 2)")
     args = parser.parse_args()
     folder = mrclam_folder()
     if not folder.is_dir():
         sys.exit(f"MRCLAM data not found at {folder}; set SENSACT_DATA")
     ids = landmark_ids(folder / LANDMARK_FILE)
     cfg = mrclam_config()
+    if args.turn_restarts is not None:
+        cfg = replace(cfg, turn_restarts=args.turn_restarts)
     for keep, seed in args.maps:
         if keep > len(ids):
             sys.exit(f"map {keep}:{seed}: the dataset has {len(ids)} landmarks")
         kept = sorted(int(i) for i in np.random.default_rng(seed).choice(ids, keep, replace=False))
         print(f"map {keep}:{seed}: landmarks {', '.join(map(str, kept))}", flush=True)
         print(
-            "robot  sightings  path off Vicon mm  log-likelihood  seconds  bars failed  "
+            "robot  sightings  path off Vicon mm  fall/sighting  log-likelihood  seconds  bars failed  "
             "restarts (start sigma: log-likelihood)"
         )
         cleared = total = 0
@@ -99,9 +106,11 @@ def main() -> None:
                 runs = "-"
                 if res.restarts:
                     runs = f"{restart_runs_cell(res.restarts)}; kept {kept_run_cell(res.restarts)}"
+                per = fall_per_sighting(res.loglik_history, res.best_iteration, res.n_used)
+                settle = "-" if per is None else f"{per:.4f}"
                 print(
                     f"{robot:5d} {ml.data.n_observations:10d} {row['score']['path']['median_mm']:18.0f} "
-                    f"{res.loglik_best:15.1f} {time.perf_counter() - t0:8.1f}  "
+                    f"{settle:>14s} {res.loglik_best:15.1f} {time.perf_counter() - t0:8.1f}  "
                     f"{', '.join(failed) or 'none':11s}  {runs}",
                     flush=True,
                 )

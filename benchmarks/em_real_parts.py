@@ -7,8 +7,10 @@ Cuts each robot's MRCLAM Dataset 6 log (about 15 minutes) into ``--parts`` equal
 runs `sensact reproduce real`'s EM on each alone, from the same poor start. Prints, per part, how far
 the smoothed path is from Vicon (median), whether the learned range function turns over or bends within
 its fitted distances or EM did not settle (learn/em/checks.py, the signs a user sees without ground
-truth), how many times EM started again because of them (``turn_restarts``, 2 by default) and which run
-was kept, the log-likelihood and the time; then how many parts lost the robot (median over 500 mm).
+truth; ``fall/sighting``: how far the kept fit's likelihood fell on average after its best, per
+sighting used, unsettled over 0.1), how many times EM started again because of them
+(``turn_restarts``, 2 by default) and which run was kept, the log-likelihood and the time; then how
+many parts lost the robot (median over 500 mm). ``--parts 1`` runs the whole logs.
 ``--range-start-sigma`` replaces the range channel's start sigma (100 mm by default) and
 ``--turn-restarts`` the number of restarts (0: none); docs/em-real-results.md "Short logs".
 Needs ../shared/data/mrclam (or $SENSACT_DATA). About 3 minutes for 20 quarters on 2 cores.
@@ -28,7 +30,7 @@ from sensact.evaluate.landmark_truth import path_offset
 from sensact.experiments.real import mrclam_config, mrclam_folder
 from sensact.io.mrclam import read_mrclam
 from sensact.learn.em import fit_em
-from sensact.learn.em.checks import lost_fit_signs
+from sensact.learn.em.checks import fall_per_sighting, lost_fit_signs
 
 LOST_MM = 500.0  # a path this far from Vicon (median) has lost the robot: a start-search cell
 
@@ -59,8 +61,8 @@ def main() -> None:
         f"while f turns or bends or EM does not settle; {args.parts} parts per robot"
     )
     print(
-        "robot part  steps  sightings  path off Vicon mm  lost sign  restarts (kept)  log-likelihood  "
-        "iterations  seconds"
+        "robot part  steps  sightings  path off Vicon mm        lost sign  fall/sighting  restarts (kept)  "
+        "log-likelihood  iterations  seconds"
     )
     lost = total = 0
     for robot in args.robots:
@@ -74,13 +76,15 @@ def main() -> None:
             seconds = time.perf_counter() - t0
             off = path_offset(res.posteriors.mean_gamma, poses[a:b], valid[a:b])["median_mm"]
             turns = lost_fit_signs(res.model, res.posteriors, part, res.loglik_history, res.best_iteration)
+            per = fall_per_sighting(res.loglik_history, res.best_iteration, res.n_used)
+            settle = "-" if per is None else f"{per:.4f}"
             runs = res.restarts or []
             restarted = f"{len(runs) - 1} ({next(i for i, r in enumerate(runs) if r['kept'])})" if runs else "0"
             lost += off > LOST_MM
             total += 1
             print(
                 f"{robot:5d} {k + 1:4d} {part.n_steps:6d} {part.n_observations:10d} {off:18.0f}  "
-                f"{_kinds(turns):>9s} {restarted:>16s} {res.loglik_best:15.1f} {res.iterations:11d} "
+                f"{_kinds(turns):>15s} {settle:>14s} {restarted:>16s} {res.loglik_best:15.1f} {res.iterations:11d} "
                 f"{seconds:8.1f}",
                 flush=True,
             )

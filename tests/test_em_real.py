@@ -902,6 +902,11 @@ def test_a_fit_whose_likelihood_keeps_falling_far_below_its_best_has_not_settled
     h, b = res.loglik_history, res.best_iteration
     assert b < h.size - 1 and lost_fit_signs(res.model, res.posteriors, data, h, b) == []
     used = int(res.posteriors.obs_used.sum())
+    assert res.n_used == used == res.n_observations - res.n_pruned
+    assert res.summary()["fall_per_sighting"] == pytest.approx(
+        sum(h[b] - h[i] for i in range(b + 1, h.size)) / (h.size - b - 1) / used
+    )
+    assert 0 < res.summary()["fall_per_sighting"] < UNSETTLED_PER_SIGHTING
     thrashing = h.copy()
     thrashing[b + 1 :] -= 2.0 * UNSETTLED_PER_SIGHTING * used
     signs = lost_fit_signs(res.model, res.posteriors, data, thrashing, b)

@@ -40,7 +40,7 @@ SIDEWAYS_NOISE_RATIO = 2.0
 # whole logs, 12 robots on three thinned maps, 34 quarters from a 100- or 1000-mm range start sigma), 0.002-0.005
 # on six simulated differential drives, under 2e-4 on the thesis's field; 0.03-1.45 on the 9 that lost it, 1.45 on
 # robot 4 on a map thinned to 8 landmarks (1360 mm off Vicon), whose f neither turns nor bends; the others above
-# the limit also turned or bent (docs/em-real-results.md, "Fewer landmarks")
+# the limit also turned or bent (docs/em-real-results.md, "Fewer landmarks": the commands that measure it)
 UNSETTLED_PER_SIGHTING = 0.1
 
 
@@ -102,23 +102,36 @@ def range_function_bends(model: EMModel, post: Posteriors, data: LandmarkLog) ->
     return _bends(_fitted_distances(model, post, data))
 
 
-def unsettled_fit(loglik_history: np.ndarray, best_iteration: int, n_used: int) -> list[dict[str, Any]]:
-    """``[{"sign": "unsettled", ...}]`` when the iterations after the best fell on average more than
-    ``UNSETTLED_PER_SIGHTING`` log-units per sighting used below the best's likelihood (the best
-    iteration, how many followed it, the mean fall and the fall per sighting); else ``[]``, also when no
-    iteration followed the best (a fit stopped at ``max_iterations`` while climbing)."""
+def mean_fall_after_best(loglik_history: np.ndarray, best_iteration: int) -> float | None:
+    """How far, on average, the log-likelihoods of the iterations after the best fell below the best's;
+    None when no iteration followed it (a fit stopped at ``max_iterations`` while climbing)."""
     history = np.asarray(loglik_history, dtype=float)
     after = history[best_iteration + 1 :]
-    if after.size == 0 or n_used <= 0:
+    return float(np.mean(history[best_iteration] - after)) if after.size else None
+
+
+def fall_per_sighting(loglik_history: np.ndarray, best_iteration: int, n_used: int) -> float | None:
+    """``mean_fall_after_best`` per sighting used: what ``unsettled_fit`` holds against
+    ``UNSETTLED_PER_SIGHTING`` (None with no iteration after the best or no sighting)."""
+    fall = mean_fall_after_best(loglik_history, best_iteration)
+    return None if fall is None or n_used <= 0 else fall / n_used
+
+
+def unsettled_fit(loglik_history: np.ndarray, best_iteration: int, n_used: int) -> list[dict[str, Any]]:
+    """``[{"sign": "unsettled", ...}]`` when the iterations after the best fell on average more than
+    ``UNSETTLED_PER_SIGHTING`` log-units per sighting used below the best's likelihood
+    (``fall_per_sighting``; the sign holds the best iteration, how many followed it, the mean fall and the
+    fall per sighting); else ``[]``, also when no iteration followed the best."""
+    per = fall_per_sighting(loglik_history, best_iteration, n_used)
+    if per is None or per <= UNSETTLED_PER_SIGHTING:
         return []
-    fall = float(np.mean(history[best_iteration] - after))
-    if fall <= UNSETTLED_PER_SIGHTING * n_used:
-        return []
+    fall = per * n_used
+    after = np.asarray(loglik_history).size - best_iteration - 1
     return [
         {
             "sign": "unsettled",
             "best_iteration": int(best_iteration),
-            "iterations_after": int(after.size),
+            "iterations_after": int(after),
             "mean_fall": fall,
             "per_sighting": fall / n_used,
         }

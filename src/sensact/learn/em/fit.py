@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from sensact.errors import ConfigError, LogFormatError
-from sensact.learn.em.checks import lost_fit_signs
+from sensact.learn.em.checks import fall_per_sighting, lost_fit_signs
 from sensact.learn.em.config import EMConfig, refuse_bearing_settings
 from sensact.learn.em.delay_search import search_delay
 from sensact.learn.em.estep import Posteriors, e_step, log_likelihood
@@ -225,6 +225,13 @@ class EMResult:
         return int(self.loglik_history.size)
 
     @property
+    def n_used(self) -> int:
+        """The sightings the best model's E-step used (after every prune)."""
+        if self.posteriors is not None:
+            return int(np.count_nonzero(self.posteriors.obs_used))
+        return self.n_observations - self.n_pruned
+
+    @property
     def loglik_best(self) -> float:
         return float(self.loglik_history[self.best_iteration])
 
@@ -238,6 +245,8 @@ class EMResult:
             "n_observations": self.n_observations,
             "n_pruned": self.n_pruned,
             "n_pruned_when_freed": self.n_pruned_when_freed,
+            # how far the likelihood fell on average after the best, per sighting used (checks.unsettled_fit)
+            "fall_per_sighting": fall_per_sighting(self.loglik_history, self.best_iteration, self.n_used),
             "seconds": self.seconds,
             "start_search": self.start_search,
             "freed_at": self.freed_at,
