@@ -105,6 +105,7 @@ def run_trial(
             "seconds": res.seconds,
             "n_observations": data.n_observations,
             "n_pruned": res.n_pruned,
+            "fall_per_sighting": res.summary()["fall_per_sighting"],  # under learn/em/checks.py's unsettled limit
             "seed": sim.seed,
         }
     )

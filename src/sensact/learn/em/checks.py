@@ -38,7 +38,7 @@ SIDEWAYS_NOISE_RATIO = 2.0
 # the mean fall of the log-likelihood below the best iteration's over the iterations after it, per sighting used,
 # above which EM has not settled: 0.008-0.029 on the 51 MRCLAM fits without restarts that found their robot (5
 # whole logs, 12 robots on three thinned maps, 34 quarters from a 100- or 1000-mm range start sigma), 0.002-0.005
-# on six simulated differential drives, under 2e-4 on the thesis's field; 0.03-1.45 on the 9 that lost it, 1.45 on
+# on six simulated differential drives, under 3e-4 on the thesis's field; 0.03-1.45 on the 9 that lost it, 1.45 on
 # robot 4 on a map thinned to 8 landmarks (1360 mm off Vicon), whose f neither turns nor bends; the others above
 # the limit also turned or bent (docs/em-real-results.md, "Fewer landmarks": the commands that measure it)
 UNSETTLED_PER_SIGHTING = 0.1
