@@ -326,9 +326,7 @@ def _drive(
         late = max(t - k, 0)  # the first command stands in before it, as the learner's
         v_late, w_late = commands[late]
         fwd += lag * (cfg.forward_bias_mm_s + cfg.forward_gain * v_late - fwd)
-        reached = cfg.turn_bias_rad_s + cfg.turn_gain * w_late
-        if cfg.straight_turn_rad_per_mm:
-            reached += cfg.straight_turn_rad_per_mm * v_late
+        reached = cfg.turn_bias_rad_s + cfg.turn_gain * w_late + cfg.straight_turn_rad_per_mm * v_late
         turn += lag * (reached - turn)
         if sidesteps:
             left += lag * (cfg.sideways_bias_mm_s + cfg.sideways_gain * side[late] - left)

@@ -125,15 +125,13 @@ def unsettled_fit(loglik_history: np.ndarray, best_iteration: int, n_used: int) 
     per = fall_per_sighting(loglik_history, best_iteration, n_used)
     if per is None or per <= UNSETTLED_PER_SIGHTING:
         return []
-    fall = per * n_used
-    after = np.asarray(loglik_history).size - best_iteration - 1
     return [
         {
             "sign": "unsettled",
             "best_iteration": int(best_iteration),
-            "iterations_after": int(after),
-            "mean_fall": fall,
-            "per_sighting": fall / n_used,
+            "iterations_after": int(np.size(loglik_history) - best_iteration - 1),
+            "mean_fall": per * n_used,
+            "per_sighting": per,
         }
     ]
 

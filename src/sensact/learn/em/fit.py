@@ -280,22 +280,24 @@ def fit_em(
     res = facing_forward(_fit_while_lost(data, initial, cfg, progress, on_restart, on_race), data)
     start = initial or initial_model(data, cfg)
     moved = None if res.stop_reason == "interrupted" else start_moved_mm(start, res.model, data, cfg)
-    if moved is not None:  # a range-only start metres off: again from where EM put it (given_start.py)
-        if on_start_moved is not None:
-            on_start_moved(moved, res.model.prior_mean.copy())
-        again = _fit_while_lost(
-            data, start.replace(prior_mean=res.model.prior_mean.copy()), cfg, progress, on_restart, on_race
-        )
-        best, scores = most_likely([res, again], data)
-        info = {
-            "given": start.prior_mean.tolist(),
-            "learned": res.model.prior_mean.tolist(),
-            "moved_mm": moved,
-            "loglik": [float(s) for s in scores],
-            "kept": ["first", "again"][best],
-        }
-        res = dc_replace([res, again][best], start_moved=info, seconds=res.seconds + again.seconds)
-    return facing_forward(res, data)
+    if moved is None:
+        return res
+    # a range-only start metres off: again from where EM put it, facing forward (given_start.py)
+    if on_start_moved is not None:
+        on_start_moved(moved, res.model.prior_mean.copy())
+    again = _fit_while_lost(
+        data, start.replace(prior_mean=res.model.prior_mean.copy()), cfg, progress, on_restart, on_race
+    )
+    best, scores = most_likely([res, again], data)
+    info = {
+        "given": start.prior_mean.tolist(),
+        "learned": res.model.prior_mean.tolist(),
+        "moved_mm": moved,
+        "loglik": [float(s) for s in scores],
+        "kept": ["first", "again"][best],
+    }
+    kept = res if best == 0 else facing_forward(again, data)
+    return dc_replace(kept, start_moved=info, seconds=res.seconds + again.seconds)
 
 
 def _fit_while_lost(
