@@ -429,14 +429,18 @@ def test_learn_em_on_a_turtlebot_csv_recovers_the_gain_and_sonar(tmp_path):
     assert ev["sensors"]["sonar1"]["rms_pct_of_span"] < 2.0
     assert ev["delay_s"] == pytest.approx(0.12, abs=0.01)
     assert (tmp_path / "m.png").stat().st_size > 30_000  # a panel per channel and the smoothed state
+    assert (tmp_path / "m_against_range.png").stat().st_size > 30_000  # and against the range column
+    assert "m_against_range.png" in res.output
     assert "stopped: converged" in res.output and "raise the cap" not in res.output
     # --set overrides the Turtlebot's settings; without a range column there is nothing to score
+    (tmp_path / "m_against_range.png").unlink()
     _write_turtlebot_csv(csv, with_range=False)
     res = runner.invoke(app, ["learn", "em", str(csv), "--out", str(model), "--set", "max_iterations=5"])
     assert res.exit_code == 0, res.output
     assert "no range column" in res.output
     out = json.loads(model.read_text())
     assert out["evaluation"] is None and out["summary"]["iterations"] <= 5
+    assert not (tmp_path / "m_against_range.png").exists()  # nothing to draw it against
     # stopped at the cap, not by patience: the user is told the likelihood was still rising, and how to go on
     said = " ".join(res.output.split())
     assert "EM reached max_iterations (5) before 50 iterations passed without a new best" in said
@@ -458,6 +462,37 @@ def test_learn_em_on_a_turtlebot_csv_recovers_the_gain_and_sonar(tmp_path):
     said = " ".join(res.output.split())
     assert res.exit_code == 0 and "raw_ir2: not scored (readings in fewer than two 100-mm bins" in said, res.output
     assert "nan" not in said and "raw_ir1: " in said and "% of its" in said
+
+
+def test_the_turtlebot_figure_draws_the_scored_models_of_a_known_robot(tmp_path):
+    """The figure's curves are the score's: the learned velocity line has the scored gain as its slope
+    (an exact reduction) and, on the seeded robot (gain 0.9), lies on its true response; the sensor
+    panel's medians are sonar1's readings of the recorded range; one panel per channel and the action."""
+    import numpy as np
+
+    from sensact.evaluate.turtlebot_em import learned_velocity_mm_s, sensor_bins, state_map
+    from sensact.experiments.turtlebot_em import run_turtlebot_em
+    from sensact.report.figures_turtlebot_em import figure_turtlebot_em
+
+    csv = tmp_path / "robot.csv"
+    _write_turtlebot_csv(csv, with_range=True, drop=("raw_ir1", "raw_ir2", "raw_ir3"))
+    summary, run = run_turtlebot_em(csv)
+    score = summary["score"]
+    a, b = state_map(run.result, run.truth_mm)
+    assert (a, b) == (score["state_map"]["scale"], score["state_map"]["offset_mm"])
+    v0, v1 = learned_velocity_mm_s(run.result, np.array([0.0, 1.0]), a)
+    assert v1 - v0 == pytest.approx(score["gain_learned"], rel=1e-12)
+    assert learned_velocity_mm_s(run.result, np.array([300.0]), a)[0] == pytest.approx(0.9 * 300.0, rel=0.01)
+    sonar = run.result.model.sensor.channels[0]
+    readings = run.data.obs_readings[:, run.data.reading_names.index("sonar1")]
+    centers, medians, errs = sensor_bins(sonar, readings, run.truth_mm[run.data.obs_step], a, b)
+    assert centers.size == score["sensors"]["sonar1"]["bins"] and centers.size > 10
+    # sonar1 reads the distance (5 % outliers, which the median ignores): each bin's median lies within
+    # the bin, whose distances need not centre on its middle (the robot turns back at either end)
+    assert np.max(np.abs(medians - centers)) < 50.0, np.abs(medians - centers).max()
+    assert np.sqrt(np.mean(errs**2)) == pytest.approx(score["sensors"]["sonar1"]["rms_mm"])
+    path = figure_turtlebot_em(run, score, tmp_path / "f.png", "seeded robot")
+    assert path.stat().st_size > 30_000
 
 
 def test_learn_em_on_a_turtlebot_csv_learns_the_sensors_it_has(tmp_path):

@@ -2105,7 +2105,9 @@ def test_reproduce_real_runs_every_turtlebot_training_log_it_finds(tmp_path, mon
     loglik = figures_real.figure_loglik
     monkeypatch.setattr(figures_real, "figure_loglik", lambda runs, path: drawn.extend(runs) or loglik(runs, path))
     paths = figures_real.write_all(art, res, tmp_path / "out")
-    assert paths == [tmp_path / "out" / "real_loglik.png"] and paths[0].stat().st_size > 0
+    # each log's fit against its recorded range, then one likelihood figure with a line per log
+    names = ["real_turtlebot_training1.png", "real_turtlebot_training2.png", "real_loglik.png"]
+    assert paths == [tmp_path / "out" / n for n in names] and all(p.stat().st_size > 0 for p in paths)
     assert drawn == ["Turtlebot training1", "Turtlebot training2"]
     for name in ("training1.csv", "training2.csv", "training3.csv"):
         (base / name).unlink()

@@ -340,6 +340,13 @@ def learn_em_cmd(
             from sensact.report.figures_real import write_robot
 
             written += write_robot(lf, m, evaluation, out.with_suffix(""), name, res.posteriors, truth="ground truth")
+        elif evaluation is not None and lf is None:  # a Turtlebot CSV scored against its range column
+            from sensact.experiments.turtlebot_em import TurtlebotEMRun
+            from sensact.report.figures_turtlebot_em import figure_turtlebot_em
+
+            run = TurtlebotEMRun(data, turtlebot_truth, res)
+            path = out.with_name(f"{out.stem}_against_range.png")
+            written.append(figure_turtlebot_em(run, evaluation, path, f"EM on {name}"))
         console.print("wrote " + ", ".join(str(p) for p in written))
 
 

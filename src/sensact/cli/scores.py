@@ -282,7 +282,7 @@ def evaluate_turtlebot_em(res: Any, data: Any, truth_mm: Any) -> dict[str, Any] 
     if not np.isfinite(truth_mm).all():
         console.print(f"the range column has {int((~np.isfinite(truth_mm)).sum())} empty steps: not scored.")
         return None
-    from sensact.experiments.turtlebot_em import score_turtlebot_em
+    from sensact.evaluate.turtlebot_em import score_turtlebot_em
     from sensact.report.tables import gain_cell, one_command_reason, sensor_span_cell
 
     sc = score_turtlebot_em(res, data, truth_mm)

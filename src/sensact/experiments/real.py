@@ -343,17 +343,17 @@ def run_real(
         if progress:
             progress(f"Turtlebot EM on {tb.name}")
         try:
-            summary, res = run_turtlebot_em(tb)
+            summary, run = run_turtlebot_em(tb)
         except LogFormatError as exc:  # this log (e.g. no range to score against), not the settings
             out["skipped"].append(f"Turtlebot {tb.name}: {exc}")
             continue
         ch3, _ = run_turtlebot(tb, ("sonar1",))
         summary["chapter3_sonar1"] = ch3["rows"]["sonar1"]
         if "turtlebot" not in out:
-            out["turtlebot"], artifacts["turtlebot"] = summary, res
+            out["turtlebot"], artifacts["turtlebot"] = summary, run
         else:
             out.setdefault("turtlebot_more_logs", {})[tb.stem] = summary
-            artifacts.setdefault("turtlebot_more_logs", {})[tb.stem] = res
+            artifacts.setdefault("turtlebot_more_logs", {})[tb.stem] = run
     if "turtlebot" not in out:
         out["skipped"].append(f"Turtlebot: no training*.csv in {root / 'turtlebot1d'}")
     out["scorecard"] = [c.to_dict() for c in scorecard(out)]

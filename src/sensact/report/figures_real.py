@@ -315,10 +315,17 @@ def write_all(art: dict[str, Any], res: dict[str, Any], out: Path) -> list[Path]
         paths += write_robot(ml, r.model, score, stem, name, r.posteriors)
         runs[f"MRCLAM {name}"] = r
     more = art.get("turtlebot_more_logs", {})
-    if "turtlebot" in art:  # named by its log when others are drawn beside it
-        runs["Turtlebot" + (f" {Path(res['turtlebot']['file']).stem}" if more else "")] = art["turtlebot"]
-    for name, r in more.items():
-        runs[f"Turtlebot {name}"] = r
+    turtlebots = []  # (stem, run, summary): the training1.csv first
+    if "turtlebot" in art:
+        turtlebots.append((Path(res["turtlebot"]["file"]).stem, art["turtlebot"], res["turtlebot"]))
+    turtlebots += [(stem, run, res["turtlebot_more_logs"][stem]) for stem, run in more.items()]
+    for stem, run, summary in turtlebots:
+        from sensact.report.figures_turtlebot_em import figure_turtlebot_em
+
+        title = f"Turtlebot {Path(summary['file']).name}, EM in 1-D"
+        paths.append(figure_turtlebot_em(run, summary["score"], out / f"real_turtlebot_{stem}.png", title))
+        # named by its log when others are drawn beside it
+        runs["Turtlebot" + (f" {stem}" if more else "")] = run.result
     for dataset, fleet in res.get("fleet", {}).items():
         from sensact.report.figures_fleet import figure_fleet
 

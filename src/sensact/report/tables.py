@@ -95,7 +95,7 @@ NOT_TIMED = "not scored: no command held for 2 s"
 
 
 def sensor_span_cell(s: dict[str, Any]) -> str:
-    """A Turtlebot sensor's score (``turtlebot_em.score_turtlebot_em``): its error in % of its span, and
+    """A Turtlebot sensor's score (``evaluate.turtlebot_em.score_turtlebot_em``): its error in % of its span, and
     in how many bins f is so flat that the error exceeds the span."""
     pct = s["rms_pct_of_span"]
     if pct is None or not math.isfinite(pct):  # NaN in memory, null once read back

@@ -1,0 +1,120 @@
+"""A Turtlebot EM fit (``experiments/turtlebot_em.py``) scored against the log's recorded range.
+
+Nothing fixes the unit of the 1-D state, so the evaluation maps the learned state to the true range with
+the optimal scale and offset (as sec. 4.4.3 does) and compares:
+
+* the action **gain**: the learned d(velocity)/d(command) after the scale, against the slope of the
+  true velocity (from ``range`` over 1 s windows) on the command; not scored when the log spends
+  ``ONE_COMMAND_SHARE`` of its steps at one command, where that slope rests on the few others;
+* each **sensor**: over 100 mm bins of true distance inside the channel's window, the gap between the
+  learned f and the median reading, turned into distance by f's slope, as an RMS percent of the span;
+  ``bins_beyond_span`` counts the bins whose error exceeds the whole span, where f is nearly flat and the
+  reading hardly tells the distance (an IR sensor past its useful range).
+
+The helpers are shared with the figure (``report/figures_turtlebot_em.py``), so that it draws what is scored.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from typing import Any
+
+import numpy as np
+
+from sensact.evaluate.measured import ONE_COMMAND_SHARE, dominant_command
+from sensact.learn.em import EMResult
+from sensact.logs.landmark_log import LandmarkLog
+
+BIN_MM = 100.0  # the sensor scores' bins of true distance
+
+
+def windowed_velocities(data: LandmarkLog, truth_mm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The recorded range's velocity over 1-s windows (half overlapping) and each window's mean command:
+    what the gain is scored against."""
+    window = max(round(1.0 / data.dt_s), 1)
+    idx = np.arange(0, len(truth_mm) - window, max(window // 2, 1))
+    v_true = (truth_mm[idx + window] - truth_mm[idx]) / (window * data.dt_s)
+    c = np.array([data.step_commands[i : i + window, 0].mean() for i in idx])
+    return c, v_true
+
+
+def state_map(res: EMResult, truth_mm: np.ndarray) -> tuple[float, float]:
+    """``(a, b)``: the optimal affine map ``true range ~ a x + b`` of the smoothed state (sec. 4.4.3)."""
+    a, b = np.polyfit(res.posteriors.mean_gamma[:, 0], truth_mm, 1)
+    return float(a), float(b)
+
+
+def learned_velocity_mm_s(res: EMResult, commands: np.ndarray, a: float) -> np.ndarray:
+    """The learned mean velocity of the recorded range at each command, after the scale: the track state
+    shrinks as the robot advances (``TRACK``), so the range moves at ``-a A(c)``."""
+    action = res.model.action
+    return -a * (action.features(np.asarray(commands, dtype=float).reshape(-1, 1)) @ action.coefficients)[:, 0]
+
+
+def sensor_bins(
+    channel: Any, readings: np.ndarray, d_obs: np.ndarray, a: float, b: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Over ``BIN_MM`` bins of true distance inside the channel's window (mapped onto the range by
+    ``a, b``), with at least 5 readings: each bin's centre, its median reading, and the gap between the
+    learned f and that median turned into distance by f's slope."""
+    lo = max(channel.valid_min * a + b, d_obs.min()) if math.isfinite(channel.valid_min) else d_obs.min()
+    hi = min(channel.valid_max * a + b, d_obs.max()) if math.isfinite(channel.valid_max) else d_obs.max()
+    lo, hi = min(lo, hi), max(lo, hi)
+    edges = np.arange(lo, hi + BIN_MM, BIN_MM)
+    centers, medians, errs = [], [], []
+    for e0, e1 in itertools.pairwise(edges):
+        sel = (d_obs >= e0) & (d_obs < e1) & np.isfinite(readings)
+        if sel.sum() < 5:
+            continue
+        dc = 0.5 * (e0 + e1)
+        xs = (dc - b) / a
+        med = float(np.median(readings[sel]))
+        f, df = channel.function(xs), (channel.function(xs + 1.0) - channel.function(xs - 1.0)) / 2.0
+        centers.append(dc)
+        medians.append(med)
+        errs.append(a * (f - med) / df if df else np.nan)
+    return np.array(centers), np.array(medians), np.array(errs)
+
+
+def score_turtlebot_em(res: EMResult, data: LandmarkLog, truth_mm: np.ndarray) -> dict[str, Any]:
+    """Gain and sensor errors after the optimal affine map of the learned state onto the true range."""
+    post = res.posteriors
+    x = post.mean_gamma[:, 0]
+    a, b = state_map(res, truth_mm)
+    action = res.model.action
+    gain_learned = -a * action.coefficients[1, 0]  # the track state shrinks as the robot advances
+    c, v_true = windowed_velocities(data, truth_mm)
+    gain_true = float(np.polyfit(c, v_true, 1)[0])
+    _, one_share = dominant_command(data.step_commands[:, 0])
+    scored = one_share < ONE_COMMAND_SHARE
+    out: dict[str, Any] = {
+        "state_map": {"scale": a, "offset_mm": b, "rms_mm": float(np.std(a * x + b - truth_mm))},
+        "one_command_share": one_share,
+        "gain_learned": float(gain_learned),
+        "gain_true": gain_true,
+        "gain_error_pct": 100.0 * abs(gain_learned / gain_true - 1.0) if scored else None,
+        "delay_s": action.delay_steps * data.dt_s,
+        "sensors": {},
+    }
+    d_obs = truth_mm[data.obs_step]
+    for j, ch in enumerate(res.model.sensor.channels):
+        readings = data.obs_readings[:, data.reading_names.index(ch.name)]
+        centers, _, errs = sensor_bins(ch, readings, d_obs, a, b)
+        span = float(np.ptp(centers)) if len(centers) > 1 else float("nan")
+        rms = float(np.sqrt(np.nanmean(np.square(errs)))) if errs.size else float("nan")
+        # an inverse confined to the window is never off by more than its span: a bin beyond that is one
+        # where f is nearly flat and the gap over its slope unbounded (an IR sensor past its useful range)
+        within = np.abs(errs) <= span if errs.size and np.isfinite(span) else np.ones(len(errs), dtype=bool)
+        rms_within = float(np.sqrt(np.mean(np.square(errs[within])))) if within.any() else float("nan")
+        out["sensors"][ch.name] = {
+            "rms_mm": rms,
+            "rms_pct_of_span": 100.0 * rms / span if span else float("nan"),
+            "span_mm": span,
+            "bins": len(centers),
+            "bins_beyond_span": int((~within).sum()),
+            "rms_pct_of_span_within": 100.0 * rms_within / span if span else float("nan"),  # without those
+            "sigma": ch.sigma,
+            "weight_used": int((post.weights[:, j] > 0).sum()),
+        }
+    return out
