@@ -431,6 +431,19 @@ def test_learn_em_on_a_turtlebot_csv_recovers_the_gain_and_sonar(tmp_path):
     assert (tmp_path / "m.png").stat().st_size > 30_000  # a panel per channel and the smoothed state
     assert (tmp_path / "m_against_range.png").stat().st_size > 30_000  # and against the range column
     assert "m_against_range.png" in res.output
+    # the smoothed distance per step, written beside the model, is the one scored: after the state map
+    # it is the range column within the map's RMS, which on this robot is a few mm
+    import numpy as np
+
+    from sensact.io.turtlebot import read_turtlebot_landmark_log
+
+    _, truth_mm = read_turtlebot_landmark_log(csv)
+    with np.load(tmp_path / "m.path.npz", allow_pickle=False) as path:
+        assert list(path["state"]) == ["distance"] and path["mean"].shape == (truth_mm.size, 1)
+        smap = ev["state_map"]
+        rms = np.std(smap["scale"] * path["mean"][:, 0] + smap["offset_mm"] - truth_mm)
+        assert rms == pytest.approx(smap["rms_mm"], rel=1e-9) and rms < 10.0, rms
+        assert 0.0 < np.median(path["sd"]) < 10.0
     assert "stopped: converged" in res.output and "raise the cap" not in res.output
     # --set overrides the Turtlebot's settings; without a range column there is nothing to score
     (tmp_path / "m_against_range.png").unlink()

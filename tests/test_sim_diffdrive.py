@@ -298,6 +298,15 @@ def test_simulate_diffdrive_then_learn_em_scores_against_the_simulation(tmp_path
     assert res.exit_code == 0, res.output
     # (learn em also scores its smoothed path, which `evaluate log` does not re-run the E-step for)
     assert ev["path"]["median_mm"] < 300.0 and "smoothed path off the recorded poses" in flat
+    # the smoothed path itself, written beside the model, is the one scored: the same median distance
+    with np.load(tmp_path / "m.path.npz", allow_pickle=False) as path:
+        assert list(path["state"]) == ["x_mm", "y_mm", "theta_rad"] and "m.path.npz" in flat
+        assert path["mean"].shape == (lf.data.n_steps, 3) and path["sd"].shape == (lf.data.n_steps, 3)
+        assert path["time_s"][-1] == pytest.approx((lf.data.n_steps - 1) * lf.data.dt_s)
+        assert (path["sd"] > 0).all()
+        poses, valid = lf.truth_poses()
+        off = np.hypot(*(path["mean"][valid, :2] - poses[valid, :2]).T)
+        assert float(np.median(off)) == pytest.approx(ev["path"]["median_mm"], rel=1e-9)
     assert json.loads((tmp_path / "e.json").read_text()) == {k: v for k, v in ev.items() if k != "path"}
     assert (tmp_path / "e_actions.png").stat().st_size > 10_000
     # ... and on another run of the robot it scores against that run's truth, with From-Truth fitted there

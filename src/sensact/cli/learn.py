@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
@@ -119,6 +119,23 @@ def learn_bootstrap_cmd(
         console.print(f"wrote {out}, {out.with_suffix('.history.npz')} and {png}")
 
 
+def write_smoothed_path(path: Path, posteriors: Any, data: Any) -> Path:
+    """Where EM puts the robot at every step: the smoothed mean and sd of each state component (eqs. 4.9,
+    4.10), for a user's own plots or as the robot's path; ``time_s`` counts from the log's first step."""
+    import numpy as np
+
+    from sensact.io.atomic import write_npz
+
+    names = ("x_mm", "y_mm", "theta_rad") if data.geometry == "planar" else ("distance",)
+    return write_npz(
+        path,
+        time_s=np.arange(data.n_steps) * data.dt_s,
+        mean=posteriors.mean_gamma,
+        sd=np.sqrt(np.diagonal(posteriors.cov_gamma, axis1=1, axis2=2)),
+        state=np.array(names),
+    )
+
+
 @learn_app.command("em")
 @friendly
 def learn_em_cmd(
@@ -127,8 +144,9 @@ def learn_em_cmd(
         Path | None,
         typer.Option(
             "--out",
-            help="Write the learned model here (JSON), the learning history beside it (.npz) and a figure of the "
-            "fit (.png); with recorded poses, also the figures against them (OUT_actions.png, ...).",
+            help="Write the learned model here (JSON), the learning history (.history.npz), the smoothed path "
+            "(.path.npz) and a figure of the fit (.png) beside it; with recorded poses, also the figures against "
+            "them (OUT_actions.png, ...), and for a Turtlebot CSV with a range column OUT_against_range.png.",
         ),
     ] = None,
     bins: Annotated[int, typer.Option(help="Actions to bin continuous 1-D commands into.")] = 21,
@@ -334,6 +352,8 @@ def learn_em_cmd(
         name = lf.title(log) if lf is not None else Path(data.source).name
         if res.posteriors is not None:
             from sensact.report.figures_fit import figure_em_fit
+
+            written.append(write_smoothed_path(out.with_suffix(".path.npz"), res.posteriors, data))
 
             written.append(figure_em_fit(res, data, out.with_suffix(".png"), f"EM on {name}"))
         if evaluation is not None and "truth_noise" in evaluation:  # scored against recorded poses
