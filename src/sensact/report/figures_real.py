@@ -17,6 +17,7 @@ import numpy as np
 from sensact.core.pose_models import landmark_distance
 from sensact.models.polynomial import Polynomial1D
 from sensact.report.figures1d import _save
+from sensact.report.figures_turtlebot_em import figure_turtlebot_em
 
 
 def _truth_at_sensor(ml: Any, score: dict[str, Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -320,8 +321,6 @@ def write_all(art: dict[str, Any], res: dict[str, Any], out: Path) -> list[Path]
         turtlebots.append((Path(res["turtlebot"]["file"]).stem, art["turtlebot"], res["turtlebot"]))
     turtlebots += [(stem, run, res["turtlebot_more_logs"][stem]) for stem, run in more.items()]
     for stem, run, summary in turtlebots:
-        from sensact.report.figures_turtlebot_em import figure_turtlebot_em
-
         title = f"Turtlebot {Path(summary['file']).name}, EM in 1-D"
         paths.append(figure_turtlebot_em(run, summary["score"], out / f"real_turtlebot_{stem}.png", title))
         # named by its log when others are drawn beside it
