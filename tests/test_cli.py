@@ -508,6 +508,76 @@ def test_the_turtlebot_figure_draws_the_scored_models_of_a_known_robot(tmp_path)
     assert path.stat().st_size > 30_000
 
 
+def test_localize_follows_another_run_of_a_turtlebot_with_the_model_learned_on_one(tmp_path):
+    """`sensact localize`: a model learned on one seeded run, held, places the robot in another run; its
+    start comes from the first readings through the learned f, so that one outlier cannot set it; the
+    same run scored as `learn em` scored it gives the same path; bad input is one line."""
+    import numpy as np
+
+    first, second, model = tmp_path / "a.csv", tmp_path / "b.csv", tmp_path / "m.json"
+    _write_turtlebot_csv(first, with_range=True, seed=7)
+    _write_turtlebot_csv(second, with_range=True, seed=8)
+    assert runner.invoke(app, ["learn", "em", str(first), "--out", str(model)]).exit_code == 0
+    res = runner.invoke(app, ["localize", str(second), "--model", str(model), "--out", str(tmp_path / "l.json")])
+    assert res.exit_code == 0, res.output
+    loc = json.loads((tmp_path / "l.json").read_text())
+    assert loc["start"]["how"] == "the first readings through the learned f"
+    assert (
+        abs(
+            loc["start"]["prior_mean"][0] * loc["truth"]["state_map"]["scale"]
+            + loc["truth"]["state_map"]["offset_mm"]
+            - 400.0
+        )
+        < 30.0
+    )  # the seeded robot starts 400 mm from the wall
+    assert loc["truth"]["state_map"]["rms_mm"] < 10.0 and loc["filter_ok"]
+    assert loc["loglik_per_sighting"] > loc["loglik_per_sighting_learned"] - 0.5, loc  # the model holds there
+    said = " ".join(res.output.split())
+    assert "smoothed distance against the range column" in said and "l.path.npz" in said
+    assert (tmp_path / "l.png").stat().st_size > 30_000
+    # on the log it was learned from, from the start EM learned, the path is the one `learn em` wrote
+    start = json.loads(model.read_text())["model"]["prior_mean"][0]
+    res = runner.invoke(
+        app, ["localize", str(first), "--model", str(model), "--start", str(start), "--out", str(tmp_path / "s.json")]
+    )
+    assert res.exit_code == 0, res.output
+    assert "from given (1 tried" in " ".join(res.output.split())
+    with np.load(tmp_path / "s.path.npz", allow_pickle=False) as a, np.load(tmp_path / "m.path.npz") as b:
+        assert np.sqrt(np.mean((a["mean"] - b["mean"]) ** 2)) < 1.0
+    # a start that is not one number, and a model for other readings, are one line each
+    res = runner.invoke(app, ["localize", str(second), "--model", str(model), "--start", "1,2"])
+    assert res.exit_code == 2 and "--start '1,2' is not 1 number" in " ".join(res.output.split())
+    _write_turtlebot_csv(second, with_range=True, seed=8, drop=("raw_ir4",))
+    res = runner.invoke(app, ["localize", str(second), "--model", str(model)])
+    said = " ".join(res.output.split())
+    assert res.exit_code == 2 and "the log has no reading raw_ir4" in said and "cannot be run on" in said, said
+
+
+def test_track_start_candidates_invert_each_learned_f_inside_its_window():
+    """The real roots of ``f(x) = o`` inside the window, with the sd the channel's sigma gives there."""
+    import numpy as np
+
+    from sensact.learn.em.localize import TRACK_MIN_SD, track_start_candidates
+    from sensact.logs.landmark_log import LandmarkLog
+    from sensact.models.em_model import EMModel
+    from sensact.models.landmark_sensor import LandmarkSensor, ReadingChannel
+    from sensact.models.linear_action import LinearActionModel
+    from sensact.models.polynomial import Polynomial1D
+
+    line = ReadingChannel("a", Polynomial1D((1.0, 2.0)), 4.0)  # f = 1 + 2x
+    bowl = ReadingChannel("b", Polynomial1D((0.0, 0.0, 1.0)), 1.0, 0.0, 10.0)  # f = x^2, only 0..10 valid
+    sensor = LandmarkSensor((line, bowl))
+    action = LinearActionModel.zero("affine", 1, ("c",), ("v",))
+    model = EMModel("track", action, sensor, np.zeros(1), np.eye(1), np.ones((1, 1)))
+    data = LandmarkLog(
+        "track", 0.1, np.full(3, -1), np.zeros((0, 1)), ("c",), np.array([0]), np.array([0]),
+        np.array([[5.0, 9.0]]), np.array([np.nan]), np.zeros((1, 2)), ("wall",), "", ("a", "b"), np.zeros((3, 1)),
+    )  # fmt: skip
+    got = track_start_candidates(model, data)
+    # a: x = 2 (sd 4 / 2); b: x = 3 (sd 1 / 6, at least TRACK_MIN_SD), its root -3 is outside the window
+    assert [(round(x, 9), sd) for x, sd in got] == [(2.0, 2.0), (3.0, TRACK_MIN_SD)]
+
+
 def test_learn_em_on_a_turtlebot_csv_learns_the_sensors_it_has(tmp_path):
     csv = tmp_path / "robot.csv"
     _write_turtlebot_csv(csv, with_range=True, drop=("raw_ir1", "raw_ir2"))

@@ -162,3 +162,13 @@ def test_simulate_a_radio_robot_then_learn_and_score_it_without_a_bearing(tmp_pa
     res = runner.invoke(app, ["evaluate", "fleet", str(log), "--model", str(model), "--out", str(tmp_path / "f.json")])
     assert res.exit_code == 0, res.output
     assert "no bearing" in res.output and (tmp_path / "f.png").stat().st_size > 10_000
+    # `localize` cannot search for a start without bearings: it says so, and follows the robot from a given one
+    res = runner.invoke(app, ["localize", str(log), "--model", str(model)])
+    said = " ".join(res.output.split())
+    assert res.exit_code == 2 and "no bearings to search for the start" in said and "--start X_MM,Y_MM" in said
+    res = runner.invoke(
+        app, ["localize", str(log), "--model", str(model), "--start", "0,0,0", "--out", str(tmp_path / "l.json")]
+    )
+    assert res.exit_code == 0, res.output
+    loc = json.loads((tmp_path / "l.json").read_text())
+    assert loc["start"]["how"] == "given" and loc["truth"]["path"]["median_mm"] < 2 * ev["path"]["median_mm"] + 50.0

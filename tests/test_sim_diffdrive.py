@@ -320,6 +320,33 @@ def test_simulate_diffdrive_then_learn_em_scores_against_the_simulation(tmp_path
     ev4 = json.loads((tmp_path / "o.json").read_text())
     assert ev4["simulated"] == ev["simulated"]  # the model against the robot: the same robot, the same numbers
     assert ev4["action"] != ev["action"] and ev4["bars"] == bar_checks(ev4)
+    # `localize`: the model, held, finds where that other run started and follows it (no learning)
+    res = runner.invoke(app, ["localize", str(other), "--model", str(model), "--out", str(tmp_path / "l.json")])
+    assert res.exit_code == 0, res.output
+    loc = json.loads((tmp_path / "l.json").read_text())
+    poses4, valid4 = read_landmark_log(other).truth_poses()
+    assert loc["start"]["how"] == "the start search's candidates" and len(loc["start"]["candidates"]) > 1
+    start = np.array(loc["start"]["prior_mean"])  # a cell of the search's 500-mm grid
+    assert np.hypot(*(start[:2] - poses4[0, :2])) < 500.0, start
+    assert loc["truth"]["path"]["median_mm"] < 300.0 and loc["filter_ok"]
+    # a model that holds fits the other run no worse, a sighting, than the run it was learned on (here
+    # better: -5.34 against -5.98); one whose range function reads 30 % long fits it far worse
+    assert loc["loglik_per_sighting"] > loc["loglik_per_sighting_learned"] - 0.5, loc
+    doc = json.loads(model.read_text())
+    channel = doc["model"]["sensor"]["channels"][0]
+    channel["function"]["coef"] = [1.3 * c for c in channel["function"]["coef"]]
+    (tmp_path / "long.json").write_text(json.dumps(doc))
+    res = runner.invoke(
+        app, ["localize", str(other), "--model", str(tmp_path / "long.json"), "--out", str(tmp_path / "x.json")]
+    )
+    assert res.exit_code == 0, res.output
+    wrong = json.loads((tmp_path / "x.json").read_text())
+    assert wrong["loglik_per_sighting"] < loc["loglik_per_sighting"] - 1.0, wrong["loglik_per_sighting"]
+    with np.load(tmp_path / "l.path.npz", allow_pickle=False) as path:
+        off = np.hypot(*(path["mean"][valid4, :2] - poses4[valid4, :2]).T)
+        assert float(np.median(off)) == pytest.approx(loc["truth"]["path"]["median_mm"], rel=1e-9)
+        assert off[0] < 300.0, off[0]  # the smoothed start, which the sightings place
+    assert (tmp_path / "l.png").stat().st_size > 30_000 and "smoothed path off the recorded poses" in res.output
 
 
 def test_learn_em_says_how_many_misreads_the_gate_dropped_and_offers_joint_student_t(tmp_path):

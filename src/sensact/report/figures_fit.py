@@ -111,3 +111,54 @@ def figure_em_fit(res: Any, data: Any, path: Path, title: str) -> Path:
     fig.suptitle(title)
     fig.tight_layout()
     return _save(fig, path)
+
+
+def _localized_path_panel(ax: Any, posteriors: Any, data: Any, truth: Any) -> None:
+    """The smoothed path (a track: the distance with two sds about it against time) and, when the log has
+    them, the recorded poses or distances, drawn in the model's own unit."""
+    m = posteriors.mean_gamma
+    t = np.arange(data.n_steps) * data.dt_s
+    if data.mode == TRACK:
+        sd = np.sqrt(posteriors.cov_gamma[:, 0, 0])
+        ax.fill_between(t, m[:, 0] - 2 * sd, m[:, 0] + 2 * sd, color="C0", alpha=0.25, lw=0, label="± 2 sd")
+        ax.plot(t, m[:, 0], lw=0.8, color="C0", label="smoothed distance")
+        if truth is not None:
+            ax.plot(t, truth[0][:, 0], lw=0.8, color="k", ls="--", label="recorded")
+        ax.set(xlabel="time (s)", ylabel="distance (the model's unit)", title="where the model puts the robot")
+        ax.legend(fontsize=7)
+        return
+    if truth is not None:
+        poses, valid = truth
+        xy = np.where(valid[:, None], poses[:, :2], np.nan)  # a gap in the truth stays a gap
+        ax.plot(xy[:, 0], xy[:, 1], lw=0.6, color="k", ls="--", label="recorded poses")
+    ax.plot(m[:, 0], m[:, 1], lw=0.6, color="C0", label="smoothed path")
+    ax.plot(m[0, 0], m[0, 1], "o", color="C2", label="start found")
+    ax.scatter(*data.landmarks_xy.T, marker="s", color="k", s=20, label="landmarks")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set(xlabel="x (mm)", ylabel="y (mm)", title="where the model puts the robot")
+    ax.legend(fontsize=7)
+
+
+def figure_localized(loc: Any, data: Any, path: Path, title: str, truth: Any = None) -> Path:
+    """`sensact localize`'s figure (``learn/em/localize.Localized``): the path, and each learned f, held,
+    over this log's readings against the smoothed distance, so that a model that does not fit the log
+    shows. ``truth``: ``(poses, valid)`` on a planar log, ``(distances (T, 1), None)`` on a track."""
+    channels = loc.model.sensor.channels
+    cols = channel_columns(loc.model.sensor, data)
+    post = loc.posteriors
+    dist = landmark_distance(post.mean_gamma[data.obs_step], data.landmarks_xy[data.obs_landmark], data.mode)
+    n = len(channels) + 1
+    ncol = min(n, 3)
+    nrow = math.ceil(n / ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(5.2 * ncol, 4.0 * nrow), squeeze=False)
+    flat = axes.ravel()
+    _localized_path_panel(flat[0], post, data, truth)
+    for j, col in enumerate(cols):
+        _channel_panel(flat[1 + j], loc, data, j, col, dist)
+    for ax in flat[n:]:
+        ax.set_visible(False)
+    for ax in flat[:n]:
+        ax.grid(alpha=0.3)
+    fig.suptitle(f"{title}: log-likelihood {loc.loglik_per_sighting:.3f} a sighting")
+    fig.tight_layout()
+    return _save(fig, path)

@@ -10,7 +10,8 @@ passes live in ``sensact.core.ekf_smoother``. Beyond the thesis, for real logs:
 * ``delay_search``: the command delay, chosen by the likelihood;
 * ``outliers``: sec. 4.4.1's gate again when the robust readings take over;
 * ``checks``: signs, without ground truth, that a fit lost its robot;
-* ``forward``: which way is forward for a robot whose sensor reads no bearing.
+* ``forward``: which way is forward for a robot whose sensor reads no bearing;
+* ``localize``: a learned model put to use, the E-step alone on another log, its start searched for.
 """
 
 from sensact.learn.em.config import EMConfig

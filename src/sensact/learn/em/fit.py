@@ -243,6 +243,7 @@ class EMResult:
             "loglik_start": float(self.loglik_history[0]),
             "loglik_best": self.loglik_best,
             "n_observations": self.n_observations,
+            "n_used": self.n_used,
             "n_pruned": self.n_pruned,
             "n_pruned_when_freed": self.n_pruned_when_freed,
             # how far the likelihood fell on average after the best, per sighting used (checks.unsettled_fit)

@@ -1,0 +1,185 @@
+"""``sensact localize``: a learned model put to use on another log (learn/em/localize.py)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from sensact.cli.base import ConfigOpt, SetOpt, app, console, friendly, layered_config
+
+
+def _parse_start(text: str | None, n: int) -> Any:
+    if text is None:
+        return None
+    import numpy as np
+
+    from sensact.errors import ConfigError
+
+    what = "X_MM,Y_MM,HEADING_RAD" if n == 3 else "DISTANCE"
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) != n or not all(np.isfinite(values)):
+        raise ConfigError(
+            f"--start {text!r} is not {n} number{'s' if n > 1 else ''}.", field="--start", fix=f"give --start {what}."
+        )
+    return np.array(values)
+
+
+def _read_log(log: Path, dt_s: float | None, bins: int) -> tuple[Any, Any, Any]:
+    """``(data, log folder or None, the Turtlebot CSV's range or None)``."""
+    if log.is_file() and log.suffix.lower() == ".csv":
+        from sensact.io.turtlebot import read_turtlebot_landmark_log
+
+        data, truth = read_turtlebot_landmark_log(log, dt_s)  # on the model's step, whatever this file's median
+        return data, None, truth
+    if log.is_file():
+        from sensact.errors import LogFormatError
+
+        raise LogFormatError(
+            "localize reads a log folder or a Turtlebot CSV file.",
+            file=log,
+            fix="give a folder with meta.json, actions.csv and observations.csv, or a .csv with the Turtlebot's "
+            "columns.",
+        )
+    from sensact.io.landmark_log import read_landmark_log
+
+    lf = read_landmark_log(log, command_bins=bins)
+    return lf.data, lf, None
+
+
+def _truth_scores(loc: Any, lf: Any, truth_mm: Any) -> dict[str, Any] | None:
+    """The path against recorded poses (planar) or the range column (a Turtlebot CSV), for evaluation only."""
+    import numpy as np
+
+    mean = loc.posteriors.mean_gamma
+    if lf is not None and lf.truth_poses() is not None:
+        from sensact.evaluate.landmark_truth import path_offset
+
+        poses, valid = lf.truth_poses()
+        off = path_offset(mean, poses, valid)
+        console.print(
+            f"smoothed path off the recorded poses: median {off['median_mm']:.0f} mm "
+            f"(forward {off['forward_median_mm']:+.0f} mm, right {off['right_median_mm']:+.0f} mm)"
+        )
+        return {"path": off}
+    if truth_mm is not None and np.isfinite(truth_mm).all():
+        x = mean[:, 0]
+        a, b = np.polyfit(x, truth_mm, 1)
+        out = {
+            "rms_mm": float(np.sqrt(np.mean((x - truth_mm) ** 2))),
+            "state_map": {"scale": float(a), "offset_mm": float(b), "rms_mm": float(np.std(a * x + b - truth_mm))},
+        }
+        console.print(
+            f"smoothed distance against the range column: RMS {out['rms_mm']:.1f} (the state read as mm); "
+            f"{out['state_map']['rms_mm']:.1f} mm after the optimal scale {a:.3f} and offset {b:.0f} mm"
+        )
+        return out
+    return None
+
+
+# the settings localize uses, taken from the ones the model was learned with (its JSON's summary.config)
+LOCALIZE_SETTINGS = (
+    "prune_rad_per_step",
+    "start_prior_sd",
+    "start_search_s",
+    "start_search_grid_mm",
+    "start_candidates",
+)
+
+
+@app.command("localize")
+@friendly
+def localize_cmd(
+    log: Annotated[Path, typer.Argument(help="A log folder (planar or a 1-D track), or a Turtlebot CSV file.")],
+    model: Annotated[Path, typer.Option("--model", help="A model.json written by `sensact learn em`.")],
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            "--out",
+            help="Write the run here (JSON: the start, the log-likelihood, the scores against any ground truth), "
+            "the smoothed path beside it (.path.npz) and a figure (.png).",
+        ),
+    ] = None,
+    start: Annotated[
+        str | None,
+        typer.Option(
+            help="Where the robot starts, X_MM,Y_MM,HEADING_RAD (a track: DISTANCE); searched for if not given."
+        ),
+    ] = None,
+    bins: Annotated[int, typer.Option(help="Actions to bin continuous 1-D commands into (as learn em's --bins).")] = 21,
+    set_: SetOpt = None,
+    config: ConfigOpt = None,
+) -> None:
+    """Place the robot in a log with a learned model: the E-step alone, nothing learned.
+
+    The settings are the ones the model was learned with (its JSON's summary.config); --config and --set
+    override them. Only the start search, the start's spread and the first-iteration gate are used."""
+    from sensact.cli.datasets import _read_em_model, refuse_model_for_log
+    from sensact.cli.learn import write_smoothed_path
+    from sensact.config import config_from_dict
+    from sensact.io.atomic import write_json
+    from sensact.learn.em import EMConfig
+    from sensact.learn.em.localize import localize
+
+    doc, m = _read_em_model(model)
+    summary = doc.get("summary") or {}
+    learned = summary.get("config") or {}
+    base = config_from_dict(EMConfig, {k: learned[k] for k in LOCALIZE_SETTINGS if k in learned}, source=str(model))
+    cfg = layered_config(EMConfig, config, set_, base=base)
+    dt = doc.get("dt_s")
+    data, lf, truth_mm = _read_log(log, float(dt) if dt is not None else None, bins)
+    refuse_model_for_log(doc, m, data, model, log, use="run")
+    console.print(
+        f"{model} on {data.source}: {data.n_steps} steps of {data.dt_s:.4g} s, {data.n_observations} observations"
+    )
+    loc = localize(m, data, cfg, _parse_start(start, m.prior_mean.size))
+    post = loc.posteriors
+    chosen = ", ".join(f"{v:.4g}" for v in loc.model.prior_mean)
+    console.print(
+        f"start: ({chosen}), from {loc.start['how']} ({len(loc.start['candidates'])} tried, the most likely kept)"
+    )
+    line = (
+        f"log-likelihood {post.loglik:.1f} on {post.n_used} of {data.n_observations} sightings: "
+        f"{loc.loglik_per_sighting:.3f} a sighting"
+    )
+    best, used = summary.get("loglik_best"), summary.get("n_used")
+    per_learned = best / used if best is not None and used else None
+    if per_learned is not None:
+        line += f" (on the log it was learned from, {per_learned:.3f})"
+    console.print(line)
+    if not post.ok:
+        console.print("[yellow]the filter lost positive definiteness: the path is not to be trusted.[/]")
+    scores = _truth_scores(loc, lf, truth_mm)
+    if out is not None:
+        write_json(
+            out,
+            {
+                "log": data.source,
+                "model": str(model),
+                "start": loc.start,
+                "loglik": post.loglik,
+                "n_used": post.n_used,
+                "n_observations": data.n_observations,
+                "loglik_per_sighting": loc.loglik_per_sighting,
+                "loglik_per_sighting_learned": per_learned,
+                "filter_ok": post.ok,
+                "truth": scores,
+            },
+        )
+        from sensact.report.figures_fit import figure_localized
+
+        written = [out, write_smoothed_path(out.with_suffix(".path.npz"), post, data)]
+        truth_path = None
+        if lf is not None and lf.truth_poses() is not None:
+            truth_path = lf.truth_poses()
+        elif truth_mm is not None:
+            truth_path = (truth_mm.reshape(-1, 1), None)
+        name = lf.title(log) if lf is not None else Path(data.source).name
+        written.append(
+            figure_localized(loc, data, out.with_suffix(".png"), f"{Path(model).name} on {name}", truth_path)
+        )
+        console.print("wrote " + ", ".join(str(p) for p in written))
