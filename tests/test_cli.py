@@ -541,7 +541,7 @@ def test_localize_follows_another_run_of_a_turtlebot_with_the_model_learned_on_o
         app, ["localize", str(first), "--model", str(model), "--start", str(start), "--out", str(tmp_path / "s.json")]
     )
     assert res.exit_code == 0, res.output
-    assert "from given (1 tried" in " ".join(res.output.split())
+    assert f"start: ({start:.4g}), given" in " ".join(res.output.split())
     with np.load(tmp_path / "s.path.npz", allow_pickle=False) as a, np.load(tmp_path / "m.path.npz") as b:
         assert np.sqrt(np.mean((a["mean"] - b["mean"]) ** 2)) < 1.0
     # a start that is not one number, and a model for other readings, are one line each

@@ -66,7 +66,9 @@ def _truth_scores(loc: Any, lf: Any, truth_mm: Any) -> dict[str, Any] | None:
             f"(forward {off['forward_median_mm']:+.0f} mm, right {off['right_median_mm']:+.0f} mm)"
         )
         return {"path": off}
-    if truth_mm is not None and np.isfinite(truth_mm).all():
+    if truth_mm is not None and np.isfinite(truth_mm).any() and not np.isfinite(truth_mm).all():
+        console.print(f"the range column has {int((~np.isfinite(truth_mm)).sum())} empty steps: not scored.")
+    elif truth_mm is not None and np.isfinite(truth_mm).all():
         x = mean[:, 0]
         a, b = np.polyfit(x, truth_mm, 1)
         out = {
@@ -139,9 +141,9 @@ def localize_cmd(
     loc = localize(m, data, cfg, _parse_start(start, m.prior_mean.size))
     post = loc.posteriors
     chosen = ", ".join(f"{v:.4g}" for v in loc.model.prior_mean)
-    console.print(
-        f"start: ({chosen}), from {loc.start['how']} ({len(loc.start['candidates'])} tried, the most likely kept)"
-    )
+    tried = len(loc.start["candidates"])
+    how = "given" if loc.start["how"] == "given" else f"from {loc.start['how']} ({tried} tried, the most likely kept)"
+    console.print(f"start: ({chosen}), {how}")
     line = (
         f"log-likelihood {post.loglik:.1f} on {post.n_used} of {data.n_observations} sightings: "
         f"{loc.loglik_per_sighting:.3f} a sighting"
