@@ -46,6 +46,7 @@ SetOpt = Annotated[
     list[str] | None, typer.Option("--set", help="Override a config field: --set name=value (repeatable).")
 ]
 ConfigOpt = Annotated[Path | None, typer.Option("--config", help="YAML file of config fields.")]
+EMModelOpt = Annotated[Path, typer.Option("--model", help="A model.json written by `sensact learn em`.")]
 
 
 def friendly(fn: F) -> F:

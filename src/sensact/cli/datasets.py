@@ -8,7 +8,7 @@ from typing import Annotated, Any
 
 import typer
 
-from sensact.cli.base import console, convert_app, evaluate_app, friendly
+from sensact.cli.base import EMModelOpt, console, convert_app, evaluate_app, friendly
 from sensact.cli.scores import evaluate_em, print_truth_score
 
 MRCLAM_CONFIG_HEADER = """The EM settings behind docs/em-real-results.md's MRCLAM results
@@ -194,7 +194,7 @@ def _robot_kind(command_names: tuple[str, ...]) -> str:
 @friendly
 def evaluate_mrclam_cmd(
     dataset: Annotated[Path, typer.Argument(help="An MRCLAM dataset folder, e.g. .../MRCLAM_Dataset6.")],
-    model: Annotated[Path, typer.Option("--model", help="A model.json written by `sensact learn em`.")],
+    model: EMModelOpt,
     robot: Annotated[int, typer.Option(help="Robot 1-5.")] = 1,
     out: Annotated[
         Path | None,
@@ -289,7 +289,7 @@ def refuse_model_for_log(
 @friendly
 def evaluate_log_cmd(
     log: Annotated[Path, typer.Argument(help="A log folder with its ground truth (groundtruth.csv with poses).")],
-    model: Annotated[Path, typer.Option("--model", help="A model.json written by `sensact learn em`.")],
+    model: EMModelOpt,
     out: Annotated[
         Path | None,
         typer.Option("--out", help="Write the scores here (JSON), and four figures beside it (OUT_actions.png, ...)."),

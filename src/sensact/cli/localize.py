@@ -7,7 +7,7 @@ from typing import Annotated, Any
 
 import typer
 
-from sensact.cli.base import ConfigOpt, SetOpt, app, console, friendly, layered_config
+from sensact.cli.base import ConfigOpt, EMModelOpt, SetOpt, app, console, friendly, layered_config
 
 
 def _parse_start(text: str | None, n: int) -> Any:
@@ -97,7 +97,7 @@ LOCALIZE_SETTINGS = (
 @friendly
 def localize_cmd(
     log: Annotated[Path, typer.Argument(help="A log folder (planar or a 1-D track), or a Turtlebot CSV file.")],
-    model: Annotated[Path, typer.Option("--model", help="A model.json written by `sensact learn em`.")],
+    model: EMModelOpt,
     out: Annotated[
         Path | None,
         typer.Option(
