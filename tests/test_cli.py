@@ -531,6 +531,16 @@ def test_localize_follows_another_run_of_a_turtlebot_with_the_model_learned_on_o
         < 30.0
     )  # the seeded robot starts 400 mm from the wall
     assert loc["truth"]["state_map"]["rms_mm"] < 10.0 and loc["filter_ok"]
+    # the map fitted on the first run, carried over, is nearly as good as the second run's own best map
+    carried = json.loads(model.read_text())["evaluation"]["state_map"]
+    with np.load(tmp_path / "l.path.npz", allow_pickle=False) as path:
+        x = path["mean"][:, 0]
+    from sensact.io.turtlebot import read_turtlebot_landmark_log
+
+    _, truth_mm = read_turtlebot_landmark_log(second, json.loads(model.read_text())["dt_s"])
+    rms = np.sqrt(np.mean((carried["scale"] * x + carried["offset_mm"] - truth_mm) ** 2))
+    assert loc["truth"]["rms_mm_learned_map"] == pytest.approx(rms, rel=1e-9)
+    assert loc["truth"]["state_map"]["rms_mm"] <= rms < 2 * loc["truth"]["state_map"]["rms_mm"] + 5.0, rms
     assert loc["loglik_per_sighting"] > loc["loglik_per_sighting_learned"] - 0.5, loc  # the model holds there
     said = " ".join(res.output.split())
     assert "smoothed distance against the range column" in said and "l.path.npz" in said

@@ -51,8 +51,10 @@ def _read_log(log: Path, dt_s: float | None, bins: int) -> tuple[Any, Any, Any]:
     return lf.data, lf, None
 
 
-def _truth_scores(loc: Any, lf: Any, truth_mm: Any) -> dict[str, Any] | None:
-    """The path against recorded poses (planar) or the range column (a Turtlebot CSV), for evaluation only."""
+def _truth_scores(loc: Any, lf: Any, truth_mm: Any, learned_map: dict[str, float] | None) -> dict[str, Any] | None:
+    """The path against recorded poses (planar) or the range column (a Turtlebot CSV), for evaluation only.
+    ``learned_map``: the scale and offset fitted on the log the model was learned from (its JSON's
+    ``evaluation.state_map``), carried over as a user who measured them once would."""
     import numpy as np
 
     mean = loc.posteriors.mean_gamma
@@ -75,10 +77,18 @@ def _truth_scores(loc: Any, lf: Any, truth_mm: Any) -> dict[str, Any] | None:
             "rms_mm": float(np.sqrt(np.mean((x - truth_mm) ** 2))),
             "state_map": {"scale": float(a), "offset_mm": float(b), "rms_mm": float(np.std(a * x + b - truth_mm))},
         }
-        console.print(
+        line = (
             f"smoothed distance against the range column: RMS {out['rms_mm']:.1f} (the state read as mm); "
             f"{out['state_map']['rms_mm']:.1f} mm after the optimal scale {a:.3f} and offset {b:.0f} mm"
         )
+        if learned_map:
+            a0, b0 = learned_map["scale"], learned_map["offset_mm"]
+            out["rms_mm_learned_map"] = float(np.sqrt(np.mean((a0 * x + b0 - truth_mm) ** 2)))
+            line += (
+                f"; {out['rms_mm_learned_map']:.1f} mm after the scale {a0:.3f} and offset {b0:.0f} mm fitted on "
+                "the log the model was learned from"
+            )
+        console.print(line)
         return out
     return None
 
@@ -155,7 +165,7 @@ def localize_cmd(
     console.print(line)
     if not post.ok:
         console.print("[yellow]the filter lost positive definiteness: the path is not to be trusted.[/]")
-    scores = _truth_scores(loc, lf, truth_mm)
+    scores = _truth_scores(loc, lf, truth_mm, (doc.get("evaluation") or {}).get("state_map"))
     if out is not None:
         write_json(
             out,
