@@ -491,7 +491,7 @@ def test_the_turtlebot_figure_draws_the_scored_models_of_a_known_robot(tmp_path)
     _write_turtlebot_csv(csv, with_range=True, drop=("raw_ir1", "raw_ir2", "raw_ir3"))
     summary, run = run_turtlebot_em(csv)
     score = summary["score"]
-    a, b = state_map(run.result, run.truth_mm)
+    a, b = state_map(run.result.posteriors.mean_gamma[:, 0], run.truth_mm)
     assert (a, b) == (score["state_map"]["scale"], score["state_map"]["offset_mm"])
     v0, v1 = learned_velocity_mm_s(run.result, np.array([0.0, 1.0]), a)
     assert v1 - v0 == pytest.approx(score["gain_learned"], rel=1e-12)

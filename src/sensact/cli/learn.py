@@ -119,6 +119,30 @@ def learn_bootstrap_cmd(
         console.print(f"wrote {out}, {out.with_suffix('.history.npz')} and {png}")
 
 
+def read_em_log(log: Path, bins: int, dt_s: float | None = None) -> tuple[Any, Any, Any]:
+    """What EM reads: ``(data, the log folder, None)`` from a folder (continuous 1-D commands binned into
+    ``bins`` actions), or ``(data, None, its range column)`` from a Turtlebot CSV (on ``dt_s``, or its median
+    step); anything else is one line."""
+    if log.is_file() and log.suffix.lower() == ".csv":
+        from sensact.io.turtlebot import read_turtlebot_landmark_log
+
+        data, truth = read_turtlebot_landmark_log(log, dt_s)
+        return data, None, truth
+    if log.is_file():
+        from sensact.errors import LogFormatError
+
+        raise LogFormatError(
+            "EM reads a log folder or a Turtlebot CSV file.",
+            file=log,
+            fix="give a folder with meta.json, actions.csv and observations.csv (sensact convert mrclam "
+            "writes one), or a .csv with the Turtlebot's columns.",
+        )
+    from sensact.io.landmark_log import read_landmark_log
+
+    lf = read_landmark_log(log, command_bins=bins)
+    return lf.data, lf, None
+
+
 def write_smoothed_path(path: Path, posteriors: Any, data: Any) -> Path:
     """Where EM puts the robot at every step: the smoothed mean and sd of each state component (eqs. 4.9,
     4.10), for a user's own plots or as the robot's path; ``time_s`` counts from the log's first step."""
@@ -158,7 +182,6 @@ def learn_em_cmd(
     Ctrl-C stops early and still writes the most likely model so far."""
 
     from sensact.io.atomic import write_json, write_npz
-    from sensact.io.landmark_log import read_landmark_log
     from sensact.learn.em import EMConfig, fit_em, initial_model
     from sensact.learn.em.checks import (
         describe_held_sideways,
@@ -170,12 +193,11 @@ def learn_em_cmd(
     from sensact.models.wheel_drive import as_differential_drive
     from sensact.report.tables import kept_run_cell, restart_runs_cell
 
-    lf, turtlebot_truth = None, None
-    if log.is_file() and log.suffix.lower() == ".csv":
+    if log.is_file() and log.suffix.lower() == ".csv":  # a Turtlebot's settings, for the sensors it has
         from sensact.experiments.turtlebot_em import turtlebot_em_config
-        from sensact.io.turtlebot import EM_READINGS, read_turtlebot_landmark_log
+        from sensact.io.turtlebot import EM_READINGS
 
-        data, turtlebot_truth = read_turtlebot_landmark_log(log)
+        data, lf, turtlebot_truth = read_em_log(log, bins)
         cfg = layered_config(EMConfig, config, set_, base=turtlebot_em_config(data.reading_names))
         absent = [r for r in EM_READINGS if r not in data.reading_names]
         console.print(
@@ -184,18 +206,8 @@ def learn_em_cmd(
             + (f" Channels {', '.join(data.reading_names)} ({', '.join(absent)} not in the file)." if absent else "")
         )
     else:
-        if log.is_file():
-            from sensact.errors import LogFormatError
-
-            raise LogFormatError(
-                "EM reads a log folder or a Turtlebot CSV file.",
-                file=log,
-                fix="give a folder with meta.json, actions.csv and observations.csv (sensact convert mrclam "
-                "writes one), or a .csv with the Turtlebot's columns.",
-            )
-        cfg = layered_config(EMConfig, config, set_)
-        lf = read_landmark_log(log, command_bins=bins)
-        data = lf.data
+        cfg = layered_config(EMConfig, config, set_)  # bad settings are said before the log is read
+        data, lf, turtlebot_truth = read_em_log(log, bins)
     console.print(
         f"{data.source}: {data.geometry} log, {data.n_steps} steps of {data.dt_s:.4g} s, "
         f"{data.n_observations} observations, "
@@ -354,7 +366,6 @@ def learn_em_cmd(
             from sensact.report.figures_fit import figure_em_fit
 
             written.append(write_smoothed_path(out.with_suffix(".path.npz"), res.posteriors, data))
-
             written.append(figure_em_fit(res, data, out.with_suffix(".png"), f"EM on {name}"))
         if evaluation is not None and "truth_noise" in evaluation:  # scored against recorded poses
             from sensact.report.figures_real import write_robot

@@ -29,68 +29,48 @@ def _parse_start(text: str | None, n: int) -> Any:
     return np.array(values)
 
 
-def _read_log(log: Path, dt_s: float | None, bins: int) -> tuple[Any, Any, Any]:
-    """``(data, log folder or None, the Turtlebot CSV's range or None)``."""
-    if log.is_file() and log.suffix.lower() == ".csv":
-        from sensact.io.turtlebot import read_turtlebot_landmark_log
-
-        data, truth = read_turtlebot_landmark_log(log, dt_s)  # on the model's step, whatever this file's median
-        return data, None, truth
-    if log.is_file():
-        from sensact.errors import LogFormatError
-
-        raise LogFormatError(
-            "localize reads a log folder or a Turtlebot CSV file.",
-            file=log,
-            fix="give a folder with meta.json, actions.csv and observations.csv, or a .csv with the Turtlebot's "
-            "columns.",
-        )
-    from sensact.io.landmark_log import read_landmark_log
-
-    lf = read_landmark_log(log, command_bins=bins)
-    return lf.data, lf, None
-
-
-def _truth_scores(loc: Any, lf: Any, truth_mm: Any, learned_map: dict[str, float] | None) -> dict[str, Any] | None:
-    """The path against recorded poses (planar) or the range column (a Turtlebot CSV), for evaluation only.
-    ``learned_map``: the scale and offset fitted on the log the model was learned from (its JSON's
-    ``evaluation.state_map``), carried over as a user who measured them once would."""
+def _truth_scores(loc: Any, poses: Any, truth_mm: Any, learned_map: dict[str, float] | None) -> dict[str, Any] | None:
+    """The path against recorded ``(poses, valid)`` (planar) or the range column (a Turtlebot CSV), for
+    evaluation only. ``learned_map``: the scale and offset fitted on the log the model was learned from (its
+    JSON's ``evaluation.state_map``), carried over as a user who measured them once would."""
     import numpy as np
 
     mean = loc.posteriors.mean_gamma
-    if lf is not None and lf.truth_poses() is not None:
+    if poses is not None:
         from sensact.evaluate.landmark_truth import path_offset
 
-        poses, valid = lf.truth_poses()
-        off = path_offset(mean, poses, valid)
+        off = path_offset(mean, *poses)
         console.print(
             f"smoothed path off the recorded poses: median {off['median_mm']:.0f} mm "
             f"(forward {off['forward_median_mm']:+.0f} mm, right {off['right_median_mm']:+.0f} mm)"
         )
         return {"path": off}
-    if truth_mm is not None and np.isfinite(truth_mm).any() and not np.isfinite(truth_mm).all():
+    if truth_mm is None or not np.isfinite(truth_mm).any():
+        return None
+    if not np.isfinite(truth_mm).all():
         console.print(f"the range column has {int((~np.isfinite(truth_mm)).sum())} empty steps: not scored.")
-    elif truth_mm is not None and np.isfinite(truth_mm).all():
-        x = mean[:, 0]
-        a, b = np.polyfit(x, truth_mm, 1)
-        out = {
-            "rms_mm": float(np.sqrt(np.mean((x - truth_mm) ** 2))),
-            "state_map": {"scale": float(a), "offset_mm": float(b), "rms_mm": float(np.std(a * x + b - truth_mm))},
-        }
-        line = (
-            f"smoothed distance against the range column: RMS {out['rms_mm']:.1f} (the state read as mm); "
-            f"{out['state_map']['rms_mm']:.1f} mm after the optimal scale {a:.3f} and offset {b:.0f} mm"
+        return None
+    from sensact.evaluate.turtlebot_em import state_map
+
+    x = mean[:, 0]
+    a, b = state_map(x, truth_mm)
+    out: dict[str, Any] = {
+        "rms_mm": float(np.sqrt(np.mean((x - truth_mm) ** 2))),
+        "state_map": {"scale": a, "offset_mm": b, "rms_mm": float(np.std(a * x + b - truth_mm))},
+    }
+    line = (
+        f"smoothed distance against the range column: RMS {out['rms_mm']:.1f} (the state read as mm); "
+        f"{out['state_map']['rms_mm']:.1f} mm after the optimal scale {a:.3f} and offset {b:.0f} mm"
+    )
+    if learned_map:
+        a0, b0 = learned_map["scale"], learned_map["offset_mm"]
+        out["rms_mm_learned_map"] = float(np.sqrt(np.mean((a0 * x + b0 - truth_mm) ** 2)))
+        line += (
+            f"; {out['rms_mm_learned_map']:.1f} mm after the scale {a0:.3f} and offset {b0:.0f} mm fitted on "
+            "the log the model was learned from"
         )
-        if learned_map:
-            a0, b0 = learned_map["scale"], learned_map["offset_mm"]
-            out["rms_mm_learned_map"] = float(np.sqrt(np.mean((a0 * x + b0 - truth_mm) ** 2)))
-            line += (
-                f"; {out['rms_mm_learned_map']:.1f} mm after the scale {a0:.3f} and offset {b0:.0f} mm fitted on "
-                "the log the model was learned from"
-            )
-        console.print(line)
-        return out
-    return None
+    console.print(line)
+    return out
 
 
 # the settings localize uses, taken from the ones the model was learned with (its JSON's summary.config)
@@ -130,8 +110,10 @@ def localize_cmd(
 
     The settings are the ones the model was learned with (its JSON's summary.config); --config and --set
     override them. Only the start search, the start's spread and the first-iteration gate are used."""
+    import numpy as np
+
     from sensact.cli.datasets import _read_em_model, refuse_model_for_log
-    from sensact.cli.learn import write_smoothed_path
+    from sensact.cli.learn import read_em_log, write_smoothed_path
     from sensact.config import config_from_dict
     from sensact.io.atomic import write_json
     from sensact.learn.em import EMConfig
@@ -143,7 +125,9 @@ def localize_cmd(
     base = config_from_dict(EMConfig, {k: learned[k] for k in LOCALIZE_SETTINGS if k in learned}, source=str(model))
     cfg = layered_config(EMConfig, config, set_, base=base)
     dt = doc.get("dt_s")
-    data, lf, truth_mm = _read_log(log, float(dt) if dt is not None else None, bins)
+    # a Turtlebot CSV is read onto the model's step, whatever its own median step
+    data, lf, truth_mm = read_em_log(log, bins, float(dt) if dt is not None else None)
+    poses = lf.truth_poses() if lf is not None else None
     refuse_model_for_log(doc, m, data, model, log, use="run")
     console.print(
         f"{model} on {data.source}: {data.n_steps} steps of {data.dt_s:.4g} s, {data.n_observations} observations"
@@ -165,7 +149,7 @@ def localize_cmd(
     console.print(line)
     if not post.ok:
         console.print("[yellow]the filter lost positive definiteness: the path is not to be trusted.[/]")
-    scores = _truth_scores(loc, lf, truth_mm, (doc.get("evaluation") or {}).get("state_map"))
+    scores = _truth_scores(loc, poses, truth_mm, (doc.get("evaluation") or {}).get("state_map"))
     if out is not None:
         write_json(
             out,
@@ -185,11 +169,8 @@ def localize_cmd(
         from sensact.report.figures_fit import figure_localized
 
         written = [out, write_smoothed_path(out.with_suffix(".path.npz"), post, data)]
-        truth_path = None
-        if lf is not None and lf.truth_poses() is not None:
-            truth_path = lf.truth_poses()
-        elif truth_mm is not None:
-            truth_path = (truth_mm.reshape(-1, 1), None)
+        recorded = truth_mm is not None and bool(np.isfinite(truth_mm).any())  # test.csv has no range
+        truth_path = (truth_mm.reshape(-1, 1), None) if recorded else poses
         name = lf.title(log) if lf is not None else Path(data.source).name
         written.append(
             figure_localized(loc, data, out.with_suffix(".png"), f"{Path(model).name} on {name}", truth_path)

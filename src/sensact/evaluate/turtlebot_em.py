@@ -39,9 +39,9 @@ def windowed_velocities(data: LandmarkLog, truth_mm: np.ndarray) -> tuple[np.nda
     return c, v_true
 
 
-def state_map(res: EMResult, truth_mm: np.ndarray) -> tuple[float, float]:
-    """``(a, b)``: the optimal affine map ``true range ~ a x + b`` of the smoothed state (sec. 4.4.3)."""
-    a, b = np.polyfit(res.posteriors.mean_gamma[:, 0], truth_mm, 1)
+def state_map(x: np.ndarray, truth_mm: np.ndarray) -> tuple[float, float]:
+    """``(a, b)``: the optimal affine map ``true range ~ a x + b`` of a smoothed state ``x`` (sec. 4.4.3)."""
+    a, b = np.polyfit(x, truth_mm, 1)
     return float(a), float(b)
 
 
@@ -81,7 +81,7 @@ def score_turtlebot_em(res: EMResult, data: LandmarkLog, truth_mm: np.ndarray) -
     """Gain and sensor errors after the optimal affine map of the learned state onto the true range."""
     post = res.posteriors
     x = post.mean_gamma[:, 0]
-    a, b = state_map(res, truth_mm)
+    a, b = state_map(x, truth_mm)
     action = res.model.action
     gain_learned = -a * action.coefficients[1, 0]  # the track state shrinks as the robot advances
     c, v_true = windowed_velocities(data, truth_mm)

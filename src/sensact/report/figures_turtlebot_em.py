@@ -87,7 +87,7 @@ def figure_turtlebot_em(run: Any, score: dict[str, Any], path: Path, title: str)
     """The action panel and one panel per reading channel, against the recorded range. ``run`` has the
     fit's ``data``, ``truth_mm`` and ``result`` (``experiments.turtlebot_em.TurtlebotEMRun``); ``score``
     is ``score_turtlebot_em``'s for it."""
-    a, b = state_map(run.result, run.truth_mm)
+    a, b = state_map(run.result.posteriors.mean_gamma[:, 0], run.truth_mm)
     channels = run.result.model.sensor.channels
     n = 1 + len(channels)
     cols = min(n, 3)
