@@ -88,6 +88,32 @@ def test_em_learns_a_range_only_robot_facing_the_way_it_drives(heading):
     assert np.median(np.abs(wrap_angle(res.posteriors.mean_gamma[:, 2] - poses[:, 2]))) < 0.05
 
 
+def test_localize_finds_a_range_only_robot_anywhere_on_the_map_from_its_ranges():
+    """Seeded recovery (localize.range_start_candidates): the simulated radio robot's own model, held, on a
+    run that starts 2.7 m from the origin facing 2 rad: the ranges' start search puts the chosen start
+    within a grid cell and half a heading step of the truth, and the smoothed path within 30 mm of the
+    recorded poses. Invariants: the candidates are pairwise a few cells or two headings apart, and the
+    chosen one is the most likely over the whole log."""
+    from sensact.learn.em.localize import RANGE_HEADINGS, localize
+
+    run = simulate_diffdrive(DiffDriveConfig(seconds=120, seed=4, sensor="radio", start_pose=(1000.0, -2500.0, 2.0)))
+    cfg = range_only_config(COMMAND_NAMES, (0.0, 0.0, 0.0))
+    data, model = true_model(run, cfg)
+    loc = localize(model, data, cfg)
+    assert loc.start["how"] == "the ranges' start search"
+    got, g, step = np.array(loc.start["prior_mean"]), cfg.start_search_grid_mm, 2 * np.pi / RANGE_HEADINGS
+    assert np.hypot(*(got[:2] - (1000.0, -2500.0))) < g and abs(wrap_angle(got[2] - 2.0)) <= 0.5 * step + 1e-9
+    offset = path_offset(loc.posteriors.mean_gamma, run.poses, np.ones(len(run.poses)))
+    assert offset["median_mm"] < 30.0
+    cands = [np.array(c["prior_mean"]) for c in loc.start["candidates"]]
+    assert 1 < len(cands) <= cfg.start_candidates
+    for i, a in enumerate(cands):
+        for b in cands[:i]:
+            assert np.hypot(*(a[:2] - b[:2])) >= 2.5 * g or abs(wrap_angle(a[2] - b[2])) > 1.5 * step
+    scores = [c["loglik"] for c in loc.start["candidates"]]
+    assert loc.start["chosen"] == int(np.argmax(scores)) and loc.posteriors.loglik == pytest.approx(max(scores))
+
+
 def test_only_a_range_only_start_given_and_moved_past_three_sds_counts_as_moved():
     """Exact reduction (given_start.py): the distance is returned only past three of the prior's position
     sd, on a planar log read without bearings whose start was given; a camera's or a searched start never."""
@@ -162,13 +188,26 @@ def test_simulate_a_radio_robot_then_learn_and_score_it_without_a_bearing(tmp_pa
     res = runner.invoke(app, ["evaluate", "fleet", str(log), "--model", str(model), "--out", str(tmp_path / "f.json")])
     assert res.exit_code == 0, res.output
     assert "no bearing" in res.output and (tmp_path / "f.png").stat().st_size > 10_000
-    # `localize` cannot search for a start without bearings: it says so, and follows the robot from a given one
-    res = runner.invoke(app, ["localize", str(log), "--model", str(model)])
-    said = " ".join(res.output.split())
-    assert res.exit_code == 2 and "no bearings to search for the start" in said and "--start X_MM,Y_MM" in said
-    res = runner.invoke(
-        app, ["localize", str(log), "--model", str(model), "--start", "0,0,0", "--out", str(tmp_path / "l.json")]
-    )
-    assert res.exit_code == 0, res.output
-    loc = json.loads((tmp_path / "l.json").read_text())
-    assert loc["start"]["how"] == "given" and loc["truth"]["path"]["median_mm"] < 2 * ev["path"]["median_mm"] + 50.0
+    # `localize` searches for the start by the ranges, or follows the robot from a given one
+    for extra in ([], ["--start", "0,0,0"]):
+        res = runner.invoke(
+            app, ["localize", str(log), "--model", str(model), *extra, "--out", str(tmp_path / "l.json")]
+        )
+        assert res.exit_code == 0, res.output
+        loc = json.loads((tmp_path / "l.json").read_text())
+        assert loc["start"]["how"] == ("given" if extra else "the ranges' start search")
+        assert loc["truth"]["path"]["median_mm"] < 2 * ev["path"]["median_mm"] + 50.0
+    # a camera's model on it: refused when its range reads through bearing terms; run when it does not, with its
+    # per-sighting likelihood said to be unlike the one learned on ranges and bearings
+    doc = json.loads(model.read_text())
+    doc["model"]["sensor"].update(sigma_bearing_rad=0.006, bearing_robust="student_t", bearing_robust_param=4.0)
+    for terms in ([0.0, 0.08], []):
+        doc["model"]["sensor"]["channels"][0]["bearing_terms"] = terms
+        (tmp_path / "cam.json").write_text(json.dumps(doc))
+        res = runner.invoke(app, ["localize", str(log), "--model", str(tmp_path / "cam.json")])
+        said = " ".join(res.output.split())
+        if terms:
+            assert res.exit_code == 2 and "range_mm reads through its bearing terms and the log has no bearings" in said
+        else:
+            assert res.exit_code == 0, res.output
+            assert "where each sighting read a bearing too: not comparable" in said

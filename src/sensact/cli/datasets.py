@@ -275,6 +275,14 @@ def refuse_model_for_log(
     missing = [ch.name for ch in m.sensor.channels if ch.name not in data.reading_names]
     if missing:
         refuse(f"the log has no reading {missing[0]} (it has {', '.join(data.reading_names)})", "sensor", relearn)
+    if data.geometry == "planar" and not np.isfinite(data.obs_bearing_rad).any():
+        bent = [ch.name for ch in m.sensor.channels if ch.bearing_terms]
+        if bent:
+            refuse(
+                f"the model's {bent[0]} reads through its bearing terms and the log has no bearings",
+                "sensor",
+                relearn,
+            )
     dt = doc.get("dt_s")
     if dt is not None and abs(float(dt) - data.dt_s) > 1e-9 * max(1.0, data.dt_s):
         refuse(

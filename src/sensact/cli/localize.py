@@ -145,7 +145,10 @@ def localize_cmd(
     best, used = summary.get("loglik_best"), summary.get("n_used")
     per_learned = best / used if best is not None and used else None
     if per_learned is not None:
-        line += f" (on the log it was learned from, {per_learned:.3f})"
+        line += f" (on the log it was learned from, {per_learned:.3f}"
+        if m.sensor.sigma_bearing_rad is not None and not np.isfinite(data.obs_bearing_rad).any():
+            line += ", where each sighting read a bearing too: not comparable"
+        line += ")"
     console.print(line)
     if not post.ok:
         console.print("[yellow]the filter lost positive definiteness: the path is not to be trusted.[/]")

@@ -10,7 +10,12 @@ model held. Only the start is unknown, and it is found the way EM finds it (beyo
 * a **track**: every distance at which a learned f reads one of the first sightings' readings (the real
   roots of ``f(x) = o`` inside the channel's window) is a candidate, scored the same way, so that one
   outlier among the first readings cannot set the start;
-* a planar log **without bearings**, or any log when the caller says so: the given start.
+* a planar log **without bearings** (UWB anchors, sonar beacons): ``range_start_candidates`` scores every
+  grid position at ``RANGE_HEADINGS`` headings by the first sightings' ranges under the learned model,
+  and the best few by the whole log the same way. ``learn em`` cannot do this (its start is given): under
+  its starting line the ranges put the best cells metres off, while a learned f and action model read the
+  window's ranges and motion as they are, so they tell the heading too;
+* any log, when the caller says so: the given start.
 
 The log-likelihood per sighting used is a check that needs no ground truth: a model that fits a log
 about as well as the one it was learned on (``EMResult.summary()['loglik_best']`` over its
@@ -25,17 +30,19 @@ from typing import Any
 
 import numpy as np
 
+from sensact.core.angles import wrap_angle
 from sensact.errors import ConfigError
 from sensact.learn.em.config import EMConfig
 from sensact.learn.em.estep import Posteriors, channel_columns, e_step, log_likelihood
 from sensact.learn.em.fit import refuse_no_sightings
-from sensact.learn.em.start import start_candidates
+from sensact.learn.em.start import DISTINCT_CELLS, search_grid, search_window, start_candidates
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 
 SEARCH_WINDOW_S = 30.0  # the planar start search's window when the config sets none (MRCLAM's setting)
 TRACK_SIGHTINGS = 5  # a track's start candidates come from this many first sightings
 TRACK_MIN_SD = 1.0  # a track candidate's prior sd is at least this (a reading on a steep f pins it too well)
+RANGE_HEADINGS = 12  # a range-only start search tries this many headings at each grid position (30 degrees apart)
 
 
 @dataclass(frozen=True, eq=False)
@@ -76,6 +83,38 @@ def track_start_candidates(model: EMModel, data: LandmarkLog) -> list[tuple[floa
     return out
 
 
+def range_start_candidates(model: EMModel, data: LandmarkLog, config: EMConfig) -> list[EMModel]:
+    """Up to ``config.start_candidates`` starts for a planar log read without bearings: every point of
+    ``start.search_grid`` (``config.start_search_grid_mm`` cells) at each of ``RANGE_HEADINGS`` headings,
+    scored by ``log P(O | C, lambda)`` (eq. 4.14) of the first ``config.start_search_s`` seconds under
+    the learned model, the best of them that are a few cells or two headings apart from each other.
+    Each starts with a prior sd of a grid cell in position and half a heading step in heading, so
+    that the true start is within one sd of its nearest candidate in every component."""
+    window = search_window(data, config.start_search_s or SEARCH_WINDOW_S)
+    g = config.start_search_grid_mm
+    points = search_grid(data.landmarks_xy, data.landmarks_xy[data.obs_landmark[0]], g)
+    step = 2.0 * math.pi / RANGE_HEADINGS
+    cov = np.diag([g**2, g**2, (0.5 * step) ** 2])
+    scored = []
+    for x, y in points:
+        for theta in wrap_angle(step * np.arange(RANGE_HEADINGS)):
+            mean = np.array([x, y, theta])
+            ll = log_likelihood(model.replace(prior_mean=mean, prior_cov=cov), window)
+            if np.isfinite(ll):
+                scored.append((ll, mean))
+    scored.sort(key=lambda s: -s[0])
+    chosen: list[np.ndarray] = []
+    for _, mean in scored:
+        if all(
+            np.hypot(*(mean[:2] - m[:2])) >= DISTINCT_CELLS * g or abs(wrap_angle(mean[2] - m[2])) > 1.5 * step
+            for m in chosen
+        ):
+            chosen.append(mean)
+        if len(chosen) == config.start_candidates:
+            break
+    return [model.replace(prior_mean=m, prior_cov=cov) for m in chosen]
+
+
 def localize(
     model: EMModel, data: LandmarkLog, config: EMConfig | None = None, start: np.ndarray | None = None
 ) -> Localized:
@@ -102,20 +141,16 @@ def localize(
             )
         candidates = [model.replace(prior_mean=np.array([x]), prior_cov=np.array([[sd**2]])) for x, sd in found]
         how = "the first readings through the learned f"
+    elif model.sensor.sigma_bearing_rad is None or not np.isfinite(data.obs_bearing_rad).any():
+        candidates = range_start_candidates(model, data, cfg)
+        how = "the ranges' start search"
     else:
-        if model.sensor.sigma_bearing_rad is None or not np.isfinite(data.obs_bearing_rad).any():
-            raise ConfigError(
-                "the log has no bearings to search for the start with.",
-                file=data.source,
-                field="start",
-                fix="give the start pose with --start X_MM,Y_MM,HEADING_RAD (as start_prior_mean in em_config.yaml).",
-            )
         search = replace(cfg, start_search_s=cfg.start_search_s or SEARCH_WINDOW_S)
         candidates, _ = start_candidates(data, model, search)
         how = "the start search's candidates"
     scores = [log_likelihood(m, data) for m in candidates]
-    best = int(np.argmax(scores))
-    if not np.isfinite(scores[best]):
+    best = int(np.argmax(scores)) if scores else 0
+    if not scores or not np.isfinite(scores[best]):
         raise ConfigError(
             f"the filter failed from every start tried ({len(candidates)}): the model does not fit this log.",
             file=data.source,

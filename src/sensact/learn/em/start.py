@@ -48,9 +48,7 @@ def start_candidates(data: LandmarkLog, model: EMModel, config: EMConfig) -> tup
     first = np.flatnonzero(np.isfinite(data.obs_bearing_rad))
     if data.geometry != "planar" or first.size == 0 or len(data.landmarks_xy) == 0:
         raise ValueError("the start search needs a planar log with bearings to mapped landmarks")
-    stop = round(config.start_search_s / data.dt_s) + 1
-    stop = max(stop, int(data.obs_step[min(MIN_OBSERVATIONS, data.n_observations) - 1]) + 2)
-    window = data.slice_steps(0, min(stop, data.n_steps))
+    window = search_window(data, config.start_search_s)
     k0 = first[0]
     lm = data.landmarks_xy
     g = config.start_search_grid_mm
@@ -97,6 +95,13 @@ def start_candidates(data: LandmarkLog, model: EMModel, config: EMConfig) -> tup
         "candidates": [{"prior_mean": m.tolist(), "window_loglik": float(ll)} for ll, m in chosen],
     }
     return [model.replace(prior_mean=m, prior_cov=cov) for _, m in chosen], info
+
+
+def search_window(data: LandmarkLog, seconds: float) -> LandmarkLog:
+    """The log's first ``seconds``, longer when they hold fewer than ``MIN_OBSERVATIONS`` sightings."""
+    stop = round(seconds / data.dt_s) + 1
+    stop = max(stop, int(data.obs_step[min(MIN_OBSERVATIONS, data.n_observations) - 1]) + 2)
+    return data.slice_steps(0, min(stop, data.n_steps))
 
 
 def search_grid(landmarks_xy: np.ndarray, target_xy: np.ndarray, cell_mm: float) -> np.ndarray:
