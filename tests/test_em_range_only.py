@@ -112,6 +112,13 @@ def test_localize_finds_a_range_only_robot_anywhere_on_the_map_from_its_ranges()
             assert np.hypot(*(a[:2] - b[:2])) >= 2.5 * g or abs(wrap_angle(a[2] - b[2])) > 1.5 * step
     scores = [c["loglik"] for c in loc.start["candidates"]]
     assert loc.start["chosen"] == int(np.argmax(scores)) and loc.posteriors.loglik == pytest.approx(max(scores))
+    # the position given alone: every heading tried there, the one nearest the truth's kept
+    loc = localize(model, data, cfg, start=np.array([1000.0, -2500.0]))
+    tried = np.array([c["prior_mean"] for c in loc.start["candidates"]])
+    assert loc.start["how"] == "the given position at each heading" and tried.shape == (RANGE_HEADINGS, 3)
+    np.testing.assert_array_equal(tried[:, :2], [[1000.0, -2500.0]] * RANGE_HEADINGS)
+    assert abs(wrap_angle(loc.model.prior_mean[2] - 2.0)) <= 0.5 * step + 1e-9
+    assert path_offset(loc.posteriors.mean_gamma, run.poses, np.ones(len(run.poses)))["median_mm"] < 30.0
 
 
 def test_only_a_range_only_start_given_and_moved_past_three_sds_counts_as_moved():
@@ -197,6 +204,8 @@ def test_simulate_a_radio_robot_then_learn_and_score_it_without_a_bearing(tmp_pa
         loc = json.loads((tmp_path / "l.json").read_text())
         assert loc["start"]["how"] == ("given" if extra else "the ranges' start search")
         assert loc["truth"]["path"]["median_mm"] < 2 * ev["path"]["median_mm"] + 50.0
+    res = runner.invoke(app, ["localize", str(log), "--model", str(model), "--start", "1000"])
+    assert res.exit_code == 2 and "give --start X_MM,Y_MM,HEADING_RAD or X_MM,Y_MM" in " ".join(res.output.split())
     # a camera's model on it: refused when its range reads through bearing terms; run when it does not, with its
     # per-sighting likelihood said to be unlike the one learned on ranges and bearings
     doc = json.loads(model.read_text())

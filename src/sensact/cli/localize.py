@@ -17,14 +17,18 @@ def _parse_start(text: str | None, n: int) -> Any:
 
     from sensact.errors import ConfigError
 
-    what = "X_MM,Y_MM,HEADING_RAD" if n == 3 else "DISTANCE"
+    what = "X_MM,Y_MM,HEADING_RAD or X_MM,Y_MM" if n == 3 else "DISTANCE"
+    counts = (3, 2) if n == 3 else (n,)
     try:
         values = [float(v) for v in text.split(",")]
     except ValueError:
         values = []
-    if len(values) != n or not all(np.isfinite(values)):
+    if len(values) not in counts or not all(np.isfinite(values)):
+        many = " or ".join(str(c) for c in sorted(counts))
         raise ConfigError(
-            f"--start {text!r} is not {n} number{'s' if n > 1 else ''}.", field="--start", fix=f"give --start {what}."
+            f"--start {text!r} is not {many} number{'s' if n > 1 else ''}.",
+            field="--start",
+            fix=f"give --start {what}.",
         )
     return np.array(values)
 
@@ -99,7 +103,8 @@ def localize_cmd(
     start: Annotated[
         str | None,
         typer.Option(
-            help="Where the robot starts, X_MM,Y_MM,HEADING_RAD (a track: DISTANCE); searched for if not given."
+            help="Where the robot starts, X_MM,Y_MM,HEADING_RAD, or X_MM,Y_MM with the heading searched for (a "
+            "track: DISTANCE); searched for if not given."
         ),
     ] = None,
     bins: Annotated[int, typer.Option(help="Actions to bin continuous 1-D commands into (as learn em's --bins).")] = 21,

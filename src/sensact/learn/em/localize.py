@@ -15,7 +15,8 @@ model held. Only the start is unknown, and it is found the way EM finds it (beyo
   and the best few by the whole log the same way. ``learn em`` cannot do this (its start is given): under
   its starting line the ranges put the best cells metres off, while a learned f and action model read the
   window's ranges and motion as they are, so they tell the heading too;
-* any log, when the caller says so: the given start.
+* any log, when the caller says so: the given start; on a planar log the caller may give the position
+  alone, and the heading is searched for at ``RANGE_HEADINGS`` headings, each scored by the whole log.
 
 The log-likelihood per sighting used is a check that needs no ground truth: a model that fits a log
 about as well as the one it was learned on (``EMResult.summary()['loglik_best']`` over its
@@ -119,13 +120,23 @@ def localize(
     model: EMModel, data: LandmarkLog, config: EMConfig | None = None, start: np.ndarray | None = None
 ) -> Localized:
     """The smoothed path of ``data`` under ``model``, held; ``start`` (a pose, or a distance on a track)
-    skips the search and is used with ``config.start_prior_sd``."""
+    skips the search and is used with ``config.start_prior_sd``; a planar ``start`` of two numbers is
+    the position alone, and the heading is searched for."""
     cfg = config or EMConfig()
     refuse_no_sightings(data)  # the start and the path are placed by the sightings
     n = model.prior_mean.size
     gate = cfg.prune_rad_per_step if data.geometry == "planar" else 0.0
-    if start is not None:
-        mean = np.asarray(start, dtype=float).reshape(n)
+    given = None if start is None else np.asarray(start, dtype=float).ravel()
+    if given is not None and n == 3 and given.size == 2:
+        step = 2.0 * math.pi / RANGE_HEADINGS
+        cov = np.diag([cfg.start_prior_sd[0] ** 2, cfg.start_prior_sd[1] ** 2, (0.5 * step) ** 2])
+        candidates = [
+            model.replace(prior_mean=np.array([*given, theta]), prior_cov=cov)
+            for theta in wrap_angle(step * np.arange(RANGE_HEADINGS))
+        ]
+        how = "the given position at each heading"
+    elif given is not None:
+        mean = given.reshape(n)
         cov = np.diag(np.asarray(cfg.start_prior_sd[:n], dtype=float) ** 2)
         candidates = [model.replace(prior_mean=mean, prior_cov=cov)]
         how = "given"
