@@ -84,6 +84,12 @@ def track_start_candidates(model: EMModel, data: LandmarkLog) -> list[tuple[floa
     return out
 
 
+def start_headings() -> tuple[np.ndarray, float]:
+    """The ``RANGE_HEADINGS`` headings a search without bearings tries at a position, and their spacing."""
+    step = 2.0 * math.pi / RANGE_HEADINGS
+    return wrap_angle(step * np.arange(RANGE_HEADINGS)), step
+
+
 def range_start_candidates(model: EMModel, data: LandmarkLog, config: EMConfig) -> list[EMModel]:
     """Up to ``config.start_candidates`` starts for a planar log read without bearings: every point of
     ``start.search_grid`` (``config.start_search_grid_mm`` cells) at each of ``RANGE_HEADINGS`` headings,
@@ -94,11 +100,11 @@ def range_start_candidates(model: EMModel, data: LandmarkLog, config: EMConfig) 
     window = search_window(data, config.start_search_s or SEARCH_WINDOW_S)
     g = config.start_search_grid_mm
     points = search_grid(data.landmarks_xy, data.landmarks_xy[data.obs_landmark[0]], g)
-    step = 2.0 * math.pi / RANGE_HEADINGS
+    headings, step = start_headings()
     cov = np.diag([g**2, g**2, (0.5 * step) ** 2])
     scored = []
     for x, y in points:
-        for theta in wrap_angle(step * np.arange(RANGE_HEADINGS)):
+        for theta in headings:
             mean = np.array([x, y, theta])
             ll = log_likelihood(model.replace(prior_mean=mean, prior_cov=cov), window)
             if np.isfinite(ll):
@@ -128,12 +134,9 @@ def localize(
     gate = cfg.prune_rad_per_step if data.geometry == "planar" else 0.0
     given = None if start is None else np.asarray(start, dtype=float).ravel()
     if given is not None and n == 3 and given.size == 2:
-        step = 2.0 * math.pi / RANGE_HEADINGS
+        headings, step = start_headings()
         cov = np.diag([cfg.start_prior_sd[0] ** 2, cfg.start_prior_sd[1] ** 2, (0.5 * step) ** 2])
-        candidates = [
-            model.replace(prior_mean=np.array([*given, theta]), prior_cov=cov)
-            for theta in wrap_angle(step * np.arange(RANGE_HEADINGS))
-        ]
+        candidates = [model.replace(prior_mean=np.array([*given, theta]), prior_cov=cov) for theta in headings]
         how = "the given position at each heading"
     elif given is not None:
         mean = given.reshape(n)
