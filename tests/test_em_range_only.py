@@ -99,8 +99,13 @@ def test_localize_finds_a_range_only_robot_anywhere_on_the_map_from_its_ranges()
     run = simulate_diffdrive(DiffDriveConfig(seconds=120, seed=4, sensor="radio", start_pose=(1000.0, -2500.0, 2.0)))
     cfg = range_only_config(COMMAND_NAMES, (0.0, 0.0, 0.0))
     data, model = true_model(run, cfg)
-    loc = localize(model, data, cfg)
+    heard = []
+    loc = localize(model, data, cfg, progress=lambda *call: heard.append(call))
     assert loc.start["how"] == "the ranges' start search"
+    # the progress bar's rows each climb to their end: the grid's positions, then the candidates
+    rows = list(dict.fromkeys(desc for desc, _, _ in heard))
+    assert rows == ["start search: grid positions scored", "start candidates scored on the whole log"]
+    assert [max(d for r, d, _ in heard if r == row) for row in rows] == [heard[0][2], len(loc.start["candidates"])]
     got, g, step = np.array(loc.start["prior_mean"]), cfg.start_search_grid_mm, 2 * np.pi / RANGE_HEADINGS
     assert np.hypot(*(got[:2] - (1000.0, -2500.0))) < g and abs(wrap_angle(got[2] - 2.0)) <= 0.5 * step + 1e-9
     offset = path_offset(loc.posteriors.mean_gamma, run.poses, np.ones(len(run.poses)))

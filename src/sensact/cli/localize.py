@@ -7,7 +7,7 @@ from typing import Annotated, Any
 
 import typer
 
-from sensact.cli.base import ConfigOpt, EMModelOpt, SetOpt, app, console, friendly, layered_config
+from sensact.cli.base import ConfigOpt, EMModelOpt, SetOpt, app, console, friendly, layered_config, progress_bar
 
 
 def _parse_start(text: str | None, n: int) -> Any:
@@ -137,7 +137,8 @@ def localize_cmd(
     console.print(
         f"{model} on {data.source}: {data.n_steps} steps of {data.dt_s:.4g} s, {data.n_observations} observations"
     )
-    loc = localize(m, data, cfg, _parse_start(start, m.prior_mean.size))
+    with progress_bar() as progress:
+        loc = localize(m, data, cfg, _parse_start(start, m.prior_mean.size), progress)
     post = loc.posteriors
     chosen = ", ".join(f"{v:.4g}" for v in loc.model.prior_mean)
     tried = len(loc.start["candidates"])

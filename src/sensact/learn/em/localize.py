@@ -26,6 +26,7 @@ about as well as the one it was learned on (``EMResult.summary()['loglik_best']`
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -43,6 +44,8 @@ from sensact.models.em_model import EMModel
 SEARCH_WINDOW_S = 30.0  # the planar start search's window when the config sets none (MRCLAM's setting)
 TRACK_SIGHTINGS = 5  # a track's start candidates come from this many first sightings
 TRACK_MIN_SD = 1.0  # a track candidate's prior sd is at least this (a reading on a steep f pins it too well)
+# (description, done, total): where a long search is, for a progress bar
+Progress = Callable[[str, int, int | None], None]
 RANGE_HEADINGS = 12  # a range-only start search tries this many headings at each grid position (30 degrees apart)
 
 
@@ -90,7 +93,9 @@ def start_headings() -> tuple[np.ndarray, float]:
     return wrap_angle(step * np.arange(RANGE_HEADINGS)), step
 
 
-def range_start_candidates(model: EMModel, data: LandmarkLog, config: EMConfig) -> list[EMModel]:
+def range_start_candidates(
+    model: EMModel, data: LandmarkLog, config: EMConfig, progress: Progress | None = None
+) -> list[EMModel]:
     """Up to ``config.start_candidates`` starts for a planar log read without bearings: every point of
     ``start.search_grid`` (``config.start_search_grid_mm`` cells) at each of ``RANGE_HEADINGS`` headings,
     scored by ``log P(O | C, lambda)`` (eq. 4.14) of the first ``config.start_search_s`` seconds under
@@ -103,12 +108,16 @@ def range_start_candidates(model: EMModel, data: LandmarkLog, config: EMConfig) 
     headings, step = start_headings()
     cov = np.diag([g**2, g**2, (0.5 * step) ** 2])
     scored = []
-    for x, y in points:
+    for i, (x, y) in enumerate(points):
+        if progress:
+            progress("start search: grid positions scored", i, len(points))
         for theta in headings:
             mean = np.array([x, y, theta])
             ll = log_likelihood(model.replace(prior_mean=mean, prior_cov=cov), window)
             if np.isfinite(ll):
                 scored.append((ll, mean))
+    if progress:
+        progress("start search: grid positions scored", len(points), len(points))
     scored.sort(key=lambda s: -s[0])
     chosen: list[np.ndarray] = []
     for _, mean in scored:
@@ -123,7 +132,11 @@ def range_start_candidates(model: EMModel, data: LandmarkLog, config: EMConfig) 
 
 
 def localize(
-    model: EMModel, data: LandmarkLog, config: EMConfig | None = None, start: np.ndarray | None = None
+    model: EMModel,
+    data: LandmarkLog,
+    config: EMConfig | None = None,
+    start: np.ndarray | None = None,
+    progress: Progress | None = None,
 ) -> Localized:
     """The smoothed path of ``data`` under ``model``, held; ``start`` (a pose, or a distance on a track)
     skips the search and is used with ``config.start_prior_sd``; a planar ``start`` of two numbers is
@@ -156,13 +169,19 @@ def localize(
         candidates = [model.replace(prior_mean=np.array([x]), prior_cov=np.array([[sd**2]])) for x, sd in found]
         how = "the first readings through the learned f"
     elif model.sensor.sigma_bearing_rad is None or not np.isfinite(data.obs_bearing_rad).any():
-        candidates = range_start_candidates(model, data, cfg)
+        candidates = range_start_candidates(model, data, cfg, progress)
         how = "the ranges' start search"
     else:
         search = replace(cfg, start_search_s=cfg.start_search_s or SEARCH_WINDOW_S)
         candidates, _ = start_candidates(data, model, search)
         how = "the start search's candidates"
-    scores = [log_likelihood(m, data) for m in candidates]
+    scores = []
+    for i, m in enumerate(candidates):
+        if progress:
+            progress("start candidates scored on the whole log", i, len(candidates))
+        scores.append(log_likelihood(m, data))
+    if progress:
+        progress("start candidates scored on the whole log", len(candidates), len(candidates))
     best = int(np.argmax(scores)) if scores else 0
     if not scores or not np.isfinite(scores[best]):
         raise ConfigError(
