@@ -54,14 +54,12 @@ def _truth_scores(loc: Any, poses: Any, truth_mm: Any, learned_map: dict[str, fl
     if not np.isfinite(truth_mm).all():
         console.print(f"the range column has {int((~np.isfinite(truth_mm)).sum())} empty steps: not scored.")
         return None
-    from sensact.evaluate.turtlebot_em import state_map
+    from sensact.evaluate.turtlebot_em import state_map_summary
 
     x = mean[:, 0]
-    a, b = state_map(x, truth_mm)
-    out: dict[str, Any] = {
-        "rms_mm": float(np.sqrt(np.mean((x - truth_mm) ** 2))),
-        "state_map": {"scale": a, "offset_mm": b, "rms_mm": float(np.std(a * x + b - truth_mm))},
-    }
+    mapped = state_map_summary(x, truth_mm)
+    a, b = mapped["scale"], mapped["offset_mm"]
+    out: dict[str, Any] = {"rms_mm": float(np.sqrt(np.mean((x - truth_mm) ** 2))), "state_map": mapped}
     line = (
         f"smoothed distance against the range column: RMS {out['rms_mm']:.1f} (the state read as mm); "
         f"{out['state_map']['rms_mm']:.1f} mm after the optimal scale {a:.3f} and offset {b:.0f} mm"

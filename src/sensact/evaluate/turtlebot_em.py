@@ -45,6 +45,12 @@ def state_map(x: np.ndarray, truth_mm: np.ndarray) -> tuple[float, float]:
     return float(a), float(b)
 
 
+def state_map_summary(x: np.ndarray, truth_mm: np.ndarray) -> dict[str, float]:
+    """``state_map`` with the spread left about it: the RMS (after the best offset) the scores report."""
+    a, b = state_map(x, truth_mm)
+    return {"scale": a, "offset_mm": b, "rms_mm": float(np.std(a * x + b - truth_mm))}
+
+
 def learned_velocity_mm_s(res: EMResult, commands: np.ndarray, a: float) -> np.ndarray:
     """The learned mean velocity of the recorded range at each command, after the scale: the track state
     shrinks as the robot advances (``TRACK``), so the range moves at ``-a A(c)``."""
@@ -81,7 +87,8 @@ def score_turtlebot_em(res: EMResult, data: LandmarkLog, truth_mm: np.ndarray) -
     """Gain and sensor errors after the optimal affine map of the learned state onto the true range."""
     post = res.posteriors
     x = post.mean_gamma[:, 0]
-    a, b = state_map(x, truth_mm)
+    mapped = state_map_summary(x, truth_mm)
+    a, b = mapped["scale"], mapped["offset_mm"]
     action = res.model.action
     gain_learned = -a * action.coefficients[1, 0]  # the track state shrinks as the robot advances
     c, v_true = windowed_velocities(data, truth_mm)
@@ -89,7 +96,7 @@ def score_turtlebot_em(res: EMResult, data: LandmarkLog, truth_mm: np.ndarray) -
     _, one_share = dominant_command(data.step_commands[:, 0])
     scored = one_share < ONE_COMMAND_SHARE
     out: dict[str, Any] = {
-        "state_map": {"scale": a, "offset_mm": b, "rms_mm": float(np.std(a * x + b - truth_mm))},
+        "state_map": mapped,
         "one_command_share": one_share,
         "gain_learned": float(gain_learned),
         "gain_true": gain_true,

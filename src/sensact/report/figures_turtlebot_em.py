@@ -19,7 +19,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from sensact.evaluate.turtlebot_em import learned_velocity_mm_s, sensor_bins, state_map, windowed_velocities
+from sensact.evaluate.turtlebot_em import learned_velocity_mm_s, sensor_bins, windowed_velocities
 from sensact.report.figures1d import _save
 
 
@@ -87,7 +87,7 @@ def figure_turtlebot_em(run: Any, score: dict[str, Any], path: Path, title: str)
     """The action panel and one panel per reading channel, against the recorded range. ``run`` has the
     fit's ``data``, ``truth_mm`` and ``result`` (``experiments.turtlebot_em.TurtlebotEMRun``); ``score``
     is ``score_turtlebot_em``'s for it."""
-    a, b = state_map(run.result.posteriors.mean_gamma[:, 0], run.truth_mm)
+    a, b = score["state_map"]["scale"], score["state_map"]["offset_mm"]  # the map the numbers were scored through
     channels = run.result.model.sensor.channels
     n = 1 + len(channels)
     cols = min(n, 3)
