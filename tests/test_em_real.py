@@ -2035,6 +2035,19 @@ def test_reproduce_real_runs_every_mrclam_dataset_it_finds(tmp_path):
     }
     for r in ("robot2", "robot3"):
         assert fleet["cells"][r][r] == fleet_cell(res["mrclam"][f"MRCLAM_Dataset6/{r}"]["score"])
+    # and by the likelihood, each model placed on each log as `localize` places it under the learned settings
+    from sensact.learn.em.localize import localize
+
+    assert "MRCLAM MRCLAM_Dataset6: each robot's model on every robot's log" in heard
+    lk = fleet["likelihood"]["cells"]
+    fit = art["mrclam"]["MRCLAM_Dataset6/robot3"][1]
+    assert (
+        lk["robot3"]["robot2"]["per_sighting"]
+        == localize(fit.model, art["mrclam"]["MRCLAM_Dataset6/robot2"][0].data, cfg).loglik_per_sighting
+    )
+    for g in ("robot2", "robot3"):
+        below = [lk[m][g]["below_best"] for m in ("robot2", "robot3")]
+        assert min(below) == 0.0 and max(below) >= 0.0
     del res["mrclam"]["MRCLAM_Dataset6/robot3"], art["mrclam"]["MRCLAM_Dataset6/robot3"]
     assert [r["dataset"] for r in res["mrclam"].values()] == ["MRCLAM_Dataset6", "MRCLAM_Dataset9"]
     # the same log and seed give the same fit under either name
@@ -2044,6 +2057,7 @@ def test_reproduce_real_runs_every_mrclam_dataset_it_finds(tmp_path):
     titles = [t[0] for t in real_tables(res)]
     assert titles[0] == "MRCLAM Dataset 6, Dataset 9: learned / From-Truth (ratio)"
     assert any(t.startswith("MRCLAM_Dataset6, each robot's model on every robot's log") for t in titles)
+    assert "MRCLAM_Dataset6: log-likelihood a sighting, each model placed on each log" in " ".join(titles)
     paths = figures_real.write_all(art, res, tmp_path)
     assert tmp_path / "real_mrclam_MRCLAM_Dataset9_robot2_range.png" in paths
     assert tmp_path / "real_mrclam_MRCLAM_Dataset9_robot2_bearing.png" in paths

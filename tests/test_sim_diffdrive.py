@@ -605,8 +605,9 @@ def test_reproduce_diffdrive_on_wheel_speeds_learns_with_the_wheel_settings(tmp_
 
 
 def _true_model_file(log, path):
-    """The simulated robot's own action model (its coefficients and delay) in a model.json that says it was
-    learned on ``log``, on EM's start for the sensor: what a perfect learner of the action would write."""
+    """The simulated robot's own action model (its coefficients and delay) and camera (its range line,
+    sigmas and bearing terms) in a model.json that says it was learned on ``log``, in the families EM
+    starts from: what a perfect learner would write."""
     from sensact.config import config_from_dict, load_yaml_mapping
     from sensact.learn.em import EMConfig, initial_model
 
@@ -616,15 +617,22 @@ def _true_model_file(log, path):
     action = replace(
         model.action, coefficients=np.array(truth["action_coefficients"]), delay_steps=truth["delay_steps"]
     )
-    path.write_text(json.dumps({"model": replace(model, action=action).to_dict(), "log": str(log), "dt_s": 1 / 30}))
+    sim, f = truth["config"], model.sensor.channels[0].function
+    line = f.__class__((sim["range_offset_mm"], sim["range_gain"], *[0.0] * (len(f.coef) - 2)))
+    fits = [(line, truth["range_sigma_mm"], tuple(truth["range_bearing_terms"]))]
+    sensor = model.sensor.with_fits(fits, truth["bearing_sigma_rad"])
+    doc = {"model": replace(model, action=action, sensor=sensor).to_dict(), "log": str(log), "dt_s": 1 / 30}
+    path.write_text(json.dumps(doc))
     return path
 
 
 def test_evaluate_fleet_scores_every_model_on_every_log(tmp_path):
     """Two robots of one kind whose motors differ (forward and turn gains 0.95 / 0.92 against 0.75 / 0.70),
-    each with its own true action model: every pair scores exactly as `evaluate log` scores it (an exact
-    reduction); each robot's own model is the better one on its log and clears the action bars, the other
-    robot's misses them; the pairs a model was learned on are found from model.json's ``log``."""
+    each with its own true action model: every pair scores exactly as `evaluate log` scores it and is
+    placed exactly as `localize` places it (exact reductions); each robot's own model is the better one on
+    its log, clears the action bars and is the more likely, the other robot's misses them; the pairs a
+    model was learned on are found from model.json's ``log``; without recorded poses, the likelihood
+    alone."""
     from sensact.experiments.fleet import fleet_cell
 
     logs = {"slow": ["--set", "forward_gain=0.75", "--set", "turn_gain=0.70"], "std": []}
@@ -680,10 +688,77 @@ def test_evaluate_fleet_scores_every_model_on_every_log(tmp_path):
     res = runner.invoke(app, ["evaluate", "fleet", *args, str(wheels)])
     flat = " ".join(res.output.split())
     assert res.exit_code == 2 and "action.command_names" in flat and "Traceback" not in res.output, flat
-    (wheels / "groundtruth.csv").unlink()
-    res = runner.invoke(app, ["evaluate", "fleet", str(wheels), "--model", str(models["std"])])
+    # by the likelihood, with no truth: each pair is `sensact localize` of the model on the log (an exact
+    # reduction), and on each log its own robot's model is the more likely one by a clear margin
+    lk = fleet["likelihood"]
+    for m in ("std", "slow"):
+        for g in ("std", "slow"):
+            run = tmp_path / f"l_{m}_{g}.json"
+            res = runner.invoke(app, ["localize", str(tmp_path / g), "--model", str(models[m]), "--out", str(run)])
+            assert res.exit_code == 0, res.output
+            placed = json.loads(run.read_text())
+            assert lk["cells"][f"m_{m}"][g]["per_sighting"] == placed["loglik_per_sighting"]
+            assert lk["cells"][f"m_{m}"][g]["n_used"] == placed["n_used"]
+    for own, other in (("std", "slow"), ("slow", "std")):
+        assert lk["cells"][f"m_{own}"][own]["below_best"] == 0.0
+        assert lk["cells"][f"m_{other}"][own]["below_best"] > 0.1
+    assert lk["summary"]["own_most_likely"] == lk["summary"]["logs_with_own"] == 2
+    from sensact.report.tables import fleet_likelihood_table
+
+    _, head, rows = fleet_likelihood_table(fleet)
+    assert rows[0][1].startswith("**") and "(most likely)" in rows[0][1] and " below)" in rows[0][2]
+    assert rows[-1][0] == "sightings used"
+    # logs without recorded poses are placed and compared by the likelihood alone
+    for name in ("std", "slow"):
+        (tmp_path / name / "groundtruth.csv").unlink()
+    out2 = tmp_path / "fleet_no_truth.json"
+    res = runner.invoke(app, ["evaluate", "fleet", *args, "--out", str(out2)])
     flat = " ".join(res.output.split())
-    assert res.exit_code == 2 and "groundtruth.csv" in flat and "no recorded poses" in flat, flat
+    assert res.exit_code == 0, flat
+    assert "not scored against ground truth: std, slow have no recorded poses" in flat
+    assert "on 2 of 2 logs the robot's own model is the most likely" in flat
+    blind = json.loads(out2.read_text())
+    assert "cells" not in blind and blind["no_truth"] == ["std", "slow"]
+    assert blind["likelihood"] == lk
+    assert (tmp_path / "fleet_no_truth.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_fleet_pair_the_filter_fails_on_is_a_cell_without_a_likelihood(tmp_path, monkeypatch):
+    """A model the filter fails with from every start (``localize`` refuses it) does not stop the fleet:
+    its cell has no likelihood, the others are ranked without it, and the table and a line say so."""
+    from sensact.errors import ConfigError
+    from sensact.experiments import fleet as fleet_mod
+    from sensact.learn.em import EMConfig
+    from sensact.report.tables import fleet_likelihood_lines, fleet_likelihood_table
+
+    res = runner.invoke(app, ["simulate", "diffdrive", "--out", str(tmp_path / "a"), "--seconds", "30"])
+    assert res.exit_code == 0, res.output
+    lf = read_landmark_log(tmp_path / "a")
+    good = _true_model_file(tmp_path / "a", tmp_path / "good.json")
+    model = EMModel.from_dict(json.loads(good.read_text())["model"])
+    real_localize = fleet_mod.localize
+
+    def failing(m, data, config):
+        if m is bad:
+            raise ConfigError("the filter failed from every start tried (6)", file=data.source, field="start")
+        return real_localize(m, data, config)
+
+    bad = model.replace(prior_mean=model.prior_mean + 1.0)
+    monkeypatch.setattr(fleet_mod, "localize", failing)
+    cfg = EMConfig()
+    fleet = fleet_mod.score_fleet(
+        {"good": model, "bad": bad}, {"a": lf}, {"good": "a"}, configs={"good": cfg, "bad": cfg}
+    )
+    lk = fleet["likelihood"]
+    assert lk["cells"]["bad"]["a"]["per_sighting"] is None and lk["cells"]["bad"]["a"]["below_best"] is None
+    assert lk["cells"]["good"]["a"]["below_best"] == 0.0
+    assert lk["summary"]["per_log"]["a"] == {"most_likely": "good", "closest_other": None, "closest_other_below": None}
+    _, _, rows = fleet_likelihood_table(fleet)
+    assert rows[1] == ["bad", "the filter failed"] and rows[-1] == [
+        "sightings used",
+        str(lk["cells"]["good"]["a"]["n_used"]),
+    ]
+    assert fleet_likelihood_lines(fleet)[-1] == "not placed: bad on a: the filter failed from every start tried (6)"
 
 
 def test_a_model_is_matched_to_the_log_it_names(tmp_path, monkeypatch):

@@ -32,7 +32,10 @@ learn_app = typer.Typer(help="Learn models from a log.", no_args_is_help=True)
 app.add_typer(simulate_app, name="simulate")
 app.add_typer(learn_app, name="learn")
 convert_app = typer.Typer(help="Turn a dataset into a sensact log folder.", no_args_is_help=True)
-evaluate_app = typer.Typer(help="Score a learned model against a dataset's ground truth.", no_args_is_help=True)
+evaluate_app = typer.Typer(
+    help="Score learned models against a dataset's ground truth, and a fleet's models on each other's logs.",
+    no_args_is_help=True,
+)
 app.add_typer(convert_app, name="convert")
 app.add_typer(evaluate_app, name="evaluate")
 

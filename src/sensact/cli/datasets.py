@@ -333,23 +333,6 @@ def evaluate_log_cmd(
         console.print("wrote " + ", ".join(str(p) for p in written))
 
 
-def _read_log_with_truth(log: Path) -> Any:
-    """A log folder whose ground truth holds poses on a log of continuous commands: what a model is scored
-    against pair by pair (``score_against_truth``)."""
-    from sensact.errors import LogFormatError
-    from sensact.io.landmark_log import read_landmark_log
-
-    lf = read_landmark_log(log)
-    if lf.truth_poses() is None or not lf.data.is_continuous:
-        raise LogFormatError(
-            "has no recorded poses to score a fleet against (a log of continuous commands with groundtruth.csv).",
-            file=log / "groundtruth.csv",
-            fix="add groundtruth.csv with t_s, x_mm, y_mm, theta_rad (convert csv --truth writes it), "
-            "or score a simulated log alone with `sensact evaluate log`.",
-        )
-    return lf
-
-
 def learned_on_log(doc: dict[str, Any], log: Path) -> bool:
     """Whether model.json says it was learned on ``log``: ``learn em`` records the folder as it was given, so
     a relative one matches the end of the log's full path (it may have been run from another folder)."""
@@ -375,7 +358,7 @@ def fleet_names(paths: list[Path], name: Any) -> list[str]:
 def evaluate_fleet_cmd(
     logs: Annotated[
         list[Path],
-        typer.Argument(help="Log folders with ground truth (groundtruth.csv with poses).", metavar="DIR"),
+        typer.Argument(help="Log folders, with or without ground truth (groundtruth.csv with poses).", metavar="DIR"),
     ],
     model: Annotated[
         list[Path], typer.Option("--model", help="A model.json written by `sensact learn em`; repeat for each model.")
@@ -387,24 +370,30 @@ def evaluate_fleet_cmd(
 ) -> None:
     """Score every model on every log: does one robot's model serve the others of its kind?
 
-    For a fleet of robots of one kind, each with a log and a model learned on it: each pair is scored as
-    `sensact evaluate log` scores it, against that log's ground truth with From-Truth fitted on that log.
-    The table gives, per pair, the translation and rotation RMS over From-Truth's, the range function's
-    residual about the truth and the bearing sigma over the truth's; a pair is a robot's own when the
-    model was learned on that log. Every model must share the logs' commands, readings and step."""
+    For a fleet of robots of one kind, each with a log and a model learned on it. Without ground truth,
+    each model is placed on each log by the E-step alone (as `sensact localize` places it) and the table
+    gives its log-likelihood a sighting and how far it falls below the log's most likely model. When every
+    log has recorded poses, each pair is also scored as `sensact evaluate log` scores it, against that
+    log's ground truth with From-Truth fitted on that log: the translation and rotation RMS over
+    From-Truth's, the range function's residual about the truth and the bearing sigma over the truth's. A
+    pair is a robot's own when the model was learned on that log. Every model must share the logs'
+    commands, readings and step."""
     from sensact.cli.base import progress_bar
     from sensact.experiments.fleet import score_fleet
     from sensact.io.atomic import write_json
+    from sensact.io.landmark_log import read_landmark_log
+    from sensact.learn.em.localize import learned_config
 
-    models, own = {}, {}
+    models, configs, own = {}, {}, {}
     logs, model = list(dict.fromkeys(logs)), list(dict.fromkeys(model))  # a folder or file given twice counts once
-    read = {p: _read_log_with_truth(p) for p in logs}
+    read = {p: read_landmark_log(p) for p in logs}
     log_names = dict(zip(logs, fleet_names(logs, lambda p: p.resolve().name), strict=True))
     for path, name in zip(model, fleet_names(model, lambda p: p.stem), strict=True):
         doc, m = _read_em_model(path)
         for log, lf in read.items():
             refuse_model_for_log(doc, m, lf.data, path, log)
         models[name] = m
+        configs[name] = learned_config((doc.get("summary") or {}).get("config"), str(path))
         for log in logs:
             if learned_on_log(doc, log):
                 own[name] = log_names[log]
@@ -414,7 +403,7 @@ def evaluate_fleet_cmd(
         + ", ".join(lf.title(p) for p, lf in read.items())
     )
     with progress_bar() as progress:
-        fleet = score_fleet(models, {log_names[p]: lf for p, lf in read.items()}, own, progress)
+        fleet = score_fleet(models, {log_names[p]: lf for p, lf in read.items()}, own, progress, configs)
     print_fleet(fleet)
     if out is not None:
         from sensact.report.figures_fleet import figure_fleet
@@ -425,10 +414,21 @@ def evaluate_fleet_cmd(
 
 
 def print_fleet(fleet: dict[str, Any]) -> None:
-    """The fleet table (a missed bar in red, a robot's own pair in bold) and what it says."""
+    """The fleet's tables (a missed bar in red, a robot's own pair in bold) and what they say."""
     from sensact.cli.base import print_tables
-    from sensact.report.tables import fleet_lines, fleet_table
+    from sensact.report.tables import fleet_likelihood_lines, fleet_likelihood_table, fleet_lines, fleet_table
 
-    print_tables([fleet_table(fleet, miss=lambda s: f"[red]{s}[/]", own=lambda s: f"[bold]{s}[/]")])
-    for line in fleet_lines(fleet):
-        console.print(line)
+    if "cells" in fleet:
+        print_tables([fleet_table(fleet, miss=lambda s: f"[red]{s}[/]", own=lambda s: f"[bold]{s}[/]")])
+        for line in fleet_lines(fleet):
+            console.print(line)
+    else:
+        console.print(
+            f"not scored against ground truth: {', '.join(fleet['no_truth'])} "
+            f"{'has' if len(fleet['no_truth']) == 1 else 'have'} no recorded poses on continuous commands "
+            "(groundtruth.csv with t_s, x_mm, y_mm, theta_rad; `convert csv --truth` writes it)"
+        )
+    if "likelihood" in fleet:
+        print_tables([fleet_likelihood_table(fleet, own=lambda s: f"[bold]{s}[/]")])
+        for line in fleet_likelihood_lines(fleet):
+            console.print(line)

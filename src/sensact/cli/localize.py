@@ -75,16 +75,6 @@ def _truth_scores(loc: Any, poses: Any, truth_mm: Any, learned_map: dict[str, fl
     return out
 
 
-# the settings localize uses, taken from the ones the model was learned with (its JSON's summary.config)
-LOCALIZE_SETTINGS = (
-    "prune_rad_per_step",
-    "start_prior_sd",
-    "start_search_s",
-    "start_search_grid_mm",
-    "start_candidates",
-)
-
-
 @app.command("localize")
 @friendly
 def localize_cmd(
@@ -117,16 +107,13 @@ def localize_cmd(
 
     from sensact.cli.datasets import _read_em_model, refuse_model_for_log
     from sensact.cli.learn import read_em_log, write_smoothed_path
-    from sensact.config import config_from_dict
     from sensact.io.atomic import write_json
     from sensact.learn.em import EMConfig
-    from sensact.learn.em.localize import localize
+    from sensact.learn.em.localize import learned_config, localize
 
     doc, m = _read_em_model(model)
     summary = doc.get("summary") or {}
-    learned = summary.get("config") or {}
-    base = config_from_dict(EMConfig, {k: learned[k] for k in LOCALIZE_SETTINGS if k in learned}, source=str(model))
-    cfg = layered_config(EMConfig, config, set_, base=base)
+    cfg = layered_config(EMConfig, config, set_, base=learned_config(summary.get("config"), str(model)))
     dt = doc.get("dt_s")
     # a Turtlebot CSV is read onto the model's step, whatever its own median step
     data, lf, truth_mm = read_em_log(log, bins, float(dt) if dt is not None else None)

@@ -1,10 +1,20 @@
 """A fleet's models, each scored on every robot's log (beyond the thesis, whose robots had one log
 each): does one robot's learned model serve another robot of its kind?
 
-Each pair is ``score_against_truth`` of the model on the log, with From-Truth fitted on that log, and
-the real-data bars (``real.bar_checks``). A pair is the robot's *own* when the model was learned on that
-log. MRCLAM's five robots are one kind of robot: their action models carry over, their cameras' range
-functions do not (docs/em-real-results.md, "One robot's model on another robot").
+Two scores, each a grid of (model, log) pairs:
+
+* against the **ground truth**, when every log has recorded poses: ``score_against_truth`` of the model
+  on the log, with From-Truth fitted on that log, and the real-data bars (``real.bar_checks``);
+* by the **likelihood**, with no ground truth at all: the model placed on the log by the E-step alone
+  (``learn.em.localize``, sec. 4.2 with the model held) and its ``log P(O | C, lambda)`` (eq. 4.14) per
+  sighting. On one log the models read the same sightings unless the first-iteration gate (sec. 4.4.1)
+  drops different ones (each cell says how many it used), so the fall of a model below the log's most
+  likely one says how much worse it explains that robot's run.
+
+A pair is the robot's *own* when the model was learned on that log; it has a small edge there, having
+been fitted to those very sightings. MRCLAM's five robots are one kind of robot: their action models
+carry over, their cameras' range functions do not (docs/em-real-results.md, "One robot's model on another
+robot").
 """
 
 from __future__ import annotations
@@ -14,8 +24,11 @@ from typing import Any
 
 import numpy as np
 
+from sensact.errors import ConfigError
 from sensact.evaluate.landmark_truth import score_against_truth
 from sensact.experiments.real import BARS, bar_checks
+from sensact.learn.em.config import EMConfig
+from sensact.learn.em.localize import localize
 
 # the bars' own keys for the action model and for the sensor
 ACTION_BARS = ("action_translation_ratio", "action_rotation_ratio", "action_translation_abs")
@@ -38,32 +51,110 @@ def fleet_cell(sc: dict[str, Any]) -> dict[str, Any]:
     }
 
 
+def recorded_truth(log: Any) -> tuple[Any, Any] | None:
+    """A log's recorded poses, or None where there are none to score against (``score_against_truth``
+    scores a log of continuous commands)."""
+    truth = log.truth_poses()
+    return truth if truth is not None and log.data.is_continuous else None
+
+
 def score_fleet(
     models: Mapping[str, Any],
     logs: Mapping[str, Any],
     own: Mapping[str, str] | None = None,
     progress: Callable[[str, int, int | None], None] | None = None,
+    configs: Mapping[str, EMConfig] | None = None,
 ) -> dict[str, Any]:
     """Every model of ``models`` ({name: EMModel}) on every log of ``logs`` ({name: anything with ``data``
-    and ``truth_poses()``}: an ``MrclamLog`` or a log folder with groundtruth.csv). ``own`` maps a model's
-    name to the log it was learned on. Cells are keyed ``cells[model][log]``."""
+    and ``truth_poses()``}: an ``MrclamLog`` or a log folder). ``own`` maps a model's name to the log it
+    was learned on. Against the truth (``cells``, ``summary``) when every log has recorded poses; by the
+    likelihood (``likelihood``) when ``configs`` gives each model the settings ``localize`` places the
+    robot with (``localize.learned_config``). Cells are keyed ``cells[model][log]``."""
     own = dict(own or {})
+    truths = {name: recorded_truth(log) for name, log in logs.items()}
+    out: dict[str, Any] = {"bars": dict(BARS), "models": list(models), "logs": list(logs), "own": own}
+    if all(t is not None for t in truths.values()):
+        cells: dict[str, dict[str, Any]] = {name: {} for name in models}
+        total, done = len(models) * len(logs), 0
+        for log_name, log in logs.items():
+            poses, valid = truths[log_name]
+            for model_name, model in models.items():
+                cells[model_name][log_name] = fleet_cell(score_against_truth(model, log.data, poses, valid))
+                done += 1
+                if progress:
+                    progress("scoring models against the truth", done, total)
+        out.update(cells=cells, summary=fleet_summary(cells, own))
+    else:
+        out["no_truth"] = [name for name, t in truths.items() if t is None]
+    if configs is not None:
+        out["likelihood"] = score_likelihoods(models, logs, configs, own, progress)
+    return out
+
+
+def likelihood_cell(model: Any, data: Any, config: EMConfig) -> dict[str, Any]:
+    """One model placed on one log by the E-step alone: its log-likelihood, over how many sightings, and
+    per sighting; a model the filter fails with from every start is a cell without a likelihood."""
+    try:
+        loc = localize(model, data, config)
+    except ConfigError as exc:
+        return {"loglik": None, "n_used": 0, "per_sighting": None, "failed": exc.problem}
+    post = loc.posteriors
+    return {
+        "loglik": float(post.loglik),
+        "n_used": int(post.n_used),
+        "per_sighting": float(loc.loglik_per_sighting),
+        "filter_ok": bool(post.ok),
+    }
+
+
+def score_likelihoods(
+    models: Mapping[str, Any],
+    logs: Mapping[str, Any],
+    configs: Mapping[str, EMConfig],
+    own: Mapping[str, str],
+    progress: Callable[[str, int, int | None], None] | None = None,
+) -> dict[str, Any]:
+    """Each model placed on each log (``likelihood_cell``), and each one's fall per sighting below the
+    log's most likely model (``below_best``: 0 for that model)."""
     cells: dict[str, dict[str, Any]] = {name: {} for name in models}
     total, done = len(models) * len(logs), 0
     for log_name, log in logs.items():
-        poses, valid = log.truth_poses()
         for model_name, model in models.items():
-            cells[model_name][log_name] = fleet_cell(score_against_truth(model, log.data, poses, valid))
+            cells[model_name][log_name] = likelihood_cell(model, log.data, configs[model_name])
             done += 1
             if progress:
-                progress("scoring models on logs", done, total)
+                progress("placing each model on each log", done, total)
+        scored = [cells[m][log_name]["per_sighting"] for m in models if cells[m][log_name]["per_sighting"] is not None]
+        best = max(scored) if scored else None
+        for model_name in models:
+            c = cells[model_name][log_name]
+            c["below_best"] = None if c["per_sighting"] is None else best - c["per_sighting"]
+    return {"cells": cells, "summary": likelihood_summary(cells, list(logs), own)}
+
+
+def likelihood_summary(cells: dict[str, dict[str, Any]], logs: list[str], own: Mapping[str, str]) -> dict[str, Any]:
+    """Per log, the most likely model, and the most likely of the others (a log's own model left out, or
+    the runner-up where no model is its own) with its fall; and on how many logs the own model wins."""
+    owner = {g: m for m, g in own.items() if m in cells}
+    per_log: dict[str, Any] = {}
+    for g in logs:
+        ranked = sorted(
+            (m for m in cells if cells[m][g]["per_sighting"] is not None), key=lambda m: -cells[m][g]["per_sighting"]
+        )
+        if not ranked:
+            per_log[g] = {"most_likely": None, "closest_other": None, "closest_other_below": None}
+            continue
+        others = [m for m in ranked if m != owner.get(g, ranked[0])]
+        per_log[g] = {
+            "most_likely": ranked[0],
+            "closest_other": others[0] if others else None,
+            "closest_other_below": cells[others[0]][g]["below_best"] if others else None,
+        }
+    with_own = [g for g in logs if g in owner]
     return {
-        "bars": dict(BARS),
-        "models": list(models),
-        "logs": list(logs),
-        "own": own,
-        "cells": cells,
-        "summary": fleet_summary(cells, own),
+        "per_log": per_log,
+        "logs_with_own": len(with_own),
+        "own_most_likely": sum(per_log[g]["most_likely"] == owner[g] for g in with_own),
     }
 
 

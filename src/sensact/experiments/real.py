@@ -266,9 +266,11 @@ def run_mrclam_robot(
     return row, ml, res
 
 
-def fleet_of_dataset(folder: Path, runs: dict[str, Any], several: bool) -> dict[str, Any] | None:
-    """Each robot's learned model of one dataset scored on every robot's log of it (``fleet.score_fleet``;
-    docs/em-real-results.md, "One robot's model on another robot"), or None with fewer than two robots."""
+def fleet_of_dataset(folder: Path, runs: dict[str, Any], several: bool, config: EMConfig) -> dict[str, Any] | None:
+    """Each robot's learned model of one dataset scored on every robot's log of it, against Vicon and by
+    the likelihood with each model placed by the E-step alone under ``config``, the settings it was learned
+    with (``fleet.score_fleet``; docs/em-real-results.md, "One robot's model on another robot"), or None
+    with fewer than two robots."""
     from sensact.experiments.fleet import score_fleet
 
     keys = [k for k in runs if not several or k.startswith(f"{folder.name}/")]
@@ -276,7 +278,10 @@ def fleet_of_dataset(folder: Path, runs: dict[str, Any], several: bool) -> dict[
         return None
     name = {k: k.rsplit("/", 1)[-1] for k in keys}
     return score_fleet(
-        {name[k]: runs[k][1].model for k in keys}, {name[k]: runs[k][0] for k in keys}, {name[k]: name[k] for k in keys}
+        {name[k]: runs[k][1].model for k in keys},
+        {name[k]: runs[k][0] for k in keys},
+        {name[k]: name[k] for k in keys},
+        configs={name[k]: config for k in keys},
     )
 
 
@@ -330,7 +335,9 @@ def run_real(
                     continue
                 out["mrclam"][key] = {"dataset": folder.name, **row}
                 artifacts["mrclam"][key] = (ml, res)
-            fleet = fleet_of_dataset(folder, artifacts["mrclam"], len(datasets) > 1)
+            if progress:
+                progress(f"MRCLAM {folder.name}: each robot's model on every robot's log")
+            fleet = fleet_of_dataset(folder, artifacts["mrclam"], len(datasets) > 1, cfg)
             if fleet is not None:
                 out.setdefault("fleet", {})[folder.name] = fleet
     else:

@@ -1,7 +1,8 @@
-"""A fleet's models scored on every robot's log (``experiments.fleet.score_fleet``) as four grids, a row
-per model and a column per log: the translation and rotation ratios to From-Truth, the range residual
-about the truth, and the bearing sigma ratio. A pair that misses a bar is outlined in red, a robot's own
-pair is written in bold: which models carry over is seen at a glance."""
+"""A fleet's models scored on every robot's log (``experiments.fleet.score_fleet``) as grids, a row per
+model and a column per log: against the truth, the translation and rotation ratios to From-Truth, the
+range residual about the truth and the bearing sigma ratio; by the likelihood, with no truth, how far
+each model falls below the log's most likely one. A pair that misses a bar is outlined in red, a robot's
+own pair is written in bold: which models carry over is seen at a glance."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-from matplotlib.colors import LogNorm
+from matplotlib.colors import LogNorm, Normalize
 from matplotlib.patches import Rectangle
 from matplotlib.ticker import FuncFormatter
 
@@ -31,67 +32,84 @@ PANELS = (
     ("range_residual_rms_mm", "range residual about the truth (mm)", "{:.0f}", None),
     ("bearing_sigma_ratio", "bearing sigma / truth's residual", "{:.2f}", "bearing"),
 )
-
-
-def fleet_grid(fleet: dict[str, Any], key: str) -> np.ndarray:
-    """``(models, logs)``: one number of every pair."""
-    return np.array([[fleet["cells"][m][g][key] for g in fleet["logs"]] for m in fleet["models"]], dtype=float)
+# by the likelihood, with no truth: each model's fall per sighting below the log's most likely (0 for it)
+LIKELIHOOD_PANEL = (
+    "below_best",
+    "log-likelihood a sighting below the log's most likely\n(no ground truth)",
+    "{:.3f}",
+    None,
+)
 
 
 def figure_fleet(fleet: dict[str, Any], path: Path, title: str = "models on logs") -> Path:
-    models, logs, own = fleet["models"], fleet["logs"], fleet.get("own", {})
+    models, logs = fleet["models"], fleet["logs"]
     n_m, n_l = len(models), len(logs)
-    w = max(3.2, 0.9 * n_l + 1.8)
-    fig, axes = plt.subplots(2, 2, figsize=(2 * w, 2 * max(2.6, 0.6 * n_m + 1.4)), squeeze=False)
-    for ax, (key, name, fmt, part) in zip(axes.ravel(), PANELS, strict=True):
-        grid = fleet_grid(fleet, key)
-        if key.endswith("_ratio"):
-            norm, cmap = LogNorm(1 / RATIO_SPAN, RATIO_SPAN, clip=True), "RdBu_r"
-        else:
-            positive = grid[np.isfinite(grid) & (grid > 0)]
-            lo = float(positive.min()) if positive.size else 1.0
-            hi = float(positive.max()) if positive.size else 10.0
-            norm, cmap = LogNorm(lo, max(hi, 1.01 * lo)), "viridis"
-        im = ax.imshow(grid, cmap=cmap, norm=norm, aspect="auto")
-        bar = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
-        if key.endswith("_ratio"):  # the bars' limits, where a model stops carrying over
-            f, most = fleet["bars"]["sigma_factor"], fleet["bars"]["action_ratio_max"]
-            ticks = sorted({1 / RATIO_SPAN, 1 / f, 1.0, f, most, RATIO_SPAN})
-        else:
-            ticks = np.geomspace(norm.vmin, norm.vmax, 5)
-        bar.set_ticks(ticks)
-        bar.ax.yaxis.set_major_formatter(FuncFormatter(lambda x, _: f"{x:.2g}" if x < 10 else f"{x:.0f}"))
-        bar.ax.yaxis.set_minor_formatter(FuncFormatter(lambda x, _: ""))
-        if key == "range_residual_rms_mm":  # From-Truth's residual on each log, the floor a model could reach
-            floor = [fleet["cells"][models[0]][g]["range_from_truth_rms_mm"] for g in logs]
-            name += "\n(From-Truth's under each log)"
-            labels = [f"{g}\n{f:.0f}" for g, f in zip(logs, floor, strict=True)]
-        else:
-            labels = list(logs)
-        ax.set_xticks(range(n_l), labels, fontsize=8)
-        ax.set_yticks(range(n_m), models, fontsize=8)
-        ax.set(xlabel="scored on the log of", ylabel="model learned on", title=name)
-        for i, m in enumerate(models):
-            for j, g in enumerate(logs):
-                cell = fleet["cells"][m][g]
-                # a model that reads no bearing has no bearing bar (and no number: "-")
-                miss = part is not None and not all(cell["bars"].get(b, True) for b in FLEET_BARS[part])
-                color = "white" if _dark(im, grid[i, j]) else "black"
-                ax.text(
-                    j,
-                    i,
-                    fmt.format(grid[i, j]) if np.isfinite(grid[i, j]) else "-",
-                    ha="center",
-                    va="center",
-                    fontsize=8,
-                    color=color,
-                    fontweight="bold" if own.get(m) == g else "normal",
-                )
-                if miss:
-                    ax.add_patch(Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, ec="red", lw=2.5))
-    fig.suptitle(f"{title}: red outline, a bar missed; bold, a robot's own model", fontsize=10)
+    panels = list(PANELS) if "cells" in fleet else []
+    if "likelihood" in fleet:
+        panels.append(LIKELIHOOD_PANEL)
+    cols = 1 if len(panels) == 1 else 2 if len(panels) == 4 else 3
+    rows = -(-len(panels) // cols)
+    w, h = max(3.2, 0.9 * n_l + 1.8), max(2.6, 0.6 * n_m + 1.4)
+    fig, axes = plt.subplots(rows, cols, figsize=(cols * w, rows * h), squeeze=False)
+    for ax, panel in zip(axes.ravel(), panels, strict=False):
+        _panel(fig, ax, fleet, *panel)
+    for ax in axes.ravel()[len(panels) :]:
+        ax.axis("off")
+    what = "red outline, a bar missed; bold, a robot's own model" if "cells" in fleet else "bold, a robot's own model"
+    fig.suptitle(f"{title}: {what}", fontsize=10)
     fig.tight_layout()
     return _save(fig, path)
+
+
+def _panel(fig: Any, ax: Any, fleet: dict[str, Any], key: str, name: str, fmt: str, part: str | None) -> None:
+    models, logs, own = fleet["models"], fleet["logs"], fleet.get("own", {})
+    cells = fleet["likelihood"]["cells"] if key == "below_best" else fleet["cells"]
+    grid = np.array([[np.nan if (v := cells[m][g][key]) is None else v for g in logs] for m in models], dtype=float)
+    if key.endswith("_ratio"):
+        norm, cmap = LogNorm(1 / RATIO_SPAN, RATIO_SPAN, clip=True), "RdBu_r"
+    elif key == "below_best":  # linear from 0, the most likely, so that models alike look alike
+        finite = grid[np.isfinite(grid)]
+        norm, cmap = Normalize(0.0, max(float(finite.max()) if finite.size else 0.0, 1e-3)), "viridis"
+    else:
+        positive = grid[np.isfinite(grid) & (grid > 0)]
+        lo = float(positive.min()) if positive.size else 1.0
+        hi = float(positive.max()) if positive.size else 10.0
+        norm, cmap = LogNorm(lo, max(hi, 1.01 * lo)), "viridis"
+    im = ax.imshow(grid, cmap=cmap, norm=norm, aspect="auto")
+    bar = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
+    if key.endswith("_ratio"):  # the bars' limits, where a model stops carrying over
+        f, most = fleet["bars"]["sigma_factor"], fleet["bars"]["action_ratio_max"]
+        bar.set_ticks(sorted({1 / RATIO_SPAN, 1 / f, 1.0, f, most, RATIO_SPAN}))
+    elif key != "below_best":
+        bar.set_ticks(np.geomspace(norm.vmin, norm.vmax, 5))
+    if key != "below_best":
+        bar.ax.yaxis.set_major_formatter(FuncFormatter(lambda x, _: f"{x:.2g}" if x < 10 else f"{x:.0f}"))
+        bar.ax.yaxis.set_minor_formatter(FuncFormatter(lambda x, _: ""))
+    if key == "range_residual_rms_mm":  # From-Truth's residual on each log, the floor a model could reach
+        floor = [fleet["cells"][models[0]][g]["range_from_truth_rms_mm"] for g in logs]
+        name += "\n(From-Truth's under each log)"
+        labels = [f"{g}\n{f:.0f}" for g, f in zip(logs, floor, strict=True)]
+    else:
+        labels = list(logs)
+    ax.set_xticks(range(len(logs)), labels, fontsize=8)
+    ax.set_yticks(range(len(models)), models, fontsize=8)
+    ax.set(xlabel="scored on the log of", ylabel="model learned on", title=name)
+    for i, m in enumerate(models):
+        for j, g in enumerate(logs):
+            # a model that reads no bearing has no bearing bar (and no number: "-")
+            miss = part is not None and not all(cells[m][g]["bars"].get(b, True) for b in FLEET_BARS[part])
+            ax.text(
+                j,
+                i,
+                fmt.format(grid[i, j]) if np.isfinite(grid[i, j]) else "-",
+                ha="center",
+                va="center",
+                fontsize=8,
+                color="white" if _dark(im, grid[i, j]) else "black",
+                fontweight="bold" if own.get(m) == g else "normal",
+            )
+            if miss:
+                ax.add_patch(Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, ec="red", lw=2.5))
 
 
 def _dark(im: Any, value: float) -> bool:

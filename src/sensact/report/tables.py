@@ -559,6 +559,70 @@ def fleet_lines(fleet: dict[str, Any]) -> list[str]:
     return lines
 
 
+FLEET_LIKELIHOOD_TITLE = (
+    "log-likelihood a sighting, each model placed on each log by the E-step alone (no ground truth); in brackets, "
+    "how far below the log's most likely model"
+)
+
+
+def fleet_likelihood_table(
+    fleet: dict[str, Any], title: str = FLEET_LIKELIHOOD_TITLE, own: Callable[[str], str] = lambda s: f"**{s}**"
+) -> Table:
+    """``experiments.fleet.score_likelihoods``' pairs, a row per model and a column per log, and the
+    sightings each log's likelihood is over; ``own`` marks a robot's own pair."""
+    lk = fleet["likelihood"]
+
+    def cell(m: str, g: str) -> str:
+        c = lk["cells"][m][g]
+        if c["per_sighting"] is None:
+            text = "the filter failed"
+        else:
+            below = c["below_best"]
+            text = f"{c['per_sighting']:.3f} ({'most likely' if below == 0 else f'{below:.3f} below'})"
+            if not c["filter_ok"]:
+                text += ", the filter lost positive definiteness"
+        return own(text) if fleet["own"].get(m) == g else text
+
+    def used(g: str) -> str:
+        n = sorted(
+            {lk["cells"][m][g]["n_used"] for m in fleet["models"] if lk["cells"][m][g]["per_sighting"] is not None}
+        )
+        return "-" if not n else str(n[0]) if len(n) == 1 else f"{n[0]}-{n[-1]}"
+
+    rows = [[m, *(cell(m, g) for g in fleet["logs"])] for m in fleet["models"]]
+    rows.append(["sightings used", *(used(g) for g in fleet["logs"])])
+    return title, ["model \\ log", *fleet["logs"]], rows
+
+
+def fleet_likelihood_lines(fleet: dict[str, Any]) -> list[str]:
+    """What the likelihood table says: whether each log's own model is its most likely, and how close the
+    best of the others comes on each log."""
+    lk = fleet["likelihood"]
+    s = lk["summary"]
+    lines = []
+    if s["logs_with_own"]:
+        lines.append(
+            f"by the likelihood (no ground truth): on {s['own_most_likely']} of {s['logs_with_own']} logs the "
+            "robot's own model is the most likely (it has a small edge there, having been fitted to those sightings)"
+        )
+    closest = [
+        f"{p['closest_other']} on {g} ({p['closest_other_below']:.3f}{' a sighting below' if not i else ''})"
+        for i, (g, p) in enumerate((g, p) for g, p in s["per_log"].items() if p["closest_other"] is not None)
+    ]
+    if closest:
+        lines.append(
+            ("the closest other model on each log: " if fleet["own"] else "the runner-up on each log: ")
+            + ", ".join(closest)
+        )
+    failed = [
+        f"{m} on {g}: {c['failed']}"
+        for m, row in lk["cells"].items()
+        for g, c in row.items()
+        if c["per_sighting"] is None
+    ]
+    return lines + [f"not placed: {f}" for f in failed]
+
+
 def restart_runs_cell(runs: list[dict[str, Any]]) -> str:
     """Each run of ``fit.restart_while_lost``: its channels' start sigmas and its likelihood."""
     return "; ".join(
@@ -655,6 +719,8 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
         )
     for dataset, fleet in res.get("fleet", {}).items():
         tables.append(fleet_table(fleet, f"{dataset}, each robot's model on every robot's log: {FLEET_TITLE}"))
+        if "likelihood" in fleet:  # absent from results written before the likelihood was measured
+            tables.append(fleet_likelihood_table(fleet, f"{dataset}: {FLEET_LIKELIHOOD_TITLE}"))
     turtlebots = [res["turtlebot"], *res.get("turtlebot_more_logs", {}).values()] if res.get("turtlebot") else []
     for tb in turtlebots:  # the issue's training1.csv, then any other training log, a table each
         sc, ch3 = tb["score"], tb.get("chapter3_sonar1", {})

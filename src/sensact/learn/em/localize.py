@@ -26,12 +26,13 @@ about as well as the one it was learned on (``EMResult.summary()['loglik_best']`
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
+from sensact.config import config_from_dict
 from sensact.core.angles import wrap_angle
 from sensact.errors import ConfigError
 from sensact.learn.em.config import EMConfig
@@ -47,6 +48,15 @@ TRACK_MIN_SD = 1.0  # a track candidate's prior sd is at least this (a reading o
 # (description, done, total): where a long search is, for a progress bar
 Progress = Callable[[str, int, int | None], None]
 RANGE_HEADINGS = 12  # a range-only start search tries this many headings at each grid position (30 degrees apart)
+# the settings localize takes from the ones a model was learned with (its JSON's summary.config): the
+# start search, the start's spread and the first-iteration gate; the rest of the E-step is the model's own
+LEARNED_SETTINGS = (
+    "prune_rad_per_step",
+    "start_prior_sd",
+    "start_search_s",
+    "start_search_grid_mm",
+    "start_candidates",
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -58,6 +68,15 @@ class Localized:
     @property
     def loglik_per_sighting(self) -> float:
         return self.posteriors.loglik / max(self.posteriors.n_used, 1)
+
+
+def learned_config(learned: Mapping[str, Any] | None, source: str = "model") -> EMConfig:
+    """The settings to place the robot with: ``LEARNED_SETTINGS`` from the config the model was learned
+    with (``learned``, a model.json's ``summary.config``; None for a model written without one), the
+    defaults for the rest. The whole config is not read back: its infinite channel windows are JSON nulls,
+    and the E-step takes the windows from the model's channels anyway."""
+    learned = learned or {}
+    return config_from_dict(EMConfig, {k: learned[k] for k in LEARNED_SETTINGS if k in learned}, source=source)
 
 
 def track_start_candidates(model: EMModel, data: LandmarkLog) -> list[tuple[float, float]]:
