@@ -445,15 +445,18 @@ def test_learn_em_on_a_turtlebot_csv_recovers_the_gain_and_sonar(tmp_path):
         assert rms == pytest.approx(smap["rms_mm"], rel=1e-9) and rms < 10.0, rms
         assert 0.0 < np.median(path["sd"]) < 10.0
     assert "stopped: converged" in res.output and "raise the cap" not in res.output
-    # --set overrides the Turtlebot's settings; without a range column there is nothing to score
-    (tmp_path / "m_against_range.png").unlink()
+    # --set overrides the Turtlebot's settings; without a range column there is nothing to score, and the
+    # figure the first run drew against its range column is removed, so that it cannot pass for this fit
     _write_turtlebot_csv(csv, with_range=False)
     res = runner.invoke(app, ["learn", "em", str(csv), "--out", str(model), "--set", "max_iterations=5"])
     assert res.exit_code == 0, res.output
     assert "no range column" in res.output
     out = json.loads(model.read_text())
     assert out["evaluation"] is None and out["summary"]["iterations"] <= 5
-    assert not (tmp_path / "m_against_range.png").exists()  # nothing to draw it against
+    assert not (tmp_path / "m_against_range.png").exists()
+    said = " ".join(res.output.split())
+    assert "removed what an earlier run at this --out drew against a truth this log does not have: " in said
+    assert "m_against_range.png" in said and (tmp_path / "m.png").exists()
     # stopped at the cap, not by patience: the user is told the likelihood was still rising, and how to go on
     said = " ".join(res.output.split())
     assert "EM reached max_iterations (5) before 50 iterations passed without a new best" in said

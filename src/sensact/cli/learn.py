@@ -160,6 +160,12 @@ def write_smoothed_path(path: Path, posteriors: Any, data: Any) -> Path:
     )
 
 
+# the figures `learn em --out OUT.json` draws against a log's truth (OUT_<kind>.png): recorded poses
+# (report.figures_real.write_robot) or a Turtlebot CSV's range column; one an earlier run at the same
+# --out drew, and this run does not, is removed so that it cannot pass for this fit
+TRUTH_FIGURES = ("actions", "range", "heading_noise", "bearing", "against_range")
+
+
 @learn_app.command("em")
 @friendly
 def learn_em_cmd(
@@ -379,6 +385,16 @@ def learn_em_cmd(
             path = out.with_name(f"{out.stem}_against_range.png")
             written.append(figure_turtlebot_em(run, evaluation, path, f"EM on {name}"))
         console.print("wrote " + ", ".join(str(p) for p in written))
+        stale = [
+            p for kind in TRUTH_FIGURES if (p := out.with_name(f"{out.stem}_{kind}.png")).exists() and p not in written
+        ]
+        for p in stale:
+            p.unlink()
+        if stale:
+            console.print(
+                "removed what an earlier run at this --out drew against a truth this log does not have: "
+                + ", ".join(str(p) for p in stale)
+            )
 
 
 @learn_app.command("car")
