@@ -2045,9 +2045,8 @@ def test_reproduce_real_runs_every_mrclam_dataset_it_finds(tmp_path):
         lk["robot3"]["robot2"]["per_sighting"]
         == localize(fit.model, art["mrclam"]["MRCLAM_Dataset6/robot2"][0].data, cfg).loglik_per_sighting
     )
-    for g in ("robot2", "robot3"):
-        below = [lk[m][g]["below_best"] for m in ("robot2", "robot3")]
-        assert min(below) == 0.0 and max(below) >= 0.0
+    for g in ("robot2", "robot3"):  # the most likely model on each log is the one 0 below
+        assert min(lk[m][g]["below_best"] for m in ("robot2", "robot3")) == 0.0
     del res["mrclam"]["MRCLAM_Dataset6/robot3"], art["mrclam"]["MRCLAM_Dataset6/robot3"]
     assert [r["dataset"] for r in res["mrclam"].values()] == ["MRCLAM_Dataset6", "MRCLAM_Dataset9"]
     # the same log and seed give the same fit under either name

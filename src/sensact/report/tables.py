@@ -605,9 +605,10 @@ def fleet_likelihood_lines(fleet: dict[str, Any]) -> list[str]:
             f"by the likelihood (no ground truth): on {s['own_most_likely']} of {s['logs_with_own']} logs the "
             "robot's own model is the most likely (it has a small edge there, having been fitted to those sightings)"
         )
-    closest = [
-        f"{p['closest_other']} on {g} ({p['closest_other_below']:.3f}{' a sighting below' if not i else ''})"
-        for i, (g, p) in enumerate((g, p) for g, p in s["per_log"].items() if p["closest_other"] is not None)
+    found = [(g, p) for g, p in s["per_log"].items() if p["closest_other"] is not None]
+    closest = [  # the unit said once, on the first
+        f"{p['closest_other']} on {g} ({p['closest_other_below']:.3f}{'' if i else ' a sighting below'})"
+        for i, (g, p) in enumerate(found)
     ]
     if closest:
         lines.append(
