@@ -115,10 +115,67 @@ def test_a_simulated_log_written_off_the_grid_converts_back_exactly(timed):
         1,
         1,
     )
-    assert s["unknown_landmark_ids"] == [7.0] and s["command_rows"] < d.n_steps
+    assert s["unknown_landmark_ids"] == ["7"] and s["command_rows"] < d.n_steps
+    assert d.landmark_names[:2] == ("100", "103")  # the map's own ids name the landmarks
     assert s["dropped_after_commands"] == 1  # the one 10 s after the run, with how to keep such sightings
     assert "1 after the last command row: a row at the log's end holds the last command to it" in tl.summary_line()
     assert f"kept {ref.obs_step.size} of {ref.obs_step.size + 3} sightings" in tl.summary_line()
+
+
+def test_landmarks_named_by_words_convert_as_numbered_ones_do(timed, tmp_path):
+    """The same files with every other landmark's id written as a name, the rest as whole numbers on the
+    map (``106``) while the sightings say ``106.0``, give the same log, the map's ids kept as its names."""
+    _, folder = timed
+    lm = read_numeric_csv(folder / "landmarks.csv")
+    names = {f"{v:g}": f"post {j}" if j % 2 else f"{v:g}" for j, v in enumerate(lm["id"])}
+    header, *rows = (folder / "landmarks.csv").read_text().splitlines()
+    named = [header] + [",".join([names[f"{float(r.split(',')[0]):g}"], *r.split(",")[1:]]) for r in rows]
+    (tmp_path / "landmarks.csv").write_text("\n".join(named) + "\n")
+    header, *rows = (folder / "sightings.csv").read_text().splitlines()
+    col = header.split(",").index("landmark_id")
+
+    def rename(row):
+        cells = row.split(",")
+        key = f"{float(cells[col]):g}"
+        if key in names and not names[key][0].isdigit():  # the others, and the one not on the map, stay 106.0
+            cells[col] = names[key]
+        return ",".join(cells)
+
+    (tmp_path / "sightings.csv").write_text("\n".join([header, *map(rename, rows)]) + "\n")
+    by_number = read_timed_csv(folder / "commands.csv", folder / "sightings.csv", folder / "landmarks.csv")
+    by_name = read_timed_csv(folder / "commands.csv", tmp_path / "sightings.csv", tmp_path / "landmarks.csv")
+    _same_sightings(by_name.data, by_number.data)
+    assert by_name.data.landmark_names == tuple(names[n] for n in by_number.data.landmark_names)
+    assert by_name.summary["unknown_landmark_ids"] == ["7"]
+    out = tmp_path / "named"
+    res = runner.invoke(
+        app,
+        [
+            "convert",
+            "csv",
+            f"--commands={folder / 'commands.csv'}",
+            f"--sightings={tmp_path / 'sightings.csv'}",
+            f"--landmarks={tmp_path / 'landmarks.csv'}",
+            "--out",
+            str(out),
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    assert read_landmark_log(out).data.landmark_names == by_name.data.landmark_names
+
+
+def test_a_landmark_named_twice_or_a_sighting_without_its_landmark_is_refused(tmp_path):
+    _write(tmp_path / "c.csv", {"t_s": [0.0, 1.0, 2.0], "v_m_s": [0.1, 0.1, 0.1]})
+    _write(tmp_path / "s.csv", {"t_s": [0.5], "range_m": [1.0]})
+    (tmp_path / "l.csv").write_text("id,x_m,y_m\npost_A,0,0\n4.0,1,0\n4,2,0\n")
+    with pytest.raises(LogFormatError, match="landmark id 4 appears more than once") as err:
+        read_timed_csv(tmp_path / "c.csv", tmp_path / "s.csv", tmp_path / "l.csv")
+    assert err.value.field == "id" and err.value.file == str(tmp_path / "l.csv")
+    (tmp_path / "l.csv").write_text("id,x_m,y_m\npost_A,0,0\n")
+    (tmp_path / "s.csv").write_text("t_s,landmark_id,range_m\n0.5,post_A,1.0\n0.7,,1.0\n")
+    with pytest.raises(LogFormatError, match="row 3 has no value") as err:
+        read_timed_csv(tmp_path / "c.csv", tmp_path / "s.csv", tmp_path / "l.csv")
+    assert err.value.field == "landmark_id"
 
 
 def test_convert_csv_writes_a_log_folder_learn_em_reads_with_mrclams_settings(timed, tmp_path):

@@ -105,7 +105,7 @@ def _draw_overview(data: Any, groundtruth: dict[str, Any] | None, out: Path, tit
 def convert_csv(
     commands: Annotated[Path, typer.Option(help="t_s and one column per command, a row whenever one was sent.")],
     sightings: Annotated[Path, typer.Option(help="t_s, landmark_id, one column per reading, optional bearing_rad.")],
-    landmarks: Annotated[Path, typer.Option(help="The map: id, x_m, y_m (or x_mm, y_mm).")],
+    landmarks: Annotated[Path, typer.Option(help="The map: id (a number or a name), x_m, y_m (or x_mm, y_mm).")],
     truth: Annotated[
         Path | None, typer.Option(help="Optional, for scoring only: t_s, x_m, y_m, theta_rad (0 facing +x).")
     ] = None,

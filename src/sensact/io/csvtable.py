@@ -11,11 +11,14 @@ import numpy as np
 from sensact.errors import LogFormatError
 
 
-def read_numeric_csv(path: str | Path, required: Sequence[str] = (), *, what: str = "table") -> dict[str, np.ndarray]:
+def read_numeric_csv(
+    path: str | Path, required: Sequence[str] = (), *, what: str = "table", labels: Sequence[str] = ()
+) -> dict[str, np.ndarray]:
     """All columns of a CSV with a header row, as float arrays keyed by column name.
 
-    Empty cells become NaN. A missing file, a missing required column, a short row or a non-numeric
-    cell raises ``LogFormatError`` naming where and what to do.
+    Empty cells become NaN. The columns named in ``labels`` (names such as a landmark's ``post_A``) are
+    kept as stripped strings instead, an empty cell as "". A missing file, a missing required column, a
+    short row or a non-numeric cell raises ``LogFormatError`` naming where and what to do.
     """
     path = Path(path)
     if not path.is_file():
@@ -46,6 +49,7 @@ def read_numeric_csv(path: str | Path, required: Sequence[str] = (), *, what: st
     if not body:
         raise LogFormatError("no data rows.", file=path, fix="the file must have at least one row after the header.")
     out = np.full((len(body), len(header)), np.nan)
+    text = [j for j, name in enumerate(header) if name and name in labels]
     for i, row in enumerate(body):
         if len(row) != len(header):
             raise LogFormatError(
@@ -56,7 +60,7 @@ def read_numeric_csv(path: str | Path, required: Sequence[str] = (), *, what: st
             )
         for j, cell in enumerate(row):
             cell = cell.strip()
-            if cell == "":
+            if cell == "" or j in text:
                 continue
             try:
                 out[i, j] = float(cell)
@@ -67,4 +71,7 @@ def read_numeric_csv(path: str | Path, required: Sequence[str] = (), *, what: st
                     field=header[j] or f"column {j + 1}",
                     fix="write numbers only (use an empty cell for a missing value).",
                 ) from None
-    return {name: out[:, j] for j, name in enumerate(header) if name}
+    table: dict[str, np.ndarray] = {name: out[:, j] for j, name in enumerate(header) if name}
+    for j in text:
+        table[header[j]] = np.array([row[j].strip() for row in body], dtype=str)
+    return table

@@ -12,7 +12,8 @@ times in seconds on one clock, in any order, become a planar ``LandmarkLog`` on 
   forward axis). Each row goes to the nearest step. Rows naming a landmark not in ``landmarks.csv``
   (another robot, a false detection), outside the commands' span or with nothing read are dropped and
   counted.
-* ``landmarks.csv``: ``id``, ``x``, ``y``: the map.
+* ``landmarks.csv``: ``id``, ``x``, ``y``: the map. An id is a number or a name (``post_A``, ``tag17``);
+  ``4`` and ``4.0`` are the same landmark, and the log keeps each id as the landmark's name.
 * ``truth.csv`` (optional, for scoring only): ``t_s``, ``x``, ``y``, ``theta``, interpolated onto the grid.
   ``theta`` is the usual robotics heading (ROS REP 103, MRCLAM: 0 facing world +x, counterclockwise,
   the robot driving along its own +x) and is turned into sensact's frame.
@@ -53,12 +54,14 @@ def in_sensact_units(name: str, values: np.ndarray) -> tuple[str, np.ndarray]:
     return name, values
 
 
-def _table(path: Path, required: tuple[str, ...], what: str, example: str) -> dict[str, np.ndarray]:
+def _table(
+    path: Path, required: tuple[str, ...], what: str, example: str, labels: tuple[str, ...] = ()
+) -> dict[str, np.ndarray]:
     if not path.is_file():
         raise LogFormatError(
             f"{what} not found.", file=path, fix=f"give a CSV file of {example} (docs/commands.md, convert csv)."
         )
-    raw = read_numeric_csv(path, what=what)
+    raw = read_numeric_csv(path, what=what, labels=labels)
     table: dict[str, np.ndarray] = {}
     for name, values in raw.items():
         new, scaled = in_sensact_units(name, values)
@@ -88,6 +91,21 @@ def _finite(path: Path, table: dict[str, np.ndarray], columns: tuple[str, ...], 
             raise LogFormatError(f"row {bad[0] + 2} has no value.", file=path, field=c, fix=fix)
 
 
+def _landmark_ids(path: Path, cells: np.ndarray, column: str, fix: str) -> np.ndarray:
+    """Each id as one spelling: a number as ``%g`` (``4.0`` is landmark ``4``), a name as written."""
+    out = []
+    for i, cell in enumerate(cells):
+        if not cell:
+            raise LogFormatError(f"row {i + 2} has no value.", file=path, field=column, fix=fix)
+        try:
+            number = float(cell)
+        except ValueError:
+            out.append(str(cell))
+            continue
+        out.append(f"{number:g}" if np.isfinite(number) else str(cell))
+    return np.array(out, dtype=str)
+
+
 @dataclass(frozen=True, eq=False)
 class TimedLog:
     data: LandmarkLog
@@ -114,9 +132,17 @@ class TimedLog:
         return line
 
 
-def _ids(ids: list[float]) -> str:
+def _ids(ids: list[str]) -> str:
     more = ", ..." if len(ids) > 5 else ""
-    return f" (ids {', '.join(f'{i:g}' for i in ids[:5])}{more})" if ids else ""
+    return f" (ids {', '.join(ids[:5])}{more})" if ids else ""
+
+
+def _id_order(label: str) -> tuple[int, float, str]:
+    """Numbers by value first (``2`` before ``10``), then names."""
+    try:
+        return (0, float(label), "")
+    except ValueError:
+        return (1, 0.0, label)
 
 
 def read_timed_csv(
@@ -151,17 +177,28 @@ def read_timed_csv(
     t0, held = held_on_grid(t_cmd, np.column_stack([cmd[c][order] for c in names]), dt_s)
     T = len(held)
 
-    lm = _table(landmarks, ("id", "x_mm", "y_mm"), "landmarks.csv", "id, x_m (or x_mm) and y_m (or y_mm)")
-    _finite(landmarks, lm, ("id", "x_mm", "y_mm"), "every landmark needs an id and a position.")
-    ids = lm["id"]
-    dup = [float(i) for i, n in zip(*np.unique(ids, return_counts=True), strict=True) if n > 1]
+    lm = _table(
+        landmarks, ("id", "x_mm", "y_mm"), "landmarks.csv", "id, x_m (or x_mm) and y_m (or y_mm)", labels=("id",)
+    )
+    fix_lm = "every landmark needs an id and a position."
+    _finite(landmarks, lm, ("x_mm", "y_mm"), fix_lm)
+    ids = _landmark_ids(landmarks, lm["id"], "id", fix_lm)
+    dup = [str(i) for i, n in zip(*np.unique(ids, return_counts=True), strict=True) if n > 1]
     if dup:
         raise LogFormatError(
-            f"landmark id {dup[0]:g} appears more than once.", file=landmarks, field="id", fix="give each one row."
+            f"landmark id {dup[0]} appears more than once.", file=landmarks, field="id", fix="give each one row."
         )
 
-    obs = _table(sightings, ("t_s", "landmark_id"), "sightings.csv", "t_s, landmark_id and one column per reading")
-    _finite(sightings, obs, ("t_s", "landmark_id"), "every sighting needs a time and the landmark's id.")
+    obs = _table(
+        sightings,
+        ("t_s", "landmark_id"),
+        "sightings.csv",
+        "t_s, landmark_id and one column per reading",
+        labels=("landmark_id",),
+    )
+    fix_obs = "every sighting needs a time and the landmark's id."
+    _finite(sightings, obs, ("t_s",), fix_obs)
+    seen_id = _landmark_ids(sightings, obs["landmark_id"], "landmark_id", fix_obs)
     bearing = obs.get("bearing_rad")
     readings = tuple(c for c in obs if c not in ("t_s", "landmark_id", "bearing_rad"))
     if not readings:
@@ -172,7 +209,7 @@ def read_timed_csv(
         )
     values = np.column_stack([obs[r] for r in readings])
     step, inside = nearest_steps(obs["t_s"], t0, dt_s, T)
-    known = np.isin(obs["landmark_id"], ids)
+    known = np.isin(seen_id, ids)
     read = np.any(np.isfinite(values), axis=1) | (np.isfinite(bearing) if bearing is not None else False)
     keep = known & inside & read
     if not keep.any():
@@ -184,7 +221,7 @@ def read_timed_csv(
             fix="give sightings.csv and commands.csv times on one clock, and landmark ids that landmarks.csv lists.",
         )
     sel = np.flatnonzero(keep)[np.lexsort((obs["t_s"][keep], step[keep]))]  # by step, then by time
-    row_of = {float(v): j for j, v in enumerate(ids)}
+    row_of = {str(v): j for j, v in enumerate(ids)}
     data = LandmarkLog(
         "planar",
         dt_s,
@@ -192,11 +229,11 @@ def read_timed_csv(
         np.zeros((0, len(names))),
         names,
         step[sel],
-        np.array([row_of[float(v)] for v in obs["landmark_id"][sel]], dtype=np.int64),
+        np.array([row_of[str(v)] for v in seen_id[sel]], dtype=np.int64),
         values[sel],
         bearing[sel] if bearing is not None else np.full(sel.size, np.nan),
         np.column_stack([lm["x_mm"], lm["y_mm"]]),
-        tuple(f"{v:g}" for v in ids),
+        tuple(str(v) for v in ids),
         str(commands.parent),
         readings,
         held,
@@ -208,7 +245,7 @@ def read_timed_csv(
         "sighting_rows": len(keep),
         "kept": int(keep.sum()),
         "dropped_unknown_landmark": int((~known).sum()),
-        "unknown_landmark_ids": sorted({float(v) for v in obs["landmark_id"][~known]}),
+        "unknown_landmark_ids": sorted({str(v) for v in seen_id[~known]}, key=_id_order),
         "dropped_outside_time": int((known & ~inside).sum()),
         "dropped_after_commands": int((known & ~inside & (step > 0)).sum()),
         "dropped_nothing_read": int((known & inside & ~read).sum()),
