@@ -90,7 +90,11 @@ def test_unit_suffixes_become_millimetres_and_radians():
         got_name, got = in_sensact_units(name, x)
         assert got_name == new
         np.testing.assert_array_equal(got, x * factor)
-    for name in ("range_mm", "v_mm_s", "ir_volts", "bearing_rad", "height_px"):
+    for name, factor in [("t_ms", 1e-3), ("t_us", 1e-6), ("t_ns", 1e-9)]:
+        got_name, got = in_sensact_units(name, x)
+        assert got_name == "t_s"
+        np.testing.assert_array_equal(got, x * factor)
+    for name in ("range_mm", "v_mm_s", "ir_volts", "bearing_rad", "height_px", "echo_ms", "t_s"):
         assert in_sensact_units(name, x)[0] == name and in_sensact_units(name, x)[1] is x
 
 
@@ -162,6 +166,27 @@ def test_landmarks_named_by_words_convert_as_numbered_ones_do(timed, tmp_path):
     )
     assert res.exit_code == 0, res.output
     assert read_landmark_log(out).data.landmark_names == by_name.data.landmark_names
+
+
+def test_times_in_nanoseconds_convert_as_seconds_do(timed, tmp_path):
+    """A ROS bag's stamps: every file's t_s written as whole nanoseconds under t_ns gives the same log."""
+    _, folder = timed
+    for name in ("commands", "sightings", "landmarks", "truth"):
+        table = read_numeric_csv(folder / f"{name}.csv")
+        if "t_s" in table:
+            table = {("t_ns" if k == "t_s" else k): (np.round(v * 1e9) if k == "t_s" else v) for k, v in table.items()}
+        _write(tmp_path / f"{name}.csv", table)
+    files = ("commands", "sightings", "landmarks", "truth")
+    seconds = read_timed_csv(*(folder / f"{n}.csv" for n in files))
+    nanoseconds = read_timed_csv(*(tmp_path / f"{n}.csv" for n in files))
+    assert "t_ns" in (tmp_path / "commands.csv").read_text().splitlines()[0]
+    assert nanoseconds.t0_s == pytest.approx(seconds.t0_s, abs=1e-9)
+    np.testing.assert_array_equal(nanoseconds.data.step_commands, seconds.data.step_commands)
+    _same_sightings(nanoseconds.data, seconds.data)
+    np.testing.assert_allclose(nanoseconds.groundtruth["x_mm"], seconds.groundtruth["x_mm"], atol=1e-3)
+    (tmp_path / "c.csv").write_text("time,v_m_s\n0,0.1\n1,0.1\n")
+    with pytest.raises(LogFormatError, match="t_ms, t_us or t_ns"):
+        read_timed_csv(tmp_path / "c.csv", tmp_path / "sightings.csv", tmp_path / "landmarks.csv")
 
 
 def test_a_landmark_named_twice_or_a_sighting_without_its_landmark_is_refused(tmp_path):

@@ -20,7 +20,7 @@ times in seconds on one clock, in any order, become a planar ``LandmarkLog`` on 
 
 Units follow the column names' suffixes: ``_m`` and ``_m_s`` become ``_mm`` and ``_mm_s`` (times 1000:
 EM's defaults are in mm), ``_deg`` and ``_deg_s`` become ``_rad`` and ``_rad_s``; other names are kept
-as they are, in their own units.
+as they are, in their own units. A time column may be ``t_ms``, ``t_us`` or ``t_ns`` instead of ``t_s``.
 """
 
 from __future__ import annotations
@@ -43,11 +43,15 @@ UNIT_SUFFIXES = (
     ("_deg_s", "_rad_s", np.pi / 180.0),
     ("_deg", "_rad", np.pi / 180.0),
 )
+# the time column in other units (a ROS bag's stamps are nanoseconds) -> seconds; other columns keep _ms
+TIME_COLUMNS = {"t_ms": 1e-3, "t_us": 1e-6, "t_ns": 1e-9}
 MIN_TRUTH_GAP_S = 0.1  # truth samples further apart than this (or five of their periods) leave a gap
 
 
 def in_sensact_units(name: str, values: np.ndarray) -> tuple[str, np.ndarray]:
     """A column renamed and scaled by its unit suffix (``range_m`` -> ``range_mm``, times 1000)."""
+    if name in TIME_COLUMNS:
+        return "t_s", values * TIME_COLUMNS[name]
     for suffix, target, factor in UNIT_SUFFIXES:
         if name.endswith(suffix):
             return name[: -len(suffix)] + target, values * factor
@@ -79,7 +83,9 @@ def _table(
             f"missing column {missing[0]}; found {', '.join(raw)}.",
             file=path,
             field=missing[0],
-            fix=f"{what} needs {example} (a _m suffix for metres, _deg for degrees; docs/commands.md, convert csv).",
+            fix=f"{what} needs {example} (a _m suffix for metres, _deg for degrees"
+            + ("; t_ms, t_us or t_ns for other units of time" if missing[0] == "t_s" else "")
+            + "; docs/commands.md, convert csv).",
         )
     return table
 
