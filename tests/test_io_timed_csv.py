@@ -196,6 +196,11 @@ def test_a_landmark_named_twice_or_a_sighting_without_its_landmark_is_refused(tm
     with pytest.raises(LogFormatError, match="landmark id 4 appears more than once") as err:
         read_timed_csv(tmp_path / "c.csv", tmp_path / "s.csv", tmp_path / "l.csv")
     assert err.value.field == "id" and err.value.file == str(tmp_path / "l.csv")
+    (tmp_path / "l.csv").write_text("id,x_m,y_m\n1234567,0,0\n1234568,1,0\n1234567.5,2,0\n")
+    (tmp_path / "s.csv").write_text("t_s,landmark_id,range_m\n0.5,1234568.0,1.0\n0.7,1234567.5,2.0\n")
+    big = read_timed_csv(tmp_path / "c.csv", tmp_path / "s.csv", tmp_path / "l.csv")  # ids past %g's six digits
+    assert big.data.landmark_names == ("1234567", "1234568", "1234567.5")
+    np.testing.assert_array_equal(big.data.obs_landmark, [1, 2])
     (tmp_path / "l.csv").write_text("id,x_m,y_m\npost_A,0,0\n")
     (tmp_path / "s.csv").write_text("t_s,landmark_id,range_m\n0.5,post_A,1.0\n0.7,,1.0\n")
     with pytest.raises(LogFormatError, match="row 3 has no value") as err:

@@ -98,7 +98,8 @@ def _finite(path: Path, table: dict[str, np.ndarray], columns: tuple[str, ...], 
 
 
 def _landmark_ids(path: Path, cells: np.ndarray, column: str, fix: str) -> np.ndarray:
-    """Each id as one spelling: a number as ``%g`` (``4.0`` is landmark ``4``), a name as written."""
+    """Each id as one spelling: a whole number without its decimals (``4.0`` is landmark ``4``), another
+    number as Python writes it, a name as written."""
     out = []
     for i, cell in enumerate(cells):
         if not cell:
@@ -108,7 +109,10 @@ def _landmark_ids(path: Path, cells: np.ndarray, column: str, fix: str) -> np.nd
         except ValueError:
             out.append(str(cell))
             continue
-        out.append(f"{number:g}" if np.isfinite(number) else str(cell))
+        if not np.isfinite(number):
+            out.append(str(cell))
+        else:
+            out.append(str(int(number)) if number.is_integer() else repr(number))
     return np.array(out, dtype=str)
 
 
