@@ -49,10 +49,9 @@ def _truth_scores(loc: Any, poses: Any, truth_mm: Any, learned_map: dict[str, fl
             f"(forward {off['forward_median_mm']:+.0f} mm, right {off['right_median_mm']:+.0f} mm)"
         )
         return {"path": off}
-    if truth_mm is None or not np.isfinite(truth_mm).any():
-        return None
-    if not np.isfinite(truth_mm).all():
-        console.print(f"the range column has {int((~np.isfinite(truth_mm)).sum())} empty steps: not scored.")
+    from sensact.cli.scores import range_column_scoreable
+
+    if not range_column_scoreable(truth_mm, None):
         return None
     from sensact.evaluate.turtlebot_em import state_map_summary
 

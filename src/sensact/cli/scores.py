@@ -272,15 +272,26 @@ def evaluate_em(lf: Any, model: Any, *, learned_here: bool = False, path: Any = 
     return None
 
 
-def evaluate_turtlebot_em(res: Any, data: Any, truth_mm: Any) -> dict[str, Any] | None:
-    """The Turtlebot's scaled gain and sensor errors against its ``range`` column, when it has one."""
+def range_column_scoreable(truth_mm: Any, absent: str | None) -> bool:
+    """Whether a Turtlebot CSV's ``range`` column (per step, mm) can score a fit: present and full. Says why
+    not: ``absent`` when there is no column (None: say nothing), and how many steps are empty otherwise."""
     import numpy as np
 
     if truth_mm is None or np.isnan(truth_mm).all():
-        console.print("no range column: nothing to score against (the model is learned from the readings alone).")
-        return None
+        if absent:
+            console.print(absent)
+        return False
     if not np.isfinite(truth_mm).all():
         console.print(f"the range column has {int((~np.isfinite(truth_mm)).sum())} empty steps: not scored.")
+        return False
+    return True
+
+
+def evaluate_turtlebot_em(res: Any, data: Any, truth_mm: Any) -> dict[str, Any] | None:
+    """The Turtlebot's scaled gain and sensor errors against its ``range`` column, when it has one."""
+    if not range_column_scoreable(
+        truth_mm, "no range column: nothing to score against (the model is learned from the readings alone)."
+    ):
         return None
     from sensact.evaluate.turtlebot_em import score_turtlebot_em
     from sensact.report.tables import gain_cell, one_command_reason, sensor_span_cell
