@@ -378,10 +378,16 @@ def test_simulate_car_then_learn_car_with_ros_export(tmp_path):
 
 
 def _write_turtlebot_csv(
-    path, *, with_range: bool, seed: int = 7, one_speed: bool = False, drop: tuple[str, ...] = ()
+    path,
+    *,
+    with_range: bool,
+    seed: int = 7,
+    one_speed: bool = False,
+    drop: tuple[str, ...] = (),
+    gain: float = 0.9,
 ) -> None:
     """A seeded robot in the Turtlebot's CSV format: it backs away from and drives at a wall, obeying its
-    command with gain 0.9 and 2 steps (0.12 s) late (the move from step k - 1 to k follows the command of
+    command with ``gain`` (0.9) and 2 steps (0.12 s) late (the move from step k - 1 to k follows the command of
     step k - 3); sonar1 reads the distance in m with 5 % outliers, each IR sensor a falling curve of it.
     ``one_speed``: it backs away at 0.01 m/s instead, apart from a 1-s stop every 30 s (like
     turtlebot1d's calibration.csv)."""
@@ -397,7 +403,7 @@ def _write_turtlebot_csv(
     d = np.empty(n)
     d[0] = 400.0
     for k in range(1, n):
-        d[k] = d[k - 1] + 0.9 * 1000.0 * cmd[max(k - 3, 0)] * dt + rng.normal(0.0, 2.0)
+        d[k] = d[k - 1] + gain * 1000.0 * cmd[max(k - 3, 0)] * dt + rng.normal(0.0, 2.0)
     sonar = d / 1000.0 + rng.normal(0.0, 0.01, n)
     bad = rng.random(n) < 0.05
     sonar[bad] = rng.uniform(0.1, 5.0, bad.sum())
@@ -564,6 +570,45 @@ def test_localize_follows_another_run_of_a_turtlebot_with_the_model_learned_on_o
     res = runner.invoke(app, ["localize", str(second), "--model", str(model)])
     said = " ".join(res.output.split())
     assert res.exit_code == 2 and "the log has no reading raw_ir4" in said and "cannot be run on" in said, said
+
+
+def test_evaluate_log_scores_a_turtlebot_model_on_another_run_against_its_range(tmp_path):
+    """`evaluate log` on a Turtlebot CSV: a model learned on one seeded run holds on another run of the same
+    robot (gain and sonar1 scored as `learn em` scores them), and shows a robot that now drives at 0.72 of
+    its command (a new floor) as the gain's error; on the log it was learned from it gives `learn em`'s own
+    evaluation; a CSV without the range column is one line."""
+    first, model = tmp_path / "a.csv", tmp_path / "m.json"
+    _write_turtlebot_csv(first, with_range=True, seed=7)
+    assert runner.invoke(app, ["learn", "em", str(first), "--out", str(model)]).exit_code == 0
+    learned = json.loads(model.read_text())["evaluation"]
+    scores = {}
+    for name, seed, gain in (("same", 8, 0.9), ("slower", 8, 0.72), ("itself", 7, 0.9)):
+        csv = first if name == "itself" else tmp_path / f"{name}.csv"
+        if name != "itself":
+            _write_turtlebot_csv(csv, with_range=True, seed=seed, gain=gain)
+        out = tmp_path / f"{name}.json"
+        res = runner.invoke(app, ["evaluate", "log", str(csv), "--model", str(model), "--out", str(out)])
+        assert res.exit_code == 0, res.output
+        assert "vs range (optimal scale and offset): action gain" in " ".join(res.output.split())
+        assert out.with_name(f"{name}_against_range.png").stat().st_size > 30_000
+        scores[name] = json.loads(out.read_text())["evaluation"]
+    same, slower, itself = scores["same"], scores["slower"], scores["itself"]
+    assert same["gain_true"] == pytest.approx(0.9, rel=0.03) and same["gain_error_pct"] < 3.0, same
+    assert same["sensors"]["sonar1"]["rms_pct_of_span"] < 3.0, same["sensors"]["sonar1"]
+    # the held model still reads the distance, so the path (and the map onto the range) holds, and the gain
+    # it carries is 0.9 / 0.72 - 1 = 25 % more than the robot now drives
+    assert slower["gain_true"] == pytest.approx(0.72, rel=0.03)
+    assert slower["gain_error_pct"] == pytest.approx(25.0, abs=5.0), slower
+    assert slower["sensors"]["sonar1"]["rms_pct_of_span"] < 3.0
+    # the robot placed on its own log by the E-step alone, from the start it finds, as EM placed it
+    assert itself["gain_learned"] == pytest.approx(learned["gain_learned"], rel=1e-3)
+    for channel, s in learned["sensors"].items():
+        assert itself["sensors"][channel]["rms_pct_of_span"] == pytest.approx(s["rms_pct_of_span"], abs=0.01)
+    bare = tmp_path / "bare.csv"
+    _write_turtlebot_csv(bare, with_range=False, seed=8)
+    res = runner.invoke(app, ["evaluate", "log", str(bare), "--model", str(model)])
+    said = " ".join(res.output.split())
+    assert res.exit_code == 2 and "bare.csv: range: has no range column to score against" in said, said
 
 
 def test_track_start_candidates_invert_each_learned_f_inside_its_window():

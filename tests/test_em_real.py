@@ -1891,10 +1891,10 @@ def test_turtlebot_table_says_a_sensor_without_bins_is_not_scored():
 
 
 @pytest.mark.skipif(not TURTLEBOT.is_file(), reason=f"Turtlebot data not found at {TURTLEBOT}")
-def test_turtlebot_em_clears_its_bars():
+def test_turtlebot_em_clears_its_bars(tmp_path):
     from sensact.experiments.turtlebot_em import run_turtlebot_em
 
-    summary, _ = run_turtlebot_em(TURTLEBOT)
+    summary, run = run_turtlebot_em(TURTLEBOT)
     assert summary["score"]["gain_error_pct"] < 5.0
     assert summary["score"]["sensors"]["sonar1"]["rms_pct_of_span"] < 3.0
     # raw_ir1's readings stop changing past about 1 m: there f is flat, one bin's error exceeds the span,
@@ -1902,6 +1902,24 @@ def test_turtlebot_em_clears_its_bars():
     ir1, sonar = summary["score"]["sensors"]["raw_ir1"], summary["score"]["sensors"]["sonar1"]
     assert ir1["bins_beyond_span"] >= 1 and ir1["rms_pct_of_span"] > 100.0 > ir1["rms_pct_of_span_within"]
     assert sonar["bins_beyond_span"] == 0 and sonar["rms_pct_of_span_within"] == sonar["rms_pct_of_span"]
+    # `evaluate log` on the real CSVs: on training1.csv the E-step alone places the robot as EM did and scores
+    # the model as the run did; on calibration.csv (another run, 98 % at one speed) the gain is not scored
+    # and sonar1 still reads the range (7.4 % of the span, measured; the bins past 3 m carry most of it)
+    from typer.testing import CliRunner
+
+    model = tmp_path / "tb.json"
+    model.write_text(json.dumps({"model": run.result.model.to_dict(), "dt_s": run.data.dt_s}))
+    scores = {}
+    for csv in (TURTLEBOT, TURTLEBOT.with_name("calibration.csv")):
+        out = tmp_path / f"{csv.stem}.json"
+        res = CliRunner().invoke(cli.app, ["evaluate", "log", str(csv), "--model", str(model), "--out", str(out)])
+        assert res.exit_code == 0, res.output
+        scores[csv.stem] = json.loads(out.read_text())["evaluation"]
+    own, other = scores[TURTLEBOT.stem], scores["calibration"]
+    assert own["gain_learned"] == pytest.approx(summary["score"]["gain_learned"], rel=1e-3)
+    assert own["sensors"]["sonar1"]["rms_pct_of_span"] == pytest.approx(sonar["rms_pct_of_span"], abs=0.01)
+    assert other["gain_error_pct"] is None and other["one_command_share"] > 0.9
+    assert other["sensors"]["sonar1"]["rms_pct_of_span"] < 10.0
 
 
 @pytest.mark.skipif(not MRCLAM.is_dir(), reason=f"MRCLAM data not found at {MRCLAM}")

@@ -296,22 +296,37 @@ def refuse_model_for_log(
 @evaluate_app.command("log")
 @friendly
 def evaluate_log_cmd(
-    log: Annotated[Path, typer.Argument(help="A log folder with its ground truth (groundtruth.csv with poses).")],
+    log: Annotated[
+        Path,
+        typer.Argument(
+            help="A log folder with its ground truth (groundtruth.csv with poses), or a Turtlebot CSV with its "
+            "range column."
+        ),
+    ],
     model: EMModelOpt,
     out: Annotated[
         Path | None,
-        typer.Option("--out", help="Write the scores here (JSON), and four figures beside it (OUT_actions.png, ...)."),
+        typer.Option(
+            "--out",
+            help="Write the scores here (JSON), and the figures beside it (OUT_actions.png, ...; for a Turtlebot "
+            "CSV OUT_against_range.png).",
+        ),
     ] = None,
 ) -> None:
     """Score a model learned on one log against another log's ground truth, next to From-Truth.
 
     The check that a model holds beyond the log it was learned from: learn on one run, score on the
     next. The same table, bars and figures as `learn em` prints for a log with ground truth, with
-    From-Truth fitted on this log; the model must share the log's commands, readings and step."""
+    From-Truth fitted on this log; the model must share the log's commands, readings and step. On a
+    Turtlebot CSV the robot is first placed by the E-step with the model held (as `sensact localize`),
+    and the model is scored against the range column as `learn em` scores it."""
     from sensact.errors import LogFormatError
     from sensact.io.atomic import write_json
     from sensact.io.landmark_log import read_landmark_log
 
+    if log.is_file():
+        _evaluate_on_range_column(log, model, out)
+        return
     doc, m = _read_em_model(model)
     lf = read_landmark_log(log)
     refuse_model_for_log(doc, m, lf.data, model, log)
@@ -331,6 +346,53 @@ def evaluate_log_cmd(
 
             written += write_robot(lf, m, sc, out.with_suffix(""), lf.title(log), truth="ground truth")
         console.print("wrote " + ", ".join(str(p) for p in written))
+
+
+def _evaluate_on_range_column(log: Path, model: Path, out: Path | None) -> None:
+    """`evaluate log` on a Turtlebot CSV: the state has no unit of its own, so the model is scored through the
+    optimal map of the path it places onto the recorded range (sec. 4.4.3), fitted on this log."""
+    import numpy as np
+
+    from sensact.cli.localize import place_robot, read_model_and_log
+    from sensact.cli.scores import evaluate_turtlebot_em
+    from sensact.errors import LogFormatError
+    from sensact.io.atomic import write_json
+
+    doc, m, data, _, truth_mm = read_model_and_log(log, model, 21, use="scored")
+    if truth_mm is None or not np.isfinite(truth_mm).any():
+        raise LogFormatError(
+            "has no range column to score against.",
+            file=log,
+            field="range",
+            fix="score on a CSV with the range column (calibration.csv, training*.csv); `sensact localize` runs "
+            "the model on one without it.",
+        )
+    if not np.isfinite(truth_mm).all():
+        raise LogFormatError(
+            f"{int((~np.isfinite(truth_mm)).sum())} steps have no range, and the scores need it at every step.",
+            file=log,
+            field="range",
+            fix="score on a stretch of the log with the range at every step.",
+        )
+    loc, per_learned = place_robot(doc, m, data, model, None, None, None)
+    sc = evaluate_turtlebot_em(loc, data, truth_mm)
+    if out is None or sc is None:
+        return
+    from sensact.experiments.turtlebot_em import TurtlebotEMRun
+    from sensact.report.figures_turtlebot_em import figure_turtlebot_em
+
+    doc_out = {
+        "log": data.source,
+        "model": str(model),
+        "loglik_per_sighting": loc.loglik_per_sighting,
+        "loglik_per_sighting_learned": per_learned,
+        "start": loc.start,
+        "evaluation": sc,
+    }
+    path = out.with_name(f"{out.stem}_against_range.png")
+    run = TurtlebotEMRun(data, truth_mm, loc)
+    written = [write_json(out, doc_out), figure_turtlebot_em(run, sc, path, f"{model.name} on {log.name}")]
+    console.print("wrote " + ", ".join(str(p) for p in written))
 
 
 def learned_on_log(doc: dict[str, Any], log: Path) -> bool:

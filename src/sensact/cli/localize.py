@@ -74,6 +74,61 @@ def _truth_scores(loc: Any, poses: Any, truth_mm: Any, learned_map: dict[str, fl
     return out
 
 
+def read_model_and_log(log: Path, model: Path, bins: int, use: str) -> tuple[dict[str, Any], Any, Any, Any, Any]:
+    """``(model.json, the model, the log's data, its folder or None, a Turtlebot CSV's range column or None)``,
+    the log read onto the model's step; a model that does not fit the log is refused in one line (``use``:
+    "run" or "scored")."""
+    from sensact.cli.datasets import _read_em_model, refuse_model_for_log
+    from sensact.cli.learn import read_em_log
+
+    doc, m = _read_em_model(model)
+    dt = doc.get("dt_s")
+    # a Turtlebot CSV is read onto the model's step, whatever its own median step
+    data, lf, truth_mm = read_em_log(log, bins, float(dt) if dt is not None else None)
+    refuse_model_for_log(doc, m, data, model, log, use=use)
+    return doc, m, data, lf, truth_mm
+
+
+def place_robot(
+    doc: dict[str, Any], m: Any, data: Any, model: Path, config: Path | None, set_: list[str] | None, start: Any
+) -> tuple[Any, float | None]:
+    """The E-step with the model held (``learn.em.localize``), under the settings it was learned with and
+    ``config``/``set_`` over them, with a progress bar; prints the start and the log-likelihood a sighting
+    beside the one on the log it was learned from, which it returns with the run."""
+    import numpy as np
+
+    from sensact.learn.em import EMConfig
+    from sensact.learn.em.localize import learned_config, localize
+
+    summary = doc.get("summary") or {}
+    cfg = layered_config(EMConfig, config, set_, base=learned_config(summary.get("config"), str(model)))
+    console.print(
+        f"{model} on {data.source}: {data.n_steps} steps of {data.dt_s:.4g} s, {data.n_observations} observations"
+    )
+    with progress_bar() as progress:
+        loc = localize(m, data, cfg, start, progress)
+    post = loc.posteriors
+    chosen = ", ".join(f"{v:.4g}" for v in loc.model.prior_mean)
+    tried = len(loc.start["candidates"])
+    how = "given" if loc.start["how"] == "given" else f"from {loc.start['how']} ({tried} tried, the most likely kept)"
+    console.print(f"start: ({chosen}), {how}")
+    line = (
+        f"log-likelihood {post.loglik:.1f} on {post.n_used} of {data.n_observations} sightings: "
+        f"{loc.loglik_per_sighting:.3f} a sighting"
+    )
+    best, used = summary.get("loglik_best"), summary.get("n_used")
+    per_learned = best / used if best is not None and used else None
+    if per_learned is not None:
+        line += f" (on the log it was learned from, {per_learned:.3f}"
+        if m.sensor.sigma_bearing_rad is not None and not np.isfinite(data.obs_bearing_rad).any():
+            line += ", where each sighting read a bearing too: not comparable"
+        line += ")"
+    console.print(line)
+    if not post.ok:
+        console.print("[yellow]the filter lost positive definiteness: the path is not to be trusted.[/]")
+    return loc, per_learned
+
+
 @app.command("localize")
 @friendly
 def localize_cmd(
@@ -104,44 +159,13 @@ def localize_cmd(
     override them. Only the start search, the start's spread and the first-iteration gate are used."""
     import numpy as np
 
-    from sensact.cli.datasets import _read_em_model, refuse_model_for_log
-    from sensact.cli.learn import read_em_log, write_smoothed_path
+    from sensact.cli.learn import write_smoothed_path
     from sensact.io.atomic import write_json
-    from sensact.learn.em import EMConfig
-    from sensact.learn.em.localize import learned_config, localize
 
-    doc, m = _read_em_model(model)
-    summary = doc.get("summary") or {}
-    cfg = layered_config(EMConfig, config, set_, base=learned_config(summary.get("config"), str(model)))
-    dt = doc.get("dt_s")
-    # a Turtlebot CSV is read onto the model's step, whatever its own median step
-    data, lf, truth_mm = read_em_log(log, bins, float(dt) if dt is not None else None)
+    doc, m, data, lf, truth_mm = read_model_and_log(log, model, bins, use="run")
     poses = lf.truth_poses() if lf is not None else None
-    refuse_model_for_log(doc, m, data, model, log, use="run")
-    console.print(
-        f"{model} on {data.source}: {data.n_steps} steps of {data.dt_s:.4g} s, {data.n_observations} observations"
-    )
-    with progress_bar() as progress:
-        loc = localize(m, data, cfg, _parse_start(start, m.prior_mean.size), progress)
+    loc, per_learned = place_robot(doc, m, data, model, config, set_, _parse_start(start, m.prior_mean.size))
     post = loc.posteriors
-    chosen = ", ".join(f"{v:.4g}" for v in loc.model.prior_mean)
-    tried = len(loc.start["candidates"])
-    how = "given" if loc.start["how"] == "given" else f"from {loc.start['how']} ({tried} tried, the most likely kept)"
-    console.print(f"start: ({chosen}), {how}")
-    line = (
-        f"log-likelihood {post.loglik:.1f} on {post.n_used} of {data.n_observations} sightings: "
-        f"{loc.loglik_per_sighting:.3f} a sighting"
-    )
-    best, used = summary.get("loglik_best"), summary.get("n_used")
-    per_learned = best / used if best is not None and used else None
-    if per_learned is not None:
-        line += f" (on the log it was learned from, {per_learned:.3f}"
-        if m.sensor.sigma_bearing_rad is not None and not np.isfinite(data.obs_bearing_rad).any():
-            line += ", where each sighting read a bearing too: not comparable"
-        line += ")"
-    console.print(line)
-    if not post.ok:
-        console.print("[yellow]the filter lost positive definiteness: the path is not to be trusted.[/]")
     scores = _truth_scores(loc, poses, truth_mm, (doc.get("evaluation") or {}).get("state_map"))
     if out is not None:
         write_json(
