@@ -764,7 +764,7 @@ def test_a_fleet_pair_the_filter_fails_on_is_a_cell_without_a_likelihood(tmp_pat
 def test_a_model_is_matched_to_the_log_it_names(tmp_path, monkeypatch):
     """`learn em` records the log folder as it was given: a relative one matches the end of a log's full
     path from any folder, ``.`` only the folder it is run from; another folder never matches."""
-    from sensact.cli.datasets import fleet_names, learned_on_log
+    from sensact.cli.evaluate import fleet_names, learned_on_log
 
     (tmp_path / "fleet" / "r1").mkdir(parents=True)
     (tmp_path / "other" / "r1").mkdir(parents=True)

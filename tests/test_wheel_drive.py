@@ -75,7 +75,7 @@ def test_em_on_wheel_speeds_reads_back_a_wheel_mismatch():
 def test_wheels_in_any_one_unit_are_a_differential_drive():
     """Invariants: two commands ``left_<unit>``, ``right_<unit>`` in either order are a wheel pair and get
     the differential drive's settings in that unit; other commands are not."""
-    from sensact.cli.datasets import config_header
+    from sensact.cli.convert import config_header
     from sensact.experiments.real import planar_config, range_only_config
     from sensact.models.wheel_drive import wheel_pair
 

@@ -5,7 +5,7 @@ Heavy modules (numba kernels, matplotlib) are imported inside the commands so th
 stays instant.
 """
 
-from sensact.cli import datasets, learn, localize, reproduce, simulate  # noqa: F401  (each registers its commands)
+from sensact.cli import convert, evaluate, learn, localize, reproduce, simulate  # noqa: F401  (each registers its commands)
 from sensact.cli.base import app, main
 
 __all__ = ["app", "main"]

@@ -74,21 +74,6 @@ def _truth_scores(loc: Any, poses: Any, truth_mm: Any, learned_map: dict[str, fl
     return out
 
 
-def read_model_and_log(log: Path, model: Path, bins: int, use: str) -> tuple[dict[str, Any], Any, Any, Any, Any]:
-    """``(model.json, the model, the log's data, its folder or None, a Turtlebot CSV's range column or None)``,
-    the log read onto the model's step; a model that does not fit the log is refused in one line (``use``:
-    "run" or "scored")."""
-    from sensact.cli.datasets import _read_em_model, refuse_model_for_log
-    from sensact.cli.learn import read_em_log
-
-    doc, m = _read_em_model(model)
-    dt = doc.get("dt_s")
-    # a Turtlebot CSV is read onto the model's step, whatever its own median step
-    data, lf, truth_mm = read_em_log(log, bins, float(dt) if dt is not None else None)
-    refuse_model_for_log(doc, m, data, model, log, use=use)
-    return doc, m, data, lf, truth_mm
-
-
 def place_robot(
     doc: dict[str, Any], m: Any, data: Any, model: Path, config: Path | None, set_: list[str] | None, start: Any
 ) -> tuple[Any, float | None]:
@@ -160,6 +145,7 @@ def localize_cmd(
     import numpy as np
 
     from sensact.cli.learn import write_smoothed_path
+    from sensact.cli.model_on_log import read_model_and_log
     from sensact.io.atomic import write_json
 
     doc, m, data, lf, truth_mm = read_model_and_log(log, model, bins, use="run")

@@ -104,7 +104,7 @@ def simulate_diffdrive_cmd(
     settings in which every velocity, sideways too, is affine in every command. `--set sensor=radio`
     reads ranges alone, in every direction (UWB anchors, sonar beacons): no bearings in the log, and
     settings without them that start EM where the robot was put (start_pose)."""
-    from sensact.cli.datasets import config_header
+    from sensact.cli.convert import config_header
     from sensact.config import config_to_yaml
     from sensact.experiments.diffdrive import simulator_settings
     from sensact.io.atomic import write_text

@@ -1,0 +1,189 @@
+"""``sensact convert``: a public dataset, or a robot's own timed CSVs, to an EM log folder with its EM
+settings (em_config.yaml)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from sensact.cli.base import console, convert_app, friendly
+
+MRCLAM_CONFIG_HEADER = """The EM settings behind docs/em-real-results.md's MRCLAM results
+(sensact.experiments.real.mrclam_config()), as the fields that differ from EMConfig's defaults.
+Edit them for your robot (docs/em-real.md, section 2) and pass this file with --config;
+--set overrides single fields."""
+WHEELS_CONFIG_NOTE = """
+On wheel speeds ({left}, {right}) the forward speed is the wheels' mean, so it depends on their
+sum alone, ({left}+{right}), as MRCLAM's depends on v_mm_s alone."""
+FREE_MOTION_NOTE = """
+These commands are not a differential drive's (v_mm_s, omega_rad_s, or its wheels, left_X, right_X):
+  {names}
+so every velocity, sideways too, is affine in every command, as for a robot that can side-step
+(a legged one): MRCLAM's action_zero_mean and action_inputs are left out. If yours cannot
+side-step, add action_zero_mean: [v_x_mm_s] (docs/em-real.md, section 2)."""
+
+
+RANGE_ONLY_NOTE = """
+The sensor reads ranges alone (no bearing column), so the range channel has no bearing terms and no
+bearing settings are set. Nor can EM search for the start pose, which it scores by the bearings:
+start_prior_mean is where the robot starts (x mm, y mm, heading rad; heading 0 faces the map's +y,
+counterclockwise), within start_prior_sd; when EM moves it metres, it runs again from there. The
+turn rate depends on the turn command alone (omega_rad_s, or on wheel speeds their difference), which
+ranges cannot show (docs/em-real.md, section 2, "A sensor without bearings")."""
+
+
+def config_header(command_names: tuple[str, ...], range_only: bool = False) -> str:
+    """em_config.yaml's header for ``experiments.real.planar_config``'s settings on these commands (with
+    ``range_only``, ``range_only_config``'s)."""
+    from sensact.experiments.real import diffdrive_config
+    from sensact.models.wheel_drive import wheel_pair
+
+    pair = wheel_pair(command_names)
+    if diffdrive_config(command_names) is None:
+        head = MRCLAM_CONFIG_HEADER + FREE_MOTION_NOTE.format(names=", ".join(command_names))
+    else:
+        head = MRCLAM_CONFIG_HEADER + ("" if pair is None else WHEELS_CONFIG_NOTE.format(left=pair[0], right=pair[1]))
+    return head + (RANGE_ONLY_NOTE if range_only else "")
+
+
+@convert_app.command("mrclam")
+@friendly
+def convert_mrclam(
+    dataset: Annotated[Path, typer.Argument(help="An MRCLAM dataset folder, e.g. .../MRCLAM_Dataset6.")],
+    robot: Annotated[int, typer.Option(help="Robot 1-5.")] = 1,
+    out: Annotated[Path, typer.Option("--out", help="The log folder to write.")] = Path("mrclam_log"),
+    dt: Annotated[
+        float, typer.Option(help="Step (s), 1/30 by default; commands are held between their rows.", show_default=False)
+    ] = (1.0 / 30.0),
+) -> None:
+    """Write one MRCLAM robot as an EM log folder, with its EM settings in em_config.yaml.
+
+    Commands are resampled with a zero-order hold; only landmark sightings are kept (range in mm and
+    bearing); the landmark map goes into meta.json and Vicon into groundtruth.csv (for `sensact learn
+    em` to score against; it is never learned from)."""
+    from sensact.config import config_to_yaml
+    from sensact.experiments.real import mrclam_config
+    from sensact.io.atomic import write_text
+    from sensact.io.landmark_log import write_landmark_log
+    from sensact.io.mrclam import read_mrclam
+
+    ml = read_mrclam(dataset, robot, dt_s=dt)
+    console.print(ml.summary_line())
+    if not ml.data.n_observations:
+        console.print(
+            f"[yellow]warning: robot {robot} sees no landmark, so `sensact learn em` has nothing to learn from "
+            "this log; its odometry and Vicon are written all the same.[/]"
+        )
+    write_landmark_log(
+        out,
+        ml.data,
+        t0_s=0.0,
+        groundtruth=ml.groundtruth,
+        meta_extra={"source": {"dataset": str(dataset), "robot": robot, "t0_s": ml.t0_s, "rows": ml.summary}},
+    )
+    cfg = out / "em_config.yaml"
+    write_text(cfg, config_to_yaml(mrclam_config(), MRCLAM_CONFIG_HEADER))
+    overview = _draw_overview(ml.data, ml.groundtruth, out, f"{dataset.name} robot {robot}")
+    console.print(
+        f"wrote {out}, its EM settings {cfg} and {overview}; learn with `sensact learn em {out} --config {cfg}`"
+    )
+
+
+def _draw_overview(data: Any, groundtruth: dict[str, Any] | None, out: Path, title: str) -> Path:
+    """OUT/overview.png: the commands, the sightings over time and the map with the recorded path, to
+    check a conversion by eye (mismatched clocks, a map in the wrong unit) before learning from it."""
+    from sensact.report.figures_log import figure_log_overview
+
+    return figure_log_overview(data, groundtruth, out / "overview.png", title)
+
+
+@convert_app.command("csv")
+@friendly
+def convert_csv(
+    commands: Annotated[Path, typer.Option(help="t_s and one column per command, a row whenever one was sent.")],
+    sightings: Annotated[Path, typer.Option(help="t_s, landmark_id, one column per reading, optional bearing_rad.")],
+    landmarks: Annotated[Path, typer.Option(help="The map: id (a number or a name), x_m, y_m (or x_mm, y_mm).")],
+    truth: Annotated[
+        Path | None, typer.Option(help="Optional, for scoring only: t_s, x_m, y_m, theta_rad (0 facing +x).")
+    ] = None,
+    out: Annotated[Path, typer.Option("--out", help="The log folder to write.")] = Path("robot_log"),
+    dt: Annotated[
+        float, typer.Option(help="Step (s), 1/30 by default; commands are held between their rows.", show_default=False)
+    ] = (1.0 / 30.0),
+) -> None:
+    """Write your robot's own timed CSV files as an EM log folder.
+
+    Times in seconds on one clock, rows in any order. Commands are held until the next row on a fixed
+    step, each sighting goes to the nearest step, truth is interpolated. Column suffixes give units:
+    _m and _m_s become mm and mm/s, _deg and _deg_s radians. Sightings of landmarks the map does not
+    list are dropped and counted. A robot with a range_m and bearing camera also gets em_config.yaml
+    (MRCLAM's settings) to start from: a differential drive's when the commands are v_m_s, omega_rad_s
+    or the wheel speeds left_m_s, right_m_s; on any other commands, as a legged robot's (v, v_left,
+    omega), every velocity, sideways too, affine in every command. A robot with range_m alone (radio
+    beacons) gets the same without the bearings, in which to set where it starts. See docs/em-real.md."""
+    import numpy as np
+
+    from sensact.io.landmark_log import write_landmark_log
+    from sensact.io.timed_csv import read_timed_csv
+
+    tl = read_timed_csv(commands, sightings, landmarks, truth, dt_s=dt)
+    console.print(tl.summary_line())
+    files = {"commands": str(commands), "sightings": str(sightings), "landmarks": str(landmarks)}
+    write_landmark_log(
+        out,
+        tl.data,
+        t0_s=0.0,
+        groundtruth=tl.groundtruth,
+        meta_extra={
+            "source": {"files": files | ({"truth": str(truth)} if truth else {}), "t0_s": tl.t0_s, "rows": tl.summary}
+        },
+    )
+    d = tl.data
+    console.print(f"drew {_draw_overview(d, tl.groundtruth, out, out.resolve().name)}")
+    from sensact.config import config_to_yaml
+    from sensact.experiments.real import planar_config, range_only_config
+    from sensact.io.atomic import write_text
+
+    # MRCLAM's settings learn from a range-and-bearing camera, or without its bearings from a range sensor
+    # (radio beacons); other readings need their own channels
+    cfg = out / "em_config.yaml"
+    kept = cfg.is_file()  # an earlier conversion's, or the user's own, or the start pose set in it: not ours to replace
+    if d.reading_names == ("range_mm",) and np.isfinite(d.obs_bearing_rad).any():
+        write_text(cfg, config_to_yaml(planar_config(d.command_names), config_header(d.command_names)))
+        console.print(
+            f"wrote {out} and {cfg} (MRCLAM's settings, a starting point for {_robot_kind(d.command_names)} with a "
+            f"range-and-bearing camera); learn with `sensact learn em {out} --config {cfg}`"
+        )
+        return
+    if d.reading_names == ("range_mm",) and not kept:
+        settings = range_only_config(d.command_names, (0.0, 0.0, 0.0))
+        start = ("start_prior_mean", "start_prior_sd")
+        write_text(cfg, config_to_yaml(settings, config_header(d.command_names, range_only=True), start))
+        console.print(
+            f"wrote {out} and {cfg} (MRCLAM's settings without the bearings, a starting point for "
+            f"{_robot_kind(d.command_names)} with a range-only sensor). The sightings have no bearings, so EM "
+            f"cannot search for where the robot starts: set start_prior_mean in {cfg} to its start (x mm, y mm, "
+            f"heading rad; heading 0 faces the map's +y; a start metres off costs a second run), then learn with "
+            f"`sensact learn em {out} --config {cfg}`"
+        )
+        return
+    console.print(
+        f"wrote {out}; choose the model families for commands {', '.join(d.command_names)} and readings "
+        f"{', '.join(d.reading_names)} in a YAML file (docs/em-real.md, section 2) and learn with "
+        f"`sensact learn em {out} --config YOUR.yaml`"
+    )
+    if kept:
+        console.print(
+            f"[yellow]note:[/] {cfg} was there before and is left as it was; check that it "
+            f"fits commands {', '.join(d.command_names)} before passing it to learn em"
+        )
+
+
+def _robot_kind(command_names: tuple[str, ...]) -> str:
+    from sensact.experiments.real import diffdrive_config
+
+    if diffdrive_config(command_names):
+        return "a differential drive"
+    return f"a robot that can side-step on commands {', '.join(command_names)}"

@@ -1,0 +1,257 @@
+"""``sensact evaluate``: a learned model scored against a log's own ground truth (MRCLAM's Vicon, a log
+folder's recorded poses or simulated model, a Turtlebot CSV's range column), and a fleet's models on each
+other's logs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from sensact.cli.base import EMModelOpt, console, evaluate_app, friendly
+from sensact.cli.model_on_log import read_em_model, refuse_model_for_log
+from sensact.cli.scores import evaluate_em, print_truth_score
+
+
+@evaluate_app.command("mrclam")
+@friendly
+def evaluate_mrclam_cmd(
+    dataset: Annotated[Path, typer.Argument(help="An MRCLAM dataset folder, e.g. .../MRCLAM_Dataset6.")],
+    model: EMModelOpt,
+    robot: Annotated[int, typer.Option(help="Robot 1-5.")] = 1,
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", help="Write the scores here (JSON), and four figures beside it (OUT_actions.png, ...)."),
+    ] = None,
+) -> None:
+    """Score a learned MRCLAM model against Vicon, next to From-Truth.
+
+    From-Truth is the same model families fitted directly to the ground truth. With --out, also draw
+    the action curves, the range function, the heading noise and the bearing noise against Vicon's,
+    as `reproduce real` does."""
+    from sensact.evaluate.landmark_truth import score_against_truth
+    from sensact.experiments.real import bar_checks
+    from sensact.io.atomic import write_json
+    from sensact.io.mrclam import read_mrclam
+
+    doc, m = read_em_model(model)
+    ml = read_mrclam(dataset, robot, dt_s=float(doc.get("dt_s", 1.0 / 30.0)))
+    learn = (
+        f"sensact convert mrclam {dataset} --robot {robot} --out DIR, then "
+        "sensact learn em DIR --config DIR/em_config.yaml"
+    )
+    refuse_model_for_log(doc, m, ml.data, model, f"{dataset} robot {robot}", learn)
+    sc = score_against_truth(m, ml.data, *ml.truth_poses())
+    sc["bars"] = bar_checks(sc)
+    print_truth_score(sc)
+    if out is not None:
+        from sensact.report.figures_real import write_robot
+
+        write_json(out, sc)
+        figures = write_robot(ml, m, sc, out.with_suffix(""), f"robot {robot}")
+        console.print("wrote " + ", ".join(str(p) for p in (out, *figures)))
+
+
+@evaluate_app.command("log")
+@friendly
+def evaluate_log_cmd(
+    log: Annotated[
+        Path,
+        typer.Argument(
+            help="A log folder with its ground truth (groundtruth.csv with poses), or a Turtlebot CSV with its "
+            "range column."
+        ),
+    ],
+    model: EMModelOpt,
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            "--out",
+            help="Write the scores here (JSON), and the figures beside it (OUT_actions.png, ...; for a Turtlebot "
+            "CSV OUT_against_range.png).",
+        ),
+    ] = None,
+) -> None:
+    """Score a model learned on one log against another log's ground truth, next to From-Truth.
+
+    The check that a model holds beyond the log it was learned from: learn on one run, score on the
+    next. The same table, bars and figures as `learn em` prints for a log with ground truth, with
+    From-Truth fitted on this log; the model must share the log's commands, readings and step. On a
+    Turtlebot CSV the robot is first placed by the E-step with the model held (as `sensact localize`),
+    and the model is scored against the range column as `learn em` scores it."""
+    from sensact.errors import LogFormatError
+    from sensact.io.atomic import write_json
+    from sensact.io.landmark_log import read_landmark_log
+
+    if log.is_file():
+        _evaluate_on_range_column(log, model, out)
+        return
+    doc, m = read_em_model(model)
+    lf = read_landmark_log(log)
+    refuse_model_for_log(doc, m, lf.data, model, log)
+    console.print(f"{model} on {lf.title(log)}: {lf.data.n_steps} steps, {lf.data.n_observations} observations")
+    sc = evaluate_em(lf, m)
+    if sc is None:
+        raise LogFormatError(
+            "has no ground truth to score against.",
+            file=log / "groundtruth.csv",
+            fix="add groundtruth.csv with t_s, x_mm, y_mm, theta_rad (convert csv --truth writes it).",
+        )
+    if out is not None:
+        write_json(out, sc)
+        written = [out]
+        if "truth_noise" in sc:  # scored against recorded poses: the figures too
+            from sensact.report.figures_real import write_robot
+
+            written += write_robot(lf, m, sc, out.with_suffix(""), lf.title(log), truth="ground truth")
+        console.print("wrote " + ", ".join(str(p) for p in written))
+
+
+def _evaluate_on_range_column(log: Path, model: Path, out: Path | None) -> None:
+    """`evaluate log` on a Turtlebot CSV: the state has no unit of its own, so the model is scored through the
+    optimal map of the path it places onto the recorded range (sec. 4.4.3), fitted on this log."""
+    import numpy as np
+
+    from sensact.cli.localize import place_robot
+    from sensact.cli.model_on_log import read_model_and_log
+    from sensact.cli.scores import evaluate_turtlebot_em
+    from sensact.errors import LogFormatError
+    from sensact.io.atomic import write_json
+
+    doc, m, data, _, truth_mm = read_model_and_log(log, model, 21, use="scored")
+    if truth_mm is None or not np.isfinite(truth_mm).any():
+        raise LogFormatError(
+            "has no range column to score against.",
+            file=log,
+            field="range",
+            fix="score on a CSV with the range column (calibration.csv, training*.csv); `sensact localize` runs "
+            "the model on one without it.",
+        )
+    if not np.isfinite(truth_mm).all():
+        raise LogFormatError(
+            f"{int((~np.isfinite(truth_mm)).sum())} steps have no range, and the scores need it at every step.",
+            file=log,
+            field="range",
+            fix="score on a stretch of the log with the range at every step.",
+        )
+    loc, per_learned = place_robot(doc, m, data, model, None, None, None)
+    sc = evaluate_turtlebot_em(loc, data, truth_mm)
+    if out is None or sc is None:
+        return
+    from sensact.experiments.turtlebot_em import TurtlebotEMRun
+    from sensact.report.figures_turtlebot_em import figure_turtlebot_em
+
+    doc_out = {
+        "log": data.source,
+        "model": str(model),
+        "loglik_per_sighting": loc.loglik_per_sighting,
+        "loglik_per_sighting_learned": per_learned,
+        "start": loc.start,
+        "evaluation": sc,
+    }
+    path = out.with_name(f"{out.stem}_against_range.png")
+    run = TurtlebotEMRun(data, truth_mm, loc)
+    written = [write_json(out, doc_out), figure_turtlebot_em(run, sc, path, f"{model.name} on {log.name}")]
+    console.print("wrote " + ", ".join(str(p) for p in written))
+
+
+def learned_on_log(doc: dict[str, Any], log: Path) -> bool:
+    """Whether model.json says it was learned on ``log``: ``learn em`` records the folder as it was given, so
+    a relative one matches the end of the log's full path (it may have been run from another folder)."""
+    recorded = doc.get("log")
+    if not recorded:
+        return False
+    path, full = Path(str(recorded)), log.resolve()
+    parts = tuple(q for q in path.parts if q != ".")
+    if path.is_absolute() or not parts or ".." in parts:  # "." or "../x" name a folder only from where it ran
+        return path.resolve() == full
+    return full.parts[-len(parts) :] == parts
+
+
+def fleet_names(paths: list[Path], name: Any) -> list[str]:
+    """Short, distinct names for the table: ``name(path)`` (a folder's or a file's own name), or the path as
+    given where two would share one."""
+    short = [name(p) for p in paths]
+    return [str(p) if short.count(s) > 1 else s for p, s in zip(paths, short, strict=True)]
+
+
+@evaluate_app.command("fleet")
+@friendly
+def evaluate_fleet_cmd(
+    logs: Annotated[
+        list[Path],
+        typer.Argument(help="Log folders, with or without ground truth (groundtruth.csv with poses).", metavar="DIR"),
+    ],
+    model: Annotated[
+        list[Path], typer.Option("--model", help="A model.json written by `sensact learn em`; repeat for each model.")
+    ],
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", help="Write the scores here (JSON), and the grids beside it (OUT.png)."),
+    ] = None,
+) -> None:
+    """Score every model on every log: does one robot's model serve the others of its kind?
+
+    For a fleet of robots of one kind, each with a log and a model learned on it. Without ground truth,
+    each model is placed on each log by the E-step alone (as `sensact localize` places it) and the table
+    gives its log-likelihood a sighting and how far it falls below the log's most likely model. When every
+    log has recorded poses, each pair is also scored as `sensact evaluate log` scores it, against that
+    log's ground truth with From-Truth fitted on that log: the translation and rotation RMS over
+    From-Truth's, the range function's residual about the truth and the bearing sigma over the truth's. A
+    pair is a robot's own when the model was learned on that log. Every model must share the logs'
+    commands, readings and step."""
+    from sensact.cli.base import progress_bar
+    from sensact.experiments.fleet import score_fleet
+    from sensact.io.atomic import write_json
+    from sensact.io.landmark_log import read_landmark_log
+    from sensact.learn.em.localize import learned_config
+
+    models, configs, own = {}, {}, {}
+    logs, model = list(dict.fromkeys(logs)), list(dict.fromkeys(model))  # a folder or file given twice counts once
+    read = {p: read_landmark_log(p) for p in logs}
+    log_names = dict(zip(logs, fleet_names(logs, lambda p: p.resolve().name), strict=True))
+    for path, name in zip(model, fleet_names(model, lambda p: p.stem), strict=True):
+        doc, m = read_em_model(path)
+        for log, lf in read.items():
+            refuse_model_for_log(doc, m, lf.data, path, log)
+        models[name] = m
+        configs[name] = learned_config((doc.get("summary") or {}).get("config"), str(path))
+        for log in logs:
+            if learned_on_log(doc, log):
+                own[name] = log_names[log]
+    n_m, n_l = len(models), len(read)
+    console.print(
+        f"{n_m} model{'s' * (n_m > 1)} on {n_l} log{'s' * (n_l > 1)}: "
+        + ", ".join(lf.title(p) for p, lf in read.items())
+    )
+    with progress_bar() as progress:
+        fleet = score_fleet(models, {log_names[p]: lf for p, lf in read.items()}, own, progress, configs)
+    print_fleet(fleet)
+    if out is not None:
+        from sensact.report.figures_fleet import figure_fleet
+
+        write_json(out, fleet)
+        figure = figure_fleet(fleet, out.with_suffix(".png"))
+        console.print(f"wrote {out} and {figure}")
+
+
+def print_fleet(fleet: dict[str, Any]) -> None:
+    """The fleet's tables (a missed bar in red, a robot's own pair in bold) and what they say."""
+    from sensact.cli.base import print_tables
+    from sensact.report.tables import fleet_likelihood_lines, fleet_likelihood_table, fleet_lines, fleet_table
+
+    if "cells" in fleet:
+        print_tables([fleet_table(fleet, miss=lambda s: f"[red]{s}[/]", own=lambda s: f"[bold]{s}[/]")])
+        for line in fleet_lines(fleet):
+            console.print(line)
+    else:
+        console.print(
+            f"not scored against ground truth: {', '.join(fleet['no_truth'])} "
+            f"{'has' if len(fleet['no_truth']) == 1 else 'have'} no recorded poses on continuous commands "
+            "(groundtruth.csv with t_s, x_mm, y_mm, theta_rad; `convert csv --truth` writes it)"
+        )
+    if "likelihood" in fleet:
+        print_tables([fleet_likelihood_table(fleet, own=lambda s: f"[bold]{s}[/]")])
+        for line in fleet_likelihood_lines(fleet):
+            console.print(line)

@@ -1,0 +1,86 @@
+"""A learned model and the log it is used on: `learn em`'s model.json read, and a model that could not have
+been learned from the log (another geometry, other commands or readings, another step) refused in one line
+before `evaluate` scores it or `localize` runs it."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+
+def read_em_model(model: Path) -> tuple[dict[str, Any], Any]:
+    """A model.json `sensact learn em` wrote: the whole document (its ``dt_s`` too) and the model."""
+    from sensact.errors import ModelFormatError
+    from sensact.io.jsonfile import read_json_object
+    from sensact.models.em_model import EMModel
+
+    doc = read_json_object(model, ModelFormatError, "give the model.json `sensact learn em` wrote.")
+    return doc, EMModel.from_dict(doc.get("model", doc), source=str(model))
+
+
+def refuse_model_for_log(
+    doc: dict[str, Any], m: Any, data: Any, model: Path, log: Path | str, learn: str | None = None, use: str = "scored"
+) -> None:
+    """A model scores (or runs, ``use``) only on a log it could have been learned from: the same geometry,
+    commands (or number of actions), readings and step, since its delay is counted in steps. One line
+    naming what differs; ``learn`` is the command that learns a model on ``log``."""
+    import numpy as np
+
+    from sensact.errors import ModelFormatError
+    from sensact.models.action_table import ActionTable
+
+    def refuse(what: str, field: str, fix: str) -> None:
+        raise ModelFormatError(f"{what}, so it cannot be {use} on {log}.", file=model, field=field, fix=fix)
+
+    learn = learn or f"sensact learn em {log}"
+    verb = "score" if use == "scored" else "run"
+    relearn = f"{verb} it on a log like the one it was learned from, or learn one on this log ({learn})."
+    if m.geometry != data.geometry:
+        refuse(f"the model is {m.geometry} and the log {data.geometry}", "geometry", relearn)
+    if isinstance(m.action, ActionTable):
+        if data.is_continuous or m.action.n_actions != data.n_actions:
+            has = "continuous commands" if data.is_continuous else f"{data.n_actions} actions"
+            refuse(f"the model has a table of {m.action.n_actions} actions and the log {has}", "action", relearn)
+        if not np.allclose(m.action.commands, data.action_commands, rtol=1e-9, atol=1e-9):
+            # a track log bins its own commands: the same count of actions can mean other commands
+            refuse("the model's actions are other commands than the log's", "action.commands", relearn)
+    elif tuple(m.action.command_names) != tuple(data.command_names):
+        refuse(
+            f"the model's commands are {', '.join(m.action.command_names)} and the log's "
+            f"{', '.join(data.command_names) or 'discrete actions'}",
+            "action.command_names",
+            relearn,
+        )
+    missing = [ch.name for ch in m.sensor.channels if ch.name not in data.reading_names]
+    if missing:
+        refuse(f"the log has no reading {missing[0]} (it has {', '.join(data.reading_names)})", "sensor", relearn)
+    if data.geometry == "planar" and not np.isfinite(data.obs_bearing_rad).any():
+        bent = [ch.name for ch in m.sensor.channels if ch.bearing_terms]
+        if bent:
+            refuse(
+                f"the model's {bent[0]} reads through its bearing terms and the log has no bearings",
+                "sensor",
+                relearn,
+            )
+    dt = doc.get("dt_s")
+    if dt is not None and abs(float(dt) - data.dt_s) > 1e-9 * max(1.0, data.dt_s):
+        refuse(
+            f"the model was learned on steps of {float(dt):.6g} s and the log has {data.dt_s:.6g} s (the command "
+            "delay is counted in steps)",
+            "dt_s",
+            f"convert the log again with --dt {float(dt):.10g}.",
+        )
+
+
+def read_model_and_log(log: Path, model: Path, bins: int, use: str) -> tuple[dict[str, Any], Any, Any, Any, Any]:
+    """``(model.json, the model, the log's data, its folder or None, a Turtlebot CSV's range column or None)``,
+    the log read onto the model's step; a model that does not fit the log is refused in one line (``use``:
+    "run" or "scored")."""
+    from sensact.cli.learn import read_em_log
+
+    doc, m = read_em_model(model)
+    dt = doc.get("dt_s")
+    # a Turtlebot CSV is read onto the model's step, whatever its own median step
+    data, lf, truth_mm = read_em_log(log, bins, float(dt) if dt is not None else None)
+    refuse_model_for_log(doc, m, data, model, log, use=use)
+    return doc, m, data, lf, truth_mm
