@@ -119,7 +119,8 @@ def _evaluate_on_range_column(log: Path, model: Path, out: Path | None) -> None:
     from sensact.errors import LogFormatError
     from sensact.io.atomic import write_json
 
-    doc, m, data, _, truth_mm = read_model_and_log(log, model, 21, use="scored")
+    # a Turtlebot CSV's commands are read as they are, never binned, so ``bins`` is not used
+    doc, m, data, _, truth_mm = read_model_and_log(log, model, bins=21, use="scored")
     if truth_mm is None or not np.isfinite(truth_mm).any():
         raise LogFormatError(
             "has no range column to score against.",
