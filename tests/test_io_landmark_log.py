@@ -91,3 +91,41 @@ def test_meta_without_landmarks(field_log, tmp_path):
     (folder / "meta.json").write_text(json.dumps(meta))
     with pytest.raises(LogFormatError, match=r"meta\.json: landmarks: a landmark log needs"):
         read_landmark_log(folder)
+
+
+def test_landmarks_named_in_the_folder_read_as_numbered_ones_do(field_log, tmp_path):
+    """Exact reduction: the field log with its landmarks renamed (``post 1``; one left a number, written
+    ``2.0`` in the sightings) reads to the same sightings; the names are kept. A landmark without an id,
+    an id given twice, or a sighting with an empty id is one line naming the file and field."""
+    folder = _copy(field_log[0], tmp_path)
+    meta = json.loads((folder / "meta.json").read_text())
+    ids = [m["id"] for m in meta["landmarks"]]
+    new = {i: (f"post {i}" if k != 2 else 2) for k, i in enumerate(ids)}
+    for m in meta["landmarks"]:
+        m["id"] = new[m["id"]]
+        m.pop("name", None)
+    (folder / "meta.json").write_text(json.dumps(meta))
+    lines = (folder / "observations.csv").read_text().splitlines()
+    col = lines[0].split(",").index("landmark_id")
+
+    def renamed(line: str) -> str:
+        cells = line.split(",")
+        old = round(float(cells[col]))
+        cells[col] = f"{float(new[old]):.1f}" if isinstance(new[old], int) else new[old]
+        return ",".join(cells)
+
+    (folder / "observations.csv").write_text("\n".join([lines[0], *map(renamed, lines[1:])]) + "\n")
+    named, numbered = read_landmark_log(folder).data, read_landmark_log(field_log[0]).data
+    for name in ("obs_step", "obs_landmark", "obs_readings", "landmarks_xy", "actions"):
+        np.testing.assert_array_equal(getattr(named, name), getattr(numbered, name), err_msg=name)
+    assert named.landmark_names == tuple(str(new[i]) for i in ids) and "post 0" in named.landmark_names
+    blank = lines[1].split(",")
+    blank[col] = ""
+    (folder / "observations.csv").write_text("\n".join([lines[0], *map(renamed, lines[1:]), ",".join(blank)]) + "\n")
+    with pytest.raises(LogFormatError, match=r"observations\.csv: landmark_id: row \d+ has no value"):
+        read_landmark_log(folder)
+    for first, problem in (("", "landmark 1 has no id"), ("post 1", "landmark id post 1 appears more than once")):
+        meta["landmarks"][0]["id"] = first
+        (folder / "meta.json").write_text(json.dumps(meta))
+        with pytest.raises(LogFormatError, match=rf"meta\.json: landmarks\.id: {problem}"):
+            read_landmark_log(folder)

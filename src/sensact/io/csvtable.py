@@ -75,3 +75,23 @@ def read_numeric_csv(
     for j in text:
         table[header[j]] = np.array([row[j].strip() for row in body], dtype=str)
     return table
+
+
+def landmark_labels(path: Path, cells: np.ndarray, column: str, fix: str) -> np.ndarray:
+    """Each landmark id as one spelling, so that the files that name a landmark match: a whole number
+    without its decimals (``4.0`` is landmark ``4``), another number as Python writes it, a name as
+    written. An empty id is refused naming its row (counted with the header as row 1)."""
+    out = []
+    for i, cell in enumerate(cells):
+        if not cell:
+            raise LogFormatError(f"row {i + 2} has no value.", file=path, field=column, fix=fix)
+        try:
+            number = float(cell)
+        except ValueError:
+            out.append(str(cell))
+            continue
+        if not np.isfinite(number):
+            out.append(str(cell))
+        else:
+            out.append(str(int(number)) if number.is_integer() else repr(number))
+    return np.array(out, dtype=str)

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from sensact.errors import LogFormatError
-from sensact.io.csvtable import read_numeric_csv
+from sensact.io.csvtable import landmark_labels, read_numeric_csv
 from sensact.io.logfolder import read_meta, read_track_log, write_log_folder
 from sensact.logs.landmark_log import LandmarkLog
 
@@ -112,6 +112,21 @@ def _commands_on_grid(
     return a_ids.astype(np.int64)[rows], None, float(t_a[0]), T
 
 
+def _map_ids(mpath: Path, raw: list[str]) -> list[str]:
+    """meta.json's landmark ids, each spelled once (``landmark_labels``); an empty or repeated id is refused."""
+    fix = "give each landmark in meta.json its own id, a number or a name."
+    for j, cell in enumerate(raw):
+        if not cell:
+            raise LogFormatError(f"landmark {j + 1} has no id.", file=mpath, field="landmarks.id", fix=fix)
+    ids = [str(x) for x in landmark_labels(mpath, np.array(raw, dtype=str), "landmarks.id", fix)]
+    twice = sorted({x for x in ids if ids.count(x) > 1})
+    if twice:
+        raise LogFormatError(
+            f"landmark id {twice[0]} appears more than once.", file=mpath, field="landmarks.id", fix=fix
+        )
+    return ids
+
+
 def _planar(path: Path, meta: dict[str, Any]) -> LandmarkLogFile:
     """A landmark log folder (planar, or a track declared with ``"geometry": "track"``)."""
     mpath = path / "meta.json"
@@ -129,7 +144,7 @@ def _planar(path: Path, meta: dict[str, Any]) -> LandmarkLogFile:
             names = tuple(act.get("names") or [f"c{j}" for j in range(table.shape[1])])
         part = "landmarks"
         marks = meta["landmarks"] if geometry == "planar" else meta.get("landmarks", [{"id": 0, "x_mm": 0, "y_mm": 0}])
-        ids = [int(m["id"]) for m in marks]
+        raw_ids = [str(m["id"]).strip() if m["id"] is not None else "" for m in marks]
         xy = np.array([[float(m["x_mm"]), float(m["y_mm"])] for m in marks])
         cols = meta.get("observations", {})
     except (KeyError, TypeError, ValueError, IndexError) as exc:
@@ -155,19 +170,27 @@ def _planar(path: Path, meta: dict[str, Any]) -> LandmarkLogFile:
             field="dt_s",
             fix="set dt_s to the step the CSVs' t_s are on (e.g. 0.0333 for 30 Hz).",
         )
+    ids = _map_ids(mpath, raw_ids)
     act_grid, cmd_grid, t0, T = _commands_on_grid(path, act, dt, len(table))
     lm_col, b_col = cols.get("landmark", "landmark_id"), cols.get("bearing")
     readings = list(cols.get("readings") or [cols.get("height", "height_px")])
     need = ["t_s", *readings] + ([b_col] if b_col else []) + ([lm_col] if geometry == "planar" else [])
-    obs = read_numeric_csv(path / "observations.csv", need, what="observations.csv")
+    # a landmark id may be a name (``post_A``), spelled as `convert csv` spells it
+    labels = (lm_col,) if lm_col in need else ()
+    obs = read_numeric_csv(path / "observations.csv", need, what="observations.csv", labels=labels)
     steps_o = _steps(obs["t_s"], t0, dt, path, "observations.csv")
     keep = (steps_o >= 0) & (steps_o < T)
-    lm_raw = obs[lm_col] if lm_col in obs else np.full(steps_o.size, float(ids[0]))
+    fix_obs = "give each sighting the id of a landmark in meta.json."
+    lm_raw = (
+        landmark_labels(path / "observations.csv", obs[lm_col], lm_col, fix_obs)
+        if lm_col in obs
+        else np.full(steps_o.size, ids[0])
+    )
     id_to_row = {v: j for j, v in enumerate(ids)}
     unknown = [x for x in np.unique(lm_raw[keep]) if x not in id_to_row]
     if unknown:
         raise LogFormatError(
-            f"landmark id {unknown[0]:g} is not in meta.json's landmarks ({ids}).",
+            f"landmark id {unknown[0]} is not in meta.json's landmarks ({', '.join(ids)}).",
             file=path / "observations.csv",
             field=lm_col,
             fix="add the landmark's position to meta.json or drop its rows.",

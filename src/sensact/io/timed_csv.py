@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from sensact.errors import LogFormatError
-from sensact.io.csvtable import read_numeric_csv
+from sensact.io.csvtable import landmark_labels, read_numeric_csv
 from sensact.io.resample import HEADING_OFFSET_RAD, held_on_grid, nearest_steps, pose_truth_on_grid
 from sensact.logs.landmark_log import LandmarkLog
 
@@ -95,25 +95,6 @@ def _finite(path: Path, table: dict[str, np.ndarray], columns: tuple[str, ...], 
         bad = np.flatnonzero(~np.isfinite(table[c]))
         if bad.size:
             raise LogFormatError(f"row {bad[0] + 2} has no value.", file=path, field=c, fix=fix)
-
-
-def _landmark_ids(path: Path, cells: np.ndarray, column: str, fix: str) -> np.ndarray:
-    """Each id as one spelling: a whole number without its decimals (``4.0`` is landmark ``4``), another
-    number as Python writes it, a name as written."""
-    out = []
-    for i, cell in enumerate(cells):
-        if not cell:
-            raise LogFormatError(f"row {i + 2} has no value.", file=path, field=column, fix=fix)
-        try:
-            number = float(cell)
-        except ValueError:
-            out.append(str(cell))
-            continue
-        if not np.isfinite(number):
-            out.append(str(cell))
-        else:
-            out.append(str(int(number)) if number.is_integer() else repr(number))
-    return np.array(out, dtype=str)
 
 
 @dataclass(frozen=True, eq=False)
@@ -192,7 +173,7 @@ def read_timed_csv(
     )
     fix_lm = "every landmark needs an id and a position."
     _finite(landmarks, lm, ("x_mm", "y_mm"), fix_lm)
-    ids = _landmark_ids(landmarks, lm["id"], "id", fix_lm)
+    ids = landmark_labels(landmarks, lm["id"], "id", fix_lm)
     dup = [str(i) for i, n in zip(*np.unique(ids, return_counts=True), strict=True) if n > 1]
     if dup:
         raise LogFormatError(
@@ -208,7 +189,7 @@ def read_timed_csv(
     )
     fix_obs = "every sighting needs a time and the landmark's id."
     _finite(sightings, obs, ("t_s",), fix_obs)
-    seen_id = _landmark_ids(sightings, obs["landmark_id"], "landmark_id", fix_obs)
+    seen_id = landmark_labels(sightings, obs["landmark_id"], "landmark_id", fix_obs)
     bearing = obs.get("bearing_rad")
     readings = tuple(c for c in obs if c not in ("t_s", "landmark_id", "bearing_rad"))
     if not readings:
