@@ -129,3 +129,16 @@ def test_landmarks_named_in_the_folder_read_as_numbered_ones_do(field_log, tmp_p
         (folder / "meta.json").write_text(json.dumps(meta))
         with pytest.raises(LogFormatError, match=rf"meta\.json: landmarks\.id: {problem}"):
             read_landmark_log(folder)
+
+
+def test_a_track_log_written_by_write_landmark_log_reads_back(tmp_path):
+    """Exact reduction for a 1-D track (one landmark, id 0, written ``0.0`` in observations.csv)."""
+    from sensact.io.landmark_log import write_landmark_log
+
+    run = track1d.simulate_track(track1d.Track1DConfig(seconds=30.0, seed=1, command_levels=21))
+    data = track1d.to_landmark_log(run)
+    write_landmark_log(tmp_path / "t", data)
+    back = read_landmark_log(tmp_path / "t").data
+    assert back.geometry == "track"
+    for name in ("actions", "obs_step", "obs_landmark", "obs_readings", "action_commands"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(data, name), err_msg=name)

@@ -175,9 +175,8 @@ def _planar(path: Path, meta: dict[str, Any]) -> LandmarkLogFile:
     lm_col, b_col = cols.get("landmark", "landmark_id"), cols.get("bearing")
     readings = list(cols.get("readings") or [cols.get("height", "height_px")])
     need = ["t_s", *readings] + ([b_col] if b_col else []) + ([lm_col] if geometry == "planar" else [])
-    # a landmark id may be a name (``post_A``), spelled as `convert csv` spells it
-    labels = (lm_col,) if lm_col in need else ()
-    obs = read_numeric_csv(path / "observations.csv", need, what="observations.csv", labels=labels)
+    # a landmark id may be a name (``post_A``), spelled as `convert csv` spells it (a track's column too)
+    obs = read_numeric_csv(path / "observations.csv", need, what="observations.csv", labels=(lm_col,))
     steps_o = _steps(obs["t_s"], t0, dt, path, "observations.csv")
     keep = (steps_o >= 0) & (steps_o < T)
     fix_obs = "give each sighting the id of a landmark in meta.json."
