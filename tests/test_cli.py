@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import pytest
 import typer
@@ -608,7 +609,15 @@ def test_evaluate_log_scores_a_turtlebot_model_on_another_run_against_its_range(
     _write_turtlebot_csv(bare, with_range=False, seed=8)
     res = runner.invoke(app, ["evaluate", "log", str(bare), "--model", str(model)])
     said = " ".join(res.output.split())
-    assert res.exit_code == 2 and "bare.csv: range: has no range column to score against" in said, said
+    assert res.exit_code == 2 and "bare.csv: range: there is no range column to score against" in said, said
+    rows = (tmp_path / "same.csv").read_text().splitlines()
+    cells = rows[5].split(",")
+    cells[rows[0].split(",").index("range")] = ""
+    (tmp_path / "gap.csv").write_text("\n".join([*rows[:5], ",".join(cells), *rows[6:]]) + "\n")
+    res = runner.invoke(app, ["evaluate", "log", str(tmp_path / "gap.csv"), "--model", str(model)])
+    said = " ".join(res.output.split())
+    # one empty cell leaves the steps read from it empty
+    assert res.exit_code == 2 and re.search(r"range: the range column has \d+ empty steps to score against", said), said
 
 
 def test_track_start_candidates_invert_each_learned_f_inside_its_window():

@@ -80,16 +80,16 @@ def evaluate_log_cmd(
     From-Truth fitted on this log; the model must share the log's commands, readings and step. On a
     Turtlebot CSV the robot is first placed by the E-step with the model held (as `sensact localize`),
     and the model is scored against the range column as `learn em` scores it."""
+    from sensact.cli.model_on_log import read_model_and_log
     from sensact.errors import LogFormatError
     from sensact.io.atomic import write_json
-    from sensact.io.landmark_log import read_landmark_log
 
-    if log.is_file():
-        _evaluate_on_range_column(log, model, out)
+    # a track folder's continuous commands are binned as `learn em`'s default bins them (a Turtlebot
+    # CSV's are read as they are)
+    doc, m, data, lf, truth_mm = read_model_and_log(log, model, bins=21, use="scored")
+    if lf is None:  # a Turtlebot CSV
+        _evaluate_on_range_column(doc, m, data, truth_mm, log, model, out)
         return
-    doc, m = read_em_model(model)
-    lf = read_landmark_log(log)
-    refuse_model_for_log(doc, m, lf.data, model, log)
     console.print(f"{model} on {lf.title(log)}: {lf.data.n_steps} steps, {lf.data.n_observations} observations")
     sc = evaluate_em(lf, m)
     if sc is None:
@@ -108,33 +108,25 @@ def evaluate_log_cmd(
         console.print("wrote " + ", ".join(str(p) for p in written))
 
 
-def _evaluate_on_range_column(log: Path, model: Path, out: Path | None) -> None:
+def _evaluate_on_range_column(
+    doc: dict[str, Any], m: Any, data: Any, truth_mm: Any, log: Path, model: Path, out: Path | None
+) -> None:
     """`evaluate log` on a Turtlebot CSV: the state has no unit of its own, so the model is scored through the
     optimal map of the path it places onto the recorded range (sec. 4.4.3), fitted on this log."""
-    import numpy as np
 
     from sensact.cli.localize import place_robot
-    from sensact.cli.model_on_log import read_model_and_log
-    from sensact.cli.scores import evaluate_turtlebot_em
+    from sensact.cli.scores import evaluate_turtlebot_em, range_column_problem
     from sensact.errors import LogFormatError
     from sensact.io.atomic import write_json
 
-    # a Turtlebot CSV's commands are read as they are, never binned, so ``bins`` is not used
-    doc, m, data, _, truth_mm = read_model_and_log(log, model, bins=21, use="scored")
-    if truth_mm is None or not np.isfinite(truth_mm).any():
+    problem = range_column_problem(truth_mm)
+    if problem:
         raise LogFormatError(
-            "has no range column to score against.",
+            f"{problem} to score against, and the scores need the range at every step.",
             file=log,
             field="range",
-            fix="score on a CSV with the range column (calibration.csv, training*.csv); `sensact localize` runs "
-            "the model on one without it.",
-        )
-    if not np.isfinite(truth_mm).all():
-        raise LogFormatError(
-            f"{int((~np.isfinite(truth_mm)).sum())} steps have no range, and the scores need it at every step.",
-            file=log,
-            field="range",
-            fix="score on a stretch of the log with the range at every step.",
+            fix="score on a CSV with the range at every step (calibration.csv, training*.csv); `sensact localize` "
+            "runs the model on one without it.",
         )
     loc, per_learned = place_robot(doc, m, data, model, None, None, None)
     sc = evaluate_turtlebot_em(loc, data, truth_mm)
