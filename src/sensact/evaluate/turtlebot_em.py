@@ -24,6 +24,7 @@ import numpy as np
 
 from sensact.evaluate.measured import ONE_COMMAND_SHARE, dominant_command
 from sensact.learn.em import EMResult
+from sensact.learn.em.localize import Localized
 from sensact.logs.landmark_log import LandmarkLog
 
 BIN_MM = 100.0  # the sensor scores' bins of true distance
@@ -51,7 +52,7 @@ def state_map_summary(x: np.ndarray, truth_mm: np.ndarray) -> dict[str, float]:
     return {"scale": a, "offset_mm": b, "rms_mm": float(np.std(a * x + b - truth_mm))}
 
 
-def learned_velocity_mm_s(res: EMResult, commands: np.ndarray, a: float) -> np.ndarray:
+def learned_velocity_mm_s(res: EMResult | Localized, commands: np.ndarray, a: float) -> np.ndarray:
     """The learned mean velocity of the recorded range at each command, after the scale: the track state
     shrinks as the robot advances (``TRACK``), so the range moves at ``-a A(c)``."""
     action = res.model.action
@@ -83,8 +84,9 @@ def sensor_bins(
     return np.array(centers), np.array(medians), np.array(errs)
 
 
-def score_turtlebot_em(res: EMResult, data: LandmarkLog, truth_mm: np.ndarray) -> dict[str, Any]:
-    """Gain and sensor errors after the optimal affine map of the learned state onto the true range."""
+def score_turtlebot_em(res: EMResult | Localized, data: LandmarkLog, truth_mm: np.ndarray) -> dict[str, Any]:
+    """Gain and sensor errors after the optimal affine map of the learned state onto the true range; ``res``
+    is a fit, or a model held and placed on another log (`evaluate log`)."""
     post = res.posteriors
     x = post.mean_gamma[:, 0]
     mapped = state_map_summary(x, truth_mm)

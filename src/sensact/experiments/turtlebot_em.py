@@ -25,6 +25,7 @@ from sensact.evaluate.turtlebot_em import score_turtlebot_em
 from sensact.io.turtlebot import EM_READINGS, SPEC_RANGE_M, read_turtlebot_landmark_log
 from sensact.learn.em import EMConfig, EMResult, fit_em
 from sensact.learn.em.config import ChannelConfig
+from sensact.learn.em.localize import Localized
 from sensact.logs.landmark_log import LandmarkLog
 
 
@@ -74,11 +75,12 @@ def scorecard(summary: dict[str, Any], name: str | None = None) -> list[BarCheck
 
 @dataclass(frozen=True)
 class TurtlebotEMRun:
-    """A fit, the log it was learned from and the recorded range (mm per step) it is scored against."""
+    """A fit (or a learned model held and placed on another log by ``learn.em.localize``: `evaluate log`),
+    the log and the recorded range (mm per step) it is scored against."""
 
     data: LandmarkLog
     truth_mm: np.ndarray
-    result: EMResult
+    result: EMResult | Localized  # what is read: its model and posteriors
 
 
 def run_turtlebot_em(csv_path: str | Path, config: EMConfig | None = None) -> tuple[dict[str, Any], TurtlebotEMRun]:
