@@ -620,6 +620,61 @@ def test_evaluate_log_scores_a_turtlebot_model_on_another_run_against_its_range(
     assert res.exit_code == 2 and re.search(r"range: the range column has \d+ empty steps to score against", said), said
 
 
+def test_evaluate_fleet_scores_turtlebot_models_on_each_others_runs_against_their_range(tmp_path):
+    """`evaluate fleet` on Turtlebot CSVs: two robots (gains 0.9 and 0.72, on a floor each), each model
+    learned on its own run; every model placed on every run and scored against its range column as
+    `evaluate log` scores it (the same numbers), the other robot's gain off by what the gains say, a run
+    without a range column placed but not scored. The second run's clock steps 0.1 % longer, as two real
+    runs' median steps differ, so each model reads each run onto its own step."""
+    runs = {"a": (7, 0.9), "b": (9, 0.72)}
+    for name, (seed, gain) in runs.items():
+        _write_turtlebot_csv(tmp_path / f"{name}.csv", with_range=True, seed=seed, gain=gain)
+    rows = (tmp_path / "b.csv").read_text().splitlines()
+    stretched = [",".join([c[0], f"{1.001 * float(c[1]):.6f}", *c[2:]]) for c in (r.split(",") for r in rows[1:])]
+    (tmp_path / "b.csv").write_text("\n".join([rows[0], *stretched]) + "\n")
+    for name in runs:
+        model = tmp_path / f"m{name}.json"
+        assert runner.invoke(app, ["learn", "em", str(tmp_path / f"{name}.csv"), "--out", str(model)]).exit_code == 0
+    _write_turtlebot_csv(tmp_path / "bare.csv", with_range=False, seed=8)
+    out = tmp_path / "fleet.json"
+    csvs = [str(tmp_path / f"{g}.csv") for g in ("a", "b", "bare")]
+    models = ["--model", str(tmp_path / "ma.json"), "--model", str(tmp_path / "mb.json")]
+    res = runner.invoke(app, ["evaluate", "fleet", *csvs, *models, "--out", str(out)])
+    said = " ".join(res.output.split())
+    assert res.exit_code == 0, res.output
+    assert "not scored against the range: bare (there is no range column)" in said
+    assert "not scored against ground truth" not in said  # a CSV is scored against its range instead
+    fleet = json.loads(out.read_text())
+    assert fleet["own"] == {"ma": "a", "mb": "b"} and fleet["logs"] == ["a", "b", "bare"]
+    rng = fleet["range"]
+    assert rng["logs"] == ["a", "b"] and rng["no_range"] == {"bare": "there is no range column"}
+    cells = rng["cells"]
+    for m, g in (("ma", "a"), ("mb", "b")):  # each robot's own model clears both bars on its run
+        assert cells[m][g]["bars"] == {"gain": True, "sensor": True}, cells[m][g]
+    # a 0.9 model on a 0.72 robot carries 0.9 / 0.72 - 1 = 25 % too much gain, the other 1 - 0.72 / 0.9 = 20 %
+    assert cells["ma"]["b"]["gain_error_pct"] == pytest.approx(25.0, abs=5.0) and not cells["ma"]["b"]["bars"]["gain"]
+    assert cells["mb"]["a"]["gain_error_pct"] == pytest.approx(20.0, abs=5.0) and not cells["mb"]["a"]["bars"]["gain"]
+    # one kind of sensor: a's model reads b's run as well as its own; b's own fit is the weaker (2.1 % on b)
+    assert cells["ma"]["b"]["bars"]["sensor"] and cells["mb"]["a"]["best_sensor_pct"] < 5.0, cells["mb"]["a"]
+    assert rng["summary"]["own"]["clear_gain_bar"] == 2 and rng["summary"]["other"]["clear_gain_bar"] == 0
+    lk = fleet["likelihood"]
+    assert lk["summary"]["own_most_likely"] == 2, lk["summary"]
+    assert all(lk["cells"][m]["bare"]["per_sighting"] is not None for m in ("ma", "mb"))
+    assert out.with_suffix(".png").stat().st_size > 30_000
+    # a pair is what `evaluate log` gives for that model on that run: b's model reads a's run onto its own
+    # step, not onto the first model's
+    single = tmp_path / "mb_on_a.json"
+    res = runner.invoke(app, ["evaluate", "log", csvs[0], "--model", str(tmp_path / "mb.json"), "--out", str(single)])
+    assert res.exit_code == 0, res.output
+    assert json.loads((tmp_path / "mb.json").read_text())["dt_s"] == pytest.approx(0.06006, rel=1e-4)
+    ev = json.loads(single.read_text())
+    assert cells["mb"]["a"]["gain_error_pct"] == pytest.approx(ev["evaluation"]["gain_error_pct"], rel=1e-9)
+    assert lk["cells"]["mb"]["a"]["per_sighting"] == pytest.approx(ev["loglik_per_sighting"], rel=1e-9)
+    for channel, pct in cells["mb"]["a"]["sensors_pct_of_span"].items():
+        alone = ev["evaluation"]["sensors"][channel]["rms_pct_of_span"]  # null where a sensor is not scored
+        assert (pct is None and alone is None) or pct == pytest.approx(alone, rel=1e-9), (channel, pct, alone)
+
+
 def test_track_start_candidates_invert_each_learned_f_inside_its_window():
     """The real roots of ``f(x) = o`` inside the window, with the sd the channel's sigma gives there."""
     import numpy as np

@@ -115,8 +115,9 @@ def _evaluate_on_range_column(
     optimal map of the path it places onto the recorded range (sec. 4.4.3), fitted on this log."""
 
     from sensact.cli.localize import place_robot
-    from sensact.cli.scores import evaluate_turtlebot_em, range_column_problem
+    from sensact.cli.scores import evaluate_turtlebot_em
     from sensact.errors import LogFormatError
+    from sensact.evaluate.turtlebot_em import range_column_problem
     from sensact.io.atomic import write_json
 
     problem = range_column_problem(truth_mm)
@@ -174,7 +175,11 @@ def fleet_names(paths: list[Path], name: Any) -> list[str]:
 def evaluate_fleet_cmd(
     logs: Annotated[
         list[Path],
-        typer.Argument(help="Log folders, with or without ground truth (groundtruth.csv with poses).", metavar="DIR"),
+        typer.Argument(
+            help="Log folders, with or without ground truth (groundtruth.csv with poses), or Turtlebot CSVs, with "
+            "or without their range column.",
+            metavar="LOG",
+        ),
     ],
     model: Annotated[
         list[Path], typer.Option("--model", help="A model.json written by `sensact learn em`; repeat for each model.")
@@ -191,23 +196,35 @@ def evaluate_fleet_cmd(
     gives its log-likelihood a sighting and how far it falls below the log's most likely model. When every
     log has recorded poses, each pair is also scored as `sensact evaluate log` scores it, against that
     log's ground truth with From-Truth fitted on that log: the translation and rotation RMS over
-    From-Truth's, the range function's residual about the truth and the bearing sigma over the truth's. A
-    pair is a robot's own when the model was learned on that log. Every model must share the logs'
-    commands, readings and step."""
+    From-Truth's, the range function's residual about the truth and the bearing sigma over the truth's. On
+    Turtlebot CSVs with their range column, each placed model is also scored against the range as
+    `evaluate log` scores it: the action gain's error and the best sensor's, in % of its span. A pair is
+    a robot's own when the model was learned on that log. Every model must share the logs' commands,
+    readings and step (a Turtlebot CSV is read onto each model's own step)."""
     from sensact.cli.base import progress_bar
-    from sensact.experiments.fleet import score_fleet
+    from sensact.cli.learn import read_em_log
+    from sensact.experiments.fleet import RangeLog, score_fleet
     from sensact.io.atomic import write_json
-    from sensact.io.landmark_log import read_landmark_log
     from sensact.learn.em.localize import learned_config
 
     models, configs, own = {}, {}, {}
     logs, model = list(dict.fromkeys(logs)), list(dict.fromkeys(model))  # a folder or file given twice counts once
-    read = {p: read_landmark_log(p) for p in logs}
-    log_names = dict(zip(logs, fleet_names(logs, lambda p: p.resolve().name), strict=True))
-    for path, name in zip(model, fleet_names(model, lambda p: p.stem), strict=True):
-        doc, m = read_em_model(path)
+    docs = {path: read_em_model(path) for path in model}
+    model_names = dict(zip(model, fleet_names(model, lambda p: p.stem), strict=True))
+    log_names = dict(zip(logs, fleet_names(logs, _log_name), strict=True))
+    read: dict[Path, Any] = {}
+    for log in logs:
+        if log.is_file() and log.suffix.lower() == ".csv":
+            # each model reads the CSV onto its own step, as `evaluate log` would (a track folder's steps are
+            # its own, and a model on another step is refused)
+            read[log] = RangeLog({model_names[p]: _csv_on_step(log, doc) for p, (doc, _) in docs.items()})
+        else:
+            read[log] = read_em_log(log, bins=21)[1]  # a track folder's commands binned as `evaluate log` bins them
+    for path, (doc, m) in docs.items():
+        name = model_names[path]
         for log, lf in read.items():
-            refuse_model_for_log(doc, m, lf.data, path, log)
+            data = lf.reads[name][0] if isinstance(lf, RangeLog) else lf.data
+            refuse_model_for_log(doc, m, data, path, log)
         models[name] = m
         configs[name] = learned_config((doc.get("summary") or {}).get("config"), str(path))
         for log in logs:
@@ -216,7 +233,7 @@ def evaluate_fleet_cmd(
     n_m, n_l = len(models), len(read)
     console.print(
         f"{n_m} model{'s' * (n_m > 1)} on {n_l} log{'s' * (n_l > 1)}: "
-        + ", ".join(lf.title(p) for p, lf in read.items())
+        + ", ".join(log_names[p] if isinstance(lf, RangeLog) else lf.title(p) for p, lf in read.items())
     )
     with progress_bar() as progress:
         fleet = score_fleet(models, {log_names[p]: lf for p, lf in read.items()}, own, progress, configs)
@@ -229,21 +246,52 @@ def evaluate_fleet_cmd(
         console.print(f"wrote {out} and {figure}")
 
 
+def _csv_on_step(log: Path, doc: dict[str, Any]) -> tuple[Any, Any]:
+    """A Turtlebot CSV read onto the step of the model ``doc`` (model.json), with its range column."""
+    from sensact.cli.learn import read_em_log
+
+    dt = doc.get("dt_s")
+    data, _, range_mm = read_em_log(log, bins=21, dt_s=None if dt is None else float(dt))
+    return data, range_mm
+
+
+def _log_name(path: Path) -> str:
+    """A log's short name: a folder's own name ("." names the folder it is), a CSV's without ``.csv``."""
+    return path.stem if path.is_file() else path.resolve().name
+
+
 def print_fleet(fleet: dict[str, Any]) -> None:
     """The fleet's tables (a missed bar in red, a robot's own pair in bold) and what they say."""
     from sensact.cli.base import print_tables
-    from sensact.report.tables import fleet_likelihood_lines, fleet_likelihood_table, fleet_lines, fleet_table
+    from sensact.report.tables import (
+        fleet_likelihood_lines,
+        fleet_likelihood_table,
+        fleet_lines,
+        fleet_range_lines,
+        fleet_range_table,
+        fleet_table,
+    )
 
+    miss, own = (lambda s: f"[red]{s}[/]"), (lambda s: f"[bold]{s}[/]")
     if "cells" in fleet:
-        print_tables([fleet_table(fleet, miss=lambda s: f"[red]{s}[/]", own=lambda s: f"[bold]{s}[/]")])
+        print_tables([fleet_table(fleet, miss=miss, own=own)])
         for line in fleet_lines(fleet):
             console.print(line)
-    else:
+    rng = fleet.get("range", {})
+    # a Turtlebot CSV has no poses by its nature: it is scored against its range column instead
+    unposed = [
+        g for g in fleet.get("no_truth", []) if g not in rng.get("logs", []) and g not in rng.get("no_range", {})
+    ]
+    if unposed:
         console.print(
-            f"not scored against ground truth: {', '.join(fleet['no_truth'])} "
-            f"{'has' if len(fleet['no_truth']) == 1 else 'have'} no recorded poses on continuous commands "
+            f"not scored against ground truth: {', '.join(unposed)} "
+            f"{'has' if len(unposed) == 1 else 'have'} no recorded poses on continuous commands "
             "(groundtruth.csv with t_s, x_mm, y_mm, theta_rad; `convert csv --truth` writes it)"
         )
+    if rng.get("logs"):
+        print_tables([fleet_range_table(fleet, miss=miss, own=own)])
+    for line in fleet_range_lines(fleet):
+        console.print(line)
     if "likelihood" in fleet:
         print_tables([fleet_likelihood_table(fleet, own=lambda s: f"[bold]{s}[/]")])
         for line in fleet_likelihood_lines(fleet):

@@ -272,24 +272,11 @@ def evaluate_em(lf: Any, model: Any, *, learned_here: bool = False, path: Any = 
     return None
 
 
-NO_RANGE_COLUMN = "there is no range column"
-
-
-def range_column_problem(truth_mm: Any) -> str | None:
-    """Why a Turtlebot CSV's ``range`` column (per step, mm) cannot score a fit, or None when it can:
-    ``NO_RANGE_COLUMN``, or how many of its steps are empty (the scores need it at every step)."""
-    import numpy as np
-
-    if truth_mm is None or np.isnan(truth_mm).all():
-        return NO_RANGE_COLUMN
-    if not np.isfinite(truth_mm).all():
-        return f"the range column has {int((~np.isfinite(truth_mm)).sum())} empty steps"
-    return None
-
-
 def range_column_scoreable(truth_mm: Any, absent: str | None) -> bool:
-    """Whether the range column can score a fit (``range_column_problem``); says why not: ``absent`` when
-    there is no column (None: say nothing), and how many steps are empty otherwise."""
+    """Whether the range column can score a fit (``evaluate.turtlebot_em.range_column_problem``); says why
+    not: ``absent`` when there is no column (None: say nothing), and how many steps are empty otherwise."""
+    from sensact.evaluate.turtlebot_em import NO_RANGE_COLUMN, range_column_problem
+
     problem = range_column_problem(truth_mm)
     if problem == NO_RANGE_COLUMN:
         if absent:

@@ -29,6 +29,19 @@ from sensact.logs.landmark_log import LandmarkLog
 
 BIN_MM = 100.0  # the sensor scores' bins of true distance
 
+NO_RANGE_COLUMN = "there is no range column"
+
+
+def range_column_problem(truth_mm: np.ndarray | None) -> str | None:
+    """Why a Turtlebot CSV's ``range`` column (per step, mm) cannot score a fit, or None when it can:
+    ``NO_RANGE_COLUMN`` (a file without one reads as NaN throughout), or how many of its steps are empty
+    (the scores need it at every step)."""
+    if truth_mm is None or np.isnan(truth_mm).all():
+        return NO_RANGE_COLUMN
+    if not np.isfinite(truth_mm).all():
+        return f"the range column has {int((~np.isfinite(truth_mm)).sum())} empty steps"
+    return None
+
 
 def windowed_velocities(data: LandmarkLog, truth_mm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The recorded range's velocity over 1-s windows (half overlapping) and each window's mean command:

@@ -11,6 +11,11 @@ Two scores, each a grid of (model, log) pairs:
   drops different ones (each cell says how many it used), so the fall of a model below the log's most
   likely one says how much worse it explains that robot's run.
 
+A Turtlebot CSV (``RangeLog``, read onto each model's step) has no recorded poses but a ``range``
+column: each model placed on it is also scored against the range, as `evaluate log` scores it
+(``range_cell``: the action gain and the best sensor through the optimal scale and offset of sec. 4.4.3,
+against issue 5's Turtlebot bars).
+
 A pair is the robot's *own* when the model was learned on that log; it has a small edge there, having
 been fitted to those very sightings. MRCLAM's five robots are one kind of robot: their action models
 carry over, their cameras' range functions do not (docs/em-real-results.md, "One robot's model on another
@@ -20,15 +25,18 @@ robot").
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from sensact.errors import ConfigError
 from sensact.evaluate.landmark_truth import score_against_truth
+from sensact.evaluate.turtlebot_em import range_column_problem, score_turtlebot_em
 from sensact.experiments.real import BARS, bar_checks
+from sensact.experiments.turtlebot_em import GAIN_BAR_PCT, SENSOR_BAR_PCT, best_sensor
 from sensact.learn.em.config import EMConfig
-from sensact.learn.em.localize import localize
+from sensact.learn.em.localize import Localized, localize
 
 # the bars' own keys for the action model and for the sensor
 ACTION_BARS = ("action_translation_ratio", "action_rotation_ratio", "action_translation_abs")
@@ -51,6 +59,24 @@ def fleet_cell(sc: dict[str, Any]) -> dict[str, Any]:
     }
 
 
+@dataclass(frozen=True)
+class RangeLog:
+    """A Turtlebot CSV in a fleet, read onto each model's step: ``reads[model]`` is what EM reads and the
+    ``range`` column (mm at each step; None when the file has none, NaN where a step has none). A CSV's
+    step is its reader's choice, the file's median, so models learned on two runs have steps a hair apart,
+    and each is placed on the file as `evaluate log` reads it for that model. No recorded poses."""
+
+    reads: Mapping[str, tuple[Any, np.ndarray | None]]
+
+    def truth_poses(self) -> None:
+        return None
+
+    @property
+    def range_problem(self) -> str | None:
+        """Why the range cannot score a model (``range_column_problem``), or None: it is there at every step."""
+        return range_column_problem(next(iter(self.reads.values()))[1])
+
+
 def recorded_truth(log: Any) -> tuple[Any, Any] | None:
     """A log's recorded poses, or None where there are none to score against (``score_against_truth``
     scores a log of continuous commands)."""
@@ -66,10 +92,11 @@ def score_fleet(
     configs: Mapping[str, EMConfig] | None = None,
 ) -> dict[str, Any]:
     """Every model of ``models`` ({name: EMModel}) on every log of ``logs`` ({name: anything with ``data``
-    and ``truth_poses()``}: an ``MrclamLog`` or a log folder). ``own`` maps a model's name to the log it
-    was learned on. Against the truth (``cells``, ``summary``) when every log has recorded poses; by the
-    likelihood (``likelihood``) when ``configs`` gives each model the settings ``localize`` places the
-    robot with (``localize.learned_config``). Cells are keyed ``cells[model][log]``."""
+    and ``truth_poses()``}: an ``MrclamLog``, a log folder or a ``RangeLog``). ``own`` maps a model's name
+    to the log it was learned on. Against the truth (``cells``, ``summary``) when every log has recorded
+    poses; by the likelihood (``likelihood``) when ``configs`` gives each model the settings ``localize``
+    places the robot with (``localize.learned_config``), and then, on the Turtlebot CSVs whose range is
+    there at every step, against the range (``range``). Cells are keyed ``cells[model][log]``."""
     own = dict(own or {})
     truths = {name: recorded_truth(log) for name, log in logs.items()}
     out: dict[str, Any] = {"bars": dict(BARS), "models": list(models), "logs": list(logs), "own": own}
@@ -87,17 +114,23 @@ def score_fleet(
     else:
         out["no_truth"] = [name for name, t in truths.items() if t is None]
     if configs is not None:
-        out["likelihood"] = score_likelihoods(models, logs, configs, own, progress)
+        out.update(score_likelihoods(models, logs, configs, own, progress))
     return out
 
 
-def likelihood_cell(model: Any, data: Any, config: EMConfig) -> dict[str, Any]:
-    """One model placed on one log by the E-step alone: its log-likelihood, over how many sightings, and
-    per sighting; a model the filter fails with from every start is a cell without a likelihood."""
+def place(model: Any, data: Any, config: EMConfig) -> Localized | str:
+    """One model placed on one log by the E-step alone, or why the filter failed from every start."""
     try:
-        loc = localize(model, data, config)
+        return localize(model, data, config)
     except ConfigError as exc:
-        return {"loglik": None, "n_used": 0, "per_sighting": None, "failed": exc.problem}
+        return exc.problem
+
+
+def likelihood_cell(loc: Localized | str) -> dict[str, Any]:
+    """A placed model's log-likelihood, over how many sightings, and per sighting; a model the filter failed
+    with (``place`` gave why) is a cell without a likelihood."""
+    if isinstance(loc, str):
+        return {"loglik": None, "n_used": 0, "per_sighting": None, "failed": loc}
     post = loc.posteriors
     return {
         "loglik": float(post.loglik),
@@ -114,13 +147,20 @@ def score_likelihoods(
     own: Mapping[str, str],
     progress: Callable[[str, int, int | None], None] | None = None,
 ) -> dict[str, Any]:
-    """Each model placed on each log (``likelihood_cell``), and each one's fall per sighting below the
-    log's most likely model (``below_best``: 0 for that model)."""
+    """``{"likelihood": ...}``: each model placed on each log (``likelihood_cell``), and each one's fall per
+    sighting below the log's most likely model (``below_best``: 0 for that model); and ``"range"``, each
+    placed model scored on each ``RangeLog`` whose range is there at every step (``range_grid``)."""
     cells: dict[str, dict[str, Any]] = {name: {} for name in models}
+    ranged = {g: log for g, log in logs.items() if isinstance(log, RangeLog)}
+    range_cells: dict[str, dict[str, Any]] = {name: {} for name in models}
     total, done = len(models) * len(logs), 0
     for log_name, log in logs.items():
         for model_name, model in models.items():
-            cells[model_name][log_name] = likelihood_cell(model, log.data, configs[model_name])
+            data, range_mm = log.reads[model_name] if log_name in ranged else (log.data, None)
+            loc = place(model, data, configs[model_name])
+            cells[model_name][log_name] = likelihood_cell(loc)
+            if log_name in ranged and log.range_problem is None:
+                range_cells[model_name][log_name] = range_cell(loc, data, range_mm)
             done += 1
             if progress:
                 progress("placing each model on each log", done, total)
@@ -129,7 +169,65 @@ def score_likelihoods(
         for model_name in models:
             c = cells[model_name][log_name]
             c["below_best"] = None if c["per_sighting"] is None else best - c["per_sighting"]
-    return {"cells": cells, "summary": likelihood_summary(cells, list(logs), own)}
+    out: dict[str, Any] = {"likelihood": {"cells": cells, "summary": likelihood_summary(cells, list(logs), own)}}
+    if ranged:
+        out["range"] = range_grid(range_cells, ranged, own)
+    return out
+
+
+def range_cell(loc: Localized | str, data: Any, range_mm: np.ndarray) -> dict[str, Any]:
+    """A placed model scored against a Turtlebot CSV's range as `evaluate log` scores it
+    (``score_turtlebot_em``): the action gain's error (None on a log that holds one command) and each
+    sensor's error in % of its span, with issue 5's two Turtlebot bars (``gain`` None where not scored)."""
+    if isinstance(loc, str):
+        return {"failed": loc, "gain_error_pct": None, "best_sensor": None, "best_sensor_pct": None, "bars": {}}
+    sc = score_turtlebot_em(loc, data, range_mm)
+    best, pct = best_sensor(sc)
+    gain = sc["gain_error_pct"]
+    return {
+        "gain_learned": sc["gain_learned"],
+        "gain_true": sc["gain_true"],
+        "gain_error_pct": gain,
+        "one_command_share": sc["one_command_share"],
+        "sensors_pct_of_span": {k: v["rms_pct_of_span"] for k, v in sc["sensors"].items()},
+        "best_sensor": best,
+        "best_sensor_pct": pct,
+        "bars": {
+            "gain": None if gain is None else bool(gain <= GAIN_BAR_PCT),
+            "sensor": pct is not None and bool(pct <= SENSOR_BAR_PCT),
+        },
+    }
+
+
+def range_grid(
+    cells: dict[str, dict[str, Any]], ranged: Mapping[str, RangeLog], own: Mapping[str, str]
+) -> dict[str, Any]:
+    """The pairs scored against the range, the logs they are on (``logs``), the Turtlebot CSVs that could not
+    score (``no_range``, with why), and over the robots' own pairs and the others how many clear each bar."""
+    scored = [g for g, log in ranged.items() if log.range_problem is None]
+    no_range = {g: log.range_problem for g, log in ranged.items() if log.range_problem is not None}
+    groups: dict[str, list[dict[str, Any]]] = {"own": [], "other": []}
+    for m, row in cells.items():
+        for g, c in row.items():
+            groups["own" if own.get(m) == g else "other"].append(c)
+
+    def describe(cs: list[dict[str, Any]]) -> dict[str, Any]:
+        gains = [c["gain_error_pct"] for c in cs if c["gain_error_pct"] is not None]
+        return {
+            "pairs": len(cs),
+            "gain_scored": len(gains),
+            "clear_gain_bar": sum(bool(c["bars"].get("gain")) for c in cs),
+            "clear_sensor_bar": sum(bool(c["bars"].get("sensor")) for c in cs),
+            "gain_error_pct_max": float(max(gains)) if gains else None,
+        }
+
+    return {
+        "bars": {"gain_pct_max": GAIN_BAR_PCT, "sensor_pct_max": SENSOR_BAR_PCT},
+        "logs": scored,
+        "no_range": no_range,
+        "cells": cells,
+        "summary": {name: describe(cs) for name, cs in groups.items()},
+    }
 
 
 def likelihood_summary(cells: dict[str, dict[str, Any]], logs: list[str], own: Mapping[str, str]) -> dict[str, Any]:

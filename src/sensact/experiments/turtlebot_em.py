@@ -66,11 +66,18 @@ def scorecard(summary: dict[str, Any], name: str | None = None) -> list[BarCheck
         gain = not_scored(f"{key}.gain", gain_q, gain_bar, "the log holds one command")
     else:
         gain = at_most(f"{key}.gain", gain_q, sc["gain_error_pct"], GAIN_BAR_PCT, "%")
-    pcts = {k: v["rms_pct_of_span"] for k, v in sc["sensors"].items() if np.isfinite(v["rms_pct_of_span"])}
-    best = min(pcts, key=pcts.__getitem__, default=None)
+    best, pct = best_sensor(sc)
     sensor_q = f"{who}: best sensor ({best}), % of its span" if best else f"{who}: best sensor, % of its span"
-    sensor = at_most(f"{key}.sensor", sensor_q, pcts.get(best, float("nan")), SENSOR_BAR_PCT, "%")
+    sensor = at_most(f"{key}.sensor", sensor_q, float("nan") if pct is None else pct, SENSOR_BAR_PCT, "%")
     return [gain, sensor]
+
+
+def best_sensor(score: dict[str, Any]) -> tuple[str | None, float | None]:
+    """The sensor of a ``score_turtlebot_em`` result whose error is the least % of its span, and that error;
+    (None, None) when no sensor could be scored."""
+    pcts = {k: v["rms_pct_of_span"] for k, v in score["sensors"].items() if np.isfinite(v["rms_pct_of_span"])}
+    best = min(pcts, key=pcts.__getitem__, default=None)
+    return best, None if best is None else float(pcts[best])
 
 
 @dataclass(frozen=True)

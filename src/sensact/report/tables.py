@@ -624,6 +624,72 @@ def fleet_likelihood_lines(fleet: dict[str, Any]) -> list[str]:
     return lines + [f"not placed: {f}" for f in failed]
 
 
+FLEET_RANGE_TITLE = (
+    "each model placed on each Turtlebot CSV and scored against its range column (optimal scale and offset, "
+    "sec. 4.4.3): the action gain's error; the best sensor's, in % of its span"
+)
+
+
+def fleet_range_table(
+    fleet: dict[str, Any],
+    title: str = FLEET_RANGE_TITLE,
+    miss: Callable[[str], str] = lambda s: f"{s} (miss)",
+    own: Callable[[str], str] = lambda s: f"**{s}**",
+) -> Table:
+    """``experiments.fleet.range_grid``'s pairs, a row per model and a column per CSV with its range; ``miss``
+    marks a number past its bar, ``own`` a robot's own pair."""
+    rng = fleet["range"]
+
+    def cell(m: str, g: str) -> str:
+        c = rng["cells"][m][g]
+        if "failed" in c:
+            return "the filter failed"
+        if c["gain_error_pct"] is None:
+            gain = f"gain {one_command_reason(c['one_command_share'])}"
+        else:
+            gain = f"gain {c['gain_error_pct']:.2f} % off"
+            gain = gain if c["bars"]["gain"] else miss(gain)
+        if c["best_sensor"] is None:
+            sensor = "no sensor scored"
+        else:
+            sensor = f"{c['best_sensor']} {c['best_sensor_pct']:.2f} %"
+            sensor = sensor if c["bars"]["sensor"] else miss(sensor)
+        text = f"{gain}, {sensor}"
+        return own(text) if fleet["own"].get(m) == g else text
+
+    rows = [[m, *(cell(m, g) for g in rng["logs"])] for m in fleet["models"]]
+    return title, ["model \\ log", *rng["logs"]], rows
+
+
+def fleet_range_lines(fleet: dict[str, Any]) -> list[str]:
+    """What the range table says over the robots' own pairs and over the others, and which Turtlebot CSVs
+    could not be scored against their range."""
+    rng = fleet.get("range")
+    if not rng:
+        return []
+    lines = []
+    if rng["logs"]:
+        b = rng["bars"]
+        lines.append(
+            f"bars: the action gain within {b['gain_pct_max']:g} % of the range's, the best sensor within "
+            f"{b['sensor_pct_max']:g} % of its span"
+        )
+    for group, s in rng["summary"].items():
+        if not s["pairs"]:
+            continue
+        who = "a robot's own model" if group == "own" else "another robot's model" if fleet["own"] else "every pair"
+        gains = (
+            f"{s['clear_gain_bar']} of the {s['gain_scored']} with a scored gain clear the gain bar (worst "
+            f"{s['gain_error_pct_max']:.2f} % off)"
+            if s["gain_scored"]
+            else "no gain scored"
+        )
+        lines.append(f"{who} ({s['pairs']} pairs): {gains}, {s['clear_sensor_bar']} the sensor bar")
+    if rng["no_range"]:
+        lines.append("not scored against the range: " + ", ".join(f"{g} ({why})" for g, why in rng["no_range"].items()))
+    return lines
+
+
 def restart_runs_cell(runs: list[dict[str, Any]]) -> str:
     """Each run of ``fit.restart_while_lost``: its channels' start sigmas and its likelihood."""
     return "; ".join(
