@@ -761,6 +761,31 @@ def test_a_fleet_pair_the_filter_fails_on_is_a_cell_without_a_likelihood(tmp_pat
     assert fleet_likelihood_lines(fleet)[-1] == "not placed: bad on a: the filter failed from every start tried (6)"
 
 
+def test_a_log_that_another_model_explains_better_than_its_own_is_said_so():
+    """The likelihood lines: where another robot's model is the most likely on a log, the line names the
+    log's own model and its fall, not a fall of 0 for the other (turtlebot1d's calibration.csv, whose own
+    model was learned at one command)."""
+    from sensact.experiments.fleet import likelihood_summary
+    from sensact.report.tables import fleet_likelihood_lines
+
+    per = {"tr1": {"training1": -5.771, "calibration": -6.241}, "cal": {"training1": -8.064, "calibration": -6.316}}
+    cells = {
+        m: {g: {"per_sighting": v, "n_used": 10, "filter_ok": True} for g, v in row.items()} for m, row in per.items()
+    }
+    for g in ("training1", "calibration"):
+        best = max(per[m][g] for m in per)
+        for m in per:
+            cells[m][g]["below_best"] = best - per[m][g]
+    own = {"tr1": "training1", "cal": "calibration"}
+    fleet = {"own": own, "likelihood": {"cells": cells, "summary": likelihood_summary(cells, list(per["tr1"]), own)}}
+    lines = fleet_likelihood_lines(fleet)
+    assert lines[0].startswith("by the likelihood (no ground truth): on 1 of 2 logs the robot's own model")
+    assert lines[1] == (
+        "the closest other model on each log: cal on training1 (2.293 a sighting below), "
+        "tr1 on calibration (the most likely: cal, its own, 0.075 below)"
+    )
+
+
 def test_a_model_is_matched_to_the_log_it_names(tmp_path, monkeypatch):
     """`learn em` records the log folder as it was given: a relative one matches the end of a log's full
     path from any folder, ``.`` only the folder it is run from; another folder never matches."""

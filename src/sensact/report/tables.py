@@ -605,11 +605,16 @@ def fleet_likelihood_lines(fleet: dict[str, Any]) -> list[str]:
             f"by the likelihood (no ground truth): on {s['own_most_likely']} of {s['logs_with_own']} logs the "
             "robot's own model is the most likely (it has a small edge there, having been fitted to those sightings)"
         )
+    owner = {g: m for m, g in fleet["own"].items()}
     found = [(g, p) for g, p in s["per_log"].items() if p["closest_other"] is not None]
-    closest = [  # the unit said once, on the first
-        f"{p['closest_other']} on {g} ({p['closest_other_below']:.3f}{'' if i else ' a sighting below'})"
-        for i, (g, p) in enumerate(found)
-    ]
+
+    def closest_cell(g: str, p: dict[str, Any], first: bool) -> str:
+        own_below = lk["cells"][owner[g]][g]["below_best"] if g in owner else None
+        if p["closest_other_below"] == 0 and own_below:  # another model explains the run better than its own
+            return f"{p['closest_other']} on {g} (the most likely: {owner[g]}, its own, {own_below:.3f} below)"
+        return f"{p['closest_other']} on {g} ({p['closest_other_below']:.3f}{' a sighting below' if first else ''})"
+
+    closest = [closest_cell(g, p, i == 0) for i, (g, p) in enumerate(found)]  # the unit said once, on the first
     if closest:
         lines.append(
             ("the closest other model on each log: " if fleet["own"] else "the runner-up on each log: ")
