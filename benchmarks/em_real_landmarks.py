@@ -28,7 +28,7 @@ import numpy as np
 from sensact.errors import LogFormatError
 from sensact.experiments.real import mrclam_config, mrclam_folder, run_mrclam_robot
 from sensact.learn.em.checks import fall_per_sighting
-from sensact.report.tables import kept_run_cell, restart_runs_cell
+from sensact.report.tables_real import kept_run_cell, restart_runs_cell
 
 LANDMARK_FILE = "Landmark_Groundtruth.dat"
 

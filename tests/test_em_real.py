@@ -541,7 +541,7 @@ def test_fit_searches_the_delay_on_the_ridge_schedule_only_when_a_delay_is_learn
     assert off.delay_search is None
     # the report sets the learned delay beside From-Truth's, with the searches' moves
     from sensact.experiments.real import evaluate_mrclam
-    from sensact.report.tables import real_tables
+    from sensact.report.tables_real import real_tables
 
     row = {"em": on.summary(), "score": evaluate_mrclam(_TruthLog(data, poses), on)}
     _, headers, cells = real_tables({"mrclam": {"on": row}})[0]
@@ -596,7 +596,7 @@ def test_heading_noise_bins_skip_the_empty_tenths_of_tied_turn_rates():
 def test_fit_searches_the_ridge_when_the_held_stage_ends_and_every_so_often_after(tmp_path):
     from sensact.experiments.real import evaluate_mrclam
     from sensact.report.figures_real import figure_loglik
-    from sensact.report.tables import real_tables
+    from sensact.report.tables_real import real_tables
 
     data, poses = _simulate(2, T=1500)
     off = fit_em(data, None, _config(refine_from=4, max_iterations=12))
@@ -982,7 +982,7 @@ def test_em_restarts_from_a_tighter_start_while_f_turns_and_keeps_the_most_likel
     res = fit_em(data, None, cfg, progress=interrupt, on_restart=lambda k, signs, sigmas: heard.append(sigmas))
     assert res.stop_reason == "interrupted" and res.restarts is None and heard == [] and calls["n"] == 1
     # what `learn em` and `reproduce real` show of the last two-run fit
-    from sensact.report.tables import kept_run_cell, restart_runs_cell
+    from sensact.report.tables_real import kept_run_cell, restart_runs_cell
 
     calls.update(n=0, flagged=1)
     two = fit_em(data, None, replace(cfg, turn_restarts=1))
@@ -1206,7 +1206,7 @@ def test_a_robot_that_sees_no_landmark_is_refused_in_one_line_and_reproduce_goes
     from sensact.errors import LogFormatError
     from sensact.experiments.real import mrclam_config, run_real
     from sensact.io.mrclam import read_mrclam
-    from sensact.report.tables import real_tables
+    from sensact.report.tables_real import real_tables
 
     folder = tmp_path / "data" / "mrclam" / MRCLAM.name
     folder.mkdir(parents=True)
@@ -1807,7 +1807,7 @@ def test_frame_shared_fraction_is_split_by_the_robots_motion():
     also a shared one (sd 0.006 with own 0.004); the split gives about 0 and 0.36/0.52, the whole log
     a share in between."""
     from sensact.evaluate.landmark_truth import truth_noise_structure
-    from sensact.report.tables import shared_by_motion
+    from sensact.report.tables_real import shared_by_motion
 
     rng = np.random.default_rng(8)
     nf = 3000
@@ -1856,7 +1856,7 @@ def test_turtlebot_table_says_a_sensor_without_bins_is_not_scored():
     """A sensor whose window holds fewer than two distance bins has no span (NaN in memory, null once
     real.json is read back); the table says it was not scored instead of printing "nan", and so for a
     gain that a log at one speed cannot score."""
-    from sensact.report.tables import real_tables
+    from sensact.report.tables_real import real_tables
 
     sensor = {"rms_pct_of_span": 1.234, "span_mm": 1500.0}
     score = {"gain_learned": 0.9, "gain_true": 0.91, "gain_error_pct": 1.1, "delay_s": 0.12}
@@ -2013,7 +2013,7 @@ def test_reproduce_real_runs_every_mrclam_dataset_it_finds(tmp_path):
 
     from sensact.experiments.real import mrclam_config, mrclam_datasets, mrclam_row_key, run_real
     from sensact.report import figures_real
-    from sensact.report.tables import real_tables
+    from sensact.report.tables_real import real_tables
 
     root = tmp_path / "data"
     assert mrclam_datasets(root) == []
@@ -2089,7 +2089,7 @@ def test_reproduce_real_runs_every_turtlebot_training_log_it_finds(tmp_path, mon
     from sensact.experiments.real import run_real
     from sensact.experiments.shared_data import turtlebot_logs
     from sensact.report import figures_real
-    from sensact.report.tables import real_tables
+    from sensact.report.tables_real import real_tables
 
     base = tmp_path / "data" / "turtlebot1d"
     base.mkdir(parents=True)
@@ -2182,7 +2182,7 @@ def test_truth_heading_error_recovers_the_truths_own_heading_error_not_the_senso
     median gap."""
     from sensact.cli.scores import truth_heading_clause
     from sensact.evaluate.landmark_truth import truth_heading_error
-    from sensact.report.tables import truth_heading_cell
+    from sensact.report.tables_real import truth_heading_cell
 
     rng = np.random.default_rng(11)
     dt, T = 1 / 30, 36000

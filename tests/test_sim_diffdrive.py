@@ -672,7 +672,7 @@ def test_evaluate_fleet_scores_every_model_on_every_log(tmp_path):
     assert "another robot's model (2 pairs): 0 clear the action bars" in flat
     assert (tmp_path / "fleet.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     # the Markdown table (reproduce real's) bolds a robot's own pair and marks each number past its bar
-    from sensact.report.tables import fleet_table
+    from sensact.report.tables_fleet import fleet_table
 
     _, head, rows = fleet_table(fleet)
     assert head == ["model \\ log", "std", "slow"] and rows[-1][0] == "From-Truth"
@@ -703,7 +703,7 @@ def test_evaluate_fleet_scores_every_model_on_every_log(tmp_path):
         assert lk["cells"][f"m_{own}"][own]["below_best"] == 0.0
         assert lk["cells"][f"m_{other}"][own]["below_best"] > 0.1
     assert lk["summary"]["own_most_likely"] == lk["summary"]["logs_with_own"] == 2
-    from sensact.report.tables import fleet_likelihood_table
+    from sensact.report.tables_fleet import fleet_likelihood_table
 
     _, head, rows = fleet_likelihood_table(fleet)
     assert rows[0][1].startswith("**") and "(most likely)" in rows[0][1] and " below)" in rows[0][2]
@@ -729,7 +729,7 @@ def test_a_fleet_pair_the_filter_fails_on_is_a_cell_without_a_likelihood(tmp_pat
     from sensact.errors import ConfigError
     from sensact.experiments import fleet as fleet_mod
     from sensact.learn.em import EMConfig
-    from sensact.report.tables import fleet_likelihood_lines, fleet_likelihood_table
+    from sensact.report.tables_fleet import fleet_likelihood_lines, fleet_likelihood_table
 
     res = runner.invoke(app, ["simulate", "diffdrive", "--out", str(tmp_path / "a"), "--seconds", "30"])
     assert res.exit_code == 0, res.output
@@ -766,7 +766,7 @@ def test_a_log_that_another_model_explains_better_than_its_own_is_said_so():
     log's own model and its fall, not a fall of 0 for the other (turtlebot1d's calibration.csv, whose own
     model was learned at one command)."""
     from sensact.experiments.fleet import likelihood_summary
-    from sensact.report.tables import fleet_likelihood_lines
+    from sensact.report.tables_fleet import fleet_likelihood_lines
 
     per = {"tr1": {"training1": -5.771, "calibration": -6.241}, "cal": {"training1": -8.064, "calibration": -6.316}}
     cells = {

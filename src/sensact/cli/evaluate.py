@@ -263,7 +263,7 @@ def _log_name(path: Path) -> str:
 def print_fleet(fleet: dict[str, Any]) -> None:
     """The fleet's tables (a missed bar in red, a robot's own pair in bold) and what they say."""
     from sensact.cli.base import print_tables
-    from sensact.report.tables import (
+    from sensact.report.tables_fleet import (
         fleet_likelihood_lines,
         fleet_likelihood_table,
         fleet_lines,

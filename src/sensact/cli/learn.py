@@ -197,7 +197,7 @@ def learn_em_cmd(
     )
     from sensact.learn.em.config import refuse_bearing_settings
     from sensact.models.wheel_drive import as_differential_drive
-    from sensact.report.tables import kept_run_cell, restart_runs_cell
+    from sensact.report.tables_real import kept_run_cell, restart_runs_cell
 
     if log.is_file() and log.suffix.lower() == ".csv":  # a Turtlebot's settings, for the sensors it has
         from sensact.experiments.turtlebot_em import turtlebot_em_config

@@ -120,7 +120,7 @@ def _reproduce_real(
     from sensact.experiments.real import mrclam_config, run_real
     from sensact.learn.em import EMConfig
     from sensact.report import figures_real
-    from sensact.report.tables import real_tables
+    from sensact.report.tables_real import real_tables
 
     learner_f, other = split_fields(set_, config, EMConfig)
     if required and other:
@@ -157,7 +157,7 @@ def _reproduce_diffdrive(out: Path, trials: int, seed: int, set_: list[str] | No
     from sensact.experiments.diffdrive import DiffDriveExperiment, run_diffdrive
     from sensact.learn.em import EMConfig
     from sensact.report import figures_real
-    from sensact.report.tables import diffdrive_tables
+    from sensact.report.tables_real import diffdrive_tables
     from sensact.sim.diffdrive import DiffDriveConfig
 
     learner_f, sim_f = split_fields(set_, config, EMConfig)

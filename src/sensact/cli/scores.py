@@ -95,7 +95,7 @@ def print_simulated_score(model: Any, truth: dict[str, Any], dt_s: float) -> dic
 def truth_heading_clause(n: dict[str, Any]) -> str:
     """'; driving straight, the truth's own heading is off by ...': the truth's own heading error
     (``truth_heading_error``) for the truth's-noise line; empty where it could not be measured."""
-    from sensact.report.tables import truth_heading_cell
+    from sensact.report.tables_real import truth_heading_cell
 
     if truth_heading_cell(n) == "-":
         return ""
@@ -109,7 +109,8 @@ def truth_heading_clause(n: dict[str, Any]) -> str:
 
 def print_truth_score(sc: dict[str, Any]) -> None:
     from sensact.experiments.real import BARS, bar_checks
-    from sensact.report.tables import bars_sentence, shared_by_motion
+    from sensact.report.tables import bars_sentence
+    from sensact.report.tables_real import shared_by_motion
 
     a, r, b = sc["action"], sc["range"], sc["bearing"]
     bars = bar_checks(sc)

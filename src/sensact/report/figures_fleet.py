@@ -20,7 +20,7 @@ from matplotlib.patches import Rectangle
 from matplotlib.ticker import FuncFormatter
 
 from sensact.report.figures1d import _save
-from sensact.report.tables import FLEET_BARS
+from sensact.report.tables_fleet import FLEET_BARS
 
 # ratios are coloured on one scale about 1 (white), so that a figure of models that all carry over
 # looks quiet and a miss stands out; the colour bar marks the bars (the fleet's ``bars``)
