@@ -202,7 +202,7 @@ def evaluate_fleet_cmd(
     a robot's own when the model was learned on that log. Every model must share the logs' commands,
     readings and step (a Turtlebot CSV is read onto each model's own step)."""
     from sensact.cli.base import progress_bar
-    from sensact.cli.learn import read_em_log
+    from sensact.cli.learn import is_turtlebot_csv, read_em_log
     from sensact.experiments.fleet import RangeLog, score_fleet
     from sensact.io.atomic import write_json
     from sensact.learn.em.localize import learned_config
@@ -214,7 +214,7 @@ def evaluate_fleet_cmd(
     log_names = dict(zip(logs, fleet_names(logs, _log_name), strict=True))
     read: dict[Path, Any] = {}
     for log in logs:
-        if log.is_file() and log.suffix.lower() == ".csv":
+        if is_turtlebot_csv(log):
             # each model reads the CSV onto its own step, as `evaluate log` would (a track folder's steps are
             # its own, and a model on another step is refused)
             read[log] = RangeLog({model_names[p]: _csv_on_step(log, doc) for p, (doc, _) in docs.items()})

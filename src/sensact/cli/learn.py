@@ -119,11 +119,16 @@ def learn_bootstrap_cmd(
         console.print(f"wrote {out}, {out.with_suffix('.history.npz')} and {png}")
 
 
+def is_turtlebot_csv(log: Path) -> bool:
+    """Whether EM reads ``log`` as a Turtlebot CSV (``read_em_log``), not as a log folder."""
+    return log.is_file() and log.suffix.lower() == ".csv"
+
+
 def read_em_log(log: Path, bins: int, dt_s: float | None = None) -> tuple[Any, Any, Any]:
     """What EM reads: ``(data, the log folder, None)`` from a folder (continuous 1-D commands binned into
     ``bins`` actions), or ``(data, None, its range column)`` from a Turtlebot CSV (on ``dt_s``, or its median
     step); anything else is one line."""
-    if log.is_file() and log.suffix.lower() == ".csv":
+    if is_turtlebot_csv(log):
         from sensact.io.turtlebot import read_turtlebot_landmark_log
 
         data, truth = read_turtlebot_landmark_log(log, dt_s)
@@ -199,7 +204,7 @@ def learn_em_cmd(
     from sensact.models.wheel_drive import as_differential_drive
     from sensact.report.tables_real import kept_run_cell, restart_runs_cell
 
-    if log.is_file() and log.suffix.lower() == ".csv":  # a Turtlebot's settings, for the sensors it has
+    if is_turtlebot_csv(log):  # a Turtlebot's settings, for the sensors it has
         from sensact.experiments.turtlebot_em import turtlebot_em_config
         from sensact.io.turtlebot import EM_READINGS
 
