@@ -35,6 +35,7 @@ from sensact.evaluate.landmark_truth import score_against_truth
 from sensact.evaluate.turtlebot_em import range_column_problem, score_turtlebot_em
 from sensact.experiments.real import BARS, bar_checks
 from sensact.experiments.turtlebot_em import GAIN_BAR_PCT, SENSOR_BAR_PCT, best_sensor
+from sensact.experiments.turtlebot_em import scorecard as turtlebot_scorecard
 from sensact.learn.em.config import EMConfig
 from sensact.learn.em.localize import Localized, localize
 
@@ -183,19 +184,16 @@ def range_cell(loc: Localized | str, data: Any, range_mm: np.ndarray) -> dict[st
         return {"failed": loc, "gain_error_pct": None, "best_sensor": None, "best_sensor_pct": None, "bars": {}}
     sc = score_turtlebot_em(loc, data, range_mm)
     best, pct = best_sensor(sc)
-    gain = sc["gain_error_pct"]
+    gain, sensor = turtlebot_scorecard({"score": sc})  # the bars `reproduce real` holds a Turtlebot run to
     return {
         "gain_learned": sc["gain_learned"],
         "gain_true": sc["gain_true"],
-        "gain_error_pct": gain,
+        "gain_error_pct": sc["gain_error_pct"],
         "one_command_share": sc["one_command_share"],
         "sensors_pct_of_span": {k: v["rms_pct_of_span"] for k, v in sc["sensors"].items()},
         "best_sensor": best,
         "best_sensor_pct": pct,
-        "bars": {
-            "gain": None if gain is None else bool(gain <= GAIN_BAR_PCT),
-            "sensor": pct is not None and bool(pct <= SENSOR_BAR_PCT),
-        },
+        "bars": {"gain": gain.cleared, "sensor": sensor.cleared},
     }
 
 
