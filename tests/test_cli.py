@@ -675,6 +675,51 @@ def test_evaluate_fleet_scores_turtlebot_models_on_each_others_runs_against_thei
         assert (pct is None and alone is None) or pct == pytest.approx(alone, rel=1e-9), (channel, pct, alone)
 
 
+def test_learn_em_starts_from_a_model_learned_on_another_robot_of_its_kind(tmp_path):
+    """`learn em --start-from`: robot b (gain 0.72) learned from robot a's model (gain 0.9) learns b's own
+    gain, with a's settings read back whole from a's model.json; started from a's model on a's own run, EM
+    stays at a's fit (an exact reduction up to EM's last steps); a family the settings change and a model
+    for other readings are one line each."""
+    import numpy as np
+
+    for name, seed, gain in (("a", 7, 0.9), ("b", 9, 0.72)):
+        _write_turtlebot_csv(tmp_path / f"{name}.csv", with_range=True, seed=seed, gain=gain)
+    ma, mb = tmp_path / "ma.json", tmp_path / "mb.json"
+    assert runner.invoke(app, ["learn", "em", str(tmp_path / "a.csv"), "--out", str(ma)]).exit_code == 0
+    res = runner.invoke(app, ["learn", "em", str(tmp_path / "b.csv"), "--start-from", str(ma), "--out", str(mb)])
+    assert res.exit_code == 0, res.output
+    said = " ".join(res.output.split())
+    assert f"starting from {ma} (learned on {tmp_path / 'a.csv'}): its settings, parameters" in said
+    assert "start: (" in said and "from the first readings through the learned f" in said
+    a, b = json.loads(ma.read_text()), json.loads(mb.read_text())
+    assert b["start_from"]["model"] == str(ma) and b["start_from"]["placed"]["how"].startswith("the first readings")
+    # a's settings, windows at infinity included, and EM run from a learned start
+    assert b["summary"]["config"] == a["summary"]["config"] | {"warm_start": True}
+    # b's own gain, not a's. Measured: learned cold, b's gain is 0.40 % off and sonar1 2.67 % of its span
+    # (log-likelihood -2188.3); from a's model 0.39 % and 0.77 % (-1903.7, 52 iterations against 198)
+    assert b["evaluation"]["gain_error_pct"] < 1.0, b["evaluation"]
+    assert b["evaluation"]["sensors"]["sonar1"]["rms_pct_of_span"] < 1.5
+    # from a's own model on a's own run EM starts where it ended: the same fit
+    again = tmp_path / "again.json"
+    res = runner.invoke(app, ["learn", "em", str(tmp_path / "a.csv"), "--start-from", str(ma), "--out", str(again)])
+    assert res.exit_code == 0, res.output
+    c = json.loads(again.read_text())
+    assert c["summary"]["loglik_best"] == pytest.approx(a["summary"]["loglik_best"], abs=2.0)
+    assert c["evaluation"]["gain_learned"] == pytest.approx(a["evaluation"]["gain_learned"], rel=2e-3)
+    assert np.allclose(c["model"]["prior_mean"], a["model"]["prior_mean"], atol=5.0)
+    # a family the settings change, and a model for readings the log lacks, are one line each
+    res = runner.invoke(
+        app, ["learn", "em", str(tmp_path / "b.csv"), "--start-from", str(ma), "--set", "action_basis=polynomial"]
+    )
+    said = " ".join(res.output.split())
+    assert res.exit_code == 2 and "the start model has action_basis 'affine' and the settings 'polynomial'" in said
+    assert "without --start-from" in said and "Traceback" not in said, said
+    _write_turtlebot_csv(tmp_path / "c.csv", with_range=True, seed=8, drop=("raw_ir4",))
+    res = runner.invoke(app, ["learn", "em", str(tmp_path / "c.csv"), "--start-from", str(ma)])
+    said = " ".join(res.output.split())
+    assert res.exit_code == 2 and "the log has no reading raw_ir4" in said and "EM cannot start from it on" in said
+
+
 def test_track_start_candidates_invert_each_learned_f_inside_its_window():
     """The real roots of ``f(x) = o`` inside the window, with the sd the channel's sigma gives there."""
     import numpy as np

@@ -90,3 +90,24 @@ def test_the_gate_again_drops_exactly_the_bearings_off_the_smoothed_path_by_more
     assert set(rows) <= set(np.flatnonzero(flagged))
     assert not bearing_outliers(post, data, 0.0).any()
     assert not bearing_outliers(post, replace(data, geometry="track"), 0.6).any()
+
+
+def test_from_a_learned_model_the_gate_again_runs_on_the_first_e_step(misread, fits):
+    """`learn em --start-from` (learn/em/warm_start.py): nothing is held, so the gate again runs on the
+    first E-step's smoothed path. Seeded recovery: started from the model learned without the gate again
+    (its bearing sigma inflated by the misreads), EM drops those 20 sightings at once (and one other) and learns the
+    simulated bearing sigma. A warm start without a model to start from is refused."""
+    from sensact.errors import ConfigError
+    from sensact.learn.em.warm_start import start_from_model
+
+    sim, data, rows = misread
+    placed, cfg = start_from_model(fits[1].model, data, mrclam_config())
+    assert cfg.warm_start and cfg.start_search_s == mrclam_config().start_search_s
+    res = fit_em(data, placed.model, cfg)
+    assert res.freed_at == 0 and res.start_search is None  # nothing held, no start search
+    # the path the gate reads is the start model's, not yet refitted: one true sighting more goes too
+    assert not res.posteriors.obs_used[rows].any() and len(rows) <= res.n_pruned_when_freed <= len(rows) + 2
+    after = score_against_simulated(res.model, sim.truth(), sim.dt_s)
+    assert 0.9 < after["bearing_sigma_ratio"] < 1.2, after["bearing_sigma_ratio"]
+    with pytest.raises(ConfigError, match="warm_start starts EM from a learned model"):
+        fit_em(data, None, cfg)

@@ -1179,6 +1179,27 @@ def test_channels_parse_from_a_config_mapping():
         EMConfig(action_basis="affine", motion_noise="per_action")
 
 
+def test_a_config_written_in_a_model_json_reads_back_exactly(tmp_path):
+    """Exact round trip of the config a model.json holds (`summary.config`, which `learn em --start-from`
+    reads): JSON has no infinity, so a channel's open window is written as null and read back as the
+    default it was; a null for a float field whose default is finite stays an error naming the field."""
+    from dataclasses import asdict
+
+    from sensact.experiments.real import mrclam_config
+    from sensact.experiments.turtlebot_em import turtlebot_em_config
+    from sensact.io.atomic import write_json
+
+    for cfg in (mrclam_config(), turtlebot_em_config(), EMConfig(), replace(EMConfig(), warm_start=True)):
+        write_json(tmp_path / "m.json", {"config": asdict(cfg)})
+        assert config_from_dict(EMConfig, json.loads((tmp_path / "m.json").read_text())["config"]) == cfg
+    assert json.loads((tmp_path / "m.json").read_text())["config"]["warm_start"] is True
+    write_json(tmp_path / "t.json", asdict(turtlebot_em_config()))
+    sonar = json.loads((tmp_path / "t.json").read_text())["channels"][0]
+    assert sonar["valid_min"] is None and sonar["valid_max"] is None  # written as nulls, read back as +-inf
+    with pytest.raises(ConfigError, match="start_sigma: expected float, got None"):
+        config_from_dict(ChannelConfig, {"name": "x", "start_sigma": None}, source="m.json: channels")
+
+
 def test_a_config_written_as_yaml_reads_back_exactly(tmp_path):
     """Exact round trip of the YAML `convert mrclam` writes: only the fields that differ from the
     defaults (a channel's infinite window left out), and `build_config` gives the same config back."""

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import types
 import typing
 from collections.abc import Iterable, Mapping
@@ -136,7 +137,9 @@ def _coerce(value: Any, annotation: Any, name: str, source: str) -> Any:
 
 
 def config_from_dict(cls: type[C], data: Mapping[str, Any], *, source: str = "config") -> C:
-    """Build ``cls`` from a mapping; unknown keys are an error naming the closest valid fields."""
+    """Build ``cls`` from a mapping; unknown keys are an error naming the closest valid fields. A null for a
+    float field whose default is infinite is that default: JSON has no infinity, and the JSON writer
+    (``io/atomic.write_json``) puts a null there, so a config read back from a model.json is the one written."""
     hints = typing.get_type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
     kwargs = {}
@@ -148,6 +151,10 @@ def config_from_dict(cls: type[C], data: Mapping[str, Any], *, source: str = "co
                 field=key,
                 fix=f"valid fields are: {', '.join(sorted(fields))}.",
             )
+        default = fields[key].default
+        if value is None and hints[key] is float and isinstance(default, float) and math.isinf(default):
+            kwargs[key] = default
+            continue
         kwargs[key] = _coerce(value, hints[key], key, source)
     try:
         return cls(**kwargs)

@@ -185,6 +185,15 @@ def learn_em_cmd(
         ),
     ] = None,
     bins: Annotated[int, typer.Option(help="Actions to bin continuous 1-D commands into.")] = 21,
+    start_from: Annotated[
+        Path | None,
+        typer.Option(
+            "--start-from",
+            help="Start EM from this learned model (a model.json of `learn em`: another robot of the same kind, or "
+            "this one before a change) instead of the thesis's poor guess. It places the robot on the log first, as "
+            "`sensact localize` does, and the settings it was learned with are the ones --config and --set override.",
+        ),
+    ] = None,
     set_: SetOpt = None,
     config: ConfigOpt = None,
 ) -> None:
@@ -192,6 +201,7 @@ def learn_em_cmd(
 
     Ctrl-C stops early and still writes the most likely model so far."""
 
+    from sensact.config import config_from_dict
     from sensact.io.atomic import write_json, write_npz
     from sensact.learn.em import EMConfig, fit_em, initial_model
     from sensact.learn.em.checks import (
@@ -204,7 +214,26 @@ def learn_em_cmd(
     from sensact.models.wheel_drive import as_differential_drive
     from sensact.report.tables_real import kept_run_cell, restart_runs_cell
 
-    if is_turtlebot_csv(log):  # a Turtlebot's settings, for the sensors it has
+    if start_from is not None:  # the model's own settings, and the log read onto its step
+        from sensact.cli.model_on_log import read_em_model, refuse_model_for_log
+
+        start_doc, start_model = read_em_model(start_from)
+        learned = (start_doc.get("summary") or {}).get("config")
+        base = None if learned is None else config_from_dict(EMConfig, learned, source=f"{start_from}: summary.config")
+        dt = start_doc.get("dt_s")
+        data, lf, turtlebot_truth = read_em_log(log, bins, None if dt is None else float(dt))
+        if base is None and is_turtlebot_csv(log):
+            from sensact.experiments.turtlebot_em import turtlebot_em_config
+
+            base = turtlebot_em_config(data.reading_names)
+        cfg = layered_config(EMConfig, config, set_, base=base)
+        refuse_model_for_log(start_doc, start_model, data, start_from, log, use="start")
+        console.print(
+            f"starting from {start_from} (learned on {start_doc.get('log', 'a log it does not name')}): its "
+            + ("settings, " if learned is not None else "")
+            + "parameters and the start it finds; --config and --set override the settings."
+        )
+    elif is_turtlebot_csv(log):  # a Turtlebot's settings, for the sensors it has
         from sensact.experiments.turtlebot_em import turtlebot_em_config
         from sensact.io.turtlebot import EM_READINGS
 
@@ -246,7 +275,17 @@ def learn_em_cmd(
     refuse_bearing_settings(cfg, data)  # before the starting model, which would fail on it
     if data.geometry == "track" and data.step_commands is not None:
         warn_if_one_command(data.step_commands[:, 0], data.source, data.command_names[0])
-    start = initial_model(data, cfg)
+    placed = None
+    if start_from is not None:
+        from sensact.cli.localize import describe_placement
+        from sensact.learn.em.warm_start import start_from_model
+
+        with progress_bar() as progress:
+            placed, cfg = start_from_model(start_model, data, cfg, progress, source=str(start_from))
+        describe_placement(placed, start_doc.get("summary") or {}, data)
+        start = placed.model
+    else:
+        start = initial_model(data, cfg)
     if cfg.start_search_s > 0 and data.geometry == "planar":
         console.print(
             f"finding the start pose: a {cfg.start_search_grid_mm:g} mm grid scored on the first "
@@ -363,6 +402,14 @@ def learn_em_cmd(
                 "em_unsettled": next((t for t in signs if t["sign"] == "unsettled"), None),
                 "held_sideways_noise": held,  # ... and that a robot that side-steps is held to no sideways mean
                 "differential_drive": as_differential_drive(m.action),  # on wheel speeds: gain, axle, wheel ratio
+                # --start-from: the model EM started from, and where it placed the robot (learn/em/warm_start.py)
+                "start_from": None
+                if placed is None
+                else {
+                    "model": str(start_from),
+                    "placed": placed.start,
+                    "loglik_per_sighting": placed.loglik_per_sighting,
+                },
             },
         )
         write_npz(

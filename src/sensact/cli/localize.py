@@ -80,8 +80,6 @@ def place_robot(
     """The E-step with the model held (``learn.em.localize``), under the settings it was learned with and
     ``config``/``set_`` over them, with a progress bar; prints the start and the log-likelihood a sighting
     beside the one on the log it was learned from, which it returns with the run."""
-    import numpy as np
-
     from sensact.learn.em import EMConfig
     from sensact.learn.em.localize import learned_config, localize
 
@@ -92,6 +90,15 @@ def place_robot(
     )
     with progress_bar() as progress:
         loc = localize(m, data, cfg, start, progress)
+    return loc, describe_placement(loc, summary, data)
+
+
+def describe_placement(loc: Any, summary: dict[str, Any], data: Any) -> float | None:
+    """Where ``localize`` put the robot and how well the model fits the log: its log-likelihood a sighting
+    beside the one on the log it was learned from (``summary``, its model.json's), which it returns."""
+    import numpy as np
+
+    m = loc.model
     post = loc.posteriors
     chosen = ", ".join(f"{v:.4g}" for v in loc.model.prior_mean)
     tried = len(loc.start["candidates"])
@@ -111,7 +118,7 @@ def place_robot(
     console.print(line)
     if not post.ok:
         console.print("[yellow]the filter lost positive definiteness: the path is not to be trusted.[/]")
-    return loc, per_learned
+    return per_learned
 
 
 @app.command("localize")

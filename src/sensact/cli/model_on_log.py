@@ -21,20 +21,26 @@ def read_em_model(model: Path) -> tuple[dict[str, Any], Any]:
 def refuse_model_for_log(
     doc: dict[str, Any], m: Any, data: Any, model: Path, log: Path | str, learn: str | None = None, use: str = "scored"
 ) -> None:
-    """A model scores (or runs, ``use``) only on a log it could have been learned from: the same geometry,
-    commands (or number of actions), readings and step, since its delay is counted in steps. One line
-    naming what differs; ``learn`` is the command that learns a model on ``log``."""
+    """A model scores (or runs, or starts EM: ``use`` "scored", "run" or "start") only on a log it could have
+    been learned from: the same geometry, commands (or number of actions), readings and step, since its delay
+    is counted in steps. One line naming what differs; ``learn`` is the command that learns a model on ``log``."""
     import numpy as np
 
     from sensact.errors import ModelFormatError
     from sensact.models.action_table import ActionTable
 
+    cannot = "EM cannot start from it" if use == "start" else f"it cannot be {use}"
+
     def refuse(what: str, field: str, fix: str) -> None:
-        raise ModelFormatError(f"{what}, so it cannot be {use} on {log}.", file=model, field=field, fix=fix)
+        raise ModelFormatError(f"{what}, so {cannot} on {log}.", file=model, field=field, fix=fix)
 
     learn = learn or f"sensact learn em {log}"
-    verb = "score" if use == "scored" else "run"
-    relearn = f"{verb} it on a log like the one it was learned from, or learn one on this log ({learn})."
+    relearn = (
+        f"start from a model learned on a log like this one, or from the thesis's start ({learn} without --start-from)."
+        if use == "start"
+        else f"{'score' if use == 'scored' else 'run'} it on a log like the one it was learned from, or learn one "
+        f"on this log ({learn})."
+    )
     if m.geometry != data.geometry:
         refuse(f"the model is {m.geometry} and the log {data.geometry}", "geometry", relearn)
     if isinstance(m.action, ActionTable):

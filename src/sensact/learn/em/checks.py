@@ -168,8 +168,9 @@ def describe_lost_fit(signs: list[dict[str, Any]], advice: bool = True) -> str:
     if not advice:
         return line + "."
     return (
-        line + " (a local optimum). Try a longer log, or a smaller start_sigma for the channel (or more "
-        "turn_restarts) in --config (docs/em-real-results.md, Short logs)."
+        line + " (a local optimum). Try a longer log, a smaller start_sigma for the channel (or more "
+        "turn_restarts) in --config (docs/em-real-results.md, Short logs), or --start-from a model learned on a "
+        "robot like it."
     )
 
 

@@ -107,6 +107,10 @@ class EMConfig:
     # every sighting's bearing about the smoothed pose of its own step (k = 1; learn/em/outliers.py); a
     # config without robust readings (or without a held stage) has no such moment, and this does nothing
     prune_when_freed: bool = False
+    # the starting model is a learned one (`learn em --start-from`; learn/em/warm_start.py), placed on
+    # the log already: nothing is held (it has settled), the start is not searched for, and
+    # prune_when_freed's gate runs on the first E-step
+    warm_start: bool = False
     # choose pi(w_0) among a grid of poses by the forward likelihood of the first seconds (0 = off);
     # for a log with no idea where the robot starts (planar, with a landmark map)
     start_search_s: float = 0.0

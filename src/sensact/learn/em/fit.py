@@ -432,6 +432,13 @@ def fit_em_once(
         )
     refuse_no_sightings(data)
     refuse_bearing_settings(cfg, data)
+    if cfg.warm_start and initial is None:
+        raise ConfigError(
+            "warm_start starts EM from a learned model, and none was given.",
+            file=data.source,
+            field="warm_start",
+            fix="give the model to start from (sensact learn em --start-from MODEL.json), or set warm_start: false.",
+        )
     model = initial or initial_model(data, cfg)
     refuse_too_few_readings(model, data)
     rng = np.random.default_rng(cfg.seed)
@@ -440,7 +447,7 @@ def fit_em_once(
         model = model.replace(motion_sd=motion_sd_start(cfg, n))
     start_info = None
     spent = 0  # held iterations the start race has already given the model
-    if cfg.start_search_s > 0 and data.geometry == "planar":
+    if cfg.start_search_s > 0 and data.geometry == "planar" and not cfg.warm_start:
         candidates, start_info = start_candidates(data, model, cfg)
         model = candidates[0]
         if len(candidates) > 1:
@@ -460,8 +467,8 @@ def fit_em_once(
     refine_from = cfg.refine_from - spent
     # a race as long as refine_from has held the stage already: it ends at this fit's first iteration (so the
     # searches and prune_when_freed run then); refine_from 0 with no race holds nothing
-    refining = not staged or (refine_from <= 0 and spent == 0)
-    freed_at = -1
+    refining = not staged or (refine_from <= 0 and spent == 0) or cfg.warm_start
+    freed_at = 0 if staged and cfg.warm_start else -1  # a learned start has settled: freed from the first
     n_late = 0
     ridge_info: list[dict[str, Any]] = []
     delay_info: list[dict[str, Any]] = []
@@ -485,6 +492,9 @@ def fit_em_once(
                         field="channels[].valid_min / valid_max",
                         fix="check each channel's window (in the state's unit) against its starting line.",
                     )
+                if freed_at == 0 and model.sensor.is_robust and cfg.prune_when_freed:
+                    post, n_late = drop_late_outliers(post, data, cfg.prune_rad_per_step)
+                    obs_use = post.obs_used
             if not post.ok:
                 reason = "diverged"
                 break
@@ -518,10 +528,8 @@ def fit_em_once(
                 if model.sensor.is_robust:
                     best_ll = -np.inf  # the robust likelihood is another function: its own best from here
                     if cfg.prune_when_freed:  # what the first iteration's gate could not see (outliers.py)
-                        late = bearing_outliers(post, data, cfg.prune_rad_per_step)
-                        n_late = int(late.sum())
-                        obs_use = obs_use & ~late
-                        post = dc_replace(post, obs_used=obs_use)  # this M-step leaves them out already
+                        post, n_late = drop_late_outliers(post, data, cfg.prune_rad_per_step)
+                        obs_use = post.obs_used
             if it - max(best_it, freed_at) >= cfg.patience:
                 reason = "converged"
                 break
@@ -560,6 +568,14 @@ def fit_em_once(
         delay_info or None,
         n_pruned_when_freed=n_late,
     )
+
+
+def drop_late_outliers(post: Posteriors, data: LandmarkLog, gate_rad_per_step: float) -> tuple[Posteriors, int]:
+    """``prune_when_freed``: the first iteration's gate again, on the smoothed path (``outliers.py``); the
+    posteriors with those sightings no longer used (so that this M-step leaves them out already), and
+    how many."""
+    late = bearing_outliers(post, data, gate_rad_per_step)
+    return dc_replace(post, obs_used=post.obs_used & ~late), int(late.sum())
 
 
 def _stage_model(model: EMModel, robust: bool) -> EMModel:

@@ -73,8 +73,8 @@ class Localized:
 def learned_config(learned: Mapping[str, Any] | None, source: str = "model") -> EMConfig:
     """The settings to place the robot with: ``LEARNED_SETTINGS`` from the config the model was learned
     with (``learned``, a model.json's ``summary.config``; None for a model written without one), the
-    defaults for the rest. The whole config is not read back: its infinite channel windows are JSON nulls,
-    and the E-step takes the windows from the model's channels anyway."""
+    defaults for the rest: the E-step takes everything else (the channels, their windows, the robust
+    readings) from the model itself."""
     learned = learned or {}
     return config_from_dict(EMConfig, {k: learned[k] for k in LEARNED_SETTINGS if k in learned}, source=source)
 
