@@ -466,7 +466,8 @@ def fit_em_once(
     staged = learns_sigma_m or model.sensor.is_robust or any(c.bearing_terms for c in model.sensor.channels)
     refine_from = cfg.refine_from - spent
     # a race as long as refine_from has held the stage already: it ends at this fit's first iteration (so the
-    # searches and prune_when_freed run then); refine_from 0 with no race holds nothing
+    # searches and prune_when_freed run then); refine_from 0 with no race holds nothing, and neither does a
+    # learned start (warm_start), whose first E-step prune_when_freed reads
     refining = not staged or (refine_from <= 0 and spent == 0) or cfg.warm_start
     freed_at = 0 if staged and cfg.warm_start else -1  # a learned start has settled: freed from the first
     n_late = 0
