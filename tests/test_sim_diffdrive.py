@@ -764,7 +764,7 @@ def test_a_fleet_pair_the_filter_fails_on_is_a_cell_without_a_likelihood(tmp_pat
 def test_a_log_that_another_model_explains_better_than_its_own_is_said_so():
     """The likelihood lines: where another robot's model is the most likely on a log, the line names the
     log's own model and its fall, not a fall of 0 for the other (turtlebot1d's calibration.csv, whose own
-    model was learned at one command)."""
+    model was learned at one command), and suggests learning that log again from the better model."""
     from sensact.experiments.fleet import likelihood_summary
     from sensact.report.tables_fleet import fleet_likelihood_lines
 
@@ -783,6 +783,10 @@ def test_a_log_that_another_model_explains_better_than_its_own_is_said_so():
     assert lines[1] == (
         "the closest other model on each log: cal on training1 (2.293 a sighting below), "
         "tr1 on calibration (the most likely: cal, its own, 0.075 below)"
+    )
+    assert lines[2] == (
+        "a log's own model that another beats may be learned again from that one (calibration from tr1's): "
+        "sensact learn em LOG --start-from MODEL.json"
     )
 
 

@@ -135,6 +135,17 @@ def fleet_likelihood_lines(fleet: dict[str, Any]) -> list[str]:
             ("the closest other model on each log: " if fleet["own"] else "the runner-up on each log: ")
             + ", ".join(closest)
         )
+    beaten = [
+        (g, p["closest_other"])
+        for g, p in found
+        if g in owner and p["closest_other_below"] == 0 and lk["cells"][owner[g]][g]["below_best"]
+    ]
+    if beaten:  # the log's own fit is not the most likely one: EM from the better model may find a likelier own
+        lines.append(
+            "a log's own model that another beats may be learned again from that one ("
+            + ", ".join(f"{g} from {m}'s" for g, m in beaten)
+            + "): sensact learn em LOG --start-from MODEL.json"
+        )
     failed = [
         f"{m} on {g}: {c['failed']}"
         for m, row in lk["cells"].items()
