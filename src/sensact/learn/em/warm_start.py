@@ -14,14 +14,13 @@ config describes; a model of others is refused, naming the first setting that di
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
 
 from sensact.errors import ConfigError
 from sensact.learn.em.config import EMConfig
 from sensact.learn.em.fit import initial_model
-from sensact.learn.em.localize import Localized, localize
+from sensact.learn.em.localize import Localized, Progress, localize
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.action_table import ActionTable
 from sensact.models.em_model import EMModel
@@ -85,7 +84,7 @@ def start_from_model(
     model: EMModel,
     data: LandmarkLog,
     config: EMConfig,
-    progress: Callable[[str, int, int | None], None] | None = None,
+    progress: Progress | None = None,
     *,
     source: str = "model",
 ) -> tuple[Localized, EMConfig]:
