@@ -1,6 +1,7 @@
 """EM on MRCLAM Dataset 6 with fewer landmarks: does each robot still find itself, and do the bars hold?
 
     python benchmarks/em_real_landmarks.py [--maps 8:2 6:0 6:1] [--robots 1 2 3 4 5] [--turn-restarts N]
+                                           [--start-from-robot N]
 
 Each map ``K:S`` keeps K of the dataset's 15 landmarks, drawn by ``numpy.random.default_rng(S)``
 without replacement; a scratch copy of the dataset (links to its files, ``Landmark_Groundtruth.dat``
@@ -10,7 +11,9 @@ on each robot and prints, per robot, the sightings kept, how far the smoothed pa
 (median), the restarts (``turn_restarts``, 2 by default, 0 none: each run's start sigma and
 log-likelihood, the kept one marked), the kept fit's mean fall of the likelihood after its best per
 sighting used (``fall/sighting``; learn/em/checks.py calls a fit unsettled over 0.1), the
-log-likelihood and which bars failed; then each map's bars cleared.
+log-likelihood and which bars failed; then each map's bars cleared. With ``--start-from-robot N``, robot
+N learns first, from the poor start, and every other robot from N's model (``learn em --start-from``:
+learn/em/warm_start.py), as a fleet on that map would.
 Needs ../shared/data/mrclam (or $SENSACT_DATA). About 1.5 minutes a map on 2 cores.
 """
 
@@ -26,8 +29,12 @@ from pathlib import Path
 import numpy as np
 
 from sensact.errors import LogFormatError
-from sensact.experiments.real import mrclam_config, mrclam_folder, run_mrclam_robot
+from sensact.experiments.real import evaluate_mrclam, mrclam_config, mrclam_folder, run_mrclam_robot
+from sensact.io.mrclam import MrclamLog, read_mrclam
+from sensact.learn.em import EMConfig, EMResult, fit_em
 from sensact.learn.em.checks import fall_per_sighting
+from sensact.learn.em.warm_start import start_from_model
+from sensact.models.em_model import EMModel
 from sensact.report.tables_real import kept_run_cell, restart_runs_cell
 
 LANDMARK_FILE = "Landmark_Groundtruth.dat"
@@ -61,6 +68,14 @@ def parse_map(text: str) -> tuple[int, int]:
     return keep, seed
 
 
+def run_from_model(dataset: Path, robot: int, model: EMModel, cfg: EMConfig) -> tuple[dict, MrclamLog, EMResult]:
+    """``run_mrclam_robot``'s row, score and fit for ``robot`` learned from ``model`` (placed first)."""
+    ml = read_mrclam(dataset, robot)
+    placed, warm = start_from_model(model, ml.data, cfg)
+    res = fit_em(ml.data, placed.model, warm)
+    return {"score": evaluate_mrclam(ml, res)}, ml, res
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
@@ -72,6 +87,13 @@ def main() -> None:
     )
     parser.add_argument("--robots", type=int, nargs="+", default=[1, 2, 3, 4, 5], help="MRCLAM robots (default all)")
     parser.add_argument("--turn-restarts", type=int, default=None, help="restarts of a lost fit (default 2)")
+    parser.add_argument(
+        "--start-from-robot",
+        type=int,
+        default=None,
+        help="learn this robot first, from the poor start, and the others from its model (default: each from the "
+        "poor start)",
+    )
     args = parser.parse_args()
     folder = mrclam_folder()
     if not folder.is_dir():
@@ -80,6 +102,8 @@ def main() -> None:
     cfg = mrclam_config()
     if args.turn_restarts is not None:
         cfg = replace(cfg, turn_restarts=args.turn_restarts)
+    source = args.start_from_robot
+    robots = args.robots if source is None else [source, *(r for r in args.robots if r != source)]
     for keep, seed in args.maps:
         if keep > len(ids):
             sys.exit(f"map {keep}:{seed}: the dataset has {len(ids)} landmarks")
@@ -92,13 +116,19 @@ def main() -> None:
         cleared = total = 0
         with tempfile.TemporaryDirectory() as tmp:
             copy = cut_copy(folder, kept, Path(tmp))
-            for robot in args.robots:
+            learned = None
+            for robot in robots:
                 t0 = time.perf_counter()
                 try:
-                    row, ml, res = run_mrclam_robot(copy, robot, cfg)
+                    if learned is not None and robot != source:
+                        row, ml, res = run_from_model(copy, robot, learned, cfg)
+                    else:
+                        row, ml, res = run_mrclam_robot(copy, robot, cfg)
                 except LogFormatError as exc:  # e.g. a robot that sees none of the kept landmarks
                     print(f"{robot:5d}  not run: {exc}", flush=True)
                     continue
+                if robot == source:
+                    learned = res.model
                 bars = row["score"]["bars"]
                 failed = [k for k, ok in bars.items() if not ok]
                 cleared += sum(bool(ok) for ok in bars.values())
@@ -114,7 +144,8 @@ def main() -> None:
                     f"{', '.join(failed) or 'none':11s}  {runs}",
                     flush=True,
                 )
-        print(f"map {keep}:{seed}: bars {cleared} of {total} cleared", flush=True)
+        after = "" if source is None else f" (robots other than {source} learned from its model)"
+        print(f"map {keep}:{seed}: bars {cleared} of {total} cleared{after}", flush=True)
 
 
 if __name__ == "__main__":

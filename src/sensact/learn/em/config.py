@@ -105,7 +105,8 @@ class EMConfig:
     refine_from: int = 100
     # when the robust readings take over from the Gaussian ones, apply prune_rad_per_step's gate again to
     # every sighting's bearing about the smoothed pose of its own step (k = 1; learn/em/outliers.py); a
-    # config without robust readings (or without a held stage) has no such moment, and this does nothing
+    # config without robust readings (or without a held stage, unless from a learned model: warm_start)
+    # has no such moment, and this does nothing
     prune_when_freed: bool = False
     # the starting model is a learned one (`learn em --start-from`; learn/em/warm_start.py), placed on
     # the log already: nothing is held (it has settled), the start is not searched for, and
