@@ -215,19 +215,16 @@ def learn_em_cmd(
     from sensact.report.tables_real import kept_run_cell, restart_runs_cell
 
     if start_from is not None:  # the model's own settings, and the log read onto its step
-        from sensact.cli.model_on_log import read_em_model, refuse_model_for_log
+        from sensact.cli.model_on_log import read_model_and_log
 
-        start_doc, start_model = read_em_model(start_from)
+        start_doc, start_model, data, lf, turtlebot_truth = read_model_and_log(log, start_from, bins, use="start")
         learned = (start_doc.get("summary") or {}).get("config")
         base = None if learned is None else config_from_dict(EMConfig, learned, source=f"{start_from}: summary.config")
-        dt = start_doc.get("dt_s")
-        data, lf, turtlebot_truth = read_em_log(log, bins, None if dt is None else float(dt))
         if base is None and is_turtlebot_csv(log):
             from sensact.experiments.turtlebot_em import turtlebot_em_config
 
             base = turtlebot_em_config(data.reading_names)
         cfg = layered_config(EMConfig, config, set_, base=base)
-        refuse_model_for_log(start_doc, start_model, data, start_from, log, use="start")
         console.print(
             f"starting from {start_from} (learned on {start_doc.get('log', 'a log it does not name')}): its "
             + ("settings, " if learned is not None else "")

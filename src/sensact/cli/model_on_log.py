@@ -81,7 +81,7 @@ def refuse_model_for_log(
 def read_model_and_log(log: Path, model: Path, bins: int, use: str) -> tuple[dict[str, Any], Any, Any, Any, Any]:
     """``(model.json, the model, the log's data, its folder or None, a Turtlebot CSV's range column or None)``,
     the log read onto the model's step; a model that does not fit the log is refused in one line (``use``:
-    "run" or "scored")."""
+    "run", "scored" or "start")."""
     from sensact.cli.learn import read_em_log
 
     doc, m = read_em_model(model)
