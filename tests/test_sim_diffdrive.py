@@ -272,20 +272,31 @@ def test_em_learns_a_robot_that_side_steps_with_every_velocity_free():
 
 
 def test_simulate_diffdrive_then_learn_em_scores_against_the_simulation(tmp_path):
+    from sensact.config import config_from_dict, load_yaml_mapping
+    from sensact.learn.em import EMConfig
+
     log, model = tmp_path / "dd", tmp_path / "m.json"
     res = runner.invoke(app, ["simulate", "diffdrive", "--out", str(log), "--seconds", "90", "--seed", "3"])
     assert res.exit_code == 0, res.output
     assert f"sensact learn em {log} --config {log / 'em_config.yaml'}" in " ".join(res.output.split())
     lf = read_landmark_log(log)
     assert lf.data.is_continuous and lf.meta["truth"]["kind"] == "diffdrive" and lf.truth_poses() is not None
-    res = runner.invoke(app, ["learn", "em", str(log)])  # the thesis's action table cannot read its commands
+    other = tmp_path / "other.yaml"  # a config of the user's without the action basis: the thesis's table
+    other.write_text("max_iterations: 5\n")
+    res = runner.invoke(app, ["learn", "em", str(log), "--config", str(other)])
     flat = " ".join(res.output.split())
     assert res.exit_code != 0 and "action_basis" in flat and f"--config {log / 'em_config.yaml'}" in flat
     assert "Traceback" not in res.output
-    cfg = ["--config", str(log / "em_config.yaml"), "--set", "max_iterations=40", "--set", "start_candidates=2"]
-    res = runner.invoke(app, ["learn", "em", str(log), "--out", str(model), *cfg])
+    # without --config, the settings written beside the log are the ones --set overrides
+    sets = ["--set", "max_iterations=40", "--set", "start_candidates=2"]
+    res = runner.invoke(app, ["learn", "em", str(log), "--out", str(model), *sets])
     assert res.exit_code == 0, res.output
     doc = json.loads(model.read_text())
+    beside = config_from_dict(EMConfig, load_yaml_mapping(log / "em_config.yaml"))
+    assert config_from_dict(EMConfig, doc["summary"]["config"]) == replace(
+        beside, max_iterations=40, start_candidates=2
+    )
+    assert f"settings: {log / 'em_config.yaml'}, written beside the log" in " ".join(res.output.split())
     ev = doc["evaluation"]
     flat = " ".join(res.output.split())
     learned = EMModel.from_dict(doc["model"])

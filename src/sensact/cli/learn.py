@@ -243,6 +243,10 @@ def learn_em_cmd(
             + (f" Channels {', '.join(data.reading_names)} ({', '.join(absent)} not in the file)." if absent else "")
         )
     else:
+        beside = log / "em_config.yaml"
+        if config is None and beside.is_file():  # the settings `convert` or `simulate diffdrive` wrote for this log
+            config = beside
+            console.print(f"settings: {beside}, written beside the log; --config replaces them, --set overrides them.")
         cfg = layered_config(EMConfig, config, set_)  # bad settings are said before the log is read
         data, lf, turtlebot_truth = read_em_log(log, bins)
     console.print(
