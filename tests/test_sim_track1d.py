@@ -67,7 +67,10 @@ def test_every_parameter_is_overridable(tmp_path):
     assert cfg.truth().velocity_mm_s(150.0) == pytest.approx(50.0)
     with pytest.raises(ConfigError, match="non-decreasing"):
         build_config(Track1DConfig, None, ["action_knots_v_mm_s=[1, 0, 2]", "action_knots_c_mm_s=[-1, 0, 1]"])
-    with pytest.raises(ConfigError, match="unknown field 'noise'"):
+    with pytest.raises(ConfigError, match="unknown field 'noise'") as err:
         build_config(Track1DConfig, None, ["noise=1"])
+    assert "did you mean" not in str(err.value)  # nothing near enough to name
+    with pytest.raises(ConfigError, match="did you mean 'turn_far_px'"):  # a typo names the field it is near
+        build_config(Track1DConfig, None, ["turn_far_pxx=12.5"])
     with pytest.raises(ConfigError, match="seed"):
         build_config(Track1DConfig, None, ["seed=abc"])

@@ -7,6 +7,7 @@ This module turns user text into such a dataclass with errors that name the fiel
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import json
 import math
 import types
@@ -145,11 +146,12 @@ def config_from_dict(cls: type[C], data: Mapping[str, Any], *, source: str = "co
     kwargs = {}
     for key, value in data.items():
         if key not in fields:
+            near = difflib.get_close_matches(key, fields, n=1)
             raise ConfigError(
                 f"unknown field {key!r} for {cls.__name__}.",
                 file=source,
                 field=key,
-                fix=f"valid fields are: {', '.join(sorted(fields))}.",
+                fix=(f"did you mean {near[0]!r}? " if near else "") + f"valid fields are: {', '.join(sorted(fields))}.",
             )
         default = fields[key].default
         if value is None and hints[key] is float and isinstance(default, float) and math.isinf(default):
