@@ -28,3 +28,14 @@ def short_run():
     from sensact.sim.track1d import Track1DConfig, simulate_track
 
     return simulate_track(Track1DConfig(seconds=60.0, seed=11))
+
+
+@pytest.fixture(scope="session")
+def continuous_fit():
+    """tests/continuous_robot.py's robot (seed 1) learned by EM from a near start, shared by the EM tests that
+    read it (none changes it)."""
+    from continuous_robot import continuous_config, simulate_continuous
+    from sensact.learn.em import fit_em
+
+    data, poses = simulate_continuous(1)
+    return data, poses, fit_em(data, None, continuous_config())
