@@ -29,26 +29,32 @@ def simulate_continuous(
     sd=TRUE_SD,
     turn_var: float = 0.0,
     delay_steps: int = 0,
+    beta_after=None,
 ):
     """A robot on continuous commands among five landmarks, range and bearing. The range reads
     ``1.05 d + 40 + d (a_1 b + a_2 b^2)`` with ``bearing_terms`` (a_1, a_2) at the measured bearing b.
     The heading's motion variance per step is ``sd[2]^2 + turn_var |omega_t|``. The robot obeys each
-    command ``delay_steps`` steps late."""
+    command ``delay_steps`` steps late, and from step ``T // 2`` on obeys ``beta_after`` when it is given
+    (a change during the run, as a new floor)."""
     rng = np.random.default_rng(seed)
     dt = 1 / 30
     seg = rng.integers(30, 120, T // 30)
     levels = np.column_stack([rng.uniform(0, 300, seg.size), rng.uniform(-0.6, 0.6, seg.size)])
     commands = np.repeat(levels, seg, axis=0)[:T]
-    v = command_features("affine", 1, commands) @ beta
+    betas = [beta, beta if beta_after is None else beta_after]
+    v = np.concatenate(
+        [command_features("affine", 1, c) @ b for c, b in zip(np.split(commands, [T // 2]), betas, strict=True)]
+    )
     poses = np.zeros((T, 3))
     for t in range(T - 1):
+        b = betas[t >= T // 2]
         # steer back toward the middle, so the robot stays among the landmarks
         if np.hypot(*poses[t, :2]) > 1500:
             commands[t, 1] = 0.6
-            v[t] = command_features("affine", 1, commands[t : t + 1]) @ beta
+            v[t] = command_features("affine", 1, commands[t : t + 1]) @ b
         if delay_steps:
             late = max(t - delay_steps, 0)
-            v[t] = command_features("affine", 1, commands[late : late + 1]) @ beta
+            v[t] = command_features("affine", 1, commands[late : late + 1]) @ b
         step_sd = np.array([sd[0], sd[1], math.sqrt(sd[2] ** 2 + turn_var * abs(v[t, 2]))])
         poses[t + 1] = apply_displacement(poses[t], (v[t] + rng.normal(size=3) * step_sd / dt) * dt)[0]
     steps = np.arange(0, T, 6)

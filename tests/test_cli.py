@@ -685,7 +685,16 @@ def test_learn_em_starts_from_a_model_learned_on_another_robot_of_its_kind(tmp_p
     for name, seed, gain in (("a", 7, 0.9), ("b", 9, 0.72)):
         _write_turtlebot_csv(tmp_path / f"{name}.csv", with_range=True, seed=seed, gain=gain)
     ma, mb = tmp_path / "ma.json", tmp_path / "mb.json"
-    assert runner.invoke(app, ["learn", "em", str(tmp_path / "a.csv"), "--out", str(ma)]).exit_code == 0
+    res = runner.invoke(app, ["learn", "em", str(tmp_path / "a.csv"), "--out", str(ma), "--halves"])
+    assert res.exit_code == 0, res.output
+    # --halves: each half learned on from a's model; a's gain does not change during its run
+    halves = json.loads(ma.read_text())["halves"]
+    assert [h["steps"] for h in halves["fits"]] == [[0, 1249], [1249, 2499]]
+    cmp = halves["comparison"]  # measured: 2.02 mm/s; sigma ratios 1.00-1.08
+    assert cmp["velocity"]["first_vs_second"]["velocity_mm_s"] < 5.0
+    assert set(cmp["f"]["spans"]) == {"sonar1", "raw_ir1", "raw_ir3", "raw_ir4"}  # raw_ir2 read nothing in its window
+    assert "raw_ir2 sigma" not in cmp["noise"]["halves_ratio"] and max(cmp["noise"]["halves_ratio"].values()) < 1.2
+    assert "the log's halves, each learned on from the whole log's model" in " ".join(res.output.split())
     res = runner.invoke(app, ["learn", "em", str(tmp_path / "b.csv"), "--start-from", str(ma), "--out", str(mb)])
     assert res.exit_code == 0, res.output
     said = " ".join(res.output.split())

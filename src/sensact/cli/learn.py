@@ -7,7 +7,16 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
-from sensact.cli.base import ConfigOpt, SetOpt, console, friendly, layered_config, learn_app, progress_bar
+from sensact.cli.base import (
+    ConfigOpt,
+    SetOpt,
+    console,
+    friendly,
+    layered_config,
+    learn_app,
+    print_tables,
+    progress_bar,
+)
 from sensact.cli.scores import evaluate_em, evaluate_log, evaluate_turtlebot_em, print_em_model
 
 if TYPE_CHECKING:  # numpy is imported where a command needs it, so that --help stays quick
@@ -171,6 +180,54 @@ def write_smoothed_path(path: Path, posteriors: Any, data: Any) -> Path:
 TRUTH_FIGURES = ("actions", "range", "heading_noise", "bearing", "against_range")
 
 
+def learn_and_compare_halves(res: Any, data: Any, cfg: Any) -> dict[str, Any]:
+    """`learn em --halves`: each half of ``data`` learned on from ``res``'s model (learn/em/halves.py),
+    the three compared (evaluate/halves.py) and printed; what the model JSON keeps of it."""
+    from sensact.cli.scores import halves_rows
+    from sensact.evaluate.halves import compare_halves
+    from sensact.learn.em.halves import learn_halves
+
+    console.print("--halves: each half of the log learned on from this model, placed on it as `localize` does")
+    with progress_bar() as progress:
+        fits = learn_halves(
+            res.model,
+            data,
+            cfg,
+            progress=progress,
+            on_iteration=lambda half, it, ll, best, since: progress(
+                f"EM on the {half}: log-likelihood {ll:.1f} (best {best:.1f})", it + 1, None
+            ),
+        )
+    cmp = compare_halves(res.model, fits[0].result.model, fits[1].result.model, res.posteriors, data)
+    print_tables(
+        [
+            (
+                "the log's halves, each learned on from the whole log's model (evaluate/halves.py)",
+                ["", *[h.name for h in fits], "whole log", "halves differ by"],
+                halves_rows(cmp, fits, data),
+            )
+        ]
+    )
+    for h in fits:
+        if h.result.best_iteration == 0:  # EM keeps its most likely model, and none it learned beat its start
+            console.print(
+                f"the {h.name} kept the whole log's model: EM found none more likely on it, so the two do not differ"
+            )
+    return {
+        "comparison": cmp,
+        "fits": [
+            {
+                "half": h.name,
+                "steps": list(h.steps),
+                "placed": h.placed.start,
+                "summary": h.result.summary(),
+                "model": h.result.model.to_dict(),
+            }
+            for h in fits
+        ],
+    }
+
+
 @learn_app.command("em")
 @friendly
 def learn_em_cmd(
@@ -194,6 +251,14 @@ def learn_em_cmd(
             "`sensact localize` does, and the settings it was learned with are the ones --config and --set override.",
         ),
     ] = None,
+    halves: Annotated[
+        bool,
+        typer.Option(
+            "--halves",
+            help="Then learn each half of the log on from the whole log's model and compare the three: parameters "
+            "the log pins down come out alike from both halves (no ground truth needed; about as long again).",
+        ),
+    ] = False,
     set_: SetOpt = None,
     config: ConfigOpt = None,
 ) -> None:
@@ -388,6 +453,9 @@ def learn_em_cmd(
         if lf is not None
         else evaluate_turtlebot_em(res, data, turtlebot_truth)
     )
+    halves_doc = None
+    if halves and res.posteriors is not None:
+        halves_doc = learn_and_compare_halves(res, data, cfg)
     if out is not None:
         write_json(
             out,
@@ -411,6 +479,7 @@ def learn_em_cmd(
                     "placed": placed.start,
                     "loglik_per_sighting": placed.loglik_per_sighting,
                 },
+                "halves": halves_doc,  # --halves: each half learned on from this model, and compared
             },
         )
         write_npz(

@@ -340,3 +340,54 @@ def evaluate_log(data: Any, res: Any, cfg: Any) -> dict[str, Any] | None:
         )
         return out
     return None
+
+
+def halves_rows(cmp: dict[str, Any], fits: list[Any], whole: Any) -> list[list[str]]:
+    """The rows of `learn em --halves`'s table (``evaluate/halves.compare_halves``): each half's
+    difference from the whole log's model and the halves' from each other."""
+
+    def velocity(d: dict[str, float]) -> str:
+        if "translation_mm_s" in d:
+            return f"{d['translation_mm_s']:.2f} mm/s, {d['rotation_rad_s']:.4f} rad/s"
+        return f"{d['velocity_mm_s']:.2f} mm/s"
+
+    v, f, n, delay = cmp["velocity"], cmp["f"], cmp["noise"], cmp["delay_s"]
+    rows = [
+        ["steps (sightings)"]
+        + [f"{b - a} ({h.data.n_observations})" for h in fits for a, b in [h.steps]]
+        + [f"{whole.n_steps} ({whole.n_observations})", ""],
+        ["EM iterations, the most likely at"]
+        + [f"{h.result.iterations}, {h.result.best_iteration} ({h.result.seconds:.1f} s)" for h in fits]
+        + ["", ""],
+        [
+            "velocities against the whole's, RMS over its commands",
+            velocity(v["first_vs_whole"]),
+            velocity(v["second_vs_whole"]),
+            "",
+            velocity(v["first_vs_second"]),
+        ],
+    ]
+    for name, (lo, hi) in f["spans"].items():
+        rows.append(
+            [f"{name} f against the whole's, RMS over {lo:.0f}-{hi:.0f} mm"]
+            + [f"{f[k][name]:.4g}" for k in ("first_vs_whole", "second_vs_whole")]
+            + ["", f"{f['first_vs_second'][name]:.4g}"]
+        )
+    for key, value in n["whole"].items():
+        ratio = n["halves_ratio"].get(key)
+        rows.append(
+            [
+                key,
+                f"{n['first'][key]:.4g}",
+                f"{n['second'][key]:.4g}",
+                f"{value:.4g}",
+                f"x {ratio:.2f}" if ratio is not None else "-",
+            ]
+        )
+    if delay["whole"] is not None:
+        rows.append(
+            ["command delay, s"]
+            + [f"{delay[k]:.3f}" for k in ("first", "second", "whole")]
+            + [f"{abs(delay['first'] - delay['second']):.3f}"]
+        )
+    return rows

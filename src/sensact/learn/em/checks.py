@@ -45,13 +45,21 @@ UNSETTLED_PER_SIGHTING = 0.1
 
 
 def _fitted_distances(model: EMModel, post: Posteriors, data: LandmarkLog) -> list[tuple[Any, tuple[float, float]]]:
-    """Each channel of a planar log with the span (``DISTANCE_PERCENTILES``) of the distances, from the
-    smoothed path, of the sightings it used within its window; channels with fewer than two are left out."""
-    if data.geometry != "planar" or not data.n_observations:
+    """``fitted_distances`` on a planar log (the lost-fit signs); none on a track."""
+    return fitted_distances(model, post, data) if data.geometry == "planar" else []
+
+
+def fitted_distances(model: EMModel, post: Posteriors, data: LandmarkLog) -> list[tuple[Any, tuple[float, float]]]:
+    """Each channel with the span (``DISTANCE_PERCENTILES``) of the distances, from the smoothed path, of
+    the sightings it used within its window; channels with fewer than two are left out."""
+    if not data.n_observations:
         return []
     use = np.asarray(post.obs_used, dtype=bool)
-    poses = post.mean_gamma[data.obs_step[use]]
-    dist = landmark_distance(poses, data.landmarks_xy[data.obs_landmark[use]])
+    if data.geometry == "planar":
+        poses = post.mean_gamma[data.obs_step[use]]
+        dist = landmark_distance(poses, data.landmarks_xy[data.obs_landmark[use]])
+    else:  # a track's state is the distance to the beacon
+        dist = post.mean_gamma[data.obs_step[use], 0]
     readings = data.obs_readings[use][:, channel_columns(model.sensor, data)]
     out = []
     for j, ch in enumerate(model.sensor.channels):
