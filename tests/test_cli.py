@@ -694,7 +694,9 @@ def test_learn_em_starts_from_a_model_learned_on_another_robot_of_its_kind(tmp_p
     assert cmp["velocity"]["first_vs_second"]["velocity_mm_s"] < 5.0
     assert set(cmp["f"]["spans"]) == {"sonar1", "raw_ir1", "raw_ir3", "raw_ir4"}  # raw_ir2 read nothing in its window
     assert "raw_ir2 sigma" not in cmp["noise"]["halves_ratio"] and max(cmp["noise"]["halves_ratio"].values()) < 1.2
-    assert "the log's halves, each learned on from the whole log's model" in " ".join(res.output.split())
+    said = " ".join(res.output.split())
+    assert "the log's halves, each learned on from the whole log's model" in said
+    assert said.index(f"wrote {ma},") < said.index("--halves:") < said.index(f"wrote {ma} again, with the halves")
     res = runner.invoke(app, ["learn", "em", str(tmp_path / "b.csv"), "--start-from", str(ma), "--out", str(mb)])
     assert res.exit_code == 0, res.output
     said = " ".join(res.output.split())

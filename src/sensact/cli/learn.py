@@ -453,35 +453,30 @@ def learn_em_cmd(
         if lf is not None
         else evaluate_turtlebot_em(res, data, turtlebot_truth)
     )
-    halves_doc = None
-    if halves and res.posteriors is not None:
-        halves_doc = learn_and_compare_halves(res, data, cfg)
     if out is not None:
-        write_json(
-            out,
-            {
-                "model": m.to_dict(),
-                "summary": res.summary(),
-                "log": data.source,
-                "dt_s": data.dt_s,
-                "evaluation": evaluation,
-                # learn/em/checks.py: signs that EM lost the robot
-                "range_function_turns": [t for t in signs if t["sign"] == "turns"],
-                "range_function_bends": [t for t in signs if t["sign"] == "bends"],
-                "em_unsettled": next((t for t in signs if t["sign"] == "unsettled"), None),
-                "held_sideways_noise": held,  # ... and that a robot that side-steps is held to no sideways mean
-                "differential_drive": as_differential_drive(m.action),  # on wheel speeds: gain, axle, wheel ratio
-                # --start-from: the model EM started from, and where it placed the robot (learn/em/warm_start.py)
-                "start_from": None
-                if placed is None
-                else {
-                    "model": str(start_from),
-                    "placed": placed.start,
-                    "loglik_per_sighting": placed.loglik_per_sighting,
-                },
-                "halves": halves_doc,  # --halves: each half learned on from this model, and compared
+        doc = {
+            "model": m.to_dict(),
+            "summary": res.summary(),
+            "log": data.source,
+            "dt_s": data.dt_s,
+            "evaluation": evaluation,
+            # learn/em/checks.py: signs that EM lost the robot
+            "range_function_turns": [t for t in signs if t["sign"] == "turns"],
+            "range_function_bends": [t for t in signs if t["sign"] == "bends"],
+            "em_unsettled": next((t for t in signs if t["sign"] == "unsettled"), None),
+            "held_sideways_noise": held,  # ... and that a robot that side-steps is held to no sideways mean
+            "differential_drive": as_differential_drive(m.action),  # on wheel speeds: gain, axle, wheel ratio
+            # --start-from: the model EM started from, and where it placed the robot (learn/em/warm_start.py)
+            "start_from": None
+            if placed is None
+            else {
+                "model": str(start_from),
+                "placed": placed.start,
+                "loglik_per_sighting": placed.loglik_per_sighting,
             },
-        )
+            "halves": None,  # --halves: each half learned on from this model, and compared (below)
+        }
+        write_json(out, doc)
         write_npz(
             out.with_suffix(".history.npz"),
             loglik=res.loglik_history,
@@ -517,6 +512,14 @@ def learn_em_cmd(
                 "removed what an earlier run at this --out drew against a truth this log does not have: "
                 + ", ".join(str(p) for p in stale)
             )
+    if halves:  # after the model is written, so that stopping the halves loses nothing of it
+        if res.posteriors is None:
+            console.print(f"--halves: not run, EM stopped {res.stop_reason} without a smoothed path to compare on")
+            return
+        halves_doc = learn_and_compare_halves(res, data, cfg)
+        if out is not None:
+            write_json(out, doc | {"halves": halves_doc})
+            console.print(f"wrote {out} again, with the halves")
 
 
 @learn_app.command("car")
