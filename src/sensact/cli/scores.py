@@ -342,9 +342,9 @@ def evaluate_log(data: Any, res: Any, cfg: Any) -> dict[str, Any] | None:
     return None
 
 
-def halves_rows(cmp: dict[str, Any], fits: list[Any], whole: Any) -> list[list[str]]:
-    """The rows of `learn em --halves`'s table (``evaluate/halves.compare_halves``): each half's
-    difference from the whole log's model and the halves' from each other."""
+def halves_rows(cmp: dict[str, Any], fits: list[Any], data: Any) -> list[list[str]]:
+    """The rows of `learn em --halves`'s table (``evaluate/halves.compare_halves``) on the whole log
+    ``data``: each half's difference from the whole log's model and the halves' from each other."""
 
     def velocity(d: dict[str, float]) -> str:
         if "translation_mm_s" in d:
@@ -355,7 +355,7 @@ def halves_rows(cmp: dict[str, Any], fits: list[Any], whole: Any) -> list[list[s
     rows = [
         ["steps (sightings)"]
         + [f"{b - a} ({h.data.n_observations})" for h in fits for a, b in [h.steps]]
-        + [f"{whole.n_steps} ({whole.n_observations})", ""],
+        + [f"{data.n_steps} ({data.n_observations})", ""],
         ["EM iterations, the most likely at"]
         + [f"{h.result.iterations}, {h.result.best_iteration} ({h.result.seconds:.1f} s)" for h in fits]
         + ["", ""],
