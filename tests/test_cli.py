@@ -873,7 +873,7 @@ def test_learn_em_refuses_a_turtlebot_csv_out_of_order(tmp_path):
 def test_a_fit_stopped_at_the_cap_says_how_fast_it_was_climbing():
     import numpy as np
 
-    from sensact.cli.learn import _still_climbing
+    from sensact.cli.learn.em import _still_climbing
 
     # the best of 240 iterations rose by 50 in the last 50 (patience); the race's 60 count toward the cap
     said = _still_climbing(np.arange(240.0), 239, 300, 50, 60)

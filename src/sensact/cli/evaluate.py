@@ -202,7 +202,7 @@ def evaluate_fleet_cmd(
     a robot's own when the model was learned on that log. Every model must share the logs' commands,
     readings and step (a Turtlebot CSV is read onto each model's own step)."""
     from sensact.cli.base import progress_bar
-    from sensact.cli.learn import is_turtlebot_csv, read_em_log
+    from sensact.cli.model_on_log import is_turtlebot_csv, read_em_log
     from sensact.experiments.fleet import RangeLog, score_fleet
     from sensact.io.atomic import write_json
     from sensact.learn.em.localize import learned_config
@@ -248,7 +248,7 @@ def evaluate_fleet_cmd(
 
 def _csv_on_step(log: Path, doc: dict[str, Any]) -> tuple[Any, Any]:
     """A Turtlebot CSV read onto the step of the model ``doc`` (model.json), with its range column."""
-    from sensact.cli.learn import read_em_log
+    from sensact.cli.model_on_log import read_em_log
 
     dt = doc.get("dt_s")
     data, _, range_mm = read_em_log(log, bins=21, dt_s=None if dt is None else float(dt))

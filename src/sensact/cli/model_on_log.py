@@ -1,11 +1,41 @@
-"""A learned model and the log it is used on: `learn em`'s model.json read, and a model that could not have
-been learned from the log (another geometry, other commands or readings, another step) refused in one line
-before `evaluate` scores it or `localize` runs it."""
+"""A learned model and the log it is used on: the log EM reads (a folder or a Turtlebot CSV), `learn em`'s
+model.json read, and a model that could not have been learned from the log (another geometry, other commands
+or readings, another step) refused in one line before `evaluate` scores it, `localize` runs it or `learn em
+--start-from` starts from it."""
 
 from __future__ import annotations
 
 from pathlib import Path
 from typing import Any
+
+
+def is_turtlebot_csv(log: Path) -> bool:
+    """Whether EM reads ``log`` as a Turtlebot CSV (``read_em_log``), not as a log folder."""
+    return log.is_file() and log.suffix.lower() == ".csv"
+
+
+def read_em_log(log: Path, bins: int, dt_s: float | None = None) -> tuple[Any, Any, Any]:
+    """What EM reads: ``(data, the log folder, None)`` from a folder (continuous 1-D commands binned into
+    ``bins`` actions), or ``(data, None, its range column)`` from a Turtlebot CSV (on ``dt_s``, or its median
+    step); anything else is one line."""
+    if is_turtlebot_csv(log):
+        from sensact.io.turtlebot import read_turtlebot_landmark_log
+
+        data, truth = read_turtlebot_landmark_log(log, dt_s)
+        return data, None, truth
+    if log.is_file():
+        from sensact.errors import LogFormatError
+
+        raise LogFormatError(
+            "EM reads a log folder or a Turtlebot CSV file.",
+            file=log,
+            fix="give a folder with meta.json, actions.csv and observations.csv (sensact convert mrclam "
+            "writes one), or a .csv with the Turtlebot's columns.",
+        )
+    from sensact.io.landmark_log import read_landmark_log
+
+    lf = read_landmark_log(log, command_bins=bins)
+    return lf.data, lf, None
 
 
 def read_em_model(model: Path) -> tuple[dict[str, Any], Any]:
@@ -82,8 +112,6 @@ def read_model_and_log(log: Path, model: Path, bins: int, use: str) -> tuple[dic
     """``(model.json, the model, the log's data, its folder or None, a Turtlebot CSV's range column or None)``,
     the log read onto the model's step; a model that does not fit the log is refused in one line (``use``:
     "run", "scored" or "start")."""
-    from sensact.cli.learn import read_em_log
-
     doc, m = read_em_model(model)
     dt = doc.get("dt_s")
     # a Turtlebot CSV is read onto the model's step, whatever its own median step

@@ -1,12 +1,15 @@
 """What ``learn`` and ``evaluate`` print about a learned model: its parameters and its errors against
-the ground truth a log carries (never used for learning)."""
+the ground truth a log carries (never used for learning); and what ``learn`` warns of in a log."""
 
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from sensact.cli.base import console, titled_table
+
+if TYPE_CHECKING:
+    import numpy as np
 
 
 def print_em_model(m: Any) -> None:
@@ -391,3 +394,19 @@ def halves_rows(cmp: dict[str, Any], fits: list[Any], data: Any) -> list[list[st
             + [f"{abs(delay['first'] - delay['second']):.3f}"]
         )
     return rows
+
+
+def warn_if_one_command(commands: np.ndarray, source: str, name: str, unit: str = "") -> None:
+    """Say so when a 1-D log spends nearly all its steps at one command: the action model's slope then
+    rests on the few steps at others."""
+    from sensact.evaluate.measured import ONE_COMMAND_SHARE, dominant_command
+
+    value, share = dominant_command(commands)
+    if share < ONE_COMMAND_SHARE:
+        return
+    command = f"{name} {value:g} {unit}".rstrip()
+    console.print(
+        f"[yellow]warning[/]: {source} spends {100 * share:.0f} % of its steps at one command ({command}), "
+        "so the action model's slope rests on the few steps at others and a gain against ground truth is not "
+        "scored; for a model to trust, drive at two or more speeds, each for a few seconds."
+    )

@@ -1,0 +1,135 @@
+"""``sensact learn car``: chapter 5's laser angles, scan-matching odometry and car dynamics (Algorithm 3)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from sensact.cli.base import ConfigOpt, SetOpt, console, friendly, layered_config, learn_app, progress_bar
+
+
+@learn_app.command("car")
+@friendly
+def learn_car_cmd(
+    log: Annotated[Path, typer.Argument(help="A car log folder (velodyne.pcap, actions.csv, meta.json).")],
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", help="Write the learned models here (JSON) and a figure of the drive beside it (.png)."),
+    ] = None,
+    calibration_yaml: Annotated[
+        Path | None,
+        typer.Option("--calibration-yaml", help="Also write the learned angles as a ROS velodyne calibration."),
+    ] = None,
+    factory_calibration: Annotated[
+        Path | None,
+        typer.Option(
+            "--factory-calibration",
+            help="The unit's ROS velodyne calibration (YAML): its vertical angles are used (sec. 2.5.2), its "
+            "horizontal ones never; --calibration-yaml then keeps its other fields.",
+        ),
+    ] = None,
+    set_: SetOpt = None,
+    config: ConfigOpt = None,
+) -> None:
+    """Learn the lidar's laser angles, the scan-matching odometry and the car dynamics (Algorithm 3)."""
+    import numpy as np
+
+    from sensact.config import config_to_dict
+    from sensact.experiments.car import learn_angles_from_log, learn_from_log
+    from sensact.io.atomic import write_json
+    from sensact.io.car_log import read_car_log
+    from sensact.io.velodyne_calibration import write_calibration
+    from sensact.learn.car_dynamics import CarLearningConfig
+    from sensact.models.laser_intrinsics import LaserIntrinsics
+
+    cfg = layered_config(CarLearningConfig, config, set_)
+    data = read_car_log(log, calibration=factory_calibration)
+    rows = f"{len(data.actions)} action rows" if data.actions is not None else "no actions"
+    console.print(
+        f"{log}: {data.distance_m.shape[0]} firings of {data.distance_m.shape[1]} lasers "
+        f"({data.distance_m.shape[0] / data.firing_hz:.1f} s), {rows}"
+    )
+    for note in data.notes:
+        console.print(f"  {note}")
+    for warning in data.warnings:
+        console.print(f"[yellow]warning[/]: {warning}")
+    simulated = "truth" in data.meta and data.groundtruth is not None
+    evaluation = None
+    if data.actions is None:
+        # secs. 5.1-5.2 need only the scans: a lidar remounted on a car without logged controls
+        with progress_bar() as progress:
+            res = learn_angles_from_log(data, cfg, progress)
+        console.print(f"laser angles from the scans alone; C = {np.degrees(res.offset_rad):.3f}°")
+        if simulated:
+            from sensact.evaluate.car import laser_angle_error
+
+            evaluation = laser_angle_error(res.laser_angles_rad, np.asarray(data.meta["truth"]["laser_angles_rad"]))
+            console.print(f"vs truth: laser angles {evaluation['laser_angle_rms_deg']:.3f}° RMS")
+        model: dict | None = None
+        history: list = []
+    else:
+        with progress_bar() as progress:
+            res = learn_from_log(data, cfg, progress)
+        m = res.model
+        console.print(f"converged after {res.iterations} iterations; C = {np.degrees(res.offset_rad):.3f}°")
+        console.print(f"  a = {m.C5:.4g} + {m.C6:.4g} g + {m.C7:.4g} v + {m.C8:.4g} v b   (eq. 5.3)")
+        console.print(f"  omega = {m.C9:.4g} v + {m.C10:.4g} v s   (eq. 5.4)")
+        if simulated:
+            from sensact.experiments.car import evaluate_run
+
+            evaluation, _ = evaluate_run(data.meta["truth"], data.groundtruth, res, cfg.odometry.dt_s)
+            console.print(
+                f"vs truth: laser angles {evaluation['laser_angle_rms_deg']:.3f}° RMS; accel "
+                f"{evaluation['accel_rms']:.3f} m/s² (from truth {evaluation['accel_rms_from_truth']:.3f}), forward "
+                f"velocity {evaluation['fwd_vel_rms']:.3f} m/s ({evaluation['fwd_vel_rms_from_truth']:.3f}), angular "
+                f"velocity {evaluation['ang_vel_rms']:.4f} rad/s ({evaluation['ang_vel_rms_from_truth']:.4f})"
+            )
+        model, history = m.to_dict(), res.history
+    reference, comparison = None, None
+    if data.factory is not None:
+        from sensact.evaluate.car import factory_comparison
+
+        comparison = factory_comparison(res.laser_angles_rad, data.factory.horizontal_rad)
+        console.print(
+            f"vs the factory calibration's horizontal angles (never used to learn): {comparison['rms_deg']:.3f}° RMS, "
+            f"largest {comparison['max_deg']:.3f}°, with the unit turned θ_b = {comparison['mount_yaw_deg']:.2f}° "
+            "on the car (90° when its forward axis is the car's)"
+        )
+        shift = np.radians(comparison["mount_yaw_deg"])
+        reference = (data.factory.horizontal_rad + shift, f"factory + θ_b ({comparison['mount_yaw_deg']:.2f}°)")
+    elif simulated:
+        reference = (np.asarray(data.meta["truth"]["laser_angles_rad"]), "true θ_l + θ_b")
+    if out is not None:
+        write_json(
+            out,
+            {
+                "laser_angles_deg": np.degrees(res.laser_angles_rad).tolist(),
+                "offset_C_deg": float(np.degrees(res.offset_rad)),
+                "car_dynamics": model,
+                "iterations": len(history),
+                "history": history,
+                "seconds_by_stage": res.seconds_by_stage,
+                "config": config_to_dict(cfg),
+                "factory_comparison": comparison,
+                "evaluation": evaluation,
+            },
+        )
+        from sensact.report.figures_car import figure_car_fit
+
+        png = figure_car_fit(
+            res, data, out.with_suffix(".png"), f"Algorithm 3 on {log.name}", reference, cfg.odometry.dt_s
+        )
+        console.print(f"wrote {out} and {png}")
+    if calibration_yaml is not None:
+        # ROS's driver puts a point at azimuth (rotation - rot_correction) clockwise from forward, which is
+        # eq. 2.35 with theta_b = 90°: rot_correction = theta_hat_l - 90° puts points in the car's frame
+        factory = data.factory
+        learned = LaserIntrinsics(
+            data.vertical_rad,
+            res.laser_angles_rad - np.pi / 2,
+            *((factory.distance_resolution_m, factory.extra) if factory is not None else ()),
+        )
+        write_calibration(calibration_yaml, learned)
+        console.print(f"wrote {calibration_yaml} (rot_correction = learned angle - 90°)")
