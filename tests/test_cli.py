@@ -142,8 +142,12 @@ def test_a_path_the_system_refuses_is_one_line(tmp_path):
 
 
 def test_debug_shows_the_traceback():
+    from sensact.errors import LogFormatError
+
     res = runner.invoke(app, ["--debug", "learn", "bootstrap", "/nonexistent/log"])
-    assert res.exit_code != 0 and res.exception is not None
+    assert isinstance(res.exception, LogFormatError)  # raised through, where a traceback shows it
+    plain = runner.invoke(app, ["learn", "bootstrap", "/nonexistent/log"])
+    assert isinstance(plain.exception, SystemExit) and "Fix:" in plain.output  # one line, no traceback
 
 
 def test_reproduce_track1d_writes_the_documented_shape(tmp_path):
