@@ -701,6 +701,8 @@ def test_learn_em_starts_from_a_model_learned_on_another_robot_of_its_kind(tmp_p
     said = " ".join(res.output.split())
     assert "the log's halves, each learned on from the whole log's model" in said
     assert said.index(f"wrote {ma},") < said.index("--halves:") < said.index(f"wrote {ma} again, with the halves")
+    halves_png = tmp_path / "ma_halves.png"  # a panel for the velocity, each read channel and the noise
+    assert f"wrote {halves_png}" in said and halves_png.stat().st_size > 30_000
     res = runner.invoke(app, ["learn", "em", str(tmp_path / "b.csv"), "--start-from", str(ma), "--out", str(mb)])
     assert res.exit_code == 0, res.output
     said = " ".join(res.output.split())
@@ -714,11 +716,14 @@ def test_learn_em_starts_from_a_model_learned_on_another_robot_of_its_kind(tmp_p
     # (log-likelihood -2188.3); from a's model 0.39 % and 0.77 % (-1903.7, 52 iterations against 198)
     assert b["evaluation"]["gain_error_pct"] < 1.0, b["evaluation"]
     assert b["evaluation"]["sensors"]["sonar1"]["rms_pct_of_span"] < 1.5
-    # from a's own model on a's own run EM starts where it ended: the same fit
-    again = tmp_path / "again.json"
-    res = runner.invoke(app, ["learn", "em", str(tmp_path / "a.csv"), "--start-from", str(ma), "--out", str(again)])
+    # from a's own model on a's own run EM starts where it ended: the same fit (written over a's, without
+    # --halves, so that the earlier run's halves figure goes: it would pass for this fit's)
+    res = runner.invoke(app, ["learn", "em", str(tmp_path / "a.csv"), "--start-from", str(ma), "--out", str(ma)])
     assert res.exit_code == 0, res.output
-    c = json.loads(again.read_text())
+    assert not halves_png.exists() and f"removed {halves_png}, an earlier run's --halves figure" in " ".join(
+        res.output.split()
+    )
+    c = json.loads(ma.read_text())
     assert c["summary"]["loglik_best"] == pytest.approx(a["summary"]["loglik_best"], abs=2.0)
     assert c["evaluation"]["gain_learned"] == pytest.approx(a["evaluation"]["gain_learned"], rel=2e-3)
     assert np.allclose(c["model"]["prior_mean"], a["model"]["prior_mean"], atol=5.0)

@@ -66,9 +66,22 @@ def write_smoothed_path(path: Path, posteriors: Any, data: Any) -> Path:
 TRUTH_FIGURES = ("actions", "range", "heading_noise", "bearing", "against_range")
 
 
-def learn_and_compare_halves(res: Any, data: Any, cfg: Any) -> dict[str, Any]:
+def halves_figure(out: Path) -> Path:
+    """Where `learn em --halves --out OUT.json` draws the halves: OUT_halves.png."""
+    return out.with_name(f"{out.stem}_halves.png")
+
+
+def _log_name(log: Path, data: Any, lf: Any) -> str:
+    """The log as the figures' titles name it."""
+    return lf.title(log) if lf is not None else Path(data.source).name
+
+
+def learn_and_compare_halves(
+    res: Any, data: Any, cfg: Any, figure: Path | None = None, title: str = ""
+) -> dict[str, Any]:
     """`learn em --halves`: each half of ``data`` learned on from ``res``'s model (learn/em/halves.py),
-    the three compared (evaluate/halves.py) and printed; what the model JSON keeps of it."""
+    the three compared (evaluate/halves.py), printed and, given a ``figure`` path, drawn there; what the
+    model JSON keeps of it."""
     from sensact.cli.scores import halves_rows
     from sensact.evaluate.halves import compare_halves
     from sensact.learn.em.halves import learn_halves
@@ -99,6 +112,11 @@ def learn_and_compare_halves(res: Any, data: Any, cfg: Any) -> dict[str, Any]:
             console.print(
                 f"the {h.name} kept the whole log's model: EM found none more likely on it, so the two do not differ"
             )
+    if figure is not None:
+        from sensact.report.figures_halves import figure_halves
+
+        halves = [(h.name, h.result.model) for h in fits]
+        console.print(f"wrote {figure_halves(res.model, halves, data, cmp, figure, title)}")
     return {
         "comparison": cmp,
         "fits": [
@@ -280,9 +298,12 @@ def _describe_fit(res: Any, cfg: Any) -> None:
         )
 
 
-def _write_fit(out: Path, doc: dict[str, Any], res: Any, data: Any, log: Path, lf: Any, turtlebot_truth: Any) -> None:
+def _write_fit(
+    out: Path, doc: dict[str, Any], res: Any, data: Any, log: Path, lf: Any, turtlebot_truth: Any, halves: bool
+) -> None:
     """The model JSON, its history and path, the figure of the fit and those against the log's truth; a
-    figure against a truth that an earlier run at this --out drew and this log does not have is removed."""
+    figure that an earlier run at this --out drew, against a truth this log does not have or of its
+    halves (``halves``: this run draws its own after them), is removed."""
     from sensact.io.atomic import write_json, write_npz
 
     write_json(out, doc)
@@ -293,7 +314,7 @@ def _write_fit(out: Path, doc: dict[str, Any], res: Any, data: Any, log: Path, l
         sigmas=res.sigma_history,
     )
     written = [out, out.with_suffix(".history.npz")]
-    name = lf.title(log) if lf is not None else Path(data.source).name
+    name = _log_name(log, data, lf)
     m, evaluation = res.model, doc["evaluation"]
     if res.posteriors is not None:
         from sensact.report.figures_fit import figure_em_fit
@@ -312,6 +333,11 @@ def _write_fit(out: Path, doc: dict[str, Any], res: Any, data: Any, log: Path, l
         path = out.with_name(f"{out.stem}_against_range.png")
         written.append(figure_turtlebot_em(run, evaluation, path, f"EM on {name}"))
     console.print("wrote " + ", ".join(str(p) for p in written))
+    earlier = halves_figure(out)
+    if earlier.exists():  # an earlier run's --halves: this run's, if any, is drawn after the halves
+        earlier.unlink()
+        if not halves:
+            console.print(f"removed {earlier}, an earlier run's --halves figure")
     stale = [
         p for kind in TRUTH_FIGURES if (p := out.with_name(f"{out.stem}_{kind}.png")).exists() and p not in written
     ]
@@ -334,7 +360,8 @@ def learn_em_cmd(
             "--out",
             help="Write the learned model here (JSON), the learning history (.history.npz), the smoothed path "
             "(.path.npz) and a figure of the fit (.png) beside it; with recorded poses, also the figures against "
-            "them (OUT_actions.png, ...), and for a Turtlebot CSV with a range column OUT_against_range.png.",
+            "them (OUT_actions.png, ...), for a Turtlebot CSV with a range column OUT_against_range.png, and with "
+            "--halves OUT_halves.png.",
         ),
     ] = None,
     bins: Annotated[int, typer.Option(help="Actions to bin continuous 1-D commands into.")] = 21,
@@ -435,12 +462,15 @@ def learn_em_cmd(
         "halves": None,  # --halves: each half learned on from this model, and compared (below)
     }
     if out is not None:
-        _write_fit(out, doc, res, data, log, lf, turtlebot_truth)
+        _write_fit(out, doc, res, data, log, lf, turtlebot_truth, halves)
     if halves:  # after the model is written, so that stopping the halves loses nothing of it
         if res.posteriors is None:
             console.print(f"--halves: not run, EM stopped {res.stop_reason} without a smoothed path to compare on")
             return
-        halves_doc = learn_and_compare_halves(res, data, cfg)
+        figure = None if out is None else halves_figure(out)
+        halves_doc = learn_and_compare_halves(
+            res, data, cfg, figure, f"{_log_name(log, data, lf)}: halves against the whole"
+        )
         if out is not None:
             write_json(out, doc | {"halves": halves_doc})
             console.print(f"wrote {out} again, with the halves")
