@@ -373,6 +373,125 @@ def from_truth_windows(
     return starts, D_true, features
 
 
+def _score_action(
+    act: LinearActionModel,
+    data: LandmarkLog,
+    truth_poses: np.ndarray,
+    truth_valid: np.ndarray,
+    window: int,
+    max_delay_steps: int,
+) -> tuple[dict[str, Any], np.ndarray, np.ndarray, np.ndarray]:
+    """The action model against the truth windows, next to From-Truth: the same family, its command
+    delay included, fitted to them. Returns the score, the windows' starts, their true displacements
+    and From-Truth's velocity in each window's steps."""
+    starts, D_true, window_features = from_truth_windows(data, truth_poses, truth_valid, act, window)
+
+    def errors(beta: np.ndarray, Phi: np.ndarray) -> dict[str, float]:
+        e = dead_reckon(Phi @ beta, data.dt_s) - D_true
+        e[:, 2] = wrap_angle(e[:, 2])
+        return _action_errors(e / (window * data.dt_s))
+
+    best = None
+    for delay in range(max_delay_steps + 1):
+        Phi = window_features(delay)
+        sums = Phi.sum(axis=1)
+        zero = np.zeros_like(act.coefficients)
+        beta = linear_coefficients(
+            sums, D_true, np.ones_like(D_true), data.dt_s, zero, act.free_coefficients, act.combined_inputs
+        )
+        sse = float(np.sum((sums @ beta * data.dt_s - D_true) ** 2 / D_true.var(axis=0)))
+        if best is None or sse < best[0]:
+            best = (sse, delay, beta, Phi)
+    _, delay_ft, beta_ft, Phi_ft = best
+    learned = errors(act.coefficients, window_features(act.delay_steps))
+    from_truth = errors(beta_ft, Phi_ft)
+    score = {
+        "learned": learned,
+        "from_truth": from_truth,
+        "ratio_translation": learned["translation_rms_mm_s"] / from_truth["translation_rms_mm_s"],
+        "ratio_rotation": learned["rotation_rms_rad_s"] / from_truth["rotation_rms_rad_s"],
+        "learned_coefficients": act.coefficients.tolist(),
+        "from_truth_coefficients": beta_ft.tolist(),
+        "learned_delay_s": act.delay_steps * data.dt_s,
+        "from_truth_delay_s": delay_ft * data.dt_s,
+    }
+    return score, starts, D_true, Phi_ft @ beta_ft
+
+
+def _score_range(chan: Any, reading: np.ndarray, d: np.ndarray, bearing: np.ndarray, trim: float) -> dict[str, Any]:
+    """The range channel against From-Truth: its family fitted to (true distance, bearing, reading),
+    trimmed about its own fit until nothing changes."""
+    deg, m = chan.function.degree, len(chan.bearing_terms)
+    center, scale = float(d.mean()), float(d.std()) or 1.0
+    X = reading_features(d, bearing, deg, m, center, scale)
+    has = np.isfinite(reading) & np.all(np.isfinite(X), axis=1)
+    X[~has] = 0.0
+    keep = has.copy()
+    for _ in range(20):  # trim about the From-Truth function, refitted on what is kept
+        sol = weighted_lstsq(X[keep], reading[keep])
+        pred_ft = X @ sol
+        new = trimmed(np.where(has, reading - pred_ft, np.nan), trim)
+        if np.array_equal(new, keep):
+            break
+        keep = new
+    ft = chan.with_solution(sol, center, scale, m)
+    sr_true = _rms(reading[keep] - pred_ft[keep])
+    learned_keep = chan.predict(d[keep], bearing[keep])
+    return {
+        "sightings_scored": int(keep.sum()),
+        "sightings_trimmed": int(has.sum() - keep.sum()),
+        "learned_residual_rms_mm": _rms(reading[keep] - learned_keep),
+        "from_truth_residual_rms_mm": sr_true,
+        "learned_vs_from_truth_rms_mm": _rms(learned_keep - pred_ft[keep]),
+        "sigma_learned_mm": chan.sigma,
+        "sigma_truth_mm": sr_true,
+        "sigma_ratio": chan.sigma / sr_true,
+        "from_truth_function": ft.function.to_dict(),
+        "from_truth_bearing_terms": list(ft.bearing_terms),
+    }
+
+
+def _score_bearing(
+    sigma: float, bearing: np.ndarray, poses: np.ndarray, at_origin: np.ndarray, lm: np.ndarray, trim: float
+) -> tuple[dict[str, Any], np.ndarray, np.ndarray]:
+    """The bearing sigma against the trimmed truth residuals at the sensor's pose (and, beside them, at
+    the truth's origin); returns the score, the residuals and which were kept."""
+    b_res = wrap_angle(bearing - landmark_bearing(poses, lm))
+    b_keep = trimmed(b_res, trim)
+    sb_true = _rms(b_res[b_keep])
+    b_res0 = wrap_angle(bearing - landmark_bearing(at_origin, lm))
+    b_keep0 = trimmed(b_res0, trim)
+    sb_origin = _rms(b_res0[b_keep0])
+    score = {
+        "sightings_trimmed": int(np.isfinite(b_res).sum() - b_keep.sum()),
+        "sigma_learned_rad": sigma,
+        "sigma_truth_rad": sb_true,
+        "sigma_ratio": sigma / sb_true,
+        "truth_median_rad": float(np.median(b_res[b_keep])),
+        # the same residuals at the truth's origin, where the sensor is not
+        "truth_origin_sigma_rad": sb_origin,
+        "truth_origin_mean_rad": float(np.mean(b_res0[b_keep0])),
+        "truth_origin_sigma_ratio": sigma / sb_origin,
+    }
+    return score, b_res, b_keep
+
+
+def _learned_drift(model: EMModel, window: int, turning_rad_s: float) -> dict[str, Any]:
+    """The learned Sigma_m's drift over the truth windows, to set beside the truth's own:
+    ``window * (a + b |turn|)`` in heading variance."""
+    a_step = float(np.mean(model.motion_sd[:, 2] ** 2))
+    b_step = model.turn_var or 0.0
+    # a random walk of Sigma_m's translational sds over the window; the part a heading error carries
+    # into position is left out (on MRCLAM at most 1.2 mm over 1 s: 86 mm/s, 0.0043 rad per step)
+    xy_var = np.mean(model.motion_sd[:, :2] ** 2, axis=0)
+    return {
+        "learned_heading_variance_per_step": [a_step, float(b_step)],  # a, b of a + b |turn|
+        "learned_heading_drift_at_rest_rad": float(np.sqrt(window * a_step)),
+        "learned_translation_drift_mm": np.sqrt(window * xy_var).tolist(),
+        "learned_heading_drift_turning_rad": float(np.sqrt(window * (a_step + b_step * turning_rad_s))),
+    }
+
+
 def score_against_truth(
     model: EMModel,
     data: LandmarkLog,
@@ -388,35 +507,7 @@ def score_against_truth(
     ``fit_mount`` the sensor is taken to sit at the truth's origin."""
     if not isinstance(model.action, LinearActionModel) or data.step_commands is None:
         raise ValueError("scoring against truth needs a continuous action model and per-step commands")
-    act = model.action
-    starts, D_true, window_features = from_truth_windows(data, truth_poses, truth_valid, act, window)
-
-    def errors(beta: np.ndarray, Phi: np.ndarray) -> dict[str, float]:
-        e = dead_reckon(Phi @ beta, data.dt_s) - D_true
-        e[:, 2] = wrap_angle(e[:, 2])
-        return _action_errors(e / (window * data.dt_s))
-
-    # From-Truth: the same family, its command delay included, fitted to the truth windows
-    ft = None
-    free, combined = act.free_coefficients, act.combined_inputs
-    for delay in range(max_delay_steps + 1):
-        Phi = window_features(delay)
-        sums = Phi.sum(axis=1)
-        beta = linear_coefficients(
-            sums,
-            D_true,
-            np.ones_like(D_true),
-            data.dt_s,
-            np.zeros_like(act.coefficients),
-            free,
-            combined,
-        )
-        sse = float(np.sum((sums @ beta * data.dt_s - D_true) ** 2 / D_true.var(axis=0)))
-        if ft is None or sse < ft[0]:
-            ft = (sse, delay, beta, Phi)
-    _, delay_ft, beta_ft, Phi_ft = ft
-    learned = errors(act.coefficients, window_features(act.delay_steps))
-    from_truth = errors(beta_ft, Phi_ft)
+    action, starts, D_true, v_ft = _score_action(model.action, data, truth_poses, truth_valid, window, max_delay_steps)
 
     # sensor: the sightings at steps with valid truth, seen from the sensor's pose
     rows = np.flatnonzero(truth_valid[data.obs_step] > 0)
@@ -427,51 +518,18 @@ def score_against_truth(
     reads_bearing = model.sensor.sigma_bearing_rad is not None and bool(np.isfinite(bearing).any())
     mount = fit_sensor_mount(at_origin, lm, bearing, trim) if fit_mount and reads_bearing else np.zeros(3)
     poses = at_sensor(at_origin, mount)
-    d = landmark_distance(poses, lm)
-    reading = data.obs_readings[rows, 0]
-    chan = model.sensor.channels[0]
-    deg, m = chan.function.degree, len(chan.bearing_terms)
-    center, scale = float(d.mean()), float(d.std()) or 1.0
-    X = reading_features(d, bearing, deg, m, center, scale)
-    has = np.isfinite(reading) & np.all(np.isfinite(X), axis=1)
-    X[~has] = 0.0
-    keep = has.copy()
-    for _ in range(20):  # trim about the From-Truth function, refitted on what is kept
-        sol = weighted_lstsq(X[keep], reading[keep])
-        pred_ft = X @ sol
-        new = trimmed(np.where(has, reading - pred_ft, np.nan), trim)
-        if np.array_equal(new, keep):
-            break
-        keep = new
-    ft = chan.with_solution(sol, center, scale, m)
-    r_ft = reading[keep] - pred_ft[keep]
-    learned_keep = chan.predict(d[keep], bearing[keep])
-    r_learned = reading[keep] - learned_keep
-    sr_true = _rms(r_ft)
+    range_score = _score_range(
+        model.sensor.channels[0], data.obs_readings[rows, 0], landmark_distance(poses, lm), bearing, trim
+    )
     b_res, b_keep = np.empty(0), np.zeros(0, dtype=bool)
     bearing_score = None
     if reads_bearing:
-        b_res = wrap_angle(bearing - landmark_bearing(poses, lm))
-        b_keep = trimmed(b_res, trim)
-        sb_true = _rms(b_res[b_keep])
-        b_res0 = wrap_angle(bearing - landmark_bearing(at_origin, lm))
-        b_keep0 = trimmed(b_res0, trim)
-        sb_origin = _rms(b_res0[b_keep0])
-        sb = model.sensor.sigma_bearing_rad
-        bearing_score = {
-            "sightings_trimmed": int(np.isfinite(b_res).sum() - b_keep.sum()),
-            "sigma_learned_rad": sb,
-            "sigma_truth_rad": sb_true,
-            "sigma_ratio": sb / sb_true,
-            "truth_median_rad": float(np.median(b_res[b_keep])),
-            # the same residuals at the truth's origin, where the sensor is not
-            "truth_origin_sigma_rad": sb_origin,
-            "truth_origin_mean_rad": float(np.mean(b_res0[b_keep0])),
-            "truth_origin_sigma_ratio": sb / sb_origin,
-        }
+        bearing_score, b_res, b_keep = _score_bearing(
+            model.sensor.sigma_bearing_rad, bearing, poses, at_origin, lm, trim
+        )
     b_steps = data.obs_step[rows][b_keep]
     structure = truth_noise_structure(
-        Phi_ft @ beta_ft,
+        v_ft,
         D_true,
         data.dt_s,
         b_res[b_keep],
@@ -482,43 +540,12 @@ def score_against_truth(
     structure["truth_heading_error"] = truth_heading_error(
         truth_poses, truth_valid, b_res[b_keep], b_steps, data.dt_s, window
     )
-    # the learned Sigma_m's drift over the same windows: window * (a + b |turn|) in variance
-    a_step = float(np.mean(model.motion_sd[:, 2] ** 2))
-    b_step = model.turn_var or 0.0
-    structure["learned_heading_variance_per_step"] = [a_step, float(b_step)]  # a, b of a + b |turn|
-    structure["learned_heading_drift_at_rest_rad"] = float(np.sqrt(window * a_step))
-    # a random walk of Sigma_m's translational sds over the window; the part a heading error carries
-    # into position is left out (on MRCLAM at most 1.2 mm over 1 s: 86 mm/s, 0.0043 rad per step)
-    xy_var = np.mean(model.motion_sd[:, :2] ** 2, axis=0)
-    structure["learned_translation_drift_mm"] = np.sqrt(window * xy_var).tolist()
-    structure["learned_heading_drift_turning_rad"] = float(
-        np.sqrt(window * (a_step + b_step * structure["turning_rad_s"]))
-    )
+    structure.update(_learned_drift(model, window, structure["turning_rad_s"]))
     return {
         "windows_scored": int(starts.size),
         "window_s": window * data.dt_s,
-        "action": {
-            "learned": learned,
-            "from_truth": from_truth,
-            "ratio_translation": learned["translation_rms_mm_s"] / from_truth["translation_rms_mm_s"],
-            "ratio_rotation": learned["rotation_rms_rad_s"] / from_truth["rotation_rms_rad_s"],
-            "learned_coefficients": model.action.coefficients.tolist(),
-            "from_truth_coefficients": beta_ft.tolist(),
-            "learned_delay_s": act.delay_steps * data.dt_s,
-            "from_truth_delay_s": delay_ft * data.dt_s,
-        },
-        "range": {
-            "sightings_scored": int(keep.sum()),
-            "sightings_trimmed": int(has.sum() - keep.sum()),
-            "learned_residual_rms_mm": _rms(r_learned),
-            "from_truth_residual_rms_mm": sr_true,
-            "learned_vs_from_truth_rms_mm": _rms(learned_keep - pred_ft[keep]),
-            "sigma_learned_mm": chan.sigma,
-            "sigma_truth_mm": sr_true,
-            "sigma_ratio": chan.sigma / sr_true,
-            "from_truth_function": ft.function.to_dict(),
-            "from_truth_bearing_terms": list(ft.bearing_terms),
-        },
+        "action": action,
+        "range": range_score,
         "bearing": bearing_score,  # None: the sensor reads no bearing
         "sensor_mount": (
             {"lateral_mm": float(mount[0]), "forward_mm": float(mount[1]), "yaw_rad": float(mount[2])}
