@@ -406,16 +406,8 @@ def restart_while_lost(
     return dc_replace(runs[best], restarts=info, seconds=sum(r.seconds for r in runs))
 
 
-def fit_em_once(
-    data: LandmarkLog,
-    initial: EMModel | None = None,
-    config: EMConfig | None = None,
-    *,
-    progress: Progress | None = None,
-    on_race: OnTrial | None = None,
-) -> EMResult:
-    """One EM run from one start (the Algorithm of ch. 4, with the start search and searches configured)."""
-    cfg = config or EMConfig()
+def _refuse_settings_for_log(cfg: EMConfig, data: LandmarkLog, initial: EMModel | None) -> None:
+    """Settings this log cannot be learned with, each one line naming the field, before any work."""
     if cfg.ridge_search_mm > 0 and data.geometry != "planar":
         raise ConfigError(
             "ridge_search_mm moves the path along the robot's heading and needs a planar log.",
@@ -439,6 +431,19 @@ def fit_em_once(
             field="warm_start",
             fix="give the model to start from (sensact learn em --start-from MODEL.json), or set warm_start: false.",
         )
+
+
+def fit_em_once(
+    data: LandmarkLog,
+    initial: EMModel | None = None,
+    config: EMConfig | None = None,
+    *,
+    progress: Progress | None = None,
+    on_race: OnTrial | None = None,
+) -> EMResult:
+    """One EM run from one start (the Algorithm of ch. 4, with the start search and searches configured)."""
+    cfg = config or EMConfig()
+    _refuse_settings_for_log(cfg, data, initial)
     model = initial or initial_model(data, cfg)
     refuse_too_few_readings(model, data)
     rng = np.random.default_rng(cfg.seed)
