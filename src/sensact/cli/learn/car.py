@@ -3,59 +3,21 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
 from sensact.cli.base import ConfigOpt, SetOpt, console, friendly, layered_config, learn_app, progress_bar
 
 
-@learn_app.command("car")
-@friendly
-def learn_car_cmd(
-    log: Annotated[Path, typer.Argument(help="A car log folder (velodyne.pcap, actions.csv, meta.json).")],
-    out: Annotated[
-        Path | None,
-        typer.Option("--out", help="Write the learned models here (JSON) and a figure of the drive beside it (.png)."),
-    ] = None,
-    calibration_yaml: Annotated[
-        Path | None,
-        typer.Option("--calibration-yaml", help="Also write the learned angles as a ROS velodyne calibration."),
-    ] = None,
-    factory_calibration: Annotated[
-        Path | None,
-        typer.Option(
-            "--factory-calibration",
-            help="The unit's ROS velodyne calibration (YAML): its vertical angles are used (sec. 2.5.2), its "
-            "horizontal ones never; --calibration-yaml then keeps its other fields.",
-        ),
-    ] = None,
-    set_: SetOpt = None,
-    config: ConfigOpt = None,
-) -> None:
-    """Learn the lidar's laser angles, the scan-matching odometry and the car dynamics (Algorithm 3)."""
+def _learn(data: Any, cfg: Any, simulated: bool) -> tuple[Any, dict | None, list, dict[str, Any] | None]:
+    """Algorithm 3 on the log, or only its laser angles when it has no actions; what was learned is
+    printed, and scored when the log is ``simulated``: ``(result, car dynamics or None, history,
+    evaluation)``."""
     import numpy as np
 
-    from sensact.config import config_to_dict
     from sensact.experiments.car import learn_angles_from_log, learn_from_log
-    from sensact.io.atomic import write_json
-    from sensact.io.car_log import read_car_log
-    from sensact.io.velodyne_calibration import write_calibration
-    from sensact.learn.car_dynamics import CarLearningConfig
-    from sensact.models.laser_intrinsics import LaserIntrinsics
 
-    cfg = layered_config(CarLearningConfig, config, set_)
-    data = read_car_log(log, calibration=factory_calibration)
-    rows = f"{len(data.actions)} action rows" if data.actions is not None else "no actions"
-    console.print(
-        f"{log}: {data.distance_m.shape[0]} firings of {data.distance_m.shape[1]} lasers "
-        f"({data.distance_m.shape[0] / data.firing_hz:.1f} s), {rows}"
-    )
-    for note in data.notes:
-        console.print(f"  {note}")
-    for warning in data.warnings:
-        console.print(f"[yellow]warning[/]: {warning}")
-    simulated = "truth" in data.meta and data.groundtruth is not None
     evaluation = None
     if data.actions is None:
         # secs. 5.1-5.2 need only the scans: a lidar remounted on a car without logged controls
@@ -87,6 +49,14 @@ def learn_car_cmd(
                 f"velocity {evaluation['ang_vel_rms']:.4f} rad/s ({evaluation['ang_vel_rms_from_truth']:.4f})"
             )
         model, history = m.to_dict(), res.history
+    return res, model, history, evaluation
+
+
+def _angle_reference(data: Any, res: Any, simulated: bool) -> tuple[tuple[Any, str] | None, dict[str, Any] | None]:
+    """What the figure draws the learned angles against (the factory's, turned by the mount, or a
+    ``simulated`` log's truth), and the comparison with the factory calibration, printed."""
+    import numpy as np
+
     reference, comparison = None, None
     if data.factory is not None:
         from sensact.evaluate.car import factory_comparison
@@ -101,6 +71,73 @@ def learn_car_cmd(
         reference = (data.factory.horizontal_rad + shift, f"factory + θ_b ({comparison['mount_yaw_deg']:.2f}°)")
     elif simulated:
         reference = (np.asarray(data.meta["truth"]["laser_angles_rad"]), "true θ_l + θ_b")
+    return reference, comparison
+
+
+def _write_ros_calibration(path: Path, data: Any, res: Any) -> None:
+    """The learned angles as a ROS velodyne calibration, the factory's other fields kept."""
+    import numpy as np
+
+    from sensact.io.velodyne_calibration import write_calibration
+    from sensact.models.laser_intrinsics import LaserIntrinsics
+
+    # ROS's driver puts a point at azimuth (rotation - rot_correction) clockwise from forward, which is
+    # eq. 2.35 with theta_b = 90°: rot_correction = theta_hat_l - 90° puts points in the car's frame
+    factory = data.factory
+    learned = LaserIntrinsics(
+        data.vertical_rad,
+        res.laser_angles_rad - np.pi / 2,
+        *((factory.distance_resolution_m, factory.extra) if factory is not None else ()),
+    )
+    write_calibration(path, learned)
+    console.print(f"wrote {path} (rot_correction = learned angle - 90°)")
+
+
+@learn_app.command("car")
+@friendly
+def learn_car_cmd(
+    log: Annotated[Path, typer.Argument(help="A car log folder (velodyne.pcap, actions.csv, meta.json).")],
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", help="Write the learned models here (JSON) and a figure of the drive beside it (.png)."),
+    ] = None,
+    calibration_yaml: Annotated[
+        Path | None,
+        typer.Option("--calibration-yaml", help="Also write the learned angles as a ROS velodyne calibration."),
+    ] = None,
+    factory_calibration: Annotated[
+        Path | None,
+        typer.Option(
+            "--factory-calibration",
+            help="The unit's ROS velodyne calibration (YAML): its vertical angles are used (sec. 2.5.2), its "
+            "horizontal ones never; --calibration-yaml then keeps its other fields.",
+        ),
+    ] = None,
+    set_: SetOpt = None,
+    config: ConfigOpt = None,
+) -> None:
+    """Learn the lidar's laser angles, the scan-matching odometry and the car dynamics (Algorithm 3)."""
+    import numpy as np
+
+    from sensact.config import config_to_dict
+    from sensact.io.atomic import write_json
+    from sensact.io.car_log import read_car_log
+    from sensact.learn.car_dynamics import CarLearningConfig
+
+    cfg = layered_config(CarLearningConfig, config, set_)
+    data = read_car_log(log, calibration=factory_calibration)
+    rows = f"{len(data.actions)} action rows" if data.actions is not None else "no actions"
+    console.print(
+        f"{log}: {data.distance_m.shape[0]} firings of {data.distance_m.shape[1]} lasers "
+        f"({data.distance_m.shape[0] / data.firing_hz:.1f} s), {rows}"
+    )
+    for note in data.notes:
+        console.print(f"  {note}")
+    for warning in data.warnings:
+        console.print(f"[yellow]warning[/]: {warning}")
+    simulated = "truth" in data.meta and data.groundtruth is not None  # scored against what it was made with
+    res, model, history, evaluation = _learn(data, cfg, simulated)
+    reference, comparison = _angle_reference(data, res, simulated)
     if out is not None:
         write_json(
             out,
@@ -123,13 +160,4 @@ def learn_car_cmd(
         )
         console.print(f"wrote {out} and {png}")
     if calibration_yaml is not None:
-        # ROS's driver puts a point at azimuth (rotation - rot_correction) clockwise from forward, which is
-        # eq. 2.35 with theta_b = 90°: rot_correction = theta_hat_l - 90° puts points in the car's frame
-        factory = data.factory
-        learned = LaserIntrinsics(
-            data.vertical_rad,
-            res.laser_angles_rad - np.pi / 2,
-            *((factory.distance_resolution_m, factory.extra) if factory is not None else ()),
-        )
-        write_calibration(calibration_yaml, learned)
-        console.print(f"wrote {calibration_yaml} (rot_correction = learned angle - 90°)")
+        _write_ros_calibration(calibration_yaml, data, res)
