@@ -202,7 +202,7 @@ def evaluate_fleet_cmd(
     a robot's own when the model was learned on that log. Every model must share the logs' commands,
     readings and step (a Turtlebot CSV is read onto each model's own step)."""
     from sensact.cli.base import progress_bar
-    from sensact.cli.model_on_log import is_turtlebot_csv, read_em_log
+    from sensact.cli.model_on_log import is_turtlebot_csv, read_em_log, read_log_on_model_step
     from sensact.experiments.fleet import RangeLog, score_fleet
     from sensact.io.atomic import write_json
     from sensact.learn.em.localize import learned_config
@@ -217,7 +217,8 @@ def evaluate_fleet_cmd(
         if is_turtlebot_csv(log):
             # each model reads the CSV onto its own step, as `evaluate log` would (a track folder's steps are
             # its own, and a model on another step is refused)
-            read[log] = RangeLog({model_names[p]: _csv_on_step(log, doc) for p, (doc, _) in docs.items()})
+            on_step = {model_names[p]: read_log_on_model_step(log, doc, 21) for p, (doc, _) in docs.items()}
+            read[log] = RangeLog({name: (data, range_mm) for name, (data, _, range_mm) in on_step.items()})
         else:
             read[log] = read_em_log(log, bins=21)[1]  # a track folder's commands binned as `evaluate log` bins them
     for path, (doc, m) in docs.items():
@@ -244,15 +245,6 @@ def evaluate_fleet_cmd(
         write_json(out, fleet)
         figure = figure_fleet(fleet, out.with_suffix(".png"))
         console.print(f"wrote {out} and {figure}")
-
-
-def _csv_on_step(log: Path, doc: dict[str, Any]) -> tuple[Any, Any]:
-    """A Turtlebot CSV read onto the step of the model ``doc`` (model.json), with its range column."""
-    from sensact.cli.model_on_log import read_em_log
-
-    dt = doc.get("dt_s")
-    data, _, range_mm = read_em_log(log, bins=21, dt_s=None if dt is None else float(dt))
-    return data, range_mm
 
 
 def _log_name(path: Path) -> str:

@@ -38,6 +38,13 @@ def read_em_log(log: Path, bins: int, dt_s: float | None = None) -> tuple[Any, A
     return lf.data, lf, None
 
 
+def read_log_on_model_step(log: Path, doc: dict[str, Any], bins: int) -> tuple[Any, Any, Any]:
+    """``read_em_log`` with a Turtlebot CSV read onto the step of the model ``doc`` (its model.json),
+    whatever the CSV's own median step; a folder's steps are its own."""
+    dt = doc.get("dt_s")
+    return read_em_log(log, bins, None if dt is None else float(dt))
+
+
 def read_em_model(model: Path) -> tuple[dict[str, Any], Any]:
     """A model.json `sensact learn em` wrote: the whole document (its ``dt_s`` too) and the model."""
     from sensact.errors import ModelFormatError
@@ -113,8 +120,6 @@ def read_model_and_log(log: Path, model: Path, bins: int, use: str) -> tuple[dic
     the log read onto the model's step; a model that does not fit the log is refused in one line (``use``:
     "run", "scored" or "start")."""
     doc, m = read_em_model(model)
-    dt = doc.get("dt_s")
-    # a Turtlebot CSV is read onto the model's step, whatever its own median step
-    data, lf, truth_mm = read_em_log(log, bins, float(dt) if dt is not None else None)
+    data, lf, truth_mm = read_log_on_model_step(log, doc, bins)
     refuse_model_for_log(doc, m, data, model, log, use=use)
     return doc, m, data, lf, truth_mm
