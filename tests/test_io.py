@@ -68,6 +68,19 @@ def test_bad_cell_names_file_row_and_column(folder, tmp_path):
     assert "\n" not in msg
 
 
+def test_a_hand_written_folder_saved_by_a_spreadsheet_or_an_editor_with_a_bom_reads_the_same(folder, tmp_path):
+    """meta.json and the CSVs each saved with a UTF-8 byte-order mark (and CRLF lines) read as written."""
+    _, path = folder
+    for name in ("meta.json", "actions.csv", "observations.csv", "groundtruth.csv"):
+        text = (path / name).read_text()
+        (tmp_path / name).write_bytes(b"\xef\xbb\xbf" + text.replace("\n", "\r\n").encode())
+    a, b = read_track_log(path), read_track_log(tmp_path)
+    assert b.meta == a.meta
+    np.testing.assert_array_equal(b.commands, a.commands)
+    np.testing.assert_array_equal(b.observations, a.observations)
+    np.testing.assert_array_equal(b.true_position, a.true_position)
+
+
 def test_missing_column_and_missing_meta(folder, tmp_path):
     _, path = folder
     with pytest.raises(LogFormatError, match="missing column"):

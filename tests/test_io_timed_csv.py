@@ -189,6 +189,35 @@ def test_times_in_nanoseconds_convert_as_seconds_do(timed, tmp_path):
         read_timed_csv(tmp_path / "c.csv", tmp_path / "sightings.csv", tmp_path / "landmarks.csv")
 
 
+def test_files_as_a_spreadsheet_exports_them_convert_as_plain_csv_does(timed, tmp_path):
+    """Excel's "CSV UTF-8" (a byte-order mark, CRLF lines), its export where the decimal mark is a comma
+    (semicolons between cells) and tab-separated text each give the plain files' log, cell for cell."""
+    _, folder = timed
+    files = ("commands", "sightings", "landmarks", "truth")
+    plain = read_timed_csv(*(folder / f"{n}.csv" for n in files))
+    exports = {
+        "utf8_bom": lambda text: ("\ufeff" + text.replace("\n", "\r\n"), "utf-8"),
+        "decimal_comma": lambda text: ("\ufeff" + text.replace(",", ";").replace(".", ","), "utf-8"),
+        "tabs": lambda text: (text.replace(",", "\t"), "utf-8"),
+    }
+    for kind, export in exports.items():
+        sub = tmp_path / kind
+        sub.mkdir()
+        for n in files:
+            text, encoding = export((folder / f"{n}.csv").read_text())
+            (sub / f"{n}.csv").write_bytes(text.encode(encoding))
+        got = read_timed_csv(*(sub / f"{n}.csv" for n in files))
+        assert got.t0_s == plain.t0_s, kind
+        np.testing.assert_array_equal(got.data.step_commands, plain.data.step_commands, err_msg=kind)
+        _same_sightings(got.data, plain.data)
+        np.testing.assert_array_equal(got.groundtruth["x_mm"], plain.groundtruth["x_mm"], err_msg=kind)
+    assert (tmp_path / "decimal_comma" / "commands.csv").read_text(encoding="utf-8-sig").startswith("t_s;")
+    # a decimal comma in a comma-separated file splits its number: the error says so
+    (tmp_path / "c.csv").write_text("t_s,v_m_s,omega_rad_s\n0,0,1,0.2\n")
+    with pytest.raises(LogFormatError, match="decimal comma"):
+        read_numeric_csv(tmp_path / "c.csv")
+
+
 def test_a_landmark_named_twice_or_a_sighting_without_its_landmark_is_refused(tmp_path):
     _write(tmp_path / "c.csv", {"t_s": [0.0, 1.0, 2.0], "v_m_s": [0.1, 0.1, 0.1]})
     _write(tmp_path / "s.csv", {"t_s": [0.5], "range_m": [1.0]})

@@ -188,7 +188,7 @@ def load_yaml_mapping(path: str | Path) -> dict[str, Any]:
     if not path.is_file():
         raise ConfigError("file not found.", file=path, fix="give the path of an existing YAML file.")
     try:
-        data = yaml.safe_load(path.read_text())
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
     except yaml.YAMLError as exc:
         raise ConfigError(
             f"not valid YAML ({exc.__class__.__name__}).", file=path, fix="check the indentation and quoting."

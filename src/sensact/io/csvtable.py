@@ -3,12 +3,35 @@
 from __future__ import annotations
 
 import csv
+import io
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from sensact.errors import LogFormatError
+
+
+def read_csv_rows(path: Path) -> tuple[list[list[str]], bool]:
+    """The rows of a CSV text file as a spreadsheet exports it, and whether its decimals are commas.
+
+    A UTF-8 byte-order mark (Excel's "CSV UTF-8") is dropped. A header with no comma but a semicolon
+    or a tab sets the delimiter; a semicolon-separated file is what a spreadsheet writes where the
+    decimal mark is a comma, so its cells' commas are read as decimal points.
+    """
+    try:
+        with path.open(newline="", encoding="utf-8-sig") as handle:
+            text = handle.read()
+        first = text.split("\n", 1)[0]
+        delimiter = next((d for d in (",", ";", "\t") if d in first), ",")
+        rows = list(csv.reader(io.StringIO(text, newline=""), delimiter=delimiter))
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise LogFormatError(
+            f"not a readable CSV text file ({exc}).",
+            file=path,
+            fix="give a text file (UTF-8) separated by commas, semicolons or tabs.",
+        ) from exc
+    return rows, delimiter == ";"
 
 
 def read_numeric_csv(
@@ -27,13 +50,7 @@ def read_numeric_csv(
             file=path,
             fix="check the path; a log folder holds meta.json, actions.csv and observations.csv.",
         )
-    try:
-        with path.open(newline="") as handle:
-            rows = list(csv.reader(handle))
-    except (UnicodeDecodeError, csv.Error) as exc:
-        raise LogFormatError(
-            f"not a readable CSV text file ({exc}).", file=path, fix="give a comma-separated text file (UTF-8)."
-        ) from exc
+    rows, decimal_comma = read_csv_rows(path)
     if not rows:
         raise LogFormatError("the file is empty.", file=path, fix="write a header row and at least one data row.")
     header = [h.strip() for h in rows[0]]
@@ -56,14 +73,19 @@ def read_numeric_csv(
                 f"row {i + 2} has {len(row)} cells but the header has {len(header)}.",
                 file=path,
                 field=f"row {i + 2}",
-                fix="make every row as long as the header.",
+                fix="make every row as long as the header"
+                + (
+                    " (a decimal comma splits a number in two: write a decimal point, or separate cells by semicolons)."
+                    if len(row) > len(header) and not decimal_comma
+                    else "."
+                ),
             )
         for j, cell in enumerate(row):
             cell = cell.strip()
             if cell == "" or j in text:
                 continue
             try:
-                out[i, j] = float(cell)
+                out[i, j] = float(cell.replace(",", ".") if decimal_comma else cell)
             except ValueError:
                 raise LogFormatError(
                     f"row {i + 2}: {cell!r} is not a number.",

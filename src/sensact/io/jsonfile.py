@@ -16,7 +16,7 @@ def read_json_object(path: str | Path, error: type[SensactError], fix: str, miss
     if not path.is_file():
         raise error(f"{path.name} not found.", file=path, fix=missing_fix or fix)
     try:
-        doc: Any = json.loads(path.read_text())
+        doc: Any = json.loads(path.read_text(encoding="utf-8-sig"))  # a hand-written file may start with a BOM
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         where = f" (line {exc.lineno})" if isinstance(exc, json.JSONDecodeError) else ""
         raise error(f"not valid JSON{where}.", file=path, fix=fix) from None

@@ -6,14 +6,13 @@ true distance to the wall (evaluation only) and is absent from ``test.csv``.
 
 from __future__ import annotations
 
-import csv
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from sensact.errors import LogFormatError
-from sensact.io.csvtable import read_numeric_csv
+from sensact.io.csvtable import read_csv_rows, read_numeric_csv
 from sensact.io.logfolder import TrackLog
 from sensact.logs.landmark_log import LandmarkLog
 
@@ -48,10 +47,10 @@ def turtlebot_sensors(path: str | Path) -> tuple[str, ...]:
     """The sensor columns (``UNITS``) a Turtlebot CSV's header names, in ``UNITS`` order; () when the
     file cannot be read, so that the reader reports why."""
     try:
-        with Path(path).open(newline="") as handle:
-            header = {h.strip() for h in next(csv.reader(handle), [])}
-    except (OSError, UnicodeDecodeError, csv.Error):
+        rows, _ = read_csv_rows(Path(path))
+    except (OSError, LogFormatError):
         return ()
+    header = {h.strip() for h in (rows[0] if rows else [])}
     return tuple(s for s in UNITS if s in header)
 
 

@@ -19,7 +19,7 @@ def read_calibration(path: str | Path) -> LaserIntrinsics:
     if not path.is_file():
         raise LogFormatError("calibration file not found.", file=path, fix="check the path.")
     try:
-        data = yaml.safe_load(path.read_text())
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
     except yaml.YAMLError as exc:
         raise LogFormatError(f"not valid YAML ({exc.__class__.__name__}).", file=path, fix="repair the file.") from None
     lasers = data.get("lasers") if isinstance(data, dict) else None
