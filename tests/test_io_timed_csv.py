@@ -218,6 +218,20 @@ def test_files_as_a_spreadsheet_exports_them_convert_as_plain_csv_does(timed, tm
         read_numeric_csv(tmp_path / "c.csv")
 
 
+def test_a_rostopic_export_is_told_what_to_rename(tmp_path):
+    """ROS 1's `rostopic echo -p` writes %time (ns) and field.* columns; the error names the renames."""
+    (tmp_path / "c.csv").write_text("%time,field.linear.x,field.angular.z\n1600000000000000000,0.1,0.0\n")
+    _write(tmp_path / "s.csv", {"t_s": [0.5], "landmark_id": [1], "range_m": [1.0]})
+    _write(tmp_path / "l.csv", {"id": [1], "x_m": [2.0], "y_m": [0.0]})
+    with pytest.raises(LogFormatError) as err:
+        read_timed_csv(tmp_path / "c.csv", tmp_path / "s.csv", tmp_path / "l.csv")
+    assert err.value.field == "t_s" and "rename %time to t_ns" in err.value.fix
+    assert "field.linear.x is v_m_s" in err.value.fix
+    with pytest.raises(LogFormatError) as err:  # a file that is not ROS's gets no ROS hint
+        read_timed_csv(tmp_path / "s.csv", tmp_path / "s.csv", tmp_path / "l.csv", dt_s=0.1)
+    assert "rostopic" not in err.value.fix
+
+
 def test_a_landmark_named_twice_or_a_sighting_without_its_landmark_is_refused(tmp_path):
     _write(tmp_path / "c.csv", {"t_s": [0.0, 1.0, 2.0], "v_m_s": [0.1, 0.1, 0.1]})
     _write(tmp_path / "s.csv", {"t_s": [0.5], "range_m": [1.0]})

@@ -85,9 +85,19 @@ def _table(
             field=missing[0],
             fix=f"{what} needs {example} (a _m suffix for metres, _deg for degrees"
             + ("; t_ms, t_us or t_ns for other units of time" if missing[0] == "t_s" else "")
-            + "; docs/commands.md, convert csv).",
+            + "; docs/commands.md, convert csv)"
+            + _rostopic_hint(raw),
         )
     return table
+
+
+def _rostopic_hint(raw: dict[str, np.ndarray]) -> str:
+    """What to rename in ROS 1's ``rostopic echo -p`` output (``%time`` in nanoseconds, ``field.*``), the
+    export a ROS user most likely has; the fields are not mapped by guess, as a Twist's six would be."""
+    if "%time" not in raw and not any(name.startswith("field.") for name in raw):
+        return "."
+    twist = " (a cmd_vel Twist's field.linear.x is v_m_s, field.angular.z omega_rad_s; drop the others)"
+    return f"; this is `rostopic echo -p` output: rename %time to t_ns and the field.* columns{twist}."
 
 
 def _finite(path: Path, table: dict[str, np.ndarray], columns: tuple[str, ...], fix: str) -> None:
