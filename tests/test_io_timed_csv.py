@@ -7,6 +7,8 @@ timed CSVs give what io.mrclam reads), and errors that name the file, the column
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from typer.testing import CliRunner
@@ -17,7 +19,7 @@ from sensact.config import build_config
 from sensact.errors import LogFormatError
 from sensact.io.csvtable import read_numeric_csv
 from sensact.io.landmark_log import read_landmark_log
-from sensact.io.timed_csv import in_sensact_units, read_timed_csv
+from sensact.io.timed_csv import in_sensact_units, range_unit_doubt, read_timed_csv
 from sensact.learn.em import EMConfig
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
@@ -230,6 +232,38 @@ def test_a_rostopic_export_is_told_what_to_rename(tmp_path):
     with pytest.raises(LogFormatError) as err:  # a file that is not ROS's gets no ROS hint
         read_timed_csv(tmp_path / "s.csv", tmp_path / "s.csv", tmp_path / "l.csv", dt_s=0.1)
     assert "rostopic" not in err.value.fix
+
+
+def test_a_column_whose_name_gives_the_wrong_unit_is_caught(timed, tmp_path):
+    """Degrees under bearing_rad are refused; millimetres under range_m (x1000) or metres under range_mm
+    (/1000) are warned about against the map's size; the simulated run's own units raise neither."""
+    _, folder = timed
+    files = ("commands", "sightings", "landmarks")
+    plain = read_timed_csv(*(folder / f"{n}.csv" for n in files))
+    assert range_unit_doubt(plain.data) is None
+    sight = read_numeric_csv(folder / "sightings.csv")
+    for n in ("commands", "landmarks"):
+        (tmp_path / f"{n}.csv").write_text((folder / f"{n}.csv").read_text())
+    as_degrees = sight | {"bearing_rad": np.degrees(sight["bearing_rad"])}
+    _write(tmp_path / "sightings.csv", as_degrees)
+    with pytest.raises(LogFormatError) as err:
+        read_timed_csv(*(tmp_path / f"{n}.csv" for n in files))
+    assert err.value.field == "bearing_rad" and "bearing_deg" in err.value.fix
+    median = float(np.nanmedian(plain.data.obs_readings[:, 0]))
+    xy = plain.data.landmarks_xy
+    span = max(float(np.hypot(*(a - b))) for a in xy for b in xy)
+    for name, scale, times in (("range_m", 1.0, 1000.0), ("range_mm", 1e-3, 1e-3)):
+        wrong = {k: v for k, v in sight.items() if k != "range_mm"} | {name: sight["range_mm"] * scale}
+        _write(tmp_path / "sightings.csv", wrong)
+        doubt = range_unit_doubt(read_timed_csv(*(tmp_path / f"{n}.csv" for n in files)).data)
+        assert doubt is not None and "range_m is read as metres" in doubt, name
+        ratio = float(re.search(r"is ([0-9.e+-]+) times the map", doubt).group(1))
+        assert ratio == pytest.approx(times * median / span, rel=0.01), doubt
+    res = runner.invoke(
+        app,
+        ["convert", "csv", *[f"--{n}={tmp_path / f'{n}.csv'}" for n in files], "--out", str(tmp_path / "o")],
+    )
+    assert res.exit_code == 0 and "warning:" in res.output and "is its unit right" in " ".join(res.output.split())
 
 
 def test_a_landmark_named_twice_or_a_sighting_without_its_landmark_is_refused(tmp_path):

@@ -126,10 +126,13 @@ def convert_csv(
     import numpy as np
 
     from sensact.io.landmark_log import write_landmark_log
-    from sensact.io.timed_csv import read_timed_csv
+    from sensact.io.timed_csv import range_unit_doubt, read_timed_csv
 
     tl = read_timed_csv(commands, sightings, landmarks, truth, dt_s=dt)
     console.print(tl.summary_line())
+    doubt = range_unit_doubt(tl.data)
+    if doubt:
+        console.print(f"[yellow]warning:[/] {doubt}")
     files = {"commands": str(commands), "sightings": str(sightings), "landmarks": str(landmarks)}
     write_landmark_log(
         out,
