@@ -84,6 +84,19 @@ def test_off_grid_time_and_unknown_landmark(field_log, tmp_path):
         read_landmark_log(folder)
 
 
+def test_bearings_in_degrees_are_refused_naming_the_column(field_log, tmp_path):
+    folder = _copy(field_log[0], tmp_path)
+    lines = (folder / "observations.csv").read_text().splitlines()
+    col = lines[0].split(",").index("bearing_rad")
+    rows = [line.split(",") for line in lines[1:]]
+    for cells in rows:
+        cells[col] = repr(float(np.degrees(float(cells[col]))))
+    (folder / "observations.csv").write_text("\n".join([lines[0], *(",".join(c) for c in rows)]) + "\n")
+    with pytest.raises(LogFormatError) as err:
+        read_landmark_log(folder)
+    assert err.value.field == "bearing_rad" and "degrees" in err.value.problem and "radians" in err.value.fix
+
+
 def test_meta_without_landmarks(field_log, tmp_path):
     folder = _copy(field_log[0], tmp_path)
     meta = json.loads((folder / "meta.json").read_text())

@@ -19,7 +19,8 @@ from sensact.config import build_config
 from sensact.errors import LogFormatError
 from sensact.io.csvtable import read_numeric_csv
 from sensact.io.landmark_log import read_landmark_log
-from sensact.io.timed_csv import in_sensact_units, range_unit_doubt, read_timed_csv
+from sensact.io.timed_csv import in_sensact_units, read_timed_csv
+from sensact.io.unit_checks import range_unit_doubt
 from sensact.learn.em import EMConfig
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 

@@ -297,6 +297,7 @@ def test_simulate_diffdrive_then_learn_em_scores_against_the_simulation(tmp_path
         beside, max_iterations=40, start_candidates=2
     )
     assert f"settings: {log / 'em_config.yaml'}, written beside the log" in " ".join(res.output.split())
+    assert "is its unit right" not in " ".join(res.output.split())  # see the next test
     ev = doc["evaluation"]
     flat = " ".join(res.output.split())
     learned = EMModel.from_dict(doc["model"])
@@ -819,3 +820,21 @@ def test_a_model_is_matched_to_the_log_it_names(tmp_path, monkeypatch):
     assert not learned_on_log({}, tmp_path / "fleet" / "r1")
     # two logs of one name are told apart by their paths
     assert fleet_names([Path("a/r1"), Path("b/r1"), Path("c/r2")], lambda p: p.name) == ["a/r1", "b/r1", "r2"]
+
+
+def test_learn_em_warns_when_a_hand_written_folders_range_is_in_another_unit(tmp_path):
+    """Metres written under range_mm: the ranges are a thousandth of the map's size, said before the fit."""
+    log = tmp_path / "dd"
+    res = runner.invoke(app, ["simulate", "diffdrive", "--out", str(log), "--seconds", "30", "--seed", "3"])
+    assert res.exit_code == 0, res.output
+    lines = (log / "observations.csv").read_text().splitlines()
+    col = lines[0].split(",").index("range_mm")
+    rows = [line.split(",") for line in lines[1:]]
+    for cells in rows:
+        cells[col] = repr(float(cells[col]) / 1000.0) if cells[col] else ""
+    (log / "observations.csv").write_text("\n".join([lines[0], *(",".join(c) for c in rows)]) + "\n")
+    res = runner.invoke(app, ["learn", "em", str(log), "--set", "max_iterations=2", "--out", str(tmp_path / "m.json")])
+    flat = " ".join(res.output.split())
+    assert res.exit_code == 0, res.output
+    assert "warning: the median range reading" in flat and f"{log / 'observations.csv'}" in flat
+    assert flat.index("is its unit right") < flat.index("finding the start pose")

@@ -126,7 +126,8 @@ def convert_csv(
     import numpy as np
 
     from sensact.io.landmark_log import write_landmark_log
-    from sensact.io.timed_csv import range_unit_doubt, read_timed_csv
+    from sensact.io.timed_csv import read_timed_csv
+    from sensact.io.unit_checks import range_unit_doubt
 
     tl = read_timed_csv(commands, sightings, landmarks, truth, dt_s=dt)
     console.print(tl.summary_line())

@@ -26,6 +26,7 @@ import numpy as np
 from sensact.errors import LogFormatError
 from sensact.io.csvtable import landmark_labels, read_numeric_csv
 from sensact.io.logfolder import read_meta, read_track_log, write_log_folder
+from sensact.io.unit_checks import refuse_degrees_as_radians
 from sensact.logs.landmark_log import LandmarkLog
 
 MAX_DISTINCT_COMMANDS = 64
@@ -193,6 +194,10 @@ def _planar(path: Path, meta: dict[str, Any]) -> LandmarkLogFile:
             file=path / "observations.csv",
             field=lm_col,
             fix="add the landmark's position to meta.json or drop its rows.",
+        )
+    if b_col:
+        refuse_degrees_as_radians(
+            path / "observations.csv", obs[b_col], b_col, f"write {b_col} in radians (counterclockwise from forward)."
         )
     order = np.argsort(steps_o[keep], kind="stable")
     data = LandmarkLog(

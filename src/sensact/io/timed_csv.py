@@ -21,7 +21,7 @@ times in seconds on one clock, in any order, become a planar ``LandmarkLog`` on 
 Units follow the column names' suffixes: ``_m`` and ``_m_s`` become ``_mm`` and ``_mm_s`` (times 1000:
 EM's defaults are in mm), ``_deg`` and ``_deg_s`` become ``_rad`` and ``_rad_s``; other names are kept
 as they are, in their own units. A time column may be ``t_ms``, ``t_us`` or ``t_ns`` instead of ``t_s``.
-Bearings mostly beyond a whole turn are refused as degrees; ``range_unit_doubt`` names a range whose size
+Bearings mostly beyond a whole turn are refused as degrees; ``unit_checks.range_unit_doubt`` names a range whose size
 disagrees with the map's by orders of magnitude (metres and millimetres swapped).
 """
 
@@ -36,6 +36,7 @@ import numpy as np
 from sensact.errors import LogFormatError
 from sensact.io.csvtable import landmark_labels, read_numeric_csv
 from sensact.io.resample import HEADING_OFFSET_RAD, held_on_grid, nearest_steps, pose_truth_on_grid
+from sensact.io.unit_checks import refuse_degrees_as_radians
 from sensact.logs.landmark_log import LandmarkLog
 
 # a column name's unit suffix -> sensact's suffix and factor, the longer suffixes first
@@ -48,9 +49,6 @@ UNIT_SUFFIXES = (
 # the time column in other units (a ROS bag's stamps are nanoseconds) -> seconds; other columns keep _ms
 TIME_COLUMNS = {"t_ms": 1e-3, "t_us": 1e-6, "t_ns": 1e-9}
 MIN_TRUTH_GAP_S = 0.1  # truth samples further apart than this (or five of their periods) leave a gap
-# a column's unit is taken from its name; these catch the name that does not match the numbers
-DEGREES_SHARE = 0.1  # radians never pass a whole turn; degrees from even a +-10 deg camera mostly do
-RANGE_TO_MAP = (1.0 / 300.0, 30.0)  # the median range over the map's widest span; metres vs mm is x1000
 
 
 def in_sensact_units(name: str, values: np.ndarray) -> tuple[str, np.ndarray]:
@@ -207,7 +205,7 @@ def read_timed_csv(
     seen_id = landmark_labels(sightings, obs["landmark_id"], "landmark_id", fix_obs)
     bearing = obs.get("bearing_rad")
     if bearing is not None:
-        _refuse_degrees_as_radians(sightings, bearing)
+        refuse_degrees_as_radians(sightings, bearing, "bearing_rad", "name the column bearing_deg, or write radians.")
     readings = tuple(c for c in obs if c not in ("t_s", "landmark_id", "bearing_rad"))
     if not readings:
         raise LogFormatError(
@@ -259,40 +257,6 @@ def read_timed_csv(
         "dropped_nothing_read": int((known & inside & ~read).sum()),
     }
     return TimedLog(data, t0, gt, summary)
-
-
-def _refuse_degrees_as_radians(path: Path, bearing: np.ndarray) -> None:
-    b = np.abs(bearing[np.isfinite(bearing)])
-    beyond = float(np.mean(b > 2.0 * np.pi)) if b.size else 0.0
-    if beyond > DEGREES_SHARE:
-        raise LogFormatError(
-            f"{100.0 * beyond:.0f} % of the bearings are beyond a whole turn (up to {b.max():.4g}): they are degrees.",
-            file=path,
-            field="bearing_rad",
-            fix="name the column bearing_deg, or write radians.",
-        )
-
-
-def range_unit_doubt(data: LandmarkLog) -> str | None:
-    """A sentence when ``range_mm``'s median is far from the map's size in either direction: the reading
-    was in millimetres under an ``_m`` name (x1000) or in metres under an ``_mm`` or bare name. None when
-    the sizes agree or the map has one landmark (no size)."""
-    if "range_mm" not in data.reading_names or len(data.landmarks_xy) < 2:
-        return None
-    r = data.obs_readings[:, data.reading_names.index("range_mm")]
-    r = np.abs(r[np.isfinite(r)])
-    xy = data.landmarks_xy
-    span = float(np.max(np.linalg.norm(xy[:, None, :] - xy[None, :, :], axis=-1)))
-    if not r.size or span <= 0.0:
-        return None
-    ratio = float(np.median(r)) / span
-    if RANGE_TO_MAP[0] <= ratio <= RANGE_TO_MAP[1]:
-        return None
-    return (
-        f"the median range reading, {np.median(r):.4g} mm, is {ratio:.3g} times the map's widest span "
-        f"({span / 1000.0:.3g} m): is its unit right? A column named range_m is read as metres (x1000 to mm), "
-        "range_mm as millimetres"
-    )
 
 
 def _truth_on_grid(path: Path, grid: np.ndarray) -> dict[str, np.ndarray]:
