@@ -851,6 +851,17 @@ def test_learn_em_refuses_a_turtlebot_csv_out_of_order(tmp_path):
     (tmp_path / "notes.txt").write_text("x")
     res = runner.invoke(app, ["learn", "em", str(tmp_path / "notes.txt")])
     assert res.exit_code == 2 and "EM reads a log folder or a Turtlebot CSV file" in res.output
+    # a .csv that is not a Turtlebot's: a log folder's own file, or a robot's records `convert csv` reads
+    folder = tmp_path / "track"
+    assert runner.invoke(app, ["simulate", "track1d", "--seconds", "5", "--out", str(folder)]).exit_code == 0
+    (tmp_path / "commands.csv").write_text("t_s,v_m_s\n0,0.1\n1,0.1\n")
+    for given, fix in (
+        (folder / "actions.csv", f"give the log folder {folder}"),
+        (tmp_path / "commands.csv", "convert csv"),
+    ):
+        res = runner.invoke(app, ["learn", "em", str(given)])
+        flat = " ".join(res.output.split())
+        assert res.exit_code == 2 and "no time and velocity_command columns" in flat and fix in flat, res.output
     # a track folder of one step: both learners name the file and the field
     one = tmp_path / "one"
     assert runner.invoke(app, ["simulate", "track1d", "--seconds", "5", "--out", str(one)]).exit_code == 0
