@@ -418,6 +418,9 @@ def test_other_readings_get_no_config_and_are_told_how_to_choose(tmp_path):
         ("commands", {"t_s": [0.0, 1.0], "v_m_s": [0.1, np.nan]}, "v_mm_s", "row 3 has no value"),
         ("commands", {"t_s": [0.0, 1.0]}, None, "no command columns"),
         ("commands", {"t_s": [0.0, 0.01], "v_m_s": [0.1, 0.2]}, "t_s", "less than one step"),
+        ("commands", {"t_s": [1.7e12, 1.7e12 + 1e3], "v_m_s": [0.1, 0.2]}, "t_s", "most likely ms"),
+        ("truth", {"t_s": [1.7e18, 1.7e18 + 1e9], "x_m": [0, 1], "y_m": [0, 0], "theta_rad": [0, 0]}, "t_s", "ns"),
+        ("commands", {"t_s": [0.0, 6e5], "v_m_s": [0.1, 0.2]}, "t_s", "beyond what EM learns from in an hour"),
         ("landmarks", {"id": [1, 1], "x_m": [0, 1], "y_m": [0, 1]}, "id", "appears more than once"),
         ("landmarks", {"id": [1], "x": [0], "y": [0]}, "x_mm", "missing column x_mm"),
         (

@@ -49,6 +49,10 @@ UNIT_SUFFIXES = (
 # the time column in other units (a ROS bag's stamps are nanoseconds) -> seconds; other columns keep _ms
 TIME_COLUMNS = {"t_ms": 1e-3, "t_us": 1e-6, "t_ns": 1e-9}
 MIN_TRUTH_GAP_S = 0.1  # truth samples further apart than this (or five of their periods) leave a gap
+# times a clock in seconds cannot read: after the year 5000 on a 1970 clock, so ms, us or ns under t_s
+MAX_CLOCK_S = 1e11
+# a log longer than this is beyond what EM learns from in an hour (MRCLAM's 27,000 steps take about 17 s)
+MAX_STEPS = 5_000_000
 
 
 def in_sensact_units(name: str, values: np.ndarray) -> tuple[str, np.ndarray]:
@@ -80,6 +84,8 @@ def _table(
                 fix="keep one of them.",
             )
         table[new] = scaled
+    if "t_s" in table:
+        _refuse_a_clock_in_other_units(path, table["t_s"])
     missing = [c for c in required if c not in table]
     if missing:
         raise LogFormatError(
@@ -101,6 +107,21 @@ def _rostopic_hint(raw: dict[str, np.ndarray]) -> str:
         return "."
     twist = " (a cmd_vel Twist's field.linear.x is v_m_s, field.angular.z omega_rad_s; drop the others)"
     return f"; this is `rostopic echo -p` output: rename %time to t_ns and the field.* columns{twist}."
+
+
+def _refuse_a_clock_in_other_units(path: Path, t_s: np.ndarray) -> None:
+    finite = np.abs(t_s[np.isfinite(t_s)])
+    if not finite.size or finite.max() <= MAX_CLOCK_S:
+        return
+    # a Unix clock read now in ms is about 1.8e12, in us 1.8e15, in ns 1.8e18
+    unit = "ms" if finite.max() < 1e14 else "us" if finite.max() < 1e17 else "ns"
+    raise LogFormatError(
+        f"times up to {finite.max():.4g} s would be thousands of years after 1970: they are not seconds, "
+        f"most likely {unit}.",
+        file=path,
+        field="t_s",
+        fix=f"name the time column t_{unit} if it is in {unit} (t_s, t_ms, t_us and t_ns are read).",
+    )
 
 
 def _finite(path: Path, table: dict[str, np.ndarray], columns: tuple[str, ...], fix: str) -> None:
@@ -177,6 +198,15 @@ def read_timed_csv(
             file=commands,
             field="t_s",
             fix="give the whole run's commands, or a smaller --dt.",
+        )
+    steps = (t_cmd[-1] - t_cmd[0]) / dt_s
+    if steps > MAX_STEPS:
+        raise LogFormatError(
+            f"the commands span {t_cmd[-1] - t_cmd[0]:.4g} s, {steps:.3g} steps of {dt_s:.3g} s: more than "
+            f"{MAX_STEPS:,} steps, beyond what EM learns from in an hour.",
+            file=commands,
+            field="t_s",
+            fix="if the times are not seconds, name the column t_ms, t_us or t_ns; else give one run or a larger --dt.",
         )
     t0, held = held_on_grid(t_cmd, np.column_stack([cmd[c][order] for c in names]), dt_s)
     T = len(held)
