@@ -20,7 +20,7 @@ from sensact.errors import LogFormatError
 from sensact.io.csvtable import read_numeric_csv
 from sensact.io.landmark_log import read_landmark_log
 from sensact.io.timed_csv import in_sensact_units, read_timed_csv
-from sensact.io.unit_checks import range_unit_doubt
+from sensact.io.unit_checks import unit_doubts
 from sensact.learn.em import EMConfig
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
@@ -237,11 +237,12 @@ def test_a_rostopic_export_is_told_what_to_rename(tmp_path):
 
 def test_a_column_whose_name_gives_the_wrong_unit_is_caught(timed, tmp_path):
     """Degrees under bearing_rad are refused; millimetres under range_m (x1000) or metres under range_mm
-    (/1000) are warned about against the map's size; the simulated run's own units raise neither."""
+    (/1000), and mm/s under v_m_s, are warned about against the map's size; the simulated run's own units
+    raise none."""
     _, folder = timed
     files = ("commands", "sightings", "landmarks")
     plain = read_timed_csv(*(folder / f"{n}.csv" for n in files))
-    assert range_unit_doubt(plain.data) is None
+    assert unit_doubts(plain.data) == []
     sight = read_numeric_csv(folder / "sightings.csv")
     for n in ("commands", "landmarks"):
         (tmp_path / f"{n}.csv").write_text((folder / f"{n}.csv").read_text())
@@ -256,15 +257,21 @@ def test_a_column_whose_name_gives_the_wrong_unit_is_caught(timed, tmp_path):
     for name, scale, times in (("range_m", 1.0, 1000.0), ("range_mm", 1e-3, 1e-3)):
         wrong = {k: v for k, v in sight.items() if k != "range_mm"} | {name: sight["range_mm"] * scale}
         _write(tmp_path / "sightings.csv", wrong)
-        doubt = range_unit_doubt(read_timed_csv(*(tmp_path / f"{n}.csv" for n in files)).data)
-        assert doubt is not None and "range_m is read as metres" in doubt, name
+        doubts = unit_doubts(read_timed_csv(*(tmp_path / f"{n}.csv" for n in files)).data)
+        assert len(doubts) == 1 and "range_m is read as metres" in doubts[0], (name, doubts)
+        doubt = doubts[0]
         ratio = float(re.search(r"is ([0-9.e+-]+) times the map", doubt).group(1))
         assert ratio == pytest.approx(times * median / span, rel=0.01), doubt
+    cmd = read_numeric_csv(folder / "commands.csv")  # v in mm/s, named as if in m/s: x1000
+    _write(tmp_path / "commands.csv", {"t_s": cmd["t_s"], "v_m_s": cmd["v_mm_s"], "omega_rad_s": cmd["omega_rad_s"]})
     res = runner.invoke(
         app,
         ["convert", "csv", *[f"--{n}={tmp_path / f'{n}.csv'}" for n in files], "--out", str(tmp_path / "o")],
     )
-    assert res.exit_code == 0 and "warning:" in res.output and "is its unit right" in " ".join(res.output.split())
+    flat = " ".join(res.output.split())
+    assert res.exit_code == 0 and flat.count("is its unit right") == 2, res.output
+    assert "the median range reading" in flat and "the median commanded speed (v_mm_s)" in flat
+    assert "v_m_s is read as metres per second" in flat
 
 
 def test_a_landmark_named_twice_or_a_sighting_without_its_landmark_is_refused(tmp_path):

@@ -836,5 +836,6 @@ def test_learn_em_warns_when_a_hand_written_folders_range_is_in_another_unit(tmp
     res = runner.invoke(app, ["learn", "em", str(log), "--set", "max_iterations=2", "--out", str(tmp_path / "m.json")])
     flat = " ".join(res.output.split())
     assert res.exit_code == 0, res.output
-    assert "warning: the median range reading" in flat and f"{log / 'observations.csv'}" in flat
+    assert "warning: the median range reading" in flat and f"(in {log})" in flat
+    assert "commanded speed" not in flat  # the commands, in their unit, are not doubted
     assert flat.index("is its unit right") < flat.index("finding the start pose")

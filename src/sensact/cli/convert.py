@@ -127,12 +127,11 @@ def convert_csv(
 
     from sensact.io.landmark_log import write_landmark_log
     from sensact.io.timed_csv import read_timed_csv
-    from sensact.io.unit_checks import range_unit_doubt
+    from sensact.io.unit_checks import unit_doubts
 
     tl = read_timed_csv(commands, sightings, landmarks, truth, dt_s=dt)
     console.print(tl.summary_line())
-    doubt = range_unit_doubt(tl.data)
-    if doubt:
+    for doubt in unit_doubts(tl.data):
         console.print(f"[yellow]warning:[/] {doubt}")
     files = {"commands": str(commands), "sightings": str(sightings), "landmarks": str(landmarks)}
     write_landmark_log(

@@ -177,11 +177,10 @@ def _settings_and_log(
         console.print(f"settings: {beside}, written beside the log; --config replaces them, --set overrides them.")
     cfg = layered_config(EMConfig, config, set_)  # bad settings are said before the log is read
     data, lf, turtlebot_truth = read_em_log(log, bins)
-    from sensact.io.unit_checks import range_unit_doubt
+    from sensact.io.unit_checks import unit_doubts
 
-    doubt = range_unit_doubt(data)  # a hand-written folder's range in the wrong unit, before a wasted fit
-    if doubt:
-        console.print(f"[yellow]warning:[/] {doubt} (in {log / 'observations.csv'})")
+    for doubt in unit_doubts(data):  # a hand-written folder's column in the wrong unit, before a wasted fit
+        console.print(f"[yellow]warning:[/] {doubt} (in {log})")
     return cfg, data, lf, turtlebot_truth, None
 
 
