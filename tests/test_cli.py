@@ -9,6 +9,7 @@ import pytest
 import typer
 from typer.testing import CliRunner
 
+import sensact
 from sensact.cli import app
 from sensact.cli.base import one_line_paragraphs
 from sensact.evaluate.bars import counts, verdict_line
@@ -141,6 +142,11 @@ def test_a_path_the_system_refuses_is_one_line(tmp_path):
     assert isinstance(res.exception, OSError)  # --debug still shows what the system raised
 
 
+def test_version_is_printed():
+    res = runner.invoke(app, ["--version"])
+    assert res.exit_code == 0 and res.output.strip() == f"sensact {sensact.__version__}"
+
+
 def test_debug_shows_the_traceback():
     from sensact.errors import LogFormatError
 
@@ -167,6 +173,7 @@ def test_reproduce_track1d_writes_the_documented_shape(tmp_path):
         } <= set(row)
         assert row["trials"] == 2
     assert {"degree_selection", "thesis", "seconds"} <= set(out)
+    assert out["sensact_version"] == sensact.__version__  # a result names the code that made it
     for fig in ("fig3_7_location_estimates.png", "fig3_8_learned_vs_measured.png", "fig3_9_learning_curves.png"):
         assert (tmp_path / fig).stat().st_size > 10_000
     assert "Table 3.1" in (tmp_path / "track1d.md").read_text()

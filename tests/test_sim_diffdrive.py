@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+import sensact
 from sensact.cli import app
 from sensact.core.angles import wrap_angle
 from sensact.core.pose_models import apply_displacement, landmark_bearing, landmark_distance
@@ -319,7 +320,10 @@ def test_simulate_diffdrive_then_learn_em_scores_against_the_simulation(tmp_path
         poses, valid = lf.truth_poses()
         off = np.hypot(*(path["mean"][valid, :2] - poses[valid, :2]).T)
         assert float(np.median(off)) == pytest.approx(ev["path"]["median_mm"], rel=1e-9)
-    assert json.loads((tmp_path / "e.json").read_text()) == {k: v for k, v in ev.items() if k != "path"}
+    scored = json.loads((tmp_path / "e.json").read_text())
+    assert scored.pop("sensact_version") == doc["sensact_version"] == sensact.__version__  # each file names its code
+    assert next(iter(doc)) == "sensact_version"
+    assert scored == {k: v for k, v in ev.items() if k != "path"}
     assert (tmp_path / "e_actions.png").stat().st_size > 10_000
     # ... and on another run of the robot it scores against that run's truth, with From-Truth fitted there
     other = tmp_path / "dd4"

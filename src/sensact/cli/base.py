@@ -105,10 +105,21 @@ def one_line_paragraphs(doc: str | None) -> str | None:
     return "\n\n".join(p if p.startswith("\b") else " ".join(p.split()) for p in paragraphs)
 
 
+def _print_version(given: bool) -> None:
+    if given:
+        from sensact import __version__
+
+        console.print(f"sensact {__version__}")
+        raise typer.Exit()
+
+
 @app.callback()
 def _main(
     debug: Annotated[bool, typer.Option("--debug", help="Show full tracebacks.")] = False,
     verbose: Annotated[bool, typer.Option("--verbose", "-v", help="Log library messages.")] = False,
+    version: Annotated[
+        bool, typer.Option("--version", callback=_print_version, is_eager=True, help="Print the version and exit.")
+    ] = False,
 ) -> None:
     _state["debug"] = debug
     logging.basicConfig(level=logging.DEBUG if verbose else logging.WARNING, format="%(name)s: %(message)s")
@@ -171,14 +182,23 @@ def print_tables(tables: list[tuple[str, list[str], list[list[str]]]]) -> None:
         console.print(t)
 
 
+def write_result(path: Path, doc: dict[str, Any]) -> Path:
+    """A model or result JSON, atomically, stamped first with the sensact version that wrote it: what EM
+    learns from a log has changed between versions, so a model names the code it came from."""
+    from sensact import __version__
+    from sensact.io.atomic import write_json
+
+    return write_json(path, {"sensact_version": __version__} | doc)
+
+
 def write_results(out: Path, name: str, res: dict[str, Any], tables: list[Any]) -> None:
     """``out/<name>.json`` and ``out/<name>.md``, and the tables on the console. An experiment's
     ``scorecard`` goes to the Markdown as a table and to the console as one line."""
-    from sensact.io.atomic import write_json, write_text
+    from sensact.io.atomic import write_text
     from sensact.report.tables import scorecard_table, to_markdown
 
     out.mkdir(parents=True, exist_ok=True)
-    write_json(out / f"{name}.json", res)
+    write_result(out / f"{name}.json", res)
     cards = [scorecard_table(res["scorecard"])] if res.get("scorecard") else []
     write_text(out / f"{name}.md", to_markdown([*tables, *cards]))
     print_tables(tables)

@@ -9,7 +9,7 @@ from typing import Annotated, Any
 
 import typer
 
-from sensact.cli.base import EMModelOpt, console, evaluate_app, friendly
+from sensact.cli.base import EMModelOpt, console, evaluate_app, friendly, write_result
 from sensact.cli.model_on_log import read_em_model, refuse_model_for_log
 from sensact.cli.scores import evaluate_em, print_truth_score
 
@@ -32,7 +32,6 @@ def evaluate_mrclam_cmd(
     as `reproduce real` does."""
     from sensact.evaluate.landmark_truth import score_against_truth
     from sensact.experiments.real import bar_checks
-    from sensact.io.atomic import write_json
     from sensact.io.mrclam import read_mrclam
 
     doc, m = read_em_model(model)
@@ -48,7 +47,7 @@ def evaluate_mrclam_cmd(
     if out is not None:
         from sensact.report.figures_real import write_robot
 
-        write_json(out, sc)
+        write_result(out, sc)
         figures = write_robot(ml, m, sc, out.with_suffix(""), f"robot {robot}")
         console.print("wrote " + ", ".join(str(p) for p in (out, *figures)))
 
@@ -82,7 +81,6 @@ def evaluate_log_cmd(
     and the model is scored against the range column as `learn em` scores it."""
     from sensact.cli.model_on_log import read_model_and_log
     from sensact.errors import LogFormatError
-    from sensact.io.atomic import write_json
 
     # a track folder's continuous commands are binned as `learn em`'s default bins them (a Turtlebot
     # CSV's are read as they are)
@@ -99,7 +97,7 @@ def evaluate_log_cmd(
             fix="add groundtruth.csv with t_s, x_mm, y_mm, theta_rad (convert csv --truth writes it).",
         )
     if out is not None:
-        write_json(out, sc)
+        write_result(out, sc)
         written = [out]
         if "truth_noise" in sc:  # scored against recorded poses: the figures too
             from sensact.report.figures_real import write_robot
@@ -118,7 +116,6 @@ def _evaluate_on_range_column(
     from sensact.cli.scores import evaluate_turtlebot_em
     from sensact.errors import LogFormatError
     from sensact.evaluate.turtlebot_em import range_column_problem
-    from sensact.io.atomic import write_json
 
     problem = range_column_problem(truth_mm)
     if problem:
@@ -146,7 +143,7 @@ def _evaluate_on_range_column(
     }
     path = out.with_name(f"{out.stem}_against_range.png")
     run = TurtlebotEMRun(data, truth_mm, loc)
-    written = [write_json(out, doc_out), figure_turtlebot_em(run, sc, path, f"{model.name} on {log.name}")]
+    written = [write_result(out, doc_out), figure_turtlebot_em(run, sc, path, f"{model.name} on {log.name}")]
     console.print("wrote " + ", ".join(str(p) for p in written))
 
 
@@ -204,7 +201,6 @@ def evaluate_fleet_cmd(
     from sensact.cli.base import progress_bar
     from sensact.cli.model_on_log import is_turtlebot_csv, read_em_log, read_log_on_model_step
     from sensact.experiments.fleet import RangeLog, score_fleet
-    from sensact.io.atomic import write_json
     from sensact.learn.em.localize import learned_config
 
     models, configs, own = {}, {}, {}
@@ -242,7 +238,7 @@ def evaluate_fleet_cmd(
     if out is not None:
         from sensact.report.figures_fleet import figure_fleet
 
-        write_json(out, fleet)
+        write_result(out, fleet)
         figure = figure_fleet(fleet, out.with_suffix(".png"))
         console.print(f"wrote {out} and {figure}")
 

@@ -7,7 +7,17 @@ from typing import Annotated, Any
 
 import typer
 
-from sensact.cli.base import ConfigOpt, EMModelOpt, SetOpt, app, console, friendly, layered_config, progress_bar
+from sensact.cli.base import (
+    ConfigOpt,
+    EMModelOpt,
+    SetOpt,
+    app,
+    console,
+    friendly,
+    layered_config,
+    progress_bar,
+    write_result,
+)
 
 
 def _parse_start(text: str | None, n: int) -> Any:
@@ -153,7 +163,6 @@ def localize_cmd(
 
     from sensact.cli.learn.em import write_smoothed_path
     from sensact.cli.model_on_log import read_model_and_log
-    from sensact.io.atomic import write_json
 
     doc, m, data, lf, truth_mm = read_model_and_log(log, model, bins, use="run")
     poses = lf.truth_poses() if lf is not None else None
@@ -161,7 +170,7 @@ def localize_cmd(
     post = loc.posteriors
     scores = _truth_scores(loc, poses, truth_mm, (doc.get("evaluation") or {}).get("state_map"))
     if out is not None:
-        write_json(
+        write_result(
             out,
             {
                 "log": data.source,

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from sensact.cli.base import ConfigOpt, SetOpt, console, friendly, layered_config, learn_app, progress_bar
+from sensact.cli.base import ConfigOpt, SetOpt, console, friendly, layered_config, learn_app, progress_bar, write_result
 from sensact.cli.scores import evaluate_log, warn_if_one_command
 
 
@@ -33,7 +33,7 @@ def learn_bootstrap_cmd(
 
     Prints the polynomials, and the scaled errors when the log carries ground truth."""
     from sensact.errors import ConfigError
-    from sensact.io.atomic import write_json, write_npz
+    from sensact.io.atomic import write_npz
     from sensact.io.logfolder import read_track_log
     from sensact.learn.bootstrap import BootstrapConfig, learn_bootstrap
 
@@ -73,7 +73,7 @@ def learn_bootstrap_cmd(
     evaluation = evaluate_log(data, res, cfg)
     if out is not None:
         payload = {**res.to_dict(), "log": data.source, "evaluation": evaluation}
-        write_json(out, payload)
+        write_result(out, payload)
         assert res.history is not None
         write_npz(out.with_suffix(".history.npz"), **res.history.arrays())
         from sensact.report.figures_bootstrap import figure_bootstrap_fit

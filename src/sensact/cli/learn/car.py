@@ -7,7 +7,7 @@ from typing import Annotated, Any
 
 import typer
 
-from sensact.cli.base import ConfigOpt, SetOpt, console, friendly, layered_config, learn_app, progress_bar
+from sensact.cli.base import ConfigOpt, SetOpt, console, friendly, layered_config, learn_app, progress_bar, write_result
 
 
 def _learn(data: Any, cfg: Any, simulated: bool) -> tuple[Any, dict | None, list, dict[str, Any] | None]:
@@ -120,7 +120,6 @@ def learn_car_cmd(
     import numpy as np
 
     from sensact.config import config_to_dict
-    from sensact.io.atomic import write_json
     from sensact.io.car_log import read_car_log
     from sensact.learn.car_dynamics import CarLearningConfig
 
@@ -139,7 +138,7 @@ def learn_car_cmd(
     res, model, history, evaluation = _learn(data, cfg, simulated)
     reference, comparison = _angle_reference(data, res, simulated)
     if out is not None:
-        write_json(
+        write_result(
             out,
             {
                 "laser_angles_deg": np.degrees(res.laser_angles_rad).tolist(),

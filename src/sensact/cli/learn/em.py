@@ -17,6 +17,7 @@ from sensact.cli.base import (
     learn_app,
     print_tables,
     progress_bar,
+    write_result,
 )
 from sensact.cli.model_on_log import is_turtlebot_csv, read_em_log
 from sensact.cli.scores import evaluate_em, evaluate_turtlebot_em, print_em_model, warn_if_one_command
@@ -308,9 +309,9 @@ def _write_fit(
     """The model JSON, its history and path, the figure of the fit and those against the log's truth; a
     figure that an earlier run at this --out drew, against a truth this log does not have or of its
     halves (``halves``: this run draws its own after them), is removed."""
-    from sensact.io.atomic import write_json, write_npz
+    from sensact.io.atomic import write_npz
 
-    write_json(out, doc)
+    write_result(out, doc)
     write_npz(
         out.with_suffix(".history.npz"),
         loglik=res.loglik_history,
@@ -393,7 +394,6 @@ def learn_em_cmd(
 
     Ctrl-C stops early and still writes the most likely model so far."""
 
-    from sensact.io.atomic import write_json
     from sensact.learn.em import initial_model
     from sensact.learn.em.checks import describe_held_sideways, describe_lost_fit, held_sideways_noise, lost_fit_signs
     from sensact.learn.em.config import refuse_bearing_settings
@@ -476,5 +476,5 @@ def learn_em_cmd(
             res, data, cfg, figure, f"{_log_name(log, data, lf)}: halves against the whole"
         )
         if out is not None:
-            write_json(out, doc | {"halves": halves_doc})
+            write_result(out, doc | {"halves": halves_doc})
             console.print(f"wrote {out} again, with the halves")
