@@ -17,7 +17,7 @@ from sensact.errors import LogFormatError
 from sensact.logs.landmark_log import LandmarkLog
 
 DEGREES_SHARE = 0.1  # the share of bearings beyond a whole turn that makes them degrees
-RANGE_TO_MAP = (1.0 / 300.0, 30.0)  # the median range over the map's widest span; metres vs mm is x1000
+RANGE_TO_MAP = (1.0 / 300.0, 30.0)  # the median range over the map's extent; metres vs mm is x1000
 SPEED_TO_MAP_PER_S = (1e-4, 3.0)  # the median commanded speed over that span (MRCLAM's: about 0.01 a second)
 
 
@@ -41,11 +41,13 @@ def unit_doubts(data: LandmarkLog) -> list[str]:
 
 
 def _map_span(data: LandmarkLog) -> float:
-    """The map's widest span (mm); 0 with one landmark (a track's), which gives no size to compare with."""
+    """The map's extent (mm), its bounding box's diagonal: between its widest span and 1.42 times it,
+    which serves checks of orders of magnitude at any number of landmarks. 0 with one landmark (a
+    track's), which gives no size to compare with."""
     xy = data.landmarks_xy
     if len(xy) < 2:
         return 0.0
-    return float(np.max(np.linalg.norm(xy[:, None, :] - xy[None, :, :], axis=-1)))
+    return float(np.hypot(*np.ptp(xy, axis=0)))
 
 
 def speed_unit_doubt(data: LandmarkLog) -> str | None:
@@ -64,7 +66,7 @@ def speed_unit_doubt(data: LandmarkLog) -> str | None:
         return None
     names = ", ".join(data.command_names[j] for j in cols)
     return (
-        f"the median commanded speed ({names}), {np.median(v):.4g} mm/s, crosses the map's widest span "
+        f"the median commanded speed ({names}), {np.median(v):.4g} mm/s, crosses the map's extent "
         f"({span / 1000.0:.3g} m) {ratio:.3g} times a second: is its unit right? A column named v_m_s is read as "
         "metres per second (x1000 to mm/s), v_mm_s as millimetres per second"
     )
@@ -85,7 +87,7 @@ def range_unit_doubt(data: LandmarkLog) -> str | None:
     if RANGE_TO_MAP[0] <= ratio <= RANGE_TO_MAP[1]:
         return None
     return (
-        f"the median range reading, {np.median(r):.4g} mm, is {ratio:.3g} times the map's widest span "
+        f"the median range reading, {np.median(r):.4g} mm, is {ratio:.3g} times the map's extent "
         f"({span / 1000.0:.3g} m): is its unit right? A column named range_m is read as metres (x1000 to mm), "
         "range_mm as millimetres"
     )
