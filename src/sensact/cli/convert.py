@@ -116,13 +116,16 @@ def convert_csv(
     """Write your robot's own timed CSV files as an EM log folder.
 
     Times in seconds on one clock, rows in any order. Commands are held until the next row on a fixed
-    step, each sighting goes to the nearest step, truth is interpolated. Column suffixes give units:
-    _m and _m_s become mm and mm/s, _deg and _deg_s radians. Sightings of landmarks the map does not
-    list are dropped and counted. A robot with a range_m and bearing camera also gets em_config.yaml
-    (MRCLAM's settings) to start from: a differential drive's when the commands are v_m_s, omega_rad_s
-    or the wheel speeds left_m_s, right_m_s; on any other commands, as a legged robot's (v, v_left,
-    omega), every velocity, sideways too, affine in every command. A robot with range_m alone (radio
-    beacons) gets the same without the bearings, in which to set where it starts. See docs/em-real.md."""
+    step, each sighting goes to the nearest step, truth is interpolated. A spreadsheet's export reads as
+    written (a byte-order mark, tabs, or semicolons with decimal commas). Column suffixes give units: _m
+    and _m_s become mm and mm/s, _deg and _deg_s radians; a column whose numbers show another unit
+    (bearings in degrees, times in ms) is refused, and a range or speed off the map's size warned about.
+    Sightings of landmarks the map does not list are dropped and counted. A robot with a range_m and
+    bearing camera also gets em_config.yaml (MRCLAM's settings) to start from: a differential drive's
+    when the commands are v_m_s, omega_rad_s or the wheel speeds left_m_s, right_m_s; on any other
+    commands, as a legged robot's (v, v_left, omega), every velocity, sideways too, affine in every
+    command. A robot with range_m alone (radio beacons) gets the same without the bearings, in which to
+    set where it starts. See docs/em-real.md."""
     import numpy as np
 
     from sensact.io.landmark_log import write_landmark_log
