@@ -868,7 +868,13 @@ def test_learn_em_refuses_a_turtlebot_csv_out_of_order(tmp_path):
     ):
         res = runner.invoke(app, ["learn", "em", str(given)])
         flat = " ".join(res.output.split())
-        assert res.exit_code == 2 and "no time and velocity_command columns" in flat and fix in flat, res.output
+        assert res.exit_code == 2 and "missing column(s) time, velocity_command" in flat and fix in flat, res.output
+        assert "read as a Turtlebot's log" in flat
+    # a Turtlebot CSV without the sensor chapter 3's learner is asked for names it and what the file has
+    _write_turtlebot_csv(csv, with_range=True, drop=("raw_ir4",))
+    res = runner.invoke(app, ["learn", "bootstrap", str(csv), "--sensor", "raw_ir4"])
+    flat = " ".join(res.output.split())
+    assert res.exit_code == 2 and "no raw_ir4 column; found" in flat and "raw_ir3" in flat, res.output
     # a track folder of one step: both learners name the file and the field
     one = tmp_path / "one"
     assert runner.invoke(app, ["simulate", "track1d", "--seconds", "5", "--out", str(one)]).exit_code == 0

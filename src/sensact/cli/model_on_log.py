@@ -21,7 +21,6 @@ def read_em_log(log: Path, bins: int, dt_s: float | None = None) -> tuple[Any, A
     if is_turtlebot_csv(log):
         from sensact.io.turtlebot import read_turtlebot_landmark_log
 
-        _refuse_csv_not_a_turtlebots(log)
         data, truth = read_turtlebot_landmark_log(log, dt_s)
         return data, None, truth
     if log.is_file():
@@ -37,35 +36,6 @@ def read_em_log(log: Path, bins: int, dt_s: float | None = None) -> tuple[Any, A
 
     lf = read_landmark_log(log, command_bins=bins)
     return lf.data, lf, None
-
-
-def _refuse_csv_not_a_turtlebots(log: Path) -> None:
-    """A .csv is read as a Turtlebot's log; one without its time and command columns is most likely a log
-    folder's own file or a robot's timed records that `convert csv` turns into a folder: said so."""
-    from sensact.errors import LogFormatError
-    from sensact.io.csvtable import read_csv_rows
-
-    rows, _ = read_csv_rows(log)
-    header = [h.strip() for h in rows[0]] if rows else []
-    if {"time", "velocity_command"} <= set(header):
-        return
-    if (log.parent / "meta.json").is_file():
-        fix = f"give the log folder {log.parent}, not one of its files."
-    elif any(h in ("t_s", "t_ms", "t_us", "t_ns") for h in header):
-        fix = (
-            "a robot's own timed records become a log folder first: `sensact convert csv --commands C.csv "
-            "--sightings S.csv --landmarks L.csv --out DIR` (docs/em-real.md, section 1), then give DIR."
-        )
-    else:
-        fix = 'give a log folder (docs/commands.md, "Log folders for EM") or a Turtlebot CSV.'
-    raise LogFormatError(
-        "a .csv file is read as a Turtlebot's log (time, velocity_command, sonar1 and IR columns), and this one "
-        f"has no time and velocity_command columns (found {', '.join(h or '<unnamed>' for h in header[:8])}"
-        + (", ..." if len(header) > 8 else "")
-        + ").",
-        file=log,
-        fix=fix,
-    )
 
 
 def read_log_on_model_step(log: Path, doc: dict[str, Any], bins: int) -> tuple[Any, Any, Any]:

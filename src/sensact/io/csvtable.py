@@ -35,13 +35,18 @@ def read_csv_rows(path: Path) -> tuple[list[list[str]], bool]:
 
 
 def read_numeric_csv(
-    path: str | Path, required: Sequence[str] = (), *, what: str = "table", labels: Sequence[str] = ()
+    path: str | Path,
+    required: Sequence[str] = (),
+    *,
+    what: str = "table",
+    labels: Sequence[str] = (),
+    missing_fix: str = "rename the column or choose one that exists.",
 ) -> dict[str, np.ndarray]:
     """All columns of a CSV with a header row, as float arrays keyed by column name.
 
     Empty cells become NaN. The columns named in ``labels`` (names such as a landmark's ``post_A``) are
-    kept as stripped strings instead, an empty cell as "". A missing file, a missing required column, a
-    short row or a non-numeric cell raises ``LogFormatError`` naming where and what to do.
+    kept as stripped strings instead, an empty cell as "". A missing file, a missing required column (with
+    ``missing_fix``), a short row or a non-numeric cell raises ``LogFormatError`` naming where and what to do.
     """
     path = Path(path)
     if not path.is_file():
@@ -60,7 +65,7 @@ def read_numeric_csv(
             f"missing column(s) {', '.join(missing)}; found {', '.join(h or '<unnamed>' for h in header)}.",
             file=path,
             field=missing[0],
-            fix="rename the column or choose one that exists.",
+            fix=missing_fix,
         )
     body = [r for r in rows[1:] if any(cell.strip() for cell in r)]
     if not body:

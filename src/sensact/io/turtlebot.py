@@ -56,7 +56,15 @@ def turtlebot_sensors(path: str | Path) -> tuple[str, ...]:
 
 def _read_checked(path: str | Path, readings: tuple[str, ...]) -> dict[str, np.ndarray]:
     """The time, command and reading columns, with the time and command columns checked."""
-    cols = read_numeric_csv(path, ["time", "velocity_command", *readings], what="Turtlebot CSV")
+    cols = read_numeric_csv(path, ["time", "velocity_command"], what="Turtlebot CSV", missing_fix=_not_turtlebot(path))
+    missing = [r for r in readings if r not in cols]
+    if missing:
+        raise LogFormatError(
+            f"no {missing[0]} column; found {', '.join(cols)}.",
+            file=path,
+            field=missing[0],
+            fix="choose a sensor the file has (--sensor), or check the file's columns.",
+        )
     t = cols["time"]
     if len(t) < 2 or np.any(~np.isfinite(t)) or np.any(np.diff(t) <= 0):
         raise LogFormatError(
@@ -70,6 +78,19 @@ def _read_checked(path: str | Path, readings: tuple[str, ...]) -> dict[str, np.n
             "a velocity_command cell is empty.", file=path, field="velocity_command", fix="fill every command cell."
         )
     return cols
+
+
+def _not_turtlebot(path: str | Path) -> str:
+    """The fix for a .csv without a Turtlebot's time and command columns, which a learner reads as one:
+    most likely a log folder's own file, or a robot's timed records that `convert csv` turns into one."""
+    folder = Path(path).parent
+    if (folder / "meta.json").is_file():
+        return f"a .csv is read as a Turtlebot's log: give the log folder {folder}, not one of its files."
+    return (
+        "a .csv is read as a Turtlebot's log (time, velocity_command, sonar1, IR columns); a robot's own timed "
+        "records become a log folder first: `sensact convert csv --commands C.csv --sightings S.csv --landmarks "
+        "L.csv --out DIR` (docs/em-real.md, section 1), then give DIR."
+    )
 
 
 def read_turtlebot_landmark_log(path: str | Path, dt_s: float | None = None) -> tuple[LandmarkLog, np.ndarray]:

@@ -18,7 +18,7 @@ from sensact.logs.landmark_log import LandmarkLog
 
 DEGREES_SHARE = 0.1  # the share of bearings beyond a whole turn that makes them degrees
 RANGE_TO_MAP = (1.0 / 300.0, 30.0)  # the median range over the map's extent; metres vs mm is x1000
-SPEED_TO_MAP_PER_S = (1e-4, 3.0)  # the median commanded speed over that span (MRCLAM's: about 0.01 a second)
+SPEED_TO_MAP_PER_S = (1e-4, 3.0)  # the median commanded speed over that extent (MRCLAM's: about 0.01 a second)
 
 
 def refuse_degrees_as_radians(path: Path, bearing: np.ndarray, column: str, fix: str) -> None:
