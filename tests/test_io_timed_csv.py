@@ -36,14 +36,11 @@ def _write(path, columns):
     return path
 
 
-@pytest.fixture(scope="module")
-def timed(tmp_path_factory):
+def _as_timed_files(run, folder):
     """A simulated run written as a robot would log it: commands only when they change, sightings off the
     grid and out of order, three sightings to drop, the map with ids of its own, truth heading from +x."""
-    run = simulate_diffdrive(DiffDriveConfig(seconds=60.0, seed=5))
     d, dt = run.log(), run.config.dt_s
     rng = np.random.default_rng(0)
-    folder = tmp_path_factory.mktemp("timed")
     grid = T0 + np.arange(d.n_steps) * dt
     sent = np.flatnonzero(np.r_[True, np.any(np.diff(d.step_commands, axis=0) != 0, axis=1)])
     order = rng.permutation(sent)
@@ -72,6 +69,21 @@ def timed(tmp_path_factory):
         {"t_s": grid, "x_mm": run.poses[:, 0], "y_mm": run.poses[:, 1], "theta_rad": run.poses[:, 2] + 0.5 * np.pi},
     )
     return run, folder
+
+
+@pytest.fixture(scope="module")
+def timed(tmp_path_factory):
+    """A minute's run as timed files (``_as_timed_files``); it drives one way nearly throughout."""
+    return _as_timed_files(simulate_diffdrive(DiffDriveConfig(seconds=60.0, seed=5)), tmp_path_factory.mktemp("timed"))
+
+
+@pytest.fixture(scope="module")
+def wandering(tmp_path_factory):
+    """Five minutes of the same robot as timed files: it drives back and forth, turning many ways (its
+    moves' directions have an axial resultant of 0.65, where a heading read another way cannot agree)."""
+    return _as_timed_files(
+        simulate_diffdrive(DiffDriveConfig(seconds=300.0, seed=5)), tmp_path_factory.mktemp("wander")
+    )
 
 
 def _same_sightings(a, b):
@@ -272,6 +284,75 @@ def test_a_column_whose_name_gives_the_wrong_unit_is_caught(timed, tmp_path):
     assert res.exit_code == 0 and flat.count("is its unit right") == 2, res.output
     assert "the median range reading" in flat and "the median commanded speed (v_mm_s)" in flat
     assert "v_m_s is read as metres per second" in flat
+
+
+@pytest.mark.parametrize(
+    ("written", "said"),
+    [
+        (lambda h: h - 0.5 * np.pi, "is +1.571 rad (+90 deg) off the way the robot moves (a quarter turn"),
+        (lambda h: h + 0.5, "is -0.500 rad (-29 deg) off"),  # a motion-capture body's axes set apart
+        (lambda h: np.degrees(np.angle(np.exp(1j * h))), "only read in degrees,"),
+        (lambda h: -h, "only read clockwise,"),
+        (
+            lambda h: (90.0 - np.degrees(h)) % 360.0,
+            "only read clockwise in degrees (a compass heading?), turned by +1.571",
+        ),
+    ],
+    ids=["from +y", "turned", "degrees", "clockwise", "compass"],
+)
+def test_a_truth_heading_read_another_way_is_named_with_the_column_that_fixes_it(wandering, tmp_path, written, said):
+    """A recorded heading that points off the way the recorded positions move is warned about, with the
+    reading under which it agrees; the column the warning says to write agrees (an exact check of the
+    fix), and the simulated run's own heading (ROS REP 103) raises nothing."""
+    _, folder = wandering
+    files = [folder / f"{n}.csv" for n in ("commands", "sightings", "landmarks")]
+    assert read_timed_csv(*files, folder / "truth.csv").truth_doubt is None
+    truth = read_numeric_csv(folder / "truth.csv")
+    column = written(truth["theta_rad"])
+    _write(tmp_path / "truth.csv", truth | {"theta_rad": column})
+    doubt = read_timed_csv(*files, tmp_path / "truth.csv").truth_doubt
+    assert doubt is not None and said in doubt, doubt
+    assert "theta_rad is read as radians, counterclockwise, 0 facing +x" in doubt
+    fix = doubt.split("write theta_rad = ")[1].split(" (name the column")[0]
+    fixed = eval(fix.replace("theta_rad", "column"), {"column": column, "pi": np.pi})  # the fix as it reads
+    _write(tmp_path / "truth.csv", truth | {"theta_rad": fixed})
+    assert read_timed_csv(*files, tmp_path / "truth.csv").truth_doubt is None, fix
+
+
+def test_a_truth_heading_is_judged_only_where_the_moves_show_it(timed, wandering, tmp_path):
+    """No warning for a heading that no reading makes follow the moves (a robot that side-steps, a noisy
+    compass), for a robot that never moves 30 mm in a second, or for another reading on a run that keeps
+    one direction (a heading in degrees would be nearly constant there and agree); a heading turned on
+    such a run is still named, as written."""
+    _, folder = wandering
+    files = [folder / f"{n}.csv" for n in ("commands", "sightings", "landmarks")]
+    truth = read_numeric_csv(folder / "truth.csv")
+    wander = np.cumsum(np.random.default_rng(1).normal(0.0, 0.2, truth["t_s"].size))
+    _write(tmp_path / "truth.csv", truth | {"theta_rad": wander})
+    assert read_timed_csv(*files, tmp_path / "truth.csv").truth_doubt is None
+    still = truth | {"x_mm": truth["x_mm"] * 1e-3, "y_mm": truth["y_mm"] * 1e-3, "theta_rad": truth["theta_rad"] + 1.0}
+    _write(tmp_path / "truth.csv", still)
+    assert read_timed_csv(*files, tmp_path / "truth.csv").truth_doubt is None
+    _, straight = timed
+    files = [straight / f"{n}.csv" for n in ("commands", "sightings", "landmarks")]
+    truth = read_numeric_csv(straight / "truth.csv")
+    _write(tmp_path / "truth.csv", truth | {"theta_rad": np.degrees(truth["theta_rad"])})
+    assert read_timed_csv(*files, tmp_path / "truth.csv").truth_doubt is None
+    _write(tmp_path / "truth.csv", truth | {"theta_rad": truth["theta_rad"] - 0.5 * np.pi})
+    assert "+1.571 rad (+90 deg) off" in read_timed_csv(*files, tmp_path / "truth.csv").truth_doubt
+
+
+def test_convert_csv_warns_of_a_truth_heading_from_another_axis(wandering, tmp_path):
+    """`convert csv` warns of a heading measured from +y and still writes the folder (the truth is for
+    scoring only); the right heading raises nothing."""
+    _, folder = wandering
+    args = [f"--{n}={folder / f'{n}.csv'}" for n in ("commands", "sightings", "landmarks")]
+    truth = read_numeric_csv(folder / "truth.csv")
+    _write(tmp_path / "from_y.csv", truth | {"theta_rad": truth["theta_rad"] - 0.5 * np.pi})
+    for name, out, warned in (("from_y.csv", "y", True), (folder / "truth.csv", "x", False)):
+        res = runner.invoke(app, ["convert", "csv", *args, f"--truth={tmp_path / name}", "--out", str(tmp_path / out)])
+        flat = " ".join(res.output.split())
+        assert res.exit_code == 0 and ("theta_rad = theta_rad + 1.571" in flat) == warned, res.output
 
 
 def test_a_landmark_named_twice_or_a_sighting_without_its_landmark_is_refused(tmp_path):

@@ -171,6 +171,38 @@ def test_truth_residuals_are_taken_at_the_sensor():
     assert "the truth's own heading" not in out.get()
 
 
+def test_the_score_warns_when_the_truths_heading_points_off_the_way_it_moves():
+    """A log folder's recorded heading a quarter turn off (sensact's frame has 0 facing +y; a REP 103
+    heading copied in unturned) is named, with the column that fixes it, where `learn em` and `evaluate`
+    print the score; the right heading adds nothing to the score."""
+    from sensact.evaluate.landmark_truth import score_against_truth
+    from sensact.experiments.real import mrclam_config
+    from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
+
+    run = simulate_diffdrive(DiffDriveConfig(seconds=300.0, seed=5))
+    data, poses = run.log(), run.poses
+    model = initial_model(data, mrclam_config())
+    valid = np.ones(len(poses), dtype=bool)
+    assert "truth_heading_doubt" not in score_against_truth(model, data, poses, valid)
+    # the tests' continuous robot slips sideways as it circles (its moves agree with its heading at 0.89):
+    # not a differential drive's truth, and not judged
+    slipping, slipping_poses = simulate_continuous(2, T=6000)
+    slipped = score_against_truth(
+        initial_model(slipping, continuous_config()),
+        slipping,
+        slipping_poses + np.array([0.0, 0.0, 1.0]),
+        np.ones(len(slipping_poses), dtype=bool),
+    )
+    assert "truth_heading_doubt" not in slipped
+    rep103 = poses + np.array([0.0, 0.0, 0.5 * np.pi])
+    sc = score_against_truth(model, data, rep103, valid)
+    assert "is -1.571 rad (-90 deg) off the way the robot moves" in sc["truth_heading_doubt"]
+    assert sc["truth_heading_doubt"].endswith("write theta_rad = theta_rad - 1.571")
+    with console.capture() as out:
+        print_truth_score(sc)
+    assert "0 facing +y; `convert csv` turns a ROS REP 103 heading into it" in " ".join(out.get().split())
+
+
 def test_frame_shared_bearing_error_splits_a_frames_residuals():
     """Seeded recovery: an error every sighting of a frame shares (sd 0.006) plus each sighting's own
     (sd 0.004), three sightings a frame, is split into the own sd and the shared fraction 0.36/0.52;

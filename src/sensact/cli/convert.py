@@ -136,6 +136,8 @@ def convert_csv(
     console.print(tl.summary_line())
     for doubt in unit_doubts(tl.data):
         console.print(f"[yellow]warning:[/] {doubt}")
+    if tl.truth_doubt:  # scoring only, so the log is written; the scores against it would be off
+        console.print(f"[yellow]warning:[/] {truth}: {tl.truth_doubt}", highlight=False)
     files = {"commands": str(commands), "sightings": str(sightings), "landmarks": str(landmarks)}
     write_landmark_log(
         out,

@@ -265,6 +265,8 @@ def print_fleet(fleet: dict[str, Any]) -> None:
         print_tables([fleet_table(fleet, miss=miss, own=own)])
         for line in fleet_lines(fleet):
             console.print(line)
+    for log, doubt in fleet.get("truth_heading_doubts", {}).items():
+        console.print(f"[yellow]warning:[/] {log}: {doubt}", highlight=False)
     rng = fleet.get("range", {})
     # a Turtlebot CSV has no poses by its nature: it is scored against its range column instead
     unposed = [

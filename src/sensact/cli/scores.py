@@ -200,6 +200,8 @@ def print_truth_score(sc: dict[str, Any]) -> None:
             f"at the truth's origin instead the bearing residual is {b['truth_origin_sigma_rad']:.4f} rad RMS "
             f"(mean {b['truth_origin_mean_rad']:+.4f}; learned sigma / it {b['truth_origin_sigma_ratio']:.2f})"
         )
+    if sc.get("truth_heading_doubt"):
+        console.print(f"[yellow]warning:[/] {sc['truth_heading_doubt']}", highlight=False)
     if "bars" in sc:
         console.print("bars: " + ", ".join(f"{k} {'pass' if v else 'FAIL'}" for k, v in sc["bars"].items()))
 

@@ -103,15 +103,21 @@ def score_fleet(
     out: dict[str, Any] = {"bars": dict(BARS), "models": list(models), "logs": list(logs), "own": own}
     if all(t is not None for t in truths.values()):
         cells: dict[str, dict[str, Any]] = {name: {} for name in models}
+        doubts: dict[str, str] = {}  # a log's recorded heading that points off the way it moves
         total, done = len(models) * len(logs), 0
         for log_name, log in logs.items():
             poses, valid = truths[log_name]
             for model_name, model in models.items():
-                cells[model_name][log_name] = fleet_cell(score_against_truth(model, log.data, poses, valid))
+                sc = score_against_truth(model, log.data, poses, valid)
+                cells[model_name][log_name] = fleet_cell(sc)
+                if "truth_heading_doubt" in sc:
+                    doubts[log_name] = sc["truth_heading_doubt"]
                 done += 1
                 if progress:
                     progress("scoring models against the truth", done, total)
         out.update(cells=cells, summary=fleet_summary(cells, own))
+        if doubts:
+            out["truth_heading_doubts"] = doubts
     else:
         out["no_truth"] = [name for name, t in truths.items() if t is None]
     if configs is not None:

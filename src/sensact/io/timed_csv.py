@@ -37,7 +37,7 @@ import numpy as np
 from sensact.errors import LogFormatError
 from sensact.io.csvtable import landmark_labels, read_numeric_csv
 from sensact.io.resample import HEADING_OFFSET_RAD, held_on_grid, nearest_steps, pose_truth_on_grid
-from sensact.io.unit_checks import refuse_degrees_as_radians
+from sensact.io.unit_checks import refuse_degrees_as_radians, truth_heading_doubt
 from sensact.logs.landmark_log import LandmarkLog
 
 # a column name's unit suffix -> sensact's suffix and factor, the longer suffixes first
@@ -138,6 +138,7 @@ class TimedLog:
     t0_s: float  # the files' clock at step 0
     groundtruth: dict[str, np.ndarray] | None  # x_mm, y_mm, theta_rad (sensact frame), valid, on the step grid
     summary: dict[str, Any]  # rows kept and dropped, by reason
+    truth_doubt: str | None = None  # the truth's heading read against the way it moves (unit_checks)
 
     def summary_line(self) -> str:
         s = self.summary
@@ -275,7 +276,7 @@ def read_timed_csv(
         readings,
         held,
     )
-    gt = None if truth is None else _truth_on_grid(Path(truth), t0 + np.arange(T) * dt_s)
+    gt, truth_doubt = (None, None) if truth is None else _truth_on_grid(Path(truth), t0 + np.arange(T) * dt_s)
     summary: dict[str, Any] = {
         "command_rows": len(t_cmd),
         "longest_command_gap_s": float(np.max(np.diff(t_cmd), initial=0.0)),
@@ -287,10 +288,12 @@ def read_timed_csv(
         "dropped_after_commands": int((known & ~inside & (step > 0)).sum()),
         "dropped_nothing_read": int((known & inside & ~read).sum()),
     }
-    return TimedLog(data, t0, gt, summary)
+    return TimedLog(data, t0, gt, summary, truth_doubt)
 
 
-def _truth_on_grid(path: Path, grid: np.ndarray) -> dict[str, np.ndarray]:
+def _truth_on_grid(path: Path, grid: np.ndarray) -> tuple[dict[str, np.ndarray], str | None]:
+    """The truth's poses on ``grid`` in sensact's frame, and a doubt about its heading, judged on the
+    rows as written (degrees would be bent by the unwrapping before the grid)."""
     tr = _table(path, ("t_s", "x_mm", "y_mm", "theta_rad"), "truth.csv", "t_s, x_m, y_m and theta_rad")
     _finite(path, tr, ("t_s", "x_mm", "y_mm", "theta_rad"), "drop rows where the truth lost the robot.")
     if len(tr["t_s"]) < 2:
@@ -298,7 +301,16 @@ def _truth_on_grid(path: Path, grid: np.ndarray) -> dict[str, np.ndarray]:
     order = np.argsort(tr["t_s"], kind="stable")
     t = tr["t_s"][order]
     period = float(np.median(np.diff(t)))
-    return pose_truth_on_grid(
+    doubt = truth_heading_doubt(
+        t,
+        tr["x_mm"][order],
+        tr["y_mm"][order],
+        tr["theta_rad"][order],
+        zero_rad=0.0,
+        column="theta_rad",
+        convention="radians, counterclockwise, 0 facing +x (ROS REP 103)",
+    )
+    on_grid = pose_truth_on_grid(
         grid,
         t,
         tr["x_mm"][order],
@@ -307,3 +319,4 @@ def _truth_on_grid(path: Path, grid: np.ndarray) -> dict[str, np.ndarray]:
         max_gap_s=max(MIN_TRUTH_GAP_S, 5.0 * period),
         heading_offset_rad=HEADING_OFFSET_RAD,
     )
+    return on_grid, doubt
