@@ -574,6 +574,14 @@ def test_mrclams_files_as_timed_csv_read_as_io_mrclam_reads_them(tmp_path):
     np.testing.assert_array_equal(tl.groundtruth["valid"], ml.groundtruth["valid"])
     s, m = tl.summary, ml.summary
     assert s["kept"] == m["kept"] and s["dropped_unknown_landmark"] == m["dropped_robot"] + m["dropped_unknown_barcode"]
+    # real units and Vicon's heading raise no doubt; the same files in degrees do
+    assert unit_doubts(a) == [] and tl.truth_doubt is None
+    _write(tmp_path / "c.csv", {"t_s": odo[:, 0], "v_m_s": odo[:, 1], "omega_rad_s": np.degrees(odo[:, 2])})
+    _write(tmp_path / "t.csv", {"t_s": gt[:, 0], "x_m": gt[:, 1], "y_m": gt[:, 2], "theta_rad": np.degrees(gt[:, 3])})
+    deg = read_timed_csv(tmp_path / "c.csv", tmp_path / "s.csv", tmp_path / "l.csv", tmp_path / "t.csv")
+    (turn,) = unit_doubts(deg.data)
+    assert "omega_rad_s is 22.8 rad/s at its 90th percentile" in turn and "omega_deg_s" in turn, turn
+    assert "only read in degrees," in deg.truth_doubt and deg.truth_doubt.endswith("(name the column theta_deg)")
 
 
 def test_a_log_without_bearings_gets_no_camera_settings_and_learn_em_names_what_needs_them(timed, tmp_path):

@@ -19,6 +19,7 @@ from sensact.evaluate.bars import verdict_line
 from sensact.evaluate.simulated_robot import score_against_simulated
 from sensact.experiments import diffdrive
 from sensact.experiments.real import bar_checks, evaluate_mrclam, mrclam_config, planar_config
+from sensact.io.csvtable import read_numeric_csv
 from sensact.io.landmark_log import read_landmark_log
 from sensact.learn.em import fit_em
 from sensact.learn.em.checks import describe_held_sideways, held_sideways_noise
@@ -363,6 +364,21 @@ def test_simulate_diffdrive_then_learn_em_scores_against_the_simulation(tmp_path
         assert float(np.median(off)) == pytest.approx(loc["truth"]["path"]["median_mm"], rel=1e-9)
         assert off[0] < 300.0, off[0]  # the smoothed start, which the sightings place
     assert (tmp_path / "l.png").stat().st_size > 30_000 and "smoothed path off the recorded poses" in res.output
+    assert "recorded heading" not in res.output
+    # the run's recorded heading copied in as ROS has it (0 facing +x): the same path, and a warning that
+    # its split into forward and right reads a heading a quarter turn off
+    gt = read_numeric_csv(other / "groundtruth.csv")
+    gt["theta_rad"] = gt["theta_rad"] + 0.5 * np.pi
+    (other / "groundtruth.csv").write_text(
+        ",".join(gt)
+        + "\n"
+        + "\n".join(",".join(repr(float(v)) for v in row) for row in zip(*gt.values(), strict=True))
+        + "\n"
+    )
+    res = runner.invoke(app, ["localize", str(other), "--model", str(model)])
+    flat = " ".join(res.output.split())
+    assert res.exit_code == 0 and "write theta_rad = theta_rad - 1.57" in flat, res.output
+    assert f"median {loc['truth']['path']['median_mm']:.0f} mm" in flat
 
 
 def test_learn_em_says_how_many_misreads_the_gate_dropped_and_offers_joint_student_t(tmp_path):

@@ -106,7 +106,8 @@ def convert_csv(
     sightings: Annotated[Path, typer.Option(help="t_s, landmark_id, one column per reading, optional bearing_rad.")],
     landmarks: Annotated[Path, typer.Option(help="The map: id (a number or a name), x_m, y_m (or x_mm, y_mm).")],
     truth: Annotated[
-        Path | None, typer.Option(help="Optional, for scoring only: t_s, x_m, y_m, theta_rad (0 facing +x).")
+        Path | None,
+        typer.Option(help="Optional, for scoring only: t_s, x_m, y_m, theta_rad (0 facing +x, counterclockwise)."),
     ] = None,
     out: Annotated[Path, typer.Option("--out", help="The log folder to write.")] = Path("robot_log"),
     dt: Annotated[
@@ -119,7 +120,8 @@ def convert_csv(
     step, each sighting goes to the nearest step, truth is interpolated. A spreadsheet's export reads as
     written (a byte-order mark, tabs, or semicolons with decimal commas). Column suffixes give units: _m
     and _m_s become mm and mm/s, _deg and _deg_s radians; a column whose numbers show another unit
-    (bearings in degrees, times in ms) is refused, and a range or speed off the map's size warned about.
+    (bearings in degrees, times in ms) is refused, and a range or speed off the map's size, a turn rate
+    over a turn a second, or a truth heading that points off the way the truth moves warned about.
     Sightings of landmarks the map does not list are dropped and counted. A robot with a range_m and
     bearing camera also gets em_config.yaml (MRCLAM's settings) to start from: a differential drive's
     when the commands are v_m_s, omega_rad_s or the wheel speeds left_m_s, right_m_s; on any other

@@ -43,7 +43,9 @@ def _parse_start(text: str | None, n: int) -> Any:
     return np.array(values)
 
 
-def _truth_scores(loc: Any, poses: Any, truth_mm: Any, learned_map: dict[str, float] | None) -> dict[str, Any] | None:
+def _truth_scores(
+    loc: Any, poses: Any, truth_mm: Any, learned_map: dict[str, float] | None, dt_s: float
+) -> dict[str, Any] | None:
     """The path against recorded ``(poses, valid)`` (planar) or the range column (a Turtlebot CSV), for
     evaluation only. ``learned_map``: the scale and offset fitted on the log the model was learned from (its
     JSON's ``evaluation.state_map``), carried over as a user who measured them once would."""
@@ -52,12 +54,16 @@ def _truth_scores(loc: Any, poses: Any, truth_mm: Any, learned_map: dict[str, fl
     mean = loc.posteriors.mean_gamma
     if poses is not None:
         from sensact.evaluate.landmark_truth import path_offset
+        from sensact.io.unit_checks import groundtruth_heading_doubt
 
         off = path_offset(mean, *poses)
         console.print(
             f"smoothed path off the recorded poses: median {off['median_mm']:.0f} mm "
             f"(forward {off['forward_median_mm']:+.0f} mm, right {off['right_median_mm']:+.0f} mm)"
         )
+        doubt = groundtruth_heading_doubt(*poses, dt_s)
+        if doubt:  # the split into forward and right reads the recorded heading
+            console.print(f"[yellow]warning:[/] {doubt}", highlight=False)
         return {"path": off}
     from sensact.cli.scores import range_column_scoreable
 
@@ -168,7 +174,7 @@ def localize_cmd(
     poses = lf.truth_poses() if lf is not None else None
     loc, per_learned = place_robot(doc, m, data, model, config, set_, _parse_start(start, m.prior_mean.size))
     post = loc.posteriors
-    scores = _truth_scores(loc, poses, truth_mm, (doc.get("evaluation") or {}).get("state_map"))
+    scores = _truth_scores(loc, poses, truth_mm, (doc.get("evaluation") or {}).get("state_map"), data.dt_s)
     if out is not None:
         write_result(
             out,

@@ -55,7 +55,7 @@ from sensact.core.angles import wrap_angle
 from sensact.core.polyfit import weighted_lstsq
 from sensact.core.pose_models import apply_displacement, landmark_bearing, landmark_distance, relative_displacement
 from sensact.errors import LogFormatError
-from sensact.io.unit_checks import truth_heading_doubt
+from sensact.io.unit_checks import groundtruth_heading_doubt
 from sensact.learn.em.actions import linear_coefficients, turning_variance
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
@@ -542,15 +542,7 @@ def score_against_truth(
         truth_poses, truth_valid, b_res[b_keep], b_steps, data.dt_s, window
     )
     structure.update(_learned_drift(model, window, structure["turning_rad_s"]))
-    heading_doubt = truth_heading_doubt(
-        np.arange(len(truth_poses)) * data.dt_s,
-        *truth_poses.T,
-        truth_valid,
-        zero_rad=0.5 * np.pi,
-        column="theta_rad",
-        convention="sensact's heading (radians, counterclockwise, 0 facing +y; `convert csv` turns a ROS REP 103 "
-        "heading into it)",
-    )
+    heading_doubt = groundtruth_heading_doubt(truth_poses, truth_valid, data.dt_s)
     return {
         "windows_scored": int(starts.size),
         "window_s": window * data.dt_s,

@@ -1,6 +1,7 @@
 """Catching a column whose name gives the wrong unit, where the numbers show it: bearings in degrees
 under a radians name, ranges or commanded speeds in millimetres under a metres name or the other way
-round, and a recorded heading that does not point the way the recorded positions move.
+round, a turn rate in degrees per second under a radians name, and a recorded heading that does not
+point the way the recorded positions move.
 
 A log's units are taken from its column names (``range_m`` is metres, ``bearing_rad`` radians); EM then
 starts from a range function and noise in millimetres and radians, so a name that does not match its
@@ -16,10 +17,14 @@ import numpy as np
 from sensact.core.angles import wrap_angle
 from sensact.errors import LogFormatError
 from sensact.logs.landmark_log import LandmarkLog
+from sensact.models.wheel_drive import wheel_pair
 
 DEGREES_SHARE = 0.1  # the share of bearings beyond a whole turn that makes them degrees
 RANGE_TO_MAP = (1.0 / 300.0, 30.0)  # the median range over the map's extent; metres vs mm is x1000
 SPEED_TO_MAP_PER_S = (1e-4, 3.0)  # the median commanded speed over that extent (MRCLAM's: about 0.01 a second)
+# a commanded turn rate's 90th percentile beyond a whole turn a second is degrees per second; MRCLAM's is
+# 0.40-0.41 rad/s on robots 1-5 (23 deg/s), the simulated drive's 0.4
+TURN_RATE_MAX_RAD_S = 2.0 * np.pi
 
 
 def refuse_degrees_as_radians(path: Path, bearing: np.ndarray, column: str, fix: str) -> None:
@@ -38,7 +43,7 @@ def refuse_degrees_as_radians(path: Path, bearing: np.ndarray, column: str, fix:
 def unit_doubts(data: LandmarkLog) -> list[str]:
     """A sentence for each of the log's range and speed columns whose size disagrees with the map's by
     orders of magnitude; said before a fit, which such a column would ruin."""
-    return [d for d in (range_unit_doubt(data), speed_unit_doubt(data)) if d]
+    return [d for d in (range_unit_doubt(data), speed_unit_doubt(data), turn_unit_doubt(data)) if d]
 
 
 def _map_span(data: LandmarkLog) -> float:
@@ -71,6 +76,27 @@ def speed_unit_doubt(data: LandmarkLog) -> str | None:
         f"({span / 1000.0:.3g} m) {ratio:.3g} times a second: is its unit right? A column named v_m_s is read as "
         "metres per second (x1000 to mm/s), v_mm_s as millimetres per second"
     )
+
+
+def turn_unit_doubt(data: LandmarkLog) -> str | None:
+    """A sentence when a commanded turn rate (a column ending ``_rad_s``, not a wheel's, which may spin
+    faster) turns more than a whole turn a second at its 90th percentile: degrees per second under a
+    radians name. Its other side is not judged: a robot may turn slowly throughout."""
+    wheels = wheel_pair(data.command_names) or ()
+    cols = [j for j, n in enumerate(data.command_names) if n.endswith("_rad_s") and n not in wheels]
+    if data.step_commands is None or not cols:
+        return None
+    for j in cols:
+        w = np.abs(data.step_commands[:, j])
+        w = w[w > 0.0]
+        if w.size and (p90 := float(np.percentile(w, 90))) > TURN_RATE_MAX_RAD_S:
+            name = data.command_names[j]
+            return (
+                f"the commanded turn rate {name} is {p90:.4g} rad/s at its 90th percentile, over a whole turn a "
+                f"second: is it degrees per second? A column named {name[: -len('_rad_s')]}_deg_s is read as "
+                "degrees per second (x pi/180)"
+            )
+    return None
 
 
 def range_unit_doubt(data: LandmarkLog) -> str | None:
@@ -197,4 +223,20 @@ def truth_heading_doubt(
         f"the recorded heading ({column}) {said}, over {n} moves of {HEADING_MOVE_S:g} s; {column} is read as "
         f"{convention}, so the scores against this truth (From-Truth, the sensor's pose, the path) are off: "
         f"write {column} = {value}"
+    )
+
+
+def groundtruth_heading_doubt(poses: np.ndarray, valid: np.ndarray, dt_s: float) -> str | None:
+    """``truth_heading_doubt`` of a log folder's recorded poses (``groundtruth.csv`` on the step grid, in
+    sensact's frame: 0 facing +y), where a score or a path is read against them."""
+    return truth_heading_doubt(
+        np.arange(len(poses)) * dt_s,
+        poses[:, 0],
+        poses[:, 1],
+        poses[:, 2],
+        valid,
+        zero_rad=0.5 * np.pi,
+        column="theta_rad",
+        convention="sensact's heading (radians, counterclockwise, 0 facing +y; `convert csv` turns a ROS REP 103 "
+        "heading into it)",
     )
