@@ -18,7 +18,7 @@ from sensact.cli import app
 from sensact.config import build_config
 from sensact.errors import LogFormatError
 from sensact.io.csvtable import read_numeric_csv
-from sensact.io.landmark_log import read_landmark_log
+from sensact.io.landmark_log import read_landmark_log, truth_poses_of
 from sensact.io.timed_csv import in_sensact_units, read_timed_csv
 from sensact.io.unit_checks import unit_doubts
 from sensact.learn.em import EMConfig
@@ -353,6 +353,27 @@ def test_convert_csv_warns_of_a_truth_heading_from_another_axis(wandering, tmp_p
         res = runner.invoke(app, ["convert", "csv", *args, f"--truth={tmp_path / name}", "--out", str(tmp_path / out)])
         flat = " ".join(res.output.split())
         assert res.exit_code == 0 and ("theta_rad = theta_rad + 1.571" in flat) == warned, res.output
+
+
+def test_a_truth_path_in_another_unit_is_warned_about(timed, tmp_path):
+    """Recorded positions in millimetres under x_m, y_m (x1000) span a thousand times what they did
+    against the map; the run's own truth raises nothing."""
+    _, folder = timed
+    files = [folder / f"{n}.csv" for n in ("commands", "sightings", "landmarks")]
+    plain = read_timed_csv(*files, folder / "truth.csv")
+    assert unit_doubts(plain.data, truth_poses_of(plain.groundtruth)) == []
+    truth = read_numeric_csv(folder / "truth.csv")
+    _write(
+        tmp_path / "t.csv",
+        {"t_s": truth["t_s"], "x_m": truth["x_mm"], "y_m": truth["y_mm"], "theta_rad": truth["theta_rad"]},
+    )
+    wrong = read_timed_csv(*files, tmp_path / "t.csv")
+    (doubt,) = unit_doubts(wrong.data, truth_poses_of(wrong.groundtruth))
+    poses, valid = truth_poses_of(plain.groundtruth)
+    span = np.hypot(*np.ptp(plain.data.landmarks_xy, axis=0))
+    ratio = float(re.search(r"([0-9.e+-]+) times the map's extent", doubt).group(1))
+    assert ratio == pytest.approx(1000.0 * np.hypot(*np.ptp(poses[valid, :2], axis=0)) / span, rel=0.005)
+    assert "A truth column named x_m is read as metres" in doubt
 
 
 def test_a_landmark_named_twice_or_a_sighting_without_its_landmark_is_refused(tmp_path):

@@ -130,13 +130,13 @@ def convert_csv(
     set where it starts. See docs/em-real.md."""
     import numpy as np
 
-    from sensact.io.landmark_log import write_landmark_log
+    from sensact.io.landmark_log import truth_poses_of, write_landmark_log
     from sensact.io.timed_csv import read_timed_csv
     from sensact.io.unit_checks import unit_doubts
 
     tl = read_timed_csv(commands, sightings, landmarks, truth, dt_s=dt)
     console.print(tl.summary_line())
-    for doubt in unit_doubts(tl.data):
+    for doubt in unit_doubts(tl.data, truth_poses_of(tl.groundtruth)):
         console.print(f"[yellow]warning:[/] {doubt}")
     if tl.truth_doubt:  # scoring only, so the log is written; the scores against it would be off
         console.print(f"[yellow]warning:[/] {truth}: {tl.truth_doubt}", highlight=False)

@@ -49,13 +49,17 @@ class LandmarkLogFile:
         return name
 
     def truth_poses(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """The ground truth's ``(T, 3)`` poses on the step grid and where they are valid (every step when
-        groundtruth.csv has no ``valid`` column), or None without ``x_mm``, ``y_mm`` and ``theta_rad``."""
-        gt = self.groundtruth
-        if gt is None or not {"x_mm", "y_mm", "theta_rad"} <= set(gt):
-            return None
-        poses = np.column_stack([gt["x_mm"], gt["y_mm"], gt["theta_rad"]])
-        return poses, (gt["valid"] > 0.5 if "valid" in gt else np.ones(len(poses), dtype=bool))
+        return truth_poses_of(self.groundtruth)
+
+
+def truth_poses_of(gt: dict[str, np.ndarray] | None) -> tuple[np.ndarray, np.ndarray] | None:
+    """Ground truth's ``(T, 3)`` poses on the step grid and where they are valid (every step when it has
+    no ``valid`` column, as a hand-written groundtruth.csv), or None without ``x_mm``, ``y_mm`` and
+    ``theta_rad``."""
+    if gt is None or not {"x_mm", "y_mm", "theta_rad"} <= set(gt):
+        return None
+    poses = np.column_stack([gt["x_mm"], gt["y_mm"], gt["theta_rad"]])
+    return poses, (gt["valid"] > 0.5 if "valid" in gt else np.ones(len(poses), dtype=bool))
 
 
 def _steps(t: np.ndarray, t0: float, dt: float, path: Path, what: str) -> np.ndarray:

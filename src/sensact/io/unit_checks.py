@@ -25,6 +25,7 @@ SPEED_TO_MAP_PER_S = (1e-4, 3.0)  # the median commanded speed over that extent 
 # a commanded turn rate's 90th percentile beyond a whole turn a second is degrees per second; MRCLAM's is
 # 0.40-0.41 rad/s on robots 1-5 (23 deg/s), the simulated drive's 0.4
 TURN_RATE_MAX_RAD_S = 2.0 * np.pi
+PATH_TO_MAP = (1e-2, 1e2)  # the recorded path's extent over the map's (MRCLAM's 0.69-1.08; the simulated 0.56-0.72)
 
 
 def refuse_degrees_as_radians(path: Path, bearing: np.ndarray, column: str, fix: str) -> None:
@@ -40,10 +41,18 @@ def refuse_degrees_as_radians(path: Path, bearing: np.ndarray, column: str, fix:
         )
 
 
-def unit_doubts(data: LandmarkLog) -> list[str]:
+def unit_doubts(data: LandmarkLog, truth_poses: tuple[np.ndarray, np.ndarray] | None = None) -> list[str]:
     """A sentence for each of the log's range and speed columns whose size disagrees with the map's by
-    orders of magnitude; said before a fit, which such a column would ruin."""
-    return [d for d in (range_unit_doubt(data), speed_unit_doubt(data), turn_unit_doubt(data)) if d]
+    orders of magnitude, a turn rate in degrees per second, and recorded poses ``(poses, valid)`` whose
+    path disagrees with the map's size; said before a fit, which such a column would ruin (the truth's
+    would ruin its score)."""
+    doubts = (
+        range_unit_doubt(data),
+        speed_unit_doubt(data),
+        turn_unit_doubt(data),
+        truth_unit_doubt(data, truth_poses),
+    )
+    return [d for d in doubts if d]
 
 
 def _map_span(data: LandmarkLog) -> float:
@@ -75,6 +84,26 @@ def speed_unit_doubt(data: LandmarkLog) -> str | None:
         f"the median commanded speed ({names}), {np.median(v):.4g} mm/s, crosses the map's extent "
         f"({span / 1000.0:.3g} m) {ratio:.3g} times a second: is its unit right? A column named v_m_s is read as "
         "metres per second (x1000 to mm/s), v_mm_s as millimetres per second"
+    )
+
+
+def truth_unit_doubt(data: LandmarkLog, truth_poses: tuple[np.ndarray, np.ndarray] | None) -> str | None:
+    """A sentence when the recorded path's extent is orders of magnitude off the map's: its positions in
+    millimetres under an ``_m`` name, or metres under an ``_mm`` one (x1000 either way)."""
+    span = _map_span(data)
+    if truth_poses is None or span <= 0.0:
+        return None
+    poses, valid = truth_poses
+    xy = poses[np.asarray(valid, dtype=bool), :2]
+    if len(xy) < 2:
+        return None
+    extent = float(np.hypot(*np.ptp(xy, axis=0)))
+    ratio = extent / span
+    if extent <= 0.0 or PATH_TO_MAP[0] <= ratio <= PATH_TO_MAP[1]:
+        return None
+    return (
+        f"the recorded path spans {extent / 1000.0:.4g} m, {ratio:.3g} times the map's extent ({span / 1000.0:.3g} m): "
+        "is its unit right? A truth column named x_m is read as metres (x1000 to mm), x_mm as millimetres"
     )
 
 

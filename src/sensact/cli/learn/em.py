@@ -180,7 +180,8 @@ def _settings_and_log(
     data, lf, turtlebot_truth = read_em_log(log, bins)
     from sensact.io.unit_checks import unit_doubts
 
-    for doubt in unit_doubts(data):  # a hand-written folder's column in the wrong unit, before a wasted fit
+    # a hand-written folder's column in the wrong unit, before a wasted fit
+    for doubt in unit_doubts(data, lf.truth_poses() if lf is not None else None):
         console.print(f"[yellow]warning:[/] {doubt} (in {log})")
     return cfg, data, lf, turtlebot_truth, None
 
