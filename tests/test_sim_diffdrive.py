@@ -145,7 +145,7 @@ def test_wheel_speeds_log_the_same_robot_on_other_commands(tmp_path):
     less the forward-from-v restriction, saying why."""
     from sensact.config import config_from_dict, load_yaml_mapping
     from sensact.learn.em import EMConfig
-    from sensact.learn.em.fit import initial_model
+    from sensact.learn.em.initial import initial_model
     from sensact.models.linear_action import command_features
 
     axle = 235.0

@@ -246,7 +246,7 @@ def _reproduce_field2d(out: Path, trials: int, seed: int, set_: list[str] | None
     figures_em.figure_learning_curve(
         first, vr, out / "fig4_4_field2d_learning.png", f"simulation, seed {first.run.config.seed}", res["thesis"]
     )
-    from sensact.learn.em.fit import starting_height
+    from sensact.learn.em.initial import starting_height
 
     f0 = starting_height(first.result.config)
     figures_em.figure_sensor(

@@ -1,8 +1,9 @@
 """Chapter 4: EM with an extended Kalman smoother.
 
 ``estep`` (sec. 4.2) -> ``mstep`` (sec. 4.3, its action and motion-noise updates in ``actions``) ->
-``fit`` (the loop, secs. 4.1 and 4.4.1), with ``config`` its settings. The compiled forward and backward
-passes live in ``sensact.core.ekf_smoother``. Beyond the thesis, for real logs:
+``fit`` (the loop, secs. 4.1 and 4.4.1) from ``initial`` (sec. 4.4.1's poor start), with ``config`` its
+settings. The compiled forward and backward passes live in ``sensact.core.ekf_smoother``. Beyond the
+thesis, for real logs:
 
 * ``start``: where the robot starts, when nobody says (a grid and a race); ``given_start``: a start the
   user gave, for a sensor without bearings, and when EM moved it;
@@ -16,7 +17,8 @@ passes live in ``sensact.core.ekf_smoother``. Beyond the thesis, for real logs:
 
 from sensact.learn.em.config import EMConfig
 from sensact.learn.em.estep import Posteriors, e_step, log_likelihood, motion_variance
-from sensact.learn.em.fit import EMResult, fit_em, initial_model
+from sensact.learn.em.fit import EMResult, fit_em
+from sensact.learn.em.initial import initial_model
 from sensact.learn.em.mstep import m_step
 from sensact.logs.landmark_log import LandmarkLog
 

@@ -27,16 +27,15 @@ from sensact.learn.em.delay_search import search_delay
 from sensact.learn.em.estep import Posteriors, e_step, log_likelihood
 from sensact.learn.em.forward import FLIP, drives_backward, turned_model, turned_posteriors
 from sensact.learn.em.given_start import start_moved_mm
+from sensact.learn.em.initial import initial_model, motion_sd_floor, motion_sd_start
 from sensact.learn.em.mstep import m_step
 from sensact.learn.em.outliers import bearing_outliers
 from sensact.learn.em.ridge import search_ridge
 from sensact.learn.em.start import OnTrial, race_starts, start_candidates
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.action_table import ActionTable
-from sensact.models.em_model import PLANAR_VELOCITY_NAMES, TRACK_VELOCITY_NAMES, EMModel
-from sensact.models.landmark_sensor import LandmarkSensor, ReadingChannel
+from sensact.models.em_model import EMModel
 from sensact.models.linear_action import LinearActionModel
-from sensact.models.polynomial import Polynomial1D
 
 # (iteration, loglik, best loglik, iterations since the best) -> None
 Progress = Callable[[int, float, float, int], None]
@@ -44,122 +43,6 @@ Progress = Callable[[int, float, float, int], None]
 OnRestart = Callable[[int, list[dict[str, Any]], dict[str, float]], None]
 # (how far the given start moved, mm; the learned start EM runs again from) -> None
 OnStartMoved = Callable[[float, np.ndarray], None]
-
-
-def starting_height(config: EMConfig) -> Polynomial1D:
-    """The poor straight line f starts from (sec. 4.4.1)."""
-    return Polynomial1D(
-        (config.start_height_intercept_px, config.start_height_slope_px_per_mm),
-        input_name="d",
-        input_unit="mm",
-        output_unit="px",
-    )
-
-
-def starting_sensor(data: LandmarkLog, config: EMConfig) -> LandmarkSensor:
-    """Every channel starts from its poor straight line (sec. 4.4.1); the bearing, when the log has any,
-    from 0.2 rad."""
-    channels = []
-    unit = "" if config.channels else "px"
-    for cc in config.channel_configs(data.reading_names):
-        # the line padded with zero higher coefficients: the same function, of the degree the M-step fits
-        coef = (cc.start_intercept, cc.start_slope) + (0.0,) * (cc.degree - 1)
-        f = Polynomial1D(coef, input_name="d", input_unit="mm", output_unit=unit)
-        channels.append(
-            ReadingChannel(
-                cc.name,
-                f,
-                cc.start_sigma,
-                cc.valid_min,
-                cc.valid_max,
-                cc.robust,
-                cc.robust_param,
-                (0.0,) * cc.bearing_degree,
-            )
-        )
-    if data.geometry == "planar" and np.isfinite(data.obs_bearing_rad).any():
-        sigma_b, robust = config.start_sigma_bearing_rad, (config.bearing_robust, config.bearing_robust_param)
-    else:  # a track, or a range-only sensor (radio beacons): no bearing to learn a sigma_2 for
-        sigma_b, robust = None, ("none", 0.0)
-    return LandmarkSensor(tuple(channels), sigma_b, *robust, config.joint_student_t)
-
-
-def initial_model(data: LandmarkLog, config: EMConfig) -> EMModel:
-    """The starting model of sec. 4.4.1: every action has no effect, f is a poor line, wide sigmas."""
-    n = 3 if data.geometry == "planar" else 1
-    names = PLANAR_VELOCITY_NAMES if n == 3 else TRACK_VELOCITY_NAMES
-    if config.action_basis == "table":
-        if data.n_actions == 0:
-            raise ConfigError(
-                "The log has continuous commands, and the action model is a table of discrete actions.",
-                file=data.source,
-                field="action_basis",
-                fix="set action_basis to affine, cross or polynomial (docs/em-real.md).",
-            )
-        action = ActionTable(data.action_commands, np.zeros((data.n_actions, n)), data.command_names, names)
-    else:
-        if data.step_commands is None:
-            raise ConfigError(
-                f"The log has discrete actions only, and {config.action_basis} needs command columns.",
-                file=data.source,
-                field="action_basis",
-                fix="use action_basis: table (the thesis's table of discrete actions).",
-            )
-        try:
-            action = LinearActionModel.zero(
-                config.action_basis,
-                config.action_degree,
-                data.command_names,
-                names,
-                config.action_zero_mean,
-                config.action_inputs,
-            )
-        except ValueError as exc:
-            raise ConfigError(
-                f"{exc}.",
-                file=data.source,
-                field="action_zero_mean / action_inputs",
-                fix=f"name only the log's commands ({', '.join(data.command_names)}) and velocity components "
-                f"({', '.join(names)}).",
-            ) from None
-    sensor = starting_sensor(data, config)
-    mean = np.asarray(config.start_prior_mean[:n], dtype=float)
-    cov = np.diag(np.asarray(config.start_prior_sd[:n], dtype=float) ** 2)
-    first = sensor.channels[0]
-    col = data.reading_names.index(first.name) if first.name in data.reading_names else 0
-    slope = first.function.coef[1] / first.function.scale if first.function.degree >= 1 else 0.0
-    if data.geometry == "track" and data.n_observations and np.isfinite(data.obs_readings[0, col]) and slope:
-        # a track has no landmark map to anchor the start: invert the starting f on the first sighting,
-        # with the distance spread that one sighting implies
-        f0 = first.function(0.0)
-        mean = np.array([(data.obs_readings[0, col] - f0) / slope])
-        cov = np.array([[(first.sigma / slope) ** 2]])
-    sd = motion_sd_start(config, n)
-    motion_sd = np.repeat(sd, data.n_actions, axis=0) if config.motion_noise == "per_action" else sd
-    turn_var = None
-    if config.motion_noise == "turning":
-        if data.geometry != "planar":
-            raise ConfigError(
-                "motion_noise turning scales the heading noise by the turn; a track has no heading.",
-                file=data.source,
-                field="motion_noise",
-                fix="use motion_noise: shared.",
-            )
-        turn_var = 0.0  # the start: no turn dependence, the M-step learns it once Sigma_m is freed
-    return EMModel(data.geometry, action, sensor, mean, cov, motion_sd, turn_var)
-
-
-def motion_sd_start(config: EMConfig, n: int) -> np.ndarray:
-    """Sigma_m's start per step: the sideways and forward sd in the robot's frame (sec. 2.5.1: x to the
-    right, y ahead), then the heading's; a track's one entry is its forward sd."""
-    sd = [config.motion_sd_mm] * min(n, 2) + ([config.motion_sd_rad] if n == 3 else [])
-    if n == 3 and config.motion_sd_sideways_mm > 0:
-        sd[0] = config.motion_sd_sideways_mm
-    return np.array([sd])
-
-
-def motion_sd_floor(config: EMConfig, n: int) -> np.ndarray:
-    return np.array([config.motion_sd_floor_mm] * min(n, 2) + ([config.motion_sd_floor_rad] if n == 3 else []))
 
 
 def refuse_no_sightings(data: LandmarkLog) -> None:
@@ -433,6 +316,95 @@ def _refuse_settings_for_log(cfg: EMConfig, data: LandmarkLog, initial: EMModel 
         )
 
 
+@dataclass
+class _Trace:
+    """Every lambda_i's likelihood and parameters, as ``EMResult`` keeps them, and the most likely so far."""
+
+    best_model: EMModel
+    logliks: list[float] = field(default_factory=list)
+    velocities: list[np.ndarray] = field(default_factory=list)
+    sigmas: list[list[float]] = field(default_factory=list)
+    motion_sds: list[np.ndarray] = field(default_factory=list)
+    best_ll: float = -np.inf
+    best_it: int = -1
+    best_post: Posteriors | None = None
+
+    def record(self, it: int, model: EMModel, post: Posteriors) -> None:
+        self.logliks.append(post.loglik)
+        self.velocities.append(_action_parameters(model).copy())
+        self.sigmas.append([c.sigma for c in model.sensor.channels] + [model.sensor.sigma_bearing_rad or np.nan])
+        self.motion_sds.append(model.motion_sd.copy())
+        self.keep_if_best(it, model, post)
+
+    def keep_if_best(self, it: int, model: EMModel, post: Posteriors) -> None:
+        if post.loglik > self.best_ll:
+            self.best_ll, self.best_it, self.best_model, self.best_post = post.loglik, it, model, post
+
+    def arrays(self, model: EMModel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The likelihoods, action parameters, sigmas and Sigma_m's sds, shaped even when no iteration ran."""
+        return (
+            np.asarray(self.logliks, dtype=float),
+            np.asarray(self.velocities, dtype=float).reshape(-1, *_action_parameters(model).shape),
+            np.asarray(self.sigmas, dtype=float).reshape(-1, len(model.sensor.channels) + 1),
+            np.asarray(self.motion_sds, dtype=float).reshape(-1, *model.motion_sd.shape),
+        )
+
+
+@dataclass
+class _Searches:
+    """The ridge search (``ridge.py``) and the delay search (``delay_search.py``), each as configured: when
+    the held stage ends, and again every ``search_every`` iterations, since EM keeps crawling back along
+    the ridge between them (docs/em-real.md). Each search's record goes to ``EMResult``."""
+
+    data: LandmarkLog
+    cfg: EMConfig
+    max_delay: int  # steps
+    ridge_on: bool
+    delay_on: bool
+    ridge: list[dict[str, Any]] = field(default_factory=list)
+    delay: list[dict[str, Any]] = field(default_factory=list)
+
+    @classmethod
+    def for_fit(cls, data: LandmarkLog, model: EMModel, cfg: EMConfig) -> _Searches:
+        max_delay = round(cfg.action_delay_max_s / data.dt_s)
+        delay_on = cfg.delay_search and max_delay > 0 and isinstance(model.action, LinearActionModel)
+        return cls(data, cfg, max_delay, cfg.ridge_search_mm > 0, delay_on)
+
+    def due(self, it: int, ending_held: bool, since: int) -> bool:
+        """``since``: the iteration the held stage ended at (0 with nothing held; -1 while held)."""
+        again = since >= 0 and it > since and (it - since) % self.cfg.search_every == 0
+        return (self.ridge_on or self.delay_on) and (ending_held or again)
+
+    def run(
+        self, it: int, model: EMModel, post: Posteriors, obs_use: np.ndarray, robust: bool
+    ) -> tuple[EMModel, Posteriors]:
+        evaluate = partial(_stage_e_step, data=self.data, obs_use=obs_use, robust=robust)
+        score = partial(_stage_loglik, data=self.data, obs_use=obs_use, robust=robust)
+        if self.ridge_on:
+            model, post, info = search_ridge(model, post, score, evaluate, self.cfg.ridge_search_mm)
+            self.ridge.append({"iteration": it, **info})
+        if self.delay_on:
+            model, post, info = search_delay(model, post, score, evaluate, self.max_delay)
+            self.delay.append({"iteration": it, **info})
+        return model, post
+
+
+def _searched_start(
+    data: LandmarkLog, model: EMModel, cfg: EMConfig, on_race: OnTrial | None
+) -> tuple[EMModel, dict[str, Any] | None, int]:
+    """Where the robot starts when nobody says (``start.py``): the model placed there, what the search
+    tried, and the held iterations the start race already gave the model (0 without a race)."""
+    if not (cfg.start_search_s > 0 and data.geometry == "planar" and not cfg.warm_start):
+        return model, None, 0
+    candidates, info = start_candidates(data, model, cfg)
+    model, spent = candidates[0], 0
+    if len(candidates) > 1:
+        model, info["race"] = race_starts(data, candidates, cfg, fit_em_once, on_trial=on_race)
+        spent = info["race"]["winner_iterations"]  # before this fit's history begins
+    info["prior_mean"] = model.prior_mean.tolist()
+    return model, info, spent
+
+
 def fit_em_once(
     data: LandmarkLog,
     initial: EMModel | None = None,
@@ -441,7 +413,10 @@ def fit_em_once(
     progress: Progress | None = None,
     on_race: OnTrial | None = None,
 ) -> EMResult:
-    """One EM run from one start (the Algorithm of ch. 4, with the start search and searches configured)."""
+    """One EM run from one start (the Algorithm of ch. 4, with the start search and searches configured).
+
+    Sigma_m, the bearing terms and the robust readings are held while EM first settles (the held stage),
+    then freed; a race as long as ``refine_from`` has held the stage already."""
     cfg = config or EMConfig()
     _refuse_settings_for_log(cfg, data, initial)
     model = initial or initial_model(data, cfg)
@@ -450,21 +425,10 @@ def fit_em_once(
     n = model.prior_mean.size
     if cfg.motion_noise == "fixed":  # the thesis: Sigma_m is the configured constant, whatever the start says
         model = model.replace(motion_sd=motion_sd_start(cfg, n))
-    start_info = None
-    spent = 0  # held iterations the start race has already given the model
-    if cfg.start_search_s > 0 and data.geometry == "planar" and not cfg.warm_start:
-        candidates, start_info = start_candidates(data, model, cfg)
-        model = candidates[0]
-        if len(candidates) > 1:
-            model, start_info["race"] = race_starts(data, candidates, cfg, fit_em_once, on_trial=on_race)
-            spent = start_info["race"]["winner_iterations"]  # before this fit's history begins
-        start_info["prior_mean"] = model.prior_mean.tolist()
+    model, start_info, spent = _searched_start(data, model, cfg, on_race)
     floor = np.array([cfg.prior_floor_sd[0] ** 2] * min(n, 2) + ([cfg.prior_floor_sd[1] ** 2] if n == 3 else []))
-    logliks: list[float] = []
-    velocities: list[np.ndarray] = []
-    sigmas: list[list[float]] = []
-    motion_sds: list[np.ndarray] = []
-    best_ll, best_it, best_model, best_post = -np.inf, -1, model, None
+    trace = _Trace(model)
+    searches = _Searches.for_fit(data, model, cfg)
     obs_use = None
     reason = "max_iterations"
     learns_sigma_m = cfg.motion_noise != "fixed"
@@ -476,10 +440,6 @@ def fit_em_once(
     refining = not staged or (refine_from <= 0 and spent == 0) or cfg.warm_start
     freed_at = 0 if staged and cfg.warm_start else -1  # a learned start has settled: freed from the first
     n_late = 0
-    ridge_info: list[dict[str, Any]] = []
-    delay_info: list[dict[str, Any]] = []
-    max_delay = round(cfg.action_delay_max_s / data.dt_s)
-    searches_delay = cfg.delay_search and max_delay > 0 and isinstance(model.action, LinearActionModel)
     start = time.perf_counter()
     try:
         for it in range(max(cfg.max_iterations - spent, 1)):  # the race's iterations count
@@ -504,39 +464,23 @@ def fit_em_once(
             if not post.ok:
                 reason = "diverged"
                 break
-            logliks.append(post.loglik)
-            velocities.append(_action_parameters(model).copy())
-            sigmas.append([c.sigma for c in model.sensor.channels] + [model.sensor.sigma_bearing_rad or np.nan])
-            motion_sds.append(model.motion_sd.copy())
-            if post.loglik > best_ll:
-                best_ll, best_it, best_model, best_post = post.loglik, it, model, post
+            trace.record(it, model, post)
             if progress is not None:
-                progress(it, post.loglik, best_ll, it - best_it)
-            ending_held = not refining and (it >= refine_from or it - best_it >= cfg.patience)
-            # the searches run when the held stage ends, and again every search_every iterations:
-            # EM keeps crawling back along the ridge between them (docs/em-real.md)
-            since = freed_at if freed_at >= 0 else (0 if refining else -1)  # -1: still held
-            again = since >= 0 and it > since and (it - since) % cfg.search_every == 0
-            if (cfg.ridge_search_mm > 0 or searches_delay) and (ending_held or again):
-                evaluate = partial(_stage_e_step, data=data, obs_use=obs_use, robust=refining)
-                score = partial(_stage_loglik, data=data, obs_use=obs_use, robust=refining)
-                if cfg.ridge_search_mm > 0:
-                    model, post, info = search_ridge(model, post, score, evaluate, cfg.ridge_search_mm)
-                    ridge_info.append({"iteration": it, **info})
-                if searches_delay:
-                    model, post, info = search_delay(model, post, score, evaluate, max_delay)
-                    delay_info.append({"iteration": it, **info})
-                logliks[-1] = post.loglik  # lambda_it is now the moved model (its likelihood before: info)
-                if post.loglik > best_ll:
-                    best_ll, best_it, best_model, best_post = post.loglik, it, model, post
+                progress(it, post.loglik, trace.best_ll, it - trace.best_it)
+            ending_held = not refining and (it >= refine_from or it - trace.best_it >= cfg.patience)
+            since = freed_at if freed_at >= 0 else (0 if refining else -1)
+            if searches.due(it, ending_held, since):
+                model, post = searches.run(it, model, post, obs_use, robust=refining)
+                trace.logliks[-1] = post.loglik  # lambda_it is now the moved model (its likelihood before: info)
+                trace.keep_if_best(it, model, post)
             if ending_held:
                 refining, freed_at = True, it  # converged with Sigma_m and the terms held: free them
                 if model.sensor.is_robust:
-                    best_ll = -np.inf  # the robust likelihood is another function: its own best from here
+                    trace.best_ll = -np.inf  # the robust likelihood is another function: its own best from here
                     if cfg.prune_when_freed:  # what the first iteration's gate could not see (outliers.py)
                         post, n_late = drop_late_outliers(post, data, cfg.prune_rad_per_step)
                         obs_use = post.obs_used
-            if it - max(best_it, freed_at) >= cfg.patience:
+            if it - max(trace.best_it, freed_at) >= cfg.patience:
                 reason = "converged"
                 break
             model = m_step(
@@ -548,30 +492,30 @@ def fit_em_once(
                 rng=rng,
                 learn_motion_noise=learns_sigma_m and refining,
                 motion_floor_sd=motion_sd_floor(cfg, n),
-                max_delay_steps=max_delay,
+                max_delay_steps=searches.max_delay,
                 fit_bearing_terms=refining,
             )
     except KeyboardInterrupt:
         reason = "interrupted"
     n_pruned = 0 if obs_use is None else int(data.n_observations - obs_use.sum())
-    shape = _action_parameters(model).shape
+    logliks, velocities, sigmas, motion_sds = trace.arrays(model)
     return EMResult(
-        best_model,
-        np.asarray(logliks, dtype=float),
-        np.asarray(velocities, dtype=float).reshape(-1, *shape),
-        np.asarray(sigmas, dtype=float).reshape(-1, len(model.sensor.channels) + 1),
-        max(best_it, 0),
-        reason,
-        data.n_observations,
-        n_pruned,
-        time.perf_counter() - start,
-        cfg,
-        best_post,
-        np.asarray(motion_sds, dtype=float).reshape(-1, *model.motion_sd.shape),
-        start_info,
-        freed_at,
-        ridge_info or None,
-        delay_info or None,
+        model=trace.best_model,
+        loglik_history=logliks,
+        velocity_history=velocities,
+        sigma_history=sigmas,
+        best_iteration=max(trace.best_it, 0),
+        stop_reason=reason,
+        n_observations=data.n_observations,
+        n_pruned=n_pruned,
+        seconds=time.perf_counter() - start,
+        config=cfg,
+        posteriors=trace.best_post,
+        motion_sd_history=motion_sds,
+        start_search=start_info,
+        freed_at=freed_at,
+        ridge=searches.ridge or None,
+        delay_search=searches.delay or None,
         n_pruned_when_freed=n_late,
     )
 

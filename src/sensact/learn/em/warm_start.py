@@ -19,7 +19,7 @@ from typing import Any
 
 from sensact.errors import ConfigError
 from sensact.learn.em.config import EMConfig
-from sensact.learn.em.fit import initial_model
+from sensact.learn.em.initial import initial_model
 from sensact.learn.em.localize import Localized, Progress, localize
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.action_table import ActionTable
