@@ -172,6 +172,77 @@ def _id_order(label: str) -> tuple[int, float, str]:
         return (1, 0.0, label)
 
 
+def _read_commands(path: Path, dt_s: float) -> tuple[np.ndarray, tuple[str, ...], float, np.ndarray]:
+    """commands.csv: its sorted times, the command names, and the commands held on the step grid from t0."""
+    cmd = _table(path, ("t_s",), "commands.csv", "t_s and one column per command")
+    names = tuple(c for c in cmd if c != "t_s")
+    if not names:
+        raise LogFormatError(
+            "no command columns besides t_s.", file=path, fix="add one column per command, e.g. v_m_s,omega_rad_s."
+        )
+    _finite(path, cmd, ("t_s", *names), "every row needs a time and a value in each command column.")
+    order = np.argsort(cmd["t_s"], kind="stable")
+    t_cmd = cmd["t_s"][order]
+    if t_cmd[-1] - t_cmd[0] < dt_s:
+        raise LogFormatError(
+            f"the commands span {t_cmd[-1] - t_cmd[0]:.3g} s, less than one step of {dt_s:.3g} s.",
+            file=path,
+            field="t_s",
+            fix="give the whole run's commands, or a smaller --dt.",
+        )
+    steps = (t_cmd[-1] - t_cmd[0]) / dt_s
+    if steps > MAX_STEPS:
+        raise LogFormatError(
+            f"the commands span {t_cmd[-1] - t_cmd[0]:.4g} s, {steps:.3g} steps of {dt_s:.3g} s: more than "
+            f"{MAX_STEPS:,} steps, beyond what EM learns from in an hour.",
+            file=path,
+            field="t_s",
+            fix="if the times are not seconds, name the column t_ms, t_us or t_ns; else give one run or a larger --dt.",
+        )
+    t0, held = held_on_grid(t_cmd, np.column_stack([cmd[c][order] for c in names]), dt_s)
+    return t_cmd, names, t0, held
+
+
+def _read_landmarks(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """landmarks.csv: the map (mm) and each landmark's id, one row each."""
+    lm = _table(path, ("id", "x_mm", "y_mm"), "landmarks.csv", "id, x_m (or x_mm) and y_m (or y_mm)", labels=("id",))
+    fix_lm = "every landmark needs an id and a position."
+    _finite(path, lm, ("x_mm", "y_mm"), fix_lm)
+    ids = landmark_labels(path, lm["id"], "id", fix_lm)
+    dup = [str(i) for i, n in zip(*np.unique(ids, return_counts=True), strict=True) if n > 1]
+    if dup:
+        raise LogFormatError(
+            f"landmark id {dup[0]} appears more than once.", file=path, field="id", fix="give each one row."
+        )
+    return np.column_stack([lm["x_mm"], lm["y_mm"]]), ids
+
+
+def _read_sightings(path: Path) -> tuple[np.ndarray, np.ndarray, tuple[str, ...], np.ndarray, np.ndarray | None]:
+    """sightings.csv: each row's time, landmark id, reading names, readings and bearing (None: no bearing
+    column)."""
+    obs = _table(
+        path,
+        ("t_s", "landmark_id"),
+        "sightings.csv",
+        "t_s, landmark_id and one column per reading",
+        labels=("landmark_id",),
+    )
+    fix_obs = "every sighting needs a time and the landmark's id."
+    _finite(path, obs, ("t_s",), fix_obs)
+    seen_id = landmark_labels(path, obs["landmark_id"], "landmark_id", fix_obs)
+    bearing = obs.get("bearing_rad")
+    if bearing is not None:
+        refuse_degrees_as_radians(path, bearing, "bearing_rad", "name the column bearing_deg, or write radians.")
+    readings = tuple(c for c in obs if c not in ("t_s", "landmark_id", "bearing_rad"))
+    if not readings:
+        raise LogFormatError(
+            "no reading columns besides t_s, landmark_id and bearing_rad.",
+            file=path,
+            fix="add one column per reading, e.g. range_m (EM learns each reading's function of distance).",
+        )
+    return obs["t_s"], seen_id, readings, np.column_stack([obs[r] for r in readings]), bearing
+
+
 def read_timed_csv(
     commands: str | Path,
     sightings: str | Path,
@@ -184,69 +255,11 @@ def read_timed_csv(
     commands, sightings, landmarks = Path(commands), Path(sightings), Path(landmarks)
     if not (np.isfinite(dt_s) and dt_s > 0):
         raise LogFormatError(f"dt = {dt_s} is not a step.", field="dt", fix="give a step in seconds, e.g. 0.0333.")
-
-    cmd = _table(commands, ("t_s",), "commands.csv", "t_s and one column per command")
-    names = tuple(c for c in cmd if c != "t_s")
-    if not names:
-        raise LogFormatError(
-            "no command columns besides t_s.", file=commands, fix="add one column per command, e.g. v_m_s,omega_rad_s."
-        )
-    _finite(commands, cmd, ("t_s", *names), "every row needs a time and a value in each command column.")
-    order = np.argsort(cmd["t_s"], kind="stable")
-    t_cmd = cmd["t_s"][order]
-    if t_cmd[-1] - t_cmd[0] < dt_s:
-        raise LogFormatError(
-            f"the commands span {t_cmd[-1] - t_cmd[0]:.3g} s, less than one step of {dt_s:.3g} s.",
-            file=commands,
-            field="t_s",
-            fix="give the whole run's commands, or a smaller --dt.",
-        )
-    steps = (t_cmd[-1] - t_cmd[0]) / dt_s
-    if steps > MAX_STEPS:
-        raise LogFormatError(
-            f"the commands span {t_cmd[-1] - t_cmd[0]:.4g} s, {steps:.3g} steps of {dt_s:.3g} s: more than "
-            f"{MAX_STEPS:,} steps, beyond what EM learns from in an hour.",
-            file=commands,
-            field="t_s",
-            fix="if the times are not seconds, name the column t_ms, t_us or t_ns; else give one run or a larger --dt.",
-        )
-    t0, held = held_on_grid(t_cmd, np.column_stack([cmd[c][order] for c in names]), dt_s)
+    t_cmd, names, t0, held = _read_commands(commands, dt_s)
     T = len(held)
-
-    lm = _table(
-        landmarks, ("id", "x_mm", "y_mm"), "landmarks.csv", "id, x_m (or x_mm) and y_m (or y_mm)", labels=("id",)
-    )
-    fix_lm = "every landmark needs an id and a position."
-    _finite(landmarks, lm, ("x_mm", "y_mm"), fix_lm)
-    ids = landmark_labels(landmarks, lm["id"], "id", fix_lm)
-    dup = [str(i) for i, n in zip(*np.unique(ids, return_counts=True), strict=True) if n > 1]
-    if dup:
-        raise LogFormatError(
-            f"landmark id {dup[0]} appears more than once.", file=landmarks, field="id", fix="give each one row."
-        )
-
-    obs = _table(
-        sightings,
-        ("t_s", "landmark_id"),
-        "sightings.csv",
-        "t_s, landmark_id and one column per reading",
-        labels=("landmark_id",),
-    )
-    fix_obs = "every sighting needs a time and the landmark's id."
-    _finite(sightings, obs, ("t_s",), fix_obs)
-    seen_id = landmark_labels(sightings, obs["landmark_id"], "landmark_id", fix_obs)
-    bearing = obs.get("bearing_rad")
-    if bearing is not None:
-        refuse_degrees_as_radians(sightings, bearing, "bearing_rad", "name the column bearing_deg, or write radians.")
-    readings = tuple(c for c in obs if c not in ("t_s", "landmark_id", "bearing_rad"))
-    if not readings:
-        raise LogFormatError(
-            "no reading columns besides t_s, landmark_id and bearing_rad.",
-            file=sightings,
-            fix="add one column per reading, e.g. range_m (EM learns each reading's function of distance).",
-        )
-    values = np.column_stack([obs[r] for r in readings])
-    step, inside = nearest_steps(obs["t_s"], t0, dt_s, T)
+    landmarks_mm, ids = _read_landmarks(landmarks)
+    t_obs, seen_id, readings, values, bearing = _read_sightings(sightings)
+    step, inside = nearest_steps(t_obs, t0, dt_s, T)
     known = np.isin(seen_id, ids)
     read = np.any(np.isfinite(values), axis=1) | (np.isfinite(bearing) if bearing is not None else False)
     keep = known & inside & read
@@ -258,7 +271,7 @@ def read_timed_csv(
             file=sightings,
             fix="give sightings.csv and commands.csv times on one clock, and landmark ids that landmarks.csv lists.",
         )
-    sel = np.flatnonzero(keep)[np.lexsort((obs["t_s"][keep], step[keep]))]  # by step, then by time
+    sel = np.flatnonzero(keep)[np.lexsort((t_obs[keep], step[keep]))]  # by step, then by time
     row_of = {str(v): j for j, v in enumerate(ids)}
     data = LandmarkLog(
         "planar",
@@ -270,7 +283,7 @@ def read_timed_csv(
         np.array([row_of[str(v)] for v in seen_id[sel]], dtype=np.int64),
         values[sel],
         bearing[sel] if bearing is not None else np.full(sel.size, np.nan),
-        np.column_stack([lm["x_mm"], lm["y_mm"]]),
+        landmarks_mm,
         tuple(str(v) for v in ids),
         str(commands.parent),
         readings,
