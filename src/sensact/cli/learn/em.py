@@ -356,6 +356,53 @@ def _write_fit(
         )
 
 
+def _describe_log(data: Any, lf: Any) -> None:
+    console.print(
+        f"{data.source}: {data.geometry} log, {data.n_steps} steps of {data.dt_s:.4g} s, "
+        f"{data.n_observations} observations, "
+        + (
+            f"continuous commands ({', '.join(data.command_names)})"
+            if data.is_continuous
+            else f"{data.n_actions} actions"
+        )
+        + (f" ({lf.note})" if lf is not None and lf.note else "")
+    )
+
+
+def _starting_model(data: Any, cfg: Any, start_doc_model: Any, start_from: Path | None) -> tuple[Any, Any, Any]:
+    """Sec. 4.4.1's poor start, or with ``--start-from`` the learned model placed on this log
+    (``learn/em/warm_start.py``): the model EM starts from, the placement (None without one) and the
+    settings EM runs with."""
+    if start_doc_model is None:
+        from sensact.learn.em import initial_model
+
+        return initial_model(data, cfg), None, cfg
+    from sensact.cli.localize import describe_placement
+    from sensact.learn.em.warm_start import start_from_model
+
+    start_doc, start_model = start_doc_model
+    with progress_bar() as progress:
+        placed, cfg = start_from_model(start_model, data, cfg, progress, source=str(start_from))
+    describe_placement(placed, start_doc.get("summary") or {}, data)
+    return placed.model, placed, cfg
+
+
+def _warn_of_a_doubtful_fit(res: Any, data: Any, cfg: Any) -> tuple[list[dict[str, Any]], Any]:
+    """Signs, without ground truth, that EM lost the robot, and a side-stepping robot held to no sideways
+    mean (``learn/em/checks.py``): each printed, and returned for the JSON."""
+    from sensact.learn.em.checks import describe_held_sideways, describe_lost_fit, held_sideways_noise, lost_fit_signs
+
+    signs = []
+    if res.posteriors is not None:
+        signs = lost_fit_signs(res.model, res.posteriors, data, res.loglik_history, res.best_iteration)
+        if signs:
+            console.print(f"[yellow]{describe_lost_fit(signs)}[/]")
+    held = held_sideways_noise(res.model, cfg.motion_noise)
+    if held:
+        console.print(describe_held_sideways(held), style="yellow", markup=False)  # it quotes a YAML list
+    return signs, held
+
+
 @learn_app.command("em")
 @friendly
 def learn_em_cmd(
@@ -395,50 +442,21 @@ def learn_em_cmd(
 
     Ctrl-C stops early and still writes the most likely model so far."""
 
-    from sensact.learn.em import initial_model
-    from sensact.learn.em.checks import describe_held_sideways, describe_lost_fit, held_sideways_noise, lost_fit_signs
     from sensact.learn.em.config import refuse_bearing_settings
     from sensact.models.wheel_drive import as_differential_drive
 
     cfg, data, lf, turtlebot_truth, start_doc_model = _settings_and_log(log, bins, start_from, config, set_)
-    console.print(
-        f"{data.source}: {data.geometry} log, {data.n_steps} steps of {data.dt_s:.4g} s, "
-        f"{data.n_observations} observations, "
-        + (
-            f"continuous commands ({', '.join(data.command_names)})"
-            if data.is_continuous
-            else f"{data.n_actions} actions"
-        )
-        + (f" ({lf.note})" if lf is not None and lf.note else "")
-    )
+    _describe_log(data, lf)
     _refuse_table_on_continuous_commands(data, cfg, log, lf)
     refuse_bearing_settings(cfg, data)  # before the starting model, which would fail on it
     if data.geometry == "track" and data.step_commands is not None:
         warn_if_one_command(data.step_commands[:, 0], data.source, data.command_names[0])
-    placed = None
-    if start_doc_model is not None:
-        from sensact.cli.localize import describe_placement
-        from sensact.learn.em.warm_start import start_from_model
-
-        start_doc, start_model = start_doc_model
-        with progress_bar() as progress:
-            placed, cfg = start_from_model(start_model, data, cfg, progress, source=str(start_from))
-        describe_placement(placed, start_doc.get("summary") or {}, data)
-        start = placed.model
-    else:
-        start = initial_model(data, cfg)
+    start, placed, cfg = _starting_model(data, cfg, start_doc_model, start_from)
     res = _run_em(data, start, cfg)
     _describe_fit(res, cfg)
     m = res.model
     print_em_model(m)
-    signs = []
-    if res.posteriors is not None:
-        signs = lost_fit_signs(m, res.posteriors, data, res.loglik_history, res.best_iteration)
-        if signs:
-            console.print(f"[yellow]{describe_lost_fit(signs)}[/]")
-    held = held_sideways_noise(m, cfg.motion_noise)
-    if held:
-        console.print(describe_held_sideways(held), style="yellow", markup=False)  # it quotes a YAML list
+    signs, held = _warn_of_a_doubtful_fit(res, data, cfg)
     evaluation = (
         evaluate_em(lf, m, learned_here=True, path=None if res.posteriors is None else res.posteriors.mean_gamma)
         if lf is not None
