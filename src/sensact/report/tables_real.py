@@ -221,99 +221,23 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
     """MRCLAM robots (learned against From-Truth) and the Turtlebot (EM beside chapter 3)."""
     tables: list[Table] = []
     title = _mrclam_title(res)
-    rows = [_truth_score_row(name, r["score"], r["em"]) for name, r in res.get("mrclam", {}).items()]
+    mrclam = res.get("mrclam", {})
+    rows = [_truth_score_row(name, r["score"], r["em"]) for name, r in mrclam.items()]
     if rows:
         tables.append((f"{title}: learned / From-Truth (ratio)", truth_score_headers("robot", "Vicon"), rows))
-    restarts = [(name, r, r["truth_restart"]) for name, r in res.get("mrclam", {}).items() if "truth_restart" in r]
+    restarts = [(name, r, r["truth_restart"]) for name, r in mrclam.items() if "truth_restart" in r]
     if restarts:
-        tables.append(
-            (
-                f"{title}: poor start / EM again from the truth's range function and start pose "
-                "(a higher likelihood after the restart means the poor start stopped in a local optimum)",
-                [
-                    "robot",
-                    "log-likelihood",
-                    "path off Vicon mm, median (forward)",
-                    "range f to From-Truth's, RMS mm",
-                    "bearing sigma ratio",
-                    "bars failed after the restart",
-                ],
-                [
-                    [
-                        name,
-                        f"{t['loglik_poor_start']:.1f} / {t['loglik_best']:.1f}"
-                        + ("" if t["sightings_used"] == t["sightings_used_poor_start"] else " (other sightings)"),
-                        f"{_path_cell(r['score'])} / {_path_cell(t['score'])}",
-                        f"{r['score']['range']['learned_vs_from_truth_rms_mm']:.0f} / "
-                        f"{t['score']['range']['learned_vs_from_truth_rms_mm']:.0f}",
-                        f"{r['score']['bearing']['sigma_ratio']:.2f} / {t['score']['bearing']['sigma_ratio']:.2f}",
-                        _failed_bars(t["score"]),
-                    ]
-                    for name, r, t in restarts
-                ],
-            )
-        )
-    noise = [(name, r["score"].get("truth_noise")) for name, r in res.get("mrclam", {}).items()]
+        tables.append(_truth_restart_table(title, restarts))
+    noise = [(name, r["score"].get("truth_noise")) for name, r in mrclam.items()]
     if any(n for _, n in noise):
-        tables.append(
-            (
-                f"{title}: what the truth says about the noise (see docs/em-real-results.md, Known limits)",
-                [
-                    "robot",
-                    "heading drift per 1 s at rest rad, truth / Sigma_m",
-                    "while turning (90th percentile), truth / Sigma_m",
-                    "turn rate rad/s",
-                    "sideways / forward miss per 1 s mm, truth; Sigma_m",
-                    "bearing residual correlation, frames 1-5 s apart",
-                    "bearing residual about its frame's mean, sd rad; frame-shared variance (by motion)",
-                    "the truth's own heading error driving straight, sd rad (share of the frame means' variance)",
-                    "sensor on the robot, forward mm / right mm / yaw rad; "
-                    "bearing residual at the truth's origin rad (learned sigma / it)",
-                ],
-                [
-                    [
-                        name,
-                        _drift_cell(n, "at_rest"),
-                        _drift_cell(n, "turning"),
-                        f"{n['turning_rad_s']:.3f}",
-                        translation_drift_cell(n),
-                        f"{n['bearing_frame_correlation']:.2f}",
-                        _shared_cell(n),
-                        truth_heading_cell(n),
-                        _mount_cell(res["mrclam"][name]["score"]),
-                    ]
-                    for name, n in noise
-                    if n
-                ],
-            )
-        )
+        tables.append(_truth_noise_table(title, [(name, n, mrclam[name]["score"]) for name, n in noise if n]))
     for dataset, fleet in res.get("fleet", {}).items():
         tables.append(fleet_table(fleet, f"{dataset}, each robot's model on every robot's log: {FLEET_TITLE}"))
         if "likelihood" in fleet:  # absent from results written before the likelihood was measured
             tables.append(fleet_likelihood_table(fleet, f"{dataset}: {FLEET_LIKELIHOOD_TITLE}"))
     turtlebots = [res["turtlebot"], *res.get("turtlebot_more_logs", {}).values()] if res.get("turtlebot") else []
-    for tb in turtlebots:  # the issue's training1.csv, then any other training log, a table each
-        sc, ch3 = tb["score"], tb.get("chapter3_sonar1", {})
-        share = sc.get("one_command_share", 0.0)  # absent from results written before it was measured
-        trows = [
-            [
-                "action gain (after the optimal scale)",
-                gain_cell(sc["gain_learned"], sc["gain_true"], sc["gain_error_pct"], one_command_reason(share)),
-                gain_cell(ch3["learned_gain"], None, ch3["gain_error_pct"]) if ch3 else "-",
-            ],
-            ["learned command delay", f"{sc['delay_s']:.3f} s", "-"],
-        ]
-        for name, s in sc["sensors"].items():
-            c3 = f"{ch3['sensor_rms_pct']:.2f} %" if name == "sonar1" and ch3 else "-"
-            trows.append([f"{name} error, % of its span", sensor_span_cell(s), c3])
-        tables.append(
-            (
-                f"Turtlebot {Path(tb['file']).name}: EM in 1-D against the chapter-3 learner",
-                ["quantity", "EM", "chapter 3"],
-                trows,
-            )
-        )
-    restarted = [(name, r["em"]["restarts"]) for name, r in res.get("mrclam", {}).items() if r["em"].get("restarts")]
+    tables += [_turtlebot_table(tb) for tb in turtlebots]  # the issue's training1.csv, then any other training log
+    restarted = [(name, r["em"]["restarts"]) for name, r in mrclam.items() if r["em"].get("restarts")]
     if restarted:
         tables.append(
             (
@@ -326,3 +250,87 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
     if skipped:
         tables.append(("Not run", ["what", "why"], [[what, why] for what, _, why in skipped]))
     return tables
+
+
+def _truth_restart_table(title: str, restarts: list[tuple[str, dict[str, Any], dict[str, Any]]]) -> Table:
+    """Each robot from the poor start beside EM run again from the truth's range function and start pose."""
+    return (
+        f"{title}: poor start / EM again from the truth's range function and start pose "
+        "(a higher likelihood after the restart means the poor start stopped in a local optimum)",
+        [
+            "robot",
+            "log-likelihood",
+            "path off Vicon mm, median (forward)",
+            "range f to From-Truth's, RMS mm",
+            "bearing sigma ratio",
+            "bars failed after the restart",
+        ],
+        [
+            [
+                name,
+                f"{t['loglik_poor_start']:.1f} / {t['loglik_best']:.1f}"
+                + ("" if t["sightings_used"] == t["sightings_used_poor_start"] else " (other sightings)"),
+                f"{_path_cell(r['score'])} / {_path_cell(t['score'])}",
+                f"{r['score']['range']['learned_vs_from_truth_rms_mm']:.0f} / "
+                f"{t['score']['range']['learned_vs_from_truth_rms_mm']:.0f}",
+                f"{r['score']['bearing']['sigma_ratio']:.2f} / {t['score']['bearing']['sigma_ratio']:.2f}",
+                _failed_bars(t["score"]),
+            ]
+            for name, r, t in restarts
+        ],
+    )
+
+
+def _truth_noise_table(title: str, noise: list[tuple[str, dict[str, Any], dict[str, Any]]]) -> Table:
+    """What the truth says about each robot's noise: (robot, its truth_noise, its score)."""
+    return (
+        f"{title}: what the truth says about the noise (see docs/em-real-results.md, Known limits)",
+        [
+            "robot",
+            "heading drift per 1 s at rest rad, truth / Sigma_m",
+            "while turning (90th percentile), truth / Sigma_m",
+            "turn rate rad/s",
+            "sideways / forward miss per 1 s mm, truth; Sigma_m",
+            "bearing residual correlation, frames 1-5 s apart",
+            "bearing residual about its frame's mean, sd rad; frame-shared variance (by motion)",
+            "the truth's own heading error driving straight, sd rad (share of the frame means' variance)",
+            "sensor on the robot, forward mm / right mm / yaw rad; "
+            "bearing residual at the truth's origin rad (learned sigma / it)",
+        ],
+        [
+            [
+                name,
+                _drift_cell(n, "at_rest"),
+                _drift_cell(n, "turning"),
+                f"{n['turning_rad_s']:.3f}",
+                translation_drift_cell(n),
+                f"{n['bearing_frame_correlation']:.2f}",
+                _shared_cell(n),
+                truth_heading_cell(n),
+                _mount_cell(score),
+            ]
+            for name, n, score in noise
+        ],
+    )
+
+
+def _turtlebot_table(tb: dict[str, Any]) -> Table:
+    """One Turtlebot training log: EM in 1-D beside chapter 3's learner on sonar1."""
+    sc, ch3 = tb["score"], tb.get("chapter3_sonar1", {})
+    share = sc.get("one_command_share", 0.0)  # absent from results written before it was measured
+    rows = [
+        [
+            "action gain (after the optimal scale)",
+            gain_cell(sc["gain_learned"], sc["gain_true"], sc["gain_error_pct"], one_command_reason(share)),
+            gain_cell(ch3["learned_gain"], None, ch3["gain_error_pct"]) if ch3 else "-",
+        ],
+        ["learned command delay", f"{sc['delay_s']:.3f} s", "-"],
+    ]
+    for name, s in sc["sensors"].items():
+        c3 = f"{ch3['sensor_rms_pct']:.2f} %" if name == "sonar1" and ch3 else "-"
+        rows.append([f"{name} error, % of its span", sensor_span_cell(s), c3])
+    return (
+        f"Turtlebot {Path(tb['file']).name}: EM in 1-D against the chapter-3 learner",
+        ["quantity", "EM", "chapter 3"],
+        rows,
+    )
