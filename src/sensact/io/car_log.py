@@ -122,6 +122,50 @@ def _spin_value(
     return stated
 
 
+def _hdl64e_capture(pcap: Path) -> tuple[np.ndarray, np.ndarray, str]:
+    """The capture's packet times and data payloads (P, 1206), refused unless they are an HDL-64E's."""
+    times, payloads, _ = read_pcap_payloads(pcap)
+    if len(payloads) == 0:
+        raise LogFormatError(
+            f"no Velodyne data packets (1206-byte UDP payloads to port 2368); it holds {udp_traffic(pcap)}.",
+            file=pcap,
+            fix="capture the HDL-64E's data port (2368); sensact learn car reads Velodyne HDL-64E packets only.",
+        )
+    model = velodyne_model(payloads)
+    if model != "HDL-64E":
+        raise LogFormatError(
+            f"{model} packets: chapter 5's learner reads an HDL-64E, whose 64 lasers fire in upper and lower "
+            "blocks (0xEEFF, 0xDDFF).",
+            file=pcap,
+            field="lidar.file",
+            fix="give an HDL-64E capture (sensact.io.velodyne.read_velodyne_pcap decodes this one).",
+        )
+    return times, payloads, model
+
+
+def _vertical_angles(
+    lidar: dict[str, Any], meta_file: Path, calibration: str | Path | None
+) -> tuple[np.ndarray, Any, Path, str]:
+    """Each laser's factory vertical angle (rad), from the calibration file when given, else meta.json;
+    the calibration read (None without one), and the file and field the angles came from."""
+    if calibration is not None:
+        from sensact.io.velodyne_calibration import read_calibration
+
+        factory = read_calibration(calibration)
+        return factory.vertical_rad, factory, Path(calibration), "vert_correction"
+    try:
+        vertical_rad = np.radians(np.asarray(lidar["vertical_deg"], dtype=float).reshape(-1))
+    except (KeyError, TypeError, ValueError):
+        raise LogFormatError(
+            "no numeric lidar.vertical_deg (the factory's vertical angle of each laser, in degrees).",
+            file=meta_file,
+            field="lidar.vertical_deg",
+            fix="add the 64 factory vertical angles, or pass the factory calibration file "
+            "(sensact learn car LOG --factory-calibration FILE.yaml).",
+        ) from None
+    return vertical_rad, None, meta_file, "lidar.vertical_deg"
+
+
 def read_car_log(folder: str | Path, calibration: str | Path | None = None) -> CarLog:
     """A car log folder. ``calibration``: a ROS velodyne calibration file (the factory's) whose vertical
     angles replace ``lidar.vertical_deg``; its horizontal ones are never read. ``lidar.firing_hz`` and
@@ -146,42 +190,8 @@ def read_car_log(folder: str | Path, calibration: str | Path | None = None) -> C
         )
     t0 = _lidar_number(lidar, "time_origin_s", meta_file) or 0.0
     # the capture before the angles: no angles fix a capture of another lidar
-    pcap = folder / str(lidar.get("file", "velodyne.pcap"))
-    times, payloads, _ = read_pcap_payloads(pcap)
-    if len(payloads) == 0:
-        raise LogFormatError(
-            f"no Velodyne data packets (1206-byte UDP payloads to port 2368); it holds {udp_traffic(pcap)}.",
-            file=pcap,
-            fix="capture the HDL-64E's data port (2368); sensact learn car reads Velodyne HDL-64E packets only.",
-        )
-    model = velodyne_model(payloads)
-    if model != "HDL-64E":
-        raise LogFormatError(
-            f"{model} packets: chapter 5's learner reads an HDL-64E, whose 64 lasers fire in upper and lower "
-            "blocks (0xEEFF, 0xDDFF).",
-            file=pcap,
-            field="lidar.file",
-            fix="give an HDL-64E capture (sensact.io.velodyne.read_velodyne_pcap decodes this one).",
-        )
-    if calibration is not None:
-        from sensact.io.velodyne_calibration import read_calibration
-
-        factory = read_calibration(calibration)
-        vertical_rad = factory.vertical_rad
-        vertical_file, vertical_field = Path(calibration), "vert_correction"
-    else:
-        factory = None
-        vertical_file, vertical_field = meta_file, "lidar.vertical_deg"
-        try:
-            vertical_rad = np.radians(np.asarray(lidar["vertical_deg"], dtype=float).reshape(-1))
-        except (KeyError, TypeError, ValueError):
-            raise LogFormatError(
-                "no numeric lidar.vertical_deg (the factory's vertical angle of each laser, in degrees).",
-                file=meta_file,
-                field="lidar.vertical_deg",
-                fix="add the 64 factory vertical angles, or pass the factory calibration file "
-                "(sensact learn car LOG --factory-calibration FILE.yaml).",
-            ) from None
+    times, payloads, model = _hdl64e_capture(folder / str(lidar.get("file", "velodyne.pcap")))
+    vertical_rad, factory, vertical_file, vertical_field = _vertical_angles(lidar, meta_file, calibration)
     slots = packet_slots(payloads)
     rot_deg, dist = hdl64e_firings(payloads, slots)
     if len(vertical_rad) != dist.shape[1]:
