@@ -145,7 +145,7 @@ def _hdl64e_capture(pcap: Path) -> tuple[np.ndarray, np.ndarray, str]:
 
 def _vertical_angles(
     lidar: dict[str, Any], meta_file: Path, calibration: str | Path | None
-) -> tuple[np.ndarray, Any, Path, str]:
+) -> tuple[np.ndarray, LaserIntrinsics | None, Path, str]:
     """Each laser's factory vertical angle (rad), from the calibration file when given, else meta.json;
     the calibration read (None without one), and the file and field the angles came from."""
     if calibration is not None:
