@@ -110,10 +110,43 @@ def truth_heading_clause(n: dict[str, Any]) -> str:
     )
 
 
+def truth_noise_line(sc: dict[str, Any], *, reads_bearing: bool) -> str:
+    """What the truth says about the noise (``score["truth_noise"]``) beside Sigma_m, and for a sensor that
+    reads bearings how its residuals share error across a frame and across frames."""
+    from sensact.report.tables_real import shared_by_motion
+
+    n = sc["truth_noise"]
+    within = n["bearing_within_frame_sd_rad"]
+    if within is None or within != within:  # NaN, null in JSON: no frame with two sightings
+        frame_split = "no frame has two sightings, so no part shared by a frame can be split off"
+    else:
+        frame_split = (
+            f"a frame's sightings share {n['bearing_frame_shared_fraction']:.0%} of their residual's variance"
+            f"{shared_by_motion(n)}, and vary about their frame's mean by {within:.4f} rad"
+        )
+    return (
+        f"truth's noise: heading drift per {sc['window_s']:.2g} s "
+        f"{n['heading_drift_rms_at_rest_rad']:.4f} rad at rest (Sigma_m: "
+        f"{n['learned_heading_drift_at_rest_rad']:.4f}), "
+        f"{n['heading_drift_rms_turning_rad']:.4f} rad turning at {n['turning_rad_s']:.2f} rad/s (Sigma_m: "
+        f"{n['learned_heading_drift_turning_rad']:.4f}); "
+        f"position missed per {sc['window_s']:.2g} s, sideways / forward "
+        f"{n['translation_drift_rms_mm'][0]:.1f} / {n['translation_drift_rms_mm'][1]:.1f} mm (Sigma_m: "
+        f"{n['learned_translation_drift_mm'][0]:.1f} / {n['learned_translation_drift_mm'][1]:.1f})"
+        + (
+            f"; bearing residuals of frames 1-5 windows apart correlate at {n['bearing_frame_correlation']:.2f}; "
+            + frame_split
+            + truth_heading_clause(n)
+            if reads_bearing
+            else ""
+        )
+        + " (docs/em-real-results.md, Known limits)"
+    )
+
+
 def print_truth_score(sc: dict[str, Any]) -> None:
     from sensact.experiments.real import BARS, bar_checks
     from sensact.report.tables import bars_sentence
-    from sensact.report.tables_real import shared_by_motion
 
     a, r, b = sc["action"], sc["range"], sc["bearing"]
     bars = bar_checks(sc)
@@ -164,34 +197,8 @@ def print_truth_score(sc: dict[str, Any]) -> None:
         )
     console.print(t)
     console.print(f"bar: {bars_sentence(BARS)} (docs/em-real.md)")
-    n = sc.get("truth_noise")
-    if n:
-        within = n["bearing_within_frame_sd_rad"]
-        if within is None or within != within:  # NaN, null in JSON: no frame with two sightings
-            frame_split = "no frame has two sightings, so no part shared by a frame can be split off"
-        else:
-            frame_split = (
-                f"a frame's sightings share {n['bearing_frame_shared_fraction']:.0%} of their residual's variance"
-                f"{shared_by_motion(n)}, and vary about their frame's mean by {within:.4f} rad"
-            )
-        console.print(
-            f"truth's noise: heading drift per {sc['window_s']:.2g} s "
-            f"{n['heading_drift_rms_at_rest_rad']:.4f} rad at rest (Sigma_m: "
-            f"{n['learned_heading_drift_at_rest_rad']:.4f}), "
-            f"{n['heading_drift_rms_turning_rad']:.4f} rad turning at {n['turning_rad_s']:.2f} rad/s (Sigma_m: "
-            f"{n['learned_heading_drift_turning_rad']:.4f}); "
-            f"position missed per {sc['window_s']:.2g} s, sideways / forward "
-            f"{n['translation_drift_rms_mm'][0]:.1f} / {n['translation_drift_rms_mm'][1]:.1f} mm (Sigma_m: "
-            f"{n['learned_translation_drift_mm'][0]:.1f} / {n['learned_translation_drift_mm'][1]:.1f})"
-            + (
-                f"; bearing residuals of frames 1-5 windows apart correlate at {n['bearing_frame_correlation']:.2f}; "
-                + frame_split
-                + truth_heading_clause(n)
-                if b is not None
-                else ""
-            )
-            + " (docs/em-real-results.md, Known limits)"
-        )
+    if sc.get("truth_noise"):
+        console.print(truth_noise_line(sc, reads_bearing=b is not None))
     m = sc.get("sensor_mount")
     if m:
         console.print(
