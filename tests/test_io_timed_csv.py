@@ -287,35 +287,45 @@ def test_a_column_whose_name_gives_the_wrong_unit_is_caught(timed, tmp_path):
 
 
 @pytest.mark.parametrize(
-    ("written", "said"),
+    ("name", "written", "said"),
     [
-        (lambda h: h - 0.5 * np.pi, "is +1.571 rad (+90 deg) off the way the robot moves (a quarter turn"),
-        (lambda h: h + 0.5, "is -0.500 rad (-29 deg) off"),  # a motion-capture body's axes set apart
-        (lambda h: np.degrees(np.angle(np.exp(1j * h))), "only read in degrees,"),
-        (lambda h: -h, "only read clockwise,"),
+        ("theta_rad", lambda h: h - 0.5 * np.pi, "is +1.571 rad (+90 deg) off the way the robot moves (a quarter turn"),
+        ("theta_rad", lambda h: h + 0.5, "is -0.500 rad (-29 deg) off"),  # a motion-capture body's axes set apart
+        ("theta_rad", lambda h: np.degrees(np.angle(np.exp(1j * h))), "only read in degrees,"),
+        ("theta_rad", lambda h: -h, "only read clockwise,"),
         (
+            "theta_rad",
             lambda h: (90.0 - np.degrees(h)) % 360.0,
             "only read clockwise in degrees (a compass heading?), turned by +1.571",
         ),
+        # a column named in degrees: the fix is written in the file's degrees
+        ("theta_deg", lambda h: np.degrees(h) - 90.0, "is +1.571 rad (+90 deg) off the way the robot moves"),
+        ("theta_deg", lambda h: (90.0 - np.degrees(h)) % 360.0, "only read clockwise, turned by +1.571"),
+        ("theta_deg", lambda h: h, "only read in radians,"),
     ],
-    ids=["from +y", "turned", "degrees", "clockwise", "compass"],
+    ids=["from +y", "turned", "degrees", "clockwise", "compass", "deg from +y", "deg compass", "deg holding rad"],
 )
-def test_a_truth_heading_read_another_way_is_named_with_the_column_that_fixes_it(wandering, tmp_path, written, said):
+def test_a_truth_heading_read_another_way_is_named_with_the_column_that_fixes_it(
+    wandering, tmp_path, name, written, said
+):
     """A recorded heading that points off the way the recorded positions move is warned about, with the
-    reading under which it agrees; the column the warning says to write agrees (an exact check of the
-    fix), and the simulated run's own heading (ROS REP 103) raises nothing."""
+    reading under which it agrees; the column the warning says to write, in the file's own column and
+    unit, agrees (an exact check of the fix), and the simulated run's own heading (ROS REP 103) raises
+    nothing."""
     _, folder = wandering
     files = [folder / f"{n}.csv" for n in ("commands", "sightings", "landmarks")]
     assert read_timed_csv(*files, folder / "truth.csv").truth_doubt is None
     truth = read_numeric_csv(folder / "truth.csv")
+    rest = {k: v for k, v in truth.items() if k != "theta_rad"}
     column = written(truth["theta_rad"])
-    _write(tmp_path / "truth.csv", truth | {"theta_rad": column})
+    _write(tmp_path / "truth.csv", rest | {name: column})
     doubt = read_timed_csv(*files, tmp_path / "truth.csv").truth_doubt
     assert doubt is not None and said in doubt, doubt
-    assert "theta_rad is read as radians, counterclockwise, 0 facing +x" in doubt
-    fix = doubt.split("write theta_rad = ")[1].split(" (name the column")[0]
-    fixed = eval(fix.replace("theta_rad", "column"), {"column": column, "pi": np.pi})  # the fix as it reads
-    _write(tmp_path / "truth.csv", truth | {"theta_rad": fixed})
+    unit = "degrees" if name == "theta_deg" else "radians"
+    assert f"{name} is read as {unit}, counterclockwise, 0 facing +x" in doubt
+    fix = re.split(r" \((or )?name the column", doubt.split(f"write {name} = ")[1])[0]
+    fixed = eval(fix.replace(name, "column"), {"column": column, "pi": np.pi})  # the fix as it reads
+    _write(tmp_path / "truth.csv", rest | {name: fixed})
     assert read_timed_csv(*files, tmp_path / "truth.csv").truth_doubt is None, fix
 
 

@@ -69,12 +69,20 @@ def in_sensact_units(name: str, values: np.ndarray) -> tuple[str, np.ndarray]:
 def _table(
     path: Path, required: tuple[str, ...], what: str, example: str, labels: tuple[str, ...] = ()
 ) -> dict[str, np.ndarray]:
+    return _table_and_sources(path, required, what, example, labels)[0]
+
+
+def _table_and_sources(
+    path: Path, required: tuple[str, ...], what: str, example: str, labels: tuple[str, ...] = ()
+) -> tuple[dict[str, np.ndarray], dict[str, str]]:
+    """The file's columns in sensact's units, by sensact's names, and the name each had in the file."""
     if not path.is_file():
         raise LogFormatError(
             f"{what} not found.", file=path, fix=f"give a CSV file of {example} (docs/commands.md, convert csv)."
         )
     raw = read_numeric_csv(path, what=what, labels=labels)
     table: dict[str, np.ndarray] = {}
+    sources: dict[str, str] = {}
     for name, values in raw.items():
         new, scaled = in_sensact_units(name, values)
         if new in table:
@@ -84,7 +92,7 @@ def _table(
                 field=name,
                 fix="keep one of them.",
             )
-        table[new] = scaled
+        table[new], sources[new] = scaled, name
     if "t_s" in table:
         _refuse_a_clock_in_other_units(path, table["t_s"])
     missing = [c for c in required if c not in table]
@@ -98,7 +106,7 @@ def _table(
             + "; docs/commands.md, convert csv)"
             + _rostopic_hint(raw),
         )
-    return table
+    return table, sources
 
 
 def _rostopic_hint(raw: dict[str, np.ndarray]) -> str:
@@ -307,7 +315,10 @@ def read_timed_csv(
 def _truth_on_grid(path: Path, grid: np.ndarray) -> tuple[dict[str, np.ndarray], str | None]:
     """The truth's poses on ``grid`` in sensact's frame, and a doubt about its heading, judged on the
     rows as written (degrees would be bent by the unwrapping before the grid)."""
-    tr = _table(path, ("t_s", "x_mm", "y_mm", "theta_rad"), "truth.csv", "t_s, x_m, y_m and theta_rad")
+    tr, sources = _table_and_sources(
+        path, ("t_s", "x_mm", "y_mm", "theta_rad"), "truth.csv", "t_s, x_m, y_m and theta_rad"
+    )
+    in_degrees = sources["theta_rad"] == "theta_deg"  # the warning's fix is then written in the file's degrees
     _finite(path, tr, ("t_s", "x_mm", "y_mm", "theta_rad"), "drop rows where the truth lost the robot.")
     if len(tr["t_s"]) < 2:
         raise LogFormatError("one row cannot be interpolated.", file=path, field="t_s", fix="give the whole run.")
@@ -320,8 +331,9 @@ def _truth_on_grid(path: Path, grid: np.ndarray) -> tuple[dict[str, np.ndarray],
         tr["y_mm"][order],
         tr["theta_rad"][order],
         zero_rad=0.0,
-        column="theta_rad",
-        convention="radians, counterclockwise, 0 facing +x (ROS REP 103)",
+        column=sources["theta_rad"],
+        convention=f"{'degrees' if in_degrees else 'radians'}, counterclockwise, 0 facing +x (ROS REP 103)",
+        in_degrees=in_degrees,
     )
     on_grid = pose_truth_on_grid(
         grid,

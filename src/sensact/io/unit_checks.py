@@ -171,6 +171,12 @@ HEADING_READINGS = (
     ("clockwise", np.negative, "-{col}"),
     ("clockwise in degrees (a compass heading?)", lambda h: -np.deg2rad(h), "-{col} * pi/180"),
 )
+# the same of a column the file names in degrees (theta_deg), whose values are already turned into radians
+HEADING_READINGS_OF_DEGREES = (
+    ("in radians", np.rad2deg, "{col} * 180/pi (or name the column theta_rad)"),
+    ("clockwise", np.negative, "-{col}"),
+    ("clockwise in radians", lambda h: -np.rad2deg(h), "-{col} * 180/pi"),
+)
 
 
 def _moves(t: np.ndarray, x: np.ndarray, y: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -209,11 +215,13 @@ def truth_heading_doubt(
     zero_rad: float,
     column: str,
     convention: str,
+    in_degrees: bool = False,
 ) -> str | None:
     """A sentence when a recorded heading does not point the way the recorded positions move, but would
     read another way (degrees, clockwise, turned by a constant), with the column it should hold; None
     when it agrees, when too little moves, or when no reading agrees (a robot that side-steps).
-    ``zero_rad``: the world angle the column's 0 faces (0 for ROS REP 103, pi/2 for sensact's frame)."""
+    ``zero_rad``: the world angle the column's 0 faces (0 for ROS REP 103, pi/2 for sensact's frame);
+    ``heading`` is in radians, and ``in_degrees`` says the file wrote it in degrees (so the fix is too)."""
     t = np.asarray(t_s, dtype=float)
     order = np.argsort(t, kind="stable")
     t, x, y, h = t[order], np.asarray(x_mm)[order], np.asarray(y_mm)[order], np.asarray(heading)[order]
@@ -229,7 +237,7 @@ def truth_heading_doubt(
         # heading read in degrees is nearly constant and would agree too
         found = [
             (*_agreement(i, j, travel, reading(h) + zero_rad), how, expression)
-            for how, reading, expression in HEADING_READINGS
+            for how, reading, expression in (HEADING_READINGS_OF_DEGREES if in_degrees else HEADING_READINGS)
         ]
         n, agree, offset, how, expression = max(found, key=lambda f: f[1])
         if agree < HEADING_AGREES:
@@ -247,7 +255,8 @@ def truth_heading_doubt(
         said = f"is {by} off the way the robot moves{hint}"
     else:
         said = f"follows the way the robot moves only read {how}" + (f", turned by {by}{hint}" if turned else "")
-    value = expression.format(col=column) + (f" {'+' if offset > 0 else '-'} {abs(offset):.3f}" if turned else "")
+    by_written = f"{abs(np.degrees(offset)):.1f}" if in_degrees else f"{abs(offset):.3f}"
+    value = expression.format(col=column) + (f" {'+' if offset > 0 else '-'} {by_written}" if turned else "")
     return (
         f"the recorded heading ({column}) {said}, over {n} moves of {HEADING_MOVE_S:g} s; {column} is read as "
         f"{convention}, so the scores against this truth (From-Truth, the sensor's pose, the path) are off: "
