@@ -686,6 +686,68 @@ def test_evaluate_fleet_scores_turtlebot_models_on_each_others_runs_against_thei
         assert (pct is None and alone is None) or pct == pytest.approx(alone, rel=1e-9), (channel, pct, alone)
 
 
+def _as_track_folder(csv, folder):
+    """The run of a Turtlebot CSV as a 1-D robot's own track log folder: the same steps, command and
+    readings, the recorded distance as groundtruth.csv's distance_mm, and the Turtlebot's settings as its
+    em_config.yaml (what a user with other column names writes by hand: docs/em-real.md, section 1)."""
+    from sensact.config import config_to_yaml
+    from sensact.experiments.turtlebot_em import turtlebot_em_config
+    from sensact.io.landmark_log import write_landmark_log
+    from sensact.io.turtlebot import read_turtlebot_landmark_log
+
+    data, truth_mm = read_turtlebot_landmark_log(csv)
+    write_landmark_log(folder, data, groundtruth={"distance_mm": truth_mm})
+    (folder / "em_config.yaml").write_text(config_to_yaml(turtlebot_em_config(data.reading_names), "# 1-D robot\n"))
+    return folder
+
+
+def test_a_track_folders_recorded_distance_is_scored_as_a_turtlebot_csvs_range(tmp_path):
+    """A 1-D robot's own track folder (continuous commands, groundtruth.csv's distance_mm) is scored
+    against its recorded distance by `learn em`, `evaluate log`, `evaluate fleet` and `localize` exactly
+    as the same run written as a Turtlebot CSV is against its range column (an exact reduction: the same
+    log, the same settings)."""
+    runs = {}
+    for name, seed in (("a", 7), ("b", 8)):
+        csv = tmp_path / f"{name}.csv"
+        _write_turtlebot_csv(csv, with_range=True, seed=seed)
+        runs[name] = (csv, _as_track_folder(csv, tmp_path / f"{name}_folder"))
+    learned = {}
+    for kind in (0, 1):  # the CSV, then the folder
+        model = tmp_path / f"m{kind}.json"
+        res = runner.invoke(app, ["learn", "em", str(runs["a"][kind]), "--out", str(model)])
+        assert res.exit_code == 0, res.output
+        learned[kind] = json.loads(model.read_text())
+        assert "vs range (optimal scale and offset): action gain" in res.output
+        assert (tmp_path / f"m{kind}_against_range.png").stat().st_size > 30_000
+    assert learned[1]["model"] == learned[0]["model"] and learned[1]["evaluation"] == learned[0]["evaluation"]
+    assert learned[1]["evaluation"]["gain_error_pct"] < 1.0  # the seeded robot's gain, 0.9
+    scored, placed = {}, {}
+    for kind in (0, 1):
+        log, model = str(runs["b"][kind]), str(tmp_path / f"m{kind}.json")
+        out = tmp_path / f"e{kind}.json"
+        assert runner.invoke(app, ["evaluate", "log", log, "--model", model, "--out", str(out)]).exit_code == 0
+        scored[kind] = json.loads(out.read_text())["evaluation"]
+        out = tmp_path / f"l{kind}.json"
+        assert runner.invoke(app, ["localize", log, "--model", model, "--out", str(out)]).exit_code == 0
+        placed[kind] = json.loads(out.read_text())["truth"]
+    assert scored[1] == scored[0] and scored[1]["sensors"]["sonar1"]["rms_pct_of_span"] < 2.0
+    assert placed[1] == placed[0] and placed[1]["state_map"]["rms_mm"] < 10.0
+    out = tmp_path / "fleet.json"
+    logs = [str(runs[n][1]) for n in ("a", "b")]
+    res = runner.invoke(app, ["evaluate", "fleet", *logs, "--model", str(tmp_path / "m1.json"), "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    cells = json.loads(out.read_text())["range"]["cells"]["m1"]
+    # a pair is `evaluate log`'s score of that model on that run (the robot placed with the model held)
+    assert cells["b_folder"]["gain_error_pct"] == pytest.approx(scored[1]["gain_error_pct"], rel=1e-9)
+    assert cells["a_folder"]["bars"] == {"gain": True, "sensor": True}, cells["a_folder"]
+    # a track folder without the recorded distance learns the same model and is not scored
+    (runs["a"][1] / "groundtruth.csv").unlink()
+    res = runner.invoke(app, ["learn", "em", str(runs["a"][1]), "--out", str(tmp_path / "bare.json")])
+    assert res.exit_code == 0 and "vs range" not in res.output, res.output
+    bare = json.loads((tmp_path / "bare.json").read_text())
+    assert bare["model"] == learned[1]["model"] and bare["evaluation"] is None
+
+
 def test_learn_em_starts_from_a_model_learned_on_another_robot_of_its_kind(tmp_path):
     """`learn em --start-from`: robot b (gain 0.72) learned from robot a's model (gain 0.9) learns b's own
     gain, with a's settings read back whole from a's model.json; started from a's model on a's own run, EM

@@ -85,7 +85,7 @@ def evaluate_log_cmd(
     # a track folder's continuous commands are binned as `learn em`'s default bins them (a Turtlebot
     # CSV's are read as they are)
     doc, m, data, lf, truth_mm = read_model_and_log(log, model, bins=21, use="scored")
-    if lf is None:  # a Turtlebot CSV
+    if truth_mm is not None:  # a Turtlebot CSV, or a track folder with a recorded distance
         _evaluate_on_range_column(doc, m, data, truth_mm, log, model, out)
         return
     console.print(f"{model} on {lf.title(log)}: {lf.data.n_steps} steps, {lf.data.n_observations} observations")
@@ -216,7 +216,9 @@ def evaluate_fleet_cmd(
             on_step = {model_names[p]: read_log_on_model_step(log, doc, 21) for p, (doc, _) in docs.items()}
             read[log] = RangeLog({name: (data, range_mm) for name, (data, _, range_mm) in on_step.items()})
         else:
-            read[log] = read_em_log(log, bins=21)[1]  # a track folder's commands binned as `evaluate log` bins them
+            data, lf, distance = read_em_log(log, bins=21)  # a track1d folder's commands binned as `evaluate log` does
+            # a track folder's recorded distance is scored as a Turtlebot's range column, on the folder's own step
+            read[log] = lf if distance is None else RangeLog(dict.fromkeys(model_names.values(), (data, distance)))
     for path, (doc, m) in docs.items():
         name = model_names[path]
         for log, lf in read.items():

@@ -15,9 +15,11 @@ def is_turtlebot_csv(log: Path) -> bool:
 
 
 def read_em_log(log: Path, bins: int, dt_s: float | None = None) -> tuple[Any, Any, Any]:
-    """What EM reads: ``(data, the log folder, None)`` from a folder (continuous 1-D commands binned into
-    ``bins`` actions), or ``(data, None, its range column)`` from a Turtlebot CSV (on ``dt_s``, or its median
-    step); anything else is one line."""
+    """What EM reads: ``(data, the log folder, its recorded distance or None)`` from a folder (continuous
+    commands of a track1d folder binned into ``bins`` actions; the distance of a track folder of continuous
+    commands whose groundtruth.csv has ``distance_mm``), or ``(data, None, its range column)`` from a
+    Turtlebot CSV (on ``dt_s``, or its median step); anything else is one line. The distance and the range
+    column are scored alike (``evaluate.turtlebot_em``)."""
     if is_turtlebot_csv(log):
         from sensact.io.turtlebot import read_turtlebot_landmark_log
 
@@ -35,7 +37,7 @@ def read_em_log(log: Path, bins: int, dt_s: float | None = None) -> tuple[Any, A
     from sensact.io.landmark_log import read_landmark_log
 
     lf = read_landmark_log(log, command_bins=bins)
-    return lf.data, lf, None
+    return lf.data, lf, lf.truth_distance_mm()
 
 
 def read_log_on_model_step(log: Path, doc: dict[str, Any], bins: int) -> tuple[Any, Any, Any]:
@@ -116,7 +118,8 @@ def refuse_model_for_log(
 
 
 def read_model_and_log(log: Path, model: Path, bins: int, use: str) -> tuple[dict[str, Any], Any, Any, Any, Any]:
-    """``(model.json, the model, the log's data, its folder or None, a Turtlebot CSV's range column or None)``,
+    """``(model.json, the model, the log's data, its folder or None, the recorded distance or None: a Turtlebot
+    CSV's range column or a track folder's distance_mm)``,
     the log read onto the model's step; a model that does not fit the log is refused in one line (``use``:
     "run", "scored" or "start")."""
     doc, m = read_em_model(model)

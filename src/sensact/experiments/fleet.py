@@ -65,7 +65,8 @@ class RangeLog:
     """A Turtlebot CSV in a fleet, read onto each model's step: ``reads[model]`` is what EM reads and the
     ``range`` column (mm at each step; None when the file has none, NaN where a step has none). A CSV's
     step is its reader's choice, the file's median, so models learned on two runs have steps a hair apart,
-    and each is placed on the file as `evaluate log` reads it for that model. No recorded poses."""
+    and each is placed on the file as `evaluate log` reads it for that model. No recorded poses. A track
+    folder with a recorded distance (``distance_mm``) is one too, read once on its own step."""
 
     reads: Mapping[str, tuple[Any, np.ndarray | None]]
 

@@ -51,6 +51,14 @@ class LandmarkLogFile:
     def truth_poses(self) -> tuple[np.ndarray, np.ndarray] | None:
         return truth_poses_of(self.groundtruth)
 
+    def truth_distance_mm(self) -> np.ndarray | None:
+        """A 1-D robot's recorded distance on the step grid (``groundtruth.csv``'s ``distance_mm`` in a
+        track folder of continuous commands), scored as a Turtlebot CSV's ``range`` column; else None."""
+        gt = self.groundtruth
+        if gt is None or "distance_mm" not in gt or self.data.geometry != "track" or not self.data.is_continuous:
+            return None
+        return np.asarray(gt["distance_mm"], dtype=float)
+
 
 def truth_poses_of(gt: dict[str, np.ndarray] | None) -> tuple[np.ndarray, np.ndarray] | None:
     """Ground truth's ``(T, 3)`` poses on the step grid and where they are valid (every step when it has

@@ -89,7 +89,8 @@ def _not_turtlebot(path: str | Path) -> str:
     return (
         "a .csv is read as a Turtlebot's log (time, velocity_command, sonar1, IR columns); a robot's own timed "
         "records become a log folder first: `sensact convert csv --commands C.csv --sightings S.csv --landmarks "
-        "L.csv --out DIR` (docs/em-real.md, section 1), then give DIR."
+        "L.csv --out DIR` (docs/em-real.md, section 1), then give DIR; a 1-D robot with other columns is a "
+        "track folder written by hand (the same section)."
     )
 
 

@@ -136,7 +136,8 @@ def learn_and_compare_halves(
 def _settings_and_log(
     log: Path, bins: int, start_from: Path | None, config: Path | None, set_: list[str] | None
 ) -> tuple[Any, Any, Any, Any, tuple[dict[str, Any], Any] | None]:
-    """``(settings, data, log folder or None, Turtlebot range column or None, (model.json, model) or None)``:
+    """``(settings, data, log folder or None, recorded distance or None (a Turtlebot CSV's range column, a
+    track folder's distance_mm), (model.json, model) or None)``:
     the settings layered on a base that is the start model's own, a Turtlebot's, or the folder's
     em_config.yaml, each said to the user."""
     from sensact.config import config_from_dict
@@ -331,7 +332,7 @@ def _write_fit(
         from sensact.report.figures_real import write_robot
 
         written += write_robot(lf, m, evaluation, out.with_suffix(""), name, res.posteriors, truth="ground truth")
-    elif evaluation is not None and lf is None:  # a Turtlebot CSV scored against its range column
+    elif evaluation is not None and turtlebot_truth is not None:  # scored against a recorded distance
         from sensact.experiments.turtlebot_em import TurtlebotEMRun
         from sensact.report.figures_turtlebot_em import figure_turtlebot_em
 
@@ -459,7 +460,7 @@ def learn_em_cmd(
     signs, held = _warn_of_a_doubtful_fit(res, data, cfg)
     evaluation = (
         evaluate_em(lf, m, learned_here=True, path=None if res.posteriors is None else res.posteriors.mean_gamma)
-        if lf is not None
+        if lf is not None and turtlebot_truth is None
         else evaluate_turtlebot_em(res, data, turtlebot_truth)
     )
     doc = {
