@@ -146,7 +146,7 @@ def _settings_and_log(
     if start_from is not None:  # the model's own settings, and the log read onto its step
         from sensact.cli.model_on_log import read_model_and_log
 
-        start_doc, start_model, data, lf, turtlebot_truth = read_model_and_log(log, start_from, bins, use="start")
+        start_doc, start_model, data, lf, recorded_distance = read_model_and_log(log, start_from, bins, use="start")
         learned = (start_doc.get("summary") or {}).get("config")
         base = None if learned is None else config_from_dict(EMConfig, learned, source=f"{start_from}: summary.config")
         if base is None and is_turtlebot_csv(log):
@@ -159,12 +159,12 @@ def _settings_and_log(
             + ("settings, " if learned is not None else "")
             + "parameters and the start it finds; --config and --set override the settings."
         )
-        return cfg, data, lf, turtlebot_truth, (start_doc, start_model)
+        return cfg, data, lf, recorded_distance, (start_doc, start_model)
     if is_turtlebot_csv(log):  # a Turtlebot's settings, for the sensors it has
         from sensact.experiments.turtlebot_em import turtlebot_em_config
         from sensact.io.turtlebot import EM_READINGS
 
-        data, lf, turtlebot_truth = read_em_log(log, bins)
+        data, lf, recorded_distance = read_em_log(log, bins)
         cfg = layered_config(EMConfig, config, set_, base=turtlebot_em_config(data.reading_names))
         absent = [r for r in EM_READINGS if r not in data.reading_names]
         console.print(
@@ -172,19 +172,19 @@ def _settings_and_log(
             "override them."
             + (f" Channels {', '.join(data.reading_names)} ({', '.join(absent)} not in the file)." if absent else "")
         )
-        return cfg, data, lf, turtlebot_truth, None
+        return cfg, data, lf, recorded_distance, None
     beside = log / "em_config.yaml"
     if config is None and beside.is_file():  # the settings `convert` or `simulate diffdrive` wrote for this log
         config = beside
         console.print(f"settings: {beside}, written beside the log; --config replaces them, --set overrides them.")
     cfg = layered_config(EMConfig, config, set_)  # bad settings are said before the log is read
-    data, lf, turtlebot_truth = read_em_log(log, bins)
+    data, lf, recorded_distance = read_em_log(log, bins)
     from sensact.io.unit_checks import unit_doubts
 
     # a hand-written folder's column in the wrong unit, before a wasted fit
     for doubt in unit_doubts(data, lf.truth_poses() if lf is not None else None):
         console.print(f"[yellow]warning:[/] {doubt} (in {log})")
-    return cfg, data, lf, turtlebot_truth, None
+    return cfg, data, lf, recorded_distance, None
 
 
 def _refuse_table_on_continuous_commands(data: Any, cfg: Any, log: Path, lf: Any) -> None:
@@ -306,7 +306,7 @@ def _describe_fit(res: Any, cfg: Any) -> None:
 
 
 def _write_fit(
-    out: Path, doc: dict[str, Any], res: Any, data: Any, log: Path, lf: Any, turtlebot_truth: Any, halves: bool
+    out: Path, doc: dict[str, Any], res: Any, data: Any, log: Path, lf: Any, recorded_distance: Any, halves: bool
 ) -> None:
     """The model JSON, its history and path, the figure of the fit and those against the log's truth; a
     figure that an earlier run at this --out drew, against a truth this log does not have or of its
@@ -332,11 +332,11 @@ def _write_fit(
         from sensact.report.figures_real import write_robot
 
         written += write_robot(lf, m, evaluation, out.with_suffix(""), name, res.posteriors, truth="ground truth")
-    elif evaluation is not None and turtlebot_truth is not None:  # scored against a recorded distance
+    elif evaluation is not None and recorded_distance is not None:  # scored against a recorded distance
         from sensact.experiments.turtlebot_em import TurtlebotEMRun
         from sensact.report.figures_turtlebot_em import figure_turtlebot_em
 
-        run = TurtlebotEMRun(data, turtlebot_truth, res)
+        run = TurtlebotEMRun(data, recorded_distance, res)
         path = out.with_name(f"{out.stem}_against_range.png")
         written.append(figure_turtlebot_em(run, evaluation, path, f"EM on {name}"))
     console.print("wrote " + ", ".join(str(p) for p in written))
@@ -446,7 +446,7 @@ def learn_em_cmd(
     from sensact.learn.em.config import refuse_bearing_settings
     from sensact.models.wheel_drive import as_differential_drive
 
-    cfg, data, lf, turtlebot_truth, start_doc_model = _settings_and_log(log, bins, start_from, config, set_)
+    cfg, data, lf, recorded_distance, start_doc_model = _settings_and_log(log, bins, start_from, config, set_)
     _describe_log(data, lf)
     _refuse_table_on_continuous_commands(data, cfg, log, lf)
     refuse_bearing_settings(cfg, data)  # before the starting model, which would fail on it
@@ -460,8 +460,8 @@ def learn_em_cmd(
     signs, held = _warn_of_a_doubtful_fit(res, data, cfg)
     evaluation = (
         evaluate_em(lf, m, learned_here=True, path=None if res.posteriors is None else res.posteriors.mean_gamma)
-        if lf is not None and turtlebot_truth is None
-        else evaluate_turtlebot_em(res, data, turtlebot_truth)
+        if lf is not None and recorded_distance is None
+        else evaluate_turtlebot_em(res, data, recorded_distance)
     )
     doc = {
         "model": m.to_dict(),
@@ -486,7 +486,7 @@ def learn_em_cmd(
         "halves": None,  # --halves: each half learned on from this model, and compared (below)
     }
     if out is not None:
-        _write_fit(out, doc, res, data, log, lf, turtlebot_truth, halves)
+        _write_fit(out, doc, res, data, log, lf, recorded_distance, halves)
     if halves:  # after the model is written, so that stopping the halves loses nothing of it
         if res.posteriors is None:
             console.print(f"--halves: not run, EM stopped {res.stop_reason} without a smoothed path to compare on")
