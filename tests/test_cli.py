@@ -731,6 +731,17 @@ def test_a_track_folders_recorded_distance_is_scored_as_a_turtlebot_csvs_range(t
         assert runner.invoke(app, ["localize", log, "--model", model, "--out", str(out)]).exit_code == 0
         placed[kind] = json.loads(out.read_text())["truth"]
     assert scored[1] == scored[0] and scored[1]["sensors"]["sonar1"]["rms_pct_of_span"] < 2.0
+    # a recorded distance with an empty cell is named in one line, by its file and column
+    truth = runs["b"][1] / "groundtruth.csv"
+    kept = truth.read_text()
+    rows = kept.splitlines()
+    truth.write_text("\n".join([*rows[:100], rows[100].split(",")[0] + ",", *rows[101:]]) + "\n")
+    res = runner.invoke(app, ["evaluate", "log", str(runs["b"][1]), "--model", str(tmp_path / "m1.json")])
+    said = " ".join(res.output.split())
+    assert res.exit_code == 2 and "groundtruth.csv: distance_mm: groundtruth.csv's distance_mm is empty at" in said, (
+        said
+    )
+    truth.write_text(kept)
     assert placed[1] == placed[0] and placed[1]["state_map"]["rms_mm"] < 10.0
     out = tmp_path / "fleet.json"
     logs = [str(runs[n][1]) for n in ("a", "b")]

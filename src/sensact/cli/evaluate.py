@@ -112,12 +112,22 @@ def _evaluate_on_range_column(
     """`evaluate log` on a Turtlebot CSV: the state has no unit of its own, so the model is scored through the
     optimal map of the path it places onto the recorded range (sec. 4.4.3), fitted on this log."""
 
+    import numpy as np
+
     from sensact.cli.localize import place_robot
     from sensact.cli.scores import evaluate_turtlebot_em
     from sensact.errors import LogFormatError
     from sensact.evaluate.turtlebot_em import range_column_problem
 
     problem = range_column_problem(truth_mm)
+    if problem and log.is_dir():  # a track folder's distance_mm, empty on the grid only next to an empty cell
+        raise LogFormatError(
+            f"groundtruth.csv's distance_mm is empty at {int((~np.isfinite(truth_mm)).sum())} steps, and the scores "
+            "need the recorded distance at every step.",
+            file=log / "groundtruth.csv",
+            field="distance_mm",
+            fix="fill every distance_mm cell (or drop those rows); `sensact localize` runs the model without scores.",
+        )
     if problem:
         raise LogFormatError(
             f"{problem} to score against, and the scores need the range at every step.",
