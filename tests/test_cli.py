@@ -15,6 +15,7 @@ from sensact.cli.base import one_line_paragraphs
 from sensact.evaluate.bars import counts, verdict_line
 from sensact.experiments import em1d, field2d, track1d
 from sensact.experiments.field2d import bar_misses
+from turtlebot_robot import write_turtlebot_csv
 
 runner = CliRunner()
 
@@ -389,51 +390,9 @@ def test_simulate_car_then_learn_car_with_ros_export(tmp_path):
     assert res.exit_code == 2 and "meta.json" in res.output
 
 
-def _write_turtlebot_csv(
-    path,
-    *,
-    with_range: bool,
-    seed: int = 7,
-    one_speed: bool = False,
-    drop: tuple[str, ...] = (),
-    gain: float = 0.9,
-) -> None:
-    """A seeded robot in the Turtlebot's CSV format: it backs away from and drives at a wall, obeying its
-    command with ``gain`` (0.9) and 2 steps (0.12 s) late (the move from step k - 1 to k follows the command of
-    step k - 3); sonar1 reads the distance in m with 5 % outliers, each IR sensor a falling curve of it.
-    ``one_speed``: it backs away at 0.01 m/s instead, apart from a 1-s stop every 30 s (like
-    turtlebot1d's calibration.csv)."""
-    import numpy as np
-
-    rng = np.random.default_rng(seed)
-    n, dt = 2500, 0.06
-    t = 0.1 + dt * np.arange(n)
-    period = 14.0  # whole periods of a sine out and back, at 0.2, 0.3 and 0.4 m/s: 400 to 2000 mm
-    cmd = np.sin(2 * np.pi * t / period) * (0.2 + 0.1 * ((t // period) % 3))
-    if one_speed:
-        cmd = np.where(t % 30.0 < 1.0, 0.0, 0.01)
-    d = np.empty(n)
-    d[0] = 400.0
-    for k in range(1, n):
-        d[k] = d[k - 1] + gain * 1000.0 * cmd[max(k - 3, 0)] * dt + rng.normal(0.0, 2.0)
-    sonar = d / 1000.0 + rng.normal(0.0, 0.01, n)
-    bad = rng.random(n) < 0.05
-    sonar[bad] = rng.uniform(0.1, 5.0, bad.sum())
-    ir = [
-        a * np.exp(-d / s) + 0.3 + rng.normal(0.0, 0.02, n)
-        for a, s in ((3.0, 600), (2.5, 150), (3.0, 400), (2.5, 2500))
-    ]
-    cols = {"time": t, "range": d / 1000.0, "velocity_command": cmd}
-    cols |= {f"raw_ir{i + 1}": v for i, v in enumerate(ir)} | {"sonar1": sonar, "sonar2": d / 1000.0}
-    for name in (*drop, *(() if with_range else ("range",))):
-        del cols[name]
-    rows = [",".join(["", *cols])] + [",".join([str(k), *(f"{v[k]:.6f}" for v in cols.values())]) for k in range(n)]
-    path.write_text("\n".join(rows) + "\n")
-
-
 def test_learn_em_on_a_turtlebot_csv_recovers_the_gain_and_sonar(tmp_path):
     csv = tmp_path / "robot.csv"
-    _write_turtlebot_csv(csv, with_range=True)
+    write_turtlebot_csv(csv, with_range=True)
     model = tmp_path / "m.json"
     res = runner.invoke(app, ["learn", "em", str(csv), "--out", str(model)])
     assert res.exit_code == 0, res.output
@@ -465,7 +424,7 @@ def test_learn_em_on_a_turtlebot_csv_recovers_the_gain_and_sonar(tmp_path):
     assert "stopped: converged" in res.output and "raise the cap" not in res.output
     # --set overrides the Turtlebot's settings; without a range column there is nothing to score, and the
     # figure the first run drew against its range column is removed, so that it cannot pass for this fit
-    _write_turtlebot_csv(csv, with_range=False)
+    write_turtlebot_csv(csv, with_range=False)
     res = runner.invoke(app, ["learn", "em", str(csv), "--out", str(model), "--set", "max_iterations=5"])
     assert res.exit_code == 0, res.output
     assert "no range column" in res.output
@@ -481,7 +440,7 @@ def test_learn_em_on_a_turtlebot_csv_recovers_the_gain_and_sonar(tmp_path):
     ll = out["summary"]["loglik_best"] - out["summary"]["loglik_start"]
     assert "in the last 2 iterations" in said and "--set max_iterations=10" in said and ll > 0
     # a range column with an empty cell is not scored, and says so
-    _write_turtlebot_csv(csv, with_range=True)
+    write_turtlebot_csv(csv, with_range=True)
     lines = csv.read_text().splitlines()
     cells = lines[10].split(",")
     cells[2] = ""  # the range cell (index, time, range, ...)
@@ -491,7 +450,7 @@ def test_learn_em_on_a_turtlebot_csv_recovers_the_gain_and_sonar(tmp_path):
     assert res.exit_code == 0, res.output
     assert "empty steps: not scored" in res.output
     # after five iterations raw_ir2's window holds too few of the range column's distances: said, not "nan"
-    _write_turtlebot_csv(csv, with_range=True)
+    write_turtlebot_csv(csv, with_range=True)
     res = runner.invoke(app, ["learn", "em", str(csv), "--set", "max_iterations=5"])
     said = " ".join(res.output.split())
     assert res.exit_code == 0 and "raw_ir2: not scored (readings in fewer than two 100-mm bins" in said, res.output
@@ -509,7 +468,7 @@ def test_the_turtlebot_figure_draws_the_scored_models_of_a_known_robot(tmp_path)
     from sensact.report.figures_turtlebot_em import figure_turtlebot_em
 
     csv = tmp_path / "robot.csv"
-    _write_turtlebot_csv(csv, with_range=True, drop=("raw_ir1", "raw_ir2", "raw_ir3"))
+    write_turtlebot_csv(csv, with_range=True, drop=("raw_ir1", "raw_ir2", "raw_ir3"))
     summary, run = run_turtlebot_em(csv)
     score = summary["score"]
     a, b = state_map(run.result.posteriors.mean_gamma[:, 0], run.truth_mm)
@@ -536,8 +495,8 @@ def test_localize_follows_another_run_of_a_turtlebot_with_the_model_learned_on_o
     import numpy as np
 
     first, second, model = tmp_path / "a.csv", tmp_path / "b.csv", tmp_path / "m.json"
-    _write_turtlebot_csv(first, with_range=True, seed=7)
-    _write_turtlebot_csv(second, with_range=True, seed=8)
+    write_turtlebot_csv(first, with_range=True, seed=7)
+    write_turtlebot_csv(second, with_range=True, seed=8)
     assert runner.invoke(app, ["learn", "em", str(first), "--out", str(model)]).exit_code == 0
     res = runner.invoke(app, ["localize", str(second), "--model", str(model), "--out", str(tmp_path / "l.json")])
     assert res.exit_code == 0, res.output
@@ -578,7 +537,7 @@ def test_localize_follows_another_run_of_a_turtlebot_with_the_model_learned_on_o
     # a start that is not one number, and a model for other readings, are one line each
     res = runner.invoke(app, ["localize", str(second), "--model", str(model), "--start", "1,2"])
     assert res.exit_code == 2 and "--start '1,2' is not 1 number" in " ".join(res.output.split())
-    _write_turtlebot_csv(second, with_range=True, seed=8, drop=("raw_ir4",))
+    write_turtlebot_csv(second, with_range=True, seed=8, drop=("raw_ir4",))
     res = runner.invoke(app, ["localize", str(second), "--model", str(model)])
     said = " ".join(res.output.split())
     assert res.exit_code == 2 and "the log has no reading raw_ir4" in said and "cannot be run on" in said, said
@@ -590,14 +549,14 @@ def test_evaluate_log_scores_a_turtlebot_model_on_another_run_against_its_range(
     its command (a new floor) as the gain's error; on the log it was learned from it gives `learn em`'s own
     evaluation; a CSV without the range column is one line."""
     first, model = tmp_path / "a.csv", tmp_path / "m.json"
-    _write_turtlebot_csv(first, with_range=True, seed=7)
+    write_turtlebot_csv(first, with_range=True, seed=7)
     assert runner.invoke(app, ["learn", "em", str(first), "--out", str(model)]).exit_code == 0
     learned = json.loads(model.read_text())["evaluation"]
     scores = {}
     for name, seed, gain in (("same", 8, 0.9), ("slower", 8, 0.72), ("itself", 7, 0.9)):
         csv = first if name == "itself" else tmp_path / f"{name}.csv"
         if name != "itself":
-            _write_turtlebot_csv(csv, with_range=True, seed=seed, gain=gain)
+            write_turtlebot_csv(csv, with_range=True, seed=seed, gain=gain)
         out = tmp_path / f"{name}.json"
         res = runner.invoke(app, ["evaluate", "log", str(csv), "--model", str(model), "--out", str(out)])
         assert res.exit_code == 0, res.output
@@ -617,7 +576,7 @@ def test_evaluate_log_scores_a_turtlebot_model_on_another_run_against_its_range(
     for channel, s in learned["sensors"].items():
         assert itself["sensors"][channel]["rms_pct_of_span"] == pytest.approx(s["rms_pct_of_span"], abs=0.01)
     bare = tmp_path / "bare.csv"
-    _write_turtlebot_csv(bare, with_range=False, seed=8)
+    write_turtlebot_csv(bare, with_range=False, seed=8)
     res = runner.invoke(app, ["evaluate", "log", str(bare), "--model", str(model)])
     said = " ".join(res.output.split())
     assert res.exit_code == 2 and "bare.csv: range: there is no range column to score against" in said, said
@@ -639,14 +598,14 @@ def test_evaluate_fleet_scores_turtlebot_models_on_each_others_runs_against_thei
     runs' median steps differ, so each model reads each run onto its own step."""
     runs = {"a": (7, 0.9), "b": (9, 0.72)}
     for name, (seed, gain) in runs.items():
-        _write_turtlebot_csv(tmp_path / f"{name}.csv", with_range=True, seed=seed, gain=gain)
+        write_turtlebot_csv(tmp_path / f"{name}.csv", with_range=True, seed=seed, gain=gain)
     rows = (tmp_path / "b.csv").read_text().splitlines()
     stretched = [",".join([c[0], f"{1.001 * float(c[1]):.6f}", *c[2:]]) for c in (r.split(",") for r in rows[1:])]
     (tmp_path / "b.csv").write_text("\n".join([rows[0], *stretched]) + "\n")
     for name in runs:
         model = tmp_path / f"m{name}.json"
         assert runner.invoke(app, ["learn", "em", str(tmp_path / f"{name}.csv"), "--out", str(model)]).exit_code == 0
-    _write_turtlebot_csv(tmp_path / "bare.csv", with_range=False, seed=8)
+    write_turtlebot_csv(tmp_path / "bare.csv", with_range=False, seed=8)
     out = tmp_path / "fleet.json"
     csvs = [str(tmp_path / f"{g}.csv") for g in ("a", "b", "bare")]
     models = ["--model", str(tmp_path / "ma.json"), "--model", str(tmp_path / "mb.json")]
@@ -709,7 +668,7 @@ def test_a_track_folders_recorded_distance_is_scored_as_a_turtlebot_csvs_range(t
     runs = {}
     for name, seed in (("a", 7), ("b", 8)):
         csv = tmp_path / f"{name}.csv"
-        _write_turtlebot_csv(csv, with_range=True, seed=seed)
+        write_turtlebot_csv(csv, with_range=True, seed=seed)
         runs[name] = (csv, _as_track_folder(csv, tmp_path / f"{name}_folder"))
     learned = {}
     for kind in (0, 1):  # the CSV, then the folder
@@ -767,7 +726,7 @@ def test_learn_em_starts_from_a_model_learned_on_another_robot_of_its_kind(tmp_p
     import numpy as np
 
     for name, seed, gain in (("a", 7, 0.9), ("b", 9, 0.72)):
-        _write_turtlebot_csv(tmp_path / f"{name}.csv", with_range=True, seed=seed, gain=gain)
+        write_turtlebot_csv(tmp_path / f"{name}.csv", with_range=True, seed=seed, gain=gain)
     ma, mb = tmp_path / "ma.json", tmp_path / "mb.json"
     res = runner.invoke(app, ["learn", "em", str(tmp_path / "a.csv"), "--out", str(ma), "--halves"])
     assert res.exit_code == 0, res.output
@@ -814,7 +773,7 @@ def test_learn_em_starts_from_a_model_learned_on_another_robot_of_its_kind(tmp_p
     said = " ".join(res.output.split())
     assert res.exit_code == 2 and "the start model has action_basis 'affine' and the settings 'polynomial'" in said
     assert "without --start-from" in said and "Traceback" not in said, said
-    _write_turtlebot_csv(tmp_path / "c.csv", with_range=True, seed=8, drop=("raw_ir4",))
+    write_turtlebot_csv(tmp_path / "c.csv", with_range=True, seed=8, drop=("raw_ir4",))
     res = runner.invoke(app, ["learn", "em", str(tmp_path / "c.csv"), "--start-from", str(ma)])
     said = " ".join(res.output.split())
     assert res.exit_code == 2 and "the log has no reading raw_ir4" in said and "EM cannot start from it on" in said
@@ -847,7 +806,7 @@ def test_track_start_candidates_invert_each_learned_f_inside_its_window():
 
 def test_learn_em_on_a_turtlebot_csv_learns_the_sensors_it_has(tmp_path):
     csv = tmp_path / "robot.csv"
-    _write_turtlebot_csv(csv, with_range=True, drop=("raw_ir1", "raw_ir2"))
+    write_turtlebot_csv(csv, with_range=True, drop=("raw_ir1", "raw_ir2"))
     model = tmp_path / "m.json"
     res = runner.invoke(app, ["learn", "em", str(csv), "--out", str(model), "--set", "max_iterations=3"])
     assert res.exit_code == 0, res.output
@@ -858,13 +817,13 @@ def test_learn_em_on_a_turtlebot_csv_learns_the_sensors_it_has(tmp_path):
     # chapter 3's reproduction runs the default sensors the file has
     folder = tmp_path / "data" / "turtlebot1d"
     folder.mkdir(parents=True)
-    _write_turtlebot_csv(folder / "training1.csv", with_range=True, drop=("raw_ir3",))
+    write_turtlebot_csv(folder / "training1.csv", with_range=True, drop=("raw_ir3",))
     res = runner.invoke(app, ["reproduce", "turtlebot", "--data", str(tmp_path / "data"), "--out", str(tmp_path / "r")])
     assert res.exit_code == 0 and "has no column raw_ir3: run without them" in " ".join(res.output.split())
     out = json.loads((tmp_path / "r" / "turtlebot.json").read_text())
     assert list(out["rows"]) == ["sonar1", "sonar2", "raw_ir4"] and out["skipped_sensors"] == ["raw_ir3"]
     # without the sonar, nothing says what unit the state is in
-    _write_turtlebot_csv(csv, with_range=True, drop=("sonar1",))
+    write_turtlebot_csv(csv, with_range=True, drop=("sonar1",))
     res = runner.invoke(app, ["learn", "em", str(csv)])
     said = " ".join(res.output.split())
     assert res.exit_code == 2 and "robot.csv: sonar1: EM on a Turtlebot CSV needs the sonar1 column" in said
@@ -875,10 +834,10 @@ def test_reproduce_turtlebot_runs_algorithm_1_on_every_training_log_it_finds(tmp
 
     folder = tmp_path / "data" / "turtlebot1d"
     folder.mkdir(parents=True)
-    _write_turtlebot_csv(folder / "training1.csv", with_range=True)
+    write_turtlebot_csv(folder / "training1.csv", with_range=True)
     shutil.copy(folder / "training1.csv", folder / "training2.csv")  # the same log under another name
-    _write_turtlebot_csv(folder / "training3.csv", with_range=False)
-    _write_turtlebot_csv(folder / "calibration.csv", with_range=True, one_speed=True)  # not a training log
+    write_turtlebot_csv(folder / "training3.csv", with_range=False)
+    write_turtlebot_csv(folder / "calibration.csv", with_range=True, one_speed=True)  # not a training log
     out = tmp_path / "r"
     res = runner.invoke(app, ["reproduce", "turtlebot", "--data", str(tmp_path / "data"), "--out", str(out)])
     said = " ".join(res.output.split())
@@ -921,7 +880,7 @@ def test_a_file_that_is_not_text_is_one_line_naming_it(tmp_path):
 
 def test_learn_em_refuses_a_turtlebot_csv_out_of_order(tmp_path):
     csv = tmp_path / "robot.csv"
-    _write_turtlebot_csv(csv, with_range=True)
+    write_turtlebot_csv(csv, with_range=True)
     lines = csv.read_text().splitlines()
     lines[5], lines[6] = lines[6], lines[5]
     csv.write_text("\n".join(lines) + "\n")
@@ -944,7 +903,7 @@ def test_learn_em_refuses_a_turtlebot_csv_out_of_order(tmp_path):
         assert res.exit_code == 2 and "missing column(s) time, velocity_command" in flat and fix in flat, res.output
         assert "read as a Turtlebot's log" in flat
     # a Turtlebot CSV without the sensor chapter 3's learner is asked for names it and what the file has
-    _write_turtlebot_csv(csv, with_range=True, drop=("raw_ir4",))
+    write_turtlebot_csv(csv, with_range=True, drop=("raw_ir4",))
     res = runner.invoke(app, ["learn", "bootstrap", str(csv), "--sensor", "raw_ir4"])
     flat = " ".join(res.output.split())
     assert res.exit_code == 2 and "no raw_ir4 column; found" in flat and "raw_ir3" in flat, res.output
@@ -958,7 +917,7 @@ def test_learn_em_refuses_a_turtlebot_csv_out_of_order(tmp_path):
     assert runner.invoke(app, ["simulate", "track1d", "--seconds", "5", "--out", str(blind)]).exit_code == 0
     rows = (blind / "observations.csv").read_text().splitlines()
     (blind / "observations.csv").write_text("\n".join([rows[0], *(r.split(",")[0] + "," for r in rows[1:])]) + "\n")
-    _write_turtlebot_csv(csv, with_range=True)
+    write_turtlebot_csv(csv, with_range=True)
     table = [r.split(",") for r in csv.read_text().splitlines()]
     col = table[0].index("sonar1")
     csv.write_text(
@@ -1034,7 +993,7 @@ def test_a_log_at_one_speed_is_warned_about_and_ems_gain_not_scored(tmp_path):
     from sensact.report.tables import turtlebot_tables
 
     csv = tmp_path / "one_speed.csv"
-    _write_turtlebot_csv(csv, with_range=True, one_speed=True)
+    write_turtlebot_csv(csv, with_range=True, one_speed=True)
     model = tmp_path / "m.json"
     res = runner.invoke(app, ["learn", "em", str(csv), "--out", str(model), "--set", "max_iterations=5"])
     said = " ".join(res.output.split())
@@ -1052,7 +1011,7 @@ def test_a_log_at_one_speed_is_warned_about_and_ems_gain_not_scored(tmp_path):
     assert 0.7 < row["true_gain"] < 1.1  # 0.9, timed at 0.01 m/s under a 2-mm random walk per step: 0.82
     # the sine of the other tests is never held, and is not warned about: EM's gain (a regression on
     # 1-s windows) is scored, chapter 3's (timed over held commands) has nothing to time and says so
-    _write_turtlebot_csv(csv, with_range=True)
+    write_turtlebot_csv(csv, with_range=True)
     res = runner.invoke(app, ["learn", "em", str(csv), "--set", "max_iterations=2"])
     assert res.exit_code == 0 and "at one command" not in res.output and "% off" in res.output
     summary, runs = run_turtlebot(csv, ("sonar1",))

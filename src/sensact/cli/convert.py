@@ -3,6 +3,7 @@ settings (em_config.yaml)."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -197,3 +198,143 @@ def _robot_kind(command_names: tuple[str, ...]) -> str:
     if diffdrive_config(command_names):
         return "a differential drive"
     return f"a robot that can side-step on commands {', '.join(command_names)}"
+
+
+TRACK_CONFIG_HEADER = """The Turtlebot's EM settings (docs/em-real.md, section 2) for this 1-D robot's readings, as the
+fields that differ from the defaults: an affine action model with a learned command delay and
+motion noise; {distance} reads the distance (its mm are the state's, which the windows are in)
+from a poor straight line, every other reading from a flat line that says nothing of the distance.
+Edit them for your robot and pass this file with --config; --set overrides single fields."""
+
+
+def _reading_column(name: str, known: dict[str, str], option: str, value: str) -> str:
+    """A reading's sensact name, given by the file's column name or sensact's (``sonar_m`` or ``sonar_mm``)."""
+    from sensact.errors import LogFormatError
+
+    name = name.strip()
+    col = {v: k for k, v in known.items()}.get(name, name if name in known else None)
+    if col is None:
+        raise LogFormatError(
+            f"{option} {value!r}: no such reading; the readings are {', '.join(known.values())}.",
+            field=option,
+            fix=f"give {option} a reading's column name.",
+        )
+    return col
+
+
+def _parse_windows(items: list[str], known: dict[str, str]) -> dict[str, tuple[float, float]]:
+    """``NAME=MIN:MAX`` (mm; an end left empty is open) by sensact's reading name."""
+    from sensact.errors import LogFormatError
+
+    out = {}
+    for item in items:
+        name, _, span = item.partition("=")
+        col = _reading_column(name, known, "--window", item)
+        lo, colon, hi = span.partition(":")
+        try:
+            low, high = float(lo) if lo.strip() else -math.inf, float(hi) if hi.strip() else math.inf
+        except ValueError:
+            low = high = math.nan
+        if not colon or not low < high:
+            raise LogFormatError(
+                f"--window {item!r} is not a window of distances.",
+                field="--window",
+                fix="write --window NAME=MIN_MM:MAX_MM with MIN below MAX (an end left empty is open, e.g. "
+                "ir_volts=100:).",
+            )
+        out[col] = (low, high)
+    return out
+
+
+@convert_app.command("track")
+@friendly
+def convert_track(
+    csv: Annotated[
+        Path, typer.Argument(help="The 1-D robot's CSV: t_s, its command, its readings, optional distance_m.")
+    ],
+    out: Annotated[Path, typer.Option("--out", help="The track log folder to write.")] = Path("track_log"),
+    command: Annotated[
+        list[str] | None,
+        typer.Option(
+            metavar="COLUMN",
+            help="A velocity command column (repeat for several); by default the one column in m/s or mm/s.",
+        ),
+    ] = None,
+    reading: Annotated[
+        list[str] | None,
+        typer.Option(
+            metavar="COLUMN",
+            help="A sensor's column (repeat for each); by default every other column. One must be in m or mm.",
+        ),
+    ] = None,
+    distance: Annotated[
+        str | None,
+        typer.Option(
+            metavar="COLUMN",
+            help="The recorded distance, for scoring only; by default distance_m or distance_mm if there is one.",
+        ),
+    ] = None,
+    window: Annotated[
+        list[str] | None,
+        typer.Option(
+            metavar="NAME=MIN_MM:MAX_MM",
+            help="The distances (mm) where a reading is valid (an IR sensor's range; an end left empty is open).",
+        ),
+    ] = None,
+    robust: Annotated[
+        list[str] | None,
+        typer.Option(
+            metavar="COLUMN",
+            help="A reading read with a Student-t, for a sensor that is sometimes far wrong (a sonar).",
+        ),
+    ] = None,
+    dt: Annotated[
+        float | None, typer.Option(help="Step (s); by default the median spacing of the rows with a reading.")
+    ] = None,
+) -> None:
+    """Write a 1-D robot's own CSV as a track log folder, with its EM settings in em_config.yaml.
+
+    One file with a header row: a time (t_s, or t_ms, t_us, t_ns), the velocity command (held from each
+    row that has it), one column per sensor (each row's readings at the nearest step; an empty cell where a
+    sensor did not read) and, to score against, the recorded distance. Column suffixes give units as in
+    `convert csv` (_m and _m_s become mm and mm/s; other columns keep theirs, an IR sensor's volts). One
+    reading must be a distance (_m or _mm): the state takes its unit. em_config.yaml holds the Turtlebot's
+    settings for these readings, with --window and --robust; overview.png draws each reading against the
+    distance, to choose the windows by. See docs/em-real.md, section 1."""
+    import numpy as np
+
+    from sensact.config import config_to_yaml
+    from sensact.experiments.turtlebot_em import track_em_config
+    from sensact.io.atomic import write_text
+    from sensact.io.landmark_log import write_landmark_log
+    from sensact.io.track_csv import read_track_csv
+    from sensact.report.figures_log import figure_track_overview
+
+    tc = read_track_csv(csv, commands=tuple(command or ()), readings=tuple(reading or ()), distance=distance, dt_s=dt)
+    console.print(tc.summary_line())
+    d = tc.data
+    reads = {r: tc.sources[r] for r in d.reading_names}
+    windows = _parse_windows(window or [], reads)
+    robust_cols = tuple(_reading_column(r, reads, "--robust", r) for r in robust or [])
+    truth = None if tc.truth_mm is None else {"distance_mm": tc.truth_mm}
+    if tc.truth_mm is not None and not np.isfinite(tc.truth_mm).all():
+        console.print(
+            f"[yellow]warning:[/] the recorded distance does not cover {int((~np.isfinite(tc.truth_mm)).sum())} of the "
+            f"{d.n_steps} steps, and a fit is scored only against one on every step: give it on the first and last "
+            "rows."
+        )
+    files = {"csv": str(csv)}
+    write_landmark_log(
+        out,
+        d,
+        groundtruth=truth,
+        meta_extra={"source": {"files": files, "t0_s": tc.t0_s, "columns": tc.sources, "rows": tc.summary}},
+    )
+    cfg = out / "em_config.yaml"
+    settings = track_em_config(d, tc.distance_reading, windows, robust_cols)
+    write_text(cfg, config_to_yaml(settings, TRACK_CONFIG_HEADER.format(distance=tc.distance_reading)))
+    overview = figure_track_overview(d, tc.truth_mm, tc.distance_reading, out / "overview.png", out.resolve().name)
+    console.print(
+        f"wrote {out}, its EM settings {cfg} and {overview}; learn with `sensact learn em {out}`"
+        + ("" if truth is None else " (scored against the recorded distance)")
+    )

@@ -11,6 +11,8 @@ issue's bars here; the chapter-3 online learner's numbers on the same file are r
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -48,6 +50,45 @@ def turtlebot_em_config(readings: tuple[str, ...] = EM_READINGS) -> EMConfig:
         channels=tuple(chans),
         max_iterations=1000,
     )
+
+
+# a distance sensor's poor start (the Turtlebot's sonar1): a wrong scale and offset, not a wrong unit
+DISTANCE_START = (100.0, 0.8, 300.0)  # f(d) = 100 mm + 0.8 d, sigma 300 mm
+ROBUST_NU = 4.0  # the Student-t degrees of freedom a robust channel gets (the Turtlebot's sonar1)
+
+
+def track_em_config(
+    data: LandmarkLog,
+    distance_reading: str,
+    windows: dict[str, tuple[float, float]] | None = None,
+    robust: tuple[str, ...] = (),
+) -> EMConfig:
+    """The Turtlebot's settings for a 1-D robot's own readings (`sensact convert track`): the reading in
+    a distance unit first, from the sonar's poor line; every other reading from a flat line at its
+    median with its spread as sigma, which says nothing of the distance, so that its f is learned from
+    where the others place the robot (on training1.csv the IR channels learn as well as from their
+    datasheet lines: raw_ir3 3.1 % against 5.7 %). ``windows``: each reading's valid distances (mm);
+    ``robust``: the readings read with a Student-t."""
+    windows = windows or {}
+    names = [distance_reading, *(r for r in data.reading_names if r != distance_reading)]
+    chans = []
+    for name in names:
+        if name == distance_reading:
+            start = DISTANCE_START
+        else:
+            v = data.obs_readings[:, data.reading_names.index(name)]
+            v = v[np.isfinite(v)]
+            spread = float(np.std(v)) if v.size > 1 else 0.0
+            # four digits: a start, written into em_config.yaml for a person to read
+            start = (
+                float(f"{np.median(v):.4g}") if v.size else 0.0,
+                0.0,
+                float(f"{spread:.4g}") if spread > 0 else 1.0,
+            )
+        lo, hi = windows.get(name, (-math.inf, math.inf))
+        kind = ("student_t", ROBUST_NU) if name in robust else ("none", 0.0)
+        chans.append(ChannelConfig(name, 3, *start, lo, hi, *kind))
+    return dataclasses.replace(turtlebot_em_config(()), channels=tuple(chans))
 
 
 # issue 5's Turtlebot bars: the gain within 5 % of the truth's, one sensor within 3 % of the range

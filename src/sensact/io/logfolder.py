@@ -137,6 +137,15 @@ def read_track_log(path: str | Path, sensor: str | None = None) -> TrackLog:
             fix="give a folder with meta.json, actions.csv and observations.csv, or a Turtlebot CSV.",
         )
     meta = read_meta(path)
+    if "geometry" in meta and "action" not in meta:
+        raise LogFormatError(
+            f"this is a log folder for EM (geometry: {meta['geometry']}), as `sensact convert track`, `convert csv` "
+            "and `simulate field2d` write; chapter 3's learner reads a 1-D log with one command and one sensor.",
+            file=path / "meta.json",
+            field="geometry",
+            fix=f"learn it with `sensact learn em {path}`; `sensact learn bootstrap` reads a Turtlebot CSV or a "
+            "`sensact simulate track1d` folder.",
+        )
     cmd_col, cmd_unit = _column(meta, "action", path)
     obs_col, obs_unit = _column(meta, "sensor", path)
     if sensor is not None:

@@ -69,16 +69,22 @@ def in_sensact_units(name: str, values: np.ndarray) -> tuple[str, np.ndarray]:
 def _table(
     path: Path, required: tuple[str, ...], what: str, example: str, labels: tuple[str, ...] = ()
 ) -> dict[str, np.ndarray]:
-    return _table_and_sources(path, required, what, example, labels)[0]
+    return table_and_sources(path, required, what, example, labels)[0]
 
 
-def _table_and_sources(
-    path: Path, required: tuple[str, ...], what: str, example: str, labels: tuple[str, ...] = ()
+def table_and_sources(
+    path: Path,
+    required: tuple[str, ...],
+    what: str,
+    example: str,
+    labels: tuple[str, ...] = (),
+    command: str = "convert csv",
 ) -> tuple[dict[str, np.ndarray], dict[str, str]]:
-    """The file's columns in sensact's units, by sensact's names, and the name each had in the file."""
+    """The file's columns in sensact's units, by sensact's names, and the name each had in the file.
+    ``command``: the `sensact` command whose section of docs/commands.md describes the file."""
     if not path.is_file():
         raise LogFormatError(
-            f"{what} not found.", file=path, fix=f"give a CSV file of {example} (docs/commands.md, convert csv)."
+            f"{what} not found.", file=path, fix=f"give a CSV file of {example} (docs/commands.md, {command})."
         )
     raw = read_numeric_csv(path, what=what, labels=labels)
     table: dict[str, np.ndarray] = {}
@@ -103,7 +109,7 @@ def _table_and_sources(
             field=missing[0],
             fix=f"{what} needs {example} (a _m suffix for metres, _deg for degrees"
             + ("; t_ms, t_us or t_ns for other units of time" if missing[0] == "t_s" else "")
-            + "; docs/commands.md, convert csv)"
+            + f"; docs/commands.md, {command})"
             + _rostopic_hint(raw),
         )
     return table, sources
@@ -315,7 +321,7 @@ def read_timed_csv(
 def _truth_on_grid(path: Path, grid: np.ndarray) -> tuple[dict[str, np.ndarray], str | None]:
     """The truth's poses on ``grid`` in sensact's frame, and a doubt about its heading, judged on the
     rows as written (degrees would be bent by the unwrapping before the grid)."""
-    tr, sources = _table_and_sources(
+    tr, sources = table_and_sources(
         path, ("t_s", "x_mm", "y_mm", "theta_rad"), "truth.csv", "t_s, x_m, y_m and theta_rad"
     )
     in_degrees = sources["theta_rad"] == "theta_deg"  # the warning's fix is then written in the file's degrees

@@ -89,8 +89,8 @@ def _not_turtlebot(path: str | Path) -> str:
     return (
         "a .csv is read as a Turtlebot's log (time, velocity_command, sonar1, IR columns); a robot's own timed "
         "records become a log folder first: `sensact convert csv --commands C.csv --sightings S.csv --landmarks "
-        "L.csv --out DIR` (docs/em-real.md, section 1), then give DIR; a 1-D robot with other columns is a "
-        "track folder written by hand (the same section)."
+        "L.csv --out DIR` (docs/em-real.md, section 1), then give DIR; a 1-D robot with other columns: "
+        "`sensact convert track FILE.csv --out DIR` (the same section)."
     )
 
 
@@ -118,22 +118,7 @@ def read_turtlebot_landmark_log(path: str | Path, dt_s: float | None = None) -> 
     steps = np.clip(np.rint((t - t[0]) / dt).astype(np.int64), 0, T - 1)
     values = np.column_stack([cols[r] * EM_SCALE.get(r, 1.0) for r in readings])
     truth = np.interp(grid, t, cols["range"]) * 1000.0 if "range" in cols else np.full(T, np.nan)
-    data = LandmarkLog(
-        "track",
-        dt,
-        np.full(T, -1, dtype=np.int64),
-        np.zeros((0, 1)),
-        ("v_cmd_mm_s",),
-        steps,
-        np.zeros(len(steps), dtype=np.int64),
-        values,
-        np.full(len(steps), np.nan),
-        np.zeros((1, 2)),
-        ("wall",),
-        str(path),
-        readings,
-        commands,
-    )
+    data = LandmarkLog.continuous_track(dt, ("v_cmd_mm_s",), commands, steps, values, readings, str(path))
     return data, truth
 
 

@@ -115,6 +115,37 @@ class LandmarkLog:
             source,
         )
 
+    @classmethod
+    def continuous_track(
+        cls,
+        dt_s: float,
+        command_names: tuple[str, ...],
+        step_commands: np.ndarray,
+        obs_step: np.ndarray,
+        readings: np.ndarray,
+        reading_names: tuple[str, ...],
+        source: str = "",
+    ) -> LandmarkLog:
+        """A 1-D robot's log of continuous commands (issue 5's Turtlebot): one wall it ranges to, and
+        each observation's readings of its several sensors (NaN where one did not read)."""
+        k = len(obs_step)
+        return cls(
+            "track",
+            dt_s,
+            np.full(len(step_commands), -1, dtype=np.int64),
+            np.zeros((0, len(command_names))),
+            command_names,
+            obs_step,
+            np.zeros(k, dtype=np.int64),
+            readings,
+            np.full(k, np.nan),
+            np.zeros((1, 2)),
+            ("wall",),
+            source,
+            reading_names,
+            step_commands,
+        )
+
     @property
     def mode(self) -> int:
         return PLANAR if self.geometry == "planar" else TRACK
