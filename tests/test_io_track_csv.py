@@ -11,6 +11,7 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
+from conftest import require
 from sensact.cli import app
 from sensact.errors import LogFormatError
 from sensact.io.csvtable import read_numeric_csv
@@ -19,7 +20,6 @@ from sensact.io.turtlebot import read_turtlebot_landmark_log
 from turtlebot_robot import write_turtlebot_csv
 
 runner = CliRunner()
-TURTLEBOT = Path(__file__).resolve().parents[2] / "shared" / "data" / "turtlebot1d" / "training1.csv"
 # the Turtlebot's columns under a user's names (its readings and range in m, its command in m/s)
 AS_USERS = {
     "time": "t_s",
@@ -135,11 +135,10 @@ def test_commands_logged_only_when_they_change_are_held_to_the_last_row(tmp_path
         read_track_csv(csv, dt_s=0.0)
 
 
-@pytest.mark.skipif(not TURTLEBOT.is_file(), reason="the turtlebot1d data folder is not here (../shared/data)")
-def test_the_real_turtlebot_under_a_users_names_clears_the_issues_bars(tmp_path):
+def test_the_real_turtlebot_under_a_users_names_clears_the_issues_bars(tmp_path, data_dir):
     """Real data: training1.csv under a user's column names, converted with the windows its overview
     shows (raw_ir4 folds back below about 600 mm) and a robust sonar, clears issue 5's Turtlebot bars."""
-    users = _as_users_csv(TURTLEBOT, tmp_path / "robot.csv")
+    users = _as_users_csv(require(data_dir / "turtlebot1d" / "training1.csv"), tmp_path / "robot.csv")
     out = tmp_path / "track"
     args = ["convert", "track", str(users), "--out", str(out), "--robust", "sonar_m"]
     args += ["--window", "ir_volts=100:800", "--window", "ir2_volts=600:"]
