@@ -133,6 +133,9 @@ def test_commands_logged_only_when_they_change_are_held_to_the_last_row(tmp_path
     assert got.data.reading_names == ("sonar_mm",) and not math.isnan(got.data.obs_readings[0, 0])
     with pytest.raises(LogFormatError, match="not a step"):
         read_track_csv(csv, dt_s=0.0)
+    csv.write_text("\n".join([rows[0], rows[1], rows[2], *(r.rsplit(",", 1)[0] + "," for r in rows[3:])]) + "\n")
+    with pytest.raises(LogFormatError, match="the recorded distance has 1 values"):  # one row cannot be interpolated
+        read_track_csv(csv)
 
 
 def test_the_real_turtlebot_under_a_users_names_clears_the_issues_bars(tmp_path, data_dir):

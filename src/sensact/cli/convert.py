@@ -207,29 +207,15 @@ from a poor straight line, every other reading from a flat line that says nothin
 Edit them for your robot and pass this file with --config; --set overrides single fields."""
 
 
-def _reading_column(name: str, known: dict[str, str], option: str, value: str) -> str:
-    """A reading's sensact name, given by the file's column name or sensact's (``sonar_m`` or ``sonar_mm``)."""
-    from sensact.errors import LogFormatError
-
-    name = name.strip()
-    col = {v: k for k, v in known.items()}.get(name, name if name in known else None)
-    if col is None:
-        raise LogFormatError(
-            f"{option} {value!r}: no such reading; the readings are {', '.join(known.values())}.",
-            field=option,
-            fix=f"give {option} a reading's column name.",
-        )
-    return col
-
-
 def _parse_windows(items: list[str], known: dict[str, str]) -> dict[str, tuple[float, float]]:
     """``NAME=MIN:MAX`` (mm; an end left empty is open) by sensact's reading name."""
     from sensact.errors import LogFormatError
+    from sensact.io.track_csv import named_columns
 
     out = {}
     for item in items:
         name, _, span = item.partition("=")
-        col = _reading_column(name, known, "--window", item)
+        (col,) = named_columns((name,), known, "--window", "reading")
         lo, colon, hi = span.partition(":")
         try:
             low, high = float(lo) if lo.strip() else -math.inf, float(hi) if hi.strip() else math.inf
@@ -307,7 +293,7 @@ def convert_track(
     from sensact.experiments.turtlebot_em import track_em_config
     from sensact.io.atomic import write_text
     from sensact.io.landmark_log import write_landmark_log
-    from sensact.io.track_csv import read_track_csv
+    from sensact.io.track_csv import named_columns, read_track_csv
     from sensact.report.figures_log import figure_track_overview
 
     tc = read_track_csv(csv, commands=tuple(command or ()), readings=tuple(reading or ()), distance=distance, dt_s=dt)
@@ -315,7 +301,7 @@ def convert_track(
     d = tc.data
     reads = {r: tc.sources[r] for r in d.reading_names}
     windows = _parse_windows(window or [], reads)
-    robust_cols = tuple(_reading_column(r, reads, "--robust", r) for r in robust or [])
+    robust_cols = named_columns(tuple(robust or ()), reads, "--robust", "reading")
     truth = None if tc.truth_mm is None else {"distance_mm": tc.truth_mm}
     if tc.truth_mm is not None and not np.isfinite(tc.truth_mm).all():
         console.print(

@@ -11,7 +11,6 @@ issue's bars here; the chapter-3 online learner's numbers on the same file are r
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from dataclasses import dataclass
@@ -30,31 +29,28 @@ from sensact.learn.em.config import ChannelConfig
 from sensact.learn.em.localize import Localized
 from sensact.logs.landmark_log import LandmarkLog
 
+# a distance sensor's poor start (the Turtlebot's sonar1): a wrong scale and offset, not a wrong unit, so
+# that the state is in mm and the IR windows mean what the datasheets say
+DISTANCE_START = (100.0, 0.8, 300.0)  # f(d) = 100 mm + 0.8 d, sigma 300 mm
+ROBUST_NU = 4.0  # the Student-t degrees of freedom of a robust channel (the Turtlebot's sonar1)
+# the action model and the fit's length a user would choose for a robot driving to and from a wall
+TRACK_SETTINGS: dict[str, Any] = {
+    "action_basis": "affine",
+    "action_delay_max_s": 0.5,
+    "motion_noise": "shared",
+    "max_iterations": 1000,
+}
+
 
 def turtlebot_em_config(readings: tuple[str, ...] = EM_READINGS) -> EMConfig:
     """The model a user would choose from the datasheets: every channel a cubic from a poor line;
     the IR channels valid within their datasheet ranges; sonar1 robust. ``readings``: the columns a
     file has (sonar1 and any of the IR sensors)."""
-    chans = [
-        # a sonar reads a distance: its poor start is a wrong scale and offset, not a wrong unit, so that the
-        # state is in mm and the IR windows mean what the datasheets say
-        ChannelConfig("sonar1", 3, 100.0, 0.8, 300.0, robust="student_t", robust_param=4.0),
-    ]
+    chans = [ChannelConfig("sonar1", 3, *DISTANCE_START, robust="student_t", robust_param=ROBUST_NU)]
     for name in (r for r in EM_READINGS[1:] if r in readings):
         lo, hi = SPEC_RANGE_M[name]
         chans.append(ChannelConfig(name, 3, 1.5, -0.0002, 1.0, lo * 1000.0, hi * 1000.0))
-    return EMConfig(
-        action_basis="affine",
-        action_delay_max_s=0.5,
-        motion_noise="shared",
-        channels=tuple(chans),
-        max_iterations=1000,
-    )
-
-
-# a distance sensor's poor start (the Turtlebot's sonar1): a wrong scale and offset, not a wrong unit
-DISTANCE_START = (100.0, 0.8, 300.0)  # f(d) = 100 mm + 0.8 d, sigma 300 mm
-ROBUST_NU = 4.0  # the Student-t degrees of freedom a robust channel gets (the Turtlebot's sonar1)
+    return EMConfig(**TRACK_SETTINGS, channels=tuple(chans))
 
 
 def track_em_config(
@@ -88,7 +84,7 @@ def track_em_config(
         lo, hi = windows.get(name, (-math.inf, math.inf))
         kind = ("student_t", ROBUST_NU) if name in robust else ("none", 0.0)
         chans.append(ChannelConfig(name, 3, *start, lo, hi, *kind))
-    return dataclasses.replace(turtlebot_em_config(()), channels=tuple(chans))
+    return EMConfig(**TRACK_SETTINGS, channels=tuple(chans))
 
 
 # issue 5's Turtlebot bars: the gain within 5 % of the truth's, one sensor within 3 % of the range

@@ -59,20 +59,22 @@ class TrackCsv:
         return line
 
 
-def _named(
-    path: Path, given: tuple[str, ...], table: dict[str, np.ndarray], sources: dict[str, str], option: str
+def named_columns(
+    given: tuple[str, ...], sources: dict[str, str], option: str, what: str = "column", path: Path | None = None
 ) -> tuple[str, ...]:
-    """The columns an option names, by sensact's name or the file's (``sonar_m`` or ``sonar_mm``)."""
+    """The sensact names of the columns an option names, each by its name in the file or sensact's
+    (``sonar_m`` or ``sonar_mm``); ``sources`` maps the sensact names of the columns it may name (``what``)
+    to the file's."""
     by_file = {v: k for k, v in sources.items()}
     out = []
     for name in given:
-        col = by_file.get(name, name if name in table else None)
+        col = by_file.get(name.strip(), name.strip() if name.strip() in sources else None)
         if col is None:
             raise LogFormatError(
-                f"{option} {name}: no such column; found {', '.join(sources.values())}.",
+                f"{option} {name}: no such {what}; found {', '.join(sources.values())}.",
                 file=path,
-                field=name,
-                fix=f"give {option} a column of the file's header.",
+                field=option if path is None else name,
+                fix=f"give {option} a {what}'s name as the file's header writes it.",
             )
         out.append(col)
     return tuple(out)
@@ -80,7 +82,6 @@ def _named(
 
 def _columns(
     path: Path,
-    table: dict[str, np.ndarray],
     sources: dict[str, str],
     commands: tuple[str, ...],
     readings: tuple[str, ...],
@@ -89,12 +90,12 @@ def _columns(
     """The command, reading and recorded-distance columns: as given, else by the defaults (module docstring)."""
     found = ", ".join(v for k, v in sources.items() if k != "t_s")
     if distance is not None:
-        truth: str | None = _named(path, (distance,), table, sources, "--distance")[0]
+        truth: str | None = named_columns((distance,), sources, "--distance", path=path)[0]
     else:
-        truth = DISTANCE_COLUMN if DISTANCE_COLUMN in table else None
-    cmds = _named(path, commands, table, sources, "--command")
+        truth = DISTANCE_COLUMN if DISTANCE_COLUMN in sources else None
+    cmds = named_columns(commands, sources, "--command", path=path)
     if not cmds:
-        cmds = tuple(c for c in table if c.endswith("_mm_s"))
+        cmds = tuple(c for c in sources if c.endswith("_mm_s"))
         if len(cmds) != 1:
             raise LogFormatError(
                 (
@@ -109,7 +110,7 @@ def _columns(
                 "unit, e.g. a motor's percent, is kept as it is).",
             )
     used = {"t_s", *cmds, *((truth,) if truth else ())}
-    reads = _named(path, readings, table, sources, "--reading") or tuple(c for c in table if c not in used)
+    reads = named_columns(readings, sources, "--reading", path=path) or tuple(c for c in sources if c not in used)
     clash = [c for c in reads if c in used]
     if clash or not reads:
         raise LogFormatError(
@@ -159,7 +160,7 @@ def read_track_csv(
         raise LogFormatError(
             f"row {bad[0] + 2} has no time.", file=path, field=sources["t_s"], fix="give every row a time."
         )
-    cmds, reads, truth_col = _columns(path, table, sources, commands, readings, distance)
+    cmds, reads, truth_col = _columns(path, sources, commands, readings, distance)
     distance_reading = _distance_reading(path, reads, sources)
     order = np.argsort(t_all, kind="stable")
     t = t_all[order]
@@ -182,16 +183,16 @@ def read_track_csv(
             field=sources[cmds[0]],
             fix="fill the command column at least where each command was sent.",
         )
-    t_cmd = t[has_cmd]
-    if (t[-1] - t_cmd[0]) / dt_s > MAX_STEPS:
+    # the commands are held to the last row: a robot that logs its command only when it changes
+    t_held = np.append(t[has_cmd], t[-1])
+    if (t[-1] - t_held[0]) / dt_s > MAX_STEPS:
         raise LogFormatError(
-            f"the log spans {t[-1] - t_cmd[0]:.4g} s, more than {MAX_STEPS:,} steps of {dt_s:.3g} s.",
+            f"the log spans {t[-1] - t_held[0]:.4g} s, more than {MAX_STEPS:,} steps of {dt_s:.3g} s.",
             file=path,
             field=sources["t_s"],
             fix="if the times are not seconds, name the column t_ms, t_us or t_ns; else give a larger --dt.",
         )
-    # the commands are held to the last row: a robot that logs its command only when it changes
-    t0, held = held_on_grid(np.append(t_cmd, t[-1]), np.vstack([cmd_values[has_cmd], cmd_values[has_cmd][-1:]]), dt_s)
+    t0, held = held_on_grid(t_held, np.vstack([cmd_values[has_cmd], cmd_values[has_cmd][-1:]]), dt_s)
     T = len(held)
     step, inside = nearest_steps(t, t0, dt_s, T)
     keep = read & inside
@@ -207,16 +208,22 @@ def read_track_csv(
     truth_mm = None
     if truth_col is not None:
         recorded = np.isfinite(table[truth_col][order])
-        if recorded.sum() >= 2:
-            grid = t0 + np.arange(T) * dt_s
-            tr, vr = t[recorded], table[truth_col][order][recorded]
-            # a step within half a step of the recorded span takes its end value, as its readings are on it
-            near = (grid >= tr[0] - 0.5 * dt_s) & (grid <= tr[-1] + 0.5 * dt_s)
-            truth_mm = np.where(near, np.interp(grid, tr, vr), np.nan)
+        if recorded.sum() < 2:
+            raise LogFormatError(
+                f"the recorded distance has {int(recorded.sum())} values: two or more are interpolated onto the steps.",
+                file=path,
+                field=sources[truth_col],
+                fix="fill the column where the distance was recorded, or drop it (it is only scored against).",
+            )
+        grid = t0 + np.arange(T) * dt_s
+        tr, vr = t[recorded], table[truth_col][order][recorded]
+        # a step within half a step of the recorded span takes its end value, as its readings are on it
+        near = (grid >= tr[0] - 0.5 * dt_s) & (grid <= tr[-1] + 0.5 * dt_s)
+        truth_mm = np.where(near, np.interp(grid, tr, vr), np.nan)
     summary = {
         "rows": len(t),
         "command_rows": int(has_cmd.sum()),
-        "longest_command_gap_s": float(np.max(np.diff(np.append(t_cmd, t[-1])), initial=0.0)),
+        "longest_command_gap_s": float(np.max(np.diff(t_held), initial=0.0)),
         "reading_rows": int(read.sum()),
         "kept": int(keep.sum()),
         "dropped_outside_commands": int((read & ~inside).sum()),

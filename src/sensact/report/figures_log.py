@@ -74,13 +74,12 @@ def figure_track_overview(
     data: Any, truth_mm: np.ndarray | None, distance_reading: str, path: Path, title: str
 ) -> Path:
     """A 1-D robot's converted log (``data`` a track ``LandmarkLog``): the commands and each reading over
-    time (left), and each other reading against the distance it was read at (right): the recorded distance
-    where there is one, else the distance sensor's reading on the same row. The right column shows where
-    a sensor says something about the distance (an IR curve folds back below its range) and so where its
-    validity window belongs."""
+    time (left), and each reading against the distance it was read at (right): the recorded distance
+    where there is one, else (for the other readings) the distance sensor's reading on the same row. The
+    right column shows where a sensor says something about the distance (an IR curve folds back below its
+    range) and so where its validity window belongs."""
     t = np.arange(data.n_steps) * data.dt_s
     names = data.command_names[:MAX_COMMAND_PANELS]
-    others = [r for r in data.reading_names if r != distance_reading]
     rows = len(names) + len(data.reading_names)
     fig = plt.figure(figsize=(13, 1.9 * rows + 0.8))
     grid = fig.add_gridspec(rows, 2, width_ratios=(1.7, 1.0))
@@ -89,8 +88,8 @@ def figure_track_overview(
         ax.plot(t, data.step_commands[:, j], lw=0.6, drawstyle="steps-post")
         ax.set(ylabel=name, title=f"{title}: commands, held between their rows" if j == 0 else None)
     obs_t = data.obs_step * data.dt_s
-    for ax, r in zip(left[len(names) :], data.reading_names, strict=True):
-        ax.plot(obs_t, data.obs_readings[:, data.reading_names.index(r)], ".", ms=1.5)
+    for j, (ax, r) in enumerate(zip(left[len(names) :], data.reading_names, strict=True)):
+        ax.plot(obs_t, data.obs_readings[:, j], ".", ms=1.5)
         if r == distance_reading and truth_mm is not None:
             ax.plot(t, truth_mm, lw=0.8, color="tab:green", label="recorded distance (mm)")
             ax.legend(fontsize=7, loc="upper right")
@@ -101,18 +100,18 @@ def figure_track_overview(
     for ax in left[:-1]:
         ax.tick_params(labelbottom=False)
     left[-1].set(xlabel="time from the first command (s)")
+    d = data.reading_names.index(distance_reading)
     if truth_mm is not None:
         x, against = truth_mm[data.obs_step], "the recorded distance (mm)"
+        panels = list(range(len(data.reading_names)))  # the distance sensor's lost echoes show too
     else:
-        x, against = (
-            data.obs_readings[:, data.reading_names.index(distance_reading)],
-            f"{distance_reading} on the same row",
-        )
-    for j, r in enumerate(others or [distance_reading]):
-        ax = fig.add_subplot(grid[j * rows // max(len(others), 1) : (j + 1) * rows // max(len(others), 1), 1])
-        ax.plot(x, data.obs_readings[:, data.reading_names.index(r)], ".", ms=1.5, alpha=0.5)
-        ax.set(ylabel=r, title=f"each reading against {against}" if j == 0 else None)
+        x, against = data.obs_readings[:, d], f"{distance_reading} on the same row"
+        panels = [j for j in range(len(data.reading_names)) if j != d]
+    for k, j in enumerate(panels):
+        ax = fig.add_subplot(grid[k * rows // len(panels) : (k + 1) * rows // len(panels), 1])
+        ax.plot(x, data.obs_readings[:, j], ".", ms=1.5, alpha=0.5)
+        ax.set(ylabel=data.reading_names[j], title=f"each reading against {against}" if k == 0 else None)
         ax.grid(alpha=0.3)
-        if j == max(len(others), 1) - 1:
+        if k == len(panels) - 1:
             ax.set(xlabel=against)
     return _save(fig, path)
