@@ -5,7 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sensact.evaluate.measured import ONE_COMMAND_SHARE, dominant_command, measure_action, measure_sensor
+from sensact.evaluate.measured import (
+    ONE_COMMAND_SHARE,
+    dominant_command,
+    first_reversal_s,
+    measure_action,
+    measure_sensor,
+)
 from sensact.evaluate.scaled import consistency, fit_scale, fit_scale_offset, score_models
 from sensact.evaluate.track1d import COMMAND_GRID_MM_S, DISTANCE_GRID_MM
 from sensact.models.polynomial import Polynomial1D
@@ -102,3 +108,46 @@ def test_the_real_robot_gain_goes_through_the_sensor_scale_not_the_actions_own()
         assert run.score.sensor_scale_b == pytest.approx(0.5, rel=1e-9)
         assert run.learned_gain == pytest.approx(gain, rel=1e-9)
         assert run.score.action_scale_k * a_slope == pytest.approx(0.9, rel=1e-9)  # the action's own: always 0.9
+
+
+def test_the_first_reversal_is_the_first_command_against_the_first_move():
+    t = np.arange(0.0, 10.0, 0.5)
+    # a stop, small jitter below 2 % of the largest command, forward at two speeds, then back
+    cmd = np.r_[np.zeros(4), [0.01, -0.01], np.full(6, 0.3), np.full(4, 0.5), np.full(4, -0.5)]
+    assert first_reversal_s(t, cmd) == 8.0
+    assert first_reversal_s(t + 100.0, -cmd) == 8.0  # seconds into the log, whichever way it starts
+    assert first_reversal_s(t, np.abs(cmd)) is None and first_reversal_s(t, np.zeros(t.size)) is None
+    assert first_reversal_s(t, np.full(t.size, np.nan)) is None
+
+
+def test_the_real_robot_sensor_is_scored_in_10_cm_bins_in_any_distance_unit():
+    """Exact reduction: one run with its recorded distance in m, cm or mm (a `convert track` folder's) is
+    scored in the same 10-cm bins, its sensor error and gains in that unit; a unit the scorer
+    does not name is binned in 1/32 of the distances' span."""
+    from types import SimpleNamespace
+
+    from sensact.experiments.turtlebot import evaluate_real, sensor_bin_width
+    from sensact.io.logfolder import TrackLog
+    from sensact.learn.bootstrap import BootstrapConfig
+
+    t = np.arange(0.0, 80.0, 0.05)
+    cmd = np.where((t // 20.0) % 2 == 0, 0.1, -0.1)
+    x = 1.0 + np.cumsum(0.9 * cmd * 0.05)
+    o = 2.0 * x + 0.1 * np.sin(3.0 * x) + np.random.default_rng(0).normal(0.0, 0.02, x.size)
+    result = SimpleNamespace(sensor=Polynomial1D((0.0, 1.0)), action=Polynomial1D((0.0, 1.8)))
+
+    def run(unit: str, metres: float):
+        log = TrackLog(t, cmd, o, "m/s", "half_m", "", "synthetic", true_position=x / metres, position_unit=unit)
+        return evaluate_real(log, result, BootstrapConfig())
+
+    m = run("m", 1.0)
+    assert m.measured_sensor.counts.size == 18 and m.score.sensor_rms > 0.01
+    for unit, metres in (("cm", 0.01), ("mm", 0.001)):
+        other = run(unit, metres)
+        np.testing.assert_array_equal(other.measured_sensor.counts, m.measured_sensor.counts)
+        assert other.score.sensor_rms == pytest.approx(m.score.sensor_rms / metres, rel=1e-9)
+        assert other.sensor_span == pytest.approx(m.sensor_span / metres, rel=1e-9)
+        # distance per command unit, both: their ratio is the same
+        assert other.learned_gain == pytest.approx(m.learned_gain / metres, rel=1e-9)
+        assert other.true_gain == pytest.approx(m.true_gain / metres, rel=1e-9)
+    assert sensor_bin_width("ft", x / 0.3048) == pytest.approx(np.ptp(x) / 0.3048 / 32)

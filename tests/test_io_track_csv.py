@@ -90,6 +90,43 @@ def test_convert_track_writes_a_folder_that_learn_em_learns_and_scores(tmp_path)
     ev = json.loads(model.read_text())["evaluation"]
     assert ev["gain_error_pct"] < 1.0 and ev["sensors"]["sonar_mm"]["rms_pct_of_span"] < 2.0, ev
     assert ev["sensors"]["ir_volts"]["rms_pct_of_span"] < 3.0, ev
+    # chapter 3's learner on the same folder, with the settings written beside it
+    assert yaml.safe_load((out / "bootstrap_config.yaml").read_text()) == {
+        "t_start_s": 60.0,
+        "action_degree": 1,
+        "outlier_gate": 3.0,
+    }
+    res = runner.invoke(app, ["learn", "bootstrap", str(out), "--out", str(tmp_path / "b.json")])
+    assert res.exit_code == 0 and "bootstrap_config.yaml, written beside the log" in res.output, res.output
+    assert "warning" not in res.output  # the robot reverses at 7 s, long before A_t takes over at 120 s
+    doc = json.loads((tmp_path / "b.json").read_text())
+    ev, slope = doc["evaluation"], doc["action"]["power_coefficients"][1]
+    # the sine never holds a command to time: the gain is A's slope in mm/s through S's scale
+    assert ev["sensor_rms_pct"] < 2.0 and ev["sensor_scale_b"] * slope == pytest.approx(0.9, rel=0.03), ev
+    # A_t taking over before the first reversal (7 s in, at the sine's half period) is warned about
+    said = " ".join(runner.invoke(app, ["learn", "bootstrap", str(out), "--set", "t_start_s=3"]).output.split())
+    assert "at 2 t_start_s = 6 s into the log, and until 7.0 s the robot is commanded one way only" in said, said
+
+
+def test_chapter_3s_learner_refuses_a_converted_folder_of_two_commands(tmp_path):
+    t = 0.05 * np.arange(400)
+    v, w = 0.2 * np.sin(t), 0.1 * np.cos(t)
+    rows = ["t_s,v_m_s,w_m_s,sonar_m"] + [f"{a},{b},{c},{1.0 + b}" for a, b, c in zip(t, v, w, strict=True)]
+    (tmp_path / "two.csv").write_text("\n".join(rows) + "\n")
+    out = tmp_path / "track"
+    args = [
+        "convert",
+        "track",
+        str(tmp_path / "two.csv"),
+        "--out",
+        str(out),
+        "--command",
+        "v_m_s",
+        "--command",
+        "w_m_s",
+    ]
+    res = runner.invoke(app, args)
+    assert res.exit_code == 0 and not (out / "bootstrap_config.yaml").exists(), res.output
     res = runner.invoke(app, ["learn", "bootstrap", str(out)])  # chapter 3 reads one command and one sensor
     said = " ".join(res.output.split())
     assert res.exit_code == 2 and f"learn it with `sensact learn em {out}`" in said, said
@@ -151,3 +188,8 @@ def test_the_real_turtlebot_under_a_users_names_clears_the_issues_bars(tmp_path,
     assert res.exit_code == 0, res.output
     ev = json.loads(model.read_text())["evaluation"]
     assert ev["gain_error_pct"] < 5.0 and ev["sensors"]["sonar_mm"]["rms_pct_of_span"] < 3.0, ev
+    # chapter 3's learner beside it, as `reproduce turtlebot` reports it on the Turtlebot's own file
+    res = runner.invoke(app, ["learn", "bootstrap", str(out), "--out", str(tmp_path / "b.json")])
+    assert res.exit_code == 0, res.output
+    ev = json.loads((tmp_path / "b.json").read_text())["evaluation"]
+    assert ev["sensor_rms_pct"] < 3.0 and abs(ev["learned_gain"] / ev["true_gain"] - 1.0) < 0.05, ev

@@ -207,6 +207,29 @@ from a poor straight line, every other reading from a flat line that says nothin
 Edit them for your robot and pass this file with --config; --set overrides single fields."""
 
 
+BOOTSTRAP_CONFIG_HEADER = """Chapter 3's learner (Algorithm 1: `sensact learn bootstrap DIR`) on {distance}, as the
+fields that differ from the thesis's: the Turtlebot's (docs/bootstrap.md, "The Turtlebot"), an affine
+action model and t_start_s = 60 s. A_t takes over from A0 at 2 t_start_s, which must come after the
+robot has driven both ways.{gate}
+Edit them for your robot and pass this file with --config; --set overrides single fields."""
+
+
+def _chapter3_meta(d: Any, distance_reading: str, has_truth: bool) -> dict[str, Any]:
+    """meta.json's keys through which `learn bootstrap` reads the folder as a 1-D log (one command, the
+    distance reading, the recorded distance); none for several commands, which chapter 3 cannot learn."""
+    if len(d.command_names) != 1:
+        return {}
+    (command,) = d.command_names
+    meta: dict[str, Any] = {
+        "action": {"column": command, "unit": "mm/s" if command.endswith("_mm_s") else ""},
+        "sensor": {"column": distance_reading, "unit": "mm"},
+        "units": {r: "mm" if r.endswith("_mm") else "" for r in d.reading_names},
+    }
+    if has_truth:
+        meta["groundtruth"] = {"column": "distance_mm", "unit": "mm"}
+    return meta
+
+
 def _parse_windows(items: list[str], known: dict[str, str]) -> dict[str, tuple[float, float]]:
     """``NAME=MIN:MAX`` (mm; an end left empty is open) by sensact's reading name."""
     from sensact.errors import LogFormatError
@@ -286,10 +309,12 @@ def convert_track(
     `convert csv` (_m and _m_s become mm and mm/s; other columns keep theirs, an IR sensor's volts). One
     reading must be a distance (_m or _mm): the state takes its unit. em_config.yaml holds the Turtlebot's
     settings for these readings, with --window and --robust; overview.png draws each reading against the
-    distance, to choose the windows by. See docs/em-real.md, section 1."""
+    distance, to choose the windows by. With one command, bootstrap_config.yaml holds chapter 3's settings
+    for the distance reading, for `learn bootstrap DIR`. See docs/em-real.md, section 1."""
     import numpy as np
 
     from sensact.config import config_to_yaml
+    from sensact.experiments.turtlebot import track_learner
     from sensact.experiments.turtlebot_em import track_em_config
     from sensact.io.atomic import write_text
     from sensact.io.landmark_log import write_landmark_log
@@ -310,17 +335,25 @@ def convert_track(
             "rows."
         )
     files = {"csv": str(csv)}
-    write_landmark_log(
-        out,
-        d,
-        groundtruth=truth,
-        meta_extra={"source": {"files": files, "t0_s": tc.t0_s, "columns": tc.sources, "rows": tc.summary}},
-    )
+    chapter3 = _chapter3_meta(d, tc.distance_reading, truth is not None)
+    source = {"files": files, "t0_s": tc.t0_s, "columns": tc.sources, "rows": tc.summary}
+    write_landmark_log(out, d, groundtruth=truth, meta_extra={**chapter3, "source": source})
     cfg = out / "em_config.yaml"
     settings = track_em_config(d, tc.distance_reading, windows, robust_cols)
     write_text(cfg, config_to_yaml(settings, TRACK_CONFIG_HEADER.format(distance=tc.distance_reading)))
+    learners = f"learn with `sensact learn em {out}`"
+    if chapter3:
+        robust_distance = tc.distance_reading in robust_cols
+        gate = (
+            "\nAn outlier gate (3 running RMS innovations), as the reading is robust (--robust)."
+            if robust_distance
+            else ""
+        )
+        header = BOOTSTRAP_CONFIG_HEADER.format(distance=tc.distance_reading, gate=gate)
+        write_text(out / "bootstrap_config.yaml", config_to_yaml(track_learner(robust_distance), header))
+        learners += f" (or chapter 3's learner: `sensact learn bootstrap {out}`, settings in bootstrap_config.yaml)"
     overview = figure_track_overview(d, tc.truth_mm, tc.distance_reading, out / "overview.png", out.resolve().name)
     console.print(
-        f"wrote {out}, its EM settings {cfg} and {overview}; learn with `sensact learn em {out}`"
-        + ("" if truth is None else " (scored against the recorded distance)")
+        f"wrote {out}, its EM settings {cfg} and {overview}; {learners}"
+        + ("" if truth is None else "; each is scored against the recorded distance")
     )

@@ -337,9 +337,13 @@ def evaluate_log(data: Any, res: Any, cfg: Any) -> dict[str, Any] | None:
 
         run = evaluate_real(data, res, cfg)
         sc = run.score
-        sensor = f"vs ground truth: sensor RMS {sc.sensor_rms:.4g} {data.position_unit} (best {sc.sensor_best_rms:.4g})"
+        pct = 100.0 * sc.sensor_rms / run.sensor_span
+        sensor = (
+            f"vs ground truth: sensor RMS {sc.sensor_rms:.4g} {data.position_unit} (best {sc.sensor_best_rms:.4g}; "
+            f"{pct:.2f} % of the {run.sensor_span:.4g} {data.position_unit} it is scored over)"
+        )
         timed = run.measured_action.commands.size
-        out = {**sc.to_dict(), "learned_gain": run.learned_gain, "true_gain": run.true_gain}
+        out = {**sc.to_dict(), "sensor_rms_pct": pct, "learned_gain": run.learned_gain, "true_gain": run.true_gain}
         if timed < 2:  # A's own optimal scale fits one timed command exactly: no action error to show
             out |= {"action_rms": None, "action_best_rms": None}
         if timed == 0:

@@ -101,3 +101,19 @@ def dominant_command(commands: np.ndarray, tolerance: float = 0.02) -> tuple[flo
         return float("nan"), 0.0
     med = float(np.median(c))
     return med, float(np.mean(np.abs(c - med) <= tolerance * np.abs(c).max()))
+
+
+def first_reversal_s(times_s: np.ndarray, commands: np.ndarray, tolerance: float = 0.02) -> float | None:
+    """Seconds into the log of the first command against the direction of the first one that moves (each
+    beyond ``tolerance`` of the largest command's size), or None if the log never reverses. Needs no
+    ground truth: chapter 3's learner sees one direction of travel until then."""
+    c = np.asarray(commands, dtype=float)
+    t = np.asarray(times_s, dtype=float)
+    ok = np.isfinite(c)
+    if not ok.any():
+        return None
+    moving = np.flatnonzero(ok & (np.abs(c) > tolerance * np.abs(c[ok]).max()))
+    if moving.size == 0:
+        return None
+    back = moving[np.sign(c[moving]) != np.sign(c[moving[0]])]
+    return None if back.size == 0 else float(t[back[0]] - t[0])

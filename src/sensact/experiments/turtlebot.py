@@ -31,10 +31,29 @@ from sensact.learn.bootstrap import BootstrapConfig, BootstrapResult, learn_boot
 
 TURTLEBOT_LEARNER = BootstrapConfig(t_start_s=60.0, action_degree=1)
 DEFAULT_SENSORS = ("sonar1", "sonar2", "raw_ir4", "raw_ir3")
+# the measured sensor's bins (sec. 3.3.2 measured the Aibo's every 10 cm), whatever the log's distance unit
+SENSOR_BIN_M = 0.1
+METRES_PER_UNIT = {"m": 1.0, "cm": 0.01, "mm": 0.001}
+BINS_PER_SPAN = 32  # a distance in a unit not named above: the Turtlebot's 3.2 m span in 10-cm bins
+
+
+def sensor_bin_width(position_unit: str, positions: np.ndarray) -> float:
+    """10 cm in the log's distance unit; in a unit it does not name, 1/32 of the distances' span."""
+    if position_unit in METRES_PER_UNIT:
+        return SENSOR_BIN_M / METRES_PER_UNIT[position_unit]
+    return float(np.nanmax(positions) - np.nanmin(positions)) / BINS_PER_SPAN
 
 
 def learner_for(sensor: str, base: BootstrapConfig = TURTLEBOT_LEARNER) -> BootstrapConfig:
     return dataclasses.replace(base, **LEARNER_SETTINGS.get(sensor, {}))
+
+
+def track_learner(robust: bool) -> BootstrapConfig:
+    """Chapter 3's settings for another 1-D robot's distance reading (``sensact convert track``): the
+    Turtlebot's, with sonar1's outlier gate for a reading asked to be robust. Its windows in value are
+    sonar1's datasheet in metres, not this reading's, and are left out."""
+    gate = LEARNER_SETTINGS["sonar1"]["outlier_gate"] if robust else None
+    return dataclasses.replace(TURTLEBOT_LEARNER, outlier_gate=gate)
 
 
 @dataclass(frozen=True)
@@ -46,6 +65,12 @@ class RealRun:
     measured_action: MeasuredAction
     learned_gain: float  # slope through the origin of the learned A, in distance units by S's scale b
     true_gain: float  # slope through the origin of the timed velocities
+
+    @property
+    def sensor_span(self) -> float:
+        """The distances the sensor is scored over: the span of its measured bins' centres."""
+        p = self.measured_sensor.positions
+        return float(np.ptp(p)) if p.size else float("nan")
 
 
 def evaluate_real(log: TrackLog, result: BootstrapResult, config: BootstrapConfig) -> RealRun:
@@ -61,7 +86,12 @@ def evaluate_real(log: TrackLog, result: BootstrapResult, config: BootstrapConfi
     d_lo, d_hi = SPEC_RANGE_M.get(log.observation_name, (-np.inf, np.inf))
     x = log.true_position
     in_spec = (x >= d_lo) & (x <= d_hi)
-    ms = measure_sensor(np.where(in_spec, log.observations, np.nan), x, bin_width=0.1, window=(lo, hi))
+    ms = measure_sensor(
+        np.where(in_spec, log.observations, np.nan),
+        x,
+        bin_width=sensor_bin_width(log.position_unit, x),
+        window=(lo, hi),
+    )
     ma = measure_action(log.times_s, log.commands, log.true_position)
     score = score_models(
         result.sensor,
@@ -104,7 +134,7 @@ def run_turtlebot(
         )
         run = evaluate_real(log, res, cfg)
         runs[sensor] = run
-        span = float(np.ptp(run.measured_sensor.positions)) if run.measured_sensor.positions.size else float("nan")
+        span = run.sensor_span
         # A's own optimal scale fits any model exactly to one timed command, so its error needs two; the
         # gain (through S's scale) needs one
         timed = run.measured_action.commands.size
