@@ -99,6 +99,8 @@ def test_unit_suffixes_become_millimetres_and_radians():
     for name, new, factor in [
         ("range_m", "range_mm", 1000.0),
         ("v_m_s", "v_mm_s", 1000.0),
+        ("sonar_cm", "sonar_mm", 10.0),
+        ("v_cmd_cm_s", "v_cmd_mm_s", 10.0),
         ("bearing_deg", "bearing_rad", np.pi / 180),
         ("omega_deg_s", "omega_rad_s", np.pi / 180),
     ]:

@@ -66,6 +66,27 @@ def test_a_turtlebot_run_under_a_users_names_reads_as_the_turtlebot_csv(tmp_path
     assert got.sources["sonar_mm"] == "sonar_m" and got.sources["distance_mm"] == "distance_m"
 
 
+def test_a_robot_logging_centimetres_reads_as_one_logging_metres(tmp_path):
+    """An exact reduction: the same run with its command, sonar and distance in cm and cm/s."""
+    csv = tmp_path / "tb.csv"
+    write_turtlebot_csv(csv, with_range=True, drop=("raw_ir1", "raw_ir2", "sonar2"))
+    metres = _as_users_csv(csv, tmp_path / "robot_m.csv")
+    cols = read_numeric_csv(metres)
+    in_cm = {"v_cmd_m_s": "v_cmd_cm_s", "sonar_m": "sonar_cm", "distance_m": "distance_cm"}
+    rows = [",".join(in_cm.get(c, c) for c in cols)]
+    rows += [
+        ",".join(repr(float(cols[c][k] * (100.0 if c in in_cm else 1.0))) for c in cols)
+        for k in range(len(cols["t_s"]))
+    ]
+    (tmp_path / "robot_cm.csv").write_text("\n".join(rows) + "\n")
+    want, got = read_track_csv(metres), read_track_csv(tmp_path / "robot_cm.csv")
+    assert got.data.command_names == ("v_cmd_mm_s",) and got.distance_reading == "sonar_mm"
+    assert got.sources["sonar_mm"] == "sonar_cm" and got.data.n_steps == want.data.n_steps
+    np.testing.assert_allclose(got.data.step_commands, want.data.step_commands, rtol=1e-12)
+    np.testing.assert_allclose(got.data.obs_readings, want.data.obs_readings, rtol=1e-12)
+    np.testing.assert_allclose(got.truth_mm, want.truth_mm, rtol=1e-12)
+
+
 def test_convert_track_writes_a_folder_that_learn_em_learns_and_scores(tmp_path):
     """Seeded recovery through the commands: the folder `convert track` writes, with the settings it
     writes (the IR curves from flat lines, a window and a robust sonar asked for), learns the seeded

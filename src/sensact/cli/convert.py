@@ -120,7 +120,7 @@ def convert_csv(
     Times in seconds on one clock, rows in any order. Commands are held until the next row on a fixed
     step, each sighting goes to the nearest step, truth is interpolated. A spreadsheet's export reads as
     written (a byte-order mark, tabs, or semicolons with decimal commas). Column suffixes give units: _m
-    and _m_s become mm and mm/s, _deg and _deg_s radians; a column whose numbers show another unit
+    and _m_s (or _cm and _cm_s) become mm and mm/s, _deg and _deg_s radians; a column whose numbers show another unit
     (bearings in degrees, times in ms) is refused, and a range or speed off the map's size, a turn rate
     over a turn a second, or a truth heading that points off the way the truth moves warned about.
     Sightings of landmarks the map does not list are dropped and counted. A robot with a range_m and
@@ -306,11 +306,12 @@ def convert_track(
     One file with a header row: a time (t_s, or t_ms, t_us, t_ns), the velocity command (held from each
     row that has it), one column per sensor (each row's readings at the nearest step; an empty cell where a
     sensor did not read) and, to score against, the recorded distance. Column suffixes give units as in
-    `convert csv` (_m and _m_s become mm and mm/s; other columns keep theirs, an IR sensor's volts). One
-    reading must be a distance (_m or _mm): the state takes its unit. em_config.yaml holds the Turtlebot's
-    settings for these readings, with --window and --robust; overview.png draws each reading against the
-    distance, to choose the windows by. With one command, bootstrap_config.yaml holds chapter 3's settings
-    for the distance reading, for `learn bootstrap DIR`. See docs/em-real.md, section 1."""
+    `convert csv` (_m and _m_s, or _cm and _cm_s, become mm and mm/s; other columns keep theirs, an IR
+    sensor's volts). One reading must be a distance (_m, _cm or _mm): the state takes its unit.
+    em_config.yaml holds the Turtlebot's settings for these readings, with --window and --robust;
+    overview.png draws each reading against the distance, to choose the windows by. With one command,
+    bootstrap_config.yaml holds chapter 3's settings for the distance reading, for `learn bootstrap DIR`.
+    See docs/em-real.md, section 1."""
     import numpy as np
 
     from sensact.config import config_to_yaml

@@ -19,7 +19,8 @@ times in seconds on one clock, in any order, become a planar ``LandmarkLog`` on 
   the robot driving along its own +x) and is turned into sensact's frame.
 
 Units follow the column names' suffixes: ``_m`` and ``_m_s`` become ``_mm`` and ``_mm_s`` (times 1000:
-EM's defaults are in mm), ``_deg`` and ``_deg_s`` become ``_rad`` and ``_rad_s``; other names are kept
+EM's defaults are in mm; ``_cm`` and ``_cm_s`` times 10), ``_deg`` and ``_deg_s`` become ``_rad`` and
+``_rad_s``; other names are kept
 as they are, in their own units. A time column may be ``t_ms``, ``t_us`` or ``t_ns`` instead of ``t_s``.
 Bearings mostly beyond a whole turn are refused as degrees, and times that cannot be seconds;
 ``unit_checks.unit_doubts`` names a range or a speed whose size disagrees with the map's by orders of
@@ -44,6 +45,8 @@ from sensact.logs.landmark_log import LandmarkLog
 UNIT_SUFFIXES = (
     ("_m_s", "_mm_s", 1000.0),
     ("_m", "_mm", 1000.0),
+    ("_cm_s", "_mm_s", 10.0),
+    ("_cm", "_mm", 10.0),
     ("_deg_s", "_rad_s", np.pi / 180.0),
     ("_deg", "_rad", np.pi / 180.0),
 )
@@ -107,7 +110,7 @@ def table_and_sources(
             f"missing column {missing[0]}; found {', '.join(raw)}.",
             file=path,
             field=missing[0],
-            fix=f"{what} needs {example} (a _m suffix for metres, _deg for degrees"
+            fix=f"{what} needs {example} (a _m suffix for metres, _cm for centimetres, _deg for degrees"
             + ("; t_ms, t_us or t_ns for other units of time" if missing[0] == "t_s" else "")
             + f"; docs/commands.md, {command})"
             + _rostopic_hint(raw),

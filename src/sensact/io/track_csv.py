@@ -8,13 +8,13 @@ row may hold any of them (an empty cell where a value was not logged):
 * the **commands** (``--command``; by default the one column in a speed unit, ``_m_s`` or ``_mm_s``) are
   held from each row that has them until the next (a zero-order hold) on a fixed step;
 * each row's **readings** (``--reading``; by default every other column) go to the nearest step, a row
-  with none read dropped and counted. One reading must be a distance (``_m`` or ``_mm``): its unit
+  with none read dropped and counted. One reading must be a distance (``_m``, ``_cm`` or ``_mm``): its unit
   becomes the state's, in which the other readings' validity windows are given;
 * the **recorded distance** (``--distance``; by default ``distance_m`` or ``distance_mm``), for scoring
   only, is interpolated onto the steps it spans.
 
-Units follow the column names' suffixes as in ``sensact convert csv`` (``_m`` to mm, ``_m_s`` to mm/s);
-other columns keep their own units (an IR sensor's volts).
+Units follow the column names' suffixes as in ``sensact convert csv`` (``_m`` and ``_cm`` to mm, ``_m_s``
+and ``_cm_s`` to mm/s); other columns keep their own units (an IR sensor's volts).
 """
 
 from __future__ import annotations
@@ -135,7 +135,7 @@ def _distance_reading(path: Path, reads: tuple[str, ...], sources: dict[str, str
         "a distance sensor's unit (mm), in which the other sensors' windows are given.",
         file=path,
         field="--reading",
-        fix="give a distance sensor's column (sonar, lidar, a wheel odometer's distance) a _m or _mm suffix; one "
+        fix="give a distance sensor's column (sonar, lidar, a wheel odometer's distance) a _m, _cm or _mm suffix; one "
         "with none cannot be learned by `sensact learn em`.",
     )
 
