@@ -239,6 +239,16 @@ def layered_config(cls: type, config: Path | None, sets: list[str] | None, base:
         ) from None
 
 
+def config_beside(log: Path, name: str, config: Path | None) -> Path | None:
+    """``config``, or else the settings file ``name`` that `convert` or `simulate` wrote beside the log
+    folder, said to the user."""
+    beside = log / name
+    if config is not None or not (log.is_dir() and beside.is_file()):
+        return config
+    console.print(f"settings: {beside}, written beside the log; --config replaces them, --set overrides them.")
+    return beside
+
+
 def split_fields(set_: list[str] | None, config: Path | None, learner_cls: type) -> tuple[dict, dict]:
     """--set / --config fields go to the learner or the simulator, whichever has the field."""
     from sensact.config import load_yaml_mapping, parse_overrides

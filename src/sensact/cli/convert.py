@@ -120,9 +120,9 @@ def convert_csv(
     Times in seconds on one clock, rows in any order. Commands are held until the next row on a fixed
     step, each sighting goes to the nearest step, truth is interpolated. A spreadsheet's export reads as
     written (a byte-order mark, tabs, or semicolons with decimal commas). Column suffixes give units: _m
-    and _m_s (or _cm and _cm_s) become mm and mm/s, _deg and _deg_s radians; a column whose numbers show another unit
-    (bearings in degrees, times in ms) is refused, and a range or speed off the map's size, a turn rate
-    over a turn a second, or a truth heading that points off the way the truth moves warned about.
+    and _m_s (or _cm and _cm_s) become mm and mm/s, _deg and _deg_s radians; a column whose numbers show
+    another unit (bearings in degrees, times in ms) is refused, and a range or speed off the map's size, a
+    turn rate over a turn a second, or a truth heading that points off the way the truth moves warned about.
     Sightings of landmarks the map does not list are dropped and counted. A robot with a range_m and
     bearing camera also gets em_config.yaml (MRCLAM's settings) to start from: a differential drive's
     when the commands are v_m_s, omega_rad_s or the wheel speeds left_m_s, right_m_s; on any other

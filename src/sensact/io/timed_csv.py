@@ -20,8 +20,8 @@ times in seconds on one clock, in any order, become a planar ``LandmarkLog`` on 
 
 Units follow the column names' suffixes: ``_m`` and ``_m_s`` become ``_mm`` and ``_mm_s`` (times 1000:
 EM's defaults are in mm; ``_cm`` and ``_cm_s`` times 10), ``_deg`` and ``_deg_s`` become ``_rad`` and
-``_rad_s``; other names are kept
-as they are, in their own units. A time column may be ``t_ms``, ``t_us`` or ``t_ns`` instead of ``t_s``.
+``_rad_s``; other names are kept as they are, in their own units. A time column may be ``t_ms``,
+``t_us`` or ``t_ns`` instead of ``t_s``.
 Bearings mostly beyond a whole turn are refused as degrees, and times that cannot be seconds;
 ``unit_checks.unit_doubts`` names a range or a speed whose size disagrees with the map's by orders of
 magnitude (metres and millimetres swapped).

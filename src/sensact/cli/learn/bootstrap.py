@@ -7,7 +7,17 @@ from typing import Annotated, Any
 
 import typer
 
-from sensact.cli.base import ConfigOpt, SetOpt, console, friendly, layered_config, learn_app, progress_bar, write_result
+from sensact.cli.base import (
+    ConfigOpt,
+    SetOpt,
+    config_beside,
+    console,
+    friendly,
+    layered_config,
+    learn_app,
+    progress_bar,
+    write_result,
+)
 from sensact.cli.scores import evaluate_log, warn_if_one_command
 
 
@@ -48,10 +58,7 @@ def learn_bootstrap_cmd(
         console.print(
             "Turtlebot log: starting from the turtlebot settings (docs/bootstrap.md); --config and --set override them."
         )
-    beside = log / "bootstrap_config.yaml"
-    if config is None and log.is_dir() and beside.is_file():  # the settings `convert track` wrote for this log
-        config = beside
-        console.print(f"settings: {beside}, written beside the log; --config replaces them, --set overrides them.")
+    config = config_beside(log, "bootstrap_config.yaml", config)  # what `convert track` wrote
     cfg = layered_config(BootstrapConfig, config, set_, base=base, a0=a0)
     console.print(
         f"{data.source}: {len(data.times_s)} steps over {data.duration_s:.1f} s, "

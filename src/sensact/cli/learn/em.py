@@ -11,6 +11,7 @@ import typer
 from sensact.cli.base import (
     ConfigOpt,
     SetOpt,
+    config_beside,
     console,
     friendly,
     layered_config,
@@ -173,10 +174,7 @@ def _settings_and_log(
             + (f" Channels {', '.join(data.reading_names)} ({', '.join(absent)} not in the file)." if absent else "")
         )
         return cfg, data, lf, recorded_distance, None
-    beside = log / "em_config.yaml"
-    if config is None and beside.is_file():  # the settings `convert` or `simulate diffdrive` wrote for this log
-        config = beside
-        console.print(f"settings: {beside}, written beside the log; --config replaces them, --set overrides them.")
+    config = config_beside(log, "em_config.yaml", config)  # what `convert` or `simulate diffdrive` wrote
     cfg = layered_config(EMConfig, config, set_)  # bad settings are said before the log is read
     data, lf, recorded_distance = read_em_log(log, bins)
     from sensact.io.unit_checks import unit_doubts
