@@ -266,7 +266,7 @@ def convert_track(
         list[str] | None,
         typer.Option(
             metavar="COLUMN",
-            help="A velocity command column (repeat for several); by default the one column in m/s or mm/s.",
+            help="A velocity command column (repeat for several); by default the one column in m/s, cm/s or mm/s.",
         ),
     ] = None,
     reading: Annotated[

@@ -5,8 +5,8 @@ issue 5) logs, in one file with a header row, a time column (``t_s``, or ``t_ms`
 its velocity command, one column per sensor reading and, to score against, the recorded distance. A
 row may hold any of them (an empty cell where a value was not logged):
 
-* the **commands** (``--command``; by default the one column in a speed unit, ``_m_s`` or ``_mm_s``) are
-  held from each row that has them until the next (a zero-order hold) on a fixed step;
+* the **commands** (``--command``; by default the one column in a speed unit, ``_m_s``, ``_cm_s`` or
+  ``_mm_s``) are held from each row that has them until the next (a zero-order hold) on a fixed step;
 * each row's **readings** (``--reading``; by default every other column) go to the nearest step, a row
   with none read dropped and counted. One reading must be a distance (``_m``, ``_cm`` or ``_mm``): its unit
   becomes the state's, in which the other readings' validity windows are given;
@@ -106,8 +106,8 @@ def _columns(
                 + f"; found {found}.",
                 file=path,
                 field="--command",
-                fix="name the velocity command column with --command (a _m_s or _mm_s suffix gives its unit; another "
-                "unit, e.g. a motor's percent, is kept as it is).",
+                fix="name the velocity command column with --command (a _m_s, _cm_s or _mm_s suffix gives its "
+                "unit; another unit, e.g. a motor's percent, is kept as it is).",
             )
     used = {"t_s", *cmds, *((truth,) if truth else ())}
     reads = named_columns(readings, sources, "--reading", path=path) or tuple(c for c in sources if c not in used)
