@@ -115,7 +115,7 @@ def _evaluate_on_range_column(
     import numpy as np
 
     from sensact.cli.localize import place_robot
-    from sensact.cli.scores import evaluate_turtlebot_em
+    from sensact.cli.scores import RANGE_COLUMN, RECORDED_DISTANCE, evaluate_turtlebot_em
     from sensact.errors import LogFormatError
     from sensact.evaluate.turtlebot_em import range_column_problem
 
@@ -137,7 +137,7 @@ def _evaluate_on_range_column(
             "runs the model on one without it.",
         )
     loc, per_learned = place_robot(doc, m, data, model, None, None, None)
-    sc = evaluate_turtlebot_em(loc, data, truth_mm)
+    sc = evaluate_turtlebot_em(loc, data, truth_mm, RECORDED_DISTANCE if log.is_dir() else RANGE_COLUMN)
     if out is None or sc is None:
         return
     from sensact.experiments.turtlebot_em import TurtlebotEMRun

@@ -285,6 +285,11 @@ def evaluate_em(lf: Any, model: Any, *, learned_here: bool = False, path: Any = 
     return None
 
 
+# what a 1-D fit is scored against, as its score line names it
+RANGE_COLUMN = "range"  # a Turtlebot CSV's column
+RECORDED_DISTANCE = "the recorded distance"  # a track folder's groundtruth.csv distance_mm
+
+
 def range_column_scoreable(truth_mm: Any, absent: str | None) -> bool:
     """Whether the range column can score a fit (``evaluate.turtlebot_em.range_column_problem``); says why
     not: ``absent`` when there is no column (None: say nothing), and how many steps are empty otherwise."""
@@ -299,8 +304,9 @@ def range_column_scoreable(truth_mm: Any, absent: str | None) -> bool:
     return problem is None
 
 
-def evaluate_turtlebot_em(res: Any, data: Any, truth_mm: Any) -> dict[str, Any] | None:
-    """The Turtlebot's scaled gain and sensor errors against its ``range`` column, when it has one."""
+def evaluate_turtlebot_em(res: Any, data: Any, truth_mm: Any, against: str = RANGE_COLUMN) -> dict[str, Any] | None:
+    """The Turtlebot's scaled gain and sensor errors against its ``range`` column, when it has one, or against
+    a track folder's recorded distance (``against`` names which in the score line)."""
     if not range_column_scoreable(
         truth_mm, "no range column: nothing to score against (the model is learned from the readings alone)."
     ):
@@ -312,7 +318,7 @@ def evaluate_turtlebot_em(res: Any, data: Any, truth_mm: Any) -> dict[str, Any] 
     gain = gain_cell(
         sc["gain_learned"], sc["gain_true"], sc["gain_error_pct"], one_command_reason(sc["one_command_share"])
     )
-    console.print(f"vs range (optimal scale and offset): action gain {gain}; command delay {sc['delay_s']:.2f} s")
+    console.print(f"vs {against} (optimal scale and offset): action gain {gain}; command delay {sc['delay_s']:.2f} s")
     for name, s in sc["sensors"].items():
         console.print(f"  {name}: {sensor_span_cell(s)}")
     return sc
