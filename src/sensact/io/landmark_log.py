@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -140,10 +140,21 @@ def _map_ids(mpath: Path, raw: list[str]) -> list[str]:
     return ids
 
 
-def _planar(path: Path, meta: dict[str, Any]) -> LandmarkLogFile:
-    """A landmark log folder (planar, or a track declared with ``"geometry": "track"``)."""
-    mpath = path / "meta.json"
-    geometry = meta.get("geometry", "planar")
+class _MetaParts(NamedTuple):
+    """What a landmark log's meta.json says: the step, the actions, the map and the observation columns."""
+
+    dt: float
+    actions: dict[str, Any]
+    table: np.ndarray  # discrete actions' velocities; zero rows for command columns
+    names: tuple[str, ...]  # the command (or action table) columns
+    marks: list[dict[str, Any]]
+    raw_ids: list[str]
+    xy: np.ndarray
+    columns: dict[str, Any]  # meta.json's "observations"
+
+
+def _meta_parts(mpath: Path, meta: dict[str, Any], geometry: str) -> _MetaParts:
+    """meta.json's parts, each missing or malformed one named in one line."""
     part = "dt_s"  # the part of meta.json being read, for the error
     try:
         dt = float(meta["dt_s"])
@@ -183,8 +194,24 @@ def _planar(path: Path, meta: dict[str, Any]) -> LandmarkLogFile:
             field="dt_s",
             fix="set dt_s to the step the CSVs' t_s are on (e.g. 0.0333 for 30 Hz).",
         )
-    ids = _map_ids(mpath, raw_ids)
-    act_grid, cmd_grid, t0, T = _commands_on_grid(path, act, dt, len(table))
+    return _MetaParts(dt, act, table, names, marks, raw_ids, xy, cols)
+
+
+class _Sightings(NamedTuple):
+    """observations.csv's rows within the commands' span, in step order."""
+
+    steps: np.ndarray
+    landmarks: np.ndarray  # row in the map
+    readings: np.ndarray  # one column per reading
+    bearings: np.ndarray  # NaN when the log has none
+    names: tuple[str, ...]  # the reading columns
+
+
+def _sightings(
+    path: Path, geometry: str, cols: dict[str, Any], ids: list[str], t0: float, dt: float, T: int
+) -> _Sightings:
+    """observations.csv on the step grid: rows outside the commands' ``T`` steps dropped, every landmark id
+    in the map (``ids``), bearings in radians."""
     lm_col, b_col = cols.get("landmark", "landmark_id"), cols.get("bearing")
     readings = list(cols.get("readings") or [cols.get("height", "height_px")])
     need = ["t_s", *readings] + ([b_col] if b_col else []) + ([lm_col] if geometry == "planar" else [])
@@ -212,26 +239,43 @@ def _planar(path: Path, meta: dict[str, Any]) -> LandmarkLogFile:
             path / "observations.csv", obs[b_col], b_col, f"write {b_col} in radians (counterclockwise from forward)."
         )
     order = np.argsort(steps_o[keep], kind="stable")
-    data = LandmarkLog(
-        geometry,
-        dt,
-        act_grid,
-        table,
-        names,
+    return _Sightings(
         steps_o[keep][order],
         np.array([id_to_row[x] for x in lm_raw[keep][order]], dtype=np.int64),
         np.column_stack([obs[r][keep][order] for r in readings]),
         obs[b_col][keep][order] if b_col else np.full(int(keep.sum()), np.nan),
-        xy,
-        tuple(str(m.get("name", m["id"])) for m in marks),
-        str(path),
         tuple(readings),
+    )
+
+
+def _planar(path: Path, meta: dict[str, Any]) -> LandmarkLogFile:
+    """A landmark log folder (planar, or a track declared with ``"geometry": "track"``)."""
+    mpath = path / "meta.json"
+    geometry = meta.get("geometry", "planar")
+    mp = _meta_parts(mpath, meta, geometry)
+    ids = _map_ids(mpath, mp.raw_ids)
+    act_grid, cmd_grid, t0, T = _commands_on_grid(path, mp.actions, mp.dt, len(mp.table))
+    seen = _sightings(path, geometry, mp.columns, ids, t0, mp.dt, T)
+    data = LandmarkLog(
+        geometry,
+        mp.dt,
+        act_grid,
+        mp.table,
+        mp.names,
+        seen.steps,
+        seen.landmarks,
+        seen.readings,
+        seen.bearings,
+        mp.xy,
+        tuple(str(m.get("name", m["id"])) for m in mp.marks),
+        str(path),
+        seen.names,
         cmd_grid,
     )
     gt = None
     if (path / "groundtruth.csv").is_file():
         g = read_numeric_csv(path / "groundtruth.csv", ["t_s"], what="groundtruth.csv")
-        gt = {k: np.interp(np.arange(T) * dt + t0, g["t_s"], v) for k, v in g.items() if k != "t_s"}
+        gt = {k: np.interp(np.arange(T) * mp.dt + t0, g["t_s"], v) for k, v in g.items() if k != "t_s"}
     return LandmarkLogFile(data, meta, gt)
 
 
