@@ -30,6 +30,8 @@ def literal_algorithm_1(t, c, o, cfg: BootstrapConfig, a0=lambda c: c):
     eq. 3.3 from scratch with weights gamma^(n-i) at every observation.
     """
     d_s, d_a, g = cfg.sensor_degree, cfg.action_degree, cfg.gamma
+    k0 = int(np.flatnonzero(c != 0)[0])  # the clock starts at the first command (Algorithm 1's robot moves)
+    t, c, o = t[k0:], c[k0:], o[k0:]
     w_a, t0 = 0.0, t[0]
     s_x, s_y, a_X, a_y = [], [], [], []
     S = A = None
@@ -89,6 +91,55 @@ def test_batch_and_streaming_are_identical(short_run):
         batch.n_observations,
     )
     assert stream.w_a == batch.history.w_a[-1]
+
+
+def _held_still_first(r, seconds: float):
+    """``r`` with the robot held still (command 0, its first reading again, with noise) for ``seconds`` first."""
+    dt = float(np.median(np.diff(r.times_s)))
+    n = int(seconds / dt)
+    rng = np.random.default_rng(3)
+    first = r.heights_px[np.isfinite(r.heights_px)][0]
+    t = np.r_[r.times_s[0] - dt * np.arange(n, 0, -1), r.times_s]
+    c = np.r_[np.zeros(n), r.commands_mm_s]
+    o = np.r_[first + rng.normal(0.0, 0.3, n), r.heights_px]
+    return t, c, o, n
+
+
+def test_the_clock_starts_at_the_first_command(short_run):
+    """Exact reduction: a robot held still for 50 s before it is first commanded learns, bit for bit, what it
+    learns from its first command on (before, S learned every idle reading as w_a = 0 and A_t stayed at zero,
+    reported "ok"); the streaming learner waits alike; a log never commanded is refused."""
+    r = short_run
+    assert r.commands_mm_s[0] != 0.0
+    cfg = BootstrapConfig(t_start_s=20.0)
+    t, c, o, n = _held_still_first(r, 50.0)
+    norm = Normalization.from_data(r.commands_mm_s, r.heights_px, cfg)
+    moved = learn_bootstrap(r.times_s, r.commands_mm_s, r.heights_px, cfg, normalization=norm)
+    held = learn_bootstrap(t, c, o, cfg, normalization=norm)
+    assert held.sensor.coef == moved.sensor.coef and held.action.coef == moved.action.coef
+    assert held.n_observations == moved.n_observations and held.status == "ok"
+    assert np.all(np.isnan(held.history.w_a[:n])) and np.array_equal(held.history.w_a[n:], moved.history.w_a)
+    stream = BootstrapLearner(cfg, normalization=norm)
+    for tk, ck, ok in zip(t, c, o, strict=True):
+        stream.update(tk, ck, ok)
+    assert stream.result().sensor.coef == moved.sensor.coef
+    with pytest.raises(ValueError, match="every command is zero"):
+        learn_bootstrap(t[:n], c[:n], o[:n], cfg)
+
+
+def test_a_zero_innovation_scale_does_not_shut_the_outlier_gate(short_run):
+    """Invariant: the gate's scale of zero (S fitted exactly to a w_a held at zero by a robot standing still)
+    gates nothing; it had gated every later reading, so S stayed flat."""
+    r = short_run
+    t, c, o, _ = _held_still_first(r, 50.0)
+    action = Polynomial1D((0.0, 1.0), 0.0, 1.0)  # A(c) = c: w_a stays 0 while the robot stands
+    cfg = BootstrapConfig(t_start_s=20.0)
+    free = learn_sensor_from_action(t, c, o, action, cfg)
+    gated = learn_sensor_from_action(t, c, o, action, dataclasses.replace(cfg, outlier_gate=3.0))
+    grid = np.linspace(11, 30, 9)
+    assert np.ptp(free.sensor(grid)) > 1000.0  # mm: S reads the walk
+    assert gated.n_gated < 0.05 * gated.n_observations
+    np.testing.assert_allclose(gated.sensor(grid), free.sensor(grid), rtol=0.05, atol=0.02 * np.ptp(free.sensor(grid)))
 
 
 def test_streaming_without_normalization_learns_the_same_models(short_run):

@@ -129,6 +129,53 @@ def test_convert_track_writes_a_folder_that_learn_em_learns_and_scores(tmp_path)
     assert "at 2 t_start_s = 6 s into the log, and until 7.0 s the robot is commanded one way only" in said, said
 
 
+def _held_still_first(users: Path, seconds: float, out: Path) -> Path:
+    """The user's CSV with the robot standing still (command 0, the first readings with noise) first."""
+    cols = read_numeric_csv(users)
+    dt = float(np.median(np.diff(np.sort(cols["t_s"]))))
+    n = round(seconds / dt)
+    first = int(np.argmin(cols["t_s"]))
+    rng = np.random.default_rng(5)
+    idle = {c: np.full(n, v[first]) for c, v in cols.items()}
+    idle["t_s"] = cols["t_s"][first] - dt * np.arange(n, 0, -1)
+    idle["v_cmd_m_s"] = np.zeros(n)
+    idle["sonar_m"] = idle["sonar_m"] + rng.normal(0.0, 0.005, n)
+    joined = {c: np.r_[idle[c], cols[c]] for c in cols}
+    rows = [",".join(joined)] + [
+        ",".join(repr(float(v[k])) for v in joined.values()) for k in range(n + len(cols["t_s"]))
+    ]
+    out.write_text("\n".join(rows) + "\n")
+    return out
+
+
+def test_chapter_3s_clock_starts_when_the_robot_is_first_commanded(tmp_path):
+    """Seeded recovery: the seeded robot standing still for 150 s before it drives (beyond 2 t_start_s = 120 s,
+    where S had learned every reading as one place and both models stayed at zero, "status: ok") learns its
+    gain and distance, and is told where the clock starts; a log never commanded is refused in one line."""
+    csv = tmp_path / "tb.csv"
+    write_turtlebot_csv(csv, with_range=True, drop=("raw_ir1", "raw_ir2", "sonar2"))
+    users = _held_still_first(_as_users_csv(csv, tmp_path / "robot.csv"), 150.0, tmp_path / "still.csv")
+    out = tmp_path / "track"
+    assert runner.invoke(app, ["convert", "track", str(users), "--out", str(out), "--robust", "sonar_m"]).exit_code == 0
+    res = runner.invoke(app, ["learn", "bootstrap", str(out), "--out", str(tmp_path / "b.json")])
+    said = " ".join(res.output.split())
+    assert res.exit_code == 0 and "the robot is first commanded 150.0 s into the log" in said, said
+    assert "warning" not in said  # the clock starts at 150 s: A_t takes over at 270 s, the robot reverses at 157 s
+    doc = json.loads((tmp_path / "b.json").read_text())
+    ev, slope = doc["evaluation"], doc["action"]["power_coefficients"][1]
+    assert ev["sensor_rms_pct"] < 2.0 and ev["sensor_scale_b"] * slope == pytest.approx(0.9, rel=0.03), ev
+    # the warning counts from the first command too
+    said = " ".join(runner.invoke(app, ["learn", "bootstrap", str(out), "--set", "t_start_s=3"]).output.split())
+    assert "at 2 t_start_s = 6 s after the first command (156.0 s into the log), and until 157.0 s" in said, said
+    # commands all zero: refused, naming the command column
+    cut = tmp_path / "never.csv"
+    cut.write_text("\n".join(users.read_text().splitlines()[: 150 * 16]) + "\n")
+    assert runner.invoke(app, ["convert", "track", str(cut), "--out", str(tmp_path / "never")]).exit_code == 0
+    res = runner.invoke(app, ["learn", "bootstrap", str(tmp_path / "never")])
+    said = " ".join(res.output.split())
+    assert res.exit_code == 2 and "v_cmd_mm_s: every command is zero" in said, said
+
+
 def test_chapter_3s_learner_refuses_a_converted_folder_of_two_commands(tmp_path):
     t = 0.05 * np.arange(400)
     v, w = 0.2 * np.sin(t), 0.1 * np.cos(t)

@@ -208,7 +208,7 @@ class BootstrapResult:
     sensor: Polynomial1D
     action: Polynomial1D
     status: Literal["ok", "diverged"]
-    diverged_at_s: float | None
+    diverged_at_s: float | None  # seconds after the first command, where the clock starts
     sensor_degree: int
     n_steps: int
     n_observations: int
@@ -535,6 +535,13 @@ def _run_engine(
     return engine.result(hist)
 
 
+def first_command_s(times_s: np.ndarray, commands: np.ndarray) -> float | None:
+    """Seconds into the log of the first non-zero command, where Algorithm 1's clock starts (``step_kernel``
+    waits for it), or None when the robot is never commanded."""
+    moved = np.flatnonzero(np.asarray(commands, dtype=float) != 0.0)
+    return None if moved.size == 0 else float(times_s[moved[0]] - times_s[0])
+
+
 def learn_bootstrap(
     times_s: np.ndarray,
     commands: np.ndarray,
@@ -546,9 +553,12 @@ def learn_bootstrap(
     units: tuple[str, str, str] = ("", "", "w"),
     progress: ProgressFn | None = None,
 ) -> BootstrapResult:
-    """Algorithm 1 over a whole log (the compiled batch path). ``observations`` is NaN where none."""
+    """Algorithm 1 over a whole log (the compiled batch path). ``observations`` is NaN where none. Its
+    clock starts at the first non-zero command (``first_command_s``); the steps before are not learned from."""
     config = config or BootstrapConfig()
     t, c, o = _check_arrays(times_s, commands, observations)
+    if first_command_s(t, c) is None:
+        raise ValueError("every command is zero: Algorithm 1 starts when the robot is first commanded")
     norm = normalization or Normalization.from_data(c, o, config)
     engine = _Engine(
         config, norm, learn_sensor=True, learn_action=True, fixed_sensor=None, fixed_action=None, units=units

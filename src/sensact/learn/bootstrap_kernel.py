@@ -41,7 +41,7 @@ STATE_NAMES = ("Gs", "hs", "cs", "cs_prev", "Ls", "Ga", "ha", "ca", "ca_prev", "
 REBASE_BOUND = 4.0
 assert [STATE_NAMES.index(n) for n in ("cs", "ca", "sc", "prm")] == [2, 7, 19, 20]  # literal indices in run_kernel
 # step_kernel return codes
-NO_OBS, OBS_WITH_WS, OBS_EARLY, OBS_GATED, DIVERGED, STOPPED = range(6)
+NO_OBS, OBS_WITH_WS, OBS_EARLY, OBS_GATED, DIVERGED, STOPPED, WAITING = range(7)
 STATUS_OK, STATUS_DIVERGED = 0, 1
 
 
@@ -69,6 +69,11 @@ def step_kernel(state, t, c, a0c, o):
     ts = prm[P_TIME_SCALE]
     learn_s = iprm[I_LEARN_S] == 1
     learn_a = iprm[I_LEARN_A] == 1
+    if learn_s and learn_a and sc[HAS_PREV] == 0.0 and c == 0.0:
+        # Algorithm 1's clock starts when the robot is first commanded (sec. 3.3's Aibo walks from the
+        # start): a robot held still first would teach S that every reading is w_a = 0, and A_t, learned
+        # from that S, would stay at zero
+        return WAITING
     sc[N_STEPS] += 1.0
 
     # ---- motion since the previous step (Algorithm 1, lines 3-7) ----
@@ -121,7 +126,7 @@ def step_kernel(state, t, c, a0c, o):
         # rejections widens the gate instead of locking the learner out
         sc[GATE_SUM] = gamma * sc[GATE_SUM] + min(e * e, cap)
         sc[GATE_W] = gamma * sc[GATE_W] + 1.0
-        if sc[GATE_W] >= 20.0 and e * e > cap:
+        if sc[GATE_W] >= 20.0 and cap > 0.0 and e * e > cap:  # a zero scale says nothing yet
             sc[N_GATED] += 1.0
             return OBS_GATED
     # Errors-in-variables guard (not in the thesis): regress on the mean of the last `window`
@@ -223,6 +228,8 @@ def run_kernel(
         code = step_kernel(state, times[k], commands[k], a0v[k], obs[k])
         if code == STOPPED:
             break
+        if code == WAITING:  # before the first command: no estimate yet (w_a_out stays NaN)
+            continue
         w_a_out[k] = sc[W_A]
         w_s_out[k] = sc[W_S] if code == OBS_WITH_WS else np.nan
         tr = times[k] - sc[T0]

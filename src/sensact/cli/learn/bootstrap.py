@@ -65,7 +65,8 @@ def learn_bootstrap_cmd(
         f"{data.n_observations} observations of {data.observation_name}"
     )
     warn_if_one_command(data.commands, data.source, "command", data.command_unit)
-    _warn_if_one_way_at_takeover(data, cfg)
+    start = _clock_start(data, log)
+    _warn_if_one_way_at_takeover(data, cfg, start)
     with progress_bar() as progress:
         res = learn_bootstrap(
             data.times_s,
@@ -78,6 +79,7 @@ def learn_bootstrap_cmd(
     console.print(
         f"status: [bold]{res.status}[/]"
         + (f" at {res.diverged_at_s:.1f} s" if res.diverged_at_s else "")
+        + (" after the first command" if res.diverged_at_s and start > 0.0 else "")
         + (f"; {res.n_gated} observations gated as outliers" if res.n_gated else "")
     )
     console.print("  " + res.sensor.describe("S"))
@@ -94,25 +96,52 @@ def learn_bootstrap_cmd(
         console.print(f"wrote {out}, {out.with_suffix('.history.npz')} and {png}")
 
 
-def _warn_if_one_way_at_takeover(data: Any, cfg: Any) -> None:
-    """Say so when A_t takes over from A0 (at 2 t_start, Algorithm 1 line 3) before the robot has been
-    commanded both ways: fitted to one direction of travel, the pair of models can settle far off (on
-    turtlebot1d's training1.csv, which first reverses at 84 s, t_start_s = 40 learns S 29 % of the span off,
-    45 learns it 2.0 % off)."""
+def _clock_start(data: Any, log: Path) -> float:
+    """Seconds into the log where Algorithm 1's clock starts, the first non-zero command, said when the robot
+    was held still before it; a log never commanded is refused."""
+    from sensact.errors import LogFormatError
+    from sensact.learn.bootstrap import first_command_s
+
+    start = first_command_s(data.times_s, data.commands)
+    if start is None:
+        raise LogFormatError(
+            "every command is zero, so the readings say nothing about what a command does.",
+            file=log,
+            field=(data.meta.get("action") or {}).get("column", "velocity_command"),
+            fix="learn from a log in which the robot is driven toward and away from what its sensor reads (sec. 3.3).",
+        )
+    if start > 0.0:
+        console.print(
+            f"the robot is first commanded {start:.1f} s into the log: Algorithm 1's clock starts there, and the "
+            "readings before it are not learned from (held still, they would all be taught one place)."
+        )
+    return start
+
+
+def _warn_if_one_way_at_takeover(data: Any, cfg: Any, start: float) -> None:
+    """Say so when A_t takes over from A0 (at 2 t_start after the clock ``start``, Algorithm 1 line 3) before
+    the robot has been commanded both ways: fitted to one direction of travel, the pair of models can settle
+    far off (on turtlebot1d's training1.csv, first commanded at 3.3 s and first reversing at 84 s, t_start_s = 40
+    learns S 11 % of the span off, 45 learns it 2.0 % off)."""
     from sensact.evaluate.measured import first_reversal_s
 
-    takeover = 2.0 * cfg.t_start_s
+    takeover = start + 2.0 * cfg.t_start_s
     reverse = first_reversal_s(data.times_s, data.commands)
     if reverse is not None and reverse <= takeover:
         return
     until = "in the whole log" if reverse is None else f"until {reverse:.1f} s"
+    after = f"{start:.0f} s + " if start > 0.0 else ""
     fix = (
         "drive it both ways (toward and away from what its sensor reads, sec. 3.3)"
         if reverse is None
-        else f"pass --set t_start_s=T with 2 T past {reverse:.0f} s, by some seconds of driving back"
+        else f"pass --set t_start_s=T with {after}2 T past {reverse:.0f} s, by some seconds of driving back"
+    )
+    at = (
+        f"2 t_start_s = {2.0 * cfg.t_start_s:g} s after the first command ({takeover:.1f} s into the log)"
+        if start > 0.0
+        else f"2 t_start_s = {takeover:g} s into the log"
     )
     console.print(
-        f"[yellow]warning[/]: A_t takes over from A0 at 2 t_start_s = {takeover:g} s into the log, and {until} the "
-        f"robot is commanded one way only, so the two models are first fitted to one direction of travel and "
-        f"can settle far off; {fix} (docs/bootstrap.md)."
+        f"[yellow]warning[/]: A_t takes over from A0 at {at}, and {until} the robot is commanded one way only, so "
+        f"the two models are first fitted to one direction of travel and can settle far off; {fix} (docs/bootstrap.md)."
     )
