@@ -404,7 +404,8 @@ class _Engine:
 
 
 class BootstrapLearner:
-    """The streaming form of Algorithm 1: call ``update(t, command, observation_or_None)`` per step.
+    """The streaming form of Algorithm 1: call ``update(t, command, observation_or_None)`` per step. Until
+    the first non-zero command it waits: the clock starts there, as in ``learn_bootstrap``.
 
     Normalization (conditioning only) comes from ``normalization`` or the config; when neither gives it,
     it is taken from the first non-zero command and the first observation.
