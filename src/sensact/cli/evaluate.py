@@ -10,7 +10,7 @@ from typing import Annotated, Any
 import typer
 
 from sensact.cli.base import EMModelOpt, console, evaluate_app, friendly, write_result
-from sensact.cli.model_on_log import read_em_model, refuse_model_for_log
+from sensact.cli.model_on_log import read_em_model, refuse_model_for_log, scored_against
 from sensact.cli.scores import evaluate_em, print_truth_score
 
 
@@ -115,7 +115,7 @@ def _evaluate_on_range_column(
     import numpy as np
 
     from sensact.cli.localize import place_robot
-    from sensact.cli.scores import RANGE_COLUMN, RECORDED_DISTANCE, evaluate_turtlebot_em
+    from sensact.cli.scores import evaluate_turtlebot_em
     from sensact.errors import LogFormatError
     from sensact.evaluate.turtlebot_em import range_column_problem
 
@@ -137,7 +137,7 @@ def _evaluate_on_range_column(
             "runs the model on one without it.",
         )
     loc, per_learned = place_robot(doc, m, data, model, None, None, None)
-    sc = evaluate_turtlebot_em(loc, data, truth_mm, RECORDED_DISTANCE if log.is_dir() else RANGE_COLUMN)
+    sc = evaluate_turtlebot_em(loc, data, truth_mm, scored_against(log))
     if out is None or sc is None:
         return
     from sensact.experiments.turtlebot_em import TurtlebotEMRun

@@ -14,6 +14,14 @@ def is_turtlebot_csv(log: Path) -> bool:
     return log.is_file() and log.suffix.lower() == ".csv"
 
 
+def scored_against(log: Path) -> str:
+    """What a 1-D log's fit is scored against, as its score line names it: a Turtlebot CSV's range column,
+    or a track folder's recorded distance."""
+    from sensact.cli.scores import RANGE_COLUMN, RECORDED_DISTANCE
+
+    return RANGE_COLUMN if is_turtlebot_csv(log) else RECORDED_DISTANCE
+
+
 def read_em_log(log: Path, bins: int, dt_s: float | None = None) -> tuple[Any, Any, Any]:
     """What EM reads: ``(data, the log folder, its recorded distance or None)`` from a folder (continuous
     commands of a track1d folder binned into ``bins`` actions; the distance of a track folder of continuous

@@ -20,15 +20,8 @@ from sensact.cli.base import (
     progress_bar,
     write_result,
 )
-from sensact.cli.model_on_log import is_turtlebot_csv, read_em_log
-from sensact.cli.scores import (
-    RANGE_COLUMN,
-    RECORDED_DISTANCE,
-    evaluate_em,
-    evaluate_turtlebot_em,
-    print_em_model,
-    warn_if_one_command,
-)
+from sensact.cli.model_on_log import is_turtlebot_csv, read_em_log, scored_against
+from sensact.cli.scores import evaluate_em, evaluate_turtlebot_em, print_em_model, warn_if_one_command
 
 if TYPE_CHECKING:  # numpy is imported where a command needs it, so that --help stays quick
     import numpy as np
@@ -466,7 +459,7 @@ def learn_em_cmd(
     evaluation = (
         evaluate_em(lf, m, learned_here=True, path=None if res.posteriors is None else res.posteriors.mean_gamma)
         if lf is not None and recorded_distance is None
-        else evaluate_turtlebot_em(res, data, recorded_distance, RANGE_COLUMN if lf is None else RECORDED_DISTANCE)
+        else evaluate_turtlebot_em(res, data, recorded_distance, scored_against(log))
     )
     doc = {
         "model": m.to_dict(),
