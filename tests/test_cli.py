@@ -390,6 +390,19 @@ def test_simulate_car_then_learn_car_with_ros_export(tmp_path):
     assert res.exit_code == 2 and "meta.json" in res.output
 
 
+def test_a_track_velocity_is_told_toward_or_away_from_what_the_robot_ranges_to():
+    """Sec. 4.4.3's track state is the distance to the beacon: a positive velocity shortens it."""
+    from sensact.cli.scores import describe_track_velocity
+    from sensact.models.linear_action import LinearActionModel
+
+    toward = LinearActionModel("affine", 1, [[0.0], [0.5]], ("v_cmd_mm_s",), ("v_mm_s",))
+    assert "moves toward it at 0.5 mm/s per unit of v_cmd_mm_s" in describe_track_velocity(toward)
+    away = LinearActionModel("affine", 1, [[3.0], [-0.92]], ("u",), ("v_mm_s",))
+    assert "moves away from it at 0.92 mm/s per unit of u" in describe_track_velocity(away)
+    curved = LinearActionModel("polynomial", 2, [[0.0], [0.5], [0.1]], ("u",), ("v_mm_s",))
+    assert describe_track_velocity(curved).endswith("a negative v_mm_s takes the robot away from it")
+
+
 def test_learn_em_on_a_turtlebot_csv_recovers_the_gain_and_sonar(tmp_path):
     csv = tmp_path / "robot.csv"
     write_turtlebot_csv(csv, with_range=True)
@@ -422,6 +435,11 @@ def test_learn_em_on_a_turtlebot_csv_recovers_the_gain_and_sonar(tmp_path):
         assert rms == pytest.approx(smap["rms_mm"], rel=1e-9) and rms < 10.0, rms
         assert 0.0 < np.median(path["sd"]) < 10.0
     assert "stopped: converged" in res.output and "raise the cap" not in res.output
+    # the seeded robot's range grows with its command: sec. 4.4.3's velocity, toward the wall, is negative,
+    # and the output says which way the robot goes, with the gain's own digits
+    coef = out["model"]["action"]["coefficients"][1][0]
+    said = " ".join(res.output.split())
+    assert coef < 0 and f"this robot moves away from it at {-coef:.4g} mm/s per unit of v_cmd_mm_s" in said, said
     # --set overrides the Turtlebot's settings; without a range column there is nothing to score, and the
     # figure the first run drew against its range column is removed, so that it cannot pass for this fit
     write_turtlebot_csv(csv, with_range=False)

@@ -41,9 +41,28 @@ def print_em_model(m: Any) -> None:
         for fname, row in zip(feature_names(a.basis, a.degree, a.command_names), a.coefficients, strict=True):
             t.add_row(fname, *(f"{x:.4g}" for x in row))
     console.print(t)
+    if m.geometry == "track":
+        console.print(describe_track_velocity(a), markup=False)
     drive = as_differential_drive(a)
     if drive is not None:
         console.print(describe_differential_drive(drive), markup=False)
+
+
+def describe_track_velocity(a: Any) -> str:
+    """A track's learned velocity in words. Sec. 4.4.3's state is the distance to the beacon, which a
+    forward velocity shortens, so a robot whose commands take it away from what it ranges to learns a
+    negative velocity; chapter 3's learner, whose location grows with its sensor, prints it positive."""
+    from sensact.models.linear_action import LinearActionModel
+
+    head = "on a track v_mm_s is the speed toward the wall or beacon the readings range to (sec. 4.4.3)"
+    if isinstance(a, LinearActionModel) and a.basis == "affine" and len(a.command_names) == 1:
+        slope = float(a.coefficients[1, 0])
+        way = "toward" if slope > 0 else "away from"
+        return (
+            f"{head}: this robot moves {way} it at {abs(slope):.4g} mm/s per unit of {a.command_names[0]}, "
+            "in the learned distance's own scale"
+        )
+    return f"{head}: a negative v_mm_s takes the robot away from it"
 
 
 def describe_differential_drive(drive: dict[str, Any]) -> str:
