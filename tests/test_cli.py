@@ -130,6 +130,27 @@ def test_bad_input_is_one_line_without_traceback(args, needle):
     assert "Traceback" not in res.output
 
 
+@pytest.mark.parametrize(
+    "meta,command,fix",
+    [
+        ({"geometry": "planar"}, "bootstrap", "learn it with `sensact learn em {d}`; `sensact learn bootstrap` reads"),
+        ({"geometry": "track"}, "bootstrap", "or write it again with `sensact convert track`"),
+        ({"geometry": "planar"}, "car", "a log folder for EM (geometry: planar), not a car log"),
+        ({"action": {"column": "c"}, "sensor": {"column": "o"}}, "car", "`sensact learn bootstrap {d}` (chapter 3)"),
+        ({"platform": "car", "lidar": {"file": "velodyne.pcap"}}, "em", "learn it with `sensact learn car {d}`"),
+        ({"platform": "car", "lidar": {"file": "velodyne.pcap"}}, "bootstrap", "learn it with `sensact learn car {d}`"),
+    ],
+)
+def test_a_folder_for_another_learner_names_the_command_that_learns_it(tmp_path, meta, command, fix):
+    """Each learner reads only its own kind of folder; given another's, it says which command reads that one."""
+    folder = tmp_path / "log"
+    folder.mkdir()
+    (folder / "meta.json").write_text(json.dumps({"format": "sensact-log", "version": 1, **meta}))
+    res = runner.invoke(app, ["learn", command, str(folder)])
+    assert res.exit_code == 2 and "Traceback" not in res.output
+    assert fix.format(d=folder) in " ".join(res.output.split()), res.output
+
+
 def test_a_path_the_system_refuses_is_one_line(tmp_path):
     """An --out under a file (or any path the system refuses) names the path and the fix, like bad input."""
     blocker = tmp_path / "results"

@@ -166,6 +166,22 @@ def _vertical_angles(
     return vertical_rad, None, meta_file, "lidar.vertical_deg"
 
 
+def _refuse_another_learners_folder(meta: dict[str, Any], folder: Path) -> None:
+    """A log folder written for EM or for chapter 3 named as such, with the command that learns it."""
+    if "action" in meta and "sensor" in meta:
+        what, how = "a 1-D log folder", f"`sensact learn bootstrap {folder}` (chapter 3) or `sensact learn em {folder}`"
+    elif "geometry" in meta:
+        what, how = f"a log folder for EM (geometry: {meta['geometry']})", f"`sensact learn em {folder}`"
+    else:
+        return
+    raise LogFormatError(
+        f"this is {what}, not a car log: meta.json has no lidar section.",
+        file=folder / "meta.json",
+        field="lidar",
+        fix=f"learn it with {how}; `sensact learn car` reads a car log folder ({CAR_LOG_DOCS}).",
+    )
+
+
 def read_car_log(folder: str | Path, calibration: str | Path | None = None) -> CarLog:
     """A car log folder. ``calibration``: a ROS velodyne calibration file (the factory's) whose vertical
     angles replace ``lidar.vertical_deg``; its horizontal ones are never read. ``lidar.firing_hz`` and
@@ -181,6 +197,7 @@ def read_car_log(folder: str | Path, calibration: str | Path | None = None) -> C
     meta_file = folder / "meta.json"
     lidar = meta.get("lidar")
     if not isinstance(lidar, dict):
+        _refuse_another_learners_folder(meta, folder)
         raise LogFormatError(
             "meta.json has no lidar section.",
             file=meta_file,

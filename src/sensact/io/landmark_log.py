@@ -25,7 +25,7 @@ import numpy as np
 
 from sensact.errors import LogFormatError
 from sensact.io.csvtable import landmark_labels, read_numeric_csv
-from sensact.io.logfolder import read_meta, read_track_log, write_log_folder
+from sensact.io.logfolder import read_meta, read_track_log, refuse_a_car_log, write_log_folder
 from sensact.io.unit_checks import refuse_degrees_as_radians
 from sensact.logs.landmark_log import LandmarkLog
 
@@ -321,6 +321,7 @@ def read_landmark_log(path: str | Path, *, command_bins: int = 21) -> LandmarkLo
         return _planar(path, meta)
     if meta.get("platform") == "track1d" or "action" in meta:
         return _track(path, command_bins)
+    refuse_a_car_log(meta, path)
     raise LogFormatError(
         "meta.json declares neither a planar log (geometry: planar) nor a 1-D track (platform: track1d).",
         file=path / "meta.json",

@@ -106,6 +106,17 @@ def read_meta(folder: str | Path, example: str = "`sensact simulate track1d --ou
     return meta
 
 
+def refuse_a_car_log(meta: dict[str, Any], folder: Path) -> None:
+    """A car log folder (its meta.json has a lidar section) given to EM or chapter 3's learner."""
+    if isinstance(meta.get("lidar"), dict) and "geometry" not in meta and "action" not in meta:
+        raise LogFormatError(
+            "this is a car log folder (meta.json has a lidar section), which chapter 5's learner reads.",
+            file=folder / "meta.json",
+            field="lidar",
+            fix=f"learn it with `sensact learn car {folder}`.",
+        )
+
+
 def _column(meta: dict[str, Any], key: str, path: Path) -> tuple[str, str]:
     try:
         spec = meta[key]
@@ -137,14 +148,22 @@ def read_track_log(path: str | Path, sensor: str | None = None) -> TrackLog:
             fix="give a folder with meta.json, actions.csv and observations.csv, or a Turtlebot CSV.",
         )
     meta = read_meta(path)
+    refuse_a_car_log(meta, path)
     if "geometry" in meta and "action" not in meta:
+        track = meta["geometry"] == "track"
         raise LogFormatError(
-            f"this is a log folder for EM (geometry: {meta['geometry']}), as `sensact convert track`, `convert csv` "
-            "and `simulate field2d` write; chapter 3's learner reads a 1-D log with one command and one sensor.",
+            f"this is a log folder for EM (geometry: {meta['geometry']}) without chapter 3's action and sensor "
+            "columns; chapter 3's learner reads a 1-D log with one command and one sensor.",
             file=path / "meta.json",
             field="geometry",
-            fix=f"learn it with `sensact learn em {path}`; `sensact learn bootstrap` reads a Turtlebot CSV or a "
-            "`sensact simulate track1d` folder.",
+            fix=f"learn it with `sensact learn em {path}`"
+            + (
+                ", or write it again with `sensact convert track`, which names both for chapter 3 too"
+                if track
+                else "; `sensact learn bootstrap` reads a Turtlebot CSV, a `sensact convert track` folder or a "
+                "`sensact simulate track1d` folder"
+            )
+            + ".",
         )
     cmd_col, cmd_unit = _column(meta, "action", path)
     obs_col, obs_unit = _column(meta, "sensor", path)
