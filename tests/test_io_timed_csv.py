@@ -194,8 +194,9 @@ def test_times_in_nanoseconds_convert_as_seconds_do(timed, tmp_path):
             table = {("t_ns" if k == "t_s" else k): (np.round(v * 1e9) if k == "t_s" else v) for k, v in table.items()}
         _write(tmp_path / f"{name}.csv", table)
     files = ("commands", "sightings", "landmarks", "truth")
-    seconds = read_timed_csv(*(folder / f"{n}.csv" for n in files))
-    nanoseconds = read_timed_csv(*(tmp_path / f"{n}.csv" for n in files))
+    # one step for both: the commands' median interval read in whole nanoseconds differs in its 10th digit
+    seconds = read_timed_csv(*(folder / f"{n}.csv" for n in files), dt_s=1.0 / 30.0)
+    nanoseconds = read_timed_csv(*(tmp_path / f"{n}.csv" for n in files), dt_s=1.0 / 30.0)
     assert "t_ns" in (tmp_path / "commands.csv").read_text().splitlines()[0]
     assert nanoseconds.t0_s == pytest.approx(seconds.t0_s, abs=1e-9)
     np.testing.assert_array_equal(nanoseconds.data.step_commands, seconds.data.step_commands)
@@ -596,7 +597,7 @@ def test_mrclams_files_as_timed_csv_read_as_io_mrclam_reads_them(tmp_path):
     )
     _write(tmp_path / "l.csv", {"id": marks[:, 0], "x_m": marks[:, 1], "y_m": marks[:, 2]})
     _write(tmp_path / "t.csv", {"t_s": gt[:, 0], "x_m": gt[:, 1], "y_m": gt[:, 2], "theta_rad": gt[:, 3]})
-    tl = read_timed_csv(tmp_path / "c.csv", tmp_path / "s.csv", tmp_path / "l.csv", tmp_path / "t.csv")
+    tl = read_timed_csv(*(tmp_path / f"{n}.csv" for n in "cslt"), dt_s=1.0 / 30.0)  # convert mrclam's step
     ml = read_mrclam(folder, 1)
     a, b = tl.data, ml.data
     assert tl.t0_s == ml.t0_s and a.n_steps == b.n_steps
@@ -686,3 +687,20 @@ def test_the_clocks_origin_moves_no_row_to_another_step():
     _, held = held_on_grid(times, np.array([[1.0], [2.0], [3.0]]), dt)
     assert held[:, 0].tolist() == [1.0, 1.0, 1.0, 2.0, 2.0, 2.0, 3.0]
     assert nearest_steps(np.array([0.05, 0.15]), 0.0, dt, 7)[0].tolist() == [2, 5]
+
+
+def test_the_step_defaults_to_the_commands_median_interval(timed, tmp_path):
+    """Without --dt the grid steps at the commands' median interval (the controller's rate), whatever it
+    is: the same files with every command row's time stretched threefold step at three times the run's
+    step; commands all at one time have no rate and are refused by name."""
+    run, folder = timed
+    files = ("commands", "sightings", "landmarks")
+    plain = read_timed_csv(*(folder / f"{n}.csv" for n in files))
+    assert plain.data.dt_s == pytest.approx(run.config.dt_s)
+    table = read_numeric_csv(folder / "commands.csv")
+    _write(tmp_path / "commands.csv", {**table, "t_s": T0 + 3.0 * (table["t_s"] - T0)})
+    slow = read_timed_csv(tmp_path / "commands.csv", folder / "sightings.csv", folder / "landmarks.csv")
+    assert slow.data.dt_s == pytest.approx(3.0 * run.config.dt_s)
+    _write(tmp_path / "same.csv", {**table, "t_s": np.full(table["t_s"].size, T0)})
+    with pytest.raises(LogFormatError, match="same time"):
+        read_timed_csv(tmp_path / "same.csv", folder / "sightings.csv", folder / "landmarks.csv")

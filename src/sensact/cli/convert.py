@@ -112,8 +112,13 @@ def convert_csv(
     ] = None,
     out: Annotated[Path, typer.Option("--out", help="The log folder to write.")] = Path("robot_log"),
     dt: Annotated[
-        float, typer.Option(help="Step (s), 1/30 by default; commands are held between their rows.", show_default=False)
-    ] = (1.0 / 30.0),
+        float | None,
+        typer.Option(
+            help="Step (s); by default the commands' median interval (the controller's rate). Commands are held "
+            "between their rows.",
+            show_default=False,
+        ),
+    ] = None,
 ) -> None:
     """Write your robot's own timed CSV files as an EM log folder.
 

@@ -2,7 +2,8 @@
 
 A robot's records are rarely on one clock tick: commands are sent when the controller decides, a camera
 reads when it has a frame, motion capture samples at its own rate. Four CSV files with a header row,
-times in seconds on one clock, in any order, become a planar ``LandmarkLog`` on a fixed step:
+times in seconds on one clock, in any order, become a planar ``LandmarkLog`` on a fixed step (by
+default the commands' median interval):
 
 * ``commands.csv``: ``t_s`` and one column per command (e.g. ``v_m_s``, ``omega_rad_s``), a row whenever
   a command was sent. Each is held until the next row (a zero-order hold) on the grid from the first
@@ -14,9 +15,10 @@ times in seconds on one clock, in any order, become a planar ``LandmarkLog`` on 
   counted.
 * ``landmarks.csv``: ``id``, ``x``, ``y``: the map. An id is a number or a name (``post_A``, ``tag17``);
   ``4`` and ``4.0`` are the same landmark, and the log keeps each id as the landmark's name.
-* ``truth.csv`` (optional, for scoring only): ``t_s``, ``x``, ``y``, ``theta``, interpolated onto the grid.
-  ``theta`` is the usual robotics heading (ROS REP 103, MRCLAM: 0 facing world +x, counterclockwise,
-  the robot driving along its own +x) and is turned into sensact's frame.
+* ``truth.csv`` (optional, for scoring only): ``t_s``, ``x``, ``y`` and optionally ``theta``, interpolated
+  onto the grid. ``theta`` is the usual robotics heading (ROS REP 103, MRCLAM: 0 facing world +x,
+  counterclockwise, the robot driving along its own +x) and is turned into sensact's frame; without it
+  the truth's heading is NaN and the scores that need it are skipped (``score_against_positions``).
 
 Units follow the column names' suffixes: ``_m`` and ``_m_s`` become ``_mm`` and ``_mm_s`` (times 1000:
 EM's defaults are in mm; ``_cm`` and ``_cm_s`` times 10), ``_deg`` and ``_deg_s`` become ``_rad`` and
@@ -189,8 +191,24 @@ def _id_order(label: str) -> tuple[int, float, str]:
         return (1, 0.0, label)
 
 
-def _read_commands(path: Path, dt_s: float) -> tuple[np.ndarray, tuple[str, ...], float, np.ndarray]:
-    """commands.csv: its sorted times, the command names, and the commands held on the step grid from t0."""
+def commands_step(path: Path, t_cmd: np.ndarray) -> float:
+    """The step a robot's commands come at: the median interval between successive command rows (a
+    controller's rate; repeated times left out)."""
+    gaps = np.diff(t_cmd)
+    gaps = gaps[gaps > 0]
+    if gaps.size == 0:
+        raise LogFormatError(
+            "every command row has the same time, so there is no rate to step at.",
+            file=path,
+            field="t_s",
+            fix="give the whole run's commands, or a step with --dt.",
+        )
+    return float(np.median(gaps))
+
+
+def _read_commands(path: Path, dt_s: float | None) -> tuple[np.ndarray, tuple[str, ...], float, np.ndarray, float]:
+    """commands.csv: its sorted times, the command names, the commands held on the step grid from t0, and
+    the step (``dt_s``, or with None the commands' median interval)."""
     cmd = _table(path, ("t_s",), "commands.csv", "t_s and one column per command")
     names = tuple(c for c in cmd if c != "t_s")
     if not names:
@@ -200,6 +218,8 @@ def _read_commands(path: Path, dt_s: float) -> tuple[np.ndarray, tuple[str, ...]
     _finite(path, cmd, ("t_s", *names), "every row needs a time and a value in each command column.")
     order = np.argsort(cmd["t_s"], kind="stable")
     t_cmd = cmd["t_s"][order]
+    if dt_s is None:
+        dt_s = commands_step(path, t_cmd)
     if t_cmd[-1] - t_cmd[0] < dt_s:
         raise LogFormatError(
             f"the commands span {t_cmd[-1] - t_cmd[0]:.3g} s, less than one step of {dt_s:.3g} s.",
@@ -217,7 +237,7 @@ def _read_commands(path: Path, dt_s: float) -> tuple[np.ndarray, tuple[str, ...]
             fix="if the times are not seconds, name the column t_ms, t_us or t_ns; else give one run or a larger --dt.",
         )
     t0, held = held_on_grid(t_cmd, np.column_stack([cmd[c][order] for c in names]), dt_s)
-    return t_cmd, names, t0, held
+    return t_cmd, names, t0, held, dt_s
 
 
 def _read_landmarks(path: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -266,13 +286,14 @@ def read_timed_csv(
     landmarks: str | Path,
     truth: str | Path | None = None,
     *,
-    dt_s: float = 1.0 / 30.0,
+    dt_s: float | None = None,
 ) -> TimedLog:
-    """The four files (see the module docstring) as a planar, continuous-command ``LandmarkLog``."""
+    """The four files (see the module docstring) as a planar, continuous-command ``LandmarkLog`` on a step
+    of ``dt_s`` (None: the commands' median interval, the rate the robot's controller ran at)."""
     commands, sightings, landmarks = Path(commands), Path(sightings), Path(landmarks)
-    if not (np.isfinite(dt_s) and dt_s > 0):
+    if dt_s is not None and not (np.isfinite(dt_s) and dt_s > 0):
         raise LogFormatError(f"dt = {dt_s} is not a step.", field="dt", fix="give a step in seconds, e.g. 0.0333.")
-    t_cmd, names, t0, held = _read_commands(commands, dt_s)
+    t_cmd, names, t0, held, dt_s = _read_commands(commands, dt_s)
     T = len(held)
     landmarks_mm, ids = _read_landmarks(landmarks)
     t_obs, seen_id, readings, values, bearing = _read_sightings(sightings)
@@ -324,9 +345,23 @@ def read_timed_csv(
 def _truth_on_grid(path: Path, grid: np.ndarray) -> tuple[dict[str, np.ndarray], str | None]:
     """The truth's poses on ``grid`` in sensact's frame, and a doubt about its heading, judged on the
     rows as written (degrees would be bent by the unwrapping before the grid)."""
-    tr, sources = table_and_sources(
-        path, ("t_s", "x_mm", "y_mm", "theta_rad"), "truth.csv", "t_s, x_m, y_m and theta_rad"
-    )
+    tr, sources = table_and_sources(path, ("t_s", "x_mm", "y_mm"), "truth.csv", "t_s, x_m, y_m and theta_rad")
+    if "theta_rad" not in tr:  # positions alone (a UWB or GNSS truth): scored without heading
+        _finite(path, tr, ("t_s", "x_mm", "y_mm"), "drop rows where the truth lost the robot.")
+        if len(tr["t_s"]) < 2:
+            raise LogFormatError("one row cannot be interpolated.", file=path, field="t_s", fix="give the whole run.")
+        order = np.argsort(tr["t_s"], kind="stable")
+        t = tr["t_s"][order]
+        on_grid = pose_truth_on_grid(
+            grid,
+            t,
+            tr["x_mm"][order],
+            tr["y_mm"][order],
+            np.zeros(t.size),
+            max_gap_s=max(MIN_TRUTH_GAP_S, 5.0 * float(np.median(np.diff(t)))),
+        )
+        on_grid["theta_rad"] = np.full(grid.size, np.nan)
+        return on_grid, None
     in_degrees = sources["theta_rad"] == "theta_deg"  # the warning's fix is then written in the file's degrees
     _finite(path, tr, ("t_s", "x_mm", "y_mm", "theta_rad"), "drop rows where the truth lost the robot.")
     if len(tr["t_s"]) < 2:
