@@ -165,6 +165,23 @@ def test_a_range_only_start_metres_off_runs_again_from_where_em_moved_it():
     assert offset["median_mm"] < 30.0
 
 
+def test_a_range_only_start_metres_and_radians_off_races_its_heading_where_em_moved_it():
+    """Seeded recovery (given_start.py, fit.headings_at): the given start 3.2 m off and its heading 2 rad
+    off (a UWB robot's log, whose start nobody wrote down). EM moves the start near the true position;
+    the ranges cannot tell the heading, so EM races eight headings there and goes on from the winner,
+    which finds the robot's model, kept as the more likely."""
+    run = simulate_diffdrive(DiffDriveConfig(seconds=300, seed=1, sensor="radio"))
+    cfg = replace(range_only_config(COMMAND_NAMES, (-1000.0, 3000.0, 2.0)), max_iterations=600)
+    res = fit_em(run.log(), config=cfg)
+    moved = res.start_moved
+    assert moved["kept"] == "again" and len(moved["heading_race"]["headings_rad"]) == 8
+    assert abs(wrap_angle(res.model.prior_mean[2] - run.poses[0, 2])) < 0.2
+    m, truth = res.model, run.config
+    assert m.action.coefficients[2, 2] == pytest.approx(truth.turn_gain, rel=0.03)
+    offset = path_offset(res.posteriors.mean_gamma, run.poses, np.ones(len(run.poses)))
+    assert offset["median_mm"] < 60.0
+
+
 def test_simulate_a_radio_robot_then_learn_and_score_it_without_a_bearing(tmp_path):
     """`simulate diffdrive --set sensor=radio` writes a log without bearings and settings that start where
     the robot was put; `learn em --out` scores it with no bearing row, bar or figure (a traceback before)."""
@@ -182,8 +199,9 @@ def test_simulate_a_radio_robot_then_learn_and_score_it_without_a_bearing(tmp_pa
     assert res.exit_code == 0, res.output
     assert "Traceback" not in res.output and "bearing" not in res.output.split("against ground truth")[1]
     ev = json.loads(model.read_text())["evaluation"]
-    assert ev["bearing"] is None and ev["sensor_mount"] is None
-    assert ev["bars"] == bar_checks(ev) and "bearing_sigma" not in ev["bars"] and len(ev["bars"]) == 4
+    assert ev["bearing"] is None and ev["sensor_mount"]["fitted_to_truth"] is None  # no bearings to fit it by
+    assert set(ev["sensor_mount"]["learned"]) == {"forward_mm", "left_mm", "yaw_rad"}
+    assert ev["bars"] == bar_checks(ev) and "bearing_sigma" not in ev["bars"] and len(ev["bars"]) == 6
     assert "bearing_sigma_rad" not in ev["simulated"]
     assert sorted(p.name for p in tmp_path.glob("m_*.png")) == ["m_actions.png", "m_heading_noise.png", "m_range.png"]
     # the library's score agrees, and a camera's model on this log has no bearing to be scored on either
@@ -193,7 +211,7 @@ def test_simulate_a_radio_robot_then_learn_and_score_it_without_a_bearing(tmp_pa
     from sensact.models.em_model import EMModel
 
     sc = score_against_truth(EMModel.from_dict(learned), lf.data, poses, valid)
-    assert sc["bearing"] is None and set(bar_checks(sc)) == set(ev["bars"])
+    assert sc["bearing"] is None and set(bar_checks(sc)) == set(ev["bars"]) - {"path_median"}  # no path given
     # `evaluate log` and `evaluate fleet` score it too (the fleet cell without a bearing ratio)
     res = runner.invoke(app, ["evaluate", "log", str(log), "--model", str(model), "--out", str(tmp_path / "e.json")])
     assert res.exit_code == 0, res.output
@@ -225,3 +243,49 @@ def test_simulate_a_radio_robot_then_learn_and_score_it_without_a_bearing(tmp_pa
         else:
             assert res.exit_code == 0, res.output
             assert "where each sighting read a bearing too: not comparable" in said
+
+
+def test_a_truth_of_positions_alone_converts_learns_and_is_scored_without_heading(tmp_path):
+    """A UWB robot's truth often has no heading: `convert csv` takes a truth.csv of t_s, x_m, y_m, and
+    `learn em` scores what positions can score. The translation on each window's chord, From-Truth
+    fitted to the same chords (an exact reduction: the true model's chords are the truth's but for the
+    motion noise), the range against the truth's distances, the path; the rotation, the bearing and the
+    sensor's pose are not scored, and the JSON says so."""
+    sim = DiffDriveConfig(sensor="radio", seconds=200.0, seed=3)
+    run = simulate_diffdrive(sim)
+    d = run.log()
+    t = np.arange(d.n_steps) * sim.dt_s
+    timed = tmp_path / "timed"
+    timed.mkdir()
+
+    def write(name, header, cols):
+        np.savetxt(timed / name, np.column_stack(cols), delimiter=",", header=header, comments="")
+
+    write("commands.csv", "t_s,v_m_s,omega_rad_s", [t, d.step_commands[:, 0] / 1000, d.step_commands[:, 1]])
+    write("sightings.csv", "t_s,landmark_id,range_m", [t[d.obs_step], d.obs_landmark, d.obs_readings[:, 0] / 1000])
+    write("landmarks.csv", "id,x_m,y_m", [np.arange(len(d.landmarks_xy)), d.landmarks_xy / 1000])
+    write("truth.csv", "t_s,x_m,y_m", [t, run.poses[:, :2] / 1000])
+    files = [f"--{n}={timed / (n + '.csv')}" for n in ("commands", "sightings", "landmarks", "truth")]
+    res = runner.invoke(
+        app,
+        ["convert", "csv", *files, "--out", str(tmp_path / "log")],
+    )
+    assert res.exit_code == 0, res.output
+    lf = read_landmark_log(tmp_path / "log")
+    assert lf.data.dt_s == pytest.approx(sim.dt_s)  # the commands' own rate
+    assert np.isnan(lf.truth_poses()[0][:, 2]).all()
+    out = tmp_path / "m.json"
+    res = runner.invoke(app, ["learn", "em", str(tmp_path / "log"), "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    ev = json.loads(out.read_text())["evaluation"]
+    assert ev["no_heading"] and ev["bearing"] is None and ev["truth_noise"] is None
+    assert ev["action"]["ratio_rotation"] is None and ev["sensor_mount"]["fitted_to_truth"] is None
+    assert set(ev["bars"]) == {
+        "action_translation_ratio",
+        "action_translation_abs",
+        "range_sigma",
+        "range_function",
+        "path_median",
+    }
+    assert all(ev["bars"].values()), ev["bars"]
+    assert 0.9 < ev["action"]["ratio_translation"] < 1.3 and ev["path"]["median_mm"] < 60.0

@@ -16,6 +16,7 @@ from sensact.core.pose_models import (
     observe_height,
     predict,
     relative_displacement,
+    sensor_poses,
 )
 
 COEF = np.array([14.0, -6.0, 2.0, -0.5])
@@ -71,21 +72,39 @@ def test_displacement_jacobian():
     assert rng is not None
 
 
-def test_observation_jacobians_and_convention():
+@pytest.mark.parametrize("mount", [(0.0, 0.0, 0.0), (220.0, 40.0, np.deg2rad(2.0)), (-90.0, -35.0, -0.3)])
+def test_observation_jacobians_and_convention(mount):
+    """Readings are predicted from the sensor's pose (at ``mount`` on the robot): the compiled forms
+    agree with the vectorized ones at the sensor's pose, and their gradients in the robot's pose with
+    finite differences."""
+    mount = np.array(mount)
     w = np.array([300.0, -200.0, 0.4])
     lx, ly = 1350.0, 1950.0
     H = np.zeros(3)
-    r = landmark_distance(w, np.array([lx, ly]))[0]
+    at = sensor_poses(w, mount)
+    r = landmark_distance(at, np.array([lx, ly]))[0]
     u = (r - CENTER) / SCALE
     for gain in (0.0, -0.03):  # a bearing term adds gain * d to the reading
-        h = observe_height(PLANAR, w, lx, ly, COEF, CENTER, SCALE, gain, H)
-        Hn = _num_jac(lambda x, g=gain: observe_height(PLANAR, x, lx, ly, COEF, CENTER, SCALE, g, np.zeros(3)), w)
+        h = observe_height(PLANAR, w, lx, ly, COEF, CENTER, SCALE, gain, mount, H)
+        Hn = _num_jac(
+            lambda x, g=gain: observe_height(PLANAR, x, lx, ly, COEF, CENTER, SCALE, g, mount, np.zeros(3)), w
+        )
         np.testing.assert_allclose(H, Hn[0], rtol=1e-6, atol=1e-9)
         assert h == pytest.approx(np.polyval(COEF[::-1], u) + gain * r)
-    b = observe_bearing(w, lx, ly, H)
-    Hn = _num_jac(lambda x: observe_bearing(x, lx, ly, np.zeros(3)), w)
+    b = observe_bearing(w, lx, ly, mount, H)
+    Hn = _num_jac(lambda x: observe_bearing(x, lx, ly, mount, np.zeros(3)), w)
     np.testing.assert_allclose(H, Hn[0], rtol=1e-6, atol=1e-12)
-    assert b == pytest.approx(landmark_bearing(w, np.array([lx, ly]))[0])
+    assert b == pytest.approx(landmark_bearing(at, np.array([lx, ly]))[0])
     # theta = 0 faces +y: a landmark straight ahead has bearing 0, one to the left +pi/2
     assert landmark_bearing(np.zeros(3), np.array([0.0, 1000.0]))[0] == pytest.approx(0.0)
     assert landmark_bearing(np.zeros(3), np.array([-1000.0, 0.0]))[0] == pytest.approx(np.pi / 2)
+
+
+def test_sensor_poses_convention():
+    """A sensor 100 mm forward and 20 mm left on a robot facing world +y (theta = 0) sits at x -20, y 100;
+    turned a quarter counterclockwise (facing -x) at x -100, y -20; a zero mount is the pose itself."""
+    mount = np.array([100.0, 20.0, 0.1])
+    np.testing.assert_allclose(sensor_poses(np.zeros(3), mount)[0], [-20.0, 100.0, 0.1], atol=1e-12)
+    np.testing.assert_allclose(sensor_poses(np.array([0, 0, np.pi / 2]), mount)[0], [-100.0, -20.0, np.pi / 2 + 0.1])
+    w = np.array([[1.0, 2.0, 3.0]])
+    assert sensor_poses(w, np.zeros(3)) is not None and np.array_equal(sensor_poses(w, np.zeros(3)), w)

@@ -96,14 +96,18 @@ def test_path_offset_reads_a_shift_in_the_truths_robot_frame():
     _, poses = simulate_continuous(2, T=600)
     valid = np.ones(len(poses), dtype=bool)
     valid[::7] = False
-    assert path_offset(poses, poses, valid) == pytest.approx(
-        {"median_mm": 0.0, "right_median_mm": 0.0, "forward_median_mm": 0.0}, abs=1e-9
+    same = path_offset(poses, poses, valid)
+    assert [same[k] for k in ("median_mm", "median_raw_mm", "right_median_mm", "forward_median_mm")] == pytest.approx(
+        [0.0] * 4, abs=1e-9
     )
     shifted = apply_displacement(poses, np.broadcast_to([30.0, 80.0, 0.0], poses.shape))
     shifted[~valid] = 1e9
     off = path_offset(shifted, poses, valid)
     assert off["right_median_mm"] == pytest.approx(30.0) and off["forward_median_mm"] == pytest.approx(80.0)
-    assert off["median_mm"] == pytest.approx(math.hypot(30.0, 80.0))
+    assert off["median_raw_mm"] == pytest.approx(math.hypot(30.0, 80.0))
+    # one fixed offset explains it whole: the truth's point 80 mm behind and 30 mm left of the path's
+    assert off["median_mm"] == pytest.approx(0.0, abs=1e-6)
+    assert off["fitted_offset"] == pytest.approx({"forward_mm": -80.0, "left_mm": 30.0})
 
 
 def test_truth_restart_starts_from_from_truths_range_function_and_the_true_start(continuous_fit):
@@ -156,10 +160,12 @@ def test_truth_residuals_are_taken_at_the_sensor():
     assert b["truth_origin_sigma_ratio"] == pytest.approx(model.sensor.sigma_bearing_rad / b["truth_origin_sigma_rad"])
     plain = score_against_truth(model, data, poses, valid, fit_mount=False)
     assert plain["bearing"]["sigma_truth_rad"] == plain["bearing"]["truth_origin_sigma_rad"]
-    assert plain["sensor_mount"] == {"lateral_mm": 0.0, "forward_mm": 0.0, "yaw_rad": 0.0}
+    assert plain["sensor_mount"]["fitted_to_truth"] == {"forward_mm": 0.0, "left_mm": -0.0, "yaw_rad": 0.0}
+    assert plain["sensor_mount"]["learned"] == model.sensor.mount.to_dict()
     with console.capture() as out:  # what `learn em` and `evaluate mrclam` print of it
         print_truth_score(sc)
-    assert f"sensor pose on the robot, fitted to the truth: {m['forward_mm']:.0f} mm forward" in out.get()
+    printed = " ".join(out.get().split())
+    assert f"sensor pose fitted to the truth (from the truth's point): {m['forward_mm']:.0f} mm forward" in printed
     # the learned Sigma_m's translational random walk over the 30-step windows, beside the truth's miss
     n = sc["truth_noise"]
     assert n["learned_translation_drift_mm"] == pytest.approx(math.sqrt(30) * model.motion_sd[0, :2])

@@ -99,7 +99,7 @@ def evaluate_log_cmd(
     if out is not None:
         write_result(out, sc)
         written = [out]
-        if "truth_noise" in sc:  # scored against recorded poses: the figures too
+        if sc.get("truth_noise"):  # scored against recorded poses (with their heading): the figures too
             from sensact.report.figures_real import write_robot
 
             written += write_robot(lf, m, sc, out.with_suffix(""), lf.title(log), truth="ground truth")

@@ -167,7 +167,7 @@ def localize_cmd(
     override them. Only the start search, the start's spread and the first-iteration gate are used."""
     import numpy as np
 
-    from sensact.cli.learn.em import write_smoothed_path
+    from sensact.cli.base import write_smoothed_path
     from sensact.cli.model_on_log import read_model_and_log
 
     doc, m, data, lf, truth_mm = read_model_and_log(log, model, bins, use="run")

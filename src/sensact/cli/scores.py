@@ -21,6 +21,12 @@ def print_em_model(m: Any) -> None:
     sb = m.sensor.sigma_bearing_rad
     if sb:
         console.print(f"  bearing sigma_2 = {sb:.4g} rad")
+    mount = m.sensor.mount
+    if m.geometry == "planar":
+        console.print(
+            f"  sensor mount: {mount.forward_mm:.1f} mm forward, {mount.left_mm:.1f} mm left, "
+            f"yaw {mount.yaw_rad:+.4f} rad"
+        )
     console.print("  Sigma_m (sd per step): " + "; ".join(", ".join(f"{x:.4g}" for x in row) for row in m.motion_sd))
     if m.turn_var is not None:
         console.print(f"  heading variance per step grows by {m.turn_var:.4g} rad^2 per rad/s of turning")
@@ -95,6 +101,7 @@ def print_simulated_score(model: Any, truth: dict[str, Any], dt_s: float) -> dic
 
     s = score_against_simulated(model, truth, dt_s)
     sd, sd_true = s["motion_sd_per_step"]
+    mount = s["sensor_mount"]
     console.print(
         "vs the simulated model (learned / true): "
         f"forward gain {s['forward_gain'][0]:.3f} / {s['forward_gain'][1]:.3f}, "
@@ -109,7 +116,10 @@ def print_simulated_score(model: Any, truth: dict[str, Any], dt_s: float) -> dic
             else ""
         )
         + f"; Sigma_m per step sideways {sd[0]:.2f} / {sd_true[0]:.2f} mm, forward {sd[1]:.2f} / {sd_true[1]:.2f} mm, "
-        f"heading {sd[2]:.4f} / {sd_true[2]:.4f} rad"
+        f"heading {sd[2]:.4f} / {sd_true[2]:.4f} rad; sensor mount "
+        + " / ".join(
+            f"{m['forward_mm']:.0f} mm forward, {m['left_mm']:.0f} mm left, yaw {m['yaw_rad']:+.4f}" for m in mount
+        )
     )
     return s
 
@@ -164,6 +174,8 @@ def truth_noise_line(sc: dict[str, Any], *, reads_bearing: bool) -> str:
 
 
 def print_truth_score(sc: dict[str, Any]) -> None:
+    import numpy as np
+
     from sensact.experiments.real import BARS, bar_checks
     from sensact.report.tables import bars_sentence
 
@@ -184,20 +196,21 @@ def print_truth_score(sc: dict[str, Any]) -> None:
         f"{a['ratio_translation']:.2f}",
         mark("action_translation_ratio", "action_translation_abs"),
     )
-    t.add_row(
-        "rotation RMS (rad/s)",
-        f"{la['rotation_rms_rad_s']:.4f}",
-        f"{fa['rotation_rms_rad_s']:.4f}",
-        f"{a['ratio_rotation']:.2f}",
-        mark("action_rotation_ratio"),
-    )
+    if a["ratio_rotation"] is not None:  # None: a truth without heading
+        t.add_row(
+            "rotation RMS (rad/s)",
+            f"{la['rotation_rms_rad_s']:.4f}",
+            f"{fa['rotation_rms_rad_s']:.4f}",
+            f"{a['ratio_rotation']:.2f}",
+            mark("action_rotation_ratio"),
+        )
     t.add_row("command delay (s)", f"{a['learned_delay_s']:.3f}", f"{a['from_truth_delay_s']:.3f}", "", "")
     t.add_row(
         "range residual RMS (mm)",
         f"{r['learned_residual_rms_mm']:.1f}",
         f"{r['from_truth_residual_rms_mm']:.1f}",
         f"f gap {r['learned_vs_from_truth_rms_mm']:.1f} mm",
-        "",
+        mark("range_function"),
     )
     t.add_row(
         "range sigma (mm)",
@@ -211,21 +224,30 @@ def print_truth_score(sc: dict[str, Any]) -> None:
             "bearing sigma (rad)",
             f"{b['sigma_learned_rad']:.4f}",
             f"{b['sigma_truth_rad']:.4f}",
-            f"{b['sigma_ratio']:.2f}",
+            f"{b['sigma_ratio']:.2f} ({b.get('sigma_ratio_truth_heading_removed', np.nan):.2f} without the "
+            "truth's heading error)",
             mark("bearing_sigma"),
         )
     console.print(t)
     console.print(f"bar: {bars_sentence(BARS)} (docs/em-real.md)")
     if sc.get("truth_noise"):
         console.print(truth_noise_line(sc, reads_bearing=b is not None))
-    m = sc.get("sensor_mount")
+    m = (sc.get("sensor_mount") or {}).get("fitted_to_truth")
+    learned = (sc.get("sensor_mount") or {}).get("learned")
+    if learned:
+        console.print(
+            f"sensor mount learned (from EM's point): {learned['forward_mm']:.0f} mm forward, "
+            f"{learned['left_mm']:.0f} mm left, yaw {learned['yaw_rad']:+.4f} rad"
+        )
     if m:
         console.print(
-            f"sensor pose on the robot, fitted to the truth: {m['forward_mm']:.0f} mm forward, "
-            f"{m['lateral_mm']:.0f} mm to the right, yaw {m['yaw_rad']:+.4f} rad (counterclockwise); "
+            f"sensor pose fitted to the truth (from the truth's point): {m['forward_mm']:.0f} mm forward, "
+            f"{m['left_mm']:.0f} mm left, yaw {m['yaw_rad']:+.4f} rad (counterclockwise); "
             f"at the truth's origin instead the bearing residual is {b['truth_origin_sigma_rad']:.4f} rad RMS "
             f"(mean {b['truth_origin_mean_rad']:+.4f}; learned sigma / it {b['truth_origin_sigma_ratio']:.2f})"
         )
+    if sc.get("no_heading"):
+        console.print(f"[yellow]note:[/] {sc['no_heading']}", highlight=False)
     if sc.get("truth_heading_doubt"):
         console.print(f"[yellow]warning:[/] {sc['truth_heading_doubt']}", highlight=False)
     if "bars" in sc:
@@ -253,17 +275,18 @@ def evaluate_em(lf: Any, model: Any, *, learned_here: bool = False, path: Any = 
                 raise
             console.print(f"not scored against the recorded poses: {exc}", highlight=False)
             return None
-        sc["bars"] = bar_checks(sc)
-        print_truth_score(sc)
         if path is not None:
             from sensact.evaluate.landmark_truth import path_offset
 
             sc["path"] = path_offset(np.asarray(path), *recorded)
-            p = sc["path"]
+        sc["bars"] = bar_checks(sc)
+        print_truth_score(sc)
+        if path is not None:
+            p, o = sc["path"], sc["path"]["fitted_offset"] or {"forward_mm": np.nan, "left_mm": np.nan}
             console.print(
-                f"smoothed path off the recorded poses: median {p['median_mm']:.0f} mm (forward "
-                f"{p['forward_median_mm']:+.0f} mm, right {p['right_median_mm']:+.0f} mm; metres off means EM "
-                "lost the robot: docs/em-real-results.md, Short logs)"
+                f"smoothed path off the recorded poses: median {p['median_mm']:.0f} mm after the truth's point is "
+                f"placed {o['forward_mm']:+.0f} mm forward and {o['left_mm']:+.0f} mm left of EM's (median "
+                f"{p['median_raw_mm']:.0f} mm before; metres off means EM lost the robot)"
             )
         simulated = lf.meta.get("truth") or {}
         if simulated.get("kind") == "diffdrive":

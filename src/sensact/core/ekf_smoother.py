@@ -210,6 +210,7 @@ def _compiled_for(n_state: int):
         window_lo,
         window_hi,
         var_bearing,
+        mount,
         robust_kind,
         robust_param,
         prune_rad_per_step,
@@ -270,6 +271,18 @@ def _compiled_for(n_state: int):
         Lj = np.zeros((C + 1, C + 1))
         yj = np.zeros(C + 1)
         for t in range(T):
+            if prune_rad_per_step > 0.0 and mode == 0:
+                # sec. 4.4.1's gate, per frame: every sighting of step t is judged against the same
+                # prediction, and k counts the steps since the last step with a kept sighting (read per
+                # sighting, the 2nd..nth sightings of a frame would have k = 0 and all be dropped)
+                steps = t - last_obs if last_obs >= 0 else t + 1
+                for k in range(obs_ptr[t], obs_ptr[t + 1]):
+                    if obs_use[k] and np.isfinite(obs_bearing[k]):
+                        lx = landmarks[obs_landmark[k], 0]
+                        ly = landmarks[obs_landmark[k], 1]
+                        nu = wrap(obs_bearing[k] - observe_bearing(m, lx, ly, mount, H))
+                        if abs(nu) > prune_rad_per_step * steps:
+                            obs_use[k] = False
             for k in range(obs_ptr[t], obs_ptr[t + 1]):
                 for c in range(C + 1):
                     weights[k, c] = 0.0
@@ -278,18 +291,9 @@ def _compiled_for(n_state: int):
                 lx = landmarks[obs_landmark[k], 0]
                 ly = landmarks[obs_landmark[k], 1]
                 has_b = mode == 0 and np.isfinite(obs_bearing[k])
-                if prune_rad_per_step > 0.0 and has_b:
-                    nu = wrap(obs_bearing[k] - observe_bearing(m, lx, ly, H))
-                    # sec. 4.4.1's k as written: steps since the previous sighting kept, so a second sighting
-                    # in the same frame has k = 0 and is dropped unless its innovation is exactly 0 (on
-                    # MRCLAM this keeps one sighting per frame; docs/em-real-results.md, "Known limits")
-                    steps = t - last_obs if last_obs >= 0 else t + 1
-                    if abs(nu) > prune_rad_per_step * steps:
-                        obs_use[k] = False
-                        continue
                 last_obs = t
                 n_used += 1
-                dist = landmark_range(mode, m, lx, ly)  # the windows are judged once, at the prediction
+                dist = landmark_range(mode, m, lx, ly, mount)  # the windows are judged once, at the prediction
                 w_joint = 1.0
                 if joint_param > 0.0:
                     # the sighting's joint readings are one multivariate t, judged at the prediction: a
@@ -301,13 +305,15 @@ def _compiled_for(n_state: int):
                         if c < C:
                             if not np.isfinite(obs_readings[k, c]) or dist < window_lo[c] or dist > window_hi[c]:
                                 continue
-                            f_c = observe_height(mode, m, lx, ly, coefs[c], centers[c], scales[c], obs_gain[k, c], H)
+                            f_c = observe_height(
+                                mode, m, lx, ly, coefs[c], centers[c], scales[c], obs_gain[k, c], mount, H
+                            )
                             ej[d] = obs_readings[k, c] - f_c
                             rj[d] = reading_var[c]
                         else:
                             if not has_b:
                                 continue
-                            ej[d] = wrap(obs_bearing[k] - observe_bearing(m, lx, ly, H))
+                            ej[d] = wrap(obs_bearing[k] - observe_bearing(m, lx, ly, mount, H))
                             rj[d] = var_bearing
                         for i in range(n):
                             Hj[d, i] = H[i]
@@ -325,7 +331,7 @@ def _compiled_for(n_state: int):
                             continue
                         if not np.isfinite(obs_readings[k, c]) or dist < window_lo[c] or dist > window_hi[c]:
                             continue
-                        f_c = observe_height(mode, m, lx, ly, coefs[c], centers[c], scales[c], obs_gain[k, c], H)
+                        f_c = observe_height(mode, m, lx, ly, coefs[c], centers[c], scales[c], obs_gain[k, c], mount, H)
                         nu = obs_readings[k, c] - f_c
                         if joint_round:
                             w = w_joint
@@ -336,7 +342,7 @@ def _compiled_for(n_state: int):
                             weights[k, c] = w
                             _scalar_update(m, P, H, nu, reading_var[c] / w, n, PH, K, A, tmp, tmp2)
                     if has_b and (robust_kind[C] == STUDENT_T_JOINT) == joint_round:
-                        nu = wrap(obs_bearing[k] - observe_bearing(m, lx, ly, H))
+                        nu = wrap(obs_bearing[k] - observe_bearing(m, lx, ly, mount, H))
                         if joint_round:
                             w = w_joint
                         else:
@@ -414,11 +420,11 @@ def _compiled_for(n_state: int):
                         continue
                     if c < C:
                         nu = obs_readings[k, c] - observe_height(
-                            mode, mref, lx, ly, coefs[c], centers[c], scales[c], obs_gain[k, c], H
+                            mode, mref, lx, ly, coefs[c], centers[c], scales[c], obs_gain[k, c], mount, H
                         )
                         r = reading_var[c] / weights[k, c]
                     else:
-                        nu = wrap(obs_bearing[k] - observe_bearing(mref, lx, ly, H))
+                        nu = wrap(obs_bearing[k] - observe_bearing(mref, lx, ly, mount, H))
                         r = var_bearing / weights[k, c]
                     for i in range(n):
                         zd[i] += H[i] * nu / r

@@ -47,6 +47,18 @@ def landmark_bearing(poses: np.ndarray, landmark_xy: np.ndarray) -> np.ndarray:
     return wrap_angle(np.arctan2(d[..., 1], d[..., 0]) - poses[:, 2] - 0.5 * np.pi)
 
 
+def sensor_poses(poses: np.ndarray, mount: np.ndarray) -> np.ndarray:
+    """The sensor's poses on robots at ``poses`` when it sits at ``mount`` = (forward mm, left mm, yaw rad,
+    counterclockwise) in the robot frame: ``w + R(theta) (-left, forward, yaw)`` (sec. 2.5.1's robot frame
+    has x to the right). A zero mount gives the poses back, bit for bit."""
+    poses = np.atleast_2d(np.asarray(poses, dtype=float))
+    fwd, left, yaw = (float(v) for v in mount)
+    if fwd == 0.0 and left == 0.0 and yaw == 0.0:
+        return poses
+    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+    return np.column_stack([poses[:, 0] - c * left - s * fwd, poses[:, 1] - s * left + c * fwd, poses[:, 2] + yaw])
+
+
 def relative_displacement(w1: np.ndarray, w2: np.ndarray, mode: int = PLANAR) -> np.ndarray:
     """``D(w_t, w_t+1) = R(-theta_t)(w_t+1 - w_t)`` with the angle difference wrapped (sec. 4.2)."""
     w1 = np.atleast_2d(w1)
@@ -156,39 +168,55 @@ def displacement(mode, w1, w2, D, G):
 
 
 @njit(cache=True, error_model="numpy")
-def landmark_range(mode, w, lx, ly):
-    """Distance from the state ``w`` to the landmark (on a track, the state itself)."""
-    if mode == TRACK:
-        return w[0]
-    return ((lx - w[0]) ** 2 + (ly - w[1]) ** 2) ** 0.5
+def sensor_point(w, mount):
+    """Where the sensor sits in the world, ``(sx, sy)``, and its position's derivative in theta
+    ``(dsx, dsy)``: ``mount`` = (forward mm, left mm, yaw rad) in the robot frame (x right, y forward)."""
+    c = np.cos(w[2])
+    s = np.sin(w[2])
+    ox = -mount[1]  # to the right
+    oy = mount[0]
+    return w[0] + c * ox - s * oy, w[1] + s * ox + c * oy, -s * ox - c * oy, c * ox - s * oy
 
 
 @njit(cache=True, error_model="numpy")
-def observe_height(mode, w, lx, ly, coef, center, scale, gain, H):
-    """Predicted reading ``f(dist(w)) + gain * dist(w)`` and its gradient ``H`` (eq. 4.19, first
-    component; ``gain`` is the channel's bearing term at the measured bearing, 0 in the thesis)."""
+def landmark_range(mode, w, lx, ly, mount):
+    """Distance from the sensor (at ``mount`` on the robot at ``w``) to the landmark; on a track the state."""
+    if mode == TRACK:
+        return w[0]
+    sx, sy, _, _ = sensor_point(w, mount)
+    return ((lx - sx) ** 2 + (ly - sy) ** 2) ** 0.5
+
+
+@njit(cache=True, error_model="numpy")
+def observe_height(mode, w, lx, ly, coef, center, scale, gain, mount, H):
+    """Predicted reading ``f(dist) + gain * dist`` and its gradient ``H`` in the robot's pose (eq. 4.19,
+    first component; ``gain`` is the channel's bearing term at the measured bearing, 0 in the thesis).
+    ``dist`` is measured from the sensor, at ``mount`` on the robot; a zero mount is eq. 4.19 exactly."""
     if mode == TRACK:
         v, dv = poly_value_slope(coef, center, scale, w[0])
         H[0] = dv + gain
         return v + gain * w[0]
-    dx = lx - w[0]
-    dy = ly - w[1]
+    sx, sy, dsx, dsy = sensor_point(w, mount)
+    dx = lx - sx
+    dy = ly - sy
     r = (dx * dx + dy * dy) ** 0.5
     v, dv = poly_value_slope(coef, center, scale, r)
     dv += gain
     H[0] = -dv * dx / r
     H[1] = -dv * dy / r
-    H[2] = 0.0
+    H[2] = -dv * (dx * dsx + dy * dsy) / r
     return v + gain * r
 
 
 @njit(cache=True, error_model="numpy")
-def observe_bearing(w, lx, ly, H):
-    """Predicted bearing ``ang(w)`` (wrapped) and its gradient ``H`` (eq. 4.19, second component)."""
-    dx = lx - w[0]
-    dy = ly - w[1]
+def observe_bearing(w, lx, ly, mount, H):
+    """Predicted bearing ``ang`` (wrapped) from the sensor at ``mount`` and its gradient ``H`` in the
+    robot's pose (eq. 4.19, second component; a zero mount is the thesis's exactly)."""
+    sx, sy, dsx, dsy = sensor_point(w, mount)
+    dx = lx - sx
+    dy = ly - sy
     r2 = dx * dx + dy * dy
     H[0] = dy / r2
     H[1] = -dx / r2
-    H[2] = -1.0
-    return wrap(np.arctan2(dy, dx) - w[2] - 0.5 * np.pi)
+    H[2] = (dy * dsx - dx * dsy) / r2 - 1.0
+    return wrap(np.arctan2(dy, dx) - w[2] - mount[2] - 0.5 * np.pi)

@@ -84,3 +84,80 @@ def verdict_line(checks: Sequence[BarCheck]) -> str:
     if unscored:
         line += f"; {unscored} not scored on this run"
     return line
+
+
+# The real-data bars (issue 5, issue 73, docs/em-real.md): here, beside the checks they are made of, so
+# that every experiment that scores a robot against its truth reads them from one place
+BARS = {
+    "action_ratio_max": 1.5,
+    "action_translation_max_mm_s": 50.0,
+    "sigma_factor": 1.5,
+    "range_function_max_mm": 30.0,  # learned f against From-Truth's, RMS over the scored sightings
+    "path_median_max_mm": 60.0,  # after the one fixed offset between EM's point and the truth's
+}
+
+
+def robot_checks(sc: dict[str, Any], who: str = "") -> list[BarCheck]:
+    """The real-data bars (issue 5, docs/em-real.md) on a ``score_against_truth`` result: each learned action
+    RMS at most 1.5 times From-Truth's (translation at most 50 mm/s), each sigma within a factor of 1.5
+    of the truth's (no bearing bar for a sensor that reads none). ``who`` ("robot1") prefixes each key and
+    quantity."""
+    a, r, b = sc["action"], sc["range"], sc["bearing"]
+    k, q = (f"{who}.", f"{who}: ") if who else ("", "")
+    most = BARS["action_ratio_max"]
+    checks = [
+        at_most(k + "action_translation_ratio", q + "translation RMS / From-Truth's", a["ratio_translation"], most),
+        *(
+            [at_most(k + "action_rotation_ratio", q + "rotation RMS / From-Truth's", a["ratio_rotation"], most)]
+            if a["ratio_rotation"] is not None  # None: a truth without heading
+            else []
+        ),
+        at_most(
+            k + "action_translation_abs",
+            q + "translation RMS",
+            a["learned"]["translation_rms_mm_s"],
+            BARS["action_translation_max_mm_s"],
+            "mm/s",
+            1,
+        ),
+        within_factor(k + "range_sigma", q + "range sigma / truth's", r["sigma_ratio"], BARS["sigma_factor"]),
+    ]
+    if "learned_vs_from_truth_rms_mm" in r:  # a score from before the learned f was compared
+        checks.append(
+            at_most(
+                k + "range_function",
+                q + "range function off From-Truth's (RMS)",
+                r["learned_vs_from_truth_rms_mm"],
+                BARS["range_function_max_mm"],
+                "mm",
+                1,
+            )
+        )
+    if b is not None:
+        # the truth's own heading error is noise in the reference, not in the camera (issue 73)
+        ratio = b.get("sigma_ratio_truth_heading_removed", b["sigma_ratio"])
+        checks.append(
+            within_factor(
+                k + "bearing_sigma",
+                q + "bearing sigma / truth's, its heading error removed",
+                ratio,
+                BARS["sigma_factor"],
+            )
+        )
+    if sc.get("path") is not None:
+        checks.append(
+            at_most(
+                k + "path_median",
+                q + "path median off the truth",
+                sc["path"]["median_mm"],
+                BARS["path_median_max_mm"],
+                "mm",
+                0,
+            )
+        )
+    return checks
+
+
+def bar_checks(sc: dict[str, Any]) -> dict[str, bool]:
+    """``robot_checks`` as {bar: cleared}."""
+    return {c.key: bool(c.cleared) for c in robot_checks(sc)}

@@ -112,19 +112,41 @@ def at_sensor(poses: np.ndarray, mount: np.ndarray) -> np.ndarray:
     return apply_displacement(poses, np.broadcast_to(np.asarray(mount, dtype=float), poses.shape))
 
 
-def path_offset(path: np.ndarray, truth_poses: np.ndarray, truth_valid: np.ndarray) -> dict[str, float]:
-    """How far a learned ``path`` (one pose per step) is from the truth, at the steps with valid truth:
-    the median distance, and the median offset in the truth's robot frame (right and forward, sec.
-    2.5.1). A path that stays behind the robot by a fixed distance has taken the range function's
-    constant (the forward axis is where the camera looks, so distance and offset trade off there)."""
-    ok = np.asarray(truth_valid, dtype=bool)
+def path_offset(path: np.ndarray, truth_poses: np.ndarray, truth_valid: np.ndarray) -> dict[str, Any]:
+    """How far a learned ``path`` (one pose per step) is from the truth, at the steps with valid truth.
+
+    The point EM tracks (the one the action model describes: a differential drive's axle) need not be
+    the point the truth tracks (a motion-capture marker): one fixed offset in the robot's frame,
+    ``truth_xy = path_xy + R(theta_path) o``, is fitted (``fitted_offset``: forward and left, mm; the
+    median of the truth's point seen from the path, robust to a stretch where the path is lost) and
+    ``median_mm`` is the median distance after it. ``median_raw_mm`` is before, and
+    ``right_median_mm``, ``forward_median_mm`` the median raw offset in the truth's robot frame (sec.
+    2.5.1). A path that stays behind the robot by a fixed distance while the sensor is modelled at the
+    robot's point has taken the range function's constant."""
+    ok = np.asarray(truth_valid, dtype=bool) & np.all(np.isfinite(path), axis=1)
     if not ok.any():
-        return {"median_mm": float("nan"), "right_median_mm": float("nan"), "forward_median_mm": float("nan")}
+        nan = float("nan")
+        return {
+            "median_mm": nan,
+            "median_raw_mm": nan,
+            "right_median_mm": nan,
+            "forward_median_mm": nan,
+            "fitted_offset": None,
+        }
     off = relative_displacement(truth_poses[ok], path[ok])  # the path's pose in the truth's robot frame
+    # the truth's point in the path's robot frame (x right, y forward); its mean would be the least-squares
+    # o, but a stretch where the path is lost (a filter locking on) would drag it: the median is robust
+    seen = relative_displacement(path[ok], truth_poses[ok])[:, :2]
+    o = np.median(seen, axis=0)
+    c, s_ = np.cos(path[ok, 2]), np.sin(path[ok, 2])
+    moved_x = path[ok, 0] + c * o[0] - s_ * o[1]
+    moved_y = path[ok, 1] + s_ * o[0] + c * o[1]
     return {
-        "median_mm": float(np.median(np.hypot(off[:, 0], off[:, 1]))),
+        "median_mm": float(np.median(np.hypot(truth_poses[ok, 0] - moved_x, truth_poses[ok, 1] - moved_y))),
+        "median_raw_mm": float(np.median(np.hypot(*(path[ok, :2] - truth_poses[ok, :2]).T))),
         "right_median_mm": float(np.median(off[:, 0])),
         "forward_median_mm": float(np.median(off[:, 1])),
+        "fitted_offset": {"forward_mm": float(o[1]), "left_mm": float(-o[0])},
     }
 
 
@@ -493,6 +515,85 @@ def _learned_drift(model: EMModel, window: int, turning_rad_s: float) -> dict[st
     }
 
 
+def heading_removed_ratio(sigma_learned: float, sigma_truth: float, heading_error: dict[str, Any] | None) -> float:
+    """The learned bearing sigma over the truth's bearing residual sd with the truth's own heading error
+    (``truth_heading_error``'s variance) taken out: that error is noise in the reference, not in the
+    camera, and no learner can put it in a sigma (docs/em-real-results.md, Known limits). The plain ratio
+    when the error was not estimated; NaN when it is as large as the residual itself."""
+    var = (heading_error or {}).get("variance_rad2")
+    if var is None or not np.isfinite(var):
+        return float(sigma_learned / sigma_truth)
+    rest = sigma_truth**2 - max(float(var), 0.0)
+    return float(sigma_learned / np.sqrt(rest)) if rest > 0 else float("nan")
+
+
+def score_against_positions(
+    model: EMModel, data: LandmarkLog, truth_poses: np.ndarray, truth_valid: np.ndarray, *, window: int, trim: float
+) -> dict[str, Any]:
+    """``score_against_truth`` for a truth of positions alone (a UWB or GNSS track, no heading): what
+    needs the truth's heading is not scored and says so (``no_heading``): the rotation, the bearing, the
+    sensor's pose fitted to the truth and the truth's noise structure. The translation is scored free of
+    heading, on each window's chord: ``| |D_xy| - |p_end - p_start| |`` is the translation error with the
+    window's starting heading chosen best; From-Truth is the same family fitted to the chords (at the
+    learned command delay). The range is read from the truth's point."""
+    from scipy.optimize import least_squares
+
+    act = model.action
+    starts = window_starts(truth_valid, window)
+    if starts.size == 0:
+        raise LogFormatError(
+            f"no {window}-step window has recorded positions throughout.",
+            file=f"{data.source}/groundtruth.csv",
+            field="t_s",
+            fix=f"score on a log with at least {window} consecutive steps of recorded positions.",
+        )
+    idx = starts[:, None] + np.arange(window)
+    chord = np.hypot(*(truth_poses[starts + window, :2] - truth_poses[starts, :2]).T)
+    Phi = act.step_features(data.step_commands, act.delay_steps)[idx.ravel()].reshape(len(starts), window, -1)
+    free = act.free_coefficients
+    span = window * data.dt_s
+
+    def chord_errors(beta: np.ndarray) -> np.ndarray:
+        return np.hypot(*dead_reckon(Phi @ beta, data.dt_s)[:, :2].T) - chord
+
+    def with_free(x: np.ndarray) -> np.ndarray:
+        beta = act.coefficients.copy()
+        beta[free] = x
+        return beta
+
+    fit = least_squares(lambda x: chord_errors(with_free(x)), act.coefficients[free])
+    learned = {"translation_rms_mm_s": _rms(chord_errors(act.coefficients)) / span, "rotation_rms_rad_s": None}
+    from_truth = {"translation_rms_mm_s": _rms(chord_errors(with_free(fit.x))) / span, "rotation_rms_rad_s": None}
+    action = {
+        "learned": learned,
+        "from_truth": from_truth,
+        "ratio_translation": learned["translation_rms_mm_s"] / from_truth["translation_rms_mm_s"],
+        "ratio_rotation": None,  # no heading to score it against
+        "learned_coefficients": act.coefficients.tolist(),
+        "from_truth_coefficients": with_free(fit.x).tolist(),
+        "learned_delay_s": act.delay_steps * data.dt_s,
+        "from_truth_delay_s": act.delay_steps * data.dt_s,
+        "scored_on": "window chords (the truth has no heading)",
+    }
+    rows = np.flatnonzero(truth_valid[data.obs_step] > 0)
+    lm = data.landmarks_xy[data.obs_landmark[rows]]
+    d = landmark_distance(truth_poses[data.obs_step[rows]], lm)
+    range_score = _score_range(
+        model.sensor.channels[0], data.obs_readings[rows, 0], d, data.obs_bearing_rad[rows], trim
+    )
+    return {
+        "windows_scored": int(starts.size),
+        "window_s": span,
+        "action": action,
+        "range": range_score,
+        "bearing": None,
+        "sensor_mount": {"learned": model.sensor.mount.to_dict(), "fitted_to_truth": None},
+        "truth_noise": None,
+        "no_heading": "the truth has positions and no heading: the rotation, the bearing, the sensor's pose on the "
+        "robot and the truth's noise are not scored; the translation is scored on each window's chord",
+    }
+
+
 def score_against_truth(
     model: EMModel,
     data: LandmarkLog,
@@ -508,6 +609,8 @@ def score_against_truth(
     ``fit_mount`` the sensor is taken to sit at the truth's origin."""
     if not isinstance(model.action, LinearActionModel) or data.step_commands is None:
         raise ValueError("scoring against truth needs a continuous action model and per-step commands")
+    if not np.isfinite(truth_poses[np.asarray(truth_valid, dtype=bool), 2]).any():
+        return score_against_positions(model, data, truth_poses, truth_valid, window=window, trim=trim)
     action, starts, D_true, v_ft = _score_action(model.action, data, truth_poses, truth_valid, window, max_delay_steps)
 
     # sensor: the sightings at steps with valid truth, seen from the sensor's pose
@@ -542,6 +645,10 @@ def score_against_truth(
         truth_poses, truth_valid, b_res[b_keep], b_steps, data.dt_s, window
     )
     structure.update(_learned_drift(model, window, structure["turning_rad_s"]))
+    if bearing_score is not None:
+        bearing_score["sigma_ratio_truth_heading_removed"] = heading_removed_ratio(
+            bearing_score["sigma_learned_rad"], bearing_score["sigma_truth_rad"], structure["truth_heading_error"]
+        )
     heading_doubt = groundtruth_heading_doubt(truth_poses, truth_valid, data.dt_s)
     return {
         "windows_scored": int(starts.size),
@@ -549,10 +656,20 @@ def score_against_truth(
         "action": action,
         "range": range_score,
         "bearing": bearing_score,  # None: the sensor reads no bearing
-        "sensor_mount": (
-            {"lateral_mm": float(mount[0]), "forward_mm": float(mount[1]), "yaw_rad": float(mount[2])}
-            if reads_bearing
-            else None
-        ),
+        "sensor_mount": {
+            "learned": model.sensor.mount.to_dict(),  # from the point EM tracks (learn/em/mount.py)
+            # from the point the truth tracks, fitted to the bearings (None: no bearings to fit it by)
+            "fitted_to_truth": (
+                {"forward_mm": float(mount[1]), "left_mm": float(-mount[0]), "yaw_rad": float(mount[2])}
+                if reads_bearing
+                else None
+            ),
+            # the same as the truth's robot frame reads it (sec. 2.5.1: x right), as scored before
+            **(
+                {"lateral_mm": float(mount[0]), "forward_mm": float(mount[1]), "yaw_rad": float(mount[2])}
+                if reads_bearing
+                else {}
+            ),
+        },
         "truth_noise": structure,
     } | ({"truth_heading_doubt": heading_doubt} if heading_doubt else {})

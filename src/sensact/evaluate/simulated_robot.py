@@ -18,7 +18,7 @@ def score_against_simulated(model: EMModel, truth: dict[str, Any], dt_s: float) 
     """Learned against true: the affine action's gains and biases (and the sideways gain of a robot that
     side-steps), the command delay (which the lag lengthens: a first-order lag of time constant tau
     delays a step by tau), Sigma_m's per-step sds, the range channel's sigma and bearing terms, the
-    bearing sigma (when the model reads bearings); each sigma also as a ratio."""
+    bearing sigma (when the model reads bearings), the sensor's mount; each sigma also as a ratio."""
     if not isinstance(model.action, LinearActionModel) or model.action.basis != "affine":
         raise ValueError("a simulated differential drive is scored with the affine action basis (em_config.yaml)")
     beta, true_beta = model.action.coefficients, np.asarray(truth["action_coefficients"])
@@ -58,4 +58,9 @@ def score_against_simulated(model: EMModel, truth: dict[str, Any], dt_s: float) 
         "range_sigma_mm": [float(ch.sigma), float(truth["range_sigma_mm"])],
         "range_sigma_ratio": float(ch.sigma / truth["range_sigma_mm"]),
         **bearing,
+        # learned and true (forward mm, left mm, yaw rad); a log written before mounts: the axle's middle
+        "sensor_mount": [
+            model.sensor.mount.to_dict(),
+            truth.get("sensor_mount") or {"forward_mm": 0.0, "left_mm": 0.0, "yaw_rad": 0.0},
+        ],
     }

@@ -28,7 +28,7 @@ import numpy as np
 
 from sensact.config import config_to_dict
 from sensact.errors import LogFormatError
-from sensact.evaluate.bars import BarCheck, at_most, within_factor
+from sensact.evaluate.bars import BARS, BarCheck, bar_checks, robot_checks  # the real-data bars
 from sensact.evaluate.landmark_truth import path_offset, score_against_truth
 from sensact.experiments.shared_data import data_root, turtlebot_logs
 from sensact.io.mrclam import MrclamLog, read_mrclam
@@ -39,7 +39,6 @@ from sensact.models.polynomial import Polynomial1D
 from sensact.models.wheel_drive import wheel_pair
 
 ROBOTS = (1, 2, 3, 4, 5)
-BARS = {"action_ratio_max": 1.5, "action_translation_max_mm_s": 50.0, "sigma_factor": 1.5}
 
 
 def mrclam_config() -> EMConfig:
@@ -145,39 +144,6 @@ def evaluate_mrclam(ml: MrclamLog | Any, res: EMResult) -> dict[str, Any]:
     sc["path"] = path_offset(res.posteriors.mean_gamma, poses, valid)
     sc["bars"] = bar_checks(sc)
     return sc
-
-
-def robot_checks(sc: dict[str, Any], who: str = "") -> list[BarCheck]:
-    """The real-data bars (issue 5, docs/em-real.md) on a ``score_against_truth`` result: each learned action
-    RMS at most 1.5 times From-Truth's (translation at most 50 mm/s), each sigma within a factor of 1.5
-    of the truth's (no bearing bar for a sensor that reads none). ``who`` ("robot1") prefixes each key and
-    quantity."""
-    a, r, b = sc["action"], sc["range"], sc["bearing"]
-    k, q = (f"{who}.", f"{who}: ") if who else ("", "")
-    most = BARS["action_ratio_max"]
-    checks = [
-        at_most(k + "action_translation_ratio", q + "translation RMS / From-Truth's", a["ratio_translation"], most),
-        at_most(k + "action_rotation_ratio", q + "rotation RMS / From-Truth's", a["ratio_rotation"], most),
-        at_most(
-            k + "action_translation_abs",
-            q + "translation RMS",
-            a["learned"]["translation_rms_mm_s"],
-            BARS["action_translation_max_mm_s"],
-            "mm/s",
-            1,
-        ),
-        within_factor(k + "range_sigma", q + "range sigma / truth's", r["sigma_ratio"], BARS["sigma_factor"]),
-    ]
-    if b is not None:
-        checks.append(
-            within_factor(k + "bearing_sigma", q + "bearing sigma / truth's", b["sigma_ratio"], BARS["sigma_factor"])
-        )
-    return checks
-
-
-def bar_checks(sc: dict[str, Any]) -> dict[str, bool]:
-    """``robot_checks`` as {bar: cleared}."""
-    return {c.key: bool(c.cleared) for c in robot_checks(sc)}
 
 
 def scorecard(summary: dict[str, Any]) -> list[BarCheck]:

@@ -13,7 +13,6 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -23,33 +22,10 @@ from sensact.errors import LogFormatError
 from sensact.io.atomic import write_json, write_text
 from sensact.io.csvtable import read_numeric_csv
 from sensact.io.jsonfile import read_json_object
+from sensact.io.track_log import TrackLog
 
 LOG_FORMAT = "sensact-log"
 LOG_VERSION = 1
-
-
-@dataclass(frozen=True)
-class TrackLog:
-    """A 1-D log on one time grid: the command in force from each step, and the observation at it."""
-
-    times_s: np.ndarray  # (T,) strictly increasing
-    commands: np.ndarray  # (T,) zero-order hold of the logged commands
-    observations: np.ndarray  # (T,) NaN where there is no observation
-    command_unit: str
-    observation_name: str
-    observation_unit: str
-    source: str
-    meta: dict[str, Any] = field(default_factory=dict)
-    true_position: np.ndarray | None = None  # (T,) only for evaluation
-    position_unit: str = ""
-
-    @property
-    def duration_s(self) -> float:
-        return float(self.times_s[-1] - self.times_s[0])
-
-    @property
-    def n_observations(self) -> int:
-        return int(np.isfinite(self.observations).sum())
 
 
 def _fmt(x: np.ndarray) -> list[str]:

@@ -13,7 +13,7 @@ import numpy as np
 
 from sensact.errors import LogFormatError
 from sensact.io.csvtable import read_csv_rows, read_numeric_csv
-from sensact.io.logfolder import TrackLog
+from sensact.io.track_log import TrackLog
 from sensact.logs.landmark_log import LandmarkLog
 
 UNITS = {"sonar1": "m", "sonar2": "m", "raw_ir1": "V", "raw_ir2": "V", "raw_ir3": "V", "raw_ir4": "V"}

@@ -130,6 +130,44 @@ class ReadingChannel:
 
 
 @dataclass(frozen=True)
+class SensorMount:
+    """Where a planar sensor sits on the robot: ``forward_mm`` and ``left_mm`` from the point the robot's
+    pose tracks, and ``yaw_rad`` counterclockwise from the robot's forward axis. Readings are predicted
+    from the sensor's pose (``core.pose_models.sensor_poses``); the zero mount is the thesis's eq. 4.19."""
+
+    forward_mm: float = 0.0
+    left_mm: float = 0.0
+    yaw_rad: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("forward_mm", "left_mm", "yaw_rad"):
+            value = float(getattr(self, name))
+            if not math.isfinite(value):
+                raise ValueError(f"sensor mount {name} must be finite, not {value}")
+            object.__setattr__(self, name, value)
+
+    def as_array(self) -> np.ndarray:
+        return np.array([self.forward_mm, self.left_mm, self.yaw_rad])
+
+    @classmethod
+    def from_array(cls, values: Sequence[float]) -> SensorMount:
+        return cls(*(float(v) for v in values))
+
+    @property
+    def is_zero(self) -> bool:
+        return self.forward_mm == 0.0 and self.left_mm == 0.0 and self.yaw_rad == 0.0
+
+    def to_dict(self) -> dict[str, float]:
+        return {"forward_mm": self.forward_mm, "left_mm": self.left_mm, "yaw_rad": self.yaw_rad}
+
+    @classmethod
+    def from_dict(cls, data: Any) -> SensorMount:
+        if data is None:
+            return cls()
+        return cls(float(data["forward_mm"]), float(data["left_mm"]), float(data["yaw_rad"]))
+
+
+@dataclass(frozen=True)
 class LandmarkSensor:
     channels: tuple[ReadingChannel, ...]
     sigma_bearing_rad: float | None = None  # None when the sensor reports no bearing (1-D)
@@ -139,6 +177,7 @@ class LandmarkSensor:
     # misread barcode spoils all of a sighting's readings at once, so a reading the others show to be
     # false does not count in full because it alone happens to fit
     joint_student_t: bool = False
+    mount: SensorMount = SensorMount()  # where every channel's sensor sits on the robot (one physical sensor)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "channels", tuple(self.channels))
@@ -198,6 +237,7 @@ class LandmarkSensor:
             "bearing_robust": self.bearing_robust,
             "bearing_robust_param": self.bearing_robust_param,
             "joint_student_t": self.joint_student_t,
+            "mount": self.mount.to_dict(),
         }
 
     @classmethod
@@ -219,6 +259,7 @@ class LandmarkSensor:
                 str(data.get("bearing_robust", "none")),
                 float(data.get("bearing_robust_param", 0.0)),
                 bool(data.get("joint_student_t", False)),
+                SensorMount.from_dict(data.get("mount")),  # written before mounts existed: the robot's own point
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise ModelFormatError(

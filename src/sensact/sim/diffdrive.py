@@ -38,7 +38,7 @@ import numpy as np
 from scipy.signal import lfilter
 
 from sensact.core.angles import wrap_angle
-from sensact.core.pose_models import landmark_bearing, landmark_distance
+from sensact.core.pose_models import landmark_bearing, landmark_distance, sensor_poses
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.wheel_drive import WHEEL_COMMAND_NAMES
 
@@ -118,6 +118,10 @@ class DiffDriveConfig:
     range_sd_mm: float = 40.0
     bearing_sd_rad: float = 0.006
     misread_rate: float = 0.01
+    # where the sensor sits on the robot: forward and left of the axle's middle (mm), and its yaw
+    # (rad, counterclockwise); it reads the landmarks from there (learn/em/mount.py). Named apart from
+    # EMConfig's sensor_mount, which holds the learner's mount, so that --set reaches the simulator
+    mounted_at: tuple[float, float, float] = (0.0, 0.0, 0.0)
     # an effect the learner's model leaves out (0 = none): a camera yaw error shared by every sighting that
     # wanders slowly (Ornstein-Uhlenbeck, stationary sd and time constant), as MRCLAM robot 1's bearing
     # residuals about Vicon hold (docs/em-real-results.md, Known limits); the truth's residual counts it as noise
@@ -230,6 +234,7 @@ class DiffDriveConfig:
             "range_bearing_terms": list(self.range_bearing_terms) if self.reads_bearing else [],
             "range_sigma_mm": self.range_sd_mm,
             "bearing_sigma_rad": self.bearing_sd_rad if self.reads_bearing else None,
+            "sensor_mount": dict(zip(("forward_mm", "left_mm", "yaw_rad"), map(float, self.mounted_at), strict=True)),
             "config": asdict(self),  # the rest: range gain and offset, misreads, drift, the room, ...
         }
 
@@ -355,8 +360,9 @@ def simulate_diffdrive(config: DiffDriveConfig | None = None) -> DiffDriveRun:
         drift = lfilter([1.0], [1.0, -phi], kick)
     lm = np.asarray(cfg.landmarks_xy_mm)
     frames = np.arange(0, T, max(1, round(cfg.frame_period_s / cfg.dt_s)))
-    d = np.stack([landmark_distance(poses[frames], p) for p in lm], axis=1)  # (frames, landmarks)
-    b = np.stack([landmark_bearing(poses[frames], p) for p in lm], axis=1)
+    at = sensor_poses(poses[frames], np.asarray(cfg.mounted_at, dtype=float))
+    d = np.stack([landmark_distance(at, p) for p in lm], axis=1)  # (frames, landmarks)
+    b = np.stack([landmark_bearing(at, p) for p in lm], axis=1)
     in_view = (d >= cfg.min_range_mm) & (d <= cfg.max_range_mm)
     if cfg.reads_bearing:
         in_view &= np.abs(b) <= 0.5 * np.deg2rad(cfg.fov_deg)

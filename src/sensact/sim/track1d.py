@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 from scipy.interpolate import PchipInterpolator
+from scipy.signal import lfilter
 
 from sensact.logs.landmark_log import LandmarkLog
 
@@ -110,6 +111,9 @@ class Track1DConfig:
     sensor_d0_mm: float = 110.0
     sensor_h0_px: float = -0.6
     observation_noise_px: float = 1.5
+    # the lag-1 autocorrelation of the reading noise from one observation to the next (an AR(1) error whose
+    # stationary sd is observation_noise_px); 0: white noise, as eq. 4.19 assumes
+    observation_noise_ar1: float = 0.0
     observation_dropout: float = 0.0  # probability that a frame misses the beacon
     min_distance_mm: float = 300.0  # the robot never walks into the beacon
     command_levels: int = 0  # 0: commands uniform in the range; N: N evenly spaced levels (sec. 4.4.3 uses 21)
@@ -126,6 +130,8 @@ class Track1DConfig:
             problems.append("observation_rate_hz must be in (0, 1/dt_s]")
         if self.command_hold_s <= 0:
             problems.append("command_hold_s must be > 0")
+        if not -1.0 < self.observation_noise_ar1 < 1.0:
+            problems.append("observation_noise_ar1 must be in (-1, 1)")
         if not 0.0 <= self.observation_dropout < 1.0:
             problems.append("observation_dropout must be in [0, 1)")
         if self.turn_filter_n < 1:
@@ -190,6 +196,11 @@ def simulate_track(config: Track1DConfig | None = None) -> TrackRun:
 
     motion_noise = rng_motion.normal(0.0, cfg.motion_noise_mm_s, T)
     obs_noise = rng_obs.normal(0.0, cfg.observation_noise_px, T)
+    if cfg.observation_noise_ar1:  # AR(1) from one observation to the next, stationary from the start
+        phi = cfg.observation_noise_ar1 ** (1.0 / obs_every)  # per step, so that it is phi per observation
+        kick = obs_noise * np.sqrt(1.0 - phi * phi)
+        kick[0] = obs_noise[0]
+        obs_noise = lfilter([1.0], [1.0, -phi], kick)
     dropped = rng_drop.random(T) < cfg.observation_dropout
 
     commands = np.empty(T)

@@ -19,6 +19,7 @@ from sensact.cli.base import (
     print_tables,
     progress_bar,
     write_result,
+    write_smoothed_path,
 )
 from sensact.cli.model_on_log import is_turtlebot_csv, read_em_log, scored_against
 from sensact.cli.scores import evaluate_em, evaluate_turtlebot_em, print_em_model, warn_if_one_command
@@ -42,23 +43,6 @@ def _still_climbing(loglik: np.ndarray, best: int, max_iterations: int, patience
         + (f", the start race's {raced} included" if raced > 0 else "")  # they count toward the cap
         + f") before {patience} iterations passed without a new best[/]: {lately}. The model given is the best "
         f"so far; to let EM run on, raise the cap (--set max_iterations={2 * max_iterations})."
-    )
-
-
-def write_smoothed_path(path: Path, posteriors: Any, data: Any) -> Path:
-    """Where EM puts the robot at every step: the smoothed mean and sd of each state component (eqs. 4.9,
-    4.10), for a user's own plots or as the robot's path; ``time_s`` counts from the log's first step."""
-    import numpy as np
-
-    from sensact.io.atomic import write_npz
-
-    names = ("x_mm", "y_mm", "theta_rad") if data.geometry == "planar" else ("distance",)
-    return write_npz(
-        path,
-        time_s=np.arange(data.n_steps) * data.dt_s,
-        mean=posteriors.mean_gamma,
-        sd=np.sqrt(np.diagonal(posteriors.cov_gamma, axis1=1, axis2=2)),
-        state=np.array(names),
     )
 
 
@@ -244,6 +228,10 @@ def _run_em(data: Any, start: Any, cfg: Any) -> Any:
         )
 
 
+def data_is_planar(res: Any) -> bool:
+    return res.model.geometry == "planar"
+
+
 def _describe_fit(res: Any, cfg: Any) -> None:
     """How EM stopped and what its searches, gates and restarts did on the way."""
     from sensact.report.tables_real import kept_run_cell, restart_runs_cell
@@ -259,6 +247,8 @@ def _describe_fit(res: Any, cfg: Any) -> None:
             else ""
         )
     )
+    if res.mount is not None and data_is_planar(res):
+        console.print(f"sensor mount: {res.mount.describe()}", highlight=False)
     if res.start_moved:
         first, again = res.start_moved["loglik"]
         console.print(
@@ -326,7 +316,7 @@ def _write_fit(
 
         written.append(write_smoothed_path(out.with_suffix(".path.npz"), res.posteriors, data))
         written.append(figure_em_fit(res, data, out.with_suffix(".png"), f"EM on {name}"))
-    if evaluation is not None and "truth_noise" in evaluation:  # scored against recorded poses
+    if evaluation is not None and evaluation.get("truth_noise"):  # scored against recorded poses
         from sensact.report.figures_real import write_robot
 
         written += write_robot(lf, m, evaluation, out.with_suffix(""), name, res.posteriors, truth="ground truth")
@@ -386,20 +376,36 @@ def _starting_model(data: Any, cfg: Any, start_doc_model: Any, start_from: Path 
     return placed.model, placed, cfg
 
 
-def _warn_of_a_doubtful_fit(res: Any, data: Any, cfg: Any) -> tuple[list[dict[str, Any]], Any]:
-    """Signs, without ground truth, that EM lost the robot, and a side-stepping robot held to no sideways
-    mean (``learn/em/checks.py``): each printed, and returned for the JSON."""
-    from sensact.learn.em.checks import describe_held_sideways, describe_lost_fit, held_sideways_noise, lost_fit_signs
+def _warn_of_a_doubtful_fit(res: Any, data: Any, cfg: Any) -> tuple[list[dict[str, Any]], Any, dict[str, Any]]:
+    """Signs, without ground truth, that EM lost the robot, a side-stepping robot held to no sideways
+    mean, correlated reading errors and a gate that dropped many sightings (``learn/em/checks.py``): each
+    printed, and returned for the JSON."""
+    from sensact.learn.em.checks import (
+        describe_correlated,
+        describe_held_sideways,
+        describe_lost_fit,
+        describe_pruned,
+        held_sideways_noise,
+        lost_fit_signs,
+        residual_autocorrelation,
+    )
 
     signs = []
+    autocorrelation: dict[str, Any] = {}
     if res.posteriors is not None:
         signs = lost_fit_signs(res.model, res.posteriors, data, res.loglik_history, res.best_iteration)
         if signs:
             console.print(f"[yellow]{describe_lost_fit(signs)}[/]")
+        autocorrelation = residual_autocorrelation(res.model, res.posteriors, data)
+        for line in describe_correlated(autocorrelation):
+            console.print(f"[yellow]warning:[/] {line}", highlight=False)
+    pruned = describe_pruned(res.pruned_fraction)
+    if pruned:
+        console.print(f"[yellow]warning:[/] {pruned}", highlight=False)
     held = held_sideways_noise(res.model, cfg.motion_noise)
     if held:
         console.print(describe_held_sideways(held), style="yellow", markup=False)  # it quotes a YAML list
-    return signs, held
+    return signs, held, autocorrelation
 
 
 @learn_app.command("em")
@@ -455,12 +461,14 @@ def learn_em_cmd(
     _describe_fit(res, cfg)
     m = res.model
     print_em_model(m)
-    signs, held = _warn_of_a_doubtful_fit(res, data, cfg)
+    signs, held, autocorrelation = _warn_of_a_doubtful_fit(res, data, cfg)
     evaluation = (
         evaluate_em(lf, m, learned_here=True, path=None if res.posteriors is None else res.posteriors.mean_gamma)
         if lf is not None and recorded_distance is None
         else evaluate_turtlebot_em(res, data, recorded_distance, scored_against(log))
     )
+    if evaluation is not None:
+        evaluation["pruned_fraction"] = res.pruned_fraction
     doc = {
         "model": m.to_dict(),
         "summary": res.summary(),
@@ -472,6 +480,9 @@ def learn_em_cmd(
         "range_function_bends": [t for t in signs if t["sign"] == "bends"],
         "em_unsettled": next((t for t in signs if t["sign"] == "unsettled"), None),
         "held_sideways_noise": held,  # ... and that a robot that side-steps is held to no sideways mean
+        # the share of sightings the gates dropped, and each channel's residuals' lag-1 autocorrelation
+        "pruned_fraction": res.pruned_fraction,
+        "residual_lag1_autocorrelation": autocorrelation,
         "differential_drive": as_differential_drive(m.action),  # on wheel speeds: gain, axle, wheel ratio
         # --start-from: the model EM started from, and where it placed the robot (learn/em/warm_start.py)
         "start_from": None

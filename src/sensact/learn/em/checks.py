@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from sensact.core.pose_models import landmark_distance
+from sensact.core.pose_models import landmark_distance, sensor_poses
 from sensact.learn.em.estep import Posteriors, channel_columns
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
@@ -57,7 +57,9 @@ def fitted_distances(model: EMModel, post: Posteriors, data: LandmarkLog) -> lis
     use = np.asarray(post.obs_used, dtype=bool)
     if data.geometry == "planar":
         poses = post.mean_gamma[data.obs_step[use]]
-        dist = landmark_distance(poses, data.landmarks_xy[data.obs_landmark[use]])
+        dist = landmark_distance(
+            sensor_poses(poses, model.sensor.mount.as_array()), data.landmarks_xy[data.obs_landmark[use]]
+        )
     else:  # a track's state is the distance to the beacon
         dist = post.mean_gamma[data.obs_step[use], 0]
     readings = data.obs_readings[use][:, channel_columns(model.sensor, data)]
@@ -217,4 +219,78 @@ def describe_held_sideways(held: dict[str, float]) -> str:
         "the sideways velocity at 0 (action_zero_mean: [v_x_mm_s]). If the robot can side-step, its side-steps "
         "are read as noise, and the bars cannot tell (From-Truth is fitted in the same family): drop v_x_mm_s "
         'from action_zero_mean (docs/em-real.md, section 2, "A robot that can side-step").'
+    )
+
+
+# above this lag-1 autocorrelation of a channel's smoothed residuals, its errors are not independent from one
+# reading to the next as eq. 4.19 assumes: EM reads the shared part as motion, and the sigma it learns is a
+# lower bound (issue 73: a real 1-D robot's laser at 0.97 learned a sigma 10x too small)
+AUTOCORRELATION_WARN = 0.5
+# above this share of the sightings pruned by the gates, the gate is doing more than dropping outliers
+PRUNED_WARN = 0.2
+
+
+def residual_autocorrelation(model: EMModel, post: Posteriors, data: LandmarkLog) -> dict[str, float | None]:
+    """The lag-1 autocorrelation of each channel's residuals about the smoothed path (the reading minus
+    its prediction from the sensor at the smoothed mean pose, times the square root of the reading's
+    E-step weight, so that a robust channel's outliers count as little as they did in the fit), over the
+    readings the E-step used, in time order; the bearing's under ``"bearing"``. None where fewer than 10
+    readings were used."""
+    from sensact.core.angles import wrap_angle
+    from sensact.core.pose_models import landmark_bearing
+    from sensact.learn.em.estep import channel_inputs
+
+    rows = np.flatnonzero(post.obs_used)
+    out: dict[str, float | None] = {}
+    if rows.size == 0:
+        return out
+    poses = post.mean_gamma[data.obs_step[rows]]
+    lm = data.landmarks_xy[data.obs_landmark[rows]]
+    if data.geometry == "planar":
+        poses = sensor_poses(poses, model.sensor.mount.as_array())
+    dist = landmark_distance(poses, lm, data.mode)
+    readings = channel_inputs(model.sensor, data)[0][rows]
+    bearings = data.obs_bearing_rad[rows]
+    for j, ch in enumerate(model.sensor.channels):
+        w = post.weights[rows, j]
+        use = w > 0
+        pred = ch.predict(dist[use], bearings[use] if ch.bearing_terms else None)
+        out[ch.name] = _lag1(np.sqrt(w[use]) * (readings[use, j] - pred))
+    if model.sensor.sigma_bearing_rad is not None and data.geometry == "planar":
+        w = post.weights[rows, -1]
+        use = w > 0
+        out["bearing"] = _lag1(np.sqrt(w[use]) * wrap_angle(bearings[use] - landmark_bearing(poses[use], lm[use])))
+    return out
+
+
+def _lag1(e: np.ndarray) -> float | None:
+    e = np.asarray(e, dtype=float)
+    e = e[np.isfinite(e)]
+    if e.size < 10:
+        return None
+    e = e - e.mean()
+    den = float(np.dot(e, e))
+    return float(np.dot(e[:-1], e[1:]) / den) if den > 0 else None
+
+
+def describe_correlated(autocorrelation: dict[str, float | None]) -> list[str]:
+    """A warning for each channel whose residuals' lag-1 autocorrelation is above ``AUTOCORRELATION_WARN``."""
+    return [
+        f"{name}'s residuals about the smoothed path have a lag-1 autocorrelation of {r:.2f} (above "
+        f"{AUTOCORRELATION_WARN}): reading errors persist from one reading to the next, in this channel or in "
+        "another whose error the path follows as motion; eq. 4.19 takes them as independent, so the learned "
+        "sigmas are lower bounds on the sensors' noise"
+        for name, r in autocorrelation.items()
+        if r is not None and r > AUTOCORRELATION_WARN
+    ]
+
+
+def describe_pruned(fraction: float, setting: str = "prune_rad_per_step") -> str | None:
+    """A warning when the gates dropped more than ``PRUNED_WARN`` of the sightings."""
+    if fraction <= PRUNED_WARN:
+        return None
+    return (
+        f"{100 * fraction:.0f} % of the sightings were pruned as outliers (above {100 * PRUNED_WARN:.0f} %): the "
+        f"first iteration's bearing gate is dropping more than outliers; a start far off, or a sensor mount that "
+        f"turns the bearings, does this. Loosen it with --set {setting}=... (0 turns it off)"
     )

@@ -135,6 +135,9 @@ class EMConfig:
     # did not settle, every channel's) start sigma a third of the last, up to this many times, and keeps
     # the most likely fit (0 = never, the thesis)
     turn_restarts: int = 0
+    # where the sensor sits on the robot, (forward mm, left mm, yaw rad counterclockwise), held there; None:
+    # learned by the M-step wherever the log pins it, from the robot's own point (learn/em/mount.py)
+    sensor_mount: tuple[float, float, float] | None = None
 
     def __post_init__(self) -> None:
         problems = []
@@ -180,6 +183,10 @@ class EMConfig:
             problems.append("turn_restarts must be >= 0 (0 = no restart)")
         if not self.ridge_search_mm >= 0 or self.search_every < 1:
             problems.append("ridge_search_mm must be >= 0 (0 = no ridge search) and search_every >= 1")
+        if self.sensor_mount is not None and (
+            len(self.sensor_mount) != 3 or not all(math.isfinite(v) for v in self.sensor_mount)
+        ):
+            problems.append("sensor_mount must be three finite numbers (forward mm, left mm, yaw rad), or null")
         try:
             check_robust(self.bearing_robust, self.bearing_robust_param, "bearing")
         except ValueError as exc:

@@ -169,6 +169,7 @@ def _run_passes(
         np.array([c.valid_min for c in chans], dtype=float),
         np.array([c.valid_max for c in chans], dtype=float),
         (sb if sb is not None else 1.0) ** 2,
+        sensor.mount.as_array(),
         kinds,
         params,
         float(prune_rad_per_step),

@@ -28,6 +28,7 @@ from sensact.learn.em.estep import Posteriors, e_step, log_likelihood
 from sensact.learn.em.forward import FLIP, drives_backward, turned_model, turned_posteriors
 from sensact.learn.em.given_start import start_moved_mm
 from sensact.learn.em.initial import initial_model, motion_sd_floor, motion_sd_start
+from sensact.learn.em.mount import MountFreedom, mount_freedom, search_mount
 from sensact.learn.em.mstep import m_step
 from sensact.learn.em.outliers import bearing_outliers
 from sensact.learn.em.ridge import search_ridge
@@ -102,6 +103,9 @@ class EMResult:
     turned_to_face_forward: bool = False
     # a range-only fit whose given start moved metres: the start, where EM put it, both runs' likelihoods
     start_moved: dict[str, Any] | None = None
+    # which of the sensor mount's components the M-step learned, and why the rest were held (mount.py)
+    mount: MountFreedom | None = None
+    mount_search: list[dict[str, Any]] | None = None  # each mount search (mount.search_mount)
 
     @property
     def iterations(self) -> int:
@@ -118,6 +122,11 @@ class EMResult:
     def loglik_best(self) -> float:
         return float(self.loglik_history[self.best_iteration])
 
+    @property
+    def pruned_fraction(self) -> float:
+        """The share of the log's sightings that the gates dropped (sec. 4.4.1's, and prune_when_freed's)."""
+        return (self.n_observations - self.n_used) / self.n_observations if self.n_observations else 0.0
+
     def summary(self) -> dict[str, Any]:
         return {
             "iterations": self.iterations,
@@ -129,6 +138,9 @@ class EMResult:
             "n_used": self.n_used,
             "n_pruned": self.n_pruned,
             "n_pruned_when_freed": self.n_pruned_when_freed,
+            "pruned_fraction": self.pruned_fraction,
+            "sensor_mount": None if self.mount is None else self.mount.to_dict(),
+            "mount_search": self.mount_search,
             # how far the likelihood fell on average after the best, per sighting used (checks.unsettled_fit)
             "fall_per_sighting": fall_per_sighting(self.loglik_history, self.best_iteration, self.n_used),
             "seconds": self.seconds,
@@ -166,22 +178,42 @@ def fit_em(
     moved = None if res.stop_reason == "interrupted" else start_moved_mm(start, res.model, data, cfg)
     if moved is None:
         return res
-    # a range-only start metres off: again from where EM put it, facing forward (given_start.py)
+    # a range-only start metres off: again from where EM put it, facing forward (given_start.py); the
+    # given heading was as wrong as the position, and ranges cannot tell it, so the headings race there
     if on_start_moved is not None:
         on_start_moved(moved, res.model.prior_mean.copy())
-    again = _fit_while_lost(
-        data, start.replace(prior_mean=res.model.prior_mean.copy()), cfg, progress, on_restart, on_race
-    )
+    winner, race = race_starts(data, headings_at(start, res.model.prior_mean[:2]), cfg, fit_em_once, on_trial=on_race)
+    again = _fit_while_lost(data, winner, cfg, progress, on_restart, on_race)
     best, scores = most_likely([res, again], data)
     info = {
         "given": start.prior_mean.tolist(),
         "learned": res.model.prior_mean.tolist(),
         "moved_mm": moved,
+        "heading_race": {"winner": race["winner"], "headings_rad": [float(h) for h in race_headings(start)]},
         "loglik": [float(s) for s in scores],
         "kept": ["first", "again"][best],
     }
     kept = res if best == 0 else facing_forward(again, data)
     return dc_replace(kept, start_moved=info, seconds=res.seconds + again.seconds)
+
+
+# the headings a range-only start that moved races at its learned position (given_start.py)
+START_HEADINGS = 8
+
+
+def race_headings(start: EMModel) -> np.ndarray:
+    """``START_HEADINGS`` headings evenly round the circle from the given one."""
+    return start.prior_mean[2] + 2.0 * np.pi * np.arange(START_HEADINGS) / START_HEADINGS
+
+
+def headings_at(start: EMModel, position: np.ndarray) -> list[EMModel]:
+    """``start`` placed at ``position`` facing each of ``race_headings``, its heading sd half the gap between
+    them: the candidates of a range-only start's heading race."""
+    cov = start.prior_cov.copy()
+    cov[2, 2] = (np.pi / START_HEADINGS) ** 2
+    return [
+        start.replace(prior_mean=np.array([position[0], position[1], h]), prior_cov=cov) for h in race_headings(start)
+    ]
 
 
 def _fit_while_lost(
@@ -361,19 +393,21 @@ class _Searches:
     max_delay: int  # steps
     ridge_on: bool
     delay_on: bool
+    mount_free: tuple[bool, bool, bool]  # the mount's components searched (mount.search_mount)
     ridge: list[dict[str, Any]] = field(default_factory=list)
     delay: list[dict[str, Any]] = field(default_factory=list)
+    mount: list[dict[str, Any]] = field(default_factory=list)
 
     @classmethod
-    def for_fit(cls, data: LandmarkLog, model: EMModel, cfg: EMConfig) -> _Searches:
+    def for_fit(cls, data: LandmarkLog, model: EMModel, cfg: EMConfig, freedom: MountFreedom) -> _Searches:
         max_delay = round(cfg.action_delay_max_s / data.dt_s)
         delay_on = cfg.delay_search and max_delay > 0 and isinstance(model.action, LinearActionModel)
-        return cls(data, cfg, max_delay, cfg.ridge_search_mm > 0, delay_on)
+        return cls(data, cfg, max_delay, cfg.ridge_search_mm > 0, delay_on, freedom.free)
 
     def due(self, it: int, ending_held: bool, since: int) -> bool:
         """``since``: the iteration the held stage ended at (0 with nothing held; -1 while held)."""
         again = since >= 0 and it > since and (it - since) % self.cfg.search_every == 0
-        return (self.ridge_on or self.delay_on) and (ending_held or again)
+        return (self.ridge_on or self.delay_on or any(self.mount_free)) and (ending_held or again)
 
     def run(
         self, it: int, model: EMModel, post: Posteriors, obs_use: np.ndarray, robust: bool
@@ -386,6 +420,9 @@ class _Searches:
         if self.delay_on:
             model, post, info = search_delay(model, post, score, evaluate, self.max_delay)
             self.delay.append({"iteration": it, **info})
+        if any(self.mount_free):  # due when the held stage ends and after: the mount is held before
+            model, post, info = search_mount(model, post, score, evaluate, self.mount_free)
+            self.mount.append({"iteration": it, **info})
         return model, post
 
 
@@ -427,12 +464,15 @@ def fit_em_once(
         model = model.replace(motion_sd=motion_sd_start(cfg, n))
     model, start_info, spent = _searched_start(data, model, cfg, on_race)
     floor = np.array([cfg.prior_floor_sd[0] ** 2] * min(n, 2) + ([cfg.prior_floor_sd[1] ** 2] if n == 3 else []))
+    freedom = mount_freedom(model, cfg.sensor_mount is not None, model.sensor.sigma_bearing_rad is not None)
     trace = _Trace(model)
-    searches = _Searches.for_fit(data, model, cfg)
+    searches = _Searches.for_fit(data, model, cfg, freedom)
     obs_use = None
     reason = "max_iterations"
     learns_sigma_m = cfg.motion_noise != "fixed"
-    staged = learns_sigma_m or model.sensor.is_robust or any(c.bearing_terms for c in model.sensor.channels)
+    staged = (
+        learns_sigma_m or model.sensor.is_robust or any(c.bearing_terms for c in model.sensor.channels) or freedom.any
+    )
     refine_from = cfg.refine_from - spent
     # a race as long as refine_from has held the stage already: it ends at this fit's first iteration (so the
     # searches and prune_when_freed run then); refine_from 0 with no race holds nothing, and neither does a
@@ -459,7 +499,7 @@ def fit_em_once(
                         fix="check each channel's window (in the state's unit) against its starting line.",
                     )
                 if freed_at == 0 and model.sensor.is_robust and cfg.prune_when_freed:
-                    post, n_late = drop_late_outliers(post, data, cfg.prune_rad_per_step)
+                    post, n_late = drop_late_outliers(post, data, cfg.prune_rad_per_step, model)
                     obs_use = post.obs_used
             if not post.ok:
                 reason = "diverged"
@@ -478,7 +518,7 @@ def fit_em_once(
                 if model.sensor.is_robust:
                     trace.best_ll = -np.inf  # the robust likelihood is another function: its own best from here
                     if cfg.prune_when_freed:  # what the first iteration's gate could not see (outliers.py)
-                        post, n_late = drop_late_outliers(post, data, cfg.prune_rad_per_step)
+                        post, n_late = drop_late_outliers(post, data, cfg.prune_rad_per_step, model)
                         obs_use = post.obs_used
             if it - max(trace.best_it, freed_at) >= cfg.patience:
                 reason = "converged"
@@ -494,6 +534,7 @@ def fit_em_once(
                 motion_floor_sd=motion_sd_floor(cfg, n),
                 max_delay_steps=searches.max_delay,
                 fit_bearing_terms=refining,
+                mount_free=freedom.free if refining else (False, False, False),  # held with the terms
             )
     except KeyboardInterrupt:
         reason = "interrupted"
@@ -517,14 +558,18 @@ def fit_em_once(
         ridge=searches.ridge or None,
         delay_search=searches.delay or None,
         n_pruned_when_freed=n_late,
+        mount=freedom,
+        mount_search=searches.mount or None,
     )
 
 
-def drop_late_outliers(post: Posteriors, data: LandmarkLog, gate_rad_per_step: float) -> tuple[Posteriors, int]:
+def drop_late_outliers(
+    post: Posteriors, data: LandmarkLog, gate_rad_per_step: float, model: EMModel
+) -> tuple[Posteriors, int]:
     """``prune_when_freed``: the first iteration's gate again, on the smoothed path (``outliers.py``); the
     posteriors with those sightings no longer used (so that this M-step leaves them out already), and
     how many."""
-    late = bearing_outliers(post, data, gate_rad_per_step)
+    late = bearing_outliers(post, data, gate_rad_per_step, model.sensor.mount.as_array())
     return dc_replace(post, obs_used=post.obs_used & ~late), int(late.sum())
 
 

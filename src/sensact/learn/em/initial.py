@@ -12,7 +12,7 @@ from sensact.learn.em.config import EMConfig
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.action_table import ActionTable
 from sensact.models.em_model import PLANAR_VELOCITY_NAMES, TRACK_VELOCITY_NAMES, EMModel
-from sensact.models.landmark_sensor import LandmarkSensor, ReadingChannel
+from sensact.models.landmark_sensor import LandmarkSensor, ReadingChannel, SensorMount
 from sensact.models.linear_action import LinearActionModel
 from sensact.models.polynomial import Polynomial1D
 
@@ -52,7 +52,10 @@ def starting_sensor(data: LandmarkLog, config: EMConfig) -> LandmarkSensor:
         sigma_b, robust = config.start_sigma_bearing_rad, (config.bearing_robust, config.bearing_robust_param)
     else:  # a track, or a range-only sensor (radio beacons): no bearing to learn a sigma_2 for
         sigma_b, robust = None, ("none", 0.0)
-    return LandmarkSensor(tuple(channels), sigma_b, *robust, config.joint_student_t)
+    mount = (
+        SensorMount() if config.sensor_mount is None or data.geometry != "planar" else SensorMount(*config.sensor_mount)
+    )
+    return LandmarkSensor(tuple(channels), sigma_b, *robust, config.joint_student_t, mount)
 
 
 def initial_model(data: LandmarkLog, config: EMConfig) -> EMModel:

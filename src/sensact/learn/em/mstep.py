@@ -3,11 +3,13 @@ E-step's posteriors. ``learn/em/actions.py`` holds the action and motion-noise u
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from sensact.core.angles import wrap_angle
 from sensact.core.polyfit import weighted_lstsq
-from sensact.core.pose_models import apply_displacement, landmark_bearing, landmark_distance
+from sensact.core.pose_models import apply_displacement, landmark_bearing, sensor_poses
 from sensact.learn.em.actions import (
     linear_action_update,
     motion_noise,
@@ -18,6 +20,7 @@ from sensact.learn.em.actions import (
     turning_variance,
 )
 from sensact.learn.em.estep import Posteriors, channel_inputs
+from sensact.learn.em.mount import mount_update, sensor_distances
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.action_table import ActionTable
 from sensact.models.em_model import EMModel
@@ -73,6 +76,7 @@ def sensor_model(
     rng: np.random.Generator,
     previous: LandmarkSensor,
     fit_bearing_terms: bool = True,
+    mount_free: tuple[bool, bool, bool] = (False, False, False),
 ) -> LandmarkSensor:
     """Eq. 4.25 (each f_i by regression on sampled distances), eq. 4.27 (each sigma_i) and eq. 4.28
     (sigma_2), over the readings the E-step used.
@@ -81,6 +85,8 @@ def sensor_model(
     robust one (the t-distribution's EM update of location and scale), 0 if it was missing, outside
     its window, gated or pruned. Each f_i keeps the degree of ``previous``'s polynomial (the starting
     model sets it: a cubic in the thesis). Without ``fit_bearing_terms`` the bearing terms are held.
+    The ``mount_free`` components of the sensor's mount are updated first, on the same samples
+    (``mount.py``); every distance and bearing is then measured from the sensor at its mount.
     """
     weights = post.weights * post.obs_used[:, None]
     rows = np.flatnonzero(weights.any(axis=1))
@@ -88,9 +94,12 @@ def sensor_model(
         return previous
     poses = sample_gamma(post, data.obs_step[rows], n_samples, rng)  # (S, R, n)
     lm = data.landmarks_xy[data.obs_landmark[rows]]
-    dist = np.stack([landmark_distance(poses[s], lm, data.mode) for s in range(n_samples)])  # (S, R)
     readings = channel_inputs(previous, data)[0][rows]
     bearings = data.obs_bearing_rad[rows]
+    if any(mount_free):
+        mount = mount_update(poses, lm, readings, weights[rows], bearings, previous, mount_free)
+        previous = replace(previous, mount=mount)
+    dist = sensor_distances(poses, lm, previous.mount, data.mode)  # (S, R)
     fits = []
     for c, ch in enumerate(previous.channels):
         w = weights[rows, c]
@@ -115,7 +124,10 @@ def sensor_model(
     if data.geometry == "planar" and sigma_b is not None and (wb > 0).any():
         b = wb > 0
         ob = data.obs_bearing_rad[rows][b]
-        err = np.concatenate([wrap_angle(landmark_bearing(poses[s][b], lm[b]) - ob) for s in range(n_samples)])
+        m = previous.mount.as_array()
+        err = np.concatenate(
+            [wrap_angle(landmark_bearing(sensor_poses(poses[s][b], m), lm[b]) - ob) for s in range(n_samples)]
+        )
         sigma_b = max(float(np.sqrt(np.sum(np.tile(wb[b], n_samples) * err**2) / err.size)), 1e-9)
     return previous.with_fits(fits, sigma_b)
 
@@ -139,6 +151,7 @@ def m_step(
     motion_floor_sd: np.ndarray | None = None,
     max_delay_steps: int = 0,
     fit_bearing_terms: bool = True,
+    mount_free: tuple[bool, bool, bool] = (False, False, False),
 ) -> EMModel:
     """Every update of sec. 4.3, plus Sigma_m when ``learn_motion_noise`` (shared or per action, as the
     model's ``motion_sd`` has one row or one per action)."""
@@ -162,7 +175,7 @@ def m_step(
             a, turn_var = turning_variance(second[:, 2], turn, floor[2] ** 2, (model.motion_sd[0, 2] ** 2, turn_var))
             motion_sd = motion_sd.copy()
             motion_sd[0, 2] = np.sqrt(a)
-    sensor = sensor_model(post, data, n_samples, rng, model.sensor, fit_bearing_terms)
+    sensor = sensor_model(post, data, n_samples, rng, model.sensor, fit_bearing_terms, mount_free)
     mean0, cov0 = prior(post, floor_var)
     return model.replace(
         action=action, sensor=sensor, prior_mean=mean0, prior_cov=cov0, motion_sd=motion_sd, turn_var=turn_var

@@ -14,19 +14,27 @@ from __future__ import annotations
 import numpy as np
 
 from sensact.core.angles import wrap_angle
-from sensact.core.pose_models import landmark_bearing
+from sensact.core.pose_models import landmark_bearing, sensor_poses
 from sensact.learn.em.estep import Posteriors
 from sensact.logs.landmark_log import LandmarkLog
 
 
-def bearing_outliers(post: Posteriors, data: LandmarkLog, gate_rad: float) -> np.ndarray:
+def bearing_outliers(
+    post: Posteriors, data: LandmarkLog, gate_rad: float, mount: np.ndarray | None = None
+) -> np.ndarray:
     """``(K,)`` bool: the sightings ``post`` used whose measured bearing is more than ``gate_rad`` from the
-    bearing of their landmark at the smoothed mean pose of their own step (sec. 4.4.1's gate, k = 1)."""
+    bearing of their landmark at the smoothed mean pose of their own step (sec. 4.4.1's gate, k = 1), seen
+    from the sensor at ``mount`` (forward mm, left mm, yaw rad; None: the robot's own point)."""
     out = np.zeros(data.n_observations, dtype=bool)
     if data.geometry != "planar" or not gate_rad > 0:
         return out
     rows = np.flatnonzero(post.obs_used & np.isfinite(data.obs_bearing_rad))
     lm = data.landmarks_xy[data.obs_landmark[rows]]
-    res = wrap_angle(data.obs_bearing_rad[rows] - landmark_bearing(post.mean_gamma[data.obs_step[rows]], lm))
+    res = wrap_angle(
+        data.obs_bearing_rad[rows]
+        - landmark_bearing(
+            sensor_poses(post.mean_gamma[data.obs_step[rows]], np.zeros(3) if mount is None else mount), lm
+        )
+    )
     out[rows[np.abs(res) > gate_rad]] = True
     return out

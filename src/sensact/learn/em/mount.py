@@ -1,0 +1,267 @@
+"""The sensor's mount on the robot, learned in the M-step (beyond the thesis, whose eq. 4.19 reads the
+landmark from the robot's own point).
+
+**Model.** A planar sensor sits at ``m = (forward, left, yaw)`` on the robot; its pose is
+``s(w, m) = w + R(theta) (-left, forward, yaw)`` (``core.pose_models.sensor_poses``), and eq. 4.19 reads
+the landmark from ``s``: ``o_i = f_i(d(s)) + N(0, sigma_i^2)``, ``o_b = ang(s) + N(0, sigma_2^2)``.
+
+**M-step.** As sec. 4.3 derives each update, the expected complete-data log-likelihood splits into the
+prior's, the motion's and the observations' terms, and only the last depends on ``m``::
+
+    Q(m) = - sum_k sum_i w_ki E_gamma[(o_ki - f_i(d(s(w_k, m))) - g_ki d)^2] / (2 sigma_i^2)
+           - sum_k w_kb E_gamma[(o_kb - ang(s(w_k, m)))^2] / (2 sigma_2^2) + const
+
+with ``w`` the E-step's reading weights and ``g_ki`` a channel's bearing gain. The expectations over
+``gamma_k`` are taken, as eq. 4.25 takes them, on the poses sampled from ``gamma`` (``mstep.sample_gamma``),
+and ``Q`` is maximized by Gauss-Newton (a weighted nonlinear least squares in three unknowns), before the
+sensor functions are refitted at the new mount: each conditional update raises ``Q`` (ECM, Meng and
+Rubin 1993), so the iteration stays a generalized EM.
+
+**Which components the log pins.** Relative to what point is the sensor mounted? The pose EM learns is
+that of the point whose motion the action model describes. A robot that cannot side-step (its sideways
+velocity held at zero mean: a differential drive) has one such point, the middle of its axle, so the
+sensor's offsets from it are pinned: turning in place swings a sensor ahead of the axle sideways, and
+driving straight points its yaw. A robot whose every velocity is free (the thesis's Aibo, a legged robot)
+can be described from any point with another action model of the same likelihood, so its mount is
+held. A range-only sensor reads no yaw: its yaw is held. ``mount_freedom`` says which, and why.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from sensact.core.angles import wrap_angle
+from sensact.core.pose_models import landmark_bearing, landmark_distance, sensor_poses
+from sensact.models.em_model import EMModel
+from sensact.models.landmark_sensor import LandmarkSensor, SensorMount
+from sensact.models.linear_action import LinearActionModel
+
+MOUNT_COMPONENTS = ("forward_mm", "left_mm", "yaw_rad")
+GAUSS_NEWTON_STEPS = 3  # per M-step; EM's own iterations carry it the rest of the way
+
+
+@dataclass(frozen=True)
+class MountFreedom:
+    """Which of the mount's components the M-step learns (forward, left, yaw), and why the rest are held."""
+
+    free: tuple[bool, bool, bool]
+    reason: str
+
+    @property
+    def any(self) -> bool:
+        return any(self.free)
+
+    def describe(self) -> str:
+        learned = [n for n, f in zip(MOUNT_COMPONENTS, self.free, strict=True) if f]
+        held = [n for n, f in zip(MOUNT_COMPONENTS, self.free, strict=True) if not f]
+        parts = []
+        if learned:
+            parts.append("learned: " + ", ".join(learned))
+        if held:
+            parts.append("held: " + ", ".join(held))
+        return "; ".join(parts) + f" ({self.reason})"
+
+    def to_dict(self) -> dict[str, object]:
+        return {
+            "learned": [n for n, f in zip(MOUNT_COMPONENTS, self.free, strict=True) if f],
+            "held": [n for n, f in zip(MOUNT_COMPONENTS, self.free, strict=True) if not f],
+            "reason": self.reason,
+        }
+
+
+def mount_freedom(model: EMModel, given: bool, reads_bearing: bool) -> MountFreedom:
+    """Which components of the sensor's mount the log pins (module docstring), for ``model``'s action
+    model; ``given``: the config gives the mount, which is then held whole."""
+    if model.geometry != "planar":
+        return MountFreedom((False, False, False), "a track's sensor has no pose of its own")
+    if given:
+        return MountFreedom((False, False, False), "given in the config (sensor_mount)")
+    action = model.action
+    if not (isinstance(action, LinearActionModel) and "v_x_mm_s" in action.zero_mean):
+        return MountFreedom(
+            (False, False, False),
+            "every velocity of the action model is free, so any point of the robot describes its motion "
+            "equally well; hold v_x_mm_s at zero mean (action_zero_mean) for a robot that cannot side-step",
+        )
+    if not reads_bearing:
+        return MountFreedom((True, True, False), "a range-only sensor reads no yaw")
+    return MountFreedom((True, True, True), "the robot cannot side-step: its axle is the point EM tracks")
+
+
+def _objective_terms(
+    mount: np.ndarray,
+    poses: np.ndarray,
+    lm: np.ndarray,
+    readings: np.ndarray,
+    weights: np.ndarray,
+    sensor: LandmarkSensor,
+    bearings: np.ndarray,
+    free: np.ndarray,
+) -> tuple[float, np.ndarray, np.ndarray]:
+    """``-2 Q(m)`` up to a constant, its gradient ``J' W e`` and Gauss-Newton matrix ``J' W J`` in the free
+    components. ``poses`` ``(S, R, 3)`` are robot poses sampled from gamma at the ``R`` sightings."""
+    S = poses.shape[0]
+    p = poses.reshape(-1, 3)
+    lm_s = np.tile(lm, (S, 1))
+    at = sensor_poses(p, mount)
+    dx, dy = lm_s[:, 0] - at[:, 0], lm_s[:, 1] - at[:, 1]
+    d = np.hypot(dx, dy)
+    c, s = np.cos(p[:, 2]), np.sin(p[:, 2])
+    # the sensor's position's derivatives in (forward, left): (-sin, cos) and (-cos, -sin)
+    dd = np.column_stack([-(-dx * s + dy * c) / d, (dx * c + dy * s) / d, np.zeros_like(d)])
+    db = np.column_stack([(-dy * s - dx * c) / d**2, (-dy * c + dx * s) / d**2, -np.ones_like(d)])
+    total, grad, gn = 0.0, np.zeros(3), np.zeros((3, 3))
+    b_s = np.tile(bearings, S)
+    for ci, ch in enumerate(sensor.channels):
+        w = np.tile(weights[:, ci], S) / ch.sigma**2
+        use = w > 0
+        if not use.any():
+            continue
+        gain = ch.bearing_gain(b_s[use]) if ch.bearing_terms else 0.0
+        e = np.tile(readings[:, ci], S)[use] - ch.function(d[use]) - gain * d[use]
+        J = (ch.function.slope(d[use]) + gain)[:, None] * dd[use]
+        total += float(np.sum(w[use] * e**2))
+        grad += J.T @ (w[use] * e)
+        gn += J.T @ (J * w[use, None])
+    if sensor.sigma_bearing_rad is not None:
+        w = np.tile(weights[:, -1], S) / sensor.sigma_bearing_rad**2
+        use = (w > 0) & np.isfinite(b_s)
+        if use.any():
+            e = wrap_angle(b_s[use] - landmark_bearing(at[use], lm_s[use]))
+            J = db[use]
+            total += float(np.sum(w[use] * e**2))
+            grad += J.T @ (w[use] * e)
+            gn += J.T @ (J * w[use, None])
+    keep = np.asarray(free, dtype=bool)
+    return total, grad[keep], gn[np.ix_(keep, keep)]
+
+
+def mount_update(
+    poses: np.ndarray,
+    lm: np.ndarray,
+    readings: np.ndarray,
+    weights: np.ndarray,
+    bearings: np.ndarray,
+    sensor: LandmarkSensor,
+    free: tuple[bool, bool, bool],
+) -> SensorMount:
+    """The mount that raises ``Q(m)`` (module docstring) from ``sensor.mount``: Gauss-Newton steps on the
+    sampled poses, each halved until it lowers ``-2 Q`` (so the update never lowers ``Q``). ``readings``
+    ``(R, C)`` and ``weights`` ``(R, C+1)`` are the sightings' channels and E-step weights, ``bearings``
+    ``(R,)`` their measured bearings; only the ``free`` components move."""
+    keep = np.asarray(free, dtype=bool)
+    mount = sensor.mount.as_array()
+    if not keep.any() or poses.shape[1] == 0:
+        return sensor.mount
+    args = (poses, lm, readings, weights, sensor, bearings, keep)
+    value, grad, gn = _objective_terms(mount, *args)
+    for _ in range(GAUSS_NEWTON_STEPS):
+        try:
+            step = np.linalg.solve(gn + 1e-9 * np.trace(gn) * np.eye(keep.sum()), grad)
+        except np.linalg.LinAlgError:
+            break
+        moved = False
+        for _half in range(8):
+            trial = mount.copy()
+            trial[keep] += step
+            t_value, t_grad, t_gn = _objective_terms(trial, *args)
+            if np.isfinite(t_value) and t_value < value:
+                mount, value, grad, gn, moved = trial, t_value, t_grad, t_gn, True
+                break
+            step = 0.5 * step
+        if not moved:
+            break
+    return SensorMount.from_array(mount)
+
+
+def sensor_distances(poses: np.ndarray, lm: np.ndarray, mount: SensorMount, mode: int) -> np.ndarray:
+    """Each sampled robot pose's (rows of ``poses``, ``(S, R, n)``) distance from its sensor to its landmark."""
+    if mode != 0 or mount.is_zero:
+        return np.stack([landmark_distance(poses[s], lm, mode) for s in range(poses.shape[0])])
+    m = mount.as_array()
+    return np.stack([landmark_distance(sensor_poses(poses[s], m), lm) for s in range(poses.shape[0])])
+
+
+# the mount search (``search_mount``): each component's bracket about its current value, and how closely
+# the search pins it; a forward pass is about a quarter of an E-step
+SEARCH_HALF_WIDTH = (150.0, 150.0, 0.1)  # mm, mm, rad
+SEARCH_TOLERANCE = (2.0, 2.0, 5e-4)
+SEARCH_ROUNDS = 2  # over the free components, since they trade against each other a little
+
+
+def remounted(model: EMModel, mount: np.ndarray) -> EMModel:
+    """``model`` with its sensor at ``mount`` and its start moved so that the sensor's own start pose stays
+    where it was: the same first sightings, read from a robot placed behind its sensor anew."""
+    old = model.sensor.mount.as_array()
+    new = np.asarray(mount, dtype=float)
+    s0 = sensor_poses(model.prior_mean, old)[0]
+    theta = s0[2] - new[2]
+    c, s = np.cos(theta), np.sin(theta)
+    x = s0[0] + c * new[1] + s * new[0]
+    y = s0[1] + s * new[1] - c * new[0]
+    sensor = replace(model.sensor, mount=SensorMount.from_array(new))
+    return model.replace(sensor=sensor, prior_mean=np.array([x, y, theta]))
+
+
+def search_mount(
+    model: EMModel,
+    post: Any,
+    loglik: Callable[[EMModel], float],
+    evaluate: Callable[[EMModel], Any],
+    free: tuple[bool, bool, bool],
+) -> tuple[EMModel, Any, dict[str, Any]]:
+    """The free components of the mount moved, one at a time, to where the E-step's own
+    ``log P(O | C, lambda)`` (its forward pass, ``loglik``) is highest, by scipy's bounded scalar search
+    within ``SEARCH_HALF_WIDTH`` of their value; a move is kept only if the likelihood rises.
+
+    Why a search besides the M-step: the path the E-step infers was inferred with the old mount, so an
+    M-step that fits the mount to it moves it only as far as that path allows. A yaw of the sensor and
+    the robot's heading trade against each other in every sighting, and only the robot's forward motion
+    (no side-stepping) tells them apart; EM's alternating steps crawl along that ridge as they do along
+    the range offset's (``ridge.py``). The likelihood itself pins it: on a simulated drive whose camera is
+    yawed 0.035 rad, a model learned at yaw 0 is 17 log-units less likely than at the true yaw."""
+    from scipy.optimize import minimize_scalar
+
+    start = model
+    best_ll = post.loglik if post.ok and np.isfinite(post.loglik) else -np.inf
+    info: dict[str, Any] = {"mount_before": model.sensor.mount.to_dict(), "loglik_before": float(post.loglik)}
+    passes = 0
+    for _ in range(SEARCH_ROUNDS):
+        moved_any = False
+        for i in np.flatnonzero(np.asarray(free, dtype=bool)):
+            base = model.sensor.mount.as_array()
+            tried: dict[float, float] = {0.0: best_ll}
+
+            def negative(
+                delta: float, i: int = i, base: np.ndarray = base, tried: dict = tried, at: EMModel = model
+            ) -> float:
+                m = base.copy()
+                m[i] += delta
+                ll = loglik(remounted(at, m))
+                tried[float(delta)] = ll
+                return -ll if np.isfinite(ll) else np.inf
+
+            h = SEARCH_HALF_WIDTH[i]
+            minimize_scalar(negative, bounds=(-h, h), method="bounded", options={"xatol": SEARCH_TOLERANCE[i]})
+            passes += len(tried) - 1
+            delta = max(tried, key=lambda d: tried[d])
+            if delta != 0.0 and tried[delta] > best_ll:
+                m = base.copy()
+                m[i] += delta
+                model, best_ll, moved_any = remounted(model, m), tried[delta], True
+        if not moved_any:
+            break
+    if model is not start:
+        kept = evaluate(model)
+        if kept.ok:
+            post = kept
+        else:
+            model = start
+    info.update(
+        {"mount_after": model.sensor.mount.to_dict(), "loglik_after": float(post.loglik), "forward_passes": passes}
+    )
+    return model, post, info
