@@ -18,6 +18,7 @@ from sensact.learn.em.estep import e_step
 from sensact.learn.em.mount import mount_freedom, mount_update, remounted
 from sensact.models.em_model import EMModel
 from sensact.models.landmark_sensor import LandmarkSensor, SensorMount
+from sensact.models.polynomial import Polynomial1D
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
 MOUNT = (220.0, 40.0, np.deg2rad(2.0))  # the camera: 22 cm ahead, 4 cm left, yawed 2 degrees
@@ -82,9 +83,7 @@ def test_the_m_step_finds_a_known_mount_from_exact_poses():
     poses = np.column_stack([rng.uniform(-1500, 1500, 300), rng.uniform(-3000, 3000, 300), rng.uniform(-3, 3, 300)])
     lm = rng.uniform(-4000, 4000, (300, 2))
     at = sensor_poses(poses, true)
-    sensor = LandmarkSensor.single(
-        __import__("sensact.models.polynomial", fromlist=["Polynomial1D"]).Polynomial1D((0.0, 1.0)), 20.0, 0.01
-    )
+    sensor = LandmarkSensor.single(Polynomial1D((0.0, 1.0)), 20.0, 0.01)
     readings = landmark_distance(at, lm)[:, None]
     bearings = landmark_bearing(at, lm)
     weights = np.ones((300, 2))
@@ -99,9 +98,7 @@ def test_remounting_keeps_the_sensors_start_pose():
     from sensact.models.linear_action import LinearActionModel
 
     action = LinearActionModel.zero("affine", 1, ("v_mm_s",), ("v_x_mm_s", "v_y_mm_s", "v_theta_rad_s"))
-    sensor = LandmarkSensor.single(
-        __import__("sensact.models.polynomial", fromlist=["Polynomial1D"]).Polynomial1D((0.0, 1.0)), 20.0, 0.01
-    )
+    sensor = LandmarkSensor.single(Polynomial1D((0.0, 1.0)), 20.0, 0.01)
     model = EMModel("planar", action, sensor, np.array([100.0, 200.0, 0.3]), np.eye(3), np.ones((1, 3)))
     moved = remounted(model, np.array([220.0, 40.0, 0.035]))
     np.testing.assert_allclose(

@@ -151,8 +151,8 @@ def test_truth_residuals_are_taken_at_the_sensor():
     model = initial_model(data, continuous_config())
     valid = np.ones(len(poses), dtype=bool)
     sc = score_against_truth(model, data, poses, valid)
-    m, b = sc["sensor_mount"], sc["bearing"]
-    assert [m["lateral_mm"], m["forward_mm"]] == pytest.approx(mount[:2], abs=8.0)
+    m, b = sc["sensor_mount"]["fitted_to_truth"], sc["bearing"]
+    assert [-m["left_mm"], m["forward_mm"]] == pytest.approx(mount[:2], abs=8.0)
     assert m["yaw_rad"] == pytest.approx(mount[2], abs=0.002)
     assert b["sigma_truth_rad"] == pytest.approx(0.02, rel=0.05)
     assert sc["range"]["sigma_truth_mm"] == pytest.approx(30.0, rel=0.05)

@@ -236,8 +236,11 @@ def _compiled_for(n_state: int):
         ``obs_gain[k, c]`` adds ``gain * d`` to channel c's prediction (its bearing terms, 0 in the thesis).
         ``robust_kind[c]``/``robust_param[c]`` pick each channel's likelihood (the last entry is the
         bearing's). ``weights[k, c]`` receives each reading's weight (0 = not used).
+        ``mount`` (forward mm, left mm, yaw rad) is where the sensor sits on the robot: every reading is
+        predicted from the sensor's pose (core/pose_models.py; zeros: eq. 4.19 exactly).
         With ``prune_rad_per_step > 0`` an observation whose bearing innovation exceeds that times the
-        steps since the previous observation is marked unused in ``obs_use`` (sec. 4.4.1).
+        steps since the last step with a kept observation is marked unused in ``obs_use`` (sec. 4.4.1),
+        every observation of a step judged against the same prediction.
         """
         T = mu_a.shape[0]
         n = n_state  # a compile-time constant: the small-matrix loops unroll

@@ -55,8 +55,14 @@ def sensor_poses(poses: np.ndarray, mount: np.ndarray) -> np.ndarray:
     fwd, left, yaw = (float(v) for v in mount)
     if fwd == 0.0 and left == 0.0 and yaw == 0.0:
         return poses
-    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
-    return np.column_stack([poses[:, 0] - c * left - s * fwd, poses[:, 1] - s * left + c * fwd, poses[:, 2] + yaw])
+    return apply_displacement(poses, np.broadcast_to([-left, fwd, yaw], poses.shape))
+
+
+def sensor_distance(poses: np.ndarray, landmark_xy: np.ndarray, mount: np.ndarray, mode: int = PLANAR) -> np.ndarray:
+    """``landmark_distance`` from the sensor at ``mount`` (``sensor_poses``) on each pose; on a track, the state."""
+    if mode == TRACK:
+        return landmark_distance(poses, landmark_xy, mode)
+    return landmark_distance(sensor_poses(poses, mount), landmark_xy)
 
 
 def relative_displacement(w1: np.ndarray, w2: np.ndarray, mode: int = PLANAR) -> np.ndarray:

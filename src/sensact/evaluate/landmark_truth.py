@@ -664,12 +664,6 @@ def score_against_truth(
                 if reads_bearing
                 else None
             ),
-            # the same as the truth's robot frame reads it (sec. 2.5.1: x right), as scored before
-            **(
-                {"lateral_mm": float(mount[0]), "forward_mm": float(mount[1]), "yaw_rad": float(mount[2])}
-                if reads_bearing
-                else {}
-            ),
         },
         "truth_noise": structure,
     } | ({"truth_heading_doubt": heading_doubt} if heading_doubt else {})

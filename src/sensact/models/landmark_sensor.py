@@ -153,10 +153,6 @@ class SensorMount:
     def from_array(cls, values: Sequence[float]) -> SensorMount:
         return cls(*(float(v) for v in values))
 
-    @property
-    def is_zero(self) -> bool:
-        return self.forward_mm == 0.0 and self.left_mm == 0.0 and self.yaw_rad == 0.0
-
     def to_dict(self) -> dict[str, float]:
         return {"forward_mm": self.forward_mm, "left_mm": self.left_mm, "yaw_rad": self.yaw_rad}
 

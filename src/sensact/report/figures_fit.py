@@ -17,7 +17,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from sensact.core.pose_models import TRACK, landmark_distance, sensor_poses
+from sensact.core.pose_models import TRACK, sensor_distance
 from sensact.learn.em.estep import channel_columns
 from sensact.report.figures1d import _save
 
@@ -89,20 +89,17 @@ def _path_panel(ax: Any, res: Any, data: Any) -> None:
     ax.legend(fontsize=7)
 
 
-def _sensor_distances(model: Any, post: Any, data: Any) -> np.ndarray:
-    """Each sighting's distance from the sensor, at its mount on the smoothed path, to its landmark."""
-    poses = post.mean_gamma[data.obs_step]
-    if data.mode != TRACK:
-        poses = sensor_poses(poses, model.sensor.mount.as_array())
-    return landmark_distance(poses, data.landmarks_xy[data.obs_landmark], data.mode)
-
-
 def figure_em_fit(res: Any, data: Any, path: Path, title: str) -> Path:
     """The fit's own evidence: the likelihood's climb, each f over its readings, the smoothed path."""
     assert res.posteriors is not None, "the fit's posteriors are needed"
     channels = res.model.sensor.channels
     cols = channel_columns(res.model.sensor, data)
-    dist = _sensor_distances(res.model, res.posteriors, data)
+    dist = sensor_distance(
+        res.posteriors.mean_gamma[data.obs_step],
+        data.landmarks_xy[data.obs_landmark],
+        res.model.sensor.mount.as_array(),
+        data.mode,
+    )
     n = len(channels) + 2
     ncol = min(n, 3)
     nrow = math.ceil(n / ncol)
@@ -154,7 +151,12 @@ def figure_localized(loc: Any, data: Any, path: Path, title: str, truth: Any = N
     channels = loc.model.sensor.channels
     cols = channel_columns(loc.model.sensor, data)
     post = loc.posteriors
-    dist = _sensor_distances(loc.model, post, data)
+    dist = sensor_distance(
+        post.mean_gamma[data.obs_step],
+        data.landmarks_xy[data.obs_landmark],
+        loc.model.sensor.mount.as_array(),
+        data.mode,
+    )
     n = len(channels) + 1
     ncol = min(n, 3)
     nrow = math.ceil(n / ncol)

@@ -28,8 +28,9 @@ def _truth_at_sensor(ml: Any, score: dict[str, Any]) -> tuple[np.ndarray, np.nda
     d = ml.data
     poses, valid = ml.truth_poses()
     ok = valid[d.obs_step] > 0
-    m = score.get("sensor_mount") or {}  # None: no bearings to fit it by, the truth's origin
-    mount = [m.get("lateral_mm", 0.0), m.get("forward_mm", 0.0), m.get("yaw_rad", 0.0)]
+    m = score["sensor_mount"]["fitted_to_truth"] or {}  # None: no bearings to fit it by, the truth's origin
+    # at_sensor's displacement is in sec. 2.5.1's robot frame: x to the right
+    mount = [-m.get("left_mm", 0.0), m.get("forward_mm", 0.0), m.get("yaw_rad", 0.0)]
     return ok, at_sensor(poses[d.obs_step[ok]], mount), d.landmarks_xy[d.obs_landmark[ok]]
 
 

@@ -23,11 +23,11 @@ def _drift_cell(n: dict[str, Any], when: str) -> str:
 
 
 def _mount_cell(score: dict[str, Any]) -> str:
-    m, b = score.get("sensor_mount"), score["bearing"]
+    m, b = (score.get("sensor_mount") or {}).get("fitted_to_truth"), score["bearing"]
     if m is None or b is None:  # results written before the sensor's pose was fitted, or no bearings to fit it by
         return "-"
     return (
-        f"{m['forward_mm']:.0f} / {m['lateral_mm']:.0f} / {m['yaw_rad']:+.4f}; "
+        f"{m['forward_mm']:.0f} / {-m['left_mm']:.0f} / {m['yaw_rad']:+.4f}; "
         f"{b['truth_origin_sigma_rad']:.4f} ({b['truth_origin_sigma_ratio']:.2f})"
     )
 

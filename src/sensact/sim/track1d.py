@@ -130,8 +130,8 @@ class Track1DConfig:
             problems.append("observation_rate_hz must be in (0, 1/dt_s]")
         if self.command_hold_s <= 0:
             problems.append("command_hold_s must be > 0")
-        if not -1.0 < self.observation_noise_ar1 < 1.0:
-            problems.append("observation_noise_ar1 must be in (-1, 1)")
+        if not 0.0 <= self.observation_noise_ar1 < 1.0:
+            problems.append("observation_noise_ar1 must be in [0, 1)")
         if not 0.0 <= self.observation_dropout < 1.0:
             problems.append("observation_dropout must be in [0, 1)")
         if self.turn_filter_n < 1:

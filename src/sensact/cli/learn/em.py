@@ -228,10 +228,6 @@ def _run_em(data: Any, start: Any, cfg: Any) -> Any:
         )
 
 
-def data_is_planar(res: Any) -> bool:
-    return res.model.geometry == "planar"
-
-
 def _describe_fit(res: Any, cfg: Any) -> None:
     """How EM stopped and what its searches, gates and restarts did on the way."""
     from sensact.report.tables_real import kept_run_cell, restart_runs_cell
@@ -247,7 +243,7 @@ def _describe_fit(res: Any, cfg: Any) -> None:
             else ""
         )
     )
-    if res.mount is not None and data_is_planar(res):
+    if res.mount is not None and res.model.geometry == "planar":
         console.print(f"sensor mount: {res.mount.describe()}", highlight=False)
     if res.start_moved:
         first, again = res.start_moved["loglik"]

@@ -19,8 +19,9 @@ from typing import Any
 
 import numpy as np
 
-from sensact.core.pose_models import landmark_distance, sensor_poses
-from sensact.learn.em.estep import Posteriors, channel_columns
+from sensact.core.angles import wrap_angle
+from sensact.core.pose_models import landmark_bearing, landmark_distance, sensor_distance, sensor_poses
+from sensact.learn.em.estep import Posteriors, channel_columns, channel_inputs
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 
@@ -57,9 +58,7 @@ def fitted_distances(model: EMModel, post: Posteriors, data: LandmarkLog) -> lis
     use = np.asarray(post.obs_used, dtype=bool)
     if data.geometry == "planar":
         poses = post.mean_gamma[data.obs_step[use]]
-        dist = landmark_distance(
-            sensor_poses(poses, model.sensor.mount.as_array()), data.landmarks_xy[data.obs_landmark[use]]
-        )
+        dist = sensor_distance(poses, data.landmarks_xy[data.obs_landmark[use]], model.sensor.mount.as_array())
     else:  # a track's state is the distance to the beacon
         dist = post.mean_gamma[data.obs_step[use], 0]
     readings = data.obs_readings[use][:, channel_columns(model.sensor, data)]
@@ -236,10 +235,6 @@ def residual_autocorrelation(model: EMModel, post: Posteriors, data: LandmarkLog
     E-step weight, so that a robust channel's outliers count as little as they did in the fit), over the
     readings the E-step used, in time order; the bearing's under ``"bearing"``. None where fewer than 10
     readings were used."""
-    from sensact.core.angles import wrap_angle
-    from sensact.core.pose_models import landmark_bearing
-    from sensact.learn.em.estep import channel_inputs
-
     rows = np.flatnonzero(post.obs_used)
     out: dict[str, float | None] = {}
     if rows.size == 0:

@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from sensact.core.angles import wrap_angle
-from sensact.core.pose_models import landmark_bearing, landmark_distance, sensor_poses
+from sensact.core.pose_models import landmark_bearing, sensor_distance, sensor_poses
 from sensact.models.em_model import EMModel
 from sensact.models.landmark_sensor import LandmarkSensor, SensorMount
 from sensact.models.linear_action import LinearActionModel
@@ -56,13 +56,8 @@ class MountFreedom:
         return any(self.free)
 
     def describe(self) -> str:
-        learned = [n for n, f in zip(MOUNT_COMPONENTS, self.free, strict=True) if f]
-        held = [n for n, f in zip(MOUNT_COMPONENTS, self.free, strict=True) if not f]
-        parts = []
-        if learned:
-            parts.append("learned: " + ", ".join(learned))
-        if held:
-            parts.append("held: " + ", ".join(held))
+        d = self.to_dict()
+        parts = [f"{k}: {', '.join(d[k])}" for k in ("learned", "held") if d[k]]
         return "; ".join(parts) + f" ({self.reason})"
 
     def to_dict(self) -> dict[str, object]:
@@ -180,10 +175,8 @@ def mount_update(
 
 def sensor_distances(poses: np.ndarray, lm: np.ndarray, mount: SensorMount, mode: int) -> np.ndarray:
     """Each sampled robot pose's (rows of ``poses``, ``(S, R, n)``) distance from its sensor to its landmark."""
-    if mode != 0 or mount.is_zero:
-        return np.stack([landmark_distance(poses[s], lm, mode) for s in range(poses.shape[0])])
     m = mount.as_array()
-    return np.stack([landmark_distance(sensor_poses(poses[s], m), lm) for s in range(poses.shape[0])])
+    return np.stack([sensor_distance(poses[s], lm, m, mode) for s in range(poses.shape[0])])
 
 
 # the mount search (``search_mount``): each component's bracket about its current value, and how closely
