@@ -19,8 +19,9 @@ from dataclasses import replace
 
 from sensact.evaluate.bars import robot_checks
 from sensact.experiments.diffdrive import SimulatedRobot, simulator_settings
-from sensact.experiments.real import evaluate_mrclam, mrclam_config, mrclam_folder
+from sensact.experiments.real import evaluate_mrclam, mrclam_folder
 from sensact.learn.em import EMConfig, fit_em
+from sensact.presets import mrclam_config
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
 # each heuristic, and the settings that turn it off

@@ -29,12 +29,13 @@ from pathlib import Path
 import numpy as np
 
 from sensact.errors import LogFormatError
-from sensact.experiments.real import evaluate_mrclam, mrclam_config, mrclam_folder, run_mrclam_robot
+from sensact.experiments.real import evaluate_mrclam, mrclam_folder, run_mrclam_robot
 from sensact.io.mrclam import MrclamLog, read_mrclam
 from sensact.learn.em import EMConfig, EMResult, fit_em
 from sensact.learn.em.checks import fall_per_sighting
 from sensact.learn.em.warm_start import start_from_model
 from sensact.models.em_model import EMModel
+from sensact.presets import mrclam_config
 from sensact.report.tables_real import kept_run_cell, restart_runs_cell
 
 LANDMARK_FILE = "Landmark_Groundtruth.dat"

@@ -16,9 +16,10 @@ import time
 
 import numpy as np
 
-from sensact.experiments.real import mrclam_config, mrclam_folder
+from sensact.experiments.real import mrclam_folder
 from sensact.io.mrclam import read_mrclam
 from sensact.learn.em import e_step, fit_em, initial_model, m_step
+from sensact.presets import mrclam_config
 
 
 def main() -> None:

@@ -105,6 +105,20 @@ def test_simulate_then_learn(tmp_path):
     assert (tmp_path / "m.png").stat().st_size > 30_000  # three panels of points and curves
 
 
+def test_learn_em_bad_setting_is_one_line_naming_it(tmp_path):
+    """A bad --set or --preset on a log EM can read: one line naming the field (the settings rest on the log's
+    own settings file, so they are read after the log)."""
+    log = tmp_path / "log"
+    assert runner.invoke(app, ["simulate", "field2d", "--seconds", "20", "--out", str(log)]).exit_code == 0
+    for args, needle in (
+        (["--set", "patience=0"], "patience"),
+        (["--preset", "mars_rover"], "no preset 'mars_rover'"),
+        (["--preset", "track_1d"], "preset track_1d is for a 1-D robot"),
+    ):
+        res = runner.invoke(app, ["learn", "em", str(log), *args])
+        assert res.exit_code == 2 and needle in res.output and "Traceback" not in res.output, res.output
+
+
 @pytest.mark.parametrize(
     "args,needle",
     [
@@ -116,7 +130,6 @@ def test_simulate_then_learn(tmp_path):
         (["reproduce", "real", "--data", "/nonexistent", "--set", "motion_noise=wobbly"], "motion_noise must be"),
         (["simulate", "field2d", "--out", "x", "--setting", "mars"], "unknown setting"),
         (["learn", "em", "/nonexistent/log"], "not a log folder: not found"),
-        (["learn", "em", ".", "--set", "patience=0"], "patience"),
         *(
             (["simulate", sim, "--out", "x", "--seconds", "0"], "--seconds: seconds")
             for sim in ("track1d", "field2d", "diffdrive", "car")
@@ -689,9 +702,9 @@ def _as_track_folder(csv, folder):
     readings, the recorded distance as groundtruth.csv's distance_mm, and the Turtlebot's settings as its
     em_config.yaml (what a user with other column names writes by hand: docs/em-real.md, section 1)."""
     from sensact.config import config_to_yaml
-    from sensact.experiments.turtlebot_em import turtlebot_em_config
     from sensact.io.landmark_log import write_landmark_log
     from sensact.io.turtlebot import read_turtlebot_landmark_log
+    from sensact.presets import turtlebot_em_config
 
     data, truth_mm = read_turtlebot_landmark_log(csv)
     write_landmark_log(folder, data, groundtruth={"distance_mm": truth_mm})

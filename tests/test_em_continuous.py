@@ -450,9 +450,8 @@ def test_a_config_written_in_a_model_json_reads_back_exactly(tmp_path):
     default it was; a null for a float field whose default is finite stays an error naming the field."""
     from dataclasses import asdict
 
-    from sensact.experiments.real import mrclam_config
-    from sensact.experiments.turtlebot_em import turtlebot_em_config
     from sensact.io.atomic import write_json
+    from sensact.presets import mrclam_config, turtlebot_em_config
 
     for cfg in (mrclam_config(), turtlebot_em_config(), EMConfig(), replace(EMConfig(), warm_start=True)):
         write_json(tmp_path / "m.json", {"config": asdict(cfg)})
@@ -469,8 +468,7 @@ def test_a_config_written_as_yaml_reads_back_exactly(tmp_path):
     """Exact round trip of the YAML `convert mrclam` writes: only the fields that differ from the
     defaults (a channel's infinite window left out), and `build_config` gives the same config back."""
     from sensact.config import build_config, config_to_yaml
-    from sensact.experiments.real import mrclam_config
-    from sensact.experiments.turtlebot_em import turtlebot_em_config
+    from sensact.presets import mrclam_config, turtlebot_em_config
 
     for cfg in (mrclam_config(), turtlebot_em_config(), EMConfig()):
         text = config_to_yaml(cfg, "first line\nsecond line")
@@ -479,4 +477,4 @@ def test_a_config_written_as_yaml_reads_back_exactly(tmp_path):
         assert build_config(EMConfig, tmp_path / "c.yaml") == cfg
     text = config_to_yaml(mrclam_config())
     assert "ridge_search_mm: 500.0" in text and "inf" not in text and "patience" not in text
-    assert config_to_yaml(EMConfig()) == "{}\n"
+    assert config_to_yaml(EMConfig()) == ""  # nothing differs from the defaults

@@ -14,11 +14,11 @@ from sensact.core.angles import wrap_angle
 from sensact.core.pose_models import landmark_bearing, landmark_distance
 from sensact.errors import ModelFormatError
 from sensact.evaluate.simulated_robot import score_against_simulated
-from sensact.experiments.real import mrclam_config
 from sensact.learn.em import EMConfig, e_step, fit_em, initial_model, log_likelihood
 from sensact.learn.em.config import ChannelConfig
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.landmark_sensor import LandmarkSensor
+from sensact.presets import mrclam_config
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
 NU = 4.0

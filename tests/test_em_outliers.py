@@ -11,10 +11,10 @@ import pytest
 from sensact.core.angles import wrap_angle
 from sensact.core.pose_models import landmark_bearing
 from sensact.evaluate.simulated_robot import score_against_simulated
-from sensact.experiments.real import mrclam_config
 from sensact.learn.em import EMConfig, fit_em
 from sensact.learn.em.estep import e_step
 from sensact.learn.em.outliers import bearing_outliers
+from sensact.presets import mrclam_config
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
 

@@ -14,7 +14,8 @@ import pytest
 
 from continuous_robot import continuous_config, simulate_continuous
 from sensact import cli
-from sensact.learn.em import EMConfig, fit_em, initial_model
+from sensact.app import read_settings_file
+from sensact.learn.em import fit_em, initial_model
 from sensact.models.em_model import EMModel
 from sensact.models.linear_action import command_features
 
@@ -31,8 +32,9 @@ def test_a_robot_that_sees_no_landmark_is_refused_in_one_line_and_reproduce_goes
     from typer.testing import CliRunner
 
     from sensact.errors import LogFormatError
-    from sensact.experiments.real import mrclam_config, run_real
+    from sensact.experiments.real import run_real
     from sensact.io.mrclam import read_mrclam
+    from sensact.presets import mrclam_config
     from sensact.report.tables_real import real_tables
 
     folder = tmp_path / "data" / "mrclam" / MRCLAM.name
@@ -84,13 +86,13 @@ def test_mrclam_reader_and_log_folder_round_trip(tmp_path):
     # the command writes the same folder, with the EM settings its printed command passes
     from typer.testing import CliRunner
 
-    from sensact.config import build_config
-    from sensact.experiments.real import bar_checks, mrclam_config
+    from sensact.experiments.real import bar_checks
+    from sensact.presets import mrclam_config
 
     run = CliRunner().invoke(cli.app, ["convert", "mrclam", str(MRCLAM), "--robot", "1", "--out", str(tmp_path / "c")])
     assert run.exit_code == 0, run.output
-    assert f"--config {tmp_path / 'c' / 'em_config.yaml'}" in run.output.replace("\n", "")
-    assert build_config(EMConfig, tmp_path / "c" / "em_config.yaml") == mrclam_config()
+    assert f"sensact learn em {tmp_path / 'c'}`" in " ".join(run.output.split())
+    assert read_settings_file(tmp_path / "c" / "em_config.yaml") == mrclam_config()
     assert (tmp_path / "c" / "overview.png").stat().st_size > 20_000  # the conversion, to check by eye
     np.testing.assert_array_equal(read_landmark_log(tmp_path / "c").data.obs_readings, back.data.obs_readings)
     np.testing.assert_allclose(back.data.step_commands, ml.data.step_commands)
@@ -172,11 +174,11 @@ def test_a_lost_fit_whose_f_bends_without_turning_is_seen_and_started_again():
     check sees it, and the restart from a third of the start sigma finds the robot with a far higher
     likelihood (docs/em-real-results.md, "What you see without ground truth")."""
     from sensact.evaluate.landmark_truth import path_offset
-    from sensact.experiments.real import mrclam_config
     from sensact.io.mrclam import read_mrclam
     from sensact.learn.em import initial_model
     from sensact.learn.em.checks import range_function_bends, range_function_turns
-    from sensact.learn.em.fit import restart_while_lost
+    from sensact.learn.em.fit import Heard, fit_em_once, restart_while_lost
+    from sensact.presets import mrclam_config
 
     ml = read_mrclam(MRCLAM, 4)
     a, b = np.linspace(0, ml.data.n_steps, 5).round().astype(int)[1:3]
@@ -188,7 +190,10 @@ def test_a_lost_fit_whose_f_bends_without_turning_is_seen_and_started_again():
     assert range_function_turns(lost.model, lost.posteriors, part) == []
     bent = range_function_bends(lost.model, lost.posteriors, part)
     assert [t["channel"] for t in bent] == ["range_mm"] and bent[0]["slopes"][1] > 2.0 * bent[0]["slopes"][0] > 0
-    res = restart_while_lost(part, initial_model(part, cfg), cfg, lost)
+    first = iter([lost])  # the fit that lost the robot, then EM from each tighter start
+    res = restart_while_lost(
+        lambda s: next(first, None) or fit_em_once(part, s, cfg), part, cfg, Heard(None, None, None)
+    )(initial_model(part, cfg))
     runs = res.restarts
     assert runs[0]["f_turns"] == bent and runs[1]["start_sigma"]["range_mm"] == pytest.approx(100.0 / 3)
     # since every sighting of a frame counts and the mount is learned, the restarts no longer find this
@@ -220,9 +225,9 @@ def test_a_thinned_map_that_lost_its_robot_finds_it_with_every_sighting(tmp_path
     start sigma; docs/em-real-results.md, "Fewer landmarks"). Judged per frame, the gate keeps them, and
     the poor start finds the robot with no restart and no sign of being lost (measured: 100 mm)."""
     from sensact.evaluate.landmark_truth import path_offset
-    from sensact.experiments.real import mrclam_config
     from sensact.io.mrclam import read_mrclam
     from sensact.learn.em.checks import lost_fit_signs
+    from sensact.presets import mrclam_config
 
     copy = dataset_with_landmarks(tmp_path, {7, 8, 9, 10, 12, 16, 19, 20})  # the benchmark's map 8:2
     ml = read_mrclam(copy, 4)
@@ -240,9 +245,10 @@ def test_a_robot_lost_from_the_poor_start_is_found_from_another_robots_model(tmp
     landmarks"). Robot 1's model, learned on the same map from the poor start, places robot 4 on its log,
     and EM learned on from there (learn/em/warm_start.py) finds it (measured 90 mm; 107 mm before every sighting
     of a frame counted)."""
-    from sensact.experiments.real import evaluate_mrclam, mrclam_config
+    from sensact.experiments.real import evaluate_mrclam
     from sensact.io.mrclam import read_mrclam
     from sensact.learn.em.warm_start import start_from_model
+    from sensact.presets import mrclam_config
 
     copy = dataset_with_landmarks(tmp_path, {6, 8, 10, 11, 15, 18})  # the benchmark's map 6:1
     cfg = mrclam_config()
@@ -269,10 +275,10 @@ def test_a_short_real_log_finds_its_robot_and_a_lost_fit_says_so_and_starts_agai
 
     from sensact.config import config_to_yaml
     from sensact.evaluate.landmark_truth import path_offset
-    from sensact.experiments.real import mrclam_config
     from sensact.io.landmark_log import write_landmark_log
     from sensact.io.mrclam import read_mrclam
     from sensact.learn.em.checks import range_function_turns
+    from sensact.presets import mrclam_config
 
     ml = read_mrclam(MRCLAM, 1)
     stop = ml.data.n_steps // 4
@@ -627,7 +633,8 @@ def test_reproduce_real_runs_every_mrclam_dataset_it_finds(tmp_path):
     by dataset when there are several, with the tables titled and the figures named after them."""
     from dataclasses import replace
 
-    from sensact.experiments.real import mrclam_config, mrclam_datasets, mrclam_row_key, run_real
+    from sensact.experiments.real import mrclam_datasets, mrclam_row_key, run_real
+    from sensact.presets import mrclam_config
     from sensact.report import figures_real
     from sensact.report.tables_real import real_tables
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 import threading
 from dataclasses import replace
+from functools import partial
 from types import SimpleNamespace
 
 import numpy as np
@@ -16,6 +17,7 @@ from sensact import cli
 from sensact.errors import ConfigError
 from sensact.learn.em import EMConfig, e_step, fit_em, initial_model, log_likelihood
 from sensact.learn.em.delay_search import search_delay, with_delay
+from sensact.learn.em.loop import held_trial
 from sensact.learn.em.mstep import sample_gamma
 from sensact.learn.em.ridge import search_ridge, shifted_forward
 from sensact.learn.em.start import race_starts, race_trials, search_grid, start_candidates
@@ -31,14 +33,14 @@ def test_start_race_halves_the_field_on_the_held_gaussian_likelihood():
     cands = [start.replace(prior_mean=np.array([q, 0.0, 0.0])) for q in quality]
     seen = []
 
-    class Trial:  # what fit_em returns, as far as the race reads it
-        def __init__(self, model, cfg):
-            self.model, self.iterations = model, cfg.max_iterations
+    class Trial:  # what loop.held_trial returns, as far as the race reads it
+        def __init__(self, model, iterations):
+            self.model, self.iterations = model, iterations
             self.loglik_best = 100.0 * model.prior_mean[0] - model.prior_mean[1]
 
-    def run(data, model, trial_cfg):
-        seen.append(trial_cfg)
-        return Trial(model.replace(prior_mean=model.prior_mean + np.array([0.0, 1.0, 0.0])), trial_cfg)
+    def run(data, model, iterations):
+        seen.append(iterations)
+        return Trial(model.replace(prior_mean=model.prior_mean + np.array([0.0, 1.0, 0.0])), iterations)
 
     heard = []
     model, info = race_starts(data, cands, cfg, run, on_trial=lambda done, planned: heard.append((done, planned)))
@@ -47,9 +49,7 @@ def test_start_race_halves_the_field_on_the_held_gaussian_likelihood():
     assert set(info["rounds"][1]) == {"2", "4", "5"} and set(info["rounds"][2]) == {"2", "4"}
     assert model.prior_mean[0] == 6.0 and model.prior_mean[1] == 3.0  # the winner's model after 3 rounds
     assert info["winner_iterations"] == 3 * cfg.start_trial_iterations
-    for t in seen:
-        assert t.max_iterations == cfg.start_trial_iterations and t.prune_rad_per_step == 0.0
-        assert t.refine_from > t.max_iterations and t.patience > t.max_iterations and t.start_search_s == 0.0
+    assert seen == [cfg.start_trial_iterations] * 11
 
 
 def test_race_trials_counts_each_round_until_two_are_left():
@@ -71,11 +71,11 @@ def test_start_race_does_not_rerun_a_trial_that_found_nothing_better():
             self.model, self.iterations = model, iterations
             self.loglik_best = 100.0 * model.prior_mean[0] + model.prior_mean[1]
 
-    def run(data, model, trial_cfg):
+    def run(data, model, iterations):
         runs.append(model.prior_mean[0])
         if model.prior_mean[0] == 5.0:  # stalls: its best model is the one it was given
-            return Trial(model, trial_cfg.max_iterations)
-        return Trial(model.replace(prior_mean=model.prior_mean + np.array([0.0, 1.0, 0.0])), trial_cfg.max_iterations)
+            return Trial(model, iterations)
+        return Trial(model.replace(prior_mean=model.prior_mean + np.array([0.0, 1.0, 0.0])), iterations)
 
     heard = []
     model, info = race_starts(data, cands, cfg, run, on_trial=lambda done, planned: heard.append((done, planned)))
@@ -98,13 +98,15 @@ def test_start_race_runs_a_round_in_threads_and_gives_the_serial_race():
              [(0.0, 0.0), (400.0, 0.0), (0.0, -400.0), (-300.0, 300.0)]]  # fmt: skip
     barrier = threading.Barrier(2, timeout=10)
 
-    def meeting(data, model, trial_cfg):
+    trial = partial(held_trial, cfg=cfg)
+
+    def meeting(data, model, iterations):
         barrier.wait()  # raises BrokenBarrierError after 10 s alone
-        return fit_em(data, model, trial_cfg)
+        return trial(data, model, iterations)
 
     race_starts(data, cands[:2], cfg, meeting, workers=2)
-    serial_model, serial = race_starts(data, cands, cfg, fit_em, workers=1)
-    threaded_model, threaded = race_starts(data, cands, cfg, fit_em, workers=3)
+    serial_model, serial = race_starts(data, cands, cfg, trial, workers=1)
+    threaded_model, threaded = race_starts(data, cands, cfg, trial, workers=3)
     assert threaded == serial and len(serial["rounds"]) == 2
     np.testing.assert_array_equal(threaded_model.prior_mean, serial_model.prior_mean)
     np.testing.assert_array_equal(threaded_model.action.coefficients, serial_model.action.coefficients)

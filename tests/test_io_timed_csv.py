@@ -14,14 +14,13 @@ import pytest
 from typer.testing import CliRunner
 
 from conftest import DATA, require
+from sensact.app import read_settings_file
 from sensact.cli import app
-from sensact.config import build_config
 from sensact.errors import LogFormatError
 from sensact.io.csvtable import read_numeric_csv
 from sensact.io.landmark_log import read_landmark_log, truth_poses_of
 from sensact.io.timed_csv import in_sensact_units, read_timed_csv
 from sensact.io.unit_checks import unit_doubts
-from sensact.learn.em import EMConfig
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
 runner = CliRunner()
@@ -419,7 +418,7 @@ def test_convert_csv_writes_a_log_folder_learn_em_reads_with_mrclams_settings(ti
     assert res.exit_code == 0, res.output
     flat = " ".join(res.output.split())
     assert "dropped 1 naming landmarks not on the map (ids 7)" in flat
-    assert f"sensact learn em {out} --config {out / 'em_config.yaml'}" in flat
+    assert f"sensact learn em {out}`" in flat
     a, b = read_landmark_log(out), read_landmark_log(sim)
     np.testing.assert_array_equal(a.data.step_commands, b.data.step_commands)
     np.testing.assert_array_equal(a.data.landmarks_xy, b.data.landmarks_xy)
@@ -464,12 +463,13 @@ def test_wheel_speeds_in_metres_convert_to_what_simulate_diffdrive_logs_with_the
     args = [f"--{k}={folder / f'{k}.csv'}" for k in ("sightings", "landmarks")]
     res = runner.invoke(app, ["convert", "csv", f"--commands={tmp_path / 'wheels.csv'}", *args, "--out", str(out)])
     assert res.exit_code == 0, res.output
-    assert f"--config {out / 'em_config.yaml'}" in " ".join(res.output.split())
+    assert f"sensact learn em {out}`" in " ".join(res.output.split())
     a, b = read_landmark_log(out).data, read_landmark_log(sim).data
     assert a.command_names == b.command_names == ("left_mm_s", "right_mm_s")
     np.testing.assert_allclose(a.step_commands, b.step_commands, rtol=0, atol=1e-9)
     assert (out / "em_config.yaml").read_text() == (sim / "em_config.yaml").read_text()
-    assert "action_inputs: ['v_y_mm_s:(left_mm_s+right_mm_s)']" in (out / "em_config.yaml").read_text()
+    # the preset put on the wheel speeds: the forward speed on their sum
+    assert read_settings_file(out / "em_config.yaml").action_inputs == ("v_y_mm_s:(left_mm_s+right_mm_s)",)
 
 
 def test_a_legged_robots_commands_convert_with_the_sideways_velocity_free(timed, tmp_path):
@@ -621,7 +621,7 @@ def test_mrclams_files_as_timed_csv_read_as_io_mrclam_reads_them(tmp_path):
 def test_a_log_without_bearings_gets_no_camera_settings_and_learn_em_names_what_needs_them(timed, tmp_path):
     """A range-only log gets MRCLAM's settings without the bearings, with the start pose to set; a file
     already there (the start pose the user set in it) is left; the camera's settings are refused in one line."""
-    from sensact.experiments.real import range_only_config
+    from sensact.presets import range_only_config
 
     _, folder = timed
     sight = read_numeric_csv(folder / "sightings.csv")
@@ -631,7 +631,7 @@ def test_a_log_without_bearings_gets_no_camera_settings_and_learn_em_names_what_
     res = runner.invoke(app, ["convert", "csv", *args, "--sightings", str(tmp_path / "s.csv"), "--out", str(out)])
     assert res.exit_code == 0, res.output
     assert "set start_prior_mean in" in " ".join(res.output.split())
-    written = build_config(EMConfig, out / "em_config.yaml")
+    written = read_settings_file(out / "em_config.yaml")
     assert written == range_only_config(("v_mm_s", "omega_rad_s"), (0.0, 0.0, 0.0))
     assert written.start_search_s == 0 and written.channels[0].bearing_degree == 0 and not written.prune_when_freed
     text = (out / "em_config.yaml").read_text()
@@ -653,8 +653,8 @@ def test_a_log_without_bearings_gets_no_camera_settings_and_learn_em_names_what_
     assert res.exit_code == 2 and "start_search_s" in flat and "start_prior_mean" in flat
     # the library refuses the same, so a script calling fit_em gets the line and not a failure deep in EM
     from sensact.errors import ConfigError
-    from sensact.experiments.real import mrclam_config
     from sensact.learn.em import fit_em
+    from sensact.presets import mrclam_config
 
     with pytest.raises(ConfigError, match=r"channels\[0\]\.bearing_degree: .* Fix: set bearing_degree: 0"):
         fit_em(read_landmark_log(out).data, config=mrclam_config())

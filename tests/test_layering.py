@@ -19,10 +19,12 @@ RANK = {
     "sim": 3,
     "io": 3,
     "evaluate": 4,
+    "presets": 4,
     "report": 5,
-    "experiments": 6,
-    "cli": 7,
-    "__main__": 8,
+    "app": 6,
+    "experiments": 7,
+    "cli": 8,
+    "__main__": 9,
 }
 UI_LIBS = {"matplotlib", "typer", "rich", "tqdm"}
 NUMERIC_PARTS = ("core", "models", "logs", "learn", "sim")

@@ -12,19 +12,21 @@ import pytest
 from typer.testing import CliRunner
 
 import sensact
+from sensact.app import read_settings_file
 from sensact.cli import app
 from sensact.core.angles import wrap_angle
 from sensact.core.pose_models import apply_displacement, landmark_bearing, landmark_distance
 from sensact.evaluate.bars import verdict_line
 from sensact.evaluate.simulated_robot import score_against_simulated
 from sensact.experiments import diffdrive
-from sensact.experiments.real import bar_checks, evaluate_mrclam, mrclam_config, planar_config
+from sensact.experiments.real import bar_checks, evaluate_mrclam
 from sensact.io.csvtable import read_numeric_csv
 from sensact.io.landmark_log import read_landmark_log
 from sensact.learn.em import fit_em
 from sensact.learn.em.checks import describe_held_sideways, held_sideways_noise
 from sensact.models.em_model import EMModel
 from sensact.models.linear_action import LinearActionModel
+from sensact.presets import mrclam_config, planar_config
 from sensact.sim.diffdrive import DiffDriveConfig, from_wheel_coefficients, ring_of_landmarks, simulate_diffdrive
 
 runner = CliRunner()
@@ -143,8 +145,6 @@ def test_wheel_speeds_log_the_same_robot_on_other_commands(tmp_path):
     same velocities; the simulated model's own velocities, fitted on the wheels by least squares (an
     independent route), score its true gains exactly; and `simulate diffdrive` writes MRCLAM's settings
     less the forward-from-v restriction, saying why."""
-    from sensact.config import config_from_dict, load_yaml_mapping
-    from sensact.learn.em import EMConfig
     from sensact.learn.em.initial import initial_model
     from sensact.models.linear_action import command_features
 
@@ -188,7 +188,7 @@ def test_wheel_speeds_log_the_same_robot_on_other_commands(tmp_path):
     assert "commands left_mm_s, right_mm_s" in " ".join(res.output.split())
     text = (log_dir / "em_config.yaml").read_text()
     assert "wheels' mean" in text
-    cfg = config_from_dict(EMConfig, load_yaml_mapping(log_dir / "em_config.yaml"))
+    cfg = read_settings_file(log_dir / "em_config.yaml")
     assert cfg.action_inputs == ("v_y_mm_s:(left_mm_s+right_mm_s)",)  # the forward speed from the wheels' sum
     assert cfg.action_zero_mean == ("v_x_mm_s",) and cfg.action_basis == "affine"
     model = initial_model(d, cfg)
@@ -274,13 +274,13 @@ def test_em_learns_a_robot_that_side_steps_with_every_velocity_free():
 
 
 def test_simulate_diffdrive_then_learn_em_scores_against_the_simulation(tmp_path):
-    from sensact.config import config_from_dict, load_yaml_mapping
+    from sensact.config import config_from_dict
     from sensact.learn.em import EMConfig
 
     log, model = tmp_path / "dd", tmp_path / "m.json"
     res = runner.invoke(app, ["simulate", "diffdrive", "--out", str(log), "--seconds", "90", "--seed", "3"])
     assert res.exit_code == 0, res.output
-    assert f"sensact learn em {log} --config {log / 'em_config.yaml'}" in " ".join(res.output.split())
+    assert f"sensact learn em {log}` (settings: {log / 'em_config.yaml'})" in " ".join(res.output.split())
     lf = read_landmark_log(log)
     assert lf.data.is_continuous and lf.meta["truth"]["kind"] == "diffdrive" and lf.truth_poses() is not None
     other = tmp_path / "other.yaml"  # a config of the user's without the action basis: the thesis's table
@@ -294,7 +294,7 @@ def test_simulate_diffdrive_then_learn_em_scores_against_the_simulation(tmp_path
     res = runner.invoke(app, ["learn", "em", str(log), "--out", str(model), *sets])
     assert res.exit_code == 0, res.output
     doc = json.loads(model.read_text())
-    beside = config_from_dict(EMConfig, load_yaml_mapping(log / "em_config.yaml"))
+    beside = read_settings_file(log / "em_config.yaml")
     assert config_from_dict(EMConfig, doc["summary"]["config"]) == replace(
         beside, max_iterations=40, start_candidates=2
     )
@@ -406,8 +406,7 @@ def test_learn_em_says_how_many_misreads_the_gate_dropped_and_offers_joint_stude
 def test_evaluate_log_names_what_keeps_a_model_from_a_log(tmp_path):
     """A model scores only on a log it could have been learned from; anything else is one line naming the
     field and the fix, never a traceback: other commands, another step, a log with no truth, a bad file."""
-    from sensact.config import config_from_dict, load_yaml_mapping
-    from sensact.learn.em import EMConfig, fit_em
+    from sensact.learn.em import fit_em
 
     logs = {}
     for name, extra in (("vw", []), ("wheels", ["--set", "wheel_axle_mm=235"]), ("coarse", ["--set", "dt_s=0.05"])):
@@ -415,9 +414,7 @@ def test_evaluate_log_names_what_keeps_a_model_from_a_log(tmp_path):
         res = runner.invoke(app, ["simulate", "diffdrive", "--out", str(logs[name]), "--seconds", "30", *extra])
         assert res.exit_code == 0, res.output
     lf = read_landmark_log(logs["vw"])
-    cfg = replace(
-        config_from_dict(EMConfig, load_yaml_mapping(logs["vw"] / "em_config.yaml")), max_iterations=2, start_search_s=0
-    )
+    cfg = replace(read_settings_file(logs["vw"] / "em_config.yaml"), max_iterations=2, start_search_s=0)
     fitted = fit_em(lf.data, config=cfg).model
     model = tmp_path / "m.json"
     model.write_text(json.dumps({"model": fitted.to_dict(), "dt_s": lf.data.dt_s}))
@@ -470,7 +467,7 @@ def test_learn_em_names_settings_and_logs_it_cannot_learn_from(tmp_path):
     assert runner.invoke(app, ["simulate", "track1d", "--seconds", "20", "--out", str(track)]).exit_code == 0
     cfg = dd / "em_config.yaml"
     renamed = tmp_path / "renamed.yaml"
-    renamed.write_text(cfg.read_text().replace("name: range_mm", "name: sonar9"))
+    renamed.write_text(cfg.read_text() + "channels: [{name: sonar9, start_intercept: 500.0, start_slope: 0.6}]\n")
     assert "sonar9" in renamed.read_text()
     short = tmp_path / "short"
     short.mkdir()
@@ -568,8 +565,6 @@ def test_a_side_stepping_robot_from_simulate_to_learn_em_and_reproduce(tmp_path)
     """The CLI on a legged robot's commands: `simulate diffdrive --set sidestep_mm_s=60` writes the settings
     for any other commands (the sideways velocity free, and says why), `learn em` reports the sideways gain
     against the simulated one, and `reproduce diffdrive` learns with the same settings and tabulates it."""
-    from sensact.config import config_from_dict, load_yaml_mapping
-    from sensact.learn.em import EMConfig
 
     log, model = tmp_path / "legged", tmp_path / "m.json"
     side = ["--set", "sidestep_mm_s=60"]
@@ -577,9 +572,7 @@ def test_a_side_stepping_robot_from_simulate_to_learn_em_and_reproduce(tmp_path)
     assert res.exit_code == 0, res.output
     assert "commands v_mm_s, v_left_mm_s, omega_rad_s" in " ".join(res.output.split())
     text = (log / "em_config.yaml").read_text()
-    assert config_from_dict(EMConfig, load_yaml_mapping(log / "em_config.yaml")) == planar_config(
-        ("v_mm_s", "v_left_mm_s", "omega_rad_s")
-    )
+    assert read_settings_file(log / "em_config.yaml") == planar_config(("v_mm_s", "v_left_mm_s", "omega_rad_s"))
     assert "#   v_mm_s, v_left_mm_s, omega_rad_s" in text and "add action_zero_mean: [v_x_mm_s]" in text
     cfg = ["--config", str(log / "em_config.yaml"), "--set", "max_iterations=40", "--set", "start_candidates=2"]
     res = runner.invoke(app, ["learn", "em", str(log), "--out", str(model), *cfg])
@@ -642,12 +635,11 @@ def _true_model_file(log, path):
     """The simulated robot's own action model (its coefficients and delay) and camera (its range line,
     sigmas and bearing terms) in a model.json that says it was learned on ``log``, in the families EM
     starts from: what a perfect learner would write."""
-    from sensact.config import config_from_dict, load_yaml_mapping
-    from sensact.learn.em import EMConfig, initial_model
+    from sensact.learn.em import initial_model
 
     lf = read_landmark_log(log)
     truth = lf.meta["truth"]
-    model = initial_model(lf.data, config_from_dict(EMConfig, load_yaml_mapping(log / "em_config.yaml")))
+    model = initial_model(lf.data, read_settings_file(log / "em_config.yaml"))
     action = replace(
         model.action, coefficients=np.array(truth["action_coefficients"]), delay_steps=truth["delay_steps"]
     )

@@ -182,7 +182,7 @@ def test_the_score_warns_when_the_truths_heading_points_off_the_way_it_moves():
     heading copied in unturned) is named, with the column that fixes it, where `learn em` and `evaluate`
     print the score; the right heading adds nothing to the score."""
     from sensact.evaluate.landmark_truth import score_against_truth
-    from sensact.experiments.real import mrclam_config
+    from sensact.presets import mrclam_config
     from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
     run = simulate_diffdrive(DiffDriveConfig(seconds=300.0, seed=5))

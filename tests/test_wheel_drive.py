@@ -76,8 +76,8 @@ def test_wheels_in_any_one_unit_are_a_differential_drive():
     """Invariants: two commands ``left_<unit>``, ``right_<unit>`` in either order are a wheel pair and get
     the differential drive's settings in that unit; other commands are not."""
     from sensact.cli.convert import config_header
-    from sensact.experiments.real import planar_config, range_only_config
     from sensact.models.wheel_drive import wheel_pair
+    from sensact.presets import planar_config, range_only_config
 
     assert wheel_pair(("left_rad_s", "right_rad_s")) == ("left_rad_s", "right_rad_s")
     assert wheel_pair(("right_ticks_s", "left_ticks_s")) == ("left_ticks_s", "right_ticks_s")
@@ -101,8 +101,8 @@ def test_wheel_turning_rates_learn_what_wheel_speeds_learn_and_read_as_the_wheel
     so its forward gain reads as the wheels' radius in mm, with the same axle, ratio and curve."""
     from dataclasses import replace
 
-    from sensact.experiments.real import planar_config
     from sensact.learn.em import fit_em
+    from sensact.presets import planar_config
     from sensact.sim.diffdrive import simulate_diffdrive
 
     radius = 35.0

@@ -26,10 +26,13 @@ def config_to_dict(config: Any) -> dict[str, Any]:
     return json.loads(json.dumps(dataclasses.asdict(config)))
 
 
-def config_to_yaml(config: Any, header: str = "", always: tuple[str, ...] = ()) -> str:
-    """The fields of ``config`` (and of the configs nested in it) that differ from their defaults, and
-    the top-level fields named in ``always`` (ones the user should see and set), as a YAML file that
-    ``build_config`` reads back to ``config``; ``header`` becomes its leading comment."""
+def config_to_yaml(
+    config: Any, header: str = "", always: tuple[str, ...] = (), against: Any = None, lead: dict[str, Any] | None = None
+) -> str:
+    """The fields of ``config`` (and of the configs nested in it) that differ from their defaults (or at the
+    top level from ``against``'s, a config of the same kind: a preset), and the top-level fields named in
+    ``always`` (ones the user should see and set), as a YAML file that ``build_config`` reads back to
+    ``config`` (on ``against``); ``header`` becomes its leading comment, ``lead``'s fields its first ones."""
     import yaml
 
     def changed(obj: Any, keep: tuple[str, ...] = ()) -> Any:
@@ -41,6 +44,10 @@ def config_to_yaml(config: Any, header: str = "", always: tuple[str, ...] = ()) 
             if f.name in keep:
                 out[f.name] = changed(value)
                 continue
+            if against is not None and obj is config:
+                if value != getattr(against, f.name):
+                    out[f.name] = changed(value)
+                continue
             if f.default is not dataclasses.MISSING and value == f.default:
                 continue
             if f.default_factory is not dataclasses.MISSING and value == f.default_factory():
@@ -48,7 +55,12 @@ def config_to_yaml(config: Any, header: str = "", always: tuple[str, ...] = ()) 
             out[f.name] = changed(value)
         return out
 
-    text = yaml.safe_dump(json.loads(json.dumps(changed(config, always))), sort_keys=False, default_flow_style=None)
+    fields = json.loads(json.dumps((lead or {}) | changed(config, always)))
+    # one block line per field (a mapping of scalars alone would come out as one flow line), lists in flow
+    text = "".join(
+        yaml.safe_dump({k: v}, sort_keys=False, default_flow_style=None if isinstance(v, list | dict) else False)
+        for k, v in fields.items()
+    )
     comment = "".join(f"# {line}\n".replace("# \n", "#\n") for line in header.splitlines())
     return comment + text
 

@@ -274,20 +274,3 @@ def main() -> None:
             raise
         err_console.print(f"error: {exc}")
         sys.exit(2)
-
-
-def write_smoothed_path(path: Path, posteriors: Any, data: Any) -> Path:
-    """Where EM puts the robot at every step: the smoothed mean and sd of each state component (eqs. 4.9,
-    4.10), for a user's own plots or as the robot's path; ``time_s`` counts from the log's first step."""
-    import numpy as np
-
-    from sensact.io.atomic import write_npz
-
-    names = ("x_mm", "y_mm", "theta_rad") if data.geometry == "planar" else ("distance",)
-    return write_npz(
-        path,
-        time_s=np.arange(data.n_steps) * data.dt_s,
-        mean=posteriors.mean_gamma,
-        sd=np.sqrt(np.diagonal(posteriors.cov_gamma, axis1=1, axis2=2)),
-        state=np.array(names),
-    )

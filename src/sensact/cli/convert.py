@@ -11,10 +11,10 @@ import typer
 
 from sensact.cli.base import console, convert_app, friendly
 
-MRCLAM_CONFIG_HEADER = """The EM settings behind docs/em-real-results.md's MRCLAM results
-(sensact.experiments.real.mrclam_config()), as the fields that differ from EMConfig's defaults.
-Edit them for your robot (docs/em-real.md, section 2) and pass this file with --config;
---set overrides single fields."""
+MRCLAM_CONFIG_HEADER = """The EM settings `sensact learn em` reads from this folder: a preset shipped with sensact
+(`sensact learn em --help` lists them; differential_drive_camera is behind docs/em-real-results.md's
+MRCLAM results), put on this log's commands, and the fields below it that differ from it.
+Edit them for your robot (docs/em-real.md, section 2); --set overrides single fields."""
 WHEELS_CONFIG_NOTE = """
 On wheel speeds ({left}, {right}) the forward speed is the wheels' mean, so it depends on their
 sum alone, ({left}+{right}), as MRCLAM's depends on v_mm_s alone."""
@@ -36,10 +36,10 @@ ranges cannot show (docs/em-real.md, section 2, "A sensor without bearings")."""
 
 
 def config_header(command_names: tuple[str, ...], range_only: bool = False) -> str:
-    """em_config.yaml's header for ``experiments.real.planar_config``'s settings on these commands (with
+    """em_config.yaml's header for ``presets.planar_config``'s settings on these commands (with
     ``range_only``, ``range_only_config``'s)."""
-    from sensact.experiments.real import diffdrive_config
     from sensact.models.wheel_drive import wheel_pair
+    from sensact.presets import diffdrive_config
 
     pair = wheel_pair(command_names)
     if diffdrive_config(command_names) is None:
@@ -64,11 +64,10 @@ def convert_mrclam(
     Commands are resampled with a zero-order hold; only landmark sightings are kept (range in mm and
     bearing); the landmark map goes into meta.json and Vicon into groundtruth.csv (for `sensact learn
     em` to score against; it is never learned from)."""
-    from sensact.config import config_to_yaml
-    from sensact.experiments.real import mrclam_config
     from sensact.io.atomic import write_text
     from sensact.io.landmark_log import write_landmark_log
     from sensact.io.mrclam import read_mrclam
+    from sensact.presets import mrclam_config, settings_yaml
 
     ml = read_mrclam(dataset, robot, dt_s=dt)
     console.print(ml.summary_line())
@@ -85,10 +84,11 @@ def convert_mrclam(
         meta_extra={"source": {"dataset": str(dataset), "robot": robot, "t0_s": ml.t0_s, "rows": ml.summary}},
     )
     cfg = out / "em_config.yaml"
-    write_text(cfg, config_to_yaml(mrclam_config(), MRCLAM_CONFIG_HEADER))
+    write_text(cfg, settings_yaml("differential_drive_camera", mrclam_config(), ml.data, MRCLAM_CONFIG_HEADER))
     overview = _draw_overview(ml.data, ml.groundtruth, out, f"{dataset.name} robot {robot}")
     console.print(
-        f"wrote {out}, its EM settings {cfg} and {overview}; learn with `sensact learn em {out} --config {cfg}`"
+        f"wrote {out}, its EM settings {cfg} (preset differential_drive_camera) and {overview}; learn with "
+        f"`sensact learn em {out}`"
     )
 
 
@@ -158,37 +158,38 @@ def convert_csv(
     )
     d = tl.data
     console.print(f"drew {_draw_overview(d, tl.groundtruth, out, out.resolve().name)}")
-    from sensact.config import config_to_yaml
-    from sensact.experiments.real import planar_config, range_only_config
     from sensact.io.atomic import write_text
+    from sensact.presets import planar_config, range_only_config, settings_yaml
 
     # MRCLAM's settings learn from a range-and-bearing camera, or without its bearings from a range sensor
     # (radio beacons); other readings need their own channels
     cfg = out / "em_config.yaml"
     kept = cfg.is_file()  # an earlier conversion's, or the user's own, or the start pose set in it: not ours to replace
     if d.reading_names == ("range_mm",) and np.isfinite(d.obs_bearing_rad).any():
-        write_text(cfg, config_to_yaml(planar_config(d.command_names), config_header(d.command_names)))
+        settings = planar_config(d.command_names)
+        write_text(cfg, settings_yaml("differential_drive_camera", settings, d, config_header(d.command_names)))
         console.print(
-            f"wrote {out} and {cfg} (MRCLAM's settings, a starting point for {_robot_kind(d.command_names)} with a "
-            f"range-and-bearing camera); learn with `sensact learn em {out} --config {cfg}`"
+            f"wrote {out} and {cfg} (preset differential_drive_camera, a starting point for "
+            f"{_robot_kind(d.command_names)} with a range-and-bearing camera); learn with `sensact learn em {out}`"
         )
         return
     if d.reading_names == ("range_mm",) and not kept:
         settings = range_only_config(d.command_names, (0.0, 0.0, 0.0))
         start = ("start_prior_mean", "start_prior_sd")
-        write_text(cfg, config_to_yaml(settings, config_header(d.command_names, range_only=True), start))
+        header = config_header(d.command_names, range_only=True)
+        write_text(cfg, settings_yaml("range_only_anchors", settings, d, header, start))
         console.print(
-            f"wrote {out} and {cfg} (MRCLAM's settings without the bearings, a starting point for "
+            f"wrote {out} and {cfg} (preset range_only_anchors, a starting point for "
             f"{_robot_kind(d.command_names)} with a range-only sensor). The sightings have no bearings, so EM "
             f"cannot search for where the robot starts: set start_prior_mean in {cfg} to its start (x mm, y mm, "
             f"heading rad; heading 0 faces the map's +y; a start metres off costs a second run), then learn with "
-            f"`sensact learn em {out} --config {cfg}`"
+            f"`sensact learn em {out}`"
         )
         return
     console.print(
         f"wrote {out}; choose the model families for commands {', '.join(d.command_names)} and readings "
-        f"{', '.join(d.reading_names)} in a YAML file (docs/em-real.md, section 2) and learn with "
-        f"`sensact learn em {out} --config YOUR.yaml`"
+        f"{', '.join(d.reading_names)} in a YAML file, starting from a preset (`preset: NAME` on its first line; "
+        f"docs/em-real.md, section 2), and learn with `sensact learn em {out} --config YOUR.yaml`"
     )
     if kept:
         console.print(
@@ -198,18 +199,19 @@ def convert_csv(
 
 
 def _robot_kind(command_names: tuple[str, ...]) -> str:
-    from sensact.experiments.real import diffdrive_config
+    from sensact.presets import diffdrive_config
 
     if diffdrive_config(command_names):
         return "a differential drive"
     return f"a robot that can side-step on commands {', '.join(command_names)}"
 
 
-TRACK_CONFIG_HEADER = """The Turtlebot's EM settings (docs/em-real.md, section 2) for this 1-D robot's readings, as the
-fields that differ from the defaults: an affine action model with a learned command delay and
-motion noise; {distance} reads the distance (its mm are the state's, which the windows are in)
-from a poor straight line, every other reading from a flat line that says nothing of the distance.
-Edit them for your robot and pass this file with --config; --set overrides single fields."""
+TRACK_CONFIG_HEADER = """The EM settings `sensact learn em` reads from this folder: the track_1d preset
+(the Turtlebot's; docs/em-real.md, section 2) for this 1-D robot's readings, and the fields below
+it that differ from it: an affine action model with a learned command delay and motion noise;
+{distance} reads the distance (its mm are the state's, which the windows are in) from a poor
+straight line, every other reading from a flat line that says nothing of the distance.
+Edit them for your robot; --set overrides single fields."""
 
 
 BOOTSTRAP_CONFIG_HEADER = """Chapter 3's learner (Algorithm 1: `sensact learn bootstrap DIR`) on {distance}, as the
@@ -321,10 +323,10 @@ def convert_track(
 
     from sensact.config import config_to_yaml
     from sensact.experiments.turtlebot import track_learner
-    from sensact.experiments.turtlebot_em import track_em_config
     from sensact.io.atomic import write_text
     from sensact.io.landmark_log import write_landmark_log
     from sensact.io.track_csv import named_columns, read_track_csv
+    from sensact.presets import settings_yaml, track_em_config
     from sensact.report.figures_log import figure_track_overview
 
     tc = read_track_csv(csv, commands=tuple(command or ()), readings=tuple(reading or ()), distance=distance, dt_s=dt)
@@ -346,7 +348,8 @@ def convert_track(
     write_landmark_log(out, d, groundtruth=truth, meta_extra={**chapter3, "source": source})
     cfg = out / "em_config.yaml"
     settings = track_em_config(d, tc.distance_reading, windows, robust_cols)
-    write_text(cfg, config_to_yaml(settings, TRACK_CONFIG_HEADER.format(distance=tc.distance_reading)))
+    header = TRACK_CONFIG_HEADER.format(distance=tc.distance_reading)
+    write_text(cfg, settings_yaml("track_1d", settings, d, header))
     learners = f"learn with `sensact learn em {out}`"
     if chapter3:
         robust_distance = tc.distance_reading in robust_cols

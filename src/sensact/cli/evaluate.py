@@ -9,9 +9,9 @@ from typing import Annotated, Any
 
 import typer
 
+from sensact.app.logs import read_em_model, refuse_model_for_log
 from sensact.cli.base import EMModelOpt, console, evaluate_app, friendly, write_result
-from sensact.cli.model_on_log import read_em_model, refuse_model_for_log, scored_against
-from sensact.cli.scores import evaluate_em, print_truth_score
+from sensact.cli.scores import print_scores, print_truth_score
 
 
 @evaluate_app.command("mrclam")
@@ -79,23 +79,28 @@ def evaluate_log_cmd(
     From-Truth fitted on this log; the model must share the log's commands, readings and step. On a
     Turtlebot CSV the robot is first placed by the E-step with the model held (as `sensact localize`),
     and the model is scored against the range column as `learn em` scores it."""
-    from sensact.cli.model_on_log import read_model_and_log
+    from sensact.app.logs import read_model_and_log
     from sensact.errors import LogFormatError
 
     # a track folder's continuous commands are binned as `learn em`'s default bins them (a Turtlebot
     # CSV's are read as they are)
-    doc, m, data, lf, truth_mm = read_model_and_log(log, model, bins=21, use="scored")
+    doc, m, opened = read_model_and_log(log, model, bins=21, use="scored")
+    lf, truth_mm = opened.folder, opened.recorded_distance_mm
     if truth_mm is not None:  # a Turtlebot CSV, or a track folder with a recorded distance
-        _evaluate_on_range_column(doc, m, data, truth_mm, log, model, out)
+        _evaluate_on_range_column(doc, m, opened, model, out)
         return
     console.print(f"{model} on {lf.title(log)}: {lf.data.n_steps} steps, {lf.data.n_observations} observations")
-    sc = evaluate_em(lf, m)
-    if sc is None:
+    from sensact.app.scores import Scores, score_model
+
+    scores = score_model(opened, m)
+    print_scores(scores, opened)
+    if not isinstance(scores, Scores):
         raise LogFormatError(
             "has no ground truth to score against.",
             file=log / "groundtruth.csv",
             fix="add groundtruth.csv with t_s, x_mm, y_mm, theta_rad (convert csv --truth writes it).",
         )
+    sc = scores.evaluation
     if out is not None:
         write_result(out, sc)
         written = [out]
@@ -106,19 +111,18 @@ def evaluate_log_cmd(
         console.print("wrote " + ", ".join(str(p) for p in written))
 
 
-def _evaluate_on_range_column(
-    doc: dict[str, Any], m: Any, data: Any, truth_mm: Any, log: Path, model: Path, out: Path | None
-) -> None:
+def _evaluate_on_range_column(doc: dict[str, Any], m: Any, opened: Any, model: Path, out: Path | None) -> None:
     """`evaluate log` on a Turtlebot CSV: the state has no unit of its own, so the model is scored through the
     optimal map of the path it places onto the recorded range (sec. 4.4.3), fitted on this log."""
 
     import numpy as np
 
+    from sensact.app.scores import Scores, score_model
     from sensact.cli.localize import place_robot
-    from sensact.cli.scores import evaluate_turtlebot_em
     from sensact.errors import LogFormatError
     from sensact.evaluate.turtlebot_em import range_column_problem
 
+    data, truth_mm, log = opened.data, opened.recorded_distance_mm, opened.path
     problem = range_column_problem(truth_mm)
     if problem and log.is_dir():  # a track folder's distance_mm, empty on the grid only next to an empty cell
         raise LogFormatError(
@@ -137,10 +141,12 @@ def _evaluate_on_range_column(
             "runs the model on one without it.",
         )
     loc, per_learned = place_robot(doc, m, data, model, None, None, None)
-    sc = evaluate_turtlebot_em(loc, data, truth_mm, scored_against(log))
-    if out is None or sc is None:
+    scores = score_model(opened, m, fit=loc)
+    print_scores(scores, opened)
+    if out is None or not isinstance(scores, Scores):
         return
-    from sensact.experiments.turtlebot_em import TurtlebotEMRun
+    sc = scores.evaluation
+    from sensact.evaluate.turtlebot_em import TurtlebotEMRun
     from sensact.report.figures_turtlebot_em import figure_turtlebot_em
 
     doc_out = {
@@ -208,8 +214,8 @@ def evaluate_fleet_cmd(
     `evaluate log` scores it: the action gain's error and the best sensor's, in % of its span. A pair is
     a robot's own when the model was learned on that log. Every model must share the logs' commands,
     readings and step (a Turtlebot CSV is read onto each model's own step)."""
+    from sensact.app.logs import is_turtlebot_csv, open_log
     from sensact.cli.base import progress_bar
-    from sensact.cli.model_on_log import is_turtlebot_csv, read_em_log, read_log_on_model_step
     from sensact.experiments.fleet import RangeLog, score_fleet
     from sensact.learn.em.localize import learned_config
 
@@ -223,10 +229,11 @@ def evaluate_fleet_cmd(
         if is_turtlebot_csv(log):
             # each model reads the CSV onto its own step, as `evaluate log` would (a track folder's steps are
             # its own, and a model on another step is refused)
-            on_step = {model_names[p]: read_log_on_model_step(log, doc, 21) for p, (doc, _) in docs.items()}
-            read[log] = RangeLog({name: (data, range_mm) for name, (data, _, range_mm) in on_step.items()})
+            on_step = {model_names[p]: open_log(log, dt_s=doc.get("dt_s")) for p, (doc, _) in docs.items()}
+            read[log] = RangeLog({name: (o.data, o.recorded_distance_mm) for name, o in on_step.items()})
         else:
-            data, lf, distance = read_em_log(log, bins=21)  # a track1d folder's commands binned as `evaluate log` does
+            opened = open_log(log, bins=21)  # a track1d folder's commands binned as `evaluate log` does
+            data, lf, distance = opened.data, opened.folder, opened.recorded_distance_mm
             # a track folder's recorded distance is scored as a Turtlebot's range column, on the folder's own step
             read[log] = lf if distance is None else RangeLog(dict.fromkeys(model_names.values(), (data, distance)))
     for path, (doc, m) in docs.items():

@@ -167,10 +167,11 @@ def localize_cmd(
     override them. Only the start search, the start's spread and the first-iteration gate are used."""
     import numpy as np
 
-    from sensact.cli.base import write_smoothed_path
-    from sensact.cli.model_on_log import read_model_and_log
+    from sensact.app.logs import read_model_and_log
+    from sensact.app.save import write_smoothed_path
 
-    doc, m, data, lf, truth_mm = read_model_and_log(log, model, bins, use="run")
+    doc, m, opened = read_model_and_log(log, model, bins, use="run")
+    data, lf, truth_mm = opened.data, opened.folder, opened.recorded_distance_mm
     poses = lf.truth_poses() if lf is not None else None
     loc, per_learned = place_robot(doc, m, data, model, config, set_, _parse_start(start, m.prior_mean.size))
     post = loc.posteriors

@@ -117,8 +117,9 @@ def _reproduce_real(
     (e.g. ``--set motion_noise=turning``); the Turtlebot's are fixed. ``truth_restart``: see
     ``experiments.real.restart_from_truth``."""
     from sensact.errors import ConfigError
-    from sensact.experiments.real import mrclam_config, run_real
+    from sensact.experiments.real import run_real
     from sensact.learn.em import EMConfig
+    from sensact.presets import mrclam_config
     from sensact.report import figures_real
     from sensact.report.tables_real import real_tables
 

@@ -95,11 +95,9 @@ def describe_differential_drive(drive: dict[str, Any]) -> str:
     )
 
 
-def print_simulated_score(model: Any, truth: dict[str, Any], dt_s: float) -> dict[str, Any]:
-    """Learned against the model a simulated robot really used (`sensact simulate diffdrive`)."""
-    from sensact.evaluate.simulated_robot import score_against_simulated
-
-    s = score_against_simulated(model, truth, dt_s)
+def print_simulated_score(s: dict[str, Any]) -> None:
+    """Learned against the model a simulated robot really used (`sensact simulate diffdrive`;
+    ``evaluate.simulated_robot.score_against_simulated``)."""
     sd, sd_true = s["motion_sd_per_step"]
     mount = s["sensor_mount"]
     console.print(
@@ -121,7 +119,6 @@ def print_simulated_score(model: Any, truth: dict[str, Any], dt_s: float) -> dic
             f"{m['forward_mm']:.0f} mm forward, {m['left_mm']:.0f} mm left, yaw {m['yaw_rad']:+.4f}" for m in mount
         )
     )
-    return s
 
 
 def truth_heading_clause(n: dict[str, Any]) -> str:
@@ -254,82 +251,43 @@ def print_truth_score(sc: dict[str, Any]) -> None:
         console.print("bars: " + ", ".join(f"{k} {'pass' if v else 'FAIL'}" for k, v in sc["bars"].items()))
 
 
-def evaluate_em(lf: Any, model: Any, *, learned_here: bool = False, path: Any = None) -> dict[str, Any] | None:
-    """Errors against the log's ground truth (never used for learning): its recorded poses
-    (groundtruth.csv, as `convert mrclam` writes from Vicon) for a continuous-command model, else the true
-    model a simulated log's meta.json carries. ``learned_here``: the model was just learned on this log,
-    so recorded poses too broken up to score leave it unscored, with a line saying why, instead of failing.
-    ``path``: EM's smoothed poses (one per step), scored against the recorded poses as ``path``."""
-    import numpy as np
+def print_scores(scores: Any, log: Any) -> None:
+    """A fit's scores against its log's truth (``app.scores``), or why it has none."""
+    from sensact.app.scores import RECORDED_POSES, SIMULATED_MODEL, Unscored
 
-    recorded = lf.truth_poses()
-    if recorded is not None and lf.data.is_continuous:
-        from sensact.errors import LogFormatError
-        from sensact.evaluate.landmark_truth import score_against_truth
-        from sensact.experiments.real import bar_checks
-
-        try:
-            sc = score_against_truth(model, lf.data, *recorded)
-        except LogFormatError as exc:
-            if not learned_here:
-                raise
-            console.print(f"not scored against the recorded poses: {exc}", highlight=False)
-            return None
-        if path is not None:
-            from sensact.evaluate.landmark_truth import path_offset
-
-            sc["path"] = path_offset(np.asarray(path), *recorded)
-        sc["bars"] = bar_checks(sc)
+    if scores is None:
+        if log.is_turtlebot_csv:
+            console.print("no range column: nothing to score against (the model is learned from the readings alone).")
+        return
+    if isinstance(scores, Unscored):
+        console.print(scores.reason, highlight=False)
+        return
+    sc = scores.evaluation
+    if scores.against == RECORDED_POSES:
         print_truth_score(sc)
-        if path is not None:
-            p, o = sc["path"], sc["path"]["fitted_offset"] or {"forward_mm": np.nan, "left_mm": np.nan}
+        if "path" in sc:
+            p, o = sc["path"], sc["path"]["fitted_offset"] or {"forward_mm": math.nan, "left_mm": math.nan}
             console.print(
                 f"smoothed path off the recorded poses: median {p['median_mm']:.0f} mm after the truth's point is "
                 f"placed {o['forward_mm']:+.0f} mm forward and {o['left_mm']:+.0f} mm left of EM's (median "
                 f"{p['median_raw_mm']:.0f} mm before; metres off means EM lost the robot)"
             )
-        simulated = lf.meta.get("truth") or {}
-        if simulated.get("kind") == "diffdrive":
-            sc["simulated"] = print_simulated_score(model, simulated, lf.data.dt_s)
-        return sc
-    truth = lf.meta.get("truth")
-    if not truth:
-        return None
-
-    if lf.data.geometry == "planar" and "velocities" in truth:
-        from sensact.evaluate.em import score_planar
-        from sensact.sim.track1d import TrackTruth
-
-        s = truth["sensor"]
-        height = TrackTruth(sensor_k_px_mm=s["k_px_mm"], sensor_d0_mm=s["d0_mm"], sensor_h0_px=s["h0_px"]).height_px
-        sc = score_planar(
-            model, np.asarray(truth["velocities"]), height, truth["sigma_height_px"], truth["sigma_bearing_rad"]
-        )
+        if "simulated" in sc:
+            print_simulated_score(sc["simulated"])
+    elif scores.against == SIMULATED_MODEL and "vx_rms_mm_s" in sc:
         console.print(
             f"vs truth: v_x {sc['vx_rms_mm_s']:.1f} mm/s, v_y {sc['vy_rms_mm_s']:.1f} mm/s, "
             f"v_theta {sc['vtheta_rms_rad_s']:.3f} rad/s RMS; sigma_1 {sc['sigma1_error_pct']:.1f} % off, "
             f"sigma_2 {sc['sigma2_error_pct']:.1f} % off; f {sc['sensor_rms_px']:.2f} px RMS"
         )
-        return sc
-    if lf.data.geometry == "track" and "action" in truth:
-        from sensact.evaluate.em import score_track
-        from sensact.evaluate.track1d import DISTANCE_GRID_MM
-        from sensact.sim.track1d import TrackTruth
-
-        tt = TrackTruth.from_dict(truth)
-        sc = score_track(model, tt.velocity_mm_s(lf.data.action_commands[:, 0]), tt.height_px, DISTANCE_GRID_MM)
+    elif scores.against == SIMULATED_MODEL:
         console.print(
             f"vs truth (optimal scale): sensor {sc['sensor_rms_px']:.2f} px ({sc['sensor_rms_pct']:.2f} %), "
             f"action {sc['action_rms_mm_s']:.1f} mm/s ({sc['action_rms_pct']:.2f} %), "
             f"scale ratio {sc['scale_ratio']:.3f}"
         )
-        return sc
-    return None
-
-
-# what a 1-D fit is scored against, as its score line names it
-RANGE_COLUMN = "range"  # a Turtlebot CSV's column
-RECORDED_DISTANCE = "the recorded distance"  # a track folder's groundtruth.csv distance_mm
+    else:
+        print_range_score(sc, scores.against)
 
 
 def range_column_scoreable(truth_mm: Any, absent: str | None) -> bool:
@@ -346,24 +304,16 @@ def range_column_scoreable(truth_mm: Any, absent: str | None) -> bool:
     return problem is None
 
 
-def evaluate_turtlebot_em(res: Any, data: Any, truth_mm: Any, against: str = RANGE_COLUMN) -> dict[str, Any] | None:
-    """The Turtlebot's scaled gain and sensor errors against its ``range`` column, when it has one, or against
-    a track folder's recorded distance (``against`` names which in the score line)."""
-    if not range_column_scoreable(
-        truth_mm, "no range column: nothing to score against (the model is learned from the readings alone)."
-    ):
-        return None
-    from sensact.evaluate.turtlebot_em import score_turtlebot_em
+def print_range_score(sc: dict[str, Any], against: str) -> None:
+    """A 1-D fit's scaled gain and sensor errors against a recorded distance (``against`` names it)."""
     from sensact.report.tables import gain_cell, one_command_reason, sensor_span_cell
 
-    sc = score_turtlebot_em(res, data, truth_mm)
     gain = gain_cell(
         sc["gain_learned"], sc["gain_true"], sc["gain_error_pct"], one_command_reason(sc["one_command_share"])
     )
     console.print(f"vs {against} (optimal scale and offset): action gain {gain}; command delay {sc['delay_s']:.2f} s")
     for name, s in sc["sensors"].items():
         console.print(f"  {name}: {sensor_span_cell(s)}")
-    return sc
 
 
 def evaluate_log(data: Any, res: Any, cfg: Any) -> dict[str, Any] | None:

@@ -105,10 +105,10 @@ def simulate_diffdrive_cmd(
     reads ranges alone, in every direction (UWB anchors, sonar beacons): no bearings in the log, and
     settings without them that start EM where the robot was put (start_pose)."""
     from sensact.cli.convert import config_header
-    from sensact.config import config_to_yaml
     from sensact.experiments.diffdrive import simulator_settings
     from sensact.io.atomic import write_text
     from sensact.io.landmark_log import write_landmark_log
+    from sensact.presets import settings_yaml
     from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
     cfg = layered_config(DiffDriveConfig, config, set_, seconds=seconds, seed=seed)
@@ -118,12 +118,13 @@ def simulate_diffdrive_cmd(
     em_cfg = out / "em_config.yaml"
     start = () if cfg.reads_bearing else ("start_prior_mean", "start_prior_sd")  # a radio's: where the robot was put
     header = config_header(log.command_names, range_only=not cfg.reads_bearing)
-    write_text(em_cfg, config_to_yaml(simulator_settings(cfg), header, start))
+    preset = "differential_drive_camera" if cfg.reads_bearing else "range_only_anchors"
+    write_text(em_cfg, settings_yaml(preset, simulator_settings(cfg), log, header, start))
     console.print(
         f"wrote {out}: {len(run.commands)} steps of {cfg.dt_s:.4g} s, {run.obs_step.size} sightings of "
         f"{len(cfg.landmarks_xy_mm)} landmarks ({int(run.obs_misread.sum())} misread"
         + ("" if cfg.reads_bearing else "; ranges alone, no bearings")
         + "), commands "
         + f"{', '.join(log.command_names)}, command delay {cfg.delay_s:g} s and lag {cfg.lag_s:g} s (seed {cfg.seed}); "
-        f"learn with `sensact learn em {out} --config {em_cfg}`"
+        f"learn with `sensact learn em {out}` (settings: {em_cfg})"
     )

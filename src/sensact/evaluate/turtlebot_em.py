@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -140,3 +141,13 @@ def score_turtlebot_em(res: EMResult | Localized, data: LandmarkLog, truth_mm: n
             "weight_used": int((post.weights[:, j] > 0).sum()),
         }
     return out
+
+
+@dataclass(frozen=True)
+class TurtlebotEMRun:
+    """A fit (or a learned model held and placed on another log by ``learn.em.localize``: `evaluate log`),
+    the log and the recorded range (mm per step) it is scored against."""
+
+    data: LandmarkLog
+    truth_mm: np.ndarray
+    result: EMResult | Localized  # what is read: its model and posteriors

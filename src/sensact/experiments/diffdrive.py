@@ -17,9 +17,10 @@ import numpy as np
 from sensact.config import config_to_dict
 from sensact.evaluate.bars import BarCheck
 from sensact.evaluate.simulated_robot import score_against_simulated
-from sensact.experiments.real import evaluate_mrclam, planar_config, range_only_config, robot_checks
+from sensact.experiments.real import evaluate_mrclam, robot_checks
 from sensact.learn.em import EMConfig, EMResult, fit_em
 from sensact.logs.landmark_log import LandmarkLog
+from sensact.presets import planar_config, range_only_config
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
 ProgressFn = Callable[[str, int, int | None], None]

@@ -33,89 +33,11 @@ from sensact.evaluate.landmark_truth import path_offset, score_against_truth
 from sensact.experiments.shared_data import data_root, turtlebot_logs
 from sensact.io.mrclam import MrclamLog, read_mrclam
 from sensact.learn.em import EMConfig, EMResult, fit_em
-from sensact.learn.em.config import ChannelConfig
 from sensact.models.em_model import EMModel
 from sensact.models.polynomial import Polynomial1D
-from sensact.models.wheel_drive import wheel_pair
+from sensact.presets import mrclam_config
 
 ROBOTS = (1, 2, 3, 4, 5)
-
-
-def mrclam_config() -> EMConfig:
-    return EMConfig(
-        action_basis="affine",
-        action_delay_max_s=0.5,
-        action_zero_mean=("v_x_mm_s",),  # a differential drive cannot side-step
-        action_inputs=("v_y_mm_s:v_mm_s",),  # ... nor drive its axle forward by turning (models/linear_action.py)
-        motion_noise="shared",
-        motion_sd_mm=3.0,
-        motion_sd_rad=0.01,
-        channels=(
-            # the start sigma a few times the readings' noise, as sec. 4.4.1's 10 px against 1.59 px: a
-            # tenfold vaguer one lost the robot on 6 of 20 quarter-length logs (docs/em-real-results.md, Short logs)
-            ChannelConfig("range_mm", 3, 500.0, 0.6, 100.0, robust="student_t", robust_param=4.0, bearing_degree=2),
-        ),
-        bearing_robust="student_t",
-        bearing_robust_param=4.0,
-        start_search_s=30.0,
-        ridge_search_mm=500.0,  # one cell of the start search's grid: how far off the start may be
-        turn_restarts=2,  # a fit whose range f turns over or bends, or that never settles, lost the robot: again
-        # from a tighter start
-        prune_when_freed=True,  # misread barcodes seconds after the last sighting pass the first gate
-    )  # EM runs until it converges (patience), as the thesis's does
-
-
-def diffdrive_config(command_names: tuple[str, ...]) -> EMConfig | None:
-    """MRCLAM's settings for a differential drive, logged either as (v, omega), as MRCLAM is, or as its
-    wheel speeds (``models.wheel_drive.wheel_pair``: ``left_mm_s, right_mm_s``, or the wheels' turning
-    rates in any one unit); None for other commands. On wheel speeds the forward speed is the wheels'
-    mean, so it depends on their sum alone (``(left_mm_s+right_mm_s)``, as on ``v_mm_s`` alone): the
-    same family as on (v, omega), a linear change of commands, so the units a robot logs its commands
-    in do not change what it learns."""
-    names = tuple(command_names)
-    if names == ("v_mm_s", "omega_rad_s"):
-        return mrclam_config()
-    pair = wheel_pair(names)
-    if pair is not None:
-        return replace(mrclam_config(), action_inputs=(f"v_y_mm_s:({pair[0]}+{pair[1]})",))
-    return None
-
-
-def planar_config(command_names: tuple[str, ...]) -> EMConfig:
-    """A starting point for any robot with a range-and-bearing camera: ``diffdrive_config`` on a
-    differential drive's commands; on any others, MRCLAM's settings with every velocity, sideways too,
-    affine in every command, since nothing says the robot cannot side-step (a legged robot's
-    ``(v, v_left, omega)``; ``sensact simulate diffdrive --set sidestep_mm_s=60``)."""
-    return diffdrive_config(command_names) or replace(mrclam_config(), action_zero_mean=(), action_inputs=())
-
-
-def range_only_config(command_names: tuple[str, ...], start_pose: tuple[float, float, float]) -> EMConfig:
-    """``planar_config`` for a sensor that reads ranges alone (UWB anchors, sonar beacons): the range
-    channel without bearing terms and no bearing settings. The start search scores start poses by the
-    bearings, so EM starts from ``start_pose`` (x mm, y mm, heading rad, theta = 0 facing +y): where
-    the robot was put, which the user knows and a range-only log cannot tell (``fit_em`` runs again from
-    the start EM learned when that moved metres: ``learn/em/given_start.py``). With an ``omega_rad_s``
-    command the turn rate depends on it alone: ranges show the heading only through the direction of
-    travel, and a turn rate free in the forward command let EM settle on a robot that turns whenever
-    it stops (docs/em-real.md, section 2, "A sensor without bearings"). On wheel speeds the same holds
-    the turn rate to the wheels' difference and the forward speed to their sum, whatever the axle."""
-    base = planar_config(command_names)
-    channels = tuple(replace(c, bearing_degree=0) for c in base.channels)
-    if "omega_rad_s" in command_names:
-        turn: tuple[str, ...] = ("v_theta_rad_s:omega_rad_s",)
-    else:
-        pair = wheel_pair(command_names)
-        turn = () if pair is None else (f"v_theta_rad_s:({pair[1]}-{pair[0]})",)
-    return replace(
-        base,
-        action_inputs=base.action_inputs + turn,
-        channels=channels,
-        bearing_robust="none",
-        bearing_robust_param=0.0,
-        prune_when_freed=False,
-        start_search_s=0.0,
-        start_prior_mean=tuple(float(v) for v in start_pose),
-    )
 
 
 def mrclam_folder(root: Path | None = None) -> Path:

@@ -11,9 +11,7 @@ issue's bars here; the chapter-3 online learner's numbers on the same file are r
 
 from __future__ import annotations
 
-import math
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -22,70 +20,10 @@ import numpy as np
 from sensact.config import config_to_dict
 from sensact.errors import LogFormatError
 from sensact.evaluate.bars import BarCheck, at_most, not_scored
-from sensact.evaluate.turtlebot_em import score_turtlebot_em
-from sensact.io.turtlebot import EM_READINGS, SPEC_RANGE_M, read_turtlebot_landmark_log
-from sensact.learn.em import EMConfig, EMResult, fit_em
-from sensact.learn.em.config import ChannelConfig
-from sensact.learn.em.localize import Localized
-from sensact.logs.landmark_log import LandmarkLog
-
-# a distance sensor's poor start (the Turtlebot's sonar1): a wrong scale and offset, not a wrong unit, so
-# that the state is in mm and the IR windows mean what the datasheets say
-DISTANCE_START = (100.0, 0.8, 300.0)  # f(d) = 100 mm + 0.8 d, sigma 300 mm
-ROBUST_NU = 4.0  # the Student-t degrees of freedom of a robust channel (the Turtlebot's sonar1)
-# the action model and the fit's length a user would choose for a robot driving to and from a wall
-TRACK_SETTINGS: dict[str, Any] = {
-    "action_basis": "affine",
-    "action_delay_max_s": 0.5,
-    "motion_noise": "shared",
-    "max_iterations": 1000,
-}
-
-
-def turtlebot_em_config(readings: tuple[str, ...] = EM_READINGS) -> EMConfig:
-    """The model a user would choose from the datasheets: every channel a cubic from a poor line;
-    the IR channels valid within their datasheet ranges; sonar1 robust. ``readings``: the columns a
-    file has (sonar1 and any of the IR sensors)."""
-    chans = [ChannelConfig("sonar1", 3, *DISTANCE_START, robust="student_t", robust_param=ROBUST_NU)]
-    for name in (r for r in EM_READINGS[1:] if r in readings):
-        lo, hi = SPEC_RANGE_M[name]
-        chans.append(ChannelConfig(name, 3, 1.5, -0.0002, 1.0, lo * 1000.0, hi * 1000.0))
-    return EMConfig(**TRACK_SETTINGS, channels=tuple(chans))
-
-
-def track_em_config(
-    data: LandmarkLog,
-    distance_reading: str,
-    windows: dict[str, tuple[float, float]] | None = None,
-    robust: tuple[str, ...] = (),
-) -> EMConfig:
-    """The Turtlebot's settings for a 1-D robot's own readings (`sensact convert track`): the reading in
-    a distance unit first, from the sonar's poor line; every other reading from a flat line at its
-    median with its spread as sigma, which says nothing of the distance, so that its f is learned from
-    where the others place the robot (on training1.csv the IR channels learn as well as from their
-    datasheet lines: raw_ir3 3.1 % against 5.7 %). ``windows``: each reading's valid distances (mm);
-    ``robust``: the readings read with a Student-t."""
-    windows = windows or {}
-    names = [distance_reading, *(r for r in data.reading_names if r != distance_reading)]
-    chans = []
-    for name in names:
-        if name == distance_reading:
-            start = DISTANCE_START
-        else:
-            v = data.obs_readings[:, data.reading_names.index(name)]
-            v = v[np.isfinite(v)]
-            spread = float(np.std(v)) if v.size > 1 else 0.0
-            # four digits: a start, written into em_config.yaml for a person to read
-            start = (
-                float(f"{np.median(v):.4g}") if v.size else 0.0,
-                0.0,
-                float(f"{spread:.4g}") if spread > 0 else 1.0,
-            )
-        lo, hi = windows.get(name, (-math.inf, math.inf))
-        kind = ("student_t", ROBUST_NU) if name in robust else ("none", 0.0)
-        chans.append(ChannelConfig(name, 3, *start, lo, hi, *kind))
-    return EMConfig(**TRACK_SETTINGS, channels=tuple(chans))
-
+from sensact.evaluate.turtlebot_em import TurtlebotEMRun, score_turtlebot_em
+from sensact.io.turtlebot import read_turtlebot_landmark_log
+from sensact.learn.em import EMConfig, fit_em
+from sensact.presets import turtlebot_em_config
 
 # issue 5's Turtlebot bars: the gain within 5 % of the truth's, one sensor within 3 % of the range
 GAIN_BAR_PCT = 5.0
@@ -115,16 +53,6 @@ def best_sensor(score: dict[str, Any]) -> tuple[str | None, float | None]:
     pcts = {k: v["rms_pct_of_span"] for k, v in score["sensors"].items() if np.isfinite(v["rms_pct_of_span"])}
     best = min(pcts, key=pcts.__getitem__, default=None)
     return best, None if best is None else float(pcts[best])
-
-
-@dataclass(frozen=True)
-class TurtlebotEMRun:
-    """A fit (or a learned model held and placed on another log by ``learn.em.localize``: `evaluate log`),
-    the log and the recorded range (mm per step) it is scored against."""
-
-    data: LandmarkLog
-    truth_mm: np.ndarray
-    result: EMResult | Localized  # what is read: its model and posteriors
 
 
 def run_turtlebot_em(csv_path: str | Path, config: EMConfig | None = None) -> tuple[dict[str, Any], TurtlebotEMRun]:

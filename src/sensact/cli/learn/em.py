@@ -11,18 +11,14 @@ import typer
 from sensact.cli.base import (
     ConfigOpt,
     SetOpt,
-    config_beside,
     console,
     friendly,
-    layered_config,
     learn_app,
     print_tables,
     progress_bar,
     write_result,
-    write_smoothed_path,
 )
-from sensact.cli.model_on_log import is_turtlebot_csv, read_em_log, scored_against
-from sensact.cli.scores import evaluate_em, evaluate_turtlebot_em, print_em_model, warn_if_one_command
+from sensact.cli.scores import print_em_model, print_scores, warn_if_one_command
 
 if TYPE_CHECKING:  # numpy is imported where a command needs it, so that --help stays quick
     import numpy as np
@@ -44,22 +40,6 @@ def _still_climbing(loglik: np.ndarray, best: int, max_iterations: int, patience
         + f") before {patience} iterations passed without a new best[/]: {lately}. The model given is the best "
         f"so far; to let EM run on, raise the cap (--set max_iterations={2 * max_iterations})."
     )
-
-
-# the figures `learn em --out OUT.json` draws against a log's truth (OUT_<kind>.png): recorded poses
-# (report.figures_real.write_robot) or a Turtlebot CSV's range column; one an earlier run at the same
-# --out drew, and this run does not, is removed so that it cannot pass for this fit
-TRUTH_FIGURES = ("actions", "range", "heading_noise", "bearing", "against_range")
-
-
-def halves_figure(out: Path) -> Path:
-    """Where `learn em --halves --out OUT.json` draws the halves: OUT_halves.png."""
-    return out.with_name(f"{out.stem}_halves.png")
-
-
-def _log_name(log: Path, data: Any, lf: Any) -> str:
-    """The log as the figures' titles name it."""
-    return lf.title(log) if lf is not None else Path(data.source).name
 
 
 def learn_and_compare_halves(
@@ -116,116 +96,6 @@ def learn_and_compare_halves(
             for h in fits
         ],
     }
-
-
-def _settings_and_log(
-    log: Path, bins: int, start_from: Path | None, config: Path | None, set_: list[str] | None
-) -> tuple[Any, Any, Any, Any, tuple[dict[str, Any], Any] | None]:
-    """``(settings, data, log folder or None, recorded distance or None (a Turtlebot CSV's range column, a
-    track folder's distance_mm), (model.json, model) or None)``:
-    the settings layered on a base that is the start model's own, a Turtlebot's, or the folder's
-    em_config.yaml, each said to the user."""
-    from sensact.config import config_from_dict
-    from sensact.learn.em import EMConfig
-
-    if start_from is not None:  # the model's own settings, and the log read onto its step
-        from sensact.cli.model_on_log import read_model_and_log
-
-        start_doc, start_model, data, lf, recorded_distance = read_model_and_log(log, start_from, bins, use="start")
-        learned = (start_doc.get("summary") or {}).get("config")
-        base = None if learned is None else config_from_dict(EMConfig, learned, source=f"{start_from}: summary.config")
-        if base is None and is_turtlebot_csv(log):
-            from sensact.experiments.turtlebot_em import turtlebot_em_config
-
-            base = turtlebot_em_config(data.reading_names)
-        cfg = layered_config(EMConfig, config, set_, base=base)
-        console.print(
-            f"starting from {start_from} (learned on {start_doc.get('log', 'a log it does not name')}): its "
-            + ("settings, " if learned is not None else "")
-            + "parameters and the start it finds; --config and --set override the settings."
-        )
-        return cfg, data, lf, recorded_distance, (start_doc, start_model)
-    if is_turtlebot_csv(log):  # a Turtlebot's settings, for the sensors it has
-        from sensact.experiments.turtlebot_em import turtlebot_em_config
-        from sensact.io.turtlebot import EM_READINGS
-
-        data, lf, recorded_distance = read_em_log(log, bins)
-        cfg = layered_config(EMConfig, config, set_, base=turtlebot_em_config(data.reading_names))
-        absent = [r for r in EM_READINGS if r not in data.reading_names]
-        console.print(
-            "Turtlebot CSV: starting from the Turtlebot's EM settings (docs/em-real.md); --config and --set "
-            "override them."
-            + (f" Channels {', '.join(data.reading_names)} ({', '.join(absent)} not in the file)." if absent else "")
-        )
-        return cfg, data, lf, recorded_distance, None
-    config = config_beside(log, "em_config.yaml", config)  # what `convert` or `simulate diffdrive` wrote
-    cfg = layered_config(EMConfig, config, set_)  # bad settings are said before the log is read
-    data, lf, recorded_distance = read_em_log(log, bins)
-    from sensact.io.unit_checks import unit_doubts
-
-    # a hand-written folder's column in the wrong unit, before a wasted fit
-    for doubt in unit_doubts(data, lf.truth_poses() if lf is not None else None):
-        console.print(f"[yellow]warning:[/] {doubt} (in {log})")
-    return cfg, data, lf, recorded_distance, None
-
-
-def _refuse_table_on_continuous_commands(data: Any, cfg: Any, log: Path, lf: Any) -> None:
-    """The thesis's action table needs discrete actions; a planar log of continuous commands needs a basis."""
-    if not (data.is_continuous and cfg.action_basis == "table" and data.geometry == "planar"):
-        return
-    from sensact.errors import ConfigError
-
-    beside = lf is not None and (log / "em_config.yaml").is_file()
-    raise ConfigError(
-        f"{data.source} has continuous commands, and the action model is the thesis's table of discrete actions.",
-        field="action_basis",
-        fix=(
-            f"pass --config {log / 'em_config.yaml'} (the settings written beside the log)"
-            if beside
-            else "pass --set action_basis=affine (or cross, polynomial), or a --config with it (docs/em-real.md)"
-        )
-        + ".",
-    )
-
-
-def _run_em(data: Any, start: Any, cfg: Any) -> Any:
-    """``fit_em`` with its progress, restarts and a moved start shown as they happen."""
-    from sensact.learn.em import fit_em
-    from sensact.learn.em.checks import describe_lost_fit
-
-    if cfg.start_search_s > 0 and data.geometry == "planar":
-        console.print(
-            f"finding the start pose: a {cfg.start_search_grid_mm:g} mm grid scored on the first "
-            f"{cfg.start_search_s:g} s, then EM from its {cfg.start_candidates} best, the better half kept every "
-            f"{cfg.start_trial_iterations} iterations"
-        )
-    with progress_bar() as progress:
-        return fit_em(
-            data,
-            start,
-            cfg,
-            progress=lambda it, ll, best, since: progress(  # it stops by patience: no end to show
-                f"EM: log-likelihood {ll:.1f} (best {best:.1f}, {since} of {cfg.patience} iterations since)",
-                it + 1,
-                None,
-            ),
-            on_race=lambda done, planned: progress(
-                f"start race: EM from each start, {cfg.start_trial_iterations} iterations a trial", done, planned
-            ),
-            on_restart=lambda k, turned, sigmas: console.print(
-                f"[yellow]{describe_lost_fit(turned, advice=False)}[/] EM starts again with "
-                + ", ".join(f"{name}'s start sigma {s:.4g}" for name, s in sigmas.items())
-                + f" (restart {k} of at most {cfg.turn_restarts}; turn_restarts in --config)"
-            ),
-            on_start_moved=lambda mm, mean: console.print(
-                f"EM moved the start {mm / 1000:.1f} m from start_prior_mean, to x {mean[0]:.0f} mm, "
-                f"y {mean[1]:.0f} mm, heading {mean[2]:.3f} rad: a start that far off can find the path with a "
-                'wrong turn model, so EM runs again from there (docs/em-real.md, section 2, "A sensor without '
-                'bearings")',
-                style="yellow",
-                markup=False,
-            ),
-        )
 
 
 def _describe_fit(res: Any, cfg: Any) -> None:
@@ -289,58 +159,6 @@ def _describe_fit(res: Any, cfg: Any) -> None:
         )
 
 
-def _write_fit(
-    out: Path, doc: dict[str, Any], res: Any, data: Any, log: Path, lf: Any, recorded_distance: Any, halves: bool
-) -> None:
-    """The model JSON, its history and path, the figure of the fit and those against the log's truth; a
-    figure that an earlier run at this --out drew, against a truth this log does not have or of its
-    halves (``halves``: this run draws its own after them), is removed."""
-    from sensact.io.atomic import write_npz
-
-    write_result(out, doc)
-    write_npz(
-        out.with_suffix(".history.npz"),
-        loglik=res.loglik_history,
-        velocities=res.velocity_history,
-        sigmas=res.sigma_history,
-    )
-    written = [out, out.with_suffix(".history.npz")]
-    name = _log_name(log, data, lf)
-    m, evaluation = res.model, doc["evaluation"]
-    if res.posteriors is not None:
-        from sensact.report.figures_fit import figure_em_fit
-
-        written.append(write_smoothed_path(out.with_suffix(".path.npz"), res.posteriors, data))
-        written.append(figure_em_fit(res, data, out.with_suffix(".png"), f"EM on {name}"))
-    if evaluation is not None and evaluation.get("truth_noise"):  # scored against recorded poses
-        from sensact.report.figures_real import write_robot
-
-        written += write_robot(lf, m, evaluation, out.with_suffix(""), name, res.posteriors, truth="ground truth")
-    elif evaluation is not None and recorded_distance is not None:  # scored against a recorded distance
-        from sensact.experiments.turtlebot_em import TurtlebotEMRun
-        from sensact.report.figures_turtlebot_em import figure_turtlebot_em
-
-        run = TurtlebotEMRun(data, recorded_distance, res)
-        path = out.with_name(f"{out.stem}_against_range.png")
-        written.append(figure_turtlebot_em(run, evaluation, path, f"EM on {name}"))
-    console.print("wrote " + ", ".join(str(p) for p in written))
-    earlier = halves_figure(out)
-    if earlier.exists():  # an earlier run's --halves: this run's, if any, is drawn after the halves
-        earlier.unlink()
-        if not halves:
-            console.print(f"removed {earlier}, an earlier run's --halves figure")
-    stale = [
-        p for kind in TRUTH_FIGURES if (p := out.with_name(f"{out.stem}_{kind}.png")).exists() and p not in written
-    ]
-    for p in stale:
-        p.unlink()
-    if stale:
-        console.print(
-            "removed what an earlier run at this --out drew against a truth this log does not have: "
-            + ", ".join(str(p) for p in stale)
-        )
-
-
 def _describe_log(data: Any, lf: Any) -> None:
     console.print(
         f"{data.source}: {data.geometry} log, {data.n_steps} steps of {data.dt_s:.4g} s, "
@@ -352,56 +170,6 @@ def _describe_log(data: Any, lf: Any) -> None:
         )
         + (f" ({lf.note})" if lf is not None and lf.note else "")
     )
-
-
-def _starting_model(data: Any, cfg: Any, start_doc_model: Any, start_from: Path | None) -> tuple[Any, Any, Any]:
-    """Sec. 4.4.1's poor start, or with ``--start-from`` the learned model placed on this log
-    (``learn/em/warm_start.py``): the model EM starts from, the placement (None without one) and the
-    settings EM runs with."""
-    if start_doc_model is None:
-        from sensact.learn.em import initial_model
-
-        return initial_model(data, cfg), None, cfg
-    from sensact.cli.localize import describe_placement
-    from sensact.learn.em.warm_start import start_from_model
-
-    start_doc, start_model = start_doc_model
-    with progress_bar() as progress:
-        placed, cfg = start_from_model(start_model, data, cfg, progress, source=str(start_from))
-    describe_placement(placed, start_doc.get("summary") or {}, data)
-    return placed.model, placed, cfg
-
-
-def _warn_of_a_doubtful_fit(res: Any, data: Any, cfg: Any) -> tuple[list[dict[str, Any]], Any, dict[str, Any]]:
-    """Signs, without ground truth, that EM lost the robot, a side-stepping robot held to no sideways
-    mean, correlated reading errors and a gate that dropped many sightings (``learn/em/checks.py``): each
-    printed, and returned for the JSON."""
-    from sensact.learn.em.checks import (
-        describe_correlated,
-        describe_held_sideways,
-        describe_lost_fit,
-        describe_pruned,
-        held_sideways_noise,
-        lost_fit_signs,
-        residual_autocorrelation,
-    )
-
-    signs = []
-    autocorrelation: dict[str, Any] = {}
-    if res.posteriors is not None:
-        signs = lost_fit_signs(res.model, res.posteriors, data, res.loglik_history, res.best_iteration)
-        if signs:
-            console.print(f"[yellow]{describe_lost_fit(signs)}[/]")
-        autocorrelation = residual_autocorrelation(res.model, res.posteriors, data)
-        for line in describe_correlated(autocorrelation):
-            console.print(f"[yellow]warning:[/] {line}", highlight=False)
-    pruned = describe_pruned(res.pruned_fraction)
-    if pruned:
-        console.print(f"[yellow]warning:[/] {pruned}", highlight=False)
-    held = held_sideways_noise(res.model, cfg.motion_noise)
-    if held:
-        console.print(describe_held_sideways(held), style="yellow", markup=False)  # it quotes a YAML list
-    return signs, held, autocorrelation
 
 
 @learn_app.command("em")
@@ -436,70 +204,142 @@ def learn_em_cmd(
             "the log pins down come out alike from both halves (no ground truth needed; about as long again).",
         ),
     ] = False,
+    preset: Annotated[
+        str | None,
+        typer.Option(
+            "--preset",
+            help="Start from this preset's settings instead of the log folder's em_config.yaml: "
+            "aibo_field (the thesis's), differential_drive_camera, range_only_anchors or track_1d "
+            "(docs/em-real.md); --config and --set override it.",
+        ),
+    ] = None,
     set_: SetOpt = None,
     config: ConfigOpt = None,
 ) -> None:
     """Learn the action model, sensor functions f and noise sigmas by EM (ch. 4).
 
-    Ctrl-C stops early and still writes the most likely model so far."""
+    The settings: --preset, or else the settings file `convert` wrote into the log folder (em_config.yaml,
+    which names its preset), or a Turtlebot's for a CSV, or the thesis's; --config and --set override
+    them. Ctrl-C stops early and still writes the most likely model so far."""
+    from sensact.app import calibrate, open_log
 
-    from sensact.learn.em.config import refuse_bearing_settings
-    from sensact.models.wheel_drive import as_differential_drive
-
-    cfg, data, lf, recorded_distance, start_doc_model = _settings_and_log(log, bins, start_from, config, set_)
-    _describe_log(data, lf)
-    _refuse_table_on_continuous_commands(data, cfg, log, lf)
-    refuse_bearing_settings(cfg, data)  # before the starting model, which would fail on it
-    if data.geometry == "track" and data.step_commands is not None:
-        warn_if_one_command(data.step_commands[:, 0], data.source, data.command_names[0])
-    start, placed, cfg = _starting_model(data, cfg, start_doc_model, start_from)
-    res = _run_em(data, start, cfg)
+    opened = open_log(log, bins=bins)
+    _describe_log(opened.data, opened.folder)
+    _warn_of_the_log(opened)
+    with progress_bar() as progress:
+        events = _events(opened, preset, progress)
+        cal = calibrate(opened, preset, config, sets=set_ or (), start_from=start_from, events=events)
+    res, cfg = cal.result, cal.config
     _describe_fit(res, cfg)
-    m = res.model
-    print_em_model(m)
-    signs, held, autocorrelation = _warn_of_a_doubtful_fit(res, data, cfg)
-    evaluation = (
-        evaluate_em(lf, m, learned_here=True, path=None if res.posteriors is None else res.posteriors.mean_gamma)
-        if lf is not None and recorded_distance is None
-        else evaluate_turtlebot_em(res, data, recorded_distance, scored_against(log))
-    )
-    if evaluation is not None:
-        evaluation["pruned_fraction"] = res.pruned_fraction
-    doc = {
-        "model": m.to_dict(),
-        "summary": res.summary(),
-        "log": data.source,
-        "dt_s": data.dt_s,
-        "evaluation": evaluation,
-        # learn/em/checks.py: signs that EM lost the robot
-        "range_function_turns": [t for t in signs if t["sign"] == "turns"],
-        "range_function_bends": [t for t in signs if t["sign"] == "bends"],
-        "em_unsettled": next((t for t in signs if t["sign"] == "unsettled"), None),
-        "held_sideways_noise": held,  # ... and that a robot that side-steps is held to no sideways mean
-        # the share of sightings the gates dropped, and each channel's residuals' lag-1 autocorrelation
-        "pruned_fraction": res.pruned_fraction,
-        "residual_lag1_autocorrelation": autocorrelation,
-        "differential_drive": as_differential_drive(m.action),  # on wheel speeds: gain, axle, wheel ratio
-        # --start-from: the model EM started from, and where it placed the robot (learn/em/warm_start.py)
-        "start_from": None
-        if placed is None
-        else {
-            "model": str(start_from),
-            "placed": placed.start,
-            "loglik_per_sighting": placed.loglik_per_sighting,
-        },
-        "halves": None,  # --halves: each half learned on from this model, and compared (below)
-    }
+    print_em_model(res.model)
+    for line in cal.diagnostics.warnings:
+        console.print(f"[yellow]warning:[/] {line}", highlight=False)
+    print_scores(cal.scores, cal.log)
+    doc = cal.to_json()
     if out is not None:
-        _write_fit(out, doc, res, data, log, lf, recorded_distance, halves)
+        from sensact.app.save import save_calibration
+
+        saved = save_calibration(cal, out)
+        console.print("wrote " + ", ".join(str(p) for p in saved.written))
+        if saved.removed_halves is not None and not halves:
+            console.print(f"removed {saved.removed_halves}, an earlier run's --halves figure")
+        if saved.removed:
+            console.print(
+                "removed what an earlier run at this --out drew against a truth this log does not have: "
+                + ", ".join(str(p) for p in saved.removed)
+            )
     if halves:  # after the model is written, so that stopping the halves loses nothing of it
         if res.posteriors is None:
             console.print(f"--halves: not run, EM stopped {res.stop_reason} without a smoothed path to compare on")
             return
+        from sensact.app.save import halves_figure
+
         figure = None if out is None else halves_figure(out)
         halves_doc = learn_and_compare_halves(
-            res, data, cfg, figure, f"{_log_name(log, data, lf)}: halves against the whole"
+            res, cal.log.data, cfg, figure, f"{cal.log.name}: halves against the whole"
         )
         if out is not None:
             write_result(out, doc | {"halves": halves_doc})
             console.print(f"wrote {out} again, with the halves")
+
+
+def _warn_of_the_log(opened: Any) -> None:
+    """What a log shows before a fit that may waste it: a column in the wrong unit, one command throughout."""
+    from sensact.io.unit_checks import unit_doubts
+
+    data = opened.data
+    if opened.folder is not None:
+        for doubt in unit_doubts(data, opened.folder.truth_poses()):
+            console.print(f"[yellow]warning:[/] {doubt} (in {opened.path})")
+    if data.geometry == "track" and data.step_commands is not None:
+        warn_if_one_command(data.step_commands[:, 0], data.source, data.command_names[0])
+
+
+def _events(opened: Any, preset: str | None, show: Any) -> Any:
+    """What the CLI shows as a calibration goes: the settings, the placement, EM's progress, restarts."""
+    from sensact.app import FitEvents
+    from sensact.learn.em.checks import describe_lost_fit
+
+    cfg_of: dict[str, Any] = {}  # the settings, once read
+
+    def on_settings(settings: Any) -> None:
+        cfg = cfg_of["cfg"] = settings.config
+        if preset is not None:
+            console.print(f"settings: preset {preset}; --config and --set override it.")
+        elif opened.settings_file is not None and settings.base == str(opened.settings_file):
+            console.print(
+                f"settings: {settings.base}, written beside the log (preset {settings.preset}); --config replaces "
+                "them, --set overrides them.",
+                highlight=False,
+            )
+        elif settings.base != "the thesis's defaults":
+            console.print(f"settings: {settings.base}; --config and --set override them.", highlight=False)
+        if opened.is_turtlebot_csv:
+            from sensact.io.turtlebot import EM_READINGS
+
+            names = opened.data.reading_names
+            absent = [r for r in EM_READINGS if r not in names]
+            if absent:
+                console.print(f"Channels {', '.join(names)} ({', '.join(absent)} not in the file).")
+        if cfg.start_search_s > 0 and opened.data.geometry == "planar" and not cfg.warm_start:
+            console.print(
+                f"finding the start pose: a {cfg.start_search_grid_mm:g} mm grid scored on the first "
+                f"{cfg.start_search_s:g} s, then EM from its {cfg.start_candidates} best, the better half kept "
+                f"every {cfg.start_trial_iterations} iterations"
+            )
+
+    def on_placed(start: Any) -> None:
+        from sensact.cli.localize import describe_placement
+
+        console.print(
+            f"starting from {start.path} (learned on {start.document.get('log', 'a log it does not name')}): "
+            "its settings, parameters and the start it finds; --config and --set override the settings."
+        )
+        describe_placement(start.placed, start.document.get("summary") or {}, start.log.data)
+
+    def progress(it: int, ll: float, best: float, since: int) -> None:  # it stops by patience: no end to show
+        patience = cfg_of["cfg"].patience
+        show(f"EM: log-likelihood {ll:.1f} (best {best:.1f}, {since} of {patience} iterations since)", it + 1, None)
+
+    return FitEvents(
+        progress=progress,
+        on_race=lambda done, planned: show(
+            f"start race: EM from each start, {cfg_of['cfg'].start_trial_iterations} iterations a trial", done, planned
+        ),
+        on_restart=lambda k, turned, sigmas: console.print(
+            f"[yellow]{describe_lost_fit(turned, advice=False)}[/] EM starts again with "
+            + ", ".join(f"{name}'s start sigma {s:.4g}" for name, s in sigmas.items())
+            + f" (restart {k} of at most {cfg_of['cfg'].turn_restarts}; turn_restarts in --config)"
+        ),
+        on_start_moved=lambda mm, mean: console.print(
+            f"EM moved the start {mm / 1000:.1f} m from start_prior_mean, to x {mean[0]:.0f} mm, "
+            f"y {mean[1]:.0f} mm, heading {mean[2]:.3f} rad: a start that far off can find the path with a "
+            'wrong turn model, so EM runs again from there (docs/em-real.md, section 2, "A sensor without '
+            'bearings")',
+            style="yellow",
+            markup=False,
+        ),
+        placing=show,
+        on_placed=on_placed,
+        on_settings=on_settings,
+    )

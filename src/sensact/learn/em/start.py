@@ -27,7 +27,6 @@ import math
 import os
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -129,8 +128,9 @@ def search_grid(landmarks_xy: np.ndarray, target_xy: np.ndarray, cell_mm: float)
     return target_xy + (cells * cell_mm) @ axes
 
 
-# (data, starting model, config) -> an EMResult; fit_em, passed in to keep the layers one-way
-RunEM = Callable[[LandmarkLog, EMModel, EMConfig], Any]
+# (data, starting model, iterations) -> an EMResult: EM's held stage alone for that many iterations,
+# ungated and without a stop (loop.held_trial), passed in to keep the modules one-way
+RunTrial = Callable[[LandmarkLog, EMModel, int], Any]
 # (trials done, trials the race holds at most) -> None; a stalled trial is done without running
 OnTrial = Callable[[int, int], None]
 
@@ -149,7 +149,7 @@ def race_starts(
     data: LandmarkLog,
     candidates: list[EMModel],
     config: EMConfig,
-    run: RunEM,
+    run: RunTrial,
     workers: int | None = None,
     on_trial: OnTrial | None = None,
 ) -> tuple[EMModel, dict[str, Any]]:
@@ -158,14 +158,7 @@ def race_starts(
     ``start_trial_iterations`` until two are left, and the better of those wins. ``workers`` threads
     run a round's trials (one per core by default); ``on_trial`` hears of each trial as it is done,
     in the order of the field."""
-    trial = replace(
-        config,
-        start_search_s=0.0,
-        max_iterations=config.start_trial_iterations,
-        refine_from=10**9,  # the held, Gaussian stage only: one likelihood for every candidate
-        patience=10**9,
-        prune_rad_per_step=0.0,
-    )
+    trial = config.start_trial_iterations  # of the held, Gaussian, ungated stage: one likelihood for every start
     alive = list(range(len(candidates)))
     models = list(candidates)
     spent = [0] * len(candidates)
@@ -190,11 +183,11 @@ def race_starts(
             for i in alive:
                 if i in stalled:
                     scores[i] = stalled[i]
-                    spent[i] += trial.max_iterations
+                    spent[i] += trial
                     continue
                 res = results[i]
                 scores[i] = res.loglik_best if res.iterations else -math.inf
-                if res.model is models[i] and res.iterations == trial.max_iterations:
+                if res.model is models[i] and res.iterations == trial:
                     stalled[i] = scores[i]
                 models[i] = res.model
                 spent[i] += res.iterations

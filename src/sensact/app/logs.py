@@ -1,41 +1,81 @@
-"""A learned model and the log it is used on: the log EM reads (a folder or a Turtlebot CSV), `learn em`'s
-model.json read, and a model that could not have been learned from the log (another geometry, other commands
-or readings, another step) refused in one line before `evaluate` scores it, `localize` runs it or `learn em
---start-from` starts from it."""
+"""What a path is, and the log EM reads from it (``open_log``): a log folder (with its settings file, its
+truth) or a Turtlebot CSV; and a learned model.json read, and refused in one line on a log it could not
+have been learned from (another geometry, other commands or readings, another step)."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from sensact.errors import LogFormatError
+from sensact.io.landmark_log import LandmarkLogFile
+from sensact.logs.landmark_log import LandmarkLog
+from sensact.models.em_model import EMModel
+
+SETTINGS_FILE = "em_config.yaml"  # the EM settings `convert` and `simulate` write into a log folder
+# what a 1-D fit is scored against, as its score line names it
+RANGE_COLUMN = "range"  # a Turtlebot CSV's column
+RECORDED_DISTANCE = "the recorded distance"  # a track folder's groundtruth.csv distance_mm
+
+
+@dataclass(frozen=True, eq=False)
+class OpenedLog:
+    """A log as EM reads it, and what came with it."""
+
+    path: Path
+    data: LandmarkLog
+    folder: LandmarkLogFile | None  # a log folder's meta.json and truth; None for a Turtlebot CSV
+    # a Turtlebot CSV's range column, or a track folder's recorded distance (mm per step), to score against
+    recorded_distance_mm: np.ndarray | None
+    bins: int  # actions continuous 1-D commands were binned into
+
+    @property
+    def is_turtlebot_csv(self) -> bool:
+        return self.folder is None
+
+    @property
+    def settings_file(self) -> Path | None:
+        """The settings `convert` or `simulate` wrote beside the log, if any."""
+        beside = self.path / SETTINGS_FILE
+        return beside if self.folder is not None and beside.is_file() else None
+
+    @property
+    def scored_against(self) -> str:
+        """What a 1-D fit is scored against, as its score line names it."""
+        return RANGE_COLUMN if self.is_turtlebot_csv else RECORDED_DISTANCE
+
+    @property
+    def name(self) -> str:
+        """The log as figures' titles name it."""
+        return self.folder.title(self.path) if self.folder is not None else Path(self.data.source).name
+
+    def on_step(self, dt_s: float | None) -> OpenedLog:
+        """This log read onto a model's step ``dt_s``: a Turtlebot CSV read again, a folder's steps are its own."""
+        if dt_s is None or not self.is_turtlebot_csv or abs(dt_s - self.data.dt_s) <= 1e-12:
+            return self
+        return open_log(self.path, bins=self.bins, dt_s=dt_s)
+
 
 def is_turtlebot_csv(log: Path) -> bool:
-    """Whether EM reads ``log`` as a Turtlebot CSV (``read_em_log``), not as a log folder."""
+    """Whether EM reads ``log`` as a Turtlebot CSV, not as a log folder."""
     return log.is_file() and log.suffix.lower() == ".csv"
 
 
-def scored_against(log: Path) -> str:
-    """What a 1-D log's fit is scored against, as its score line names it: a Turtlebot CSV's range column,
-    or a track folder's recorded distance."""
-    from sensact.cli.scores import RANGE_COLUMN, RECORDED_DISTANCE
-
-    return RANGE_COLUMN if is_turtlebot_csv(log) else RECORDED_DISTANCE
-
-
-def read_em_log(log: Path, bins: int, dt_s: float | None = None) -> tuple[Any, Any, Any]:
-    """What EM reads: ``(data, the log folder, its recorded distance or None)`` from a folder (continuous
-    commands of a track1d folder binned into ``bins`` actions; the distance of a track folder of continuous
-    commands whose groundtruth.csv has ``distance_mm``), or ``(data, None, its range column)`` from a
-    Turtlebot CSV (on ``dt_s``, or its median step); anything else is one line. The distance and the range
-    column are scored alike (``evaluate.turtlebot_em``)."""
+def open_log(path: str | Path, *, bins: int = 21, dt_s: float | None = None) -> OpenedLog:
+    """What ``path`` is, read as EM reads it: a log folder (continuous commands of a track1d folder binned
+    into ``bins`` actions; a track folder's recorded distance from groundtruth.csv's ``distance_mm``), or a
+    Turtlebot CSV (on ``dt_s``, or its median step; its range column kept to score against). Anything else
+    is one line."""
+    log = Path(path)
     if is_turtlebot_csv(log):
         from sensact.io.turtlebot import read_turtlebot_landmark_log
 
         data, truth = read_turtlebot_landmark_log(log, dt_s)
-        return data, None, truth
+        return OpenedLog(log, data, None, truth, bins)
     if log.is_file():
-        from sensact.errors import LogFormatError
-
         raise LogFormatError(
             "EM reads a log folder or a Turtlebot CSV file.",
             file=log,
@@ -45,14 +85,7 @@ def read_em_log(log: Path, bins: int, dt_s: float | None = None) -> tuple[Any, A
     from sensact.io.landmark_log import read_landmark_log
 
     lf = read_landmark_log(log, command_bins=bins)
-    return lf.data, lf, lf.truth_distance_mm()
-
-
-def read_log_on_model_step(log: Path, doc: dict[str, Any], bins: int) -> tuple[Any, Any, Any]:
-    """``read_em_log`` with a Turtlebot CSV read onto the step of the model ``doc`` (its model.json),
-    whatever the CSV's own median step; a folder's steps are its own."""
-    dt = doc.get("dt_s")
-    return read_em_log(log, bins, None if dt is None else float(dt))
+    return OpenedLog(log, lf.data, lf, lf.truth_distance_mm(), bins)
 
 
 def read_em_model(model: Path) -> tuple[dict[str, Any], Any]:
@@ -125,12 +158,11 @@ def refuse_model_for_log(
         )
 
 
-def read_model_and_log(log: Path, model: Path, bins: int, use: str) -> tuple[dict[str, Any], Any, Any, Any, Any]:
-    """``(model.json, the model, the log's data, its folder or None, the recorded distance or None: a Turtlebot
-    CSV's range column or a track folder's distance_mm)``,
-    the log read onto the model's step; a model that does not fit the log is refused in one line (``use``:
-    "run", "scored" or "start")."""
+def read_model_and_log(log: Path, model: Path, bins: int, use: str) -> tuple[dict[str, Any], EMModel, OpenedLog]:
+    """``(model.json, the model, the log)``, the log read onto the model's step; a model that does not fit the
+    log is refused in one line (``use``: "run", "scored" or "start")."""
     doc, m = read_em_model(model)
-    data, lf, truth_mm = read_log_on_model_step(log, doc, bins)
-    refuse_model_for_log(doc, m, data, model, log, use=use)
-    return doc, m, data, lf, truth_mm
+    dt = doc.get("dt_s")
+    opened = open_log(log, bins=bins, dt_s=None if dt is None else float(dt))
+    refuse_model_for_log(doc, m, opened.data, model, log, use=use)
+    return doc, m, opened

@@ -1,0 +1,240 @@
+"""``calibrate(log, preset or config) -> Calibration``: what `sensact learn em DIR` does, callable from
+Python. It reads the settings (``settings.py``), refuses what cannot run on the log in one line, runs EM
+(``learn.em.fit_em``; from a learned model placed on the log, with ``start_from``), checks the fit
+without truth (``learn.em.checks``) and, when the log has truth, scores it (``scores.py``)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from sensact.app.logs import OpenedLog, read_model_and_log
+from sensact.app.scores import Scores, Unscored, score_model
+from sensact.app.settings import Settings, resolve_settings
+from sensact.errors import ConfigError
+from sensact.learn.em import EMConfig, EMResult, fit_em, initial_model
+from sensact.learn.em.config import refuse_bearing_settings
+from sensact.learn.em.fit import OnRestart, OnStartMoved, Progress
+from sensact.learn.em.localize import Localized
+from sensact.learn.em.start import OnTrial
+from sensact.models.em_model import EMModel
+
+
+@dataclass(frozen=True)
+class FitEvents:
+    """What a calibration tells as it goes (each optional; the CLI shows them, a library user may pass none)."""
+
+    progress: Progress | None = None  # every EM iteration
+    on_race: OnTrial | None = None  # the start race's trials
+    on_restart: OnRestart | None = None  # a restart from a tighter start (turn_restarts)
+    on_start_moved: OnStartMoved | None = None  # a range-only start that moved metres
+    placing: Callable[..., None] | None = None  # placing a start model on the log (localize's progress)
+    on_placed: Callable[[StartFrom], None] | None = None  # ... and where it placed the robot, before EM
+    on_settings: Callable[[Settings], None] | None = None  # the settings, once read, before any work
+
+
+@dataclass(frozen=True)
+class StartFrom:
+    """The learned model a calibration started from (``start_from``), and where it placed the robot."""
+
+    path: Path
+    document: Mapping[str, Any]  # its model.json
+    placed: Localized
+    log: OpenedLog  # the log it was placed on (a Turtlebot CSV read onto the model's step)
+
+
+@dataclass(frozen=True)
+class Diagnostics:
+    """Signs, without ground truth, of how far to trust a fit (``learn/em/checks.py``); ``warnings`` has one
+    line for each that calls for the user's attention."""
+
+    pruned_fraction: float  # the share of sightings the gates dropped
+    residual_lag1_autocorrelation: Mapping[str, float | None]  # each channel's; above 0.5 sigma is a lower bound
+    lost_signs: tuple[Mapping[str, Any], ...]  # a range function that turns over or bends, an unsettled fit
+    held_sideways: Mapping[str, float] | None  # a robot that side-steps held to no sideways mean
+    warnings: tuple[str, ...] = field(default=())
+
+
+@dataclass(frozen=True, eq=False)
+class Calibration:
+    """A calibration: the learned model and EM's record of it, the settings it ran with, its diagnostics
+    and, when the log has truth, its scores (``Unscored`` with the reason when they could not be taken)."""
+
+    log: OpenedLog
+    settings: Settings
+    result: EMResult
+    diagnostics: Diagnostics
+    scores: Scores | Unscored | None
+    start_from: StartFrom | None = None
+
+    @property
+    def model(self) -> EMModel:
+        return self.result.model
+
+    @property
+    def config(self) -> EMConfig:
+        return self.settings.config
+
+    def to_json(self) -> dict[str, Any]:
+        """The model file `learn em --out` writes (its key names are fixed: checks and reports read them)."""
+        from sensact import __version__
+        from sensact.models.wheel_drive import as_differential_drive
+
+        res, diag = self.result, self.diagnostics
+        evaluation = self.scores.evaluation if isinstance(self.scores, Scores) else None
+        if evaluation is not None:
+            evaluation = evaluation | {"pruned_fraction": diag.pruned_fraction}
+        signs = list(diag.lost_signs)
+        return {
+            "sensact_version": __version__,  # what EM learns has changed between versions: name the code
+            "model": self.model.to_dict(),
+            "summary": res.summary() | {"preset": self.settings.preset},
+            "log": self.log.data.source,
+            "dt_s": self.log.data.dt_s,
+            "evaluation": evaluation,
+            # learn/em/checks.py: signs that EM lost the robot
+            "range_function_turns": [t for t in signs if t["sign"] == "turns"],
+            "range_function_bends": [t for t in signs if t["sign"] == "bends"],
+            "em_unsettled": next((t for t in signs if t["sign"] == "unsettled"), None),
+            "held_sideways_noise": diag.held_sideways,  # ... and that a robot that side-steps is held still
+            # the share of sightings the gates dropped, and each channel's residuals' lag-1 autocorrelation
+            "pruned_fraction": diag.pruned_fraction,
+            "residual_lag1_autocorrelation": dict(diag.residual_lag1_autocorrelation),
+            "differential_drive": as_differential_drive(self.model.action),  # on wheel speeds: gain, axle, ratio
+            # a learned model EM started from, and where it placed the robot (learn/em/warm_start.py)
+            "start_from": None
+            if self.start_from is None
+            else {
+                "model": str(self.start_from.path),
+                "placed": self.start_from.placed.start,
+                "loglik_per_sighting": self.start_from.placed.loglik_per_sighting,
+            },
+            "halves": None,  # `learn em --halves`: each half learned on from this model, and compared
+        }
+
+
+def refuse_table_on_continuous_commands(log: OpenedLog, cfg: EMConfig) -> None:
+    """The thesis's action table needs discrete actions; a planar log of continuous commands needs a basis."""
+    data = log.data
+    if not (data.is_continuous and cfg.action_basis == "table" and data.geometry == "planar"):
+        return
+    beside = log.settings_file
+    raise ConfigError(
+        f"{data.source} has continuous commands, and the action model is the thesis's table of discrete actions.",
+        field="action_basis",
+        fix=(
+            f"pass --config {beside} (the settings written beside the log)"
+            if beside is not None
+            else "pass --preset differential_drive_camera (or --set action_basis=affine, or a --config with it; "
+            "docs/em-real.md)"
+        )
+        + ".",
+    )
+
+
+def diagnose(result: EMResult, log: OpenedLog, cfg: EMConfig) -> Diagnostics:
+    """The fit's checks without truth (``learn/em/checks.py``), each warning as one line."""
+    from sensact.learn.em.checks import (
+        describe_correlated,
+        describe_held_sideways,
+        describe_lost_fit,
+        describe_pruned,
+        held_sideways_noise,
+        lost_fit_signs,
+        residual_autocorrelation,
+    )
+
+    signs: list[dict[str, Any]] = []
+    autocorrelation: dict[str, float | None] = {}
+    warnings: list[str] = []
+    if result.posteriors is not None:
+        signs = lost_fit_signs(result.model, result.posteriors, log.data, result.loglik_history, result.best_iteration)
+        if signs:
+            warnings.append(describe_lost_fit(signs))
+        autocorrelation = residual_autocorrelation(result.model, result.posteriors, log.data)
+        warnings += describe_correlated(autocorrelation)
+    pruned = describe_pruned(result.pruned_fraction)
+    if pruned:
+        warnings.append(pruned)
+    held = held_sideways_noise(result.model, cfg.motion_noise)
+    if held:
+        warnings.append(describe_held_sideways(held))
+    return Diagnostics(result.pruned_fraction, autocorrelation, tuple(signs), held, tuple(warnings))
+
+
+def _start(
+    log: OpenedLog, settings: Settings, start_from: Path | None, events: FitEvents
+) -> tuple[OpenedLog, EMModel, Settings, StartFrom | None]:
+    """Sec. 4.4.1's poor start, or a learned model placed on the log (``learn/em/warm_start.py``; a
+    Turtlebot CSV read onto its step): the log, the model EM starts from, the settings EM runs with and
+    the placement."""
+    if start_from is None:
+        return log, initial_model(log.data, settings.config), settings, None
+    from dataclasses import replace
+
+    from sensact.learn.em.warm_start import start_from_model
+
+    doc, model, log = read_model_and_log(log.path, start_from, log.bins, use="start")
+    placed, cfg = start_from_model(model, log.data, settings.config, events.placing, source=str(start_from))
+    start = StartFrom(start_from, doc, placed, log)
+    if events.on_placed is not None:
+        events.on_placed(start)
+    return log, placed.model, replace(settings, config=cfg), start
+
+
+def start_settings(start_from: Path) -> EMConfig | None:
+    """The settings a learned model was learned with (its model.json's ``summary.config``), if it says."""
+    from sensact.app.logs import read_em_model
+    from sensact.config import config_from_dict
+
+    doc, _ = read_em_model(start_from)
+    learned = (doc.get("summary") or {}).get("config")
+    return None if learned is None else config_from_dict(EMConfig, learned, source=f"{start_from}: summary.config")
+
+
+def calibrate(
+    log: OpenedLog,
+    preset: str | None = None,
+    config: EMConfig | Path | None = None,
+    *,
+    sets: Sequence[str] = (),
+    start_from: Path | None = None,
+    events: FitEvents | None = None,
+) -> Calibration:
+    """Learn ``log``'s action and sensor models by EM (ch. 4), as `sensact learn em` does.
+
+    Settings: ``config`` as an ``EMConfig`` is taken whole; otherwise ``resolve_settings`` (``preset``, a
+    settings YAML ``config``, ``sets``; with ``start_from``, the start model's own settings are the base).
+    ``start_from``: a model.json of `learn em` to start from instead of the thesis's poor guess, placed on
+    the log first. Ctrl-C ends EM cleanly with the most likely model so far (``stop_reason``)."""
+    events = events or FitEvents()
+    if isinstance(config, EMConfig):
+        settings = Settings(config, preset, "given")
+    else:
+        base = None if start_from is None else start_settings(start_from)
+        if base is None and start_from is not None and log.is_turtlebot_csv:
+            from sensact.presets import turtlebot_em_config
+
+            base = turtlebot_em_config(log.data.reading_names)
+        settings = resolve_settings(log, preset=preset, config=config, sets=sets, base=base)
+    if events.on_settings is not None:
+        events.on_settings(settings)
+    refuse_table_on_continuous_commands(log, settings.config)
+    refuse_bearing_settings(settings.config, log.data)  # before the starting model, which would fail on it
+    log, start, settings, placed = _start(log, settings, start_from, events)
+    result = fit_em(
+        log.data,
+        start,
+        settings.config,
+        progress=events.progress,
+        on_restart=events.on_restart,
+        on_race=events.on_race,
+        on_start_moved=events.on_start_moved,
+    )
+    diagnostics = diagnose(result, log, settings.config)
+    path = None if result.posteriors is None else result.posteriors.mean_gamma
+    fit = result
+    scores = score_model(log, result.model, learned_here=True, path=path, fit=fit)
+    return Calibration(log, settings, result, diagnostics, scores, placed)

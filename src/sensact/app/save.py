@@ -1,0 +1,86 @@
+"""A calibration written out: the model JSON, EM's history and smoothed path as .npz, the figure of the fit
+and, when the log has truth, the figures against it. Every write is atomic."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sensact.app.calibrate import Calibration
+from sensact.app.scores import Scores
+from sensact.io.atomic import write_json, write_npz
+
+# the figures drawn against a log's truth (OUT_<kind>.png): recorded poses (report.figures_real.write_robot)
+# or a 1-D robot's recorded distance; one an earlier run at the same OUT drew, and this run does not, is
+# removed so that it cannot pass for this fit
+TRUTH_FIGURES = ("actions", "range", "heading_noise", "bearing", "against_range")
+
+
+@dataclass(frozen=True)
+class Saved:
+    written: tuple[Path, ...]
+    removed: tuple[Path, ...]  # an earlier run's figures at the same OUT against a truth this log does not have
+    removed_halves: Path | None  # an earlier run's --halves figure
+
+
+def halves_figure(out: Path) -> Path:
+    """Where `learn em --halves --out OUT.json` draws the halves: OUT_halves.png."""
+    return out.with_name(f"{out.stem}_halves.png")
+
+
+def write_smoothed_path(path: Path, posteriors: Any, data: Any) -> Path:
+    """Where EM puts the robot at every step: the smoothed mean and sd of each state component (eqs. 4.9,
+    4.10), for a user's own plots or as the robot's path; ``time_s`` counts from the log's first step."""
+    names = ("x_mm", "y_mm", "theta_rad") if data.geometry == "planar" else ("distance",)
+    return write_npz(
+        path,
+        time_s=np.arange(data.n_steps) * data.dt_s,
+        mean=posteriors.mean_gamma,
+        sd=np.sqrt(np.diagonal(posteriors.cov_gamma, axis1=1, axis2=2)),
+        state=np.array(names),
+    )
+
+
+def save_calibration(cal: Calibration, out: Path, document: dict[str, Any] | None = None) -> Saved:
+    """``cal`` at ``out`` (its JSON, or ``document`` in its place), OUT.history.npz, OUT.path.npz, OUT.png and
+    the figures against the log's truth; an earlier run's halves figure, and its figures against a truth
+    this log does not have, removed."""
+    res, log = cal.result, cal.log
+    write_json(out, document if document is not None else cal.to_json())
+    write_npz(
+        out.with_suffix(".history.npz"),
+        loglik=res.loglik_history,
+        velocities=res.velocity_history,
+        sigmas=res.sigma_history,
+    )
+    written = [out, out.with_suffix(".history.npz")]
+    if res.posteriors is not None:
+        from sensact.report.figures_fit import figure_em_fit
+
+        written.append(write_smoothed_path(out.with_suffix(".path.npz"), res.posteriors, log.data))
+        written.append(figure_em_fit(res, log.data, out.with_suffix(".png"), f"EM on {log.name}"))
+    scores = cal.scores.evaluation if isinstance(cal.scores, Scores) else None
+    if scores is not None and scores.get("truth_noise") and log.folder is not None:  # against recorded poses
+        from sensact.report.figures_real import write_robot
+
+        written += write_robot(
+            log.folder, cal.model, scores, out.with_suffix(""), log.name, res.posteriors, truth="ground truth"
+        )
+    elif scores is not None and log.recorded_distance_mm is not None:  # against a recorded distance
+        from sensact.evaluate.turtlebot_em import TurtlebotEMRun
+        from sensact.report.figures_turtlebot_em import figure_turtlebot_em
+
+        run = TurtlebotEMRun(log.data, log.recorded_distance_mm, res)
+        path = out.with_name(f"{out.stem}_against_range.png")
+        written.append(figure_turtlebot_em(run, scores, path, f"EM on {log.name}"))
+    stale = [
+        p for kind in TRUTH_FIGURES if (p := out.with_name(f"{out.stem}_{kind}.png")).exists() and p not in written
+    ]
+    halves = halves_figure(out)
+    earlier_halves = halves if halves.exists() else None  # this run's, if any, is drawn after the halves
+    for p in [*stale, *([earlier_halves] if earlier_halves else [])]:
+        p.unlink()
+    return Saved(tuple(written), tuple(stale), earlier_halves)

@@ -1,0 +1,107 @@
+"""A learned model scored against the truth its log carries (never used for learning): recorded poses
+(groundtruth.csv, as `convert mrclam` writes from Vicon), the true model a simulated log's meta.json
+carries, or a 1-D robot's recorded distance (a Turtlebot CSV's range column, a track folder's
+distance_mm). The scores are the JSON the model file keeps as ``evaluation``; their key names are fixed."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from sensact.app.logs import OpenedLog
+from sensact.errors import LogFormatError
+from sensact.models.em_model import EMModel
+
+# what a fit was scored against (``Scores.against``)
+RECORDED_POSES = "recorded poses"
+SIMULATED_MODEL = "the simulated model"
+
+
+@dataclass(frozen=True)
+class Scores:
+    """A fit's errors against its log's truth."""
+
+    against: str  # RECORDED_POSES, SIMULATED_MODEL, or the 1-D log's recorded distance (logs.RANGE_COLUMN, ...)
+    evaluation: dict[str, Any]  # the model JSON's ``evaluation``: its keys are what checks and reports read
+
+    @property
+    def bars(self) -> dict[str, bool]:
+        """Each bar the fit is held to (``evaluate.bars``), cleared or not; empty where none applies."""
+        return dict(self.evaluation.get("bars") or {})
+
+
+@dataclass(frozen=True)
+class Unscored:
+    """Why a fit on a log with truth was not scored."""
+
+    reason: str
+
+
+def score_model(
+    log: OpenedLog, model: EMModel, *, learned_here: bool = False, path: np.ndarray | None = None, fit: Any = None
+) -> Scores | Unscored | None:
+    """``model`` against ``log``'s truth; None when the log has none. ``learned_here``: the model was just
+    learned on this log, so recorded poses too broken up to score leave it ``Unscored`` (saying why)
+    instead of failing. ``path``: EM's smoothed poses, scored against the recorded poses as ``path``.
+    ``fit``: what placed the model on a 1-D log (an ``EMResult`` or a ``Localized``), for its
+    recorded distance."""
+    if log.recorded_distance_mm is not None or log.folder is None:
+        return _on_distance(log, fit)
+    lf = log.folder
+    recorded = lf.truth_poses()
+    if recorded is not None and lf.data.is_continuous:
+        from sensact.evaluate.bars import bar_checks
+        from sensact.evaluate.landmark_truth import path_offset, score_against_truth
+
+        try:
+            sc = score_against_truth(model, lf.data, *recorded)
+        except LogFormatError as exc:
+            if not learned_here:
+                raise
+            return Unscored(f"not scored against the recorded poses: {exc}")
+        if path is not None:
+            sc["path"] = path_offset(np.asarray(path), *recorded)
+        sc["bars"] = bar_checks(sc)
+        simulated = lf.meta.get("truth") or {}
+        if simulated.get("kind") == "diffdrive":
+            from sensact.evaluate.simulated_robot import score_against_simulated
+
+            sc["simulated"] = score_against_simulated(model, simulated, lf.data.dt_s)
+        return Scores(RECORDED_POSES, sc)
+    truth = lf.meta.get("truth")
+    if not truth:
+        return None
+    if lf.data.geometry == "planar" and "velocities" in truth:
+        from sensact.evaluate.em import score_planar
+        from sensact.sim.track1d import TrackTruth
+
+        s = truth["sensor"]
+        height = TrackTruth(sensor_k_px_mm=s["k_px_mm"], sensor_d0_mm=s["d0_mm"], sensor_h0_px=s["h0_px"]).height_px
+        sc = score_planar(
+            model, np.asarray(truth["velocities"]), height, truth["sigma_height_px"], truth["sigma_bearing_rad"]
+        )
+        return Scores(SIMULATED_MODEL, sc)
+    if lf.data.geometry == "track" and "action" in truth:
+        from sensact.evaluate.em import score_track
+        from sensact.evaluate.track1d import DISTANCE_GRID_MM
+        from sensact.sim.track1d import TrackTruth
+
+        tt = TrackTruth.from_dict(truth)
+        sc = score_track(model, tt.velocity_mm_s(lf.data.action_commands[:, 0]), tt.height_px, DISTANCE_GRID_MM)
+        return Scores(SIMULATED_MODEL, sc)
+    return None
+
+
+def _on_distance(log: OpenedLog, fit: Any) -> Scores | Unscored | None:
+    """The Turtlebot's scaled gain and sensor errors against its range column, or a track folder's recorded
+    distance; None without either."""
+    from sensact.evaluate.turtlebot_em import NO_RANGE_COLUMN, range_column_problem, score_turtlebot_em
+
+    problem = range_column_problem(log.recorded_distance_mm)
+    if problem == NO_RANGE_COLUMN:
+        return None
+    if problem:
+        return Unscored(f"{problem}: not scored.")
+    return Scores(log.scored_against, score_turtlebot_em(fit, log.data, log.recorded_distance_mm))

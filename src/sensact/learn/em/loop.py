@@ -1,0 +1,413 @@
+"""The EM loop (secs. 4.1 and 4.4.1): alternate E- and M-steps and keep the most likely model.
+
+The likelihood of an approximate EM fluctuates, so a stage ends when ``patience`` iterations (50 in the
+thesis) pass without a new best ``log P(O | C, lambda)``, and EM at the end of its last stage, or at
+``max_iterations``. What the M-step may move in each stage is data: a tuple of frozen ``Stage`` values
+(``plan_stages``). Outliers are pruned in the first iteration (and, with ``prune_when_freed``, once more
+when the robust readings take over), and stay pruned. Ctrl-C ends the loop cleanly with the best model
+so far (``stop_reason == "interrupted"``).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from dataclasses import replace as dc_replace
+from functools import partial
+from typing import Any
+
+import numpy as np
+
+from sensact.errors import ConfigError
+from sensact.learn.em.config import EMConfig
+from sensact.learn.em.delay_search import search_delay
+from sensact.learn.em.estep import Posteriors, e_step, log_likelihood
+from sensact.learn.em.initial import initial_model, motion_sd_floor, motion_sd_start
+from sensact.learn.em.mount import MountFreedom, mount_freedom, search_mount
+from sensact.learn.em.mstep import m_step
+from sensact.learn.em.outliers import bearing_outliers
+from sensact.learn.em.result import EMResult
+from sensact.learn.em.ridge import search_ridge
+from sensact.learn.em.start import OnTrial, race_starts, start_candidates
+from sensact.logs.landmark_log import LandmarkLog
+from sensact.models.action_table import ActionTable
+from sensact.models.em_model import EMModel
+from sensact.models.linear_action import LinearActionModel
+
+# (iteration, loglik, best loglik, iterations since the best) -> None
+Progress = Callable[[int, float, float, int], None]
+NO_MOUNT = (False, False, False)
+
+
+@dataclass(frozen=True)
+class Stage:
+    """What the M-step may move in one stage of EM, and how the E-step reads the readings (DESIGN.md, 10).
+    A stage ends when EM has converged in it, or at iteration ``ends_by``; EM ends with its last."""
+
+    name: str
+    motion_noise: bool  # Sigma_m learned (motion_noise is not "fixed")
+    bearing_terms: bool  # the channels' bearing terms fitted
+    mount: tuple[bool, bool, bool]  # the sensor mount's components moved (forward, left, yaw)
+    robust: bool  # the configured robust readings; False: Gaussian ones
+    ends_by: int | None = None  # the iteration it ends at, converged or not (None: when converged)
+
+    def with_end(self, ends_by: int) -> Stage:
+        return dc_replace(self, ends_by=ends_by)
+
+
+# Sigma_m as configured, the bearing terms and the mount held, every reading Gaussian
+HELD = Stage("held", False, False, NO_MOUNT, False)
+
+
+def plan_stages(cfg: EMConfig, model: EMModel, freedom: MountFreedom, spent: int = 0) -> tuple[Stage, ...]:
+    """Sigma_m, the bearing terms, the mount and the robust readings are held while EM first settles from a
+    poor start, until ``refine_from`` or convergence, then freed: learned from a poor start, they let EM
+    settle on a trajectory shifted behind the robot (docs/em-real.md). A start race's ``spent`` held
+    iterations count; nothing to hold, ``refine_from`` 0 without a race, or a learned start (warm_start,
+    settled already): the free stage alone."""
+    free = Stage("free", cfg.motion_noise != "fixed", True, freedom.free, True)
+    nothing_held = cfg.refine_from <= 0 and spent == 0
+    if not holds_anything(cfg, model, freedom) or nothing_held or cfg.warm_start:
+        return (free,)
+    return (Stage("held", False, False, NO_MOUNT, False, ends_by=cfg.refine_from - spent), free)
+
+
+def holds_anything(cfg: EMConfig, model: EMModel, freedom: MountFreedom) -> bool:
+    """Whether a held stage would differ from the free one."""
+    terms = any(c.bearing_terms for c in model.sensor.channels)
+    return cfg.motion_noise != "fixed" or model.sensor.is_robust or terms or freedom.any
+
+
+@dataclass
+class _Trace:
+    """Every lambda_i's likelihood and parameters, as ``EMResult`` keeps them, and the most likely so far."""
+
+    best_model: EMModel
+    logliks: list[float] = field(default_factory=list)
+    velocities: list[np.ndarray] = field(default_factory=list)
+    sigmas: list[list[float]] = field(default_factory=list)
+    motion_sds: list[np.ndarray] = field(default_factory=list)
+    best_ll: float = -np.inf
+    best_it: int = -1
+    best_post: Posteriors | None = None
+
+    def record(self, it: int, model: EMModel, post: Posteriors) -> None:
+        self.logliks.append(post.loglik)
+        self.velocities.append(_action_parameters(model).copy())
+        self.sigmas.append([c.sigma for c in model.sensor.channels] + [model.sensor.sigma_bearing_rad or np.nan])
+        self.motion_sds.append(model.motion_sd.copy())
+        self.keep_if_best(it, model, post)
+
+    def keep_if_best(self, it: int, model: EMModel, post: Posteriors) -> None:
+        if post.loglik > self.best_ll:
+            self.best_ll, self.best_it, self.best_model, self.best_post = post.loglik, it, model, post
+
+    def arrays(self, model: EMModel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The likelihoods, action parameters, sigmas and Sigma_m's sds, shaped even when no iteration ran."""
+        return (
+            np.asarray(self.logliks, dtype=float),
+            np.asarray(self.velocities, dtype=float).reshape(-1, *_action_parameters(model).shape),
+            np.asarray(self.sigmas, dtype=float).reshape(-1, len(model.sensor.channels) + 1),
+            np.asarray(self.motion_sds, dtype=float).reshape(-1, *model.motion_sd.shape),
+        )
+
+
+@dataclass
+class _Searches:
+    """The ridge search (``ridge.py``), the delay search (``delay_search.py``) and the mount search
+    (``mount.search_mount``), each as configured: when a stage ends, and every ``search_every`` iterations
+    into the last, since EM keeps crawling back along the ridge between them (docs/em-real.md)."""
+
+    data: LandmarkLog
+    cfg: EMConfig
+    max_delay: int  # steps
+    ridge_on: bool
+    delay_on: bool
+    mount_free: tuple[bool, bool, bool]
+    ridge: list[dict[str, Any]] = field(default_factory=list)
+    delay: list[dict[str, Any]] = field(default_factory=list)
+    mount: list[dict[str, Any]] = field(default_factory=list)
+
+    @classmethod
+    def for_fit(
+        cls, data: LandmarkLog, model: EMModel, cfg: EMConfig, freedom: MountFreedom, on: bool = True
+    ) -> _Searches:
+        max_delay = round(cfg.action_delay_max_s / data.dt_s)
+        delay_on = on and cfg.delay_search and max_delay > 0 and isinstance(model.action, LinearActionModel)
+        return cls(data, cfg, max_delay, on and cfg.ridge_search_mm > 0, delay_on, freedom.free if on else NO_MOUNT)
+
+    def due(self, it: int, stage_ends: bool, since: int | None) -> bool:
+        """``since``: the iteration the last stage began at (None before it)."""
+        again = since is not None and it > since and (it - since) % self.cfg.search_every == 0
+        return (self.ridge_on or self.delay_on or any(self.mount_free)) and (stage_ends or again)
+
+    def run(
+        self, it: int, model: EMModel, post: Posteriors, obs_use: np.ndarray, robust: bool
+    ) -> tuple[EMModel, Posteriors]:
+        evaluate = partial(_stage_e_step, data=self.data, obs_use=obs_use, robust=robust)
+        score = partial(stage_loglik, data=self.data, obs_use=obs_use, robust=robust)
+        if self.ridge_on:
+            model, post, info = search_ridge(model, post, score, evaluate, self.cfg.ridge_search_mm)
+            self.ridge.append({"iteration": it, **info})
+        if self.delay_on:
+            model, post, info = search_delay(model, post, score, evaluate, self.max_delay)
+            self.delay.append({"iteration": it, **info})
+        if any(self.mount_free):  # due when the held stage ends and after: the mount is held before
+            model, post, info = search_mount(model, post, score, evaluate, self.mount_free)
+            self.mount.append({"iteration": it, **info})
+        return model, post
+
+
+@dataclass
+class _Run:
+    """One EM run's state between its E- and M-steps: the model, the stage it is in, the sightings used."""
+
+    data: LandmarkLog
+    cfg: EMConfig
+    stages: tuple[Stage, ...]
+    model: EMModel
+    trace: _Trace
+    searches: _Searches
+    rng: np.random.Generator
+    patience: int | None  # None: run every iteration (a race's trial)
+    prune: float | None  # the first iteration's gate (None: none)
+    freed_at: int = -1  # the iteration the last stage began at, after a held one (0: a learned start)
+    stage: int = 0
+    obs_use: np.ndarray | None = None
+    n_late: int = 0
+    began: list[tuple[str, int]] = field(default_factory=list)
+
+    @property
+    def current(self) -> Stage:
+        return self.stages[self.stage]
+
+    @property
+    def last(self) -> bool:
+        return self.stage == len(self.stages) - 1
+
+    def e_step(self, it: int) -> Posteriors:
+        """Sec. 4.2's E-step in this stage; in the first iteration the gate of sec. 4.4.1 (per frame)."""
+        gate = self.prune if it == 0 and self.prune is not None else 0.0
+        post = e_step(
+            _stage_model(self.model, self.current.robust), self.data, obs_use=self.obs_use, prune_rad_per_step=gate
+        )
+        if it == 0:
+            self.obs_use = post.obs_used
+            if not post.weights.any():  # there are sightings (refuse_no_sightings), but none used
+                raise ConfigError(
+                    "the starting model uses no reading at all.",
+                    file=self.data.source,
+                    field="channels[].valid_min / valid_max",
+                    fix="check each channel's window (in the state's unit) against its starting line.",
+                )
+            if self.freed_at == 0:  # a learned start: its robust readings take over at once
+                post = self._robust_take_over(post)
+        return post
+
+    def stage_ends(self, it: int) -> bool:
+        s = self.current
+        converged = self.patience is not None and it - max(self.trace.best_it, self.freed_at) >= self.patience
+        return converged or (s.ends_by is not None and it >= s.ends_by)
+
+    def search_if_due(self, it: int, post: Posteriors, stage_ends: bool) -> Posteriors:
+        since = (self.freed_at if self.freed_at >= 0 else 0) if self.last else None
+        if not self.searches.due(it, stage_ends, since):
+            return post
+        self.model, post = self.searches.run(it, self.model, post, self.obs_use, robust=self.current.robust)
+        self.trace.logliks[-1] = post.loglik  # lambda_it is now the moved model (its likelihood before: info)
+        self.trace.keep_if_best(it, self.model, post)
+        return post
+
+    def next_stage(self, it: int, post: Posteriors) -> Posteriors:
+        was_robust = self.current.robust
+        self.stage, self.freed_at = self.stage + 1, it
+        self.began.append((self.current.name, it))
+        return post if was_robust else self._robust_take_over(post)
+
+    def _robust_take_over(self, post: Posteriors) -> Posteriors:
+        """The robust readings take over: their likelihood is another function, with its own best from here;
+        with prune_when_freed, the first iteration's gate again on the smoothed path (``outliers.py``)."""
+        if not self.model.sensor.is_robust:
+            return post
+        self.trace.best_ll = -np.inf
+        if self.cfg.prune_when_freed:
+            post, self.n_late = drop_late_outliers(post, self.data, self.cfg.prune_rad_per_step, self.model)
+            self.obs_use = post.obs_used
+        return post
+
+    def m_step(self, post: Posteriors, floor: np.ndarray) -> EMModel:
+        """Sec. 4.3's M-step, moving what this stage frees."""
+        s, n = self.current, self.model.prior_mean.size
+        return m_step(
+            post,
+            self.data,
+            self.model,
+            n_samples=self.cfg.samples_per_frame,
+            floor_var=floor,
+            rng=self.rng,
+            learn_motion_noise=s.motion_noise,
+            motion_floor_sd=motion_sd_floor(self.cfg, n),
+            max_delay_steps=self.searches.max_delay,
+            fit_bearing_terms=s.bearing_terms,
+            mount_free=s.mount,
+        )
+
+
+def em_loop(run: _Run, iterations: int, progress: Progress | None = None) -> str:
+    """The thesis's loop (secs. 4.1, 4.4.1): E-step, M-step, until the last stage converges; why it stopped."""
+    floor = prior_floor_var(run.cfg, run.model.prior_mean.size)
+    try:
+        for it in range(iterations):
+            post = run.e_step(it)
+            if not post.ok:
+                return "diverged"
+            run.trace.record(it, run.model, post)
+            if progress is not None:
+                progress(it, post.loglik, run.trace.best_ll, it - run.trace.best_it)
+            ending = not run.last and run.stage_ends(it)
+            post = run.search_if_due(it, post, ending)  # the searches may move lambda_it
+            if ending:
+                post = run.next_stage(it, post)
+            elif run.stage_ends(it):
+                return "converged"
+            run.model = run.m_step(post, floor)
+    except KeyboardInterrupt:
+        return "interrupted"
+    return "max_iterations"
+
+
+def prior_floor_var(cfg: EMConfig, n: int) -> np.ndarray:
+    """pi(w_0)'s variance floor per state component (``prior_floor_sd``: mm, then rad)."""
+    return np.array([cfg.prior_floor_sd[0] ** 2] * min(n, 2) + ([cfg.prior_floor_sd[1] ** 2] if n == 3 else []))
+
+
+def run_stages(
+    data: LandmarkLog,
+    model: EMModel,
+    cfg: EMConfig,
+    stages: Sequence[Stage],
+    iterations: int,
+    *,
+    freedom: MountFreedom,
+    patience: int | None,
+    prune: float | None,
+    progress: Progress | None = None,
+    start_search: dict[str, Any] | None = None,
+    searches_on: bool = True,
+) -> EMResult:
+    """``em_loop`` from ``model`` through ``stages``, as an ``EMResult`` (``searches_on``: the searches as
+    configured; off, none)."""
+    trace = _Trace(model)
+    searches = _Searches.for_fit(data, model, cfg, freedom, searches_on)
+    warm = cfg.warm_start and holds_anything(cfg, model, freedom)  # a learned start has settled: freed from the first
+    run = _Run(data, cfg, tuple(stages), model, trace, searches, np.random.default_rng(cfg.seed), patience, prune)
+    run.freed_at = 0 if warm else -1
+    run.began.append((run.current.name, 0))
+    start = time.perf_counter()
+    reason = em_loop(run, iterations, progress)
+    obs_use = run.obs_use
+    n_pruned = 0 if obs_use is None else int(data.n_observations - obs_use.sum())
+    logliks, velocities, sigmas, motion_sds = trace.arrays(run.model)
+    return EMResult(
+        model=trace.best_model,
+        loglik_history=logliks,
+        velocity_history=velocities,
+        sigma_history=sigmas,
+        best_iteration=max(trace.best_it, 0),
+        stop_reason=reason,
+        n_observations=data.n_observations,
+        n_pruned=n_pruned,
+        seconds=time.perf_counter() - start,
+        config=cfg,
+        posteriors=trace.best_post,
+        motion_sd_history=motion_sds,
+        start_search=start_search,
+        freed_at=run.freed_at,
+        ridge=searches.ridge or None,
+        delay_search=searches.delay or None,
+        n_pruned_when_freed=run.n_late,
+        mount=freedom,
+        mount_search=searches.mount or None,
+        stages=tuple(run.began),
+    )
+
+
+def held_trial(data: LandmarkLog, model: EMModel, iterations: int, cfg: EMConfig) -> EMResult:
+    """A start race's trial: ``iterations`` of the held stage alone from ``model``, ungated and without a
+    stop, so that every candidate's likelihood is one function (``start.race_starts``)."""
+    freedom = mount_freedom(model, cfg.sensor_mount is not None, model.sensor.sigma_bearing_rad is not None)
+    stage = HELD if holds_anything(cfg, model, freedom) else plan_stages(cfg, model, freedom)[0]
+    return run_stages(
+        data, model, cfg, (stage,), iterations, freedom=freedom, patience=None, prune=None, searches_on=False
+    )
+
+
+def searched_start(
+    data: LandmarkLog, model: EMModel, cfg: EMConfig, on_race: OnTrial | None
+) -> tuple[EMModel, dict[str, Any] | None, int]:
+    """Where the robot starts when nobody says (``start.py``): the model placed there, what the search
+    tried, and the held iterations the start race already gave the model (0 without a race)."""
+    if not (cfg.start_search_s > 0 and data.geometry == "planar" and not cfg.warm_start):
+        return model, None, 0
+    candidates, info = start_candidates(data, model, cfg)
+    model, spent = candidates[0], 0
+    if len(candidates) > 1:
+        trial = partial(held_trial, cfg=cfg)
+        model, info["race"] = race_starts(data, candidates, cfg, trial, on_trial=on_race)
+        spent = info["race"]["winner_iterations"]  # before this fit's history begins
+    info["prior_mean"] = model.prior_mean.tolist()
+    return model, info, spent
+
+
+def fit_em_once(
+    data: LandmarkLog,
+    initial: EMModel | None = None,
+    config: EMConfig | None = None,
+    *,
+    progress: Progress | None = None,
+    on_race: OnTrial | None = None,
+) -> EMResult:
+    """One EM run from one start (the Algorithm of ch. 4): the start searched for when configured, then
+    ``em_loop`` through ``plan_stages``; a race's held iterations count toward ``max_iterations``."""
+    cfg = config or EMConfig()
+    model = initial or initial_model(data, cfg)
+    if cfg.motion_noise == "fixed":  # the thesis: Sigma_m is the configured constant, whatever the start says
+        model = model.replace(motion_sd=motion_sd_start(cfg, model.prior_mean.size))
+    model, start_info, spent = searched_start(data, model, cfg, on_race)
+    freedom = mount_freedom(model, cfg.sensor_mount is not None, model.sensor.sigma_bearing_rad is not None)
+    stages = plan_stages(cfg, model, freedom, spent)
+    iterations = max(cfg.max_iterations - spent, 1)
+    return run_stages(
+        data, model, cfg, stages, iterations, freedom=freedom, patience=cfg.patience,
+        prune=cfg.prune_rad_per_step, progress=progress, start_search=start_info,
+    )  # fmt: skip
+
+
+def drop_late_outliers(
+    post: Posteriors, data: LandmarkLog, gate_rad_per_step: float, model: EMModel
+) -> tuple[Posteriors, int]:
+    """``prune_when_freed``: the first iteration's gate again, on the smoothed path (``outliers.py``); the
+    posteriors with those sightings no longer used (so that this M-step leaves them out already), and
+    how many."""
+    late = bearing_outliers(post, data, gate_rad_per_step, model.sensor.mount.as_array())
+    return dc_replace(post, obs_used=post.obs_used & ~late), int(late.sum())
+
+
+def _stage_model(model: EMModel, robust: bool) -> EMModel:
+    """The model a stage runs: Gaussian readings while held, the configured ones after."""
+    return model if robust else model.replace(sensor=model.sensor.gaussian())
+
+
+def _stage_e_step(model: EMModel, data: LandmarkLog, obs_use: np.ndarray, robust: bool) -> Posteriors:
+    return e_step(_stage_model(model, robust), data, obs_use=obs_use)
+
+
+def stage_loglik(model: EMModel, data: LandmarkLog, obs_use: np.ndarray, robust: bool) -> float:
+    """``_stage_e_step``'s likelihood from its forward pass alone (the searches compare, then smooth one)."""
+    return log_likelihood(_stage_model(model, robust), data, obs_use=obs_use)
+
+
+def _action_parameters(model: EMModel) -> np.ndarray:
+    a = model.action
+    return a.velocities if isinstance(a, ActionTable) else a.coefficients

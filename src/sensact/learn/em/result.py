@@ -1,0 +1,93 @@
+"""What one EM fit returns (DESIGN.md, 2): the most likely model, its history, why EM stopped and what
+its searches, gates and restarts did."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from sensact.learn.em.checks import fall_per_sighting
+from sensact.learn.em.config import EMConfig
+from sensact.learn.em.estep import Posteriors
+from sensact.learn.em.mount import MountFreedom
+from sensact.models.em_model import EMModel
+
+
+@dataclass(frozen=True, eq=False)
+class EMResult:
+    model: EMModel  # the model with the highest likelihood
+    loglik_history: np.ndarray  # log P(O | C, lambda_i) for every iteration i
+    velocity_history: np.ndarray  # (iterations, A, n) the action table (or beta) of every lambda_i
+    sigma_history: np.ndarray  # (iterations, C+1) each channel's sigma, then sigma_2, of every lambda_i
+    best_iteration: int
+    stop_reason: str  # "converged", "max_iterations", "diverged" or "interrupted"
+    n_observations: int
+    n_pruned: int
+    seconds: float
+    config: EMConfig
+    posteriors: Posteriors | None = field(default=None, repr=False)  # of the best model
+    motion_sd_history: np.ndarray | None = None  # (iterations, G, n) Sigma_m's standard deviations
+    start_search: dict[str, Any] | None = None  # what the start search tried and chose
+    freed_at: int = -1  # the iteration after which Sigma_m, the terms and robust readings were freed (-1: never held)
+    ridge: list[dict[str, Any]] | None = None  # each ridge search: its iteration, shift, likelihoods (ridge.py)
+    delay_search: list[dict[str, Any]] | None = None  # each delay search: its iteration, delays, likelihoods
+    restarts: list[dict[str, Any]] | None = None  # each run while the fit looked lost (restart_while_lost)
+    n_pruned_when_freed: int = 0  # of n_pruned, those the gate dropped again when the robust readings took over
+    # a range-only fit that ended facing backward, reported turned by pi (forward.py; the same likelihood)
+    turned_to_face_forward: bool = False
+    # a range-only fit whose given start moved metres: the start, where EM put it, both runs' likelihoods
+    start_moved: dict[str, Any] | None = None
+    # which of the sensor mount's components the M-step learned, and why the rest were held (mount.py)
+    mount: MountFreedom | None = None
+    mount_search: list[dict[str, Any]] | None = None  # each mount search (mount.search_mount)
+    stages: tuple[tuple[str, int], ...] = ()  # each stage EM ran (loop.Stage) and the iteration it began at
+
+    @property
+    def iterations(self) -> int:
+        return int(self.loglik_history.size)
+
+    @property
+    def n_used(self) -> int:
+        """The sightings the best model's E-step used (after every prune)."""
+        if self.posteriors is not None:
+            return int(np.count_nonzero(self.posteriors.obs_used))
+        return self.n_observations - self.n_pruned
+
+    @property
+    def loglik_best(self) -> float:
+        return float(self.loglik_history[self.best_iteration])
+
+    @property
+    def pruned_fraction(self) -> float:
+        """The share of the log's sightings that the gates dropped (sec. 4.4.1's, and prune_when_freed's)."""
+        return (self.n_observations - self.n_used) / self.n_observations if self.n_observations else 0.0
+
+    def summary(self) -> dict[str, Any]:
+        return {
+            "iterations": self.iterations,
+            "best_iteration": self.best_iteration,
+            "stop_reason": self.stop_reason,
+            "loglik_start": float(self.loglik_history[0]),
+            "loglik_best": self.loglik_best,
+            "n_observations": self.n_observations,
+            "n_used": self.n_used,
+            "n_pruned": self.n_pruned,
+            "n_pruned_when_freed": self.n_pruned_when_freed,
+            "pruned_fraction": self.pruned_fraction,
+            "sensor_mount": None if self.mount is None else self.mount.to_dict(),
+            "mount_search": self.mount_search,
+            # how far the likelihood fell on average after the best, per sighting used (checks.unsettled_fit)
+            "fall_per_sighting": fall_per_sighting(self.loglik_history, self.best_iteration, self.n_used),
+            "seconds": self.seconds,
+            "start_search": self.start_search,
+            "freed_at": self.freed_at,
+            "stages": [{"stage": name, "from_iteration": it} for name, it in self.stages],
+            "ridge": self.ridge,
+            "delay_search": self.delay_search,
+            "restarts": self.restarts,
+            **({"turned_to_face_forward": True} if self.turned_to_face_forward else {}),
+            **({"start_moved": self.start_moved} if self.start_moved else {}),
+            "config": asdict(self.config),
+        }
