@@ -27,7 +27,7 @@ from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 # each heuristic, and the settings that turn it off
 OFF = {
     "start race": {"start_candidates": 1},
-    "ridge search": {"ridge_search_mm": 0.0},
+    "ridge search": {"ridge_search_mm": None},
     "delay search": {"delay_search": False},
     "turn restarts": {"turn_restarts": 0},
     "prune when freed": {"prune_when_freed": False},

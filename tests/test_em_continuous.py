@@ -278,7 +278,7 @@ def test_sideways_motion_noise_starts_apart_from_the_forward():
     assert apart.motion_sd.tolist() == [[0.5, 10.0, 0.05]]
     fixed = fit_em(data, None, continuous_config(motion_noise="fixed", motion_sd_sideways_mm=0.5, max_iterations=2))
     assert fixed.model.motion_sd.tolist() == [[0.5, 10.0, 0.05]]
-    with pytest.raises(ValueError, match="motion_sd_sideways_mm must be >= 0"):
+    with pytest.raises(ValueError, match="motion_sd_sideways_mm must be > 0, or null"):
         continuous_config(motion_sd_sideways_mm=-1.0)
     with pytest.raises(ConfigError, match=r"t\.csv: motion_sd_sideways_mm: .* a track has no sideways"):
         fit_em(tiny_track(), None, EMConfig(motion_sd_sideways_mm=0.5))

@@ -10,7 +10,7 @@ import pytest
 
 from continuous_robot import LANDMARKS, continuous_config, simulate_continuous
 from sensact.core.pose_models import landmark_distance
-from sensact.learn.em import fit_em, log_likelihood
+from sensact.learn.em import EMConfig, fit_em, log_likelihood
 from sensact.learn.em.config import ChannelConfig
 
 
@@ -65,7 +65,6 @@ def test_a_length_reading_whose_slope_changes_with_distance_is_flagged(continuou
     map's unit (``_mm``), not when it is a line off by a scale, not under another unit, and an f that
     turns is ``range_function_turns``'s alone; ``lost_fit_signs`` holds both."""
     from sensact.learn.em.checks import (
-        BEND_RATIO,
         describe_lost_fit,
         lost_fit_signs,
         range_function_bends,
@@ -104,7 +103,8 @@ def test_a_length_reading_whose_slope_changes_with_distance_is_flagged(continuou
     assert "range_mm's f has slopes from 0.60 to 1.80 mm per mm, inside the" in said and "start_sigma" in said
     assert "off by a scale, but not by one that changes with distance" in said
     # at the ratio, a steeper or a falling line, and a bend under another unit: not flagged
-    assert range_function_bends(with_f(quadratic(0.6, 0.6 * BEND_RATIO * 0.99)), res.posteriors, data) == []
+    under = quadratic(0.6, 0.6 * EMConfig.lost_bend_ratio * 0.99)
+    assert range_function_bends(with_f(under), res.posteriors, data) == []
     for line in (Polynomial1D((100.0, 2.5 * f0.scale), f0.center, f0.scale), Polynomial1D((9e3, -0.4 * f0.scale))):
         assert range_function_bends(with_f(line), res.posteriors, data) == []
     assert range_function_bends(with_f(bent, name="height_px"), res.posteriors, data) == []
@@ -150,10 +150,12 @@ def test_a_range_function_that_turns_within_its_distances_is_flagged(continuous_
 
 def test_a_fit_whose_likelihood_keeps_falling_far_below_its_best_has_not_settled(continuous_fit):
     """learn/em/checks.py ``unsettled_fit``: the mean fall below the best over the iterations after it, per
-    sighting used, against ``UNSETTLED_PER_SIGHTING`` (exact on built histories); the fit that found the
+    sighting used, against ``EMConfig.lost_fall_per_sighting`` (exact on built histories); the fit that found the
     robot has not that sign, the same fit with a history that thrashes after its best has, and says so;
     a 1-D log's history is not judged."""
-    from sensact.learn.em.checks import UNSETTLED_PER_SIGHTING, describe_lost_fit, lost_fit_signs, unsettled_fit
+    from sensact.learn.em.checks import describe_lost_fit, lost_fit_signs, unsettled_fit
+
+    UNSETTLED_PER_SIGHTING = EMConfig.lost_fall_per_sighting
 
     n = 1000
     limit = UNSETTLED_PER_SIGHTING * n

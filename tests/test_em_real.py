@@ -101,7 +101,8 @@ def test_mrclam_reader_and_log_folder_round_trip(tmp_path):
     np.testing.assert_allclose(back.groundtruth["x_mm"], ml.groundtruth["x_mm"], rtol=1e-9)
     # learn on the folder (a short fit) and score the model with `evaluate mrclam`: the same table
     # and bars both ways, and the JSON carries the bars the table marks
-    cfg = ["--config", str(tmp_path / "c" / "em_config.yaml"), "--set", "start_search_s=0", "--set", "max_iterations=2"]
+    cfg = ["--config", str(tmp_path / "c" / "em_config.yaml"), "--set", "start_search_s=null"]
+    cfg += ["--set", "max_iterations=2"]
     model = tmp_path / "m" / "model.json"
     run = CliRunner().invoke(cli.app, ["learn", "em", str(tmp_path / "c"), *cfg, "--out", str(model)])
     assert run.exit_code == 0, run.output
@@ -651,7 +652,7 @@ def test_reproduce_real_runs_every_mrclam_dataset_it_finds(tmp_path):
         for f in MRCLAM.iterdir():
             (root / "mrclam" / name / f.name).symlink_to(f)
     assert [d.name for d in mrclam_datasets(root)] == ["MRCLAM_Dataset6", "MRCLAM_Dataset9"]
-    cfg = replace(mrclam_config(), start_search_s=0.0, max_iterations=3)
+    cfg = replace(mrclam_config(), start_search_s=None, max_iterations=3)
     (root / "mrclam" / "MRCLAM_Dataset9" / "Robot3_Odometry.dat").unlink()  # a robot missing is skipped
     heard: list[str] = []
     res, art = run_real(root, robots=(2, 3), config=cfg, progress=heard.append)

@@ -281,7 +281,7 @@ def test_fit_searches_the_ridge_when_the_held_stage_ends_and_every_so_often_afte
     assert on.summary()["ridge"] == on.ridge
     with pytest.raises(ValueError, match="ridge_search"):
         continuous_config(ridge_search_mm=-1.0)
-    with pytest.raises(ValueError, match="ridge_search"):
+    with pytest.raises(ValueError, match="search_every"):
         continuous_config(search_every=0)
     with pytest.raises(ConfigError, match=r"t\.csv: ridge_search_mm: .* needs a planar log"):
         fit_em(tiny_track(), None, EMConfig(ridge_search_mm=100.0))

@@ -633,7 +633,7 @@ def test_a_log_without_bearings_gets_no_camera_settings_and_learn_em_names_what_
     assert "set start_prior_mean in" in " ".join(res.output.split())
     written = read_settings_file(out / "em_config.yaml")
     assert written == range_only_config(("v_mm_s", "omega_rad_s"), (0.0, 0.0, 0.0))
-    assert written.start_search_s == 0 and written.channels[0].bearing_degree == 0 and not written.prune_when_freed
+    assert written.start_search_s is None and written.channels[0].bearing_degree == 0 and not written.prune_when_freed
     text = (out / "em_config.yaml").read_text()
     assert "start_prior_mean: [0.0, 0.0, 0.0]" in text and "bearing_robust" not in text  # shown, though a default
     (out / "em_config.yaml").write_text("motion_sd_mm: 2.0\n")  # a file of the user's, or an earlier run's

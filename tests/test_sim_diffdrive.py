@@ -414,7 +414,7 @@ def test_evaluate_log_names_what_keeps_a_model_from_a_log(tmp_path):
         res = runner.invoke(app, ["simulate", "diffdrive", "--out", str(logs[name]), "--seconds", "30", *extra])
         assert res.exit_code == 0, res.output
     lf = read_landmark_log(logs["vw"])
-    cfg = replace(read_settings_file(logs["vw"] / "em_config.yaml"), max_iterations=2, start_search_s=0)
+    cfg = replace(read_settings_file(logs["vw"] / "em_config.yaml"), max_iterations=2, start_search_s=None)
     fitted = fit_em(lf.data, config=cfg).model
     model = tmp_path / "m.json"
     model.write_text(json.dumps({"model": fitted.to_dict(), "dt_s": lf.data.dt_s}))
@@ -492,7 +492,7 @@ def test_learn_em_names_settings_and_logs_it_cannot_learn_from(tmp_path):
     marks = [{**m, "x_mm": "east"} for m in meta["landmarks"]]
     (bad_map / "meta.json").write_text(json.dumps({**meta, "landmarks": marks}))
     cases = [
-        ([track, "--set", "ridge_search_mm=300"], "track: ridge_search_mm:", "set ridge_search_mm: 0"),
+        ([track, "--set", "ridge_search_mm=300"], "track: ridge_search_mm:", "set ridge_search_mm: null"),
         ([track, "--set", "motion_noise=turning"], "track: motion_noise:", "use motion_noise: shared"),
         ([track, "--set", "motion_sd_sideways_mm=3"], "track: motion_sd_sideways_mm:", "no sideways"),
         ([track, "--set", "action_basis=affine"], "track: action_basis:", "use action_basis: table"),

@@ -15,7 +15,7 @@ from sensact.app.scores import Scores, Unscored, score_model
 from sensact.app.settings import Settings, resolve_settings
 from sensact.errors import ConfigError
 from sensact.learn.em import EMConfig, EMResult, fit_em, initial_model
-from sensact.learn.em.config import refuse_bearing_settings
+from sensact.learn.em.config import refuse_bearing_settings, upgrade_settings
 from sensact.learn.em.fit import OnRestart, OnStartMoved, Progress
 from sensact.learn.em.localize import Localized
 from sensact.learn.em.start import OnTrial
@@ -150,7 +150,8 @@ def diagnose(result: EMResult, log: OpenedLog, cfg: EMConfig) -> Diagnostics:
     autocorrelation: dict[str, float | None] = {}
     warnings: list[str] = []
     if result.posteriors is not None:
-        signs = lost_fit_signs(result.model, result.posteriors, log.data, result.loglik_history, result.best_iteration)
+        history, best = result.loglik_history, result.best_iteration
+        signs = lost_fit_signs(result.model, result.posteriors, log.data, history, best, cfg)
         if signs:
             warnings.append(describe_lost_fit(signs))
         autocorrelation = residual_autocorrelation(result.model, result.posteriors, log.data)
@@ -191,7 +192,9 @@ def start_settings(start_from: Path) -> EMConfig | None:
 
     doc, _ = read_em_model(start_from)
     learned = (doc.get("summary") or {}).get("config")
-    return None if learned is None else config_from_dict(EMConfig, learned, source=f"{start_from}: summary.config")
+    if learned is None:
+        return None
+    return config_from_dict(EMConfig, upgrade_settings(learned), source=f"{start_from}: summary.config")
 
 
 def calibrate(

@@ -109,7 +109,7 @@ def restart_from_truth(ml: MrclamLog, res: EMResult, score: dict[str, Any], conf
     poses, valid = ml.truth_poses()
     first = int(np.flatnonzero(valid)[0])
     start = truth_informed_start(res.model, score["range"], poses[first])
-    cfg = replace(config, start_search_s=0.0, refine_from=0)
+    cfg = replace(config, start_search_s=None, refine_from=0)
     again = fit_em(ml.data, start, cfg)
     sc = evaluate_mrclam(ml, again)
     return {

@@ -301,7 +301,7 @@ def _events(opened: Any, preset: str | None, show: Any) -> Any:
             absent = [r for r in EM_READINGS if r not in names]
             if absent:
                 console.print(f"Channels {', '.join(names)} ({', '.join(absent)} not in the file).")
-        if cfg.start_search_s > 0 and opened.data.geometry == "planar" and not cfg.warm_start:
+        if cfg.start_search_s is not None and opened.data.geometry == "planar" and not cfg.warm_start:
             console.print(
                 f"finding the start pose: a {cfg.start_search_grid_mm:g} mm grid scored on the first "
                 f"{cfg.start_search_s:g} s, then EM from its {cfg.start_candidates} best, the better half kept "

@@ -21,28 +21,17 @@ import numpy as np
 
 from sensact.core.angles import wrap_angle
 from sensact.core.pose_models import landmark_bearing, landmark_distance, sensor_distance, sensor_poses
+from sensact.learn.em.config import EMConfig
 from sensact.learn.em.estep import Posteriors, channel_columns, channel_inputs
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 
 DISTANCE_PERCENTILES = (2.0, 98.0)  # the fitted distances, their few extremes left out
-# the least and greatest slope of a length-reading channel's f over its fitted distances, greatest over least:
-# 1.00-1.15 on the MRCLAM fits that found their robot (5 whole logs, 19 of 20 quarters, 14 of 15 thirds; robot
-# 4's second third 182 mm off Vicon: 1.70), 2.91 on the quarter that lost it (1055 mm) with an f that
-# does not turn (docs/em-real-results.md, "What you see without ground truth")
-BEND_RATIO = 2.0
 LENGTH_SUFFIX = "_mm"  # a reading in the map's unit, as sensact names one (io/timed_csv.py: range_m -> range_mm)
 # learned sideways over forward Sigma_m sd above which a held sideways mean is suspect: 1.0-1.5 on MRCLAM's
 # five robots and 1.1 on simulated ones; 3.2 on a simulated side-stepper held to no sideways mean
 # (docs/em-real.md, "A robot that can side-step")
 SIDEWAYS_NOISE_RATIO = 2.0
-# the mean fall of the log-likelihood below the best iteration's over the iterations after it, per sighting used,
-# above which EM has not settled: 0.008-0.029 on the 51 MRCLAM fits without restarts that found their robot (5
-# whole logs, 12 robots on three thinned maps, 34 quarters from a 100- or 1000-mm range start sigma), 0.002-0.005
-# on six simulated differential drives, under 3e-4 on the thesis's field; 0.03-1.45 on the 9 that lost it, 1.45 on
-# robot 4 on a map thinned to 8 landmarks (1360 mm off Vicon), whose f neither turns nor bends; the others above
-# the limit also turned or bent (docs/em-real-results.md, "Fewer landmarks": the commands that measure it)
-UNSETTLED_PER_SIGHTING = 0.1
 
 
 def _fitted_distances(model: EMModel, post: Posteriors, data: LandmarkLog) -> list[tuple[Any, tuple[float, float]]]:
@@ -83,7 +72,7 @@ def _turns(fitted: list[tuple[Any, tuple[float, float]]]) -> list[dict[str, Any]
     return turned
 
 
-def _bends(fitted: list[tuple[Any, tuple[float, float]]]) -> list[dict[str, Any]]:
+def _bends(fitted: list[tuple[Any, tuple[float, float]]], bend_ratio: float) -> list[dict[str, Any]]:
     bent = []
     for ch, (lo, hi) in fitted:
         if not ch.name.endswith(LENGTH_SUFFIX):
@@ -91,7 +80,7 @@ def _bends(fitted: list[tuple[Any, tuple[float, float]]]) -> list[dict[str, Any]
         least, greatest = ch.function.slope_range(lo, hi)
         if least * greatest <= 0:  # it turns or goes flat: not a bend
             continue
-        if max(abs(least), abs(greatest)) > BEND_RATIO * min(abs(least), abs(greatest)):
+        if max(abs(least), abs(greatest)) > bend_ratio * min(abs(least), abs(greatest)):
             bent.append({"channel": ch.name, "sign": "bends", "slopes": [least, greatest], "distances_mm": [lo, hi]})
     return bent
 
@@ -102,13 +91,15 @@ def range_function_turns(model: EMModel, post: Posteriors, data: LandmarkLog) ->
     return _turns(_fitted_distances(model, post, data))
 
 
-def range_function_bends(model: EMModel, post: Posteriors, data: LandmarkLog) -> list[dict[str, Any]]:
+def range_function_bends(
+    model: EMModel, post: Posteriors, data: LandmarkLog, bend_ratio: float = EMConfig.lost_bend_ratio
+) -> list[dict[str, Any]]:
     """Each channel of a planar log that reads a length in the map's unit (its name ends in ``_mm``)
     whose learned f's slope over the distances of the sightings it used (from the smoothed path) changes
-    by more than ``BEND_RATIO`` times without turning over: its name, the least and greatest slope and
-    the distances' span. A sensor off by a scale has one slope; one that turns is
+    by more than ``bend_ratio`` times (``EMConfig.lost_bend_ratio``) without turning over: its name, the
+    least and greatest slope and the distances' span. A sensor off by a scale has one slope; one that turns is
     ``range_function_turns``'s."""
-    return _bends(_fitted_distances(model, post, data))
+    return _bends(_fitted_distances(model, post, data), bend_ratio)
 
 
 def mean_fall_after_best(loglik_history: np.ndarray, best_iteration: int) -> float | None:
@@ -121,18 +112,20 @@ def mean_fall_after_best(loglik_history: np.ndarray, best_iteration: int) -> flo
 
 def fall_per_sighting(loglik_history: np.ndarray, best_iteration: int, n_used: int) -> float | None:
     """``mean_fall_after_best`` per sighting used: what ``unsettled_fit`` holds against
-    ``UNSETTLED_PER_SIGHTING`` (None with no iteration after the best or no sighting)."""
+    ``EMConfig.lost_fall_per_sighting`` (None with no iteration after the best or no sighting)."""
     fall = mean_fall_after_best(loglik_history, best_iteration)
     return None if fall is None or n_used <= 0 else fall / n_used
 
 
-def unsettled_fit(loglik_history: np.ndarray, best_iteration: int, n_used: int) -> list[dict[str, Any]]:
+def unsettled_fit(
+    loglik_history: np.ndarray, best_iteration: int, n_used: int, limit: float = EMConfig.lost_fall_per_sighting
+) -> list[dict[str, Any]]:
     """``[{"sign": "unsettled", ...}]`` when the iterations after the best fell on average more than
-    ``UNSETTLED_PER_SIGHTING`` log-units per sighting used below the best's likelihood
+    ``limit`` log-units per sighting used below the best's likelihood
     (``fall_per_sighting``; the sign holds the best iteration, how many followed it, the mean fall and the
     fall per sighting); else ``[]``, also when no iteration followed the best."""
     per = fall_per_sighting(loglik_history, best_iteration, n_used)
-    if per is None or per <= UNSETTLED_PER_SIGHTING:
+    if per is None or per <= limit:
         return []
     return [
         {
@@ -151,14 +144,18 @@ def lost_fit_signs(
     data: LandmarkLog,
     loglik_history: np.ndarray | None = None,
     best_iteration: int = 0,
+    config: EMConfig | None = None,
 ) -> list[dict[str, Any]]:
     """Every channel whose f turns over (``sign`` "turns") or bends ("bends") within its fitted
     distances, and with the fit's ``loglik_history`` on a planar log, ``unsettled_fit``'s sign (it names
-    no channel): the signs, without ground truth, that EM lost the robot."""
+    no channel): the signs, without ground truth, that EM lost the robot, by ``config``'s thresholds
+    (``lost_bend_ratio``, ``lost_fall_per_sighting``; by default EMConfig's)."""
+    cfg = config or EMConfig()
     fitted = _fitted_distances(model, post, data)
-    signs = _turns(fitted) + _bends(fitted)
+    signs = _turns(fitted) + _bends(fitted, cfg.lost_bend_ratio)
     if loglik_history is not None and data.geometry == "planar":
-        signs += unsettled_fit(loglik_history, best_iteration, int(np.count_nonzero(post.obs_used)))
+        used = int(np.count_nonzero(post.obs_used))
+        signs += unsettled_fit(loglik_history, best_iteration, used, cfg.lost_fall_per_sighting)
     return signs
 
 

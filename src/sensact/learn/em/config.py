@@ -7,6 +7,7 @@ leaves the thesis's algorithm unchanged.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -17,6 +18,8 @@ from sensact.models.landmark_sensor import check_robust, student_t_params
 from sensact.models.linear_action import BASES
 
 ACTION_BASES = ("table", *BASES)
+# the settings that are off when None (a model file written before that was so has 0 there: upgrade_settings)
+ZERO_WAS_OFF = ("action_delay_max_s", "motion_sd_sideways_mm", "start_search_s", "ridge_search_mm")
 MOTION_NOISE = ("fixed", "shared", "per_action", "turning")
 
 
@@ -74,7 +77,7 @@ class EMConfig:
     # "table": one velocity per discrete action (eq. 4.18); "affine", "cross", "polynomial": A(c) = Phi(c) beta
     action_basis: str = "table"
     action_degree: int = 2  # of the polynomial basis
-    action_delay_max_s: float = 0.0  # learn a command delay up to this long (continuous models; 0 = none)
+    action_delay_max_s: float | None = None  # learn a command delay up to this long (continuous models; None: none)
     # velocity components whose mean is held at 0, e.g. ("v_x_mm_s",): a differential drive cannot side-step
     action_zero_mean: tuple[str, ...] = ()
     # "velocity:command+command" entries: that velocity depends on those commands only, e.g.
@@ -86,10 +89,10 @@ class EMConfig:
     motion_noise: str = "fixed"
     motion_sd_floor_mm: float = 0.05
     motion_sd_floor_rad: float = 5e-4
-    # Sigma_m's sideways sd per step on a planar log, if not motion_sd_mm (0 = motion_sd_mm). The
+    # Sigma_m's sideways sd per step on a planar log, if not motion_sd_mm (None: motion_sd_mm). The
     # sightings hardly pin it, so a learned Sigma_m keeps about its start (docs/em-real-results.md, Known limits):
     # a differential drive, which cannot side-step, can start it small
-    motion_sd_sideways_mm: float = 0.0
+    motion_sd_sideways_mm: float | None = None
     # reading channels; empty = the thesis's one beacon-height channel from the start_height_* fields
     channels: tuple[ChannelConfig, ...] = ()
     bearing_robust: str = "none"
@@ -112,9 +115,9 @@ class EMConfig:
     # the log already: nothing is held (it has settled), the start is not searched for, and
     # prune_when_freed's gate runs on the first E-step
     warm_start: bool = False
-    # choose pi(w_0) among a grid of poses by the forward likelihood of the first seconds (0 = off);
+    # choose pi(w_0) among a grid of poses by the forward likelihood of the first seconds (None: no search);
     # for a log with no idea where the robot starts (planar, with a landmark map)
-    start_search_s: float = 0.0
+    start_search_s: float | None = None
     start_search_grid_mm: float = 500.0
     # the best few distinct grid poses race: EM from each on the whole log, the better half kept every
     # start_trial_iterations held iterations, until one is left (1 = the grid's best, no race)
@@ -123,8 +126,8 @@ class EMConfig:
     # the searches below run when the held stage ends and every search_every iterations after (with
     # nothing held: every search_every from the start), along directions EM climbs too slowly itself.
     # Along the ridge where the path and every range function's offset trade against each other, this
-    # far (mm; learn/em/ridge.py; 0 = off, the thesis):
-    ridge_search_mm: float = 0.0
+    # far (mm; learn/em/ridge.py; None: no ridge search, the thesis):
+    ridge_search_mm: float | None = None
     # over the command delay 0..action_delay_max_s by the E-step likelihood (learn/em/delay_search.py;
     # only when a delay is learned):
     delay_search: bool = True
@@ -135,6 +138,23 @@ class EMConfig:
     # did not settle, every channel's) start sigma a third of the last, up to this many times, and keeps
     # the most likely fit (0 = never, the thesis)
     turn_restarts: int = 0
+    # the signs that a fit lost its robot (learn/em/checks.py), which start turn_restarts and are warned of:
+    # a length-reading f whose slope changes more than this many times over its fitted distances without
+    # turning (1.00-1.15 on the MRCLAM fits that found their robot, 1.70 on one 182 mm off Vicon, 2.91 on a
+    # quarter that lost it; docs/em-real-results.md, "What you see without ground truth"), ...
+    lost_bend_ratio: float = 2.0
+    # ... or the iterations after the best falling below it by more than this many log-units a sighting used,
+    # on average (0.008-0.029 on the 51 MRCLAM fits that found their robot, 0.002-0.005 on simulated
+    # differential drives, 0.03-1.45 on the 9 that lost it; docs/em-real-results.md, "Fewer landmarks")
+    lost_fall_per_sighting: float = 0.1
+    # each restart's start sigma over the last one's, for a channel whose f turned or bent (every channel's when
+    # EM did not settle): on quarter-length MRCLAM logs, trusting the poor line's readings more held the
+    # robot's scale (docs/em-real-results.md, Short logs)
+    restart_sigma_factor: float = 1.0 / 3.0
+    # a range-only start that EM moved more than this many of the prior's position sd was not where the robot
+    # was given to be: EM runs again from where it put it (learn/em/given_start.py) ...
+    moved_start_sds: float = 3.0
+    moved_start_headings: int = 8  # ... facing each of this many headings in a race, since ranges cannot tell it
     # where the sensor sits on the robot, (forward mm, left mm, yaw rad counterclockwise), held there; None:
     # learned by the M-step wherever the log pins it, from the robot's own point (learn/em/mount.py)
     sensor_mount: tuple[float, float, float] | None = None
@@ -155,8 +175,10 @@ class EMConfig:
             problems.append("start_prior_sd must be > 0")
         if self.action_basis not in ACTION_BASES:
             problems.append(f"action_basis must be one of {ACTION_BASES}")
-        if self.action_delay_max_s < 0:
-            problems.append("action_delay_max_s must be >= 0")
+        for name in ZERO_WAS_OFF:
+            value = getattr(self, name)
+            if value is not None and not value > 0:
+                problems.append(f"{name} must be > 0, or null for none")
         if self.action_degree < 1:
             problems.append("action_degree must be >= 1")
         if (self.action_zero_mean or self.action_inputs) and self.action_basis == "table":
@@ -167,22 +189,26 @@ class EMConfig:
             problems.append(f"motion_noise must be one of {MOTION_NOISE}")
         if self.motion_noise == "per_action" and self.action_basis != "table":
             problems.append("motion_noise=per_action needs action_basis=table (continuous commands have no actions)")
-        if self.motion_sd_sideways_mm < 0:
-            problems.append("motion_sd_sideways_mm must be >= 0 (0 = motion_sd_mm)")
         if not (self.motion_sd_floor_mm > 0 and self.motion_sd_floor_rad > 0):
             problems.append("motion_sd_floor_mm and motion_sd_floor_rad must be > 0")
         if len({c.name for c in self.channels}) != len(self.channels):
             problems.append("channel names must be distinct")
         if self.refine_from < 0:
             problems.append("refine_from must be >= 0")
-        if self.start_search_s < 0 or self.start_search_grid_mm <= 0:
-            problems.append("start_search_s must be >= 0 and start_search_grid_mm > 0")
+        if self.start_search_grid_mm <= 0:
+            problems.append("start_search_grid_mm must be > 0")
         if self.start_candidates < 1 or self.start_trial_iterations < 1:
             problems.append("start_candidates and start_trial_iterations must be >= 1")
         if self.turn_restarts < 0:
             problems.append("turn_restarts must be >= 0 (0 = no restart)")
-        if not self.ridge_search_mm >= 0 or self.search_every < 1:
-            problems.append("ridge_search_mm must be >= 0 (0 = no ridge search) and search_every >= 1")
+        if self.search_every < 1:
+            problems.append("search_every must be >= 1")
+        if not (self.lost_bend_ratio > 1 and self.lost_fall_per_sighting > 0 and 0 < self.restart_sigma_factor < 1):
+            problems.append(
+                "lost_bend_ratio must be > 1, lost_fall_per_sighting > 0 and restart_sigma_factor in (0, 1)"
+            )
+        if not (self.moved_start_sds > 0 and self.moved_start_headings >= 1):
+            problems.append("moved_start_sds must be > 0 and moved_start_headings >= 1")
         if self.sensor_mount is not None and (
             len(self.sensor_mount) != 3 or not all(math.isfinite(v) for v in self.sensor_mount)
         ):
@@ -222,6 +248,12 @@ class EMConfig:
         return self.channels
 
 
+def upgrade_settings(fields: Mapping[str, Any]) -> dict[str, Any]:
+    """Settings a model file keeps (``summary.config``), read as today's: where one of ``ZERO_WAS_OFF`` was
+    off it held 0, which is None now."""
+    return {k: None if k in ZERO_WAS_OFF and v == 0 else v for k, v in fields.items()}
+
+
 def refuse_bearing_settings(config: EMConfig, data: Any) -> None:
     """A planar log (``LandmarkLog``) without a single bearing cannot run settings that need one: a channel
     with bearing terms predicts none of its readings (they count as missing), and the start search scores
@@ -237,10 +269,10 @@ def refuse_bearing_settings(config: EMConfig, data: Any) -> None:
                 field=f"channels[{i}].bearing_degree",
                 fix="set bearing_degree: 0 for that channel in your --config.",
             )
-    if config.start_search_s > 0:
+    if config.start_search_s is not None:
         raise ConfigError(
             f"{source} has no bearings, and the start search scores start poses by them.",
             field="start_search_s",
-            fix="pass --set start_search_s=0 and give where the robot starts: start_prior_mean (x mm, y mm, heading "
+            fix="pass --set start_search_s=null and give where the robot starts: start_prior_mean (x mm, y mm, heading "
             "rad) and start_prior_sd.",
         )

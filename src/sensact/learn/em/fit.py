@@ -121,12 +121,12 @@ def restart_while_lost(fit: Fit, data: LandmarkLog, cfg: EMConfig, heard: Heard)
             turns.append(
                 []
                 if last.posteriors is None
-                else lost_fit_signs(last.model, last.posteriors, data, last.loglik_history, last.best_iteration)
+                else lost_fit_signs(last.model, last.posteriors, data, last.loglik_history, last.best_iteration, cfg)
             )
             sigmas.append({ch.name: ch.sigma for ch in start.sensor.channels})
             if not turns[-1] or k == cfg.turn_restarts or last.stop_reason == "interrupted":  # Ctrl-C ends it all
                 break
-            start, turned = tighter_start(start, turns[-1])
+            start, turned = tighter_start(start, turns[-1], cfg.restart_sigma_factor)
             if heard.on_restart is not None:
                 heard.on_restart(
                     k + 1, turns[-1], {ch.name: ch.sigma for ch in start.sensor.channels if ch.name in turned}
@@ -137,15 +137,14 @@ def restart_while_lost(fit: Fit, data: LandmarkLog, cfg: EMConfig, heard: Heard)
     return restarting
 
 
-def tighter_start(start: EMModel, signs: list[dict[str, Any]]) -> tuple[EMModel, set[str]]:
+def tighter_start(start: EMModel, signs: list[dict[str, Any]], factor: float) -> tuple[EMModel, set[str]]:
     """``start`` with the start sigma of each channel the signs name (every channel's when one names none,
-    an unsettled fit) a third of its last, and those channels."""
+    an unsettled fit) ``factor`` of its last (``restart_sigma_factor``), and those channels."""
     turned = {t["channel"] for t in signs if "channel" in t}
     if any("channel" not in t for t in signs):  # an unsettled fit names no channel: every one
         turned = {ch.name for ch in start.sensor.channels}
     channels = tuple(
-        dc_replace(ch, sigma=ch.sigma * RESTART_SIGMA_FACTOR) if ch.name in turned else ch
-        for ch in start.sensor.channels
+        dc_replace(ch, sigma=ch.sigma * factor) if ch.name in turned else ch for ch in start.sensor.channels
     )
     return start.replace(sensor=dc_replace(start.sensor, channels=channels)), turned
 
@@ -185,7 +184,7 @@ def rerun_moved_start(fit: Fit, data: LandmarkLog, cfg: EMConfig, heard: Heard) 
         if heard.on_start_moved is not None:
             heard.on_start_moved(moved, res.model.prior_mean.copy())
         trial = partial(held_trial, cfg=cfg)
-        candidates = headings_at(start, res.model.prior_mean[:2])
+        candidates = headings_at(start, res.model.prior_mean[:2], cfg.moved_start_headings)
         winner, race = race_starts(data, candidates, cfg, trial, on_trial=heard.on_race)
         again = fit(winner)
         best, scores = most_likely([res, again], data)
@@ -193,7 +192,10 @@ def rerun_moved_start(fit: Fit, data: LandmarkLog, cfg: EMConfig, heard: Heard) 
             "given": start.prior_mean.tolist(),
             "learned": res.model.prior_mean.tolist(),
             "moved_mm": moved,
-            "heading_race": {"winner": race["winner"], "headings_rad": [float(h) for h in race_headings(start)]},
+            "heading_race": {
+                "winner": race["winner"],
+                "headings_rad": [float(h) for h in race_headings(start, len(candidates))],
+            },
             "loglik": [float(s) for s in scores],
             "kept": ["first", "again"][best],
         }
@@ -206,22 +208,19 @@ def rerun_moved_start(fit: Fit, data: LandmarkLog, cfg: EMConfig, heard: Heard) 
 POLICIES: tuple[Policy, ...] = (restart_while_lost, face_forward, rerun_moved_start)
 
 
-# the headings a range-only start that moved races at its learned position (given_start.py)
-START_HEADINGS = 8
+def race_headings(start: EMModel, n: int) -> np.ndarray:
+    """``n`` headings evenly round the circle from the given one."""
+    return start.prior_mean[2] + 2.0 * np.pi * np.arange(n) / n
 
 
-def race_headings(start: EMModel) -> np.ndarray:
-    """``START_HEADINGS`` headings evenly round the circle from the given one."""
-    return start.prior_mean[2] + 2.0 * np.pi * np.arange(START_HEADINGS) / START_HEADINGS
-
-
-def headings_at(start: EMModel, position: np.ndarray) -> list[EMModel]:
+def headings_at(start: EMModel, position: np.ndarray, n: int) -> list[EMModel]:
     """``start`` placed at ``position`` facing each of ``race_headings``, its heading sd half the gap between
     them: the candidates of a range-only start's heading race."""
     cov = start.prior_cov.copy()
-    cov[2, 2] = (np.pi / START_HEADINGS) ** 2
+    cov[2, 2] = (np.pi / n) ** 2
     return [
-        start.replace(prior_mean=np.array([position[0], position[1], h]), prior_cov=cov) for h in race_headings(start)
+        start.replace(prior_mean=np.array([position[0], position[1], h]), prior_cov=cov)
+        for h in race_headings(start, n)
     ]
 
 
@@ -251,27 +250,21 @@ def facing_forward(res: EMResult, data: LandmarkLog) -> EMResult:
     )
 
 
-# each restart's start sigma for a channel whose f turned or bent (every channel's when EM did not settle): a third of
-# the last one's (docs/em-real-results.md, Short logs: on quarter-length MRCLAM logs, trusting the poor line's
-# readings more held the robot's scale)
-RESTART_SIGMA_FACTOR = 1.0 / 3.0
-
-
 def refuse_settings_for_log(cfg: EMConfig, data: LandmarkLog, initial: EMModel | None) -> None:
     """Settings this log cannot be learned with, each one line naming the field, before any work."""
-    if cfg.ridge_search_mm > 0 and data.geometry != "planar":
+    if cfg.ridge_search_mm is not None and data.geometry != "planar":
         raise ConfigError(
             "ridge_search_mm moves the path along the robot's heading and needs a planar log.",
             file=data.source,
             field="ridge_search_mm",
-            fix="set ridge_search_mm: 0 for a track.",
+            fix="set ridge_search_mm: null for a track.",
         )
-    if cfg.motion_sd_sideways_mm > 0 and data.geometry != "planar":
+    if cfg.motion_sd_sideways_mm is not None and data.geometry != "planar":
         raise ConfigError(
             "motion_sd_sideways_mm is a planar robot's sideways noise, and a track has no sideways.",
             file=data.source,
             field="motion_sd_sideways_mm",
-            fix="remove it or set it to 0.",
+            fix="remove it or set it to null.",
         )
     refuse_no_sightings(data)
     refuse_bearing_settings(cfg, data)

@@ -8,7 +8,7 @@ while the turn rate it learns is wrong: the heading noise carries the turns. Mea
 the simulated radio robot (docs/em-real.md, section 2, "A sensor without bearings"): from 3.2 m off,
 the path was 14 mm off the truth, the turn gain -1.12 against 0.92, and the learned start within
 150 mm of the true one; EM from that learned start found the model (turn gain 0.925, 411 log-units
-more likely). So when the start moved more than ``START_MOVED_SDS`` of the start's position sd, EM
+more likely). So when the start moved more than ``moved_start_sds`` of the start's position sd, EM
 runs again from where the first run put it, and the more likely run is kept (``fit.fit_em``).
 """
 
@@ -20,16 +20,13 @@ from sensact.learn.em.config import EMConfig
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 
-# a start this many of the prior's position sd from the given one was not where the robot was given to be
-START_MOVED_SDS = 3.0
-
 
 def start_moved_mm(start: EMModel, learned: EMModel, data: LandmarkLog, config: EMConfig) -> float | None:
-    """How far (mm) EM moved a range-only log's given start, when that is more than ``START_MOVED_SDS``
+    """How far (mm) EM moved a range-only log's given start, when that is more than ``moved_start_sds``
     of the prior's position sd; None otherwise, and for a log whose start was searched for or whose
     sensor reads bearings (they fix the heading, and the start search chose the start)."""
-    if data.geometry != "planar" or start.sensor.sigma_bearing_rad is not None or config.start_search_s > 0:
+    if data.geometry != "planar" or start.sensor.sigma_bearing_rad is not None or config.start_search_s is not None:
         return None
     moved = float(np.hypot(*(learned.prior_mean[:2] - start.prior_mean[:2])))
-    limit = START_MOVED_SDS * float(np.sqrt(np.max(np.diag(start.prior_cov)[:2])))
+    limit = config.moved_start_sds * float(np.sqrt(np.max(np.diag(start.prior_cov)[:2])))
     return moved if moved > limit else None

@@ -127,7 +127,7 @@ def motion_sd_start(config: EMConfig, n: int) -> np.ndarray:
     """Sigma_m's start per step: the sideways and forward sd in the robot's frame (sec. 2.5.1: x to the
     right, y ahead), then the heading's; a track's one entry is its forward sd."""
     sd = [config.motion_sd_mm] * min(n, 2) + ([config.motion_sd_rad] if n == 3 else [])
-    if n == 3 and config.motion_sd_sideways_mm > 0:
+    if n == 3 and config.motion_sd_sideways_mm is not None:
         sd[0] = config.motion_sd_sideways_mm
     return np.array([sd])
 

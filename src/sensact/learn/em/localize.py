@@ -35,7 +35,7 @@ import numpy as np
 from sensact.config import config_from_dict
 from sensact.core.angles import wrap_angle
 from sensact.errors import ConfigError
-from sensact.learn.em.config import EMConfig
+from sensact.learn.em.config import EMConfig, upgrade_settings
 from sensact.learn.em.estep import Posteriors, channel_columns, e_step, log_likelihood
 from sensact.learn.em.fit import refuse_no_sightings
 from sensact.learn.em.start import DISTINCT_CELLS, search_grid, search_window, start_candidates
@@ -75,7 +75,7 @@ def learned_config(learned: Mapping[str, Any] | None, source: str = "model") -> 
     with (``learned``, a model.json's ``summary.config``; None for a model written without one), the
     defaults for the rest: the E-step takes everything else (the channels, their windows, the robust
     readings) from the model itself."""
-    learned = learned or {}
+    learned = upgrade_settings(learned or {})
     return config_from_dict(EMConfig, {k: learned[k] for k in LEARNED_SETTINGS if k in learned}, source=source)
 
 

@@ -133,9 +133,10 @@ class _Searches:
     def for_fit(
         cls, data: LandmarkLog, model: EMModel, cfg: EMConfig, freedom: MountFreedom, on: bool = True
     ) -> _Searches:
-        max_delay = round(cfg.action_delay_max_s / data.dt_s)
+        max_delay = round((cfg.action_delay_max_s or 0.0) / data.dt_s)
         delay_on = on and cfg.delay_search and max_delay > 0 and isinstance(model.action, LinearActionModel)
-        return cls(data, cfg, max_delay, on and cfg.ridge_search_mm > 0, delay_on, freedom.free if on else NO_MOUNT)
+        ridge_on = on and cfg.ridge_search_mm is not None
+        return cls(data, cfg, max_delay, ridge_on, delay_on, freedom.free if on else NO_MOUNT)
 
     def due(self, it: int, stage_ends: bool, since: int | None) -> bool:
         """``since``: the iteration the last stage began at (None before it)."""
@@ -348,7 +349,7 @@ def searched_start(
 ) -> tuple[EMModel, dict[str, Any] | None, int]:
     """Where the robot starts when nobody says (``start.py``): the model placed there, what the search
     tried, and the held iterations the start race already gave the model (0 without a race)."""
-    if not (cfg.start_search_s > 0 and data.geometry == "planar" and not cfg.warm_start):
+    if not (cfg.start_search_s is not None and data.geometry == "planar" and not cfg.warm_start):
         return model, None, 0
     candidates, info = start_candidates(data, model, cfg)
     model, spent = candidates[0], 0

@@ -78,7 +78,7 @@ def start_candidates(data: LandmarkLog, model: EMModel, config: EMConfig) -> tup
             "no start candidate gave a finite likelihood.",
             file=data.source,
             field="start_search_s",
-            fix="set start_search_s: 0 and give start_prior_mean (x mm, y mm, heading rad) and start_prior_sd.",
+            fix="set start_search_s: null and give start_prior_mean (x mm, y mm, heading rad) and start_prior_sd.",
         )
     scored.sort(key=lambda s: -s[0])
     chosen: list[tuple[float, np.ndarray]] = []
