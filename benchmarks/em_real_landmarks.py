@@ -23,7 +23,6 @@ import argparse
 import sys
 import tempfile
 import time
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -102,7 +101,7 @@ def main() -> None:
     ids = landmark_ids(folder / LANDMARK_FILE)
     cfg = mrclam_config()
     if args.turn_restarts is not None:
-        cfg = replace(cfg, turn_restarts=args.turn_restarts)
+        cfg = cfg.replace(turn_restarts=args.turn_restarts)
     source = args.start_from_robot
     robots = args.robots if source is None else [source, *(r for r in args.robots if r != source)]
     for keep, seed in args.maps:

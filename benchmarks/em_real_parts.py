@@ -56,9 +56,9 @@ def main() -> None:
     if args.range_start_sigma is not None:
         cfg = replace(cfg, channels=(replace(cfg.channels[0], start_sigma=args.range_start_sigma),))
     if args.turn_restarts is not None:
-        cfg = replace(cfg, turn_restarts=args.turn_restarts)
+        cfg = cfg.replace(turn_restarts=args.turn_restarts)
     print(
-        f"range channel start sigma {cfg.channels[0].start_sigma:g} mm; at most {cfg.turn_restarts} restarts "
+        f"range channel start sigma {cfg.channels[0].start_sigma:g} mm; at most {cfg.search.turn_restarts} restarts "
         f"while f turns or bends or EM does not settle; {args.parts} parts per robot"
     )
     print(

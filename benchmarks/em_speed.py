@@ -43,7 +43,7 @@ def main() -> None:
 
     real = to_landmark_log(simulate_field(Field2DConfig.preset("real_robot", seed=0)))
     cfg = EMConfig()
-    var = motion_variance("planar", cfg.motion_sd_mm, cfg.motion_sd_rad)
+    var = motion_variance("planar", cfg.thesis.motion_sd_mm, cfg.thesis.motion_sd_rad)
     model = initial_model(real, cfg)
     post = e_step(model, real, var)  # compile outside the timing
     rng = np.random.default_rng(0)
@@ -66,7 +66,7 @@ def main() -> None:
     py_forward_ms = 1e3 * (time.perf_counter() - t0) * real.n_steps / base_steps
 
     sim = to_landmark_log(simulate_field(Field2DConfig(seed=0)))
-    sim_cfg = EMConfig(prune_rad_per_step=0.0)
+    sim_cfg = EMConfig.of(prune_rad_per_step=0.0)
     res = fit_em(sim, initial_model(sim, sim_cfg), sim_cfg)
 
     out = {

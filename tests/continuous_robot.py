@@ -96,7 +96,7 @@ def continuous_config(**kw) -> EMConfig:
         refine_from=0,  # a near start: no need to hold Sigma_m and the bearing terms first
     )
     base.update(kw)
-    return EMConfig(**base)
+    return EMConfig.of(**base)
 
 
 class TruthLog:

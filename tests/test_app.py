@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import inspect
 import json
-from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -49,11 +48,11 @@ def test_planar_presets_follow_the_commands():
     rate on their difference; a side-stepper every velocity free."""
     assert planar_config(("v_mm_s", "omega_rad_s")) == load_preset("differential_drive_camera")
     wheels = planar_config(("left_mm_s", "right_mm_s"))
-    assert wheels.action_inputs == ("v_y_mm_s:(left_mm_s+right_mm_s)",)
-    assert planar_config(("v_mm_s", "v_left_mm_s", "omega_rad_s")).action_zero_mean == ()
+    assert wheels.action.inputs == ("v_y_mm_s:(left_mm_s+right_mm_s)",)
+    assert planar_config(("v_mm_s", "v_left_mm_s", "omega_rad_s")).action.zero_mean == ()
     ro = range_only_config(("left_mm_s", "right_mm_s"), (1.0, 2.0, 3.0))
-    assert ro.action_inputs == ("v_y_mm_s:(left_mm_s+right_mm_s)", "v_theta_rad_s:(right_mm_s-left_mm_s)")
-    assert ro.start_prior_mean == (1.0, 2.0, 3.0) and all(c.bearing_degree == 0 for c in ro.channels)
+    assert ro.action.inputs == ("v_y_mm_s:(left_mm_s+right_mm_s)", "v_theta_rad_s:(right_mm_s-left_mm_s)")
+    assert ro.thesis.start_prior_mean == (1.0, 2.0, 3.0) and all(c.bearing_degree == 0 for c in ro.channels)
     assert range_only_config(("v_mm_s", "omega_rad_s"), (0.0, 0.0, 0.0)) == load_preset("range_only_anchors")
 
 
@@ -65,7 +64,7 @@ def test_settings_file_names_its_preset_and_reads_back(diffdrive_log, tmp_path):
     assert lines == ["preset: differential_drive_camera"]
     data = open_log(diffdrive_log).data
     assert read_settings_file(diffdrive_log / "em_config.yaml") == planar_config(data.command_names)
-    changed = replace(planar_config(data.command_names), motion_sd_mm=2.0, turn_restarts=0)
+    changed = planar_config(data.command_names).replace(motion_sd_mm=2.0, turn_restarts=0)
     path = tmp_path / "mine.yaml"
     path.write_text(settings_yaml("differential_drive_camera", changed, data))
     assert read_settings_file(path, open_log(diffdrive_log)) == changed
@@ -77,11 +76,15 @@ def test_settings_precedence(diffdrive_log, tmp_path):
     beside = resolve_settings(log)
     assert beside.preset == "differential_drive_camera" and beside.base == str(diffdrive_log / "em_config.yaml")
     aibo = resolve_settings(log, preset="aibo_field", sets=["patience=7"])
-    assert aibo.config == EMConfig(patience=7) and aibo.preset == "aibo_field"
+    assert aibo.config == EMConfig.of(patience=7) and aibo.preset == "aibo_field"
     cfg = tmp_path / "c.yaml"
     cfg.write_text("preset: range_only_anchors\nmotion_sd_mm: 4.0\n")
     ro = resolve_settings(log, preset="aibo_field", config=cfg, sets=["turn_restarts=1"])
-    assert ro.preset == "range_only_anchors" and ro.config.motion_sd_mm == 4.0 and ro.config.turn_restarts == 1
+    assert (
+        ro.preset == "range_only_anchors"
+        and ro.config.thesis.motion_sd_mm == 4.0
+        and ro.config.search.turn_restarts == 1
+    )
     assert ro.config.channels == load_preset("range_only_anchors").channels
     with pytest.raises(ConfigError, match="for a 1-D robot"):
         for_log("track_1d", log.data)
@@ -138,11 +141,11 @@ def test_stages_are_declared():
     plain = SimpleNamespace(sensor=SimpleNamespace(is_robust=False, channels=()))
     learned, held_mount = MountFreedom((True, True, True), "learned"), MountFreedom((False,) * 3, "held")
     held, free = plan_stages(cfg, robust, learned, spent=30)
-    assert held == HELD.with_end(cfg.refine_from - 30) and not held.robust and held.mount == (False,) * 3
+    assert held == HELD.with_end(cfg.search.refine_from - 30) and not held.robust and held.mount == (False,) * 3
     assert free.robust and free.motion_noise and free.bearing_terms and free.mount == (True,) * 3
     assert [s.name for s in plan_stages(EMConfig(), plain, held_mount)] == ["free"]
-    assert [s.name for s in plan_stages(replace(cfg, warm_start=True), robust, learned)] == ["free"]
-    assert [s.name for s in plan_stages(replace(cfg, refine_from=0), robust, learned)] == ["free"]
+    assert [s.name for s in plan_stages(cfg.replace(warm_start=True), robust, learned)] == ["free"]
+    assert [s.name for s in plan_stages(cfg.replace(refine_from=0), robust, learned)] == ["free"]
 
 
 def test_the_loop_reads_as_the_thesis():

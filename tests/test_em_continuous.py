@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -167,11 +166,11 @@ def test_action_inputs_fit_each_velocity_on_its_own_commands():
     assert again.inputs == act.inputs
     np.testing.assert_array_equal(again.free_coefficients, free)
     cfg = config_from_dict(EMConfig, {"action_basis": "affine", "action_inputs": "v_y_mm_s:v_mm_s"})
-    assert cfg.action_inputs == ("v_y_mm_s:v_mm_s",)
+    assert cfg.action.inputs == ("v_y_mm_s:v_mm_s",)
     with pytest.raises(ValueError, match="'omega'"):
         LinearActionModel.zero("affine", 1, ("v", "w"), ("a",), inputs=("a:omega",))
-    with pytest.raises(ValueError, match="action_inputs"):
-        EMConfig(action_inputs=("v_y_mm_s:v_mm_s",))  # the table basis has no commands to restrict
+    with pytest.raises(ValueError, match=r"action\.inputs"):
+        EMConfig.of(action_inputs=("v_y_mm_s:v_mm_s",))  # the table basis has no commands to restrict
 
 
 def test_continuous_model_and_motion_noise_are_recovered(continuous_fit):
@@ -278,10 +277,10 @@ def test_sideways_motion_noise_starts_apart_from_the_forward():
     assert apart.motion_sd.tolist() == [[0.5, 10.0, 0.05]]
     fixed = fit_em(data, None, continuous_config(motion_noise="fixed", motion_sd_sideways_mm=0.5, max_iterations=2))
     assert fixed.model.motion_sd.tolist() == [[0.5, 10.0, 0.05]]
-    with pytest.raises(ValueError, match="motion_sd_sideways_mm must be > 0, or null"):
+    with pytest.raises(ValueError, match=r"motion_noise\.sideways_mm must be > 0, or null"):
         continuous_config(motion_sd_sideways_mm=-1.0)
-    with pytest.raises(ConfigError, match=r"t\.csv: motion_sd_sideways_mm: .* a track has no sideways"):
-        fit_em(tiny_track(), None, EMConfig(motion_sd_sideways_mm=0.5))
+    with pytest.raises(ConfigError, match=r"t\.csv: motion_noise\.sideways_mm: .* a track has no sideways"):
+        fit_em(tiny_track(), None, EMConfig.of(motion_sd_sideways_mm=0.5))
 
 
 def test_model_json_round_trip(continuous_fit):
@@ -349,8 +348,8 @@ def test_turning_noise_is_recovered_and_zero_turning_is_the_shared_model(continu
 
 def test_turning_noise_needs_a_planar_shared_model():
     track = tiny_track()
-    with pytest.raises(ConfigError, match=r"motion_noise: .* a track has no heading"):
-        initial_model(track, EMConfig(motion_noise="turning"))
+    with pytest.raises(ConfigError, match=r"motion_noise\.kind: .* a track has no heading"):
+        initial_model(track, EMConfig.of(motion_noise="turning"))
     data, _ = simulate_continuous(1, T=300)
     m = initial_model(data, continuous_config(motion_noise="turning"))
     assert m.turn_var == 0.0
@@ -362,7 +361,7 @@ def test_per_action_noise_learns_one_row_per_action():
     from sensact.sim.field2d import Field2DConfig, simulate_field, to_landmark_log
 
     data = to_landmark_log(simulate_field(Field2DConfig(seconds=120.0, seed=2)))
-    cfg = EMConfig(motion_noise="per_action", prune_rad_per_step=0.0, max_iterations=30, refine_from=0)
+    cfg = EMConfig.of(motion_noise="per_action", prune_rad_per_step=0.0, max_iterations=30, refine_from=0)
     res = fit_em(data, None, cfg)
     sd = res.model.motion_sd
     assert sd.shape == (data.n_actions, 3) and np.all(sd >= [0.05, 0.05, 5e-4])
@@ -441,7 +440,7 @@ def test_channels_parse_from_a_config_mapping():
     assert cfg.channels[0].valid_max == 1500 and cfg.channels[0].robust == "gate"
     assert math.isinf(ChannelConfig("x").valid_max)
     with pytest.raises(ValueError, match="per_action"):
-        EMConfig(action_basis="affine", motion_noise="per_action")
+        EMConfig.of(action_basis="affine", motion_noise="per_action")
 
 
 def test_a_config_written_in_a_model_json_reads_back_exactly(tmp_path):
@@ -453,10 +452,10 @@ def test_a_config_written_in_a_model_json_reads_back_exactly(tmp_path):
     from sensact.io.atomic import write_json
     from sensact.presets import mrclam_config, turtlebot_em_config
 
-    for cfg in (mrclam_config(), turtlebot_em_config(), EMConfig(), replace(EMConfig(), warm_start=True)):
+    for cfg in (mrclam_config(), turtlebot_em_config(), EMConfig.of(), EMConfig().replace(warm_start=True)):
         write_json(tmp_path / "m.json", {"config": asdict(cfg)})
         assert config_from_dict(EMConfig, json.loads((tmp_path / "m.json").read_text())["config"]) == cfg
-    assert json.loads((tmp_path / "m.json").read_text())["config"]["warm_start"] is True
+    assert json.loads((tmp_path / "m.json").read_text())["config"]["search"]["warm_start"] is True
     write_json(tmp_path / "t.json", asdict(turtlebot_em_config()))
     sonar = json.loads((tmp_path / "t.json").read_text())["channels"][0]
     assert sonar["valid_min"] is None and sonar["valid_max"] is None  # written as nulls, read back as +-inf
@@ -476,5 +475,5 @@ def test_a_config_written_as_yaml_reads_back_exactly(tmp_path):
         (tmp_path / "c.yaml").write_text(text)
         assert build_config(EMConfig, tmp_path / "c.yaml") == cfg
     text = config_to_yaml(mrclam_config())
-    assert "ridge_search_mm: 500.0" in text and "inf" not in text and "patience" not in text
+    assert "ridge_mm: 500.0" in text and "inf" not in text and "patience" not in text
     assert config_to_yaml(EMConfig()) == ""  # nothing differs from the defaults

@@ -17,7 +17,7 @@ def field_fit():
     cfg = Field2DConfig(seconds=300.0, seed=4)
     run = simulate_field(cfg)
     data = to_landmark_log(run)
-    em = EMConfig(prune_rad_per_step=0.0, max_iterations=400)
+    em = EMConfig.of(prune_rad_per_step=0.0, max_iterations=400)
     return cfg, run, data, em, fit_em(data, initial_model(data, em), em)
 
 
@@ -36,9 +36,9 @@ def test_result_is_the_most_likely_model(field_fit):
     _cfg, _run, data, em, res = field_fit
     ll = res.loglik_history
     assert res.best_iteration == int(np.argmax(ll))
-    assert res.iterations - 1 - res.best_iteration == em.patience  # stopped by the 50-iteration rule
+    assert res.iterations - 1 - res.best_iteration == em.thesis.patience  # stopped by the 50-iteration rule
     np.testing.assert_array_equal(res.velocity_history[res.best_iteration], res.model.action.velocities)
-    again = e_step(res.model, data, motion_variance("planar", em.motion_sd_mm, em.motion_sd_rad))
+    again = e_step(res.model, data, motion_variance("planar", em.thesis.motion_sd_mm, em.thesis.motion_sd_rad))
     assert again.loglik == pytest.approx(res.loglik_best, abs=1e-6)
 
 
@@ -50,7 +50,7 @@ def test_em1d_recovery_with_the_optimal_scale():
 
     sim = dataclasses.replace(EM1D_TRACK, seconds=300.0, change_at_s=None, seed=5)
     data = to_landmark_log(simulate_track(sim))
-    em = EMConfig(max_iterations=800)  # the unit keeps growing slowly after this; the scaled error does not
+    em = EMConfig.of(max_iterations=800)  # the unit keeps growing slowly after this; the scaled error does not
     res = fit_em(data, initial_model(data, em), em)
     sc = score_track(res.model, true_velocities(sim, False), sim.truth().height_px, DISTANCE_GRID_MM)
     assert sc["action_rms_pct"] < 2.0 and sc["sensor_rms_pct"] < 2.0
@@ -74,7 +74,7 @@ def test_divergence_is_reported():
     from sensact.sim.field2d import Field2DConfig, simulate_field, to_landmark_log
 
     data = to_landmark_log(simulate_field(Field2DConfig(seconds=20.0, seed=1)))
-    em = EMConfig(max_iterations=5)
+    em = EMConfig.of(max_iterations=5)
     start = initial_model(data, em)
     res = fit_em(data, start.replace(prior_cov=-np.eye(3)), em)
     assert res.stop_reason == "diverged" and res.iterations == 0

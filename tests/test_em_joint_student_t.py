@@ -43,7 +43,7 @@ def one_sighting(reading_mm: float, bearing_rad: float) -> LandmarkLog:
 
 
 def t_config(joint: bool, bearing_robust: str = "student_t") -> EMConfig:
-    return EMConfig(
+    return EMConfig.of(
         action_basis="affine",
         channels=(ChannelConfig("range_mm", 1, 50.0, 0.95, 30.0, robust="student_t", robust_param=NU),),
         bearing_robust=bearing_robust,
@@ -142,7 +142,7 @@ def test_misread_barcodes_whose_bearing_fits_are_discounted_by_their_range():
     assert len(rows) == 70
     ratio = {}
     for joint in (False, True):
-        res = fit_em(data, None, replace(mrclam_config(), joint_student_t=joint))
+        res = fit_em(data, None, mrclam_config().replace(joint_student_t=joint))
         assert res.n_pruned_when_freed <= 1  # the gates see at most one of the 70 (measured: 0 before mounts, 1)
         ratio[joint] = score_against_simulated(res.model, sim.truth(), sim.dt_s)["bearing_sigma_ratio"]
         w = res.posteriors.weights[rows][res.posteriors.obs_used[rows]]
@@ -153,11 +153,11 @@ def test_misread_barcodes_whose_bearing_fits_are_discounted_by_their_range():
 
 
 def test_joint_student_t_is_off_unless_configured_and_needs_one_nu():
-    assert EMConfig().joint_student_t is False
-    assert mrclam_config().joint_student_t is False  # docs/em-real.md: robot 2's bearing falls to 0.64 with it
+    assert EMConfig().robust.joint_student_t is False
+    assert mrclam_config().robust.joint_student_t is False  # docs/em-real.md: robot 2's bearing falls to 0.64 with it
     with pytest.raises(ValueError, match="joint_student_t"):
-        replace(t_config(True), bearing_robust_param=6.0)
-    replace(t_config(False), bearing_robust_param=6.0)  # each reading its own t: any nu
+        t_config(True).replace(bearing_robust_param=6.0)
+    t_config(False).replace(bearing_robust_param=6.0)  # each reading its own t: any nu
 
 
 def test_a_model_keeps_joint_student_t_through_json(short_run):

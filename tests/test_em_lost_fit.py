@@ -10,8 +10,8 @@ import pytest
 
 from continuous_robot import LANDMARKS, continuous_config, simulate_continuous
 from sensact.core.pose_models import landmark_distance
-from sensact.learn.em import EMConfig, fit_em, log_likelihood
-from sensact.learn.em.config import ChannelConfig
+from sensact.learn.em import fit_em, log_likelihood
+from sensact.learn.em.config import ChannelConfig, SearchSettings
 
 
 def _turning_cubic(center: float, scale: float, at: float = 0.0, width: float = 1.0):
@@ -103,7 +103,7 @@ def test_a_length_reading_whose_slope_changes_with_distance_is_flagged(continuou
     assert "range_mm's f has slopes from 0.60 to 1.80 mm per mm, inside the" in said and "start_sigma" in said
     assert "off by a scale, but not by one that changes with distance" in said
     # at the ratio, a steeper or a falling line, and a bend under another unit: not flagged
-    under = quadratic(0.6, 0.6 * EMConfig.lost_bend_ratio * 0.99)
+    under = quadratic(0.6, 0.6 * SearchSettings.lost_bend_ratio * 0.99)
     assert range_function_bends(with_f(under), res.posteriors, data) == []
     for line in (Polynomial1D((100.0, 2.5 * f0.scale), f0.center, f0.scale), Polynomial1D((9e3, -0.4 * f0.scale))):
         assert range_function_bends(with_f(line), res.posteriors, data) == []
@@ -150,12 +150,12 @@ def test_a_range_function_that_turns_within_its_distances_is_flagged(continuous_
 
 def test_a_fit_whose_likelihood_keeps_falling_far_below_its_best_has_not_settled(continuous_fit):
     """learn/em/checks.py ``unsettled_fit``: the mean fall below the best over the iterations after it, per
-    sighting used, against ``EMConfig.lost_fall_per_sighting`` (exact on built histories); the fit that found the
+    sighting used, against ``SearchSettings.lost_fall_per_sighting`` (exact on built histories); the fit that found the
     robot has not that sign, the same fit with a history that thrashes after its best has, and says so;
     a 1-D log's history is not judged."""
     from sensact.learn.em.checks import describe_lost_fit, lost_fit_signs, unsettled_fit
 
-    UNSETTLED_PER_SIGHTING = EMConfig.lost_fall_per_sighting
+    UNSETTLED_PER_SIGHTING = SearchSettings.lost_fall_per_sighting
 
     n = 1000
     limit = UNSETTLED_PER_SIGHTING * n
@@ -240,7 +240,7 @@ def test_em_restarts_from_a_tighter_start_while_f_turns_and_keeps_the_most_likel
     # a fit that did not settle names no channel: every channel starts a third as vague
     calls.update(n=0, flagged=1, unsettled=True)
     heard.clear()
-    res = fit_em(data, None, replace(cfg, turn_restarts=2), on_restart=lambda k, signs, sigmas: heard.append(sigmas))
+    res = fit_em(data, None, cfg.replace(turn_restarts=2), on_restart=lambda k, signs, sigmas: heard.append(sigmas))
     assert heard == [{"range_mm": pytest.approx(1000.0)}] and len(res.restarts) == 2
     assert [r["f_turns"][0]["sign"] for r in res.restarts[:1]] == ["unsettled"] and not res.restarts[1]["f_turns"]
     calls["unsettled"] = False
@@ -258,7 +258,7 @@ def test_em_restarts_from_a_tighter_start_while_f_turns_and_keeps_the_most_likel
     from sensact.report.tables_real import kept_run_cell, restart_runs_cell
 
     calls.update(n=0, flagged=1)
-    two = fit_em(data, None, replace(cfg, turn_restarts=1))
+    two = fit_em(data, None, cfg.replace(turn_restarts=1))
     cell = restart_runs_cell(two.restarts)
     assert cell.startswith("range_mm 3000: ") and "(f turned); range_mm 1000: " in cell
     assert kept_run_cell(two.restarts) == ("restart 1" if two.restarts[1]["kept"] else "the first run")

@@ -56,7 +56,7 @@ def test_the_mount_and_the_path_are_recovered(mounted):
 def test_a_given_mount_is_held(mounted):
     """A mount in the config is the sensor's, held: the M-step never moves it."""
     sim, _, data, _ = mounted
-    cfg = replace(simulator_settings(sim), sensor_mount=MOUNT, max_iterations=40, refine_from=10)
+    cfg = simulator_settings(sim).replace(sensor_mount=MOUNT, max_iterations=40, refine_from=10)
     res = fit_em(data, None, cfg)
     assert res.model.sensor.mount.as_array() == pytest.approx(np.array(MOUNT), abs=0)
     assert res.summary()["sensor_mount"]["held"] == ["forward_mm", "left_mm", "yaw_rad"]
@@ -189,7 +189,7 @@ def test_correlated_errors_are_detected_on_a_track_with_two_sensors(ar1):
         ChannelConfig("sonar_mm", degree=1, start_intercept=0.0, start_slope=1.0, start_sigma=50.0),
         ChannelConfig("laser_mm", degree=1, start_intercept=0.0, start_slope=1.0, start_sigma=50.0),
     )
-    res = fit_em(data, None, EMConfig(motion_sd_mm=10.0, channels=channels, max_iterations=300))
+    res = fit_em(data, None, EMConfig.of(motion_sd_mm=10.0, channels=channels, max_iterations=300))
     ac = residual_autocorrelation(res.model, res.posteriors, data)
     assert set(ac) == {"sonar_mm", "laser_mm"}
     if ar1:
@@ -210,7 +210,7 @@ def test_a_lone_channels_correlated_errors_are_read_as_motion(ar1):
 
     sim = replace(EM1D_TRACK, seconds=300.0, seed=3, observation_noise_ar1=ar1)
     data = to_landmark_log(simulate_track(sim))
-    res = fit_em(data, None, EMConfig(motion_sd_mm=10.0, max_iterations=150))
+    res = fit_em(data, None, EMConfig.of(motion_sd_mm=10.0, max_iterations=150))
     ac = residual_autocorrelation(res.model, res.posteriors, data)
     assert set(ac) == {data.reading_names[0]}
     assert abs(ac[data.reading_names[0]]) < 0.3 and describe_correlated(ac) == [], ac

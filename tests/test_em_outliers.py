@@ -51,12 +51,12 @@ def misread():
 def fits(misread):
     """MRCLAM's settings on the log, with the gate again and without it."""
     _, data, _ = misread
-    return fit_em(data, None, mrclam_config()), fit_em(data, None, replace(mrclam_config(), prune_when_freed=False))
+    return fit_em(data, None, mrclam_config()), fit_em(data, None, mrclam_config().replace(prune_when_freed=False))
 
 
 def test_the_thesis_setting_does_not_prune_again():
-    assert EMConfig().prune_when_freed is False
-    assert mrclam_config().prune_when_freed is True
+    assert EMConfig().robust.prune_when_freed is False
+    assert mrclam_config().robust.prune_when_freed is True
 
 
 def test_misread_barcodes_are_dropped_when_the_robust_readings_take_over_and_the_bearing_sigma_is_learned(
@@ -113,12 +113,12 @@ def test_from_a_learned_model_the_gate_again_runs_on_the_first_e_step(misread, f
 
     sim, data, rows = misread
     placed, cfg = start_from_model(fits[1].model, data, mrclam_config())
-    assert cfg.warm_start and cfg.start_search_s == mrclam_config().start_search_s
+    assert cfg.search.warm_start and cfg.search.start_s == mrclam_config().search.start_s
     res = fit_em(data, placed.model, cfg)
     assert res.freed_at == 0 and res.start_search is None  # nothing held, no start search
     # the path the gate reads is the start model's, not yet refitted: one true sighting more goes too
     assert not res.posteriors.obs_used[rows].any() and len(rows) <= res.n_pruned_when_freed <= len(rows) + 2
     after = score_against_simulated(res.model, sim.truth(), sim.dt_s)
     assert 0.9 < after["bearing_sigma_ratio"] < 1.2, after["bearing_sigma_ratio"]
-    with pytest.raises(ConfigError, match="warm_start starts EM from a learned model"):
+    with pytest.raises(ConfigError, match=r"search\.warm_start starts EM from a learned model"):
         fit_em(data, None, cfg)

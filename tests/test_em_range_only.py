@@ -4,7 +4,6 @@ sensor=radio`, EM without bearings (learn/em/forward.py), and its scores and fig
 from __future__ import annotations
 
 import json
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -71,7 +70,7 @@ def test_em_learns_a_range_only_robot_facing_the_way_it_drives(heading):
     bearings), learned from where it was put. From a start heading near the truth's, or one that faces
     it nearly backward, EM finds the robot's path and model; the backward one is reported turned by pi."""
     run = simulate_diffdrive(DiffDriveConfig(seconds=300, seed=1, sensor="radio"))
-    cfg = replace(range_only_config(COMMAND_NAMES, (0.0, 0.0, heading)), max_iterations=300)
+    cfg = range_only_config(COMMAND_NAMES, (0.0, 0.0, heading)).replace(max_iterations=300)
     res = fit_em(run.log(), config=cfg)
     m = res.model
     assert m.sensor.sigma_bearing_rad is None
@@ -107,12 +106,12 @@ def test_localize_finds_a_range_only_robot_anywhere_on_the_map_from_its_ranges()
     rows = list(dict.fromkeys(desc for desc, _, _ in heard))
     assert rows == ["start search: grid positions scored", "start candidates scored on the whole log"]
     assert [max(d for r, d, _ in heard if r == row) for row in rows] == [heard[0][2], len(loc.start["candidates"])]
-    got, g, step = np.array(loc.start["prior_mean"]), cfg.start_search_grid_mm, 2 * np.pi / RANGE_HEADINGS
+    got, g, step = np.array(loc.start["prior_mean"]), cfg.search.start_grid_mm, 2 * np.pi / RANGE_HEADINGS
     assert np.hypot(*(got[:2] - (1000.0, -2500.0))) < g and abs(wrap_angle(got[2] - 2.0)) <= 0.5 * step + 1e-9
     offset = path_offset(loc.posteriors.mean_gamma, run.poses, np.ones(len(run.poses)))
     assert offset["median_mm"] < 30.0
     cands = [np.array(c["prior_mean"]) for c in loc.start["candidates"]]
-    assert 1 < len(cands) <= cfg.start_candidates
+    assert 1 < len(cands) <= cfg.search.start_candidates
     for i, a in enumerate(cands):
         for b in cands[:i]:
             assert np.hypot(*(a[:2] - b[:2])) >= 2.5 * g or abs(wrap_angle(a[2] - b[2])) > 1.5 * step
@@ -140,7 +139,7 @@ def test_only_a_range_only_start_given_and_moved_past_three_sds_counts_as_moved(
     past = start.replace(prior_mean=start.prior_mean + np.array([540.0, 721.0, 0.0]))
     assert start_moved_mm(start, at, radio, cfg) is None
     assert start_moved_mm(start, past, radio, cfg) == pytest.approx(np.hypot(540.0, 721.0))
-    assert start_moved_mm(start, past, radio, replace(cfg, start_search_s=30.0)) is None
+    assert start_moved_mm(start, past, radio, cfg.replace(start_search_s=30.0)) is None
     cam_start = initial_model(camera, cfg)
     assert cam_start.sensor.sigma_bearing_rad is not None
     assert start_moved_mm(cam_start, cam_start.replace(prior_mean=past.prior_mean), camera, cfg) is None
@@ -151,7 +150,7 @@ def test_a_range_only_start_metres_off_runs_again_from_where_em_moved_it():
     model (the heading noise carries the turns; the turn gain -1.12) and moves the start to within
     150 mm of the true one; EM again from there finds the model, which is kept as the more likely."""
     run = simulate_diffdrive(DiffDriveConfig(seconds=300, seed=1, sensor="radio"))
-    cfg = replace(range_only_config(COMMAND_NAMES, (-1000.0, 3000.0, 0.0)), max_iterations=300)
+    cfg = range_only_config(COMMAND_NAMES, (-1000.0, 3000.0, 0.0)).replace(max_iterations=300)
     heard = []
     res = fit_em(run.log(), config=cfg, on_start_moved=lambda mm, mean: heard.append((mm, mean)))
     moved = res.start_moved
@@ -172,7 +171,7 @@ def test_a_range_only_start_metres_and_radians_off_races_its_heading_where_em_mo
     the ranges cannot tell the heading, so EM races eight headings there and goes on from the winner,
     which finds the robot's model, kept as the more likely."""
     run = simulate_diffdrive(DiffDriveConfig(seconds=300, seed=1, sensor="radio"))
-    cfg = replace(range_only_config(COMMAND_NAMES, (-1000.0, 3000.0, 2.0)), max_iterations=600)
+    cfg = range_only_config(COMMAND_NAMES, (-1000.0, 3000.0, 2.0)).replace(max_iterations=600)
     res = fit_em(run.log(), config=cfg)
     moved = res.start_moved
     assert moved["kept"] == "again" and len(moved["heading_race"]["headings_rad"]) == 8

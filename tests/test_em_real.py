@@ -186,7 +186,7 @@ def test_a_lost_fit_whose_f_bends_without_turning_is_seen_and_started_again():
     part = ml.data.slice_steps(int(a), int(b))
     poses, valid = ml.truth_poses()
     cfg = mrclam_config()
-    lost = fit_em(part, None, replace(cfg, turn_restarts=0))
+    lost = fit_em(part, None, cfg.replace(turn_restarts=0))
     assert path_offset(lost.posteriors.mean_gamma, poses[a:b], valid[a:b])["median_mm"] > 300.0  # 402 mm
     assert range_function_turns(lost.model, lost.posteriors, part) == []
     bent = range_function_bends(lost.model, lost.posteriors, part)
@@ -233,7 +233,7 @@ def test_a_thinned_map_that_lost_its_robot_finds_it_with_every_sighting(tmp_path
     copy = dataset_with_landmarks(tmp_path, {7, 8, 9, 10, 12, 16, 19, 20})  # the benchmark's map 8:2
     ml = read_mrclam(copy, 4)
     poses, valid = ml.truth_poses()
-    res = fit_em(ml.data, None, replace(mrclam_config(), turn_restarts=0))
+    res = fit_em(ml.data, None, mrclam_config().replace(turn_restarts=0))
     assert path_offset(res.posteriors.mean_gamma, poses, valid)["median_mm"] < 150.0
     assert lost_fit_signs(res.model, res.posteriors, ml.data, res.loglik_history, res.best_iteration) == []
     assert res.pruned_fraction < 0.01
@@ -290,7 +290,7 @@ def test_a_short_real_log_finds_its_robot_and_a_lost_fit_says_so_and_starts_agai
     assert range_function_turns(res.model, res.posteriors, part) == [] and res.restarts is None
     cfg = mrclam_config()
     vague = replace(cfg, channels=(replace(cfg.channels[0], start_sigma=1000.0),))
-    lost = fit_em(part, None, replace(vague, turn_restarts=0))
+    lost = fit_em(part, None, vague.replace(turn_restarts=0))
     assert path_offset(lost.posteriors.mean_gamma, poses[:stop], valid[:stop])["median_mm"] > 1000.0
     assert range_function_turns(lost.model, lost.posteriors, part)[0]["channel"] == "range_mm"
     # the vaguer start with the restarts, through the command a user runs
@@ -632,7 +632,6 @@ def test_mrclam_robot1_from_an_unknown_start(tmp_path):
 def test_reproduce_real_runs_every_mrclam_dataset_it_finds(tmp_path):
     """The same command on other datasets: every dataset folder under DATA/mrclam is run, keyed
     by dataset when there are several, with the tables titled and the figures named after them."""
-    from dataclasses import replace
 
     from sensact.experiments.real import mrclam_datasets, mrclam_row_key, run_real
     from sensact.presets import mrclam_config
@@ -652,7 +651,7 @@ def test_reproduce_real_runs_every_mrclam_dataset_it_finds(tmp_path):
         for f in MRCLAM.iterdir():
             (root / "mrclam" / name / f.name).symlink_to(f)
     assert [d.name for d in mrclam_datasets(root)] == ["MRCLAM_Dataset6", "MRCLAM_Dataset9"]
-    cfg = replace(mrclam_config(), start_search_s=None, max_iterations=3)
+    cfg = mrclam_config().replace(start_search_s=None, max_iterations=3)
     (root / "mrclam" / "MRCLAM_Dataset9" / "Robot3_Odometry.dat").unlink()  # a robot missing is skipped
     heard: list[str] = []
     res, art = run_real(root, robots=(2, 3), config=cfg, progress=heard.append)

@@ -48,8 +48,8 @@ def test_start_race_halves_the_field_on_the_held_gaussian_likelihood():
     assert heard == [(k, 11) for k in range(1, 12)]  # every trial heard of once, in order, out of 6 + 3 + 2
     assert set(info["rounds"][1]) == {"2", "4", "5"} and set(info["rounds"][2]) == {"2", "4"}
     assert model.prior_mean[0] == 6.0 and model.prior_mean[1] == 3.0  # the winner's model after 3 rounds
-    assert info["winner_iterations"] == 3 * cfg.start_trial_iterations
-    assert seen == [cfg.start_trial_iterations] * 11
+    assert info["winner_iterations"] == 3 * cfg.search.start_trial_iterations
+    assert seen == [cfg.search.start_trial_iterations] * 11
 
 
 def test_race_trials_counts_each_round_until_two_are_left():
@@ -83,7 +83,7 @@ def test_start_race_does_not_rerun_a_trial_that_found_nothing_better():
     assert heard == [(1, 6), (2, 6), (3, 6), (4, 6), (5, 6), (6, 6)]  # the stalled one's second trial: done unrun
     assert runs.count(5.0) == 1 and runs.count(4.0) == 2  # the stalled one ran once, the other twice
     assert info["rounds"][0]["1"] == info["rounds"][1]["1"] == 500.0
-    assert info["winner_iterations"] == 2 * cfg.start_trial_iterations
+    assert info["winner_iterations"] == 2 * cfg.search.start_trial_iterations
     assert model is cands[1]
 
 
@@ -279,12 +279,12 @@ def test_fit_searches_the_ridge_when_the_held_stage_ends_and_every_so_often_afte
         assert on.loglik_history[r["iteration"]] == r["loglik_after"]  # the history holds the moved model
     assert on.posteriors.loglik == on.loglik_best  # the reported best is the returned model's likelihood
     assert on.summary()["ridge"] == on.ridge
-    with pytest.raises(ValueError, match="ridge_search"):
+    with pytest.raises(ValueError, match=r"search\.ridge_mm"):
         continuous_config(ridge_search_mm=-1.0)
-    with pytest.raises(ValueError, match="search_every"):
+    with pytest.raises(ValueError, match=r"search\.every"):
         continuous_config(search_every=0)
-    with pytest.raises(ConfigError, match=r"t\.csv: ridge_search_mm: .* needs a planar log"):
-        fit_em(tiny_track(), None, EMConfig(ridge_search_mm=100.0))
+    with pytest.raises(ConfigError, match=r"t\.csv: search\.ridge_mm: .* needs a planar log"):
+        fit_em(tiny_track(), None, EMConfig.of(ridge_search_mm=100.0))
     # the report lists each search's move, and a dash for a run without the search
     rows = {
         name: {"em": r.summary(), "score": evaluate_mrclam(TruthLog(data, poses), r)}
@@ -311,8 +311,8 @@ def test_start_search_candidates_are_distinct_and_one_is_near_the_start():
     means = np.array([c.prior_mean for c in cands])
     assert len(cands) == 6 == len(info["candidates"])
     gaps = np.hypot(*(means[:, None, :2] - means[None, :, :2]).transpose(2, 0, 1))
-    assert gaps[~np.eye(6, dtype=bool)].min() >= 2.5 * cfg.start_search_grid_mm
-    assert np.hypot(*(means[:, :2] - poses[0, :2]).T).min() <= math.sqrt(2) * cfg.start_search_grid_mm  # a cell
+    assert gaps[~np.eye(6, dtype=bool)].min() >= 2.5 * cfg.search.start_grid_mm
+    assert np.hypot(*(means[:, :2] - poses[0, :2]).T).min() <= math.sqrt(2) * cfg.search.start_grid_mm  # a cell
 
 
 def _turn(xy: np.ndarray, angle: float, shift=(0.0, 0.0)) -> np.ndarray:

@@ -42,7 +42,7 @@ def _linear_track(T=40, seed=1):
         np.full(steps.size, np.nan),
         np.zeros((1, 2)),
     )
-    m0 = initial_model(data, EMConfig(motion_sd_mm=SM))
+    m0 = initial_model(data, EMConfig.of(motion_sd_mm=SM))
     model = m0.replace(
         action=m0.action.with_velocities(vel),
         sensor=LandmarkSensor.single(f, 1.5, None),

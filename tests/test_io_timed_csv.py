@@ -469,7 +469,7 @@ def test_wheel_speeds_in_metres_convert_to_what_simulate_diffdrive_logs_with_the
     np.testing.assert_allclose(a.step_commands, b.step_commands, rtol=0, atol=1e-9)
     assert (out / "em_config.yaml").read_text() == (sim / "em_config.yaml").read_text()
     # the preset put on the wheel speeds: the forward speed on their sum
-    assert read_settings_file(out / "em_config.yaml").action_inputs == ("v_y_mm_s:(left_mm_s+right_mm_s)",)
+    assert read_settings_file(out / "em_config.yaml").action.inputs == ("v_y_mm_s:(left_mm_s+right_mm_s)",)
 
 
 def test_a_legged_robots_commands_convert_with_the_sideways_velocity_free(timed, tmp_path):
@@ -633,7 +633,11 @@ def test_a_log_without_bearings_gets_no_camera_settings_and_learn_em_names_what_
     assert "set start_prior_mean in" in " ".join(res.output.split())
     written = read_settings_file(out / "em_config.yaml")
     assert written == range_only_config(("v_mm_s", "omega_rad_s"), (0.0, 0.0, 0.0))
-    assert written.start_search_s is None and written.channels[0].bearing_degree == 0 and not written.prune_when_freed
+    assert (
+        written.search.start_s is None
+        and written.channels[0].bearing_degree == 0
+        and not written.robust.prune_when_freed
+    )
     text = (out / "em_config.yaml").read_text()
     assert "start_prior_mean: [0.0, 0.0, 0.0]" in text and "bearing_robust" not in text  # shown, though a default
     (out / "em_config.yaml").write_text("motion_sd_mm: 2.0\n")  # a file of the user's, or an earlier run's
@@ -650,7 +654,7 @@ def test_a_log_without_bearings_gets_no_camera_settings_and_learn_em_names_what_
     no_terms = "channels=[{name: range_mm, degree: 3, start_intercept: 500, start_slope: 0.6, start_sigma: 1000}]"
     res = runner.invoke(app, ["learn", "em", str(out), *cfg, "--set", no_terms])
     flat = " ".join(res.output.split())
-    assert res.exit_code == 2 and "start_search_s" in flat and "start_prior_mean" in flat
+    assert res.exit_code == 2 and "search.start_s" in flat and "start_prior_mean" in flat
     # the library refuses the same, so a script calling fit_em gets the line and not a failure deep in EM
     from sensact.errors import ConfigError
     from sensact.learn.em import fit_em

@@ -189,8 +189,8 @@ def test_wheel_speeds_log_the_same_robot_on_other_commands(tmp_path):
     text = (log_dir / "em_config.yaml").read_text()
     assert "wheels' mean" in text
     cfg = read_settings_file(log_dir / "em_config.yaml")
-    assert cfg.action_inputs == ("v_y_mm_s:(left_mm_s+right_mm_s)",)  # the forward speed from the wheels' sum
-    assert cfg.action_zero_mean == ("v_x_mm_s",) and cfg.action_basis == "affine"
+    assert cfg.action.inputs == ("v_y_mm_s:(left_mm_s+right_mm_s)",)  # the forward speed from the wheels' sum
+    assert cfg.action.zero_mean == ("v_x_mm_s",) and cfg.action.basis == "affine"
     model = initial_model(d, cfg)
     model = replace(model, action=replace(model.action, coefficients=on_wheels, delay_steps=truth["delay_steps"]))
     s = score_against_simulated(model, truth, run.config.dt_s)
@@ -239,9 +239,9 @@ def test_em_learns_a_robot_that_side_steps_with_every_velocity_free():
     and the inputs; the whole learner then clears every bar and recovers all three gains."""
     names = ("v_mm_s", "v_left_mm_s", "omega_rad_s")
     learner = planar_config(names)
-    assert learner.action_zero_mean == () and learner.action_inputs == ()
+    assert learner.action.zero_mean == () and learner.action.inputs == ()
     assert (
-        replace(learner, action_zero_mean=mrclam_config().action_zero_mean, action_inputs=mrclam_config().action_inputs)
+        learner.replace(action_zero_mean=mrclam_config().action.zero_mean, action_inputs=mrclam_config().action.inputs)
         == mrclam_config()
     )
     assert planar_config(("v_mm_s", "omega_rad_s")) == mrclam_config()
@@ -287,7 +287,7 @@ def test_simulate_diffdrive_then_learn_em_scores_against_the_simulation(tmp_path
     other.write_text("max_iterations: 5\n")
     res = runner.invoke(app, ["learn", "em", str(log), "--config", str(other)])
     flat = " ".join(res.output.split())
-    assert res.exit_code != 0 and "action_basis" in flat and f"--config {log / 'em_config.yaml'}" in flat
+    assert res.exit_code != 0 and "action.basis" in flat and f"--config {log / 'em_config.yaml'}" in flat
     assert "Traceback" not in res.output
     # without --config, the settings written beside the log are the ones --set overrides
     sets = ["--set", "max_iterations=40", "--set", "start_candidates=2"]
@@ -295,9 +295,7 @@ def test_simulate_diffdrive_then_learn_em_scores_against_the_simulation(tmp_path
     assert res.exit_code == 0, res.output
     doc = json.loads(model.read_text())
     beside = read_settings_file(log / "em_config.yaml")
-    assert config_from_dict(EMConfig, doc["summary"]["config"]) == replace(
-        beside, max_iterations=40, start_candidates=2
-    )
+    assert config_from_dict(EMConfig, doc["summary"]["config"]) == beside.replace(max_iterations=40, start_candidates=2)
     assert f"settings: {log / 'em_config.yaml'}, written beside the log" in " ".join(res.output.split())
     assert "is its unit right" not in " ".join(res.output.split())  # see the next test
     ev = doc["evaluation"]
@@ -414,7 +412,7 @@ def test_evaluate_log_names_what_keeps_a_model_from_a_log(tmp_path):
         res = runner.invoke(app, ["simulate", "diffdrive", "--out", str(logs[name]), "--seconds", "30", *extra])
         assert res.exit_code == 0, res.output
     lf = read_landmark_log(logs["vw"])
-    cfg = replace(read_settings_file(logs["vw"] / "em_config.yaml"), max_iterations=2, start_search_s=None)
+    cfg = read_settings_file(logs["vw"] / "em_config.yaml").replace(max_iterations=2, start_search_s=None)
     fitted = fit_em(lf.data, config=cfg).model
     model = tmp_path / "m.json"
     model.write_text(json.dumps({"model": fitted.to_dict(), "dt_s": lf.data.dt_s}))
@@ -492,12 +490,12 @@ def test_learn_em_names_settings_and_logs_it_cannot_learn_from(tmp_path):
     marks = [{**m, "x_mm": "east"} for m in meta["landmarks"]]
     (bad_map / "meta.json").write_text(json.dumps({**meta, "landmarks": marks}))
     cases = [
-        ([track, "--set", "ridge_search_mm=300"], "track: ridge_search_mm:", "set ridge_search_mm: null"),
-        ([track, "--set", "motion_noise=turning"], "track: motion_noise:", "use motion_noise: shared"),
-        ([track, "--set", "motion_sd_sideways_mm=3"], "track: motion_sd_sideways_mm:", "no sideways"),
-        ([track, "--set", "action_basis=affine"], "track: action_basis:", "use action_basis: table"),
+        ([track, "--set", "ridge_search_mm=300"], "track: search.ridge_mm:", "set search.ridge_mm: null"),
+        ([track, "--set", "motion_noise=turning"], "track: motion_noise.kind:", "use motion_noise.kind: shared"),
+        ([track, "--set", "motion_sd_sideways_mm=3"], "track: motion_noise.sideways_mm:", "no sideways"),
+        ([track, "--set", "action_basis=affine"], "track: action.basis:", "use action.basis: table"),
         ([dd, "--config", renamed], "channels[].name:", "name the log's readings: range_mm"),
-        ([dd, "--config", cfg, "--set", 'action_inputs=["v_y_mm_s:w"]'], "action_inputs", "omega_rad_s"),
+        ([dd, "--config", cfg, "--set", 'action_inputs=["v_y_mm_s:w"]'], "action.inputs", "omega_rad_s"),
         ([short, "--config", cfg], "short: range_mm:", "readings of range_mm, and its model has 7 parameters"),
         ([bad_step], "meta.json: dt_s:", "must be a positive number"),
         ([no_commands, "--config", cfg], "meta.json: actions.columns:", "at least one command column"),
@@ -551,8 +549,8 @@ def test_reproduce_diffdrive_writes_its_scorecard_and_figures(tmp_path):
     )
     assert res.exit_code == 0, res.output
     out = json.loads((tmp_path / "diffdrive.json").read_text())
-    assert out["config"]["simulator"]["seconds"] == 90 and out["config"]["learner"]["max_iterations"] == 30
-    assert out["config"]["learner"]["action_basis"] == "affine"  # MRCLAM's settings under the --set
+    assert out["config"]["simulator"]["seconds"] == 90 and out["config"]["learner"]["thesis"]["max_iterations"] == 30
+    assert out["config"]["learner"]["action"]["basis"] == "affine"  # MRCLAM's settings under the --set
     assert out["scorecard"] == [c.to_dict() for c in diffdrive.scorecard(out)]
     assert f"diffdrive {verdict_line(diffdrive.scorecard(out))}" in " ".join(res.output.split())
     for kind in ("actions", "range", "heading_noise", "bearing"):
@@ -585,7 +583,7 @@ def test_a_side_stepping_robot_from_simulate_to_learn_em_and_reproduce(tmp_path)
     res = runner.invoke(app, ["reproduce", "diffdrive", "--trials", "1", "--out", str(out), *side, *fast])
     assert res.exit_code == 0, res.output
     dd = json.loads((out / "diffdrive.json").read_text())
-    assert dd["config"]["learner"]["action_zero_mean"] == [] and dd["config"]["learner"]["action_inputs"] == []
+    assert dd["config"]["learner"]["action"]["zero_mean"] == [] and dd["config"]["learner"]["action"]["inputs"] == []
     md = (out / "diffdrive.md").read_text()
     assert "sideways_gain" in dd["seeds"]["seed0"]["simulated"] and "| sideways gain |" in md
     assert "Simulated side-stepping robots" in md
@@ -604,7 +602,7 @@ def test_wheel_speeds_learn_what_v_and_omega_learn(sensor):
     for axle in (0.0, 235.0):
         sim = replace(base, wheel_axle_mm=axle)
         log = simulate_diffdrive(sim).log()
-        res = fit_em(log, None, replace(diffdrive.simulator_settings(sim), max_iterations=6, start_candidates=2))
+        res = fit_em(log, None, diffdrive.simulator_settings(sim).replace(max_iterations=6, start_candidates=2))
         fits.append((log, res))
     (log_vw, vw), (log_w, w) = fits
     assert log_w.command_names == ("left_mm_s", "right_mm_s")
@@ -626,9 +624,8 @@ def test_reproduce_diffdrive_on_wheel_speeds_learns_with_the_wheel_settings(tmp_
     )
     assert res.exit_code == 0, res.output
     learner = json.loads((tmp_path / "diffdrive.json").read_text())["config"]["learner"]
-    assert learner["action_inputs"] == ["v_y_mm_s:(left_mm_s+right_mm_s)"] and learner["action_zero_mean"] == [
-        "v_x_mm_s"
-    ]
+    action = learner["action"]
+    assert action["inputs"] == ["v_y_mm_s:(left_mm_s+right_mm_s)"] and action["zero_mean"] == ["v_x_mm_s"]
 
 
 def _true_model_file(log, path):

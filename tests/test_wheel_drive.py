@@ -89,9 +89,9 @@ def test_wheels_in_any_one_unit_are_a_differential_drive():
     ):
         assert wheel_pair(names) is None, names
     names = ("left_rad_s", "right_rad_s")
-    assert planar_config(names).action_inputs == ("v_y_mm_s:(left_rad_s+right_rad_s)",)
-    assert planar_config(names).action_zero_mean == ("v_x_mm_s",)  # a differential drive: no side-steps
-    assert range_only_config(names, (0.0, 0.0, 0.0)).action_inputs[-1] == "v_theta_rad_s:(right_rad_s-left_rad_s)"
+    assert planar_config(names).action.inputs == ("v_y_mm_s:(left_rad_s+right_rad_s)",)
+    assert planar_config(names).action.zero_mean == ("v_x_mm_s",)  # a differential drive: no side-steps
+    assert range_only_config(names, (0.0, 0.0, 0.0)).action.inputs[-1] == "v_theta_rad_s:(right_rad_s-left_rad_s)"
     assert "(left_rad_s+right_rad_s)" in config_header(names) and "not a differential drive" not in config_header(names)
 
 
@@ -110,7 +110,7 @@ def test_wheel_turning_rates_learn_what_wheel_speeds_learn_and_read_as_the_wheel
     log_mm = simulate_diffdrive(sim).log()
     log_rad = replace(log_mm, command_names=("left_rad_s", "right_rad_s"), step_commands=log_mm.step_commands / radius)
     fits = [
-        fit_em(log, None, replace(planar_config(log.command_names), max_iterations=6, start_candidates=2))
+        fit_em(log, None, planar_config(log.command_names).replace(max_iterations=6, start_candidates=2))
         for log in (log_mm, log_rad)
     ]
     np.testing.assert_allclose(fits[1].loglik_history, fits[0].loglik_history, rtol=1e-9)

@@ -35,7 +35,9 @@ def config_to_yaml(
     ``config`` (on ``against``); ``header`` becomes its leading comment, ``lead``'s fields its first ones."""
     import yaml
 
-    def changed(obj: Any, keep: tuple[str, ...] = ()) -> Any:
+    def changed(obj: Any, ref: Any = None, keep: tuple[str, ...] = ()) -> Any:
+        """``obj``'s fields that differ from ``ref``'s (a config of its kind), or else from their defaults, and
+        those ``keep`` names (``group.field`` for a group's)."""
         if not dataclasses.is_dataclass(obj):
             return [changed(x) for x in obj] if isinstance(obj, tuple | list) else obj
         out = {}
@@ -44,9 +46,15 @@ def config_to_yaml(
             if f.name in keep:
                 out[f.name] = changed(value)
                 continue
-            if against is not None and obj is config:
-                if value != getattr(against, f.name):
-                    out[f.name] = changed(value)
+            inner = tuple(k.partition(".")[2] for k in keep if k.startswith(f.name + "."))
+            if inner and dataclasses.is_dataclass(value):
+                out[f.name] = changed(value, None if ref is None else getattr(ref, f.name), inner)
+                continue
+            if ref is not None:
+                sub = getattr(ref, f.name)
+                if value != sub:
+                    nested = dataclasses.is_dataclass(value) and dataclasses.is_dataclass(sub)
+                    out[f.name] = changed(value, sub) if nested else changed(value)
                 continue
             if f.default is not dataclasses.MISSING and value == f.default:
                 continue
@@ -55,12 +63,24 @@ def config_to_yaml(
             out[f.name] = changed(value)
         return out
 
-    fields = json.loads(json.dumps((lead or {}) | changed(config, always)))
-    # one block line per field (a mapping of scalars alone would come out as one flow line), lists in flow
-    text = "".join(
-        yaml.safe_dump({k: v}, sort_keys=False, default_flow_style=None if isinstance(v, list | dict) else False)
-        for k, v in fields.items()
-    )
+    fields = json.loads(json.dumps((lead or {}) | changed(config, against, always)))
+
+    def block(mapping: dict[str, Any], indent: str = "") -> str:
+        """One line per field, a group's fields indented under it, lists in flow (a mapping of scalars alone
+        would come out as one flow line)."""
+        out = ""
+        for k, v in mapping.items():
+            if isinstance(v, dict) and v:
+                out += f"{indent}{k}:\n" + block(v, indent + "  ")
+                continue
+            style = None if isinstance(v, list | dict) else False
+            out += "".join(
+                indent + line + "\n"
+                for line in yaml.safe_dump({k: v}, sort_keys=False, default_flow_style=style).splitlines()
+            )
+        return out
+
+    text = block(fields)
     comment = "".join(f"# {line}\n".replace("# \n", "#\n") for line in header.splitlines())
     return comment + text
 
@@ -153,6 +173,9 @@ def config_from_dict(cls: type[C], data: Mapping[str, Any], *, source: str = "co
     """Build ``cls`` from a mapping; unknown keys are an error naming the closest valid fields. A null for a
     float field whose default is infinite is that default: JSON has no infinity, and the JSON writer
     (``io/atomic.write_json``) puts a null there, so a config read back from a model.json is the one written."""
+    regroup = getattr(cls, "regroup", None)  # a config in groups reads its fields' flat and dotted names
+    if regroup is not None:
+        data = regroup(data)
     hints = typing.get_type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
     kwargs = {}
@@ -221,10 +244,26 @@ def build_config(
     data: dict[str, Any] = config_to_dict(base) if base is not None else {}
     sources = []
     if yaml_path is not None:
-        data.update(load_yaml_mapping(yaml_path))
+        data = merge_fields(cls, data, load_yaml_mapping(yaml_path))
         sources.append(str(yaml_path))
     over = parse_overrides(overrides)
     if over:
         sources.append("--set")
-    data.update(over)
+    data = merge_fields(cls, data, over)
     return config_from_dict(cls, data, source=" / ".join(sources) or "defaults")
+
+
+def merge_fields(cls: type, base: Mapping[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
+    """``over``'s fields on ``base``'s (both mappings of ``cls``'s fields): a group of fields given as a mapping
+    changes only the fields it names (a config in groups: ``regroup`` first puts flat and dotted names in
+    their group)."""
+    regroup = getattr(cls, "regroup", None)
+    if regroup is not None:
+        base, over = regroup(base), regroup(over)
+    out = dict(base)
+    for key, value in over.items():
+        if isinstance(value, Mapping) and isinstance(out.get(key), Mapping):
+            out[key] = {**out[key], **value}
+        else:
+            out[key] = value
+    return out

@@ -118,16 +118,16 @@ class Calibration:
 def refuse_table_on_continuous_commands(log: OpenedLog, cfg: EMConfig) -> None:
     """The thesis's action table needs discrete actions; a planar log of continuous commands needs a basis."""
     data = log.data
-    if not (data.is_continuous and cfg.action_basis == "table" and data.geometry == "planar"):
+    if not (data.is_continuous and cfg.action.basis == "table" and data.geometry == "planar"):
         return
     beside = log.settings_file
     raise ConfigError(
         f"{data.source} has continuous commands, and the action model is the thesis's table of discrete actions.",
-        field="action_basis",
+        field="action.basis",
         fix=(
             f"pass --config {beside} (the settings written beside the log)"
             if beside is not None
-            else "pass --preset differential_drive_camera (or --set action_basis=affine, or a --config with it; "
+            else "pass --preset differential_drive_camera (or --set action.basis=affine, or a --config with it; "
             "docs/em-real.md)"
         )
         + ".",
@@ -159,7 +159,7 @@ def diagnose(result: EMResult, log: OpenedLog, cfg: EMConfig) -> Diagnostics:
     pruned = describe_pruned(result.pruned_fraction)
     if pruned:
         warnings.append(pruned)
-    held = held_sideways_noise(result.model, cfg.motion_noise)
+    held = held_sideways_noise(result.model, cfg.motion_noise.kind)
     if held:
         warnings.append(describe_held_sideways(held))
     return Diagnostics(result.pruned_fraction, autocorrelation, tuple(signs), held, tuple(warnings))

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from sensact.app.logs import OpenedLog
-from sensact.config import config_from_dict, config_to_dict, load_yaml_mapping, parse_overrides
+from sensact.config import config_from_dict, config_to_dict, load_yaml_mapping, merge_fields, parse_overrides
 from sensact.learn.em.config import EMConfig
 from sensact.presets import PRESET_KEY, for_log, preset_of, turtlebot_em_config
 
@@ -30,7 +30,7 @@ def _layer(log: OpenedLog, base: EMConfig, preset: str | None, path: Path) -> tu
     if named is not None:
         base, preset = for_log(named, log.data), named
     rest = {k: v for k, v in mapping.items() if k != PRESET_KEY}
-    return config_to_dict(base) | rest, preset
+    return merge_fields(EMConfig, config_to_dict(base), rest), preset
 
 
 def read_settings_file(path: Path, log: OpenedLog | None = None) -> EMConfig:
@@ -74,6 +74,6 @@ def resolve_settings(
     over = parse_overrides(sets)
     if over:
         sources.append("--set")
-    fields |= over
+    fields = merge_fields(EMConfig, fields, over)
     cfg = config_from_dict(EMConfig, fields, source=" / ".join(sources) or origin)
     return Settings(cfg, name, origin)

@@ -254,15 +254,20 @@ def split_fields(set_: list[str] | None, config: Path | None, learner_cls: type)
     from sensact.config import load_yaml_mapping, parse_overrides
 
     fields = {**(load_yaml_mapping(config) if config else {}), **parse_overrides(set_ or [])}
-    learner = {k: v for k, v in fields.items() if k in learner_cls.__dataclass_fields__}
+    accepts = getattr(learner_cls, "accepts", lambda k: k in learner_cls.__dataclass_fields__)
+    learner = {k: v for k, v in fields.items() if accepts(k)}
     return learner, {k: v for k, v in fields.items() if k not in learner}
 
 
 def merged(cls: type, base: Any, fields: dict[str, Any]) -> Any:
     """``base`` with the given fields replaced, validated like any config."""
-    from sensact.config import config_from_dict, config_to_dict
+    from sensact.config import config_from_dict, config_to_dict, merge_fields
 
-    return config_from_dict(cls, {**config_to_dict(base), **fields}, source="--set/--config") if fields else base
+    return (
+        config_from_dict(cls, merge_fields(cls, config_to_dict(base), fields), source="--set/--config")
+        if fields
+        else base
+    )
 
 
 def main() -> None:

@@ -175,7 +175,7 @@ def convert_csv(
         return
     if d.reading_names == ("range_mm",) and not kept:
         settings = range_only_config(d.command_names, (0.0, 0.0, 0.0))
-        start = ("start_prior_mean", "start_prior_sd")
+        start = ("thesis.start_prior_mean", "thesis.start_prior_sd")
         header = config_header(d.command_names, range_only=True)
         write_text(cfg, settings_yaml("range_only_anchors", settings, d, header, start))
         console.print(

@@ -116,7 +116,9 @@ def simulate_diffdrive_cmd(
     log = run.log()
     write_landmark_log(out, log, groundtruth=run.groundtruth(), meta_extra={"truth": cfg.truth()})
     em_cfg = out / "em_config.yaml"
-    start = () if cfg.reads_bearing else ("start_prior_mean", "start_prior_sd")  # a radio's: where the robot was put
+    start = (
+        () if cfg.reads_bearing else ("thesis.start_prior_mean", "thesis.start_prior_sd")
+    )  # a radio's: where the robot was put
     header = config_header(log.command_names, range_only=not cfg.reads_bearing)
     preset = "differential_drive_camera" if cfg.reads_bearing else "range_only_anchors"
     write_text(em_cfg, settings_yaml(preset, simulator_settings(cfg), log, header, start))

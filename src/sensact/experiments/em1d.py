@@ -106,7 +106,7 @@ def scorecard(summary: dict[str, Any]) -> list[BarCheck]:
 class EM1DExperiment:
     seed: int = 0
     simulator: Track1DConfig = EM1D_TRACK
-    learner: EMConfig = field(default_factory=lambda: EMConfig(motion_sd_mm=10.0))  # 10 mm, sec. 4.4.3
+    learner: EMConfig = field(default_factory=lambda: EMConfig.of(motion_sd_mm=10.0))  # 10 mm, sec. 4.4.3
 
 
 @dataclass(frozen=True, eq=False)
@@ -151,7 +151,7 @@ def run_em1d(
                 progress(
                     f"em1d {name} the change: iteration {it}, log-likelihood {ll:.1f}",
                     it + 1,
-                    exp.learner.max_iterations,
+                    exp.learner.thesis.max_iterations,
                 )
 
         res = fit_em(part, initial_model(part, exp.learner), exp.learner, progress=on_iteration)

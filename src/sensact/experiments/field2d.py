@@ -73,7 +73,7 @@ class Field2DExperiment:
     simulator: Field2DConfig = field(default_factory=Field2DConfig)
     # the simulated sensor has no false positives; the thesis's 0.6 rad/step gate would drop about a
     # quarter of the valid 0.5-rad-noise bearings and bias sigma_2 low (see docs/em.md)
-    learner: EMConfig = field(default_factory=lambda: EMConfig(prune_rad_per_step=0.0))
+    learner: EMConfig = field(default_factory=lambda: EMConfig.of(prune_rad_per_step=0.0))
     real_learner: EMConfig = field(default_factory=EMConfig)
 
 
@@ -92,7 +92,7 @@ def run_trial(
 
     def on_iteration(it: int, ll: float, best: float, since: int) -> None:
         if progress:
-            progress(f"{label} iteration {it}, log-likelihood {ll:.1f}", it + 1, learner.max_iterations)
+            progress(f"{label} iteration {it}, log-likelihood {ll:.1f}", it + 1, learner.thesis.max_iterations)
 
     res = fit_em(data, initial_model(data, learner), learner, progress=on_iteration)
     score = score_planar(res.model, run.true_velocities, sim.height_px, sim.sigma_height_px, sim.sigma_bearing_rad)

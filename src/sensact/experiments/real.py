@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -109,7 +108,7 @@ def restart_from_truth(ml: MrclamLog, res: EMResult, score: dict[str, Any], conf
     poses, valid = ml.truth_poses()
     first = int(np.flatnonzero(valid)[0])
     start = truth_informed_start(res.model, score["range"], poses[first])
-    cfg = replace(config, start_search_s=None, refine_from=0)
+    cfg = config.replace(start_search_s=None, refine_from=0)
     again = fit_em(ml.data, start, cfg)
     sc = evaluate_mrclam(ml, again)
     return {

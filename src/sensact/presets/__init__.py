@@ -68,7 +68,7 @@ def diffdrive_config(command_names: tuple[str, ...]) -> EMConfig | None:
         return mrclam_config()
     pair = wheel_pair(names)
     if pair is not None:
-        return replace(mrclam_config(), action_inputs=(f"v_y_mm_s:({pair[0]}+{pair[1]})",))
+        return mrclam_config().replace(action_inputs=(f"v_y_mm_s:({pair[0]}+{pair[1]})",))
     return None
 
 
@@ -76,7 +76,7 @@ def planar_config(command_names: tuple[str, ...]) -> EMConfig:
     """A starting point for any robot with a range-and-bearing camera: ``diffdrive_config`` on a
     differential drive's commands; on any others the same with every velocity, sideways too, affine in
     every command, since nothing says the robot cannot side-step (a legged robot's ``(v, v_left, omega)``)."""
-    return diffdrive_config(command_names) or replace(mrclam_config(), action_zero_mean=(), action_inputs=())
+    return diffdrive_config(command_names) or mrclam_config().replace(action_zero_mean=(), action_inputs=())
 
 
 def range_only_config(command_names: tuple[str, ...], start_pose: tuple[float, float, float]) -> EMConfig:
@@ -84,14 +84,13 @@ def range_only_config(command_names: tuple[str, ...], start_pose: tuple[float, f
     rad): ``planar_config`` without bearings, the turn rate on the turn command alone (``omega_rad_s``,
     or on wheel speeds their difference; no such command: free)."""
     base = load_preset("range_only_anchors")
-    inputs = planar_config(command_names).action_inputs
+    inputs = planar_config(command_names).action.inputs
     if "omega_rad_s" in command_names:
         inputs += ("v_theta_rad_s:omega_rad_s",)
     elif (pair := wheel_pair(command_names)) is not None:
         inputs += (f"v_theta_rad_s:({pair[1]}-{pair[0]})",)
-    zero_mean = base.action_zero_mean if diffdrive_config(command_names) else ()
-    return replace(
-        base,
+    zero_mean = base.action.zero_mean if diffdrive_config(command_names) else ()
+    return base.replace(
         action_inputs=inputs,
         action_zero_mean=zero_mean,
         start_prior_mean=tuple(float(v) for v in start_pose),
@@ -109,10 +108,10 @@ def distance_channel(name: str, robust: bool) -> ChannelConfig:
     kind = ("student_t", ROBUST_NU) if robust else ("none", 0.0)
     return ChannelConfig(
         name,
-        t.sensor_degree,
-        t.start_height_intercept_px,
-        t.start_height_slope_px_per_mm,
-        t.start_sigma_height_px,
+        t.thesis.sensor_degree,
+        t.thesis.start_height_intercept_px,
+        t.thesis.start_height_slope_px_per_mm,
+        t.thesis.start_sigma_height_px,
         robust=kind[0],
         robust_param=kind[1],
     )
@@ -175,7 +174,7 @@ def for_log(name: str, data: LandmarkLog) -> EMConfig:
     if name == "differential_drive_camera":
         return planar_config(data.command_names)
     if name == "range_only_anchors":
-        return range_only_config(data.command_names, cfg.start_prior_mean)
+        return range_only_config(data.command_names, cfg.thesis.start_prior_mean)
     if name == "track_1d" and data.is_continuous:
         return track_em_config(data, data.reading_names[0])
     return cfg

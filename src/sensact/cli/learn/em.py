@@ -108,7 +108,7 @@ def _describe_fit(res: Any, cfg: Any) -> None:
         + (f"; {res.n_pruned} observations pruned" if res.n_pruned else "")
         + (
             f" ({res.n_pruned_when_freed} when the robust readings took over: bearing more than "
-            f"{cfg.prune_rad_per_step:g} rad off the smoothed path; prune_when_freed)"
+            f"{cfg.thesis.prune_rad_per_step:g} rad off the smoothed path; prune_when_freed)"
             if res.n_pruned_when_freed
             else ""
         )
@@ -128,7 +128,7 @@ def _describe_fit(res: Any, cfg: Any) -> None:
             'docs/em-real.md, section 2, "A sensor without bearings")',
             markup=False,
         )
-    if res.n_pruned_when_freed and not cfg.joint_student_t and res.model.sensor.student_t_params:
+    if res.n_pruned_when_freed and not cfg.robust.joint_student_t and res.model.sensor.student_t_params:
         console.print(
             "[yellow]sightings that far off are misread barcodes;[/] a misread one whose bearing happens to fit "
             "still counts in bearing. If there are many, --set joint_student_t=true lets its range discount the "
@@ -137,7 +137,11 @@ def _describe_fit(res: Any, cfg: Any) -> None:
     race = (res.start_search or {}).get("race")
     if res.stop_reason == "max_iterations":
         raced = race["winner_iterations"] if race else 0
-        console.print(_still_climbing(res.loglik_history, res.best_iteration, cfg.max_iterations, cfg.patience, raced))
+        console.print(
+            _still_climbing(
+                res.loglik_history, res.best_iteration, cfg.thesis.max_iterations, cfg.thesis.patience, raced
+            )
+        )
     if res.start_search:
         x, y, th = res.start_search["prior_mean"]
         which = f" (candidate {race['winner']} of {len(race['rounds'][0])} won the race)" if race else ""
@@ -301,11 +305,11 @@ def _events(opened: Any, preset: str | None, show: Any) -> Any:
             absent = [r for r in EM_READINGS if r not in names]
             if absent:
                 console.print(f"Channels {', '.join(names)} ({', '.join(absent)} not in the file).")
-        if cfg.start_search_s is not None and opened.data.geometry == "planar" and not cfg.warm_start:
+        if cfg.search.start_s is not None and opened.data.geometry == "planar" and not cfg.search.warm_start:
             console.print(
-                f"finding the start pose: a {cfg.start_search_grid_mm:g} mm grid scored on the first "
-                f"{cfg.start_search_s:g} s, then EM from its {cfg.start_candidates} best, the better half kept "
-                f"every {cfg.start_trial_iterations} iterations"
+                f"finding the start pose: a {cfg.search.start_grid_mm:g} mm grid scored on the first "
+                f"{cfg.search.start_s:g} s, then EM from its {cfg.search.start_candidates} best, the better half kept "
+                f"every {cfg.search.start_trial_iterations} iterations"
             )
 
     def on_placed(start: Any) -> None:
@@ -318,18 +322,20 @@ def _events(opened: Any, preset: str | None, show: Any) -> Any:
         describe_placement(start.placed, start.document.get("summary") or {}, start.log.data)
 
     def progress(it: int, ll: float, best: float, since: int) -> None:  # it stops by patience: no end to show
-        patience = cfg_of["cfg"].patience
+        patience = cfg_of["cfg"].thesis.patience
         show(f"EM: log-likelihood {ll:.1f} (best {best:.1f}, {since} of {patience} iterations since)", it + 1, None)
 
     return FitEvents(
         progress=progress,
         on_race=lambda done, planned: show(
-            f"start race: EM from each start, {cfg_of['cfg'].start_trial_iterations} iterations a trial", done, planned
+            f"start race: EM from each start, {cfg_of['cfg'].search.start_trial_iterations} iterations a trial",
+            done,
+            planned,
         ),
         on_restart=lambda k, turned, sigmas: console.print(
             f"[yellow]{describe_lost_fit(turned, advice=False)}[/] EM starts again with "
             + ", ".join(f"{name}'s start sigma {s:.4g}" for name, s in sigmas.items())
-            + f" (restart {k} of at most {cfg_of['cfg'].turn_restarts}; turn_restarts in --config)"
+            + f" (restart {k} of at most {cfg_of['cfg'].search.turn_restarts}; turn_restarts in --config)"
         ),
         on_start_moved=lambda mm, mean: console.print(
             f"EM moved the start {mm / 1000:.1f} m from start_prior_mean, to x {mean[0]:.0f} mm, "

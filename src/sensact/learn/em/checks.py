@@ -21,7 +21,7 @@ import numpy as np
 
 from sensact.core.angles import wrap_angle
 from sensact.core.pose_models import landmark_bearing, landmark_distance, sensor_distance, sensor_poses
-from sensact.learn.em.config import EMConfig
+from sensact.learn.em.config import EMConfig, SearchSettings
 from sensact.learn.em.estep import Posteriors, channel_columns, channel_inputs
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
@@ -92,11 +92,11 @@ def range_function_turns(model: EMModel, post: Posteriors, data: LandmarkLog) ->
 
 
 def range_function_bends(
-    model: EMModel, post: Posteriors, data: LandmarkLog, bend_ratio: float = EMConfig.lost_bend_ratio
+    model: EMModel, post: Posteriors, data: LandmarkLog, bend_ratio: float = SearchSettings.lost_bend_ratio
 ) -> list[dict[str, Any]]:
     """Each channel of a planar log that reads a length in the map's unit (its name ends in ``_mm``)
     whose learned f's slope over the distances of the sightings it used (from the smoothed path) changes
-    by more than ``bend_ratio`` times (``EMConfig.lost_bend_ratio``) without turning over: its name, the
+    by more than ``bend_ratio`` times (``SearchSettings.lost_bend_ratio``) without turning over: its name, the
     least and greatest slope and the distances' span. A sensor off by a scale has one slope; one that turns is
     ``range_function_turns``'s."""
     return _bends(_fitted_distances(model, post, data), bend_ratio)
@@ -112,13 +112,13 @@ def mean_fall_after_best(loglik_history: np.ndarray, best_iteration: int) -> flo
 
 def fall_per_sighting(loglik_history: np.ndarray, best_iteration: int, n_used: int) -> float | None:
     """``mean_fall_after_best`` per sighting used: what ``unsettled_fit`` holds against
-    ``EMConfig.lost_fall_per_sighting`` (None with no iteration after the best or no sighting)."""
+    ``SearchSettings.lost_fall_per_sighting`` (None with no iteration after the best or no sighting)."""
     fall = mean_fall_after_best(loglik_history, best_iteration)
     return None if fall is None or n_used <= 0 else fall / n_used
 
 
 def unsettled_fit(
-    loglik_history: np.ndarray, best_iteration: int, n_used: int, limit: float = EMConfig.lost_fall_per_sighting
+    loglik_history: np.ndarray, best_iteration: int, n_used: int, limit: float = SearchSettings.lost_fall_per_sighting
 ) -> list[dict[str, Any]]:
     """``[{"sign": "unsettled", ...}]`` when the iterations after the best fell on average more than
     ``limit`` log-units per sighting used below the best's likelihood
@@ -152,10 +152,10 @@ def lost_fit_signs(
     (``lost_bend_ratio``, ``lost_fall_per_sighting``; by default EMConfig's)."""
     cfg = config or EMConfig()
     fitted = _fitted_distances(model, post, data)
-    signs = _turns(fitted) + _bends(fitted, cfg.lost_bend_ratio)
+    signs = _turns(fitted) + _bends(fitted, cfg.search.lost_bend_ratio)
     if loglik_history is not None and data.geometry == "planar":
         used = int(np.count_nonzero(post.obs_used))
-        signs += unsettled_fit(loglik_history, best_iteration, used, cfg.lost_fall_per_sighting)
+        signs += unsettled_fit(loglik_history, best_iteration, used, cfg.search.lost_fall_per_sighting)
     return signs
 
 

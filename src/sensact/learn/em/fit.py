@@ -111,12 +111,12 @@ def restart_while_lost(fit: Fit, data: LandmarkLog, cfg: EMConfig, heard: Heard)
     last one's, at most ``turn_restarts`` times, and none after Ctrl-C. EM maximizes the likelihood, so the
     fit kept is the most likely one, each scored with the configured readings model on the sightings that
     every run kept after its first-iteration prune. ``restarts`` of the result lists every run."""
-    if cfg.turn_restarts == 0 or data.geometry != "planar":
+    if cfg.search.turn_restarts == 0 or data.geometry != "planar":
         return fit
 
     def restarting(start: EMModel) -> EMResult:
         runs, turns, sigmas = [fit(start)], [], []
-        for k in range(cfg.turn_restarts + 1):
+        for k in range(cfg.search.turn_restarts + 1):
             last = runs[-1]
             turns.append(
                 []
@@ -124,9 +124,11 @@ def restart_while_lost(fit: Fit, data: LandmarkLog, cfg: EMConfig, heard: Heard)
                 else lost_fit_signs(last.model, last.posteriors, data, last.loglik_history, last.best_iteration, cfg)
             )
             sigmas.append({ch.name: ch.sigma for ch in start.sensor.channels})
-            if not turns[-1] or k == cfg.turn_restarts or last.stop_reason == "interrupted":  # Ctrl-C ends it all
+            if (
+                not turns[-1] or k == cfg.search.turn_restarts or last.stop_reason == "interrupted"
+            ):  # Ctrl-C ends it all
                 break
-            start, turned = tighter_start(start, turns[-1], cfg.restart_sigma_factor)
+            start, turned = tighter_start(start, turns[-1], cfg.search.restart_sigma_factor)
             if heard.on_restart is not None:
                 heard.on_restart(
                     k + 1, turns[-1], {ch.name: ch.sigma for ch in start.sensor.channels if ch.name in turned}
@@ -184,7 +186,7 @@ def rerun_moved_start(fit: Fit, data: LandmarkLog, cfg: EMConfig, heard: Heard) 
         if heard.on_start_moved is not None:
             heard.on_start_moved(moved, res.model.prior_mean.copy())
         trial = partial(held_trial, cfg=cfg)
-        candidates = headings_at(start, res.model.prior_mean[:2], cfg.moved_start_headings)
+        candidates = headings_at(start, res.model.prior_mean[:2], cfg.search.moved_start_headings)
         winner, race = race_starts(data, candidates, cfg, trial, on_trial=heard.on_race)
         again = fit(winner)
         best, scores = most_likely([res, again], data)
@@ -252,26 +254,27 @@ def facing_forward(res: EMResult, data: LandmarkLog) -> EMResult:
 
 def refuse_settings_for_log(cfg: EMConfig, data: LandmarkLog, initial: EMModel | None) -> None:
     """Settings this log cannot be learned with, each one line naming the field, before any work."""
-    if cfg.ridge_search_mm is not None and data.geometry != "planar":
+    if cfg.search.ridge_mm is not None and data.geometry != "planar":
         raise ConfigError(
-            "ridge_search_mm moves the path along the robot's heading and needs a planar log.",
+            "search.ridge_mm moves the path along the robot's heading and needs a planar log.",
             file=data.source,
-            field="ridge_search_mm",
-            fix="set ridge_search_mm: null for a track.",
+            field="search.ridge_mm",
+            fix="set search.ridge_mm: null for a track.",
         )
-    if cfg.motion_sd_sideways_mm is not None and data.geometry != "planar":
+    if cfg.motion_noise.sideways_mm is not None and data.geometry != "planar":
         raise ConfigError(
-            "motion_sd_sideways_mm is a planar robot's sideways noise, and a track has no sideways.",
+            "motion_noise.sideways_mm is a planar robot's sideways noise, and a track has no sideways.",
             file=data.source,
-            field="motion_sd_sideways_mm",
+            field="motion_noise.sideways_mm",
             fix="remove it or set it to null.",
         )
     refuse_no_sightings(data)
     refuse_bearing_settings(cfg, data)
-    if cfg.warm_start and initial is None:
+    if cfg.search.warm_start and initial is None:
         raise ConfigError(
-            "warm_start starts EM from a learned model, and none was given.",
+            "search.warm_start starts EM from a learned model, and none was given.",
             file=data.source,
-            field="warm_start",
-            fix="give the model to start from (sensact learn em --start-from MODEL.json), or set warm_start: false.",
+            field="search.warm_start",
+            fix="give the model to start from (sensact learn em --start-from MODEL.json), or set "
+            "search.warm_start: false.",
         )

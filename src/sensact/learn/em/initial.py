@@ -20,7 +20,7 @@ from sensact.models.polynomial import Polynomial1D
 def starting_height(config: EMConfig) -> Polynomial1D:
     """The poor straight line f starts from (sec. 4.4.1)."""
     return Polynomial1D(
-        (config.start_height_intercept_px, config.start_height_slope_px_per_mm),
+        (config.thesis.start_height_intercept_px, config.thesis.start_height_slope_px_per_mm),
         input_name="d",
         input_unit="mm",
         output_unit="px",
@@ -49,56 +49,56 @@ def starting_sensor(data: LandmarkLog, config: EMConfig) -> LandmarkSensor:
             )
         )
     if data.geometry == "planar" and np.isfinite(data.obs_bearing_rad).any():
-        sigma_b, robust = config.start_sigma_bearing_rad, (config.bearing_robust, config.bearing_robust_param)
+        sigma_b, robust = config.thesis.start_sigma_bearing_rad, (config.robust.bearing, config.robust.bearing_param)
     else:  # a track, or a range-only sensor (radio beacons): no bearing to learn a sigma_2 for
         sigma_b, robust = None, ("none", 0.0)
     mount = (
         SensorMount() if config.sensor_mount is None or data.geometry != "planar" else SensorMount(*config.sensor_mount)
     )
-    return LandmarkSensor(tuple(channels), sigma_b, *robust, config.joint_student_t, mount)
+    return LandmarkSensor(tuple(channels), sigma_b, *robust, config.robust.joint_student_t, mount)
 
 
 def initial_model(data: LandmarkLog, config: EMConfig) -> EMModel:
     """The starting model of sec. 4.4.1: every action has no effect, f is a poor line, wide sigmas."""
     n = 3 if data.geometry == "planar" else 1
     names = PLANAR_VELOCITY_NAMES if n == 3 else TRACK_VELOCITY_NAMES
-    if config.action_basis == "table":
+    if config.action.basis == "table":
         if data.n_actions == 0:
             raise ConfigError(
                 "The log has continuous commands, and the action model is a table of discrete actions.",
                 file=data.source,
-                field="action_basis",
-                fix="set action_basis to affine, cross or polynomial (docs/em-real.md).",
+                field="action.basis",
+                fix="set action.basis to affine, cross or polynomial (docs/em-real.md).",
             )
         action = ActionTable(data.action_commands, np.zeros((data.n_actions, n)), data.command_names, names)
     else:
         if data.step_commands is None:
             raise ConfigError(
-                f"The log has discrete actions only, and {config.action_basis} needs command columns.",
+                f"The log has discrete actions only, and {config.action.basis} needs command columns.",
                 file=data.source,
-                field="action_basis",
-                fix="use action_basis: table (the thesis's table of discrete actions).",
+                field="action.basis",
+                fix="use action.basis: table (the thesis's table of discrete actions).",
             )
         try:
             action = LinearActionModel.zero(
-                config.action_basis,
-                config.action_degree,
+                config.action.basis,
+                config.action.degree,
                 data.command_names,
                 names,
-                config.action_zero_mean,
-                config.action_inputs,
+                config.action.zero_mean,
+                config.action.inputs,
             )
         except ValueError as exc:
             raise ConfigError(
                 f"{exc}.",
                 file=data.source,
-                field="action_zero_mean / action_inputs",
+                field="action.zero_mean / action.inputs",
                 fix=f"name only the log's commands ({', '.join(data.command_names)}) and velocity components "
                 f"({', '.join(names)}).",
             ) from None
     sensor = starting_sensor(data, config)
-    mean = np.asarray(config.start_prior_mean[:n], dtype=float)
-    cov = np.diag(np.asarray(config.start_prior_sd[:n], dtype=float) ** 2)
+    mean = np.asarray(config.thesis.start_prior_mean[:n], dtype=float)
+    cov = np.diag(np.asarray(config.thesis.start_prior_sd[:n], dtype=float) ** 2)
     first = sensor.channels[0]
     col = data.reading_names.index(first.name) if first.name in data.reading_names else 0
     slope = first.function.coef[1] / first.function.scale if first.function.degree >= 1 else 0.0
@@ -109,15 +109,15 @@ def initial_model(data: LandmarkLog, config: EMConfig) -> EMModel:
         mean = np.array([(data.obs_readings[0, col] - f0) / slope])
         cov = np.array([[(first.sigma / slope) ** 2]])
     sd = motion_sd_start(config, n)
-    motion_sd = np.repeat(sd, data.n_actions, axis=0) if config.motion_noise == "per_action" else sd
+    motion_sd = np.repeat(sd, data.n_actions, axis=0) if config.motion_noise.kind == "per_action" else sd
     turn_var = None
-    if config.motion_noise == "turning":
+    if config.motion_noise.kind == "turning":
         if data.geometry != "planar":
             raise ConfigError(
-                "motion_noise turning scales the heading noise by the turn; a track has no heading.",
+                "motion_noise.kind turning scales the heading noise by the turn; a track has no heading.",
                 file=data.source,
-                field="motion_noise",
-                fix="use motion_noise: shared.",
+                field="motion_noise.kind",
+                fix="use motion_noise.kind: shared.",
             )
         turn_var = 0.0  # the start: no turn dependence, the M-step learns it once Sigma_m is freed
     return EMModel(data.geometry, action, sensor, mean, cov, motion_sd, turn_var)
@@ -126,11 +126,11 @@ def initial_model(data: LandmarkLog, config: EMConfig) -> EMModel:
 def motion_sd_start(config: EMConfig, n: int) -> np.ndarray:
     """Sigma_m's start per step: the sideways and forward sd in the robot's frame (sec. 2.5.1: x to the
     right, y ahead), then the heading's; a track's one entry is its forward sd."""
-    sd = [config.motion_sd_mm] * min(n, 2) + ([config.motion_sd_rad] if n == 3 else [])
-    if n == 3 and config.motion_sd_sideways_mm is not None:
-        sd[0] = config.motion_sd_sideways_mm
+    sd = [config.thesis.motion_sd_mm] * min(n, 2) + ([config.thesis.motion_sd_rad] if n == 3 else [])
+    if n == 3 and config.motion_noise.sideways_mm is not None:
+        sd[0] = config.motion_noise.sideways_mm
     return np.array([sd])
 
 
 def motion_sd_floor(config: EMConfig, n: int) -> np.ndarray:
-    return np.array([config.motion_sd_floor_mm] * min(n, 2) + ([config.motion_sd_floor_rad] if n == 3 else []))
+    return np.array([config.motion_noise.floor_mm] * min(n, 2) + ([config.motion_noise.floor_rad] if n == 3 else []))

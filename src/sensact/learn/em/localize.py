@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -51,11 +51,11 @@ RANGE_HEADINGS = 12  # a range-only start search tries this many headings at eac
 # the settings localize takes from the ones a model was learned with (its JSON's summary.config): the
 # start search, the start's spread and the first-iteration gate; the rest of the E-step is the model's own
 LEARNED_SETTINGS = (
-    "prune_rad_per_step",
-    "start_prior_sd",
-    "start_search_s",
-    "start_search_grid_mm",
-    "start_candidates",
+    "thesis.prune_rad_per_step",
+    "thesis.start_prior_sd",
+    "search.start_s",
+    "search.start_grid_mm",
+    "search.start_candidates",
 )
 
 
@@ -75,8 +75,13 @@ def learned_config(learned: Mapping[str, Any] | None, source: str = "model") -> 
     with (``learned``, a model.json's ``summary.config``; None for a model written without one), the
     defaults for the rest: the E-step takes everything else (the channels, their windows, the robust
     readings) from the model itself."""
-    learned = upgrade_settings(learned or {})
-    return config_from_dict(EMConfig, {k: learned[k] for k in LEARNED_SETTINGS if k in learned}, source=source)
+    groups = EMConfig.regroup(upgrade_settings(learned or {}))  # a model file from before the groups: flat
+    picked = {}
+    for path in LEARNED_SETTINGS:
+        group, _, name = path.partition(".")
+        if isinstance(groups.get(group), Mapping) and name in groups[group]:
+            picked[path] = groups[group][name]
+    return config_from_dict(EMConfig, picked, source=source)
 
 
 def track_start_candidates(model: EMModel, data: LandmarkLog) -> list[tuple[float, float]]:
@@ -115,14 +120,14 @@ def start_headings() -> tuple[np.ndarray, float]:
 def range_start_candidates(
     model: EMModel, data: LandmarkLog, config: EMConfig, progress: Progress | None = None
 ) -> list[EMModel]:
-    """Up to ``config.start_candidates`` starts for a planar log read without bearings: every point of
-    ``start.search_grid`` (``config.start_search_grid_mm`` cells) at each of ``RANGE_HEADINGS`` headings,
-    scored by ``log P(O | C, lambda)`` (eq. 4.14) of the first ``config.start_search_s`` seconds under
+    """Up to ``config.search.start_candidates`` starts for a planar log read without bearings: every point of
+    ``start.search_grid`` (``config.search.start_grid_mm`` cells) at each of ``RANGE_HEADINGS`` headings,
+    scored by ``log P(O | C, lambda)`` (eq. 4.14) of the first ``config.search.start_s`` seconds under
     the learned model, the best of them that are a few cells or two headings apart from each other.
     Each starts with a prior sd of a grid cell in position and half a heading step in heading, so
     that the true start is within one sd of its nearest candidate in every component."""
-    window = search_window(data, config.start_search_s or SEARCH_WINDOW_S)
-    g = config.start_search_grid_mm
+    window = search_window(data, config.search.start_s or SEARCH_WINDOW_S)
+    g = config.search.start_grid_mm
     points = search_grid(data.landmarks_xy, data.landmarks_xy[data.obs_landmark[0]], g)
     headings, step = start_headings()
     cov = np.diag([g**2, g**2, (0.5 * step) ** 2])
@@ -145,7 +150,7 @@ def range_start_candidates(
             for m in chosen
         ):
             chosen.append(mean)
-        if len(chosen) == config.start_candidates:
+        if len(chosen) == config.search.start_candidates:
             break
     return [model.replace(prior_mean=m, prior_cov=cov) for m in chosen]
 
@@ -158,21 +163,21 @@ def localize(
     progress: Progress | None = None,
 ) -> Localized:
     """The smoothed path of ``data`` under ``model``, held; ``start`` (a pose, or a distance on a track)
-    skips the search and is used with ``config.start_prior_sd``; a planar ``start`` of two numbers is
+    skips the search and is used with ``config.thesis.start_prior_sd``; a planar ``start`` of two numbers is
     the position alone, and the heading is searched for."""
     cfg = config or EMConfig()
     refuse_no_sightings(data)  # the start and the path are placed by the sightings
     n = model.prior_mean.size
-    gate = cfg.prune_rad_per_step if data.geometry == "planar" else 0.0
+    gate = cfg.thesis.prune_rad_per_step if data.geometry == "planar" else 0.0
     given = None if start is None else np.asarray(start, dtype=float).ravel()
     if given is not None and n == 3 and given.size == 2:
         headings, step = start_headings()
-        cov = np.diag([cfg.start_prior_sd[0] ** 2, cfg.start_prior_sd[1] ** 2, (0.5 * step) ** 2])
+        cov = np.diag([cfg.thesis.start_prior_sd[0] ** 2, cfg.thesis.start_prior_sd[1] ** 2, (0.5 * step) ** 2])
         candidates = [model.replace(prior_mean=np.array([*given, theta]), prior_cov=cov) for theta in headings]
         how = "the given position at each heading"
     elif given is not None:
         mean = given.reshape(n)
-        cov = np.diag(np.asarray(cfg.start_prior_sd[:n], dtype=float) ** 2)
+        cov = np.diag(np.asarray(cfg.thesis.start_prior_sd[:n], dtype=float) ** 2)
         candidates = [model.replace(prior_mean=mean, prior_cov=cov)]
         how = "given"
     elif data.geometry == "track":
@@ -191,7 +196,7 @@ def localize(
         candidates = range_start_candidates(model, data, cfg, progress)
         how = "the ranges' start search"
     else:
-        search = replace(cfg, start_search_s=cfg.start_search_s or SEARCH_WINDOW_S)
+        search = cfg.replace(start_search_s=cfg.search.start_s or SEARCH_WINDOW_S)
         candidates, _ = start_candidates(data, model, search)
         how = "the start search's candidates"
     scores = []

@@ -66,17 +66,17 @@ def plan_stages(cfg: EMConfig, model: EMModel, freedom: MountFreedom, spent: int
     settle on a trajectory shifted behind the robot (docs/em-real.md). A start race's ``spent`` held
     iterations count; nothing to hold, ``refine_from`` 0 without a race, or a learned start (warm_start,
     settled already): the free stage alone."""
-    free = Stage("free", cfg.motion_noise != "fixed", True, freedom.free, True)
-    nothing_held = cfg.refine_from <= 0 and spent == 0
-    if not holds_anything(cfg, model, freedom) or nothing_held or cfg.warm_start:
+    free = Stage("free", cfg.motion_noise.kind != "fixed", True, freedom.free, True)
+    nothing_held = cfg.search.refine_from <= 0 and spent == 0
+    if not holds_anything(cfg, model, freedom) or nothing_held or cfg.search.warm_start:
         return (free,)
-    return (Stage("held", False, False, NO_MOUNT, False, ends_by=cfg.refine_from - spent), free)
+    return (Stage("held", False, False, NO_MOUNT, False, ends_by=cfg.search.refine_from - spent), free)
 
 
 def holds_anything(cfg: EMConfig, model: EMModel, freedom: MountFreedom) -> bool:
     """Whether a held stage would differ from the free one."""
     terms = any(c.bearing_terms for c in model.sensor.channels)
-    return cfg.motion_noise != "fixed" or model.sensor.is_robust or terms or freedom.any
+    return cfg.motion_noise.kind != "fixed" or model.sensor.is_robust or terms or freedom.any
 
 
 @dataclass
@@ -133,14 +133,14 @@ class _Searches:
     def for_fit(
         cls, data: LandmarkLog, model: EMModel, cfg: EMConfig, freedom: MountFreedom, on: bool = True
     ) -> _Searches:
-        max_delay = round((cfg.action_delay_max_s or 0.0) / data.dt_s)
-        delay_on = on and cfg.delay_search and max_delay > 0 and isinstance(model.action, LinearActionModel)
-        ridge_on = on and cfg.ridge_search_mm is not None
+        max_delay = round((cfg.action.delay_max_s or 0.0) / data.dt_s)
+        delay_on = on and cfg.search.delay and max_delay > 0 and isinstance(model.action, LinearActionModel)
+        ridge_on = on and cfg.search.ridge_mm is not None
         return cls(data, cfg, max_delay, ridge_on, delay_on, freedom.free if on else NO_MOUNT)
 
     def due(self, it: int, stage_ends: bool, since: int | None) -> bool:
         """``since``: the iteration the last stage began at (None before it)."""
-        again = since is not None and it > since and (it - since) % self.cfg.search_every == 0
+        again = since is not None and it > since and (it - since) % self.cfg.search.every == 0
         return (self.ridge_on or self.delay_on or any(self.mount_free)) and (stage_ends or again)
 
     def run(
@@ -149,7 +149,7 @@ class _Searches:
         evaluate = partial(_stage_e_step, data=self.data, obs_use=obs_use, robust=robust)
         score = partial(stage_loglik, data=self.data, obs_use=obs_use, robust=robust)
         if self.ridge_on:
-            model, post, info = search_ridge(model, post, score, evaluate, self.cfg.ridge_search_mm)
+            model, post, info = search_ridge(model, post, score, evaluate, self.cfg.search.ridge_mm)
             self.ridge.append({"iteration": it, **info})
         if self.delay_on:
             model, post, info = search_delay(model, post, score, evaluate, self.max_delay)
@@ -232,8 +232,8 @@ class _Run:
         if not self.model.sensor.is_robust:
             return post
         self.trace.best_ll = -np.inf
-        if self.cfg.prune_when_freed:
-            post, self.n_late = drop_late_outliers(post, self.data, self.cfg.prune_rad_per_step, self.model)
+        if self.cfg.robust.prune_when_freed:
+            post, self.n_late = drop_late_outliers(post, self.data, self.cfg.thesis.prune_rad_per_step, self.model)
             self.obs_use = post.obs_used
         return post
 
@@ -244,7 +244,7 @@ class _Run:
             post,
             self.data,
             self.model,
-            n_samples=self.cfg.samples_per_frame,
+            n_samples=self.cfg.thesis.samples_per_frame,
             floor_var=floor,
             rng=self.rng,
             learn_motion_noise=s.motion_noise,
@@ -280,7 +280,9 @@ def em_loop(run: _Run, iterations: int, progress: Progress | None = None) -> str
 
 def prior_floor_var(cfg: EMConfig, n: int) -> np.ndarray:
     """pi(w_0)'s variance floor per state component (``prior_floor_sd``: mm, then rad)."""
-    return np.array([cfg.prior_floor_sd[0] ** 2] * min(n, 2) + ([cfg.prior_floor_sd[1] ** 2] if n == 3 else []))
+    return np.array(
+        [cfg.thesis.prior_floor_sd[0] ** 2] * min(n, 2) + ([cfg.thesis.prior_floor_sd[1] ** 2] if n == 3 else [])
+    )
 
 
 def run_stages(
@@ -301,8 +303,12 @@ def run_stages(
     configured; off, none)."""
     trace = _Trace(model)
     searches = _Searches.for_fit(data, model, cfg, freedom, searches_on)
-    warm = cfg.warm_start and holds_anything(cfg, model, freedom)  # a learned start has settled: freed from the first
-    run = _Run(data, cfg, tuple(stages), model, trace, searches, np.random.default_rng(cfg.seed), patience, prune)
+    warm = cfg.search.warm_start and holds_anything(
+        cfg, model, freedom
+    )  # a learned start has settled: freed from the first
+    run = _Run(
+        data, cfg, tuple(stages), model, trace, searches, np.random.default_rng(cfg.thesis.seed), patience, prune
+    )
     run.freed_at = 0 if warm else -1
     run.began.append((run.current.name, 0))
     start = time.perf_counter()
@@ -349,7 +355,7 @@ def searched_start(
 ) -> tuple[EMModel, dict[str, Any] | None, int]:
     """Where the robot starts when nobody says (``start.py``): the model placed there, what the search
     tried, and the held iterations the start race already gave the model (0 without a race)."""
-    if not (cfg.start_search_s is not None and data.geometry == "planar" and not cfg.warm_start):
+    if not (cfg.search.start_s is not None and data.geometry == "planar" and not cfg.search.warm_start):
         return model, None, 0
     candidates, info = start_candidates(data, model, cfg)
     model, spent = candidates[0], 0
@@ -373,15 +379,15 @@ def fit_em_once(
     ``em_loop`` through ``plan_stages``; a race's held iterations count toward ``max_iterations``."""
     cfg = config or EMConfig()
     model = initial or initial_model(data, cfg)
-    if cfg.motion_noise == "fixed":  # the thesis: Sigma_m is the configured constant, whatever the start says
+    if cfg.motion_noise.kind == "fixed":  # the thesis: Sigma_m is the configured constant, whatever the start says
         model = model.replace(motion_sd=motion_sd_start(cfg, model.prior_mean.size))
     model, start_info, spent = searched_start(data, model, cfg, on_race)
     freedom = mount_freedom(model, cfg.sensor_mount is not None, model.sensor.sigma_bearing_rad is not None)
     stages = plan_stages(cfg, model, freedom, spent)
-    iterations = max(cfg.max_iterations - spent, 1)
+    iterations = max(cfg.thesis.max_iterations - spent, 1)
     return run_stages(
-        data, model, cfg, stages, iterations, freedom=freedom, patience=cfg.patience,
-        prune=cfg.prune_rad_per_step, progress=progress, start_search=start_info,
+        data, model, cfg, stages, iterations, freedom=freedom, patience=cfg.thesis.patience,
+        prune=cfg.thesis.prune_rad_per_step, progress=progress, start_search=start_info,
     )  # fmt: skip
 
 

@@ -43,14 +43,14 @@ DISTINCT_CELLS = 2.5  # candidates closer than this many grid cells are one cand
 
 
 def start_candidates(data: LandmarkLog, model: EMModel, config: EMConfig) -> tuple[list[EMModel], dict[str, Any]]:
-    """Up to ``config.start_candidates`` models with distinct ``pi(w_0)``, best window likelihood first."""
+    """Up to ``config.search.start_candidates`` models with distinct ``pi(w_0)``, best window likelihood first."""
     first = np.flatnonzero(np.isfinite(data.obs_bearing_rad))
     if data.geometry != "planar" or first.size == 0 or len(data.landmarks_xy) == 0:
         raise ValueError("the start search needs a planar log with bearings to mapped landmarks")
-    window = search_window(data, config.start_search_s)
+    window = search_window(data, config.search.start_s)
     k0 = first[0]
     lm = data.landmarks_xy
-    g = config.start_search_grid_mm
+    g = config.search.start_grid_mm
     target = lm[data.obs_landmark[k0]]
     points = search_grid(lm, target, g)
     cov = np.diag([g**2, g**2, 0.3**2])
@@ -77,15 +77,16 @@ def start_candidates(data: LandmarkLog, model: EMModel, config: EMConfig) -> tup
         raise ConfigError(
             "no start candidate gave a finite likelihood.",
             file=data.source,
-            field="start_search_s",
-            fix="set start_search_s: null and give start_prior_mean (x mm, y mm, heading rad) and start_prior_sd.",
+            field="search.start_s",
+            fix="set search.start_s: null and give thesis.start_prior_mean (x mm, y mm, heading rad) and "
+            "start_prior_sd.",
         )
     scored.sort(key=lambda s: -s[0])
     chosen: list[tuple[float, np.ndarray]] = []
     for ll, mean in scored:
         if all(np.hypot(*(mean[:2] - m[:2])) >= DISTINCT_CELLS * g for _, m in chosen):
             chosen.append((ll, mean))
-        if len(chosen) == config.start_candidates:
+        if len(chosen) == config.search.start_candidates:
             break
     info = {
         "grid_points": len(scored),
@@ -158,7 +159,7 @@ def race_starts(
     ``start_trial_iterations`` until two are left, and the better of those wins. ``workers`` threads
     run a round's trials (one per core by default); ``on_trial`` hears of each trial as it is done,
     in the order of the field."""
-    trial = config.start_trial_iterations  # of the held, Gaussian, ungated stage: one likelihood for every start
+    trial = config.search.start_trial_iterations  # of the held, Gaussian, ungated stage: one likelihood for every start
     alive = list(range(len(candidates)))
     models = list(candidates)
     spent = [0] * len(candidates)

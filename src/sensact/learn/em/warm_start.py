@@ -14,7 +14,6 @@ config describes; a model of others is refused, naming the first setting that di
 
 from __future__ import annotations
 
-from dataclasses import replace
 from typing import Any
 
 from sensact.errors import ConfigError
@@ -32,13 +31,13 @@ def families(model: EMModel) -> list[tuple[str, Any]]:
     out: list[tuple[str, Any]] = [("geometry", model.geometry)]
     a = model.action
     if isinstance(a, ActionTable):
-        out += [("action_basis", "table"), ("actions", a.n_actions)]
+        out += [("action.basis", "table"), ("actions", a.n_actions)]
     else:
         out += [
-            ("action_basis", a.basis),
-            ("action_degree", a.degree if a.basis == "polynomial" else None),
-            ("action_zero_mean", tuple(a.zero_mean)),
-            ("action_inputs", tuple(a.inputs)),
+            ("action.basis", a.basis),
+            ("action.degree", a.degree if a.basis == "polynomial" else None),
+            ("action.zero_mean", tuple(a.zero_mean)),
+            ("action.inputs", tuple(a.inputs)),
         ]
     s = model.sensor
     out.append(("channels", tuple(c.name for c in s.channels)))
@@ -54,11 +53,11 @@ def families(model: EMModel) -> list[tuple[str, Any]]:
     bearing = s.sigma_bearing_rad is not None
     out += [
         ("bearing", "read" if bearing else "none"),
-        ("bearing_robust", s.bearing_robust if bearing else None),
-        ("bearing_robust_param", s.bearing_robust_param if bearing and s.bearing_robust != "none" else None),
-        ("joint_student_t", s.joint_student_t),
+        ("robust.bearing", s.bearing_robust if bearing else None),
+        ("robust.bearing_param", s.bearing_robust_param if bearing and s.bearing_robust != "none" else None),
+        ("robust.joint_student_t", s.joint_student_t),
         (
-            "motion_noise",
+            "motion_noise.kind",
             "per_action" if model.per_action_noise else "turning" if model.turn_var is not None else "shared",
         ),
     ]
@@ -94,4 +93,4 @@ def start_from_model(
     searched for again."""
     refuse_other_families(model, initial_model(data, config), source)
     placed = localize(model, data, config, progress=progress)
-    return placed, replace(config, warm_start=True)
+    return placed, config.replace(warm_start=True)
