@@ -165,36 +165,30 @@ def diagnose(result: EMResult, log: OpenedLog, cfg: EMConfig) -> Diagnostics:
     return Diagnostics(result.pruned_fraction, autocorrelation, tuple(signs), held, tuple(warnings))
 
 
-def _start(
-    log: OpenedLog, settings: Settings, start_from: Path | None, events: FitEvents
-) -> tuple[OpenedLog, EMModel, Settings, StartFrom | None]:
-    """Sec. 4.4.1's poor start, or a learned model placed on the log (``learn/em/warm_start.py``; a
-    Turtlebot CSV read onto its step): the log, the model EM starts from, the settings EM runs with and
-    the placement."""
-    if start_from is None:
-        return log, initial_model(log.data, settings.config), settings, None
+def _placed_start(
+    start_from: Path, doc: dict[str, Any], model: EMModel, log: OpenedLog, settings: Settings, events: FitEvents
+) -> tuple[EMModel, Settings, StartFrom]:
+    """A learned model placed on the log (``learn/em/warm_start.py``): the model EM starts from, the settings
+    EM runs with and the placement."""
     from dataclasses import replace
 
     from sensact.learn.em.warm_start import start_from_model
 
-    doc, model, log = read_model_and_log(log.path, start_from, log.bins, use="start")
     placed, cfg = start_from_model(model, log.data, settings.config, events.placing, source=str(start_from))
     start = StartFrom(start_from, doc, placed, log)
     if events.on_placed is not None:
         events.on_placed(start)
-    return log, placed.model, replace(settings, config=cfg), start
+    return placed.model, replace(settings, config=cfg), start
 
 
-def start_settings(start_from: Path) -> EMConfig | None:
+def learned_settings(doc: Mapping[str, Any], source: str) -> EMConfig | None:
     """The settings a learned model was learned with (its model.json's ``summary.config``), if it says."""
-    from sensact.app.logs import read_em_model
     from sensact.config import config_from_dict
 
-    doc, _ = read_em_model(start_from)
     learned = (doc.get("summary") or {}).get("config")
     if learned is None:
         return None
-    return config_from_dict(EMConfig, upgrade_settings(learned), source=f"{start_from}: summary.config")
+    return config_from_dict(EMConfig, upgrade_settings(learned), source=f"{source}: summary.config")
 
 
 def calibrate(
@@ -213,20 +207,27 @@ def calibrate(
     ``start_from``: a model.json of `learn em` to start from instead of the thesis's poor guess, placed on
     the log first. Ctrl-C ends EM cleanly with the most likely model so far (``stop_reason``)."""
     events = events or FitEvents()
-    if isinstance(config, EMConfig):
-        settings = Settings(config, preset, "given")
-    else:
-        base = None if start_from is None else start_settings(start_from)
-        if base is None and start_from is not None and log.is_turtlebot_csv:
+    base = doc = model = None
+    if start_from is not None:  # read once; a Turtlebot CSV onto the model's step
+        doc, model, log = read_model_and_log(log.path, start_from, log.bins, use="start")
+        base = learned_settings(doc, str(start_from))
+        if base is None and log.is_turtlebot_csv:
             from sensact.presets import turtlebot_em_config
 
             base = turtlebot_em_config(log.data.reading_names)
+    if isinstance(config, EMConfig):
+        settings = Settings(config, preset, "given")
+    else:
         settings = resolve_settings(log, preset=preset, config=config, sets=sets, base=base)
     if events.on_settings is not None:
         events.on_settings(settings)
     refuse_table_on_continuous_commands(log, settings.config)
     refuse_bearing_settings(settings.config, log.data)  # before the starting model, which would fail on it
-    log, start, settings, placed = _start(log, settings, start_from, events)
+    placed = None
+    if start_from is None:
+        start = initial_model(log.data, settings.config)
+    else:
+        start, settings, placed = _placed_start(start_from, doc, model, log, settings, events)
     result = fit_em(
         log.data,
         start,
@@ -238,6 +239,5 @@ def calibrate(
     )
     diagnostics = diagnose(result, log, settings.config)
     path = None if result.posteriors is None else result.posteriors.mean_gamma
-    fit = result
-    scores = score_model(log, result.model, learned_here=True, path=path, fit=fit)
+    scores = score_model(log, result.model, learned_here=True, path=path, fit=result)
     return Calibration(log, settings, result, diagnostics, scores, placed)

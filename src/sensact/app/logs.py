@@ -52,12 +52,6 @@ class OpenedLog:
         """The log as figures' titles name it."""
         return self.folder.title(self.path) if self.folder is not None else Path(self.data.source).name
 
-    def on_step(self, dt_s: float | None) -> OpenedLog:
-        """This log read onto a model's step ``dt_s``: a Turtlebot CSV read again, a folder's steps are its own."""
-        if dt_s is None or not self.is_turtlebot_csv or abs(dt_s - self.data.dt_s) <= 1e-12:
-            return self
-        return open_log(self.path, bins=self.bins, dt_s=dt_s)
-
 
 def is_turtlebot_csv(log: Path) -> bool:
     """Whether EM reads ``log`` as a Turtlebot CSV, not as a log folder."""
@@ -88,11 +82,10 @@ def open_log(path: str | Path, *, bins: int = 21, dt_s: float | None = None) -> 
     return OpenedLog(log, lf.data, lf, lf.truth_distance_mm(), bins)
 
 
-def read_em_model(model: Path) -> tuple[dict[str, Any], Any]:
+def read_em_model(model: Path) -> tuple[dict[str, Any], EMModel]:
     """A model.json `sensact learn em` wrote: the whole document (its ``dt_s`` too) and the model."""
     from sensact.errors import ModelFormatError
     from sensact.io.jsonfile import read_json_object
-    from sensact.models.em_model import EMModel
 
     doc = read_json_object(model, ModelFormatError, "give the model.json `sensact learn em` wrote.")
     return doc, EMModel.from_dict(doc.get("model", doc), source=str(model))
@@ -104,8 +97,6 @@ def refuse_model_for_log(
     """A model scores (or runs, or starts EM: ``use`` "scored", "run" or "start") only on a log it could have
     been learned from: the same geometry, commands (or number of actions), readings and step, since its delay
     is counted in steps. One line naming what differs; ``learn`` is the command that learns a model on ``log``."""
-    import numpy as np
-
     from sensact.errors import ModelFormatError
     from sensact.models.action_table import ActionTable
 

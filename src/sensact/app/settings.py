@@ -60,8 +60,9 @@ def resolve_settings(
     elif preset is not None:
         base, name, origin = for_log(preset, log.data), preset, f"preset {preset}"
     elif config is None and log.settings_file is not None:
-        base, origin = read_settings_file(log.settings_file, log), str(log.settings_file)
-        name = preset_of(load_yaml_mapping(log.settings_file), origin)
+        origin = str(log.settings_file)
+        fields, name = _layer(log, EMConfig(), None, log.settings_file)
+        base = config_from_dict(EMConfig, fields, source=origin)
     elif log.is_turtlebot_csv:
         base, name = turtlebot_em_config(log.data.reading_names), "track_1d"
         origin = "Turtlebot CSV: the Turtlebot's EM settings (preset track_1d, on the channels it has)"

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from functools import cache
 from importlib import resources
 from typing import Any
 
@@ -44,6 +45,7 @@ def preset_yaml(name: str) -> str:
     return resources.files(__package__).joinpath(f"{name}.yaml").read_text(encoding="utf-8")
 
 
+@cache  # a frozen config: every caller may share it, and the YAML is read once
 def load_preset(name: str) -> EMConfig:
     """The preset ``name`` as an ``EMConfig``, on the columns it names (``for_log`` moves it to a log's)."""
     import yaml
@@ -97,14 +99,9 @@ def range_only_config(command_names: tuple[str, ...], start_pose: tuple[float, f
     )
 
 
-# a distance sensor's poor start (the Turtlebot's sonar1) and a robust channel's degrees of freedom
-def _track_base() -> EMConfig:
-    return load_preset("track_1d")
-
-
 def distance_channel(name: str, robust: bool) -> ChannelConfig:
-    """The track_1d preset's distance channel under the log's own name."""
-    t = _track_base()
+    """The track_1d preset's distance channel (its poor line) under the log's own name."""
+    t = load_preset("track_1d")
     kind = ("student_t", ROBUST_NU) if robust else ("none", 0.0)
     return ChannelConfig(
         name,
@@ -127,7 +124,7 @@ def turtlebot_em_config(readings: tuple[str, ...] = EM_READINGS) -> EMConfig:
     for name in (r for r in EM_READINGS[1:] if r in readings):
         lo, hi = SPEC_RANGE_M[name]
         chans.append(ChannelConfig(name, 3, 1.5, -0.0002, 1.0, lo * 1000.0, hi * 1000.0))
-    return replace(_track_base(), channels=tuple(chans))
+    return replace(load_preset("track_1d"), channels=tuple(chans))
 
 
 def track_em_config(
@@ -156,7 +153,7 @@ def track_em_config(
         start = (float(f"{np.median(v):.4g}") if v.size else 0.0, 0.0, float(f"{spread:.4g}") if spread > 0 else 1.0)
         kind = ("student_t", ROBUST_NU) if name in robust else ("none", 0.0)
         chans.append(ChannelConfig(name, 3, *start, lo, hi, *kind))
-    return replace(_track_base(), channels=tuple(chans))
+    return replace(load_preset("track_1d"), channels=tuple(chans))
 
 
 def for_log(name: str, data: LandmarkLog) -> EMConfig:

@@ -8,6 +8,7 @@ moved metres (``given_start.py``); ``face_forward`` turns a range-only fit that 
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from dataclasses import replace as dc_replace
 from functools import partial
 from typing import Any
@@ -88,16 +89,19 @@ def fit_em(
     start = initial or initial_model(data, cfg)
     refuse_too_few_readings(start, data)
     fit: Fit = partial(fit_em_once, data, config=cfg, progress=progress, on_race=on_race)
+    heard = Heard(on_restart, on_race, on_start_moved)
     for policy in POLICIES:
-        fit = policy(fit, data, cfg, Heard(on_restart, on_race, on_start_moved))
+        fit = policy(fit, data, cfg, heard)
     return fit(start)
 
 
+@dataclass(frozen=True)
 class Heard:
     """What the policies tell as they go (``fit_em``'s callbacks)."""
 
-    def __init__(self, on_restart: OnRestart | None, on_race: OnTrial | None, on_start_moved: OnStartMoved | None):
-        self.on_restart, self.on_race, self.on_start_moved = on_restart, on_race, on_start_moved
+    on_restart: OnRestart | None
+    on_race: OnTrial | None
+    on_start_moved: OnStartMoved | None
 
 
 # a policy: (the fit it wraps, the log, the settings, the callbacks) -> a fit
