@@ -7,6 +7,7 @@ stays instant.
 
 from sensact.cli import (  # noqa: F401  (each registers its commands, in the order `--help` lists them)
     convert,
+    convert_bag,
     evaluate,
     learn,
     localize,

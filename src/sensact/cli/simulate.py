@@ -93,6 +93,15 @@ def simulate_diffdrive_cmd(
     seed: Annotated[int | None, typer.Option(help="Random seed (default 0).")] = None,
     set_: SetOpt = None,
     config: ConfigOpt = None,
+    bag: Annotated[
+        Path | None,
+        typer.Option(
+            help="Also write the run as a ROS bag here, with map.csv beside it: a .bag path is ROS 1, else a ROS "
+            "2 bag folder (--bag-format).",
+            show_default=False,
+        ),
+    ] = None,
+    bag_format: Annotated[str, typer.Option(help="A ROS 2 bag's storage: mcap or sqlite3.")] = "mcap",
 ) -> None:
     """Simulate a differential drive on continuous commands among landmarks, as in the MRCLAM logs.
 
@@ -129,4 +138,30 @@ def simulate_diffdrive_cmd(
         + "), commands "
         + f"{', '.join(log.command_names)}, command delay {cfg.delay_s:g} s and lag {cfg.lag_s:g} s (seed {cfg.seed}); "
         f"learn with `sensact learn em {out}` (settings: {em_cfg})"
+    )
+    if bag is not None:
+        _write_bag(run, bag, bag_format)
+
+
+def _write_bag(run, bag: Path, bag_format: str) -> None:
+    """The run as a ROS robot records it (experiments.diffdrive.recording_of), and its map beside it."""
+    from sensact.errors import ConfigError
+    from sensact.experiments.diffdrive import recording_of
+    from sensact.io.rosbag_write import write_map_csv, write_robot_bag
+
+    fmt = "ros1" if bag.suffix == ".bag" else bag_format
+    if fmt not in ("mcap", "sqlite3", "ros1"):
+        raise ConfigError(
+            f"--bag-format {bag_format} is not a ROS 2 storage.", field="--bag-format", fix="mcap or sqlite3"
+        )
+    try:
+        rec = recording_of(run)
+    except ValueError as err:
+        raise ConfigError(f"cannot write this robot as a bag: {err}.", field="--bag", fix="drop --bag") from None
+    if bag.exists():
+        raise ConfigError(f"{bag} is there already.", field="--bag", fix="give a new path (a bag is never overwritten)")
+    path = write_robot_bag(bag, fmt, rec)
+    grid = write_map_csv(bag.parent / "map.csv", rec.map_xy_m)
+    console.print(
+        f"wrote {path} ({fmt}) and its map {grid}; convert with `sensact convert bag {path} --landmarks {grid}`"
     )

@@ -240,7 +240,7 @@ def _read_commands(path: Path, dt_s: float | None) -> tuple[np.ndarray, tuple[st
     return t_cmd, names, t0, held, dt_s
 
 
-def _read_landmarks(path: Path) -> tuple[np.ndarray, np.ndarray]:
+def read_landmarks(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """landmarks.csv: the map (mm) and each landmark's id, one row each."""
     lm = _table(path, ("id", "x_mm", "y_mm"), "landmarks.csv", "id, x_m (or x_mm) and y_m (or y_mm)", labels=("id",))
     fix_lm = "every landmark needs an id and a position."
@@ -295,7 +295,7 @@ def read_timed_csv(
         raise LogFormatError(f"dt = {dt_s} is not a step.", field="dt", fix="give a step in seconds, e.g. 0.0333.")
     t_cmd, names, t0, held, dt_s = _read_commands(commands, dt_s)
     T = len(held)
-    landmarks_mm, ids = _read_landmarks(landmarks)
+    landmarks_mm, ids = read_landmarks(landmarks)
     t_obs, seen_id, readings, values, bearing = _read_sightings(sightings)
     step, inside = nearest_steps(t_obs, t0, dt_s, T)
     known = np.isin(seen_id, ids)

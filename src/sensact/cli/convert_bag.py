@@ -1,0 +1,219 @@
+"""``sensact convert bag``: a ROS 1 or ROS 2 bag to a log folder, through the timed CSVs of ``convert csv``
+(a robot among landmarks) or ``convert track`` (a 1-D robot with Range sensors)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from sensact.cli.base import console, convert_app, friendly
+from sensact.cli.convert import convert_csv, convert_track
+
+TABLES = "bag_tables"  # the CSVs read from the bag, kept in the log folder to check by eye
+
+
+def _mapping(path: Path | None):
+    """The roles a YAML mapping file names (``commands``, ``readings``, ``sightings``, ``truth``)."""
+    from sensact.errors import LogFormatError
+    from sensact.io.rosbag import Roles
+
+    if path is None:
+        return {}
+    import yaml
+
+    try:
+        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
+        raise LogFormatError(f"not a readable YAML mapping ({type(exc).__name__}).", file=path, fix="--help") from None
+    known = set(Roles.__dataclass_fields__)
+    if not isinstance(doc, dict) or not set(doc) <= known:
+        raise LogFormatError(
+            f"a mapping holds only {', '.join(sorted(known))}, a topic each (readings: a list).",
+            file=path,
+            fix="write e.g. `commands: /cmd_vel` and `sightings: /tf`, a line per role.",
+        )
+    out = {k: v for k, v in doc.items() if v is not None}
+    if "readings" in out:
+        out["readings"] = tuple([out["readings"]] if isinstance(out["readings"], str) else out["readings"])
+    return out
+
+
+@convert_app.command("bag")
+@friendly
+def convert_bag(
+    bag: Annotated[Path, typer.Argument(help="A ROS 1 .bag, or a ROS 2 bag folder (sqlite3 or MCAP) or its file.")],
+    out: Annotated[Path, typer.Option("--out", help="The log folder to write.")] = Path("robot_log"),
+    landmarks: Annotated[
+        Path | None, typer.Option(help="The map, id,x_m,y_m (a tag's id is its number), for tag sightings.")
+    ] = None,
+    commands: Annotated[
+        str | None, typer.Option(metavar="TOPIC", help="Twist, TwistStamped or Odometry (its twist).")
+    ] = None,
+    readings: Annotated[
+        list[str] | None, typer.Option(metavar="TOPIC", help="A sensor_msgs/Range topic (repeat for each).")
+    ] = None,
+    sightings: Annotated[
+        str | None, typer.Option(metavar="TOPIC", help="/tf with tag frames, or an AprilTagDetectionArray.")
+    ] = None,
+    truth: Annotated[
+        str | None, typer.Option(metavar="TOPIC", help="For scoring only: PoseStamped, or Odometry from mocap.")
+    ] = None,
+    mapping: Annotated[
+        Path | None, typer.Option(help="A YAML file naming a topic per role (commands, readings, sightings, truth).")
+    ] = None,
+    receive_times: Annotated[
+        bool, typer.Option("--receive-times", help="Time every message by when it was recorded, not its stamp.")
+    ] = False,
+    dt: Annotated[float | None, typer.Option(help="Step (s); by default the commands' median interval.")] = None,
+) -> None:
+    """Write a ROS bag as a log folder for `sensact learn em` (and `learn bootstrap` for a 1-D robot).
+
+    With no topics named, the bag's types choose them: a Twist (/cmd_vel) is the commands, or an Odometry
+    where there is no Twist (wheel odometry used as the command); sensor_msgs/Range topics are a 1-D
+    robot's readings; AprilTag transforms on /tf (camera optical frame to tag36h11:ID) or ROS 1's
+    apriltag_ros detections are range-and-bearing sightings of the map's landmarks; a PoseStamped is the
+    truth, for scoring only. When a role is ambiguous the topics are listed with a proposal and nothing is
+    written: name them with the options or --mapping. Header stamps time the messages (a Twist has none:
+    when it was recorded), or --receive-times. Units become sensact's (mm) and the robot's axes REP 103's;
+    the camera's position on the robot is left for EM to learn, and what /tf_static says of it is kept in
+    meta.json to compare. The tables read from the bag stay in OUT/bag_tables/."""
+    from sensact.errors import LogFormatError
+    from sensact.io.rosbag import (
+        Roles,
+        bag_topics,
+        check_roles,
+        open_bag,
+        propose_roles,
+        read_bag_tables,
+        topic_lines,
+        write_table,
+    )
+
+    given = {
+        k: v
+        for k, v in {
+            "commands": commands,
+            "readings": tuple(readings) if readings else None,
+            "sightings": sightings,
+            "truth": truth,
+        }.items()
+        if v
+    }
+    named = {**_mapping(mapping), **given}
+    reader = open_bag(bag)
+    try:
+        topics = bag_topics(reader)
+        proposal, open_roles = propose_roles(reader, topics)
+    finally:
+        reader.close()
+    if not topics:
+        raise LogFormatError("the bag holds no topic.", file=bag, fix="record the robot's topics into it.")
+    roles = Roles(**{**proposal.__dict__, **named})
+    if "readings" in named and "sightings" not in named:
+        roles = Roles(roles.commands, roles.readings, None, roles.truth)
+    if "sightings" in named and "readings" not in named:
+        roles = Roles(roles.commands, (), roles.sightings, roles.truth)
+    console.print(f"{bag}: " + "; ".join(topic_lines(topics)), highlight=False)
+    console.print("roles: " + "; ".join(roles.lines()), highlight=False)
+    unresolved = [text for settled_by, text in open_roles if not settled_by & set(named)]
+    if unresolved or roles.commands is None or not (roles.readings or roles.sightings):
+        raise LogFormatError(
+            f"cannot tell which topic plays which part ({'; '.join(unresolved) or 'commands or readings missing'}).",
+            file=bag,
+            fix="name them: --commands TOPIC, --readings TOPIC or --sightings TOPIC, --truth TOPIC (or --mapping).",
+        )
+    check_roles(bag, roles, topics)
+    tables = read_bag_tables(bag, roles, receive_times=receive_times)
+    for note in tables.notes:
+        console.print(f"[yellow]note:[/] {note}", highlight=False)
+    src = out / TABLES
+    src.mkdir(parents=True, exist_ok=True)
+    cmd_csv = src / "commands.csv"
+    if tables.sightings is not None:
+        if landmarks is None:
+            raise LogFormatError(
+                "tag sightings need the map.",
+                file=bag,
+                fix="--landmarks map.csv (id,x_m,y_m; a tag's id is its number)",
+            )
+        write_table(cmd_csv, tables.commands)
+        write_table(src / "sightings.csv", tables.sightings, ints=("landmark_id",))
+        truth_csv = None
+        if tables.truth is not None:
+            truth_csv = src / "truth.csv"
+            write_table(truth_csv, tables.truth)
+        convert_csv(
+            commands=cmd_csv, sightings=src / "sightings.csv", landmarks=landmarks, truth=truth_csv, out=out, dt=dt
+        )
+    else:
+        track = dict(t_s=tables.commands["t_s"], v_m_s=tables.commands["v_m_s"])
+        table = _stacked([track, tables.readings] + ([_distance(tables.truth, landmarks)] if tables.truth else []))
+        if tables.truth is not None and "distance_m" not in table:
+            console.print(
+                "[yellow]note:[/] a 1-D robot's truth is scored as the distance to the map's one landmark: "
+                "give --landmarks with one row to score against it."
+            )
+        write_table(src / "track.csv", table)
+        names = [c for c in table if c.endswith("_m") and c != "distance_m"]
+        convert_track(
+            src / "track.csv",
+            out=out,
+            command=["v_m_s"],
+            reading=names,
+            distance="distance_m" if "distance_m" in table else None,
+            window=None,
+            robust=None,
+            dt=dt,
+        )
+    _record_source(out, bag, roles, tables, receive_times)
+
+
+def _distance(truth, landmarks: Path | None) -> dict:
+    """The 1-D truth: the distance from the recorded position to the map's one landmark."""
+    import numpy as np
+
+    from sensact.io.timed_csv import read_landmarks
+
+    if landmarks is None or len(xy_mm := read_landmarks(landmarks)[0]) != 1:
+        return {"t_s": truth["t_s"][:0]}
+    x, y = xy_mm[0] / 1000.0
+    return {"t_s": truth["t_s"], "distance_m": np.hypot(x - truth["x_m"], y - truth["y_m"])}
+
+
+def _stacked(tables: list[dict]) -> dict:
+    """Timed tables one under another, each row empty (NaN) in the others' columns."""
+    import numpy as np
+
+    names = list(dict.fromkeys(k for t in tables for k in t))
+    n = [len(t["t_s"]) for t in tables]
+    out = {k: np.full(sum(n), np.nan) for k in names}
+    at = 0
+    for t, m in zip(tables, n, strict=True):
+        for k, v in t.items():
+            out[k][at : at + m] = v
+        at += m
+    return {k: v for k, v in out.items() if k == "t_s" or np.isfinite(v).any()}
+
+
+def _record_source(out: Path, bag: Path, roles, tables, receive_times: bool) -> None:
+    """meta.json's source: the bag, its roles, and where /tf_static puts the camera (to compare with EM's)."""
+    from sensact.io.atomic import write_text
+
+    meta_path = out / "meta.json"
+    meta = json.loads(meta_path.read_text(encoding="utf-8"))
+    source = {
+        "bag": str(bag),
+        "roles": {k: v for k, v in roles.__dict__.items() if v},
+        "times": "receive" if receive_times else "header stamps",
+        "tables": meta.get("source", {}),
+    }
+    if tables.camera_frame:
+        source["camera_frame"] = tables.camera_frame
+    if tables.mount_from_tf:
+        x, y, yaw = tables.mount_from_tf
+        source["tf_static_mount"] = {"x_m": x, "y_m": y, "yaw_rad_applied": yaw}
+    meta["source"] = source
+    write_text(meta_path, json.dumps(meta, indent=2) + "\n")

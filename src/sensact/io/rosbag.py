@@ -1,0 +1,489 @@
+"""A ROS bag as the timed tables ``sensact convert csv`` and ``convert track`` read (``sensact convert bag``).
+
+ROS 1 bags and ROS 2 bags (sqlite3 or MCAP) are read with ``rosbags`` (pure Python: no ROS install),
+message definitions taken from the bag where it holds them (ROS 1's ``apriltag_ros`` types), else ROS 2
+Humble's. Each topic plays one role:
+
+* **commands**: ``geometry_msgs/Twist`` or ``TwistStamped`` (``/cmd_vel``), or a ``nav_msgs/Odometry``'s twist
+  (wheel odometry used as the command), as ``v_m_s``, ``omega_rad_s`` and, when the robot side-steps,
+  ``v_left_m_s`` (REP 103: x forward, y left);
+* **readings** of a 1-D robot: ``sensor_msgs/Range``, a column ``<topic>_m`` each, a reading outside its
+  message's ``[min_range, max_range]`` left empty (ROS's way of saying "nothing seen");
+* **sightings**: AprilTag detections, as ROS 2 detectors publish them (transforms on ``/tf`` from the
+  camera's optical frame to ``tag36h11:ID``) or as ROS 1's ``apriltag_ros/AprilTagDetectionArray``. The
+  tag's position is turned into the robot's axes by the rotation ``/tf_static`` gives from the tree's root
+  to the camera's frame (the optical frame's standard one, z forward, x right, y down, when it gives none)
+  and becomes the range and bearing in the ground plane from the camera. The camera's position on the
+  robot is left to EM to learn (``sensor_mount``); what ``/tf_static`` says of it is kept to compare;
+* **truth**, for scoring only: ``geometry_msgs/PoseStamped`` (motion capture), or an ``Odometry`` named
+  with ``--truth``.
+
+Times are header stamps (a Twist has none: its receive time), or receive times throughout with
+``receive_times``. Times are written as ``ns / 1e9``, float32 fields (a ``Range``'s) as their shortest
+decimal, so that a bag made from CSVs gives those CSVs' numbers back exactly.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from sensact.errors import LogFormatError
+
+COMMAND_TYPES = ("geometry_msgs/Twist", "geometry_msgs/TwistStamped", "nav_msgs/Odometry")
+READING_TYPES = ("sensor_msgs/Range",)
+TF_TYPES = ("tf2_msgs/TFMessage",)
+DETECTION_TYPES = ("apriltag_ros/AprilTagDetectionArray",)
+TRUTH_TYPES = ("geometry_msgs/PoseStamped", "geometry_msgs/PoseWithCovarianceStamped", "nav_msgs/Odometry")
+SUPPORTED = {
+    "commands": COMMAND_TYPES,
+    "readings": READING_TYPES,
+    "sightings": TF_TYPES + DETECTION_TYPES,
+    "truth": TRUTH_TYPES,
+}
+TAG_FRAME = re.compile(r"^(?:.*/)?tag[A-Za-z0-9]*[:_](\d+)$")  # tag36h11:3 (ROS 2), tag_3 (ROS 1's default)
+# the optical frame's axes (z forward, x right, y down) in the robot's (x forward, y left, z up): REP 103
+OPTICAL_TO_BODY = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+CLOCK_GAP_S = 1.0  # header stamps further than this from the recording clock are on another clock
+MOUNT_STEM = "tf_static_mount"
+
+
+@dataclass(frozen=True)
+class Topic:
+    name: str
+    msgtype: str  # without ROS 2's "/msg/": geometry_msgs/Twist
+    count: int
+
+
+@dataclass(frozen=True)
+class Roles:
+    """Which topic plays which part; None (or empty) where none does."""
+
+    commands: str | None = None
+    readings: tuple[str, ...] = ()
+    sightings: str | None = None
+    truth: str | None = None
+
+    def lines(self) -> list[str]:
+        return [
+            f"commands:  {self.commands or '-'}",
+            f"readings:  {', '.join(self.readings) or '-'}",
+            f"sightings: {self.sightings or '-'}",
+            f"truth:     {self.truth or '-'}",
+        ]
+
+
+@dataclass
+class BagTables:
+    """The bag's roles as columns, each a timed table (``t_s`` first) ready for a CSV."""
+
+    commands: dict[str, np.ndarray]
+    readings: dict[str, np.ndarray] | None = None
+    sightings: dict[str, np.ndarray] | None = None
+    truth: dict[str, np.ndarray] | None = None
+    camera_frame: str | None = None
+    mount_from_tf: tuple[float, float, float] | None = None  # camera in the root frame (x m, y m, yaw rad)
+    notes: list[str] = field(default_factory=list)
+
+
+def _short(msgtype: str) -> str:
+    return msgtype.replace("/msg/", "/")
+
+
+def open_bag(path: Path):  # -> rosbags.highlevel.AnyReader, opened
+    """The bag at ``path`` (a ROS 1 ``.bag``, or a ROS 2 bag folder or its ``.db3``/``.mcap`` file), open."""
+    try:
+        from rosbags.highlevel import AnyReader, AnyReaderError
+        from rosbags.typesys import Stores, get_typestore
+    except ImportError:
+        raise LogFormatError(
+            "reading a ROS bag needs the rosbags package.", file=path, fix="pip install 'sensact[ros]'"
+        ) from None
+    path = Path(path)
+    if not path.exists():
+        raise LogFormatError("no such file or folder.", file=path, fix="give the bag's path.")
+    if path.is_file() and path.suffix in (".db3", ".mcap") and (path.parent / "metadata.yaml").is_file():
+        path = path.parent
+    reader = AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+    try:
+        reader.open()
+    except (AnyReaderError, Exception) as err:  # rosbags raises its own per format; all mean "not a bag I can read"
+        raise LogFormatError(
+            f"not a ROS bag rosbags can read ({str(err).splitlines()[0] if str(err) else type(err).__name__}).",
+            file=path,
+            fix="give a ROS 1 .bag file, or a ROS 2 bag folder (with metadata.yaml) or its .mcap file.",
+        ) from None
+    return reader
+
+
+def bag_topics(reader) -> list[Topic]:
+    counts: dict[tuple[str, str], int] = {}
+    for c in reader.connections:
+        key = (c.topic, _short(c.msgtype))
+        counts[key] = counts.get(key, 0) + c.msgcount
+    return [Topic(t, m, n) for (t, m), n in sorted(counts.items())]
+
+
+def topic_lines(topics: list[Topic]) -> list[str]:
+    width = max((len(t.name) for t in topics), default=0)
+    return [f"{t.name:<{width}}  {t.msgtype}  ({t.count} messages)" for t in topics]
+
+
+def _tag_topics(reader, topics: list[Topic]) -> list[str]:
+    """The /tf-like topics that carry a transform to a tag frame (read until the first one)."""
+    found = []
+    for t in topics:
+        if t.msgtype not in TF_TYPES or t.name.endswith("tf_static"):
+            continue
+        conns = [c for c in reader.connections if c.topic == t.name]
+        for c, _, raw in reader.messages(connections=conns):
+            msg = reader.deserialize(raw, c.msgtype)
+            if any(TAG_FRAME.match(tr.child_frame_id) for tr in msg.transforms):
+                found.append(t.name)
+                break
+    return found
+
+
+def propose_roles(reader, topics: list[Topic]) -> tuple[Roles, list[tuple[frozenset[str], str]]]:
+    """The roles a bag's types suggest, and why any role is left open (ambiguous): with exactly one command
+    source, one kind of reading and at most one truth the proposal is complete.
+
+    Twists are the commands; an Odometry is one only where no Twist is (a robot that logs its wheel
+    odometry, not what it was told); a PoseStamped is the truth, an Odometry never is unless named. Each open
+    role comes with the roles whose naming settles it."""
+    open_roles: list[tuple[frozenset[str], str]] = []
+    either = frozenset(("readings", "sightings"))
+    twists = [t.name for t in topics if t.msgtype in COMMAND_TYPES[:2] and t.count]
+    odoms = [t.name for t in topics if t.msgtype == "nav_msgs/Odometry" and t.count]
+    commands = twists or odoms
+    if len(commands) != 1:
+        open_roles.append(
+            (frozenset(("commands",)), f"commands: {'none' if not commands else 'one of ' + ', '.join(commands)}")
+        )
+    ranges = [t.name for t in topics if t.msgtype in READING_TYPES and t.count]
+    sightings = _tag_topics(reader, topics) + [t.name for t in topics if t.msgtype in DETECTION_TYPES and t.count]
+    if len(sightings) > 1:
+        open_roles.append((either, f"sightings: one of {', '.join(sightings)}"))
+    if not ranges and not sightings:
+        open_roles.append((either, "readings or sightings: none (sensor_msgs/Range, AprilTag transforms on /tf)"))
+    if ranges and sightings:
+        open_roles.append((either, f"readings {', '.join(ranges)} or sightings {', '.join(sightings)}: not both"))
+    truths = [t.name for t in topics if t.msgtype in TRUTH_TYPES[:2] and t.count]
+    if len(truths) > 1:
+        open_roles.append((frozenset(("truth",)), f"truth: one of {', '.join(truths)}"))
+    roles = Roles(
+        commands[0] if len(commands) == 1 else None,
+        tuple(ranges) if not sightings else (),
+        sightings[0] if len(sightings) == 1 and not ranges else None,
+        truths[0] if len(truths) == 1 else None,
+    )
+    return roles, open_roles
+
+
+def check_roles(path: Path, roles: Roles, topics: list[Topic]) -> None:
+    """One line for a role on a topic the bag lacks, of a type that cannot play it, or with no message."""
+    by_name = {t.name: t for t in topics}
+    listing = ", ".join(f"{t.name} ({t.msgtype})" for t in topics)
+    named = [("commands", roles.commands), ("sightings", roles.sightings), ("truth", roles.truth)]
+    for role, name in named + [("readings", r) for r in roles.readings]:
+        if name is None:
+            continue
+        if name not in by_name:
+            raise LogFormatError(f"no topic {name} ({role}); the bag has {listing}.", file=path, fix=f"--{role} TOPIC")
+        t = by_name[name]
+        if t.msgtype not in SUPPORTED[role]:
+            raise LogFormatError(
+                f"{name} is a {t.msgtype}, which sensact cannot read as {role}.",
+                file=path,
+                field=role,
+                fix=f"give a topic of type {' or '.join(SUPPORTED[role])}.",
+            )
+        if not t.count:
+            raise LogFormatError(f"{name} ({role}) has no messages.", file=path, fix=f"give another --{role} TOPIC.")
+
+
+def _stamp_ns(header) -> int:
+    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+
+
+def _seconds(ns: np.ndarray) -> np.ndarray:
+    """Integer nanoseconds as seconds, correctly rounded: a decimal time of 9 places comes back exactly."""
+    return np.asarray(ns, dtype=np.int64).astype(np.float64) / 1e9
+
+
+def _shortest(values: np.ndarray) -> np.ndarray:
+    """float32 fields as the shortest decimal that reads back as them (what the publisher meant to say)."""
+    v = np.asarray(values, dtype=np.float32)
+    return v.astype(str).astype(np.float64)
+
+
+def _received(msgs: list[tuple[int, object]]) -> np.ndarray:
+    return np.array([t for t, _ in msgs], dtype=np.int64)
+
+
+def _read(reader, topic: str) -> list[tuple[int, object]]:
+    conns = [c for c in reader.connections if c.topic == topic]
+    return [(t, reader.deserialize(raw, c.msgtype)) for c, t, raw in reader.messages(connections=conns)]
+
+
+def _times(path: Path, topic: str, msgs: list[tuple[int, object]], stamped: bool, receive_times: bool) -> np.ndarray:
+    """Each message's time in ns: its header stamp, or when it was recorded. Refuses stamps that go back."""
+    recv = _received(msgs)
+    if receive_times or not stamped:
+        return recv
+    ns = np.array([_stamp_ns(m.header) for _, m in msgs], dtype=np.int64)
+    if not ns.any():
+        raise LogFormatError(
+            f"{topic}'s header stamps are all zero (its publisher does not stamp).",
+            file=path,
+            fix="pass --receive-times to use when each message was recorded.",
+        )
+    back = np.flatnonzero(np.diff(ns) < 0)
+    if back.size:
+        i = int(back[0]) + 1
+        raise LogFormatError(
+            f"{topic}'s clock goes backwards: message {i}'s header stamp is {(ns[i - 1] - ns[i]) / 1e9:.6g} s "
+            "before the one recorded before it.",
+            file=path,
+            fix="record on one clock (use_sim_time set alike for every node), or pass --receive-times.",
+        )
+    return ns
+
+
+def _commands(path: Path, reader, topic: str, receive_times: bool, clocks: dict) -> dict[str, np.ndarray]:
+    msgs = _read(reader, topic)
+    kind = _short(msgs[0][1].__msgtype__)
+
+    def twist(m):
+        return (
+            m if kind == "geometry_msgs/Twist" else m.twist if kind == "geometry_msgs/TwistStamped" else m.twist.twist
+        )
+
+    ns = _times(path, topic, msgs, kind != "geometry_msgs/Twist", receive_times)
+    clocks[topic] = (ns, _received(msgs))
+    tw = [twist(m) for _, m in msgs]
+    v = np.array([t.linear.x for t in tw])
+    side = np.array([t.linear.y for t in tw])
+    omega = np.array([t.angular.z for t in tw])
+    table = {"t_s": _seconds(ns), "v_m_s": v}
+    if np.any(side != 0):  # a robot that side-steps: its sideways command too
+        table["v_left_m_s"] = side
+    table["omega_rad_s"] = omega
+    return table
+
+
+def _column_of(topic: str) -> str:
+    name = re.sub(r"[^A-Za-z0-9]+", "_", topic).strip("_") or "range"
+    return f"{name}_m"
+
+
+def _ranges(path: Path, reader, topics: tuple[str, ...], receive_times: bool, clocks: dict) -> dict[str, np.ndarray]:
+    """Every Range topic's readings, one row per message, the other columns empty (NaN) on it."""
+    times, cols = [], {}
+    for topic in topics:
+        msgs = _read(reader, topic)
+        ns = _times(path, topic, msgs, True, receive_times)
+        clocks[topic] = (ns, _received(msgs))
+        r = _shortest(np.array([m.range for _, m in msgs]))
+        lo = _shortest(np.array([m.min_range for _, m in msgs]))
+        hi = _shortest(np.array([m.max_range for _, m in msgs]))
+        r = np.where(np.isfinite(r) & (r >= lo) & (r <= hi), r, np.nan)  # REP 117: outside the span is no reading
+        times.append(ns)
+        cols[topic] = r
+    ns_all = np.concatenate(times)
+    table: dict[str, np.ndarray] = {"t_s": _seconds(ns_all)}
+    at = 0
+    for topic, ns in zip(topics, times, strict=True):
+        col = np.full(ns_all.size, np.nan)
+        col[at : at + ns.size] = cols[topic]
+        table[_column_of(topic)] = col
+        at += ns.size
+    order = np.argsort(ns_all, kind="stable")
+    return {k: v[order] for k, v in table.items()}
+
+
+def _quat_matrix(q) -> np.ndarray:
+    x, y, z, w = q.x, q.y, q.z, q.w
+    m = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+    snapped = np.round(m)
+    return np.where(np.abs(m - snapped) < 1e-9, snapped, m)  # an axis permutation (an optical frame) kept exact
+
+
+def _yaw(q) -> float:
+    return float(np.arctan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z)))
+
+
+def _static_tree(reader, topics: list[Topic]) -> dict[str, tuple[str, np.ndarray, np.ndarray]]:
+    """child frame -> (parent, rotation, translation) from every /tf_static message."""
+    tree: dict[str, tuple[str, np.ndarray, np.ndarray]] = {}
+    for t in topics:
+        if t.msgtype in TF_TYPES and t.name.endswith("tf_static"):
+            for _, msg in _read(reader, t.name):
+                for tr in msg.transforms:
+                    tl = tr.transform.translation
+                    tree[tr.child_frame_id.lstrip("/")] = (
+                        tr.header.frame_id.lstrip("/"),
+                        _quat_matrix(tr.transform.rotation),
+                        np.array([tl.x, tl.y, tl.z]),
+                    )
+    return tree
+
+
+def _camera_pose(tree, frame: str) -> tuple[np.ndarray, np.ndarray, bool]:
+    """The camera frame's rotation and position in the static tree's root, and whether the tree had it."""
+    rot, pos, found = np.eye(3), np.zeros(3), False
+    seen = set()
+    while frame in tree and frame not in seen:
+        seen.add(frame)
+        parent, r, p = tree[frame]
+        rot, pos, found = r @ rot, r @ pos + p, True
+        frame = parent
+    return rot, pos, found
+
+
+def _sightings(
+    path: Path, reader, topic: str, topics: list[Topic], receive_times: bool, clocks: dict
+) -> tuple[dict[str, np.ndarray], str, tuple[float, float, float] | None, list[str]]:
+    """Tag detections as t_s, landmark_id, range_m, bearing_rad from the camera, in the robot's axes."""
+    msgs = _read(reader, topic)
+    rows: list[tuple[int, int, str, float, float, float]] = []  # ns, id, frame, x, y, z (in the camera frame)
+    recvs: list[int] = []
+    for recv, msg in msgs:
+        before = len(rows)
+        if hasattr(msg, "transforms"):
+            for tr in msg.transforms:
+                m = TAG_FRAME.match(tr.child_frame_id)
+                if m:
+                    tl = tr.transform.translation
+                    ns = recv if receive_times else _stamp_ns(tr.header)
+                    rows.append((ns, int(m.group(1)), tr.header.frame_id.lstrip("/"), tl.x, tl.y, tl.z))
+        else:
+            for det in msg.detections:
+                if len(det.id) != 1:  # a tag bundle: its pose is the bundle's, not one landmark's
+                    continue
+                p = det.pose.pose.pose.position
+                ns = recv if receive_times else _stamp_ns(det.pose.header)
+                rows.append((ns, int(det.id[0]), det.pose.header.frame_id.lstrip("/"), p.x, p.y, p.z))
+        recvs += [recv] * (len(rows) - before)
+    if not rows:
+        raise LogFormatError(f"{topic} holds no tag detection.", file=path, fix="give another --sightings TOPIC.")
+    frames = sorted({r[2] for r in rows})
+    if len(frames) > 1:
+        raise LogFormatError(
+            f"{topic} has tags seen from {len(frames)} cameras ({', '.join(frames)}); EM learns one sensor's mount.",
+            file=path,
+            fix="record one camera's detections, or split the bag by camera.",
+        )
+    ns = np.array([r[0] for r in rows], dtype=np.int64)
+    back = np.flatnonzero(np.diff(ns) < -int(CLOCK_GAP_S * 1e9))  # detections of one image may come in any order
+    if back.size:
+        i = int(back[0]) + 1
+        raise LogFormatError(
+            f"{topic}'s clock goes backwards: detection {i}'s stamp is {(ns[i - 1] - ns[i]) / 1e9:.6g} s "
+            "before the one recorded before it.",
+            file=path,
+            fix="record on one clock (use_sim_time set alike for every node), or pass --receive-times.",
+        )
+    clocks[topic] = (ns, np.array(recvs, dtype=np.int64))
+    tree = _static_tree(reader, topics)
+    rot, pos, found = _camera_pose(tree, frames[0])
+    notes = []
+    if not found:
+        rot = OPTICAL_TO_BODY
+        notes.append(
+            f"/tf_static does not place {frames[0]}: read as an optical frame (z forward, x right, y down) facing "
+            "the robot's forward"
+        )
+    xyz = np.array([r[3:] for r in rows]) @ rot.T  # the tag in the robot's axes, from the camera
+    table = {
+        "t_s": _seconds(ns),
+        "landmark_id": np.array([r[1] for r in rows], dtype=np.float64),
+        "range_m": np.hypot(xyz[:, 0], xyz[:, 1]),  # in the ground plane: the map is 2-D
+        "bearing_rad": np.arctan2(xyz[:, 1], xyz[:, 0]),
+    }
+    forward = rot @ np.array([0.0, 0.0, 1.0])  # where the optical axis looks, in the robot's axes
+    mount = (float(pos[0]), float(pos[1]), float(np.arctan2(forward[1], forward[0]))) if found else None
+    return table, frames[0], mount, notes
+
+
+def _truth(path: Path, reader, topic: str, receive_times: bool, clocks: dict) -> dict[str, np.ndarray]:
+    msgs = _read(reader, topic)
+    ns = _times(path, topic, msgs, True, receive_times)
+    clocks[topic] = (ns, _received(msgs))
+
+    def pose(m):
+        p = m.pose
+        return p.pose if hasattr(p, "pose") else p
+
+    poses = [pose(m) for _, m in msgs]
+    return {
+        "t_s": _seconds(ns),
+        "x_m": np.array([p.position.x for p in poses]),
+        "y_m": np.array([p.position.y for p in poses]),
+        "theta_rad": np.array([_yaw(p.orientation) for p in poses]),
+    }
+
+
+def _refuse_two_clocks(path: Path, clocks: dict[str, tuple[np.ndarray, np.ndarray]]) -> None:
+    """Every role's times must be on one clock: a Twist has no stamp, so it is on the recording clock, and a
+    stamped topic on another (sim time against wall time) would put every reading seconds from its command.
+    ``clocks``: topic -> (the times used, when each was recorded), in ns."""
+    gaps = {t: float(np.median(ns - recv)) / 1e9 for t, (ns, recv) in clocks.items() if ns.size}
+    if gaps and max(gaps.values()) - min(gaps.values()) > CLOCK_GAP_S:
+        lo, hi = min(gaps, key=gaps.__getitem__), max(gaps, key=gaps.__getitem__)
+        raise LogFormatError(
+            f"{hi}'s times are {gaps[hi] - gaps[lo]:.6g} s later against the recording clock than {lo}'s: they "
+            "are on two clocks.",
+            file=path,
+            fix="pass --receive-times to put every topic on the recording clock.",
+        )
+
+
+def read_bag_tables(path: Path, roles: Roles, *, receive_times: bool = False) -> BagTables:
+    """The tables of ``roles``' topics."""
+    reader = open_bag(path)
+    try:
+        topics = bag_topics(reader)
+        check_roles(path, roles, topics)
+        if roles.commands is None:
+            raise LogFormatError("no topic holds the commands.", file=path, fix="--commands TOPIC")
+        clocks: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        out = BagTables(_commands(path, reader, roles.commands, receive_times, clocks))
+        if roles.readings:
+            out.readings = _ranges(path, reader, roles.readings, receive_times, clocks)
+        if roles.sightings:
+            out.sightings, out.camera_frame, out.mount_from_tf, notes = _sightings(
+                path, reader, roles.sightings, topics, receive_times, clocks
+            )
+            out.notes += notes
+        if roles.truth:
+            out.truth = _truth(path, reader, roles.truth, receive_times, clocks)
+        _refuse_two_clocks(path, clocks)
+        return out
+    finally:
+        reader.close()
+
+
+def write_table(path: Path, table: dict[str, np.ndarray], ints: tuple[str, ...] = ()) -> None:
+    """A timed table as CSV, every float as its shortest round-tripping repr and NaN as an empty cell."""
+    from sensact.io.atomic import write_text
+
+    names = list(table)
+    cols = [table[n] for n in names]
+    lines = [",".join(names)]
+    for i in range(len(cols[0])):
+        cells = []
+        for n, c in zip(names, cols, strict=True):
+            v = float(c[i])
+            cells.append("" if not np.isfinite(v) else str(int(v)) if n in ints else repr(v))
+        lines.append(",".join(cells))
+    write_text(path, "\n".join(lines) + "\n")

@@ -1,0 +1,212 @@
+"""ROS bags written with rosbags' own writers, in ROS 1, ROS 2 sqlite3 and ROS 2 MCAP: a robot's /cmd_vel,
+AprilTag transforms on /tf (or ROS 1's apriltag_ros detections), Range readings and a motion-capture
+PoseStamped, as a ROS robot records them. What ``sensact simulate diffdrive --bag`` writes and the tests of
+``sensact convert bag`` read."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+FORMATS = ("mcap", "sqlite3", "ros1")
+ROS1_EXTRA = {
+    "tf2_msgs/msg/TFMessage": "geometry_msgs/TransformStamped[] transforms",
+    "apriltag_ros/msg/AprilTagDetection": "int32[] id\nfloat64[] size\ngeometry_msgs/PoseWithCovarianceStamped pose",
+    "apriltag_ros/msg/AprilTagDetectionArray": "std_msgs/Header header\nAprilTagDetection[] detections",
+}
+
+
+def typestore(fmt: str):
+    """ROS 2 Humble's types, or ROS 1 Noetic's with tf2_msgs and apriltag_ros registered (their definitions
+    go into the bag, as a ROS 1 recorder writes them)."""
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    if fmt != "ros1":
+        return get_typestore(Stores.ROS2_HUMBLE)
+    ts = get_typestore(Stores.ROS1_NOETIC)
+    for name, text in ROS1_EXTRA.items():
+        ts.register(get_types_from_msg(text, name))
+    return ts
+
+
+class Msgs:
+    """Message builders on one typestore."""
+
+    def __init__(self, fmt: str):
+        self.fmt, self.ts = fmt, typestore(fmt)
+        self.T = self.ts.types
+
+    def _stamp(self, t_ns: int):
+        return self.T["builtin_interfaces/msg/Time"](sec=int(t_ns // 10**9), nanosec=int(t_ns % 10**9))
+
+    def header(self, t_ns: int, frame: str):
+        H = self.T["std_msgs/msg/Header"]
+        if self.fmt == "ros1":
+            return H(seq=0, stamp=self._stamp(t_ns), frame_id=frame)
+        return H(stamp=self._stamp(t_ns), frame_id=frame)
+
+    def vec(self, x=0.0, y=0.0, z=0.0):
+        return self.T["geometry_msgs/msg/Vector3"](x=float(x), y=float(y), z=float(z))
+
+    def quat_yaw(self, yaw: float):
+        return self.T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))
+
+    def quat(self, x, y, z, w):
+        return self.T["geometry_msgs/msg/Quaternion"](x=float(x), y=float(y), z=float(z), w=float(w))
+
+    def twist(self, v: float, omega: float, side: float = 0.0):
+        return self.T["geometry_msgs/msg/Twist"](linear=self.vec(v, side), angular=self.vec(z=omega))
+
+    def odometry(self, t_ns: int, v: float, omega: float):
+        Tw = self.T["geometry_msgs/msg/TwistWithCovariance"]
+        Pw = self.T["geometry_msgs/msg/PoseWithCovariance"]
+        return self.T["nav_msgs/msg/Odometry"](
+            header=self.header(t_ns, "odom"),
+            child_frame_id="base_link",
+            pose=Pw(pose=self.pose(0, 0, 0), covariance=np.zeros(36)),
+            twist=Tw(twist=self.twist(v, omega), covariance=np.zeros(36)),
+        )
+
+    def pose(self, x, y, yaw):
+        P = self.T["geometry_msgs/msg/Point"](x=float(x), y=float(y), z=0.0)
+        return self.T["geometry_msgs/msg/Pose"](position=P, orientation=self.quat_yaw(yaw))
+
+    def pose_stamped(self, t_ns: int, x: float, y: float, yaw: float):
+        return self.T["geometry_msgs/msg/PoseStamped"](header=self.header(t_ns, "world"), pose=self.pose(x, y, yaw))
+
+    def range(self, t_ns: int, r: float, lo: float = 0.02, hi: float = 6.0, frame: str = "sonar"):
+        return self.T["sensor_msgs/msg/Range"](
+            header=self.header(t_ns, frame),
+            radiation_type=0,
+            field_of_view=0.5,
+            min_range=lo,
+            max_range=hi,
+            range=float(r),
+            **({"variance": 0.0} if "variance" in self.T["sensor_msgs/msg/Range"].__dataclass_fields__ else {}),
+        )
+
+    def transform(self, t_ns: int, parent: str, child: str, xyz, quat):
+        return self.T["geometry_msgs/msg/TransformStamped"](
+            header=self.header(t_ns, parent),
+            child_frame_id=child,
+            transform=self.T["geometry_msgs/msg/Transform"](translation=self.vec(*xyz), rotation=self.quat(*quat)),
+        )
+
+    def tf(self, transforms):
+        return self.T["tf2_msgs/msg/TFMessage"](transforms=transforms)
+
+    def detections(self, t_ns: int, frame: str, ids, xyz):
+        det = self.T["apriltag_ros/msg/AprilTagDetection"]
+        pwcs = self.T["geometry_msgs/msg/PoseWithCovarianceStamped"]
+        pwc = self.T["geometry_msgs/msg/PoseWithCovariance"]
+        P = self.T["geometry_msgs/msg/Point"]
+        items = [
+            det(
+                id=np.array([i], dtype=np.int32),
+                size=np.array([0.16]),
+                pose=pwcs(
+                    header=self.header(t_ns, frame),
+                    pose=pwc(
+                        pose=self.T["geometry_msgs/msg/Pose"](
+                            position=P(x=p[0], y=p[1], z=p[2]), orientation=self.quat(0, 0, 0, 1)
+                        ),
+                        covariance=np.zeros(36),
+                    ),
+                ),
+            )
+            for i, p in zip(ids, xyz, strict=True)
+        ]
+        return self.T["apriltag_ros/msg/AprilTagDetectionArray"](header=self.header(t_ns, frame), detections=items)
+
+
+# the optical frame in the camera's link frame (z forward, x right, y down): rpy (-pi/2, 0, -pi/2)
+OPTICAL_QUAT = (-0.5, 0.5, -0.5, 0.5)
+
+
+def write_bag(path: Path, fmt: str, messages: list[tuple[str, str, int, object]], m: Msgs) -> Path:
+    """``messages``: (topic, msgtype, receive time ns, message), written in time order."""
+    messages = sorted(messages, key=lambda r: r[2])
+    if fmt == "ros1":
+        from rosbags.rosbag1 import Writer
+
+        path = path.with_suffix(".bag")
+        writer = Writer(path)
+        ser = m.ts.serialize_ros1
+    else:
+        from rosbags.rosbag2 import StoragePlugin, Writer
+
+        plugin = StoragePlugin.MCAP if fmt == "mcap" else StoragePlugin.SQLITE3
+        writer = Writer(path, version=9, storage_plugin=plugin)
+        ser = m.ts.serialize_cdr
+    with writer:
+        conns = {}
+        for topic, msgtype, t_ns, msg in messages:
+            if topic not in conns:
+                conns[topic] = writer.add_connection(topic, msgtype, typestore=m.ts)
+            writer.write(conns[topic], int(t_ns), ser(msg, msgtype))
+    return path
+
+
+@dataclass(frozen=True)
+class RobotRecording:
+    """What a differential drive with a tag camera and motion capture records, in ROS units (m, rad, REP 103
+    axes, whole nanoseconds): /cmd_vel when a command changes, each tag's position in the camera's optical
+    frame (z forward, x right, y down) at each sighting, the motion-capture pose (yaw 0 facing +x)."""
+
+    cmd_ns: np.ndarray
+    v_m_s: np.ndarray
+    omega_rad_s: np.ndarray
+    tag_ns: np.ndarray
+    tag_id: np.ndarray
+    tag_xyz_optical_m: np.ndarray  # (n, 3)
+    truth_ns: np.ndarray
+    truth_xy_m: np.ndarray  # (n, 2)
+    truth_yaw_rad: np.ndarray
+    camera_xyz_m: tuple[float, float, float] = (0.0, 0.0, 0.3)  # camera_link in base_link, for /tf_static
+    map_xy_m: np.ndarray | None = None  # tag k's position, row k (not in the bag: the map.csv beside it)
+
+
+def write_map_csv(path: Path, xy_m: np.ndarray) -> Path:
+    """The map as ``convert bag --landmarks`` reads it: id,x_m,y_m, tag k on row k."""
+    from sensact.io.atomic import write_text
+
+    rows = [f"{k},{x!r},{y!r}" for k, (x, y) in enumerate(np.asarray(xy_m, dtype=float).tolist())]
+    write_text(path, "\n".join(["id,x_m,y_m", *rows]) + "\n")
+    return path
+
+
+OPTICAL_FRAME = "camera_color_optical_frame"
+RECEIVE_LAG_NS = 2_000_000  # a detection is recorded this long after its image's stamp
+
+
+def write_robot_bag(path: Path, fmt: str, rec: RobotRecording, *, detections: bool = False) -> Path:
+    """``rec`` as a bag: /cmd_vel (Twist, on the recording clock), /tf_static (base_link -> camera_link ->
+    the optical frame), the tags on /tf (``tag36h11:ID``) or, with ``detections``, on /tag_detections as ROS
+    1's apriltag_ros arrays, and /mocap/pose (PoseStamped)."""
+    m = Msgs(fmt)
+    msgs: list[tuple[str, str, int, object]] = [
+        ("/cmd_vel", "geometry_msgs/msg/Twist", int(t), m.twist(v, w))
+        for t, v, w in zip(rec.cmd_ns, rec.v_m_s, rec.omega_rad_s, strict=True)
+    ]
+    static = m.tf(
+        [
+            m.transform(0, "base_link", "camera_link", rec.camera_xyz_m, (0.0, 0.0, 0.0, 1.0)),
+            m.transform(0, "camera_link", OPTICAL_FRAME, (0.0, 0.0, 0.0), OPTICAL_QUAT),
+        ]
+    )
+    msgs.append(("/tf_static", "tf2_msgs/msg/TFMessage", int(rec.cmd_ns[0]), static))
+    for t, i, p in zip(rec.tag_ns, rec.tag_id, rec.tag_xyz_optical_m, strict=True):
+        if detections:
+            msg = m.detections(int(t), OPTICAL_FRAME, [int(i)], [tuple(p)])
+            msgs.append(("/tag_detections", "apriltag_ros/msg/AprilTagDetectionArray", int(t) + RECEIVE_LAG_NS, msg))
+        else:
+            tr = m.transform(int(t), OPTICAL_FRAME, f"tag36h11:{int(i)}", tuple(p), (0.0, 0.0, 0.0, 1.0))
+            msgs.append(("/tf", "tf2_msgs/msg/TFMessage", int(t) + RECEIVE_LAG_NS, m.tf([tr])))
+    for t, (x, y), yaw in zip(rec.truth_ns, rec.truth_xy_m, rec.truth_yaw_rad, strict=True):
+        msgs.append(
+            ("/mocap/pose", "geometry_msgs/msg/PoseStamped", int(t) + 500_000, m.pose_stamped(int(t), x, y, yaw))
+        )
+    return write_bag(path, fmt, msgs, m)

@@ -1,0 +1,243 @@
+"""``sensact convert bag``: bags written by rosbags' writers from timed tables convert to the log folders the
+same tables give through ``convert csv`` and ``convert track``, and learn the same models bit for bit; a
+bad bag gets one line."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from conftest import DATA, require
+from sensact.cli import app
+from sensact.experiments.diffdrive import recording_of
+from sensact.io.rosbag_write import FORMATS, Msgs, write_bag, write_map_csv, write_robot_bag
+from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
+
+pytest.importorskip("rosbags", reason="the ros extra (pip install 'sensact[ros]') reads bags")
+runner = CliRunner()
+T0_NS = 1_700_000_000 * 10**9  # a wall clock's epoch time, as a real bag's
+
+
+def _write_csv(path, columns):
+    names = list(columns)
+    rows = np.column_stack([np.asarray(columns[n], dtype=float) for n in names])
+    lines = [",".join(names)] + [",".join("" if np.isnan(v) else repr(float(v)) for v in row) for row in rows]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _ok(args):
+    res = runner.invoke(app, [str(a) for a in args])
+    assert res.exit_code == 0, res.output
+    return res
+
+
+def _learned(folder, out):
+    """The model ``learn em`` writes, less the time it took and the folder's name."""
+    _ok(["learn", "em", folder, "--out", out])
+    doc = json.loads(out.read_text())
+    del doc["summary"]["seconds"], doc["log"]
+    return doc
+
+
+@pytest.fixture(scope="module")
+def diffdrive_source(tmp_path_factory):
+    """A simulated differential drive (two minutes, the camera 220 mm ahead) as a ROS robot records it
+    (``recording_of``), and the timed CSVs of the same numbers: a tag's range and bearing are its
+    position's in the ground plane (the optical frame's z forward, x right), times whole nanoseconds."""
+    run = simulate_diffdrive(DiffDriveConfig(seconds=120.0, seed=3, mounted_at=(220.0, 0.0, 0.0)))
+    rec = recording_of(run)
+    folder = tmp_path_factory.mktemp("bag_source")
+    x, z = rec.tag_xyz_optical_m[:, 0], rec.tag_xyz_optical_m[:, 2]
+    csv = {
+        "commands": _write_csv(
+            folder / "commands.csv", {"t_s": rec.cmd_ns / 1e9, "v_m_s": rec.v_m_s, "omega_rad_s": rec.omega_rad_s}
+        ),
+        "sightings": _write_csv(
+            folder / "sightings.csv",
+            {
+                "t_s": rec.tag_ns / 1e9,
+                "landmark_id": rec.tag_id,
+                "range_m": np.hypot(z, -x),
+                "bearing_rad": np.arctan2(-x, z),
+            },
+        ),
+        "landmarks": write_map_csv(folder / "map.csv", rec.map_xy_m),
+    }
+    return csv, rec
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_a_bag_converts_to_the_tables_it_was_made_from(diffdrive_source, tmp_path, fmt):
+    """Each format, no mapping given: the roles are found, the camera placed by /tf_static, and the
+    commands and sightings read back as the CSVs' numbers exactly; truth to rounding of its quaternion."""
+    csv, rec = diffdrive_source
+    bag = write_robot_bag(tmp_path / "run", fmt, rec)
+    out = tmp_path / "log"
+    _ok(["convert", "bag", bag, "--landmarks", csv["landmarks"], "--out", out])
+    from sensact.io.csvtable import read_numeric_csv
+
+    for name in ("commands", "sightings"):
+        _same_rows(read_numeric_csv(out / "bag_tables" / f"{name}.csv"), read_numeric_csv(csv[name]))
+    truth = read_numeric_csv(out / "bag_tables" / "truth.csv")
+    np.testing.assert_array_equal(truth["x_m"], rec.truth_xy_m[:, 0])
+    wrapped = np.angle(np.exp(1j * (truth["theta_rad"] - rec.truth_yaw_rad)))
+    assert np.abs(wrapped).max() < 1e-12
+    meta = json.loads((out / "meta.json").read_text())
+    assert meta["source"]["roles"] == {
+        "commands": "/cmd_vel",
+        "sightings": "/tf",
+        "truth": "/mocap/pose",
+    }
+    mount = meta["source"]["tf_static_mount"]
+    assert mount["x_m"] == pytest.approx(0.22) and mount["y_m"] == pytest.approx(0.0, abs=1e-12)
+    assert mount["yaw_rad_applied"] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_ros1_apriltag_detections_read_as_the_tf_sightings(diffdrive_source, tmp_path):
+    """ROS 1's apriltag_ros/AprilTagDetectionArray, its definition read from the bag, gives the sightings
+    the transforms on /tf give."""
+    csv, rec = diffdrive_source
+    bag = write_robot_bag(tmp_path / "run", "ros1", rec, detections=True)
+    out = tmp_path / "log"
+    _ok(["convert", "bag", bag, "--landmarks", csv["landmarks"], "--out", out])
+    from sensact.io.csvtable import read_numeric_csv
+
+    _same_rows(read_numeric_csv(out / "bag_tables" / "sightings.csv"), read_numeric_csv(csv["sightings"]))
+
+
+def _same_rows(got, want):
+    """The same columns and the same rows, bit for bit, in any order (a bag is in the order recorded)."""
+    assert list(got) == list(want)
+    rows = [np.column_stack([t[k] for k in t]) for t in (got, want)]
+    rows = [r[np.lexsort(r.T[::-1])] for r in rows]
+    np.testing.assert_array_equal(rows[0], rows[1])
+
+
+def test_learning_from_a_bag_gives_the_model_learned_from_its_csvs(diffdrive_source, tmp_path):
+    """The bag route and the CSV route learn the same model, bit for bit (an MCAP bag; the formats' tables
+    are checked equal above)."""
+    csv, rec = diffdrive_source
+    bag = write_robot_bag(tmp_path / "run", "mcap", rec)
+    _ok(["convert", "bag", bag, "--landmarks", csv["landmarks"], "--out", tmp_path / "from_bag"])
+    truth = _write_csv(
+        tmp_path / "truth.csv",
+        {k: v for k, v in zip(("t_s", "x_m", "y_m", "theta_rad"), _truth_columns(tmp_path / "from_bag"), strict=True)},
+    )
+    _ok(
+        [
+            "convert", "csv", "--commands", csv["commands"], "--sightings", csv["sightings"],
+            "--landmarks", csv["landmarks"], "--truth", truth, "--out", tmp_path / "from_csv",
+        ]
+    )  # fmt: skip
+    a = _learned(tmp_path / "from_bag", tmp_path / "a.json")
+    b = _learned(tmp_path / "from_csv", tmp_path / "b.json")
+    assert a == b
+
+
+def _truth_columns(log):
+    from sensact.io.csvtable import read_numeric_csv
+
+    t = read_numeric_csv(log / "bag_tables" / "truth.csv")
+    return t["t_s"], t["x_m"], t["y_m"], t["theta_rad"]
+
+
+def test_a_bag_with_two_command_sources_lists_its_topics_and_writes_nothing(tmp_path):
+    m = Msgs("mcap")
+    t = T0_NS
+    msgs = [
+        ("/cmd_vel", "geometry_msgs/msg/Twist", t, m.twist(0.1, 0.0)),
+        ("/teleop/cmd_vel", "geometry_msgs/msg/Twist", t + 1, m.twist(0.1, 0.0)),
+        ("/sonar", "sensor_msgs/msg/Range", t + 2, m.range(t, 1.0)),
+    ]
+    bag = write_bag(tmp_path / "two", "mcap", msgs, m)
+    res = runner.invoke(app, ["convert", "bag", str(bag), "--out", str(tmp_path / "o")])
+    assert res.exit_code == 2
+    text = " ".join(res.output.split())
+    assert "commands: one of /cmd_vel, /teleop/cmd_vel" in text and "--commands TOPIC" in text
+    assert "/teleop/cmd_vel geometry_msgs/Twist (1 messages)" in text
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize(
+    "case, words",
+    [
+        ("not_a_bag", "not a ROS bag rosbags can read"),
+        ("no_such_topic", "no topic /nope (truth); the bag has"),
+        ("wrong_type", "/cmd_vel is a geometry_msgs/Twist, which sensact cannot read as truth"),
+        ("backwards", "/sonar's clock goes backwards"),
+        ("two_clocks", "on two clocks"),
+    ],
+)
+def test_a_bad_bag_gets_one_line(tmp_path, case, words):
+    m = Msgs("sqlite3")
+    t = T0_NS
+    msgs = [("/cmd_vel", "geometry_msgs/msg/Twist", t + k * 10**8, m.twist(0.1, 0.0)) for k in range(20)]
+    stamps = [t + k * 10**8 for k in range(20)]
+    if case == "backwards":
+        stamps[10] = t
+    if case == "two_clocks":
+        stamps = [s - 3600 * 10**9 for s in stamps]  # sim time against the recording's wall clock
+    msgs += [("/sonar", "sensor_msgs/msg/Range", t + k * 10**8 + 1, m.range(s, 1.0)) for k, s in enumerate(stamps)]
+    bag = write_bag(tmp_path / "b", "sqlite3", msgs, m)
+    args = ["convert", "bag", str(bag), "--out", str(tmp_path / "o")]
+    if case == "not_a_bag":
+        (tmp_path / "x.bag").write_bytes(b"#ROSBAG V2.0\nnot really")
+        args[2] = str(tmp_path / "x.bag")
+    if case == "no_such_topic":
+        args += ["--truth", "/nope"]
+    if case == "wrong_type":
+        args += ["--truth", "/cmd_vel"]
+    res = runner.invoke(app, args)
+    text = " ".join(res.output.split())
+    assert res.exit_code == 2 and words in text and "Traceback" not in text, text
+
+
+def test_turtlebot_bag_learns_the_model_its_track_csv_learns(tmp_path):
+    """The real Turtlebot log as a 1-D robot's bag (Twist commands, two sonars as sensor_msgs/Range, the
+    recorded distance as a motion-capture pose facing a wall at the origin) converts to the track CSV it
+    was made from and learns the same EM model, bit for bit."""
+    from sensact.io.csvtable import read_numeric_csv
+
+    log = read_numeric_csv(require(DATA / "turtlebot1d" / "training1.csv"))
+    n = 1500  # the first minutes: enough to learn from, quick to run
+    t_ns = T0_NS + np.round(log["time"][:n] * 1e9).astype(np.int64)
+    sonar1 = np.float32(log["sonar1"][:n])
+    sonar2 = np.float32(log["sonar2"][:n])
+    shortest = lambda a: a.astype(str).astype(float)  # noqa: E731  (what a float32 field says)
+    v = log["velocity_command"][:n]
+    dist = log["range"][:n]
+    track = {
+        "t_s": np.r_[t_ns / 1e9, t_ns / 1e9, t_ns / 1e9, t_ns / 1e9],
+        "v_m_s": np.r_[v, np.full(3 * n, np.nan)],
+        "sonar1_m": np.r_[np.full(n, np.nan), shortest(sonar1), np.full(2 * n, np.nan)],
+        "sonar2_m": np.r_[np.full(2 * n, np.nan), shortest(sonar2), np.full(n, np.nan)],
+        "distance_m": np.r_[np.full(3 * n, np.nan), np.hypot(0.0 - (-dist), 0.0)],
+    }
+    src = _write_csv(tmp_path / "track.csv", track)
+    _write_csv(tmp_path / "map.csv", {"id": [0], "x_m": [0.0], "y_m": [0.0]})
+    m = Msgs("mcap")
+    msgs = []
+    for k in range(n):
+        t = int(t_ns[k])
+        msgs += [
+            ("/cmd_vel", "geometry_msgs/msg/Twist", t, m.twist(v[k], 0.0)),
+            ("/sonar1", "sensor_msgs/msg/Range", t + 1, m.range(t, sonar1[k], 0.0, 10.0)),
+            ("/sonar2", "sensor_msgs/msg/Range", t + 2, m.range(t, sonar2[k], 0.0, 10.0)),
+            ("/mocap/pose", "geometry_msgs/msg/PoseStamped", t + 3, m.pose_stamped(t, -dist[k], 0.0, 0.0)),
+        ]
+    bag = write_bag(tmp_path / "tb", "mcap", msgs, m)
+    _ok(["convert", "bag", bag, "--landmarks", tmp_path / "map.csv", "--out", tmp_path / "from_bag"])
+    got, want = read_numeric_csv(tmp_path / "from_bag" / "bag_tables" / "track.csv"), read_numeric_csv(src)
+    assert sorted(got) == sorted(want)
+    for k in set(want) - {"t_s"}:  # each column's (time, value) rows, in any order
+        pairs = [sorted(zip(t["t_s"][np.isfinite(t[k])], t[k][np.isfinite(t[k])], strict=True)) for t in (got, want)]
+        assert pairs[0] == pairs[1], k
+    _ok(["convert", "track", src, "--out", tmp_path / "from_csv"])
+    a = _learned(tmp_path / "from_bag", tmp_path / "a.json")
+    b = _learned(tmp_path / "from_csv", tmp_path / "b.json")
+    assert a == b
+    assert a["evaluation"]  # scored against the distance the pose gives
