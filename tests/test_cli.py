@@ -397,6 +397,13 @@ def test_simulate_car_then_learn_car_with_ros_export(tmp_path):
     np.testing.assert_allclose(np.degrees(cal.horizontal_rad) + 90.0, model["laser_angles_deg"], atol=1e-9)
     np.testing.assert_allclose(cal.vertical_rad, factory.vertical_rad, atol=1e-12)
     assert [e["dist_correction"] for e in cal.extra] == [0.01 * i for i in range(64)]
+    # `sensact export --format velodyne` writes the same calibration from the model alone
+    exp = runner.invoke(app, ["export", str(out), "--format", "velodyne", "--out", str(tmp_path / "exported.yaml")])
+    assert exp.exit_code == 0, exp.output
+    exported = read_calibration(tmp_path / "exported.yaml")
+    np.testing.assert_array_equal(exported.horizontal_rad, cal.horizontal_rad)
+    np.testing.assert_array_equal(exported.vertical_rad, cal.vertical_rad)
+    assert exported.extra == cal.extra
     # the factory file holds the true theta_l: about its mount yaw it differs by the relative angles' error
     fc = model["factory_comparison"]
     assert "vs the factory calibration's horizontal angles" in res.output

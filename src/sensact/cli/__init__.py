@@ -9,6 +9,7 @@ from sensact.cli import (  # noqa: F401  (each registers its commands, in the or
     convert,
     convert_bag,
     evaluate,
+    export,
     learn,
     localize,
     reproduce,

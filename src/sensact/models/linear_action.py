@@ -43,7 +43,7 @@ from sensact.errors import ModelFormatError
 BASES = ("affine", "cross", "polynomial")
 
 
-def _monomials(basis: str, k: int, degree: int) -> list[tuple[int, ...]]:
+def monomials(basis: str, k: int, degree: int) -> list[tuple[int, ...]]:
     """Each feature as the tuple of command indices it multiplies (``()`` is the constant)."""
     if basis == "affine":
         return [()] + [(i,) for i in range(k)]
@@ -57,7 +57,7 @@ def _monomials(basis: str, k: int, degree: int) -> list[tuple[int, ...]]:
 def command_features(basis: str, degree: int, commands: np.ndarray) -> np.ndarray:
     """``Phi(c)`` for each row of ``commands`` (T, k): shape (T, n_features)."""
     c = np.atleast_2d(np.asarray(commands, dtype=float))
-    cols = [np.prod(c[:, list(m)], axis=1) if m else np.ones(len(c)) for m in _monomials(basis, c.shape[1], degree)]
+    cols = [np.prod(c[:, list(m)], axis=1) if m else np.ones(len(c)) for m in monomials(basis, c.shape[1], degree)]
     return np.column_stack(cols)
 
 
@@ -128,7 +128,7 @@ def _is_command(weights: np.ndarray) -> bool:
 
 
 def feature_names(basis: str, degree: int, command_names: tuple[str, ...]) -> list[str]:
-    return ["*".join(command_names[i] for i in m) or "1" for m in _monomials(basis, len(command_names), degree)]
+    return ["*".join(command_names[i] for i in m) or "1" for m in monomials(basis, len(command_names), degree)]
 
 
 @dataclass(frozen=True, eq=False)
@@ -160,14 +160,14 @@ class LinearActionModel:
         object.__setattr__(self, "velocity_names", tuple(self.velocity_names))
         if self.basis == "polynomial" and self.degree < 1:
             raise ValueError("a polynomial action basis needs degree >= 1")
-        nf = len(_monomials(self.basis, len(self.command_names), self.degree))
+        nf = len(monomials(self.basis, len(self.command_names), self.degree))
         if beta.shape != (nf, len(self.velocity_names)):
             raise ValueError(f"coefficients must be ({nf}, {len(self.velocity_names)}) for this basis")
 
     @classmethod
     def zero(cls, basis: str, degree: int, command_names, velocity_names, zero_mean=(), inputs=()) -> LinearActionModel:
         """The thesis's starting point (sec. 4.4.1): no command has any effect."""
-        nf = len(_monomials(basis, len(command_names), degree))
+        nf = len(monomials(basis, len(command_names), degree))
         beta = np.zeros((nf, len(velocity_names)))
         return cls(basis, degree, beta, command_names, velocity_names, 0, zero_mean, inputs)
 
@@ -176,8 +176,8 @@ class LinearActionModel:
         """(n_features, n) bool: the coefficients the M-step fits; the rest stay zero (``zero_mean``
         components have none, an ``inputs`` restriction drops the features of other commands)."""
         allowed = parse_inputs(self.inputs, self.command_names, self.velocity_names)
-        monomials = _monomials(self.basis, len(self.command_names), self.degree)
-        free = np.ones((len(monomials), len(self.velocity_names)), dtype=bool)
+        monos = monomials(self.basis, len(self.command_names), self.degree)
+        free = np.ones((len(monos), len(self.velocity_names)), dtype=bool)
         combined = self.combined_inputs
         for i, v in enumerate(self.velocity_names):
             if v in self.zero_mean:
@@ -186,7 +186,7 @@ class LinearActionModel:
                 free[:, i] = combined[i].any(axis=1)
             elif v in allowed:
                 used = {int(np.flatnonzero(w)[0]) for w in allowed[v]}
-                free[:, i] = [all(c in used for c in m) for m in monomials]
+                free[:, i] = [all(c in used for c in m) for m in monos]
         return free
 
     @property

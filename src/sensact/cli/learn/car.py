@@ -74,22 +74,26 @@ def _angle_reference(data: Any, res: Any, simulated: bool) -> tuple[tuple[Any, s
     return reference, comparison
 
 
-def _write_ros_calibration(path: Path, data: Any, res: Any) -> None:
-    """The learned angles as a ROS velodyne calibration, the factory's other fields kept."""
+def _ros_calibration(data: Any, res: Any) -> Any:
+    """The learned angles as a ROS velodyne calibration (``LaserIntrinsics``), the factory's other fields kept."""
     import numpy as np
 
-    from sensact.io.velodyne_calibration import write_calibration
     from sensact.models.laser_intrinsics import LaserIntrinsics
 
     # ROS's driver puts a point at azimuth (rotation - rot_correction) clockwise from forward, which is
     # eq. 2.35 with theta_b = 90°: rot_correction = theta_hat_l - 90° puts points in the car's frame
     factory = data.factory
-    learned = LaserIntrinsics(
+    return LaserIntrinsics(
         data.vertical_rad,
         res.laser_angles_rad - np.pi / 2,
         *((factory.distance_resolution_m, factory.extra) if factory is not None else ()),
     )
-    write_calibration(path, learned)
+
+
+def _write_ros_calibration(path: Path, data: Any, res: Any) -> None:
+    from sensact.io.velodyne_calibration import write_calibration
+
+    write_calibration(path, _ros_calibration(data, res))
     console.print(f"wrote {path} (rot_correction = learned angle - 90°)")
 
 
@@ -118,9 +122,11 @@ def learn_car_cmd(
 ) -> None:
     """Learn the lidar's laser angles, the scan-matching odometry and the car dynamics (Algorithm 3)."""
     import numpy as np
+    import yaml
 
     from sensact.config import config_to_dict
     from sensact.io.car_log import read_car_log
+    from sensact.io.velodyne_calibration import calibration_yaml as ros_yaml
     from sensact.learn.car_dynamics import CarLearningConfig
 
     cfg = layered_config(CarLearningConfig, config, set_)
@@ -150,6 +156,8 @@ def learn_car_cmd(
                 "config": config_to_dict(cfg),
                 "factory_comparison": comparison,
                 "evaluation": evaluation,
+                # what `sensact export --format velodyne` writes
+                "velodyne_calibration": yaml.safe_load(ros_yaml(_ros_calibration(data, res))),
             },
         )
         from sensact.report.figures_car import figure_car_fit

@@ -1,0 +1,244 @@
+"""A learned model handed to a ROS stack (``sensact export``): SI units and REP 103 axes (x forward, y left,
+z up; yaw 0 facing the map's +x, counterclockwise), whatever sensact's own frame (the thesis's: x right, y
+forward, heading 0 facing +y, millimetres).
+
+* ``robot-localization``: the process noise covariance from the learned Sigma_m, per second, in the 15-state
+  order robot_localization uses, a command's twist covariance, and the action model's gains and offsets;
+* ``tum``: the smoothed path (``timestamp x y z qx qy qz qw``) and the truth's, for evo;
+* ``velodyne``: a car model's learned laser angles as a ROS velodyne calibration.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sensact.errors import ModelFormatError
+
+FORMATS = ("robot-localization", "tum", "velodyne")
+RL_STATES = ("x", "y", "z", "roll", "pitch", "yaw", "vx", "vy", "vz", "vroll", "vpitch", "vyaw", "ax", "ay", "az")
+# robot_localization's own defaults (its ekf.yaml template) for the states a planar EM model says nothing of
+RL_DEFAULT_DIAG = (0.05, 0.05, 0.06, 0.03, 0.03, 0.06, 0.025, 0.025, 0.04, 0.01, 0.01, 0.02, 0.01, 0.01, 0.015)
+UNMEASURED_VAR = 1e6  # a twist's dimensions a planar robot does not measure (z, roll, pitch), as ROS drivers set
+MM = 1e-3
+VELOCITY_REP = {"v_x_mm_s": ("vy_m_s", -MM), "v_y_mm_s": ("vx_m_s", MM), "v_theta_rad_s": ("vyaw_rad_s", 1.0)}
+
+
+@dataclass(frozen=True)
+class Exported:
+    written: tuple[Path, ...]
+    notes: tuple[str, ...] = ()
+
+
+def read_model_doc(path: Path) -> dict[str, Any]:
+    from sensact.io.jsonfile import read_json_object
+
+    return read_json_object(path, ModelFormatError, "give a model.json written by `sensact learn em` or `learn car`.")
+
+
+def body_sigma_m(doc: dict[str, Any], source: Path) -> tuple[np.ndarray, float]:
+    """Sigma_m per step in REP 103's body axes (x forward, y left, yaw; m, rad) and the step (s)."""
+    from sensact.models.em_model import EMModel
+
+    model = EMModel.from_dict(doc.get("model"), source=str(source))
+    if model.geometry != "planar" or model.per_action_noise:
+        raise ModelFormatError(
+            "robot_localization takes one planar Sigma_m; this model is a 1-D track's or has one per action.",
+            file=source,
+            field="model.motion_sd",
+            fix="export a planar model learned on continuous commands (`learn em` on a 2-D log).",
+        )
+    sideways, forward, heading = model.motion_sd[0]
+    # thesis axes (x right, y forward) to REP 103's (x forward, y left): a diagonal Sigma_m only swaps
+    return np.diag([(forward * MM) ** 2, (sideways * MM) ** 2, heading**2]), float(doc["dt_s"])
+
+
+def process_noise(sigma_step: np.ndarray, dt_s: float) -> np.ndarray:
+    """robot_localization's 15x15 process_noise_covariance, which it scales by the time step (per second).
+    Its x and y are the world's: Sigma_m's body-frame forward and sideways variances averaged over headings
+    (the mean of a covariance rotated through every heading is its trace over 2 on both axes); yaw is
+    Sigma_m's own. The states a planar model does not learn keep robot_localization's defaults."""
+    q = np.diag(np.array(RL_DEFAULT_DIAG, dtype=float))
+    per_s = sigma_step / dt_s  # eq. 4.1's per-step noise as a rate: a random walk's variance grows with time
+    horizontal = 0.5 * (per_s[0, 0] + per_s[1, 1])
+    q[0, 0] = q[1, 1] = horizontal
+    q[5, 5] = per_s[2, 2]
+    return q
+
+
+def twist_covariance(sigma_step: np.ndarray, dt_s: float) -> np.ndarray:
+    """The 6x6 covariance (vx, vy, vz, vroll, vpitch, vyaw) of a command (or wheel odometry) read as the
+    robot's twist over one step: Sigma_m / dt^2, the velocity error that moves the pose as Sigma_m says."""
+    per = np.diag(sigma_step) / dt_s**2
+    return np.diag([per[0], per[1], UNMEASURED_VAR, UNMEASURED_VAR, UNMEASURED_VAR, per[2]])
+
+
+def _command_scale(name: str) -> tuple[str, float]:
+    """A command's SI name and the factor from sensact's unit to it (v_mm_s -> v_m_s, times 1e-3)."""
+    for suffix, si, factor in (("_mm_s", "_m_s", MM), ("_mm", "_m", MM)):
+        if name.endswith(suffix):
+            return name[: -len(suffix)] + si, factor
+    return name, 1.0
+
+
+def action_model_si(doc: dict[str, Any], source: Path) -> dict[str, Any]:
+    """The action model's coefficients in SI and REP 103 axes: each velocity (vx forward, vy left, vyaw) as a
+    sum of coefficient times feature (1, a command, or a product of commands in their SI units)."""
+    from sensact.models.em_model import EMModel
+    from sensact.models.linear_action import LinearActionModel, monomials
+
+    model = EMModel.from_dict(doc.get("model"), source=str(source))
+    action = model.action
+    if not isinstance(action, LinearActionModel):
+        return {"table": action.to_dict(), "note": "an action table (discrete actions): no gains to convert"}
+    si = [_command_scale(n) for n in action.command_names]
+    outputs: dict[str, dict[str, float]] = {}
+    for j, v in enumerate(action.velocity_names):
+        name, out_scale = VELOCITY_REP[v]
+        terms = {}
+        for i, mono in enumerate(monomials(action.basis, len(action.command_names), action.degree)):
+            in_scale = float(np.prod([si[k][1] for k in mono])) if mono else 1.0
+            feature = "*".join(si[k][0] for k in mono) or "1"
+            terms[feature] = float(action.coefficients[i, j]) * out_scale / in_scale
+        outputs[name] = terms
+    order = ("vx_m_s", "vy_m_s", "vyaw_rad_s")
+    return {
+        "commands": [s[0] for s in si],
+        "delay_s": action.delay_steps * float(doc["dt_s"]),
+        "velocities": {k: outputs[k] for k in order},
+    }
+
+
+def robot_localization_yaml(doc: dict[str, Any], source: Path) -> str:
+    import yaml
+
+    from sensact.models.em_model import EMModel
+
+    sigma, dt = body_sigma_m(doc, source)
+    q = process_noise(sigma, dt)
+    model = EMModel.from_dict(doc["model"], source=str(source))
+    mount = model.sensor.mount.to_dict()
+    sensact = {
+        "source": str(source),
+        "step_s": dt,
+        "sigma_m_per_s_body": (sigma / dt).tolist(),  # x forward, y left, yaw: Sigma_m / dt, exactly
+        "turn_variance_per_s": None if model.turn_var is None else model.turn_var / dt,
+        "twist_covariance": twist_covariance(sigma, dt).ravel().tolist(),
+        "action_model": action_model_si(doc, source),
+        "sensor_mount": {
+            "x_m": mount["forward_mm"] * MM,
+            "y_m": mount["left_mm"] * MM,
+            "yaw_rad": mount["yaw_rad"],
+        },
+    }
+    rows = ",\n".join("      " + ", ".join(repr(v) for v in row) for row in q.tolist())
+    node = f"ekf_filter_node:\n  ros__parameters:\n    two_d_mode: true\n    process_noise_covariance: [\n{rows}]\n"
+    header = (
+        f"# robot_localization parameters from {source.name}, learned by sensact (SI units, REP 103 axes).\n"
+        "# process_noise_covariance: 15x15 per second, states "
+        + ", ".join(RL_STATES)
+        + ";\n# x, y and yaw from the learned Sigma_m (x and y averaged over headings, as robot_localization\n"
+        "# applies them in the world frame), the rest robot_localization's defaults. Merge the node's\n"
+        "# ros__parameters into your EKF's. sensact.twist_covariance (vx vy vz vroll vpitch vyaw, row-major)\n"
+        "# is a command's (or wheel odometry's) covariance as a twist over one step, for its messages.\n"
+    )
+    return header + node + yaml.safe_dump({"sensact": sensact}, sort_keys=False, default_flow_style=None, width=120)
+
+
+def _log_folder(doc: dict[str, Any], source: Path) -> Path | None:
+    log = doc.get("log")
+    if not isinstance(log, str):
+        return None
+    for candidate in (Path(log), source.parent / log):
+        if (candidate / "meta.json").is_file():
+            return candidate
+    return None
+
+
+def _t0_s(folder: Path | None) -> float:
+    """The log's first step on the recording's own clock (a bag's: epoch seconds), 0 when unknown."""
+    if folder is None:
+        return 0.0
+    meta = json.loads((folder / "meta.json").read_text(encoding="utf-8"))
+    src = meta.get("source") or {}
+    t0 = src.get("t0_s", (src.get("tables") or {}).get("t0_s", 0.0))
+    return float(t0) if isinstance(t0, int | float) else 0.0
+
+
+def tum_rows(t_s: np.ndarray, x_mm: np.ndarray, y_mm: np.ndarray, theta: np.ndarray) -> str:
+    """TUM lines from poses in sensact's frame: metres, yaw = theta + pi/2 (REP 103: 0 faces +x)."""
+    yaw = theta + 0.5 * np.pi
+    qz, qw = np.sin(yaw / 2), np.cos(yaw / 2)
+    return "".join(
+        f"{t:.9f} {x * MM!r} {y * MM!r} 0.0 0.0 0.0 {z!r} {w!r}\n"
+        for t, x, y, z, w in zip(t_s.tolist(), x_mm.tolist(), y_mm.tolist(), qz.tolist(), qw.tolist(), strict=True)
+    )
+
+
+def export_tum(doc: dict[str, Any], source: Path, out: Path, truth_out: Path | None) -> Exported:
+    from sensact.io.atomic import write_text
+
+    npz = source.with_suffix(".path.npz")
+    if not npz.is_file():
+        raise ModelFormatError(
+            f"no smoothed path beside it ({npz.name}).", file=source, fix="learn it again with `sensact learn em`."
+        )
+    with np.load(npz) as z:
+        names = tuple(str(s) for s in z["state"])
+        if names != ("x_mm", "y_mm", "theta_rad"):
+            raise ModelFormatError(
+                "a 1-D track's path has no pose to write as TUM.", file=npz, fix="export a planar model's path."
+            )
+        t, mean = z["time_s"], z["mean"]
+    folder = _log_folder(doc, source)
+    t0 = _t0_s(folder)
+    write_text(out, tum_rows(t0 + t, mean[:, 0], mean[:, 1], mean[:, 2]))
+    written, notes = [out], []
+    gt = None if folder is None else folder / "groundtruth.csv"
+    if gt is not None and gt.is_file():
+        from sensact.io.csvtable import read_numeric_csv
+
+        g = read_numeric_csv(gt)
+        if {"x_mm", "y_mm", "theta_rad"} <= set(g):
+            ok = np.isfinite(g["x_mm"]) & np.isfinite(g["theta_rad"]) & (g.get("valid", np.ones_like(g["x_mm"])) > 0)
+            dest = truth_out or out.with_name(f"{out.stem}_truth{out.suffix}")
+            write_text(dest, tum_rows(t0 + g["t_s"][ok], g["x_mm"][ok], g["y_mm"][ok], g["theta_rad"][ok]))
+            written.append(dest)
+        else:
+            notes.append("the log's truth has no heading: no truth trajectory written")
+    else:
+        notes.append("the log folder (or its truth) was not found beside the model: no truth trajectory written")
+    return Exported(tuple(written), tuple(notes))
+
+
+def velodyne_yaml(doc: dict[str, Any], source: Path) -> str:
+    import yaml
+
+    cal = doc.get("velodyne_calibration")
+    if not isinstance(cal, dict):
+        raise ModelFormatError(
+            "not a car model with learned laser angles.",
+            file=source,
+            field="velodyne_calibration",
+            fix="give a model.json written by `sensact learn car` (learn it again if it predates the export).",
+        )
+    return yaml.safe_dump(cal, sort_keys=False, default_flow_style=False)
+
+
+def export_model(model: Path, fmt: str, out: Path, truth_out: Path | None = None) -> Exported:
+    """``model`` in ``fmt`` at ``out`` (and, for tum, the truth's trajectory beside it)."""
+    from sensact.errors import ConfigError
+    from sensact.io.atomic import write_text
+
+    if fmt not in FORMATS:
+        raise ConfigError(f"no export format {fmt!r}.", field="--format", fix=f"one of {', '.join(FORMATS)}")
+    doc = read_model_doc(model)
+    if fmt == "tum":
+        return export_tum(doc, model, out, truth_out)
+    text = robot_localization_yaml(doc, model) if fmt == "robot-localization" else velodyne_yaml(doc, model)
+    write_text(out, text)
+    return Exported((out,))

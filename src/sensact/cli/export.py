@@ -1,0 +1,40 @@
+"""``sensact export``: a learned model for a ROS stack (app/export.py)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from sensact.cli.base import app, console, friendly
+
+
+@app.command("export")
+@friendly
+def export_cmd(
+    model: Annotated[Path, typer.Argument(help="A model.json from `sensact learn em` or `learn car`.")],
+    format_: Annotated[
+        str, typer.Option("--format", help="robot-localization (YAML), tum (trajectory for evo) or velodyne (YAML).")
+    ],
+    out: Annotated[Path, typer.Option("--out", help="The file to write.")],
+    truth_out: Annotated[
+        Path | None,
+        typer.Option(help="tum: where the truth's trajectory goes (default OUT_truth.tum, when the log has truth)."),
+    ] = None,
+) -> None:
+    """Write a learned model in SI units and REP 103 axes (x forward, y left; yaw 0 facing the map's +x).
+
+    robot-localization: the process_noise_covariance (15x15, per second) from the learned Sigma_m, a
+    command's twist covariance, the action model's gains and offsets and the sensor's mount, as YAML to
+    merge into robot_localization's parameters. tum: EM's smoothed path (timestamp x y z qx qy qz qw, on
+    the log's own clock) and the truth's beside it, so that `evo_ape tum OUT_truth.tum OUT` compares them.
+    velodyne: a car model's learned laser angles as a ROS velodyne calibration."""
+    from sensact.app.export import export_model
+
+    done = export_model(model, format_, out, truth_out)
+    for note in done.notes:
+        console.print(f"[yellow]note:[/] {note}", highlight=False)
+    console.print("wrote " + ", ".join(str(p) for p in done.written), highlight=False)
+    if format_ == "tum" and len(done.written) == 2:
+        console.print(f"compare with evo: `evo_ape tum {done.written[1]} {done.written[0]}`", highlight=False)

@@ -1,0 +1,118 @@
+"""``sensact export``: each format checked against an independent reading of the same model (the YAML
+parsed and its matrices rebuilt from the model's own numbers, the action model evaluated both ways, the
+TUM files read by evo and scored as sensact scores the path)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from sensact.cli import app
+from sensact.models.em_model import EMModel
+
+runner = CliRunner()
+
+
+def _ok(args):
+    res = runner.invoke(app, [str(a) for a in args])
+    assert res.exit_code == 0, res.output
+    return res
+
+
+@pytest.fixture(scope="module")
+def learned(tmp_path_factory):
+    """A simulated differential drive (two minutes, its camera 150 mm ahead) learned by `learn em`."""
+    root = tmp_path_factory.mktemp("export")
+    _ok(
+        [
+            "simulate",
+            "diffdrive",
+            "--out",
+            root / "log",
+            "--seconds",
+            "120",
+            "--seed",
+            "2",
+            "--set",
+            "mounted_at=[150,0,0]",
+        ]
+    )
+    _ok(["learn", "em", root / "log", "--out", root / "model.json"])
+    return root, json.loads((root / "model.json").read_text())
+
+
+def test_robot_localization_yaml_is_sigma_m_in_si_per_second(learned, tmp_path):
+    root, doc = learned
+    _ok(["export", root / "model.json", "--format", "robot-localization", "--out", tmp_path / "rl.yaml"])
+    params = yaml.safe_load((tmp_path / "rl.yaml").read_text())
+    q = np.array(params["ekf_filter_node"]["ros__parameters"]["process_noise_covariance"]).reshape(15, 15)
+    assert np.array_equal(q, q.T) and np.linalg.eigvalsh(q).min() > 0  # symmetric positive-definite
+    dt = doc["dt_s"]
+    side, fwd, head = doc["model"]["motion_sd"][0]  # sensact's robot frame: x right, y forward (mm, per step)
+    body = np.array(params["sensact"]["sigma_m_per_s_body"])
+    np.testing.assert_allclose(body, np.diag([(fwd / 1000) ** 2, (side / 1000) ** 2, head**2]) / dt, rtol=1e-12)
+    # world x, y: the body covariance averaged over headings (a rotated covariance's mean is trace/2 * I)
+    headings = np.linspace(0, 2 * np.pi, 3600, endpoint=False)
+    rot = np.stack([[np.cos(headings), -np.sin(headings)], [np.sin(headings), np.cos(headings)]]).transpose(2, 0, 1)
+    mean_world = np.mean(rot @ body[:2, :2] @ rot.transpose(0, 2, 1), axis=0)
+    np.testing.assert_allclose(q[:2, :2], mean_world, rtol=1e-9, atol=1e-18)
+    assert q[5, 5] == pytest.approx(head**2 / dt, rel=1e-12)
+    twist = np.array(params["sensact"]["twist_covariance"]).reshape(6, 6)
+    assert twist[0, 0] == pytest.approx((fwd / 1000) ** 2 / dt**2) and twist[5, 5] == pytest.approx(head**2 / dt**2)
+    mount = params["sensact"]["sensor_mount"]
+    assert mount["x_m"] == pytest.approx(doc["model"]["sensor"]["mount"]["forward_mm"] / 1000)
+    assert 0.10 < mount["x_m"] < 0.20  # the camera sits 150 mm ahead
+
+
+def test_exported_action_model_predicts_what_the_model_predicts(learned, tmp_path):
+    """Commands in SI through the exported gains give the velocities sensact's own model gives, turned
+    into REP 103's axes (forward = sensact's y, left = -x)."""
+    root, doc = learned
+    _ok(["export", root / "model.json", "--format", "robot-localization", "--out", tmp_path / "rl.yaml"])
+    act = yaml.safe_load((tmp_path / "rl.yaml").read_text())["sensact"]["action_model"]
+    assert act["commands"] == ["v_m_s", "omega_rad_s"]
+    model = EMModel.from_dict(doc["model"])
+    rng = np.random.default_rng(0)
+    for v, w in rng.uniform([-0.3, -1.0], [0.3, 1.0], size=(20, 2)):
+        vx, vy, vth = (model.action.features(np.array([[v * 1000, w]])) @ model.action.coefficients)[0]
+        values = {"1": 1.0, "v_m_s": v, "omega_rad_s": w, "v_m_s*omega_rad_s": v * w}
+        si = {k: sum(c * values[f] for f, c in terms.items()) for k, terms in act["velocities"].items()}
+        assert si["vx_m_s"] == pytest.approx(vy / 1000, abs=1e-12)
+        assert si["vy_m_s"] == pytest.approx(-vx / 1000, abs=1e-12)
+        assert si["vyaw_rad_s"] == pytest.approx(vth, abs=1e-12)
+    assert act["delay_s"] == pytest.approx(model.action.delay_steps * doc["dt_s"])
+
+
+def test_tum_trajectories_read_by_evo_score_as_sensact_scores_the_path(learned, tmp_path):
+    evo = pytest.importorskip("evo.core.metrics", reason="evo reads the TUM files independently")
+    from evo.core import sync
+    from evo.tools import file_interface
+
+    root, doc = learned
+    path, truth = tmp_path / "path.tum", tmp_path / "truth.tum"
+    _ok(["export", root / "model.json", "--format", "tum", "--out", path, "--truth-out", truth])
+    est = file_interface.read_tum_trajectory_file(str(path))
+    ref = file_interface.read_tum_trajectory_file(str(truth))
+    with np.load(root / "model.path.npz") as z:
+        mean = z["mean"]
+    np.testing.assert_allclose(est.positions_xyz[:, :2] * 1000, mean[:, :2], atol=1e-9)
+    yaw = np.array([2 * math.atan2(q[3], q[0]) for q in est.orientations_quat_wxyz])  # a yaw-only quaternion
+    np.testing.assert_allclose(np.angle(np.exp(1j * (yaw - mean[:, 2] - np.pi / 2))), 0, atol=1e-9)
+    ref, est = sync.associate_trajectories(ref, est, max_diff=1e-4)
+    ape = evo.APE(evo.PoseRelation.translation_part)
+    ape.process_data((ref, est))
+    median_mm = 1000 * ape.get_statistic(evo.StatisticsType.median)
+    assert median_mm == pytest.approx(doc["evaluation"]["path"]["median_raw_mm"], rel=0.02)
+
+
+def test_export_refuses_a_format_it_does_not_know_and_a_model_without_its_parts(learned, tmp_path):
+    root, _ = learned
+    res = runner.invoke(app, ["export", str(root / "model.json"), "--format", "urdf", "--out", str(tmp_path / "x")])
+    assert res.exit_code == 2 and "no export format 'urdf'" in res.output
+    res = runner.invoke(app, ["export", str(root / "model.json"), "--format", "velodyne", "--out", str(tmp_path / "x")])
+    assert res.exit_code == 2 and "not a car model with learned laser angles" in " ".join(res.output.split())
