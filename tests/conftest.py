@@ -39,3 +39,53 @@ def continuous_fit():
 
     data, poses = simulate_continuous(1)
     return data, poses, fit_em(data, None, continuous_config())
+
+
+CHROMIUM = Path("/usr/bin/chromium")  # Debian's; .ci/run installs it
+CHROMIUM_ARGS = [  # as root, offline: no sandbox, and none of the connections a closed network refuses
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
+
+
+@pytest.fixture(scope="session")
+def browser():
+    """A real headless Chromium driven by Playwright. Skips where there is none, except in CI, which
+    installs one and must run the check."""
+    sync_api = pytest.importorskip("playwright.sync_api", reason="playwright comes with the test extra")
+    if not CHROMIUM.is_file():
+        if os.environ.get("CI"):
+            pytest.fail(f"CI has no {CHROMIUM}: .ci/run installs Debian's chromium")
+        pytest.skip(f"no browser at {CHROMIUM} (apt-get install chromium)")
+    with sync_api.sync_playwright() as p:
+        b = p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+        yield b
+        b.close()
+
+
+def open_page(browser, path: Path) -> dict:
+    """``path`` loaded offline (any request off the page is refused): its headings, each image's loaded
+    width, the requests that failed and what the console said in error."""
+    context = browser.new_context(offline=True)
+    page = context.new_page()
+    errors: list[str] = []
+    failed: list[str] = []
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    page.on("requestfailed", lambda r: failed.append(r.url))
+    page.goto(path.resolve().as_uri(), wait_until="load")
+    seen = page.evaluate(
+        """() => ({
+            headings: [...document.querySelectorAll('h1, h2')].map(h => h.textContent),
+            images: [...document.images].map(i => ({complete: i.complete, width: i.naturalWidth})),
+            links_out: [...document.querySelectorAll('[src], [href]')]
+                .map(e => e.getAttribute('src') || e.getAttribute('href'))
+                .filter(u => !u.startsWith('data:') && !u.startsWith('#')),
+        })"""
+    )
+    context.close()
+    return seen | {"console_errors": errors, "failed_requests": failed}

@@ -241,3 +241,26 @@ def test_turtlebot_bag_learns_the_model_its_track_csv_learns(tmp_path):
     b = _learned(tmp_path / "from_csv", tmp_path / "b.json")
     assert a == b
     assert a["evaluation"]  # scored against the distance the pose gives
+
+
+def test_of_several_poses_the_motion_capture_one_is_the_truth(tmp_path):
+    m = Msgs("mcap")
+    msgs = []
+    for k in range(30):
+        t = T0_NS + k * 10**8
+        msgs += [
+            ("/cmd_vel", "geometry_msgs/msg/Twist", t, m.twist(0.1 if k < 15 else -0.1, 0.0)),
+            ("/sonar", "sensor_msgs/msg/Range", t + 1, m.range(t, 1.0 + 0.01 * k)),
+            ("/goal_pose", "geometry_msgs/msg/PoseStamped", t + 2, m.pose_stamped(t, 5.0, 0.0, 0.0)),
+            ("/vicon/robot/pose", "geometry_msgs/msg/PoseStamped", t + 3, m.pose_stamped(t, 0.01 * k, 0.0, 0.0)),
+        ]
+    bag = write_bag(tmp_path / "b", "mcap", msgs, m)
+    _write_csv(tmp_path / "map.csv", {"id": [0], "x_m": [2.0], "y_m": [0.0]})
+    _ok(["convert", "bag", bag, "--landmarks", tmp_path / "map.csv", "--out", tmp_path / "o"])
+    meta = json.loads((tmp_path / "o" / "meta.json").read_text())
+    assert meta["source"]["roles"] == {"commands": "/cmd_vel", "readings": ["/sonar"], "truth": "/vicon/robot/pose"}
+    from sensact.io.csvtable import read_numeric_csv
+
+    track = read_numeric_csv(tmp_path / "o" / "bag_tables" / "track.csv")
+    d = track["distance_m"][np.isfinite(track["distance_m"])]
+    np.testing.assert_allclose(d, 2.0 - 0.01 * np.arange(30))  # the distance to the map's one landmark

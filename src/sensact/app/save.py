@@ -16,7 +16,7 @@ from sensact.io.atomic import write_json, write_npz
 # the figures drawn against a log's truth (OUT_<kind>.png): recorded poses (report.figures_real.write_robot)
 # or a 1-D robot's recorded distance; one an earlier run at the same OUT drew, and this run does not, is
 # removed so that it cannot pass for this fit
-TRUTH_FIGURES = ("actions", "range", "heading_noise", "bearing", "against_range")
+TRUTH_FIGURES = ("actions", "range", "heading_noise", "bearing", "against_range", "path")
 
 
 @dataclass(frozen=True)
@@ -44,10 +44,12 @@ def write_smoothed_path(path: Path, posteriors: Any, data: Any) -> Path:
     )
 
 
-def save_calibration(cal: Calibration, out: Path, document: dict[str, Any] | None = None) -> Saved:
-    """``cal`` at ``out`` (its JSON, or ``document`` in its place), OUT.history.npz, OUT.path.npz, OUT.png and
-    the figures against the log's truth; an earlier run's halves figure, and its figures against a truth
-    this log does not have, removed."""
+def save_calibration(
+    cal: Calibration, out: Path, document: dict[str, Any] | None = None, *, report: bool = True
+) -> Saved:
+    """``cal`` at ``out`` (its JSON, or ``document`` in its place), OUT.history.npz, OUT.path.npz, OUT.png,
+    the figures against the log's truth and, with ``report``, report.html beside them (``app.report``); an
+    earlier run's halves figure, and its figures against a truth this log does not have, removed."""
     res, log = cal.result, cal.log
     write_json(out, document if document is not None else cal.to_json())
     write_npz(
@@ -76,6 +78,11 @@ def save_calibration(cal: Calibration, out: Path, document: dict[str, Any] | Non
         run = TurtlebotEMRun(log.data, log.recorded_distance_mm, res)
         path = out.with_name(f"{out.stem}_against_range.png")
         written.append(figure_turtlebot_em(run, scores, path, f"EM on {log.name}"))
+    if report:
+        from sensact.app.report import write_em_report
+
+        page, drawn = write_em_report(cal, out, written)
+        written += [*drawn, page]
     stale = [
         p for kind in TRUTH_FIGURES if (p := out.with_name(f"{out.stem}_{kind}.png")).exists() and p not in written
     ]

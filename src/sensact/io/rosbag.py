@@ -47,6 +47,7 @@ SUPPORTED = {
 TAG_FRAME = re.compile(r"^(?:.*/)?tag[A-Za-z0-9]*[:_](\d+)$")  # tag36h11:3 (ROS 2), tag_3 (ROS 1's default)
 # the optical frame's axes (z forward, x right, y down) in the robot's (x forward, y left, z up): REP 103
 OPTICAL_TO_BODY = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+MOCAP_NAME = re.compile(r"mocap|vicon|optitrack|qualisys|motion_capture|ground_?truth", re.IGNORECASE)
 CLOCK_GAP_S = 1.0  # header stamps further than this from the recording clock are on another clock
 MOUNT_STEM = "tf_static_mount"
 
@@ -152,7 +153,8 @@ def propose_roles(reader, topics: list[Topic]) -> tuple[Roles, list[tuple[frozen
     source, one kind of reading and at most one truth the proposal is complete.
 
     Twists are the commands; an Odometry is one only where no Twist is (a robot that logs its wheel
-    odometry, not what it was told); a PoseStamped is the truth, an Odometry never is unless named. Each open
+    odometry, not what it was told); a PoseStamped is the truth (of several, the one named as motion capture's),
+    an Odometry never is unless named. Each open
     role comes with the roles whose naming settles it."""
     open_roles: list[tuple[frozenset[str], str]] = []
     either = frozenset(("readings", "sightings"))
@@ -172,6 +174,9 @@ def propose_roles(reader, topics: list[Topic]) -> tuple[Roles, list[tuple[frozen
     if ranges and sightings:
         open_roles.append((either, f"readings {', '.join(ranges)} or sightings {', '.join(sightings)}: not both"))
     truths = [t.name for t in topics if t.msgtype in TRUTH_TYPES[:2] and t.count]
+    named = [t for t in truths if MOCAP_NAME.search(t)]
+    if len(truths) > 1 and len(named) == 1:  # a goal or a detector's pose beside the motion capture's
+        truths = named
     if len(truths) > 1:
         open_roles.append((frozenset(("truth",)), f"truth: one of {', '.join(truths)}"))
     roles = Roles(

@@ -38,6 +38,9 @@ def learn_bootstrap_cmd(
     ] = None,
     set_: SetOpt = None,
     config: ConfigOpt = None,
+    report: Annotated[
+        bool, typer.Option("--report/--no-report", help="Write report.html beside the models (needs --out).")
+    ] = True,
 ) -> None:
     """Learn S(o) and A(c) from each other with Algorithm 1 (sec. 3.2.3).
 
@@ -66,7 +69,7 @@ def learn_bootstrap_cmd(
     )
     warn_if_one_command(data.commands, data.source, "command", data.command_unit)
     start = _clock_start(data, log)
-    _warn_if_one_way_at_takeover(data, cfg, start)
+    warnings = [w for w in (_warn_if_one_way_at_takeover(data, cfg, start),) if w]
     with progress_bar() as progress:
         res = learn_bootstrap(
             data.times_s,
@@ -93,7 +96,22 @@ def learn_bootstrap_cmd(
         from sensact.report.figures_bootstrap import figure_bootstrap_fit
 
         png = figure_bootstrap_fit(res, data, out.with_suffix(".png"), f"Algorithm 1 on {Path(data.source).name}")
-        console.print(f"wrote {out}, {out.with_suffix('.history.npz')} and {png}")
+        written = [out, out.with_suffix(".history.npz"), png]
+        if report:
+            from sensact.app.report import simple_report
+
+            if res.status != "converged":
+                warnings.append(
+                    f"Algorithm 1 ended {res.status}" + (f" at {res.diverged_at_s:.1f} s" if res.diverged_at_s else "")
+                )
+            numbers = {"status": res.status, "sensor S": res.sensor.describe("S"), "action A": res.action.describe("A")}
+            numbers |= {"gated observations": res.n_gated} | _flat(evaluation)
+            lead = f"Chapter 3's Algorithm 1 on {data.source}; the models are {out.name}."
+            figures = [(png, "the learned S and A over the log")]
+            written.append(
+                simple_report(out, f"sensact calibration: {Path(data.source).name}", lead, numbers, warnings, figures)
+            )
+        console.print("wrote " + ", ".join(str(p) for p in written))
 
 
 def _clock_start(data: Any, log: Path) -> float:
@@ -118,7 +136,7 @@ def _clock_start(data: Any, log: Path) -> float:
     return start
 
 
-def _warn_if_one_way_at_takeover(data: Any, cfg: Any, start: float) -> None:
+def _warn_if_one_way_at_takeover(data: Any, cfg: Any, start: float) -> str | None:
     """Say so when A_t takes over from A0 (at 2 t_start after the clock ``start``, Algorithm 1 line 3) before
     the robot has been commanded both ways: fitted to one direction of travel, the pair of models can settle
     far off (on turtlebot1d's training1.csv, first commanded at 3.3 s and first reversing at 84 s, t_start_s = 40
@@ -128,7 +146,7 @@ def _warn_if_one_way_at_takeover(data: Any, cfg: Any, start: float) -> None:
     takeover = start + 2.0 * cfg.t_start_s
     reverse = first_reversal_s(data.times_s, data.commands)
     if reverse is not None and reverse <= takeover:
-        return
+        return None
     until = "in the whole log" if reverse is None else f"until {reverse:.1f} s"
     after = f"{start:.0f} s + " if start > 0.0 else ""
     fix = (
@@ -141,7 +159,19 @@ def _warn_if_one_way_at_takeover(data: Any, cfg: Any, start: float) -> None:
         if start > 0.0
         else f"2 t_start_s = {takeover:g} s into the log"
     )
-    console.print(
-        f"[yellow]warning[/]: A_t takes over from A0 at {at}, and {until} the robot is commanded one way only, so "
-        f"the two models are first fitted to one direction of travel and can settle far off; {fix} (docs/bootstrap.md)."
+    line = (
+        f"A_t takes over from A0 at {at}, and {until} the robot is commanded one way only, so the two models are "
+        f"first fitted to one direction of travel and can settle far off; {fix} (docs/bootstrap.md)."
     )
+    console.print(f"[yellow]warning[/]: {line}")
+    return line
+
+
+def _flat(doc: Any, prefix: str = "") -> dict[str, Any]:
+    """A nested evaluation as one row per number (``sensor.rms_mm``)."""
+    if not isinstance(doc, dict):
+        return {prefix: doc} if prefix and not isinstance(doc, list) else {}
+    out: dict[str, Any] = {}
+    for k, v in doc.items():
+        out |= _flat(v, f"{prefix}.{k}" if prefix else str(k))
+    return out

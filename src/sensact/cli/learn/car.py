@@ -119,6 +119,9 @@ def learn_car_cmd(
     ] = None,
     set_: SetOpt = None,
     config: ConfigOpt = None,
+    report: Annotated[
+        bool, typer.Option("--report/--no-report", help="Write report.html beside the models (needs --out).")
+    ] = True,
 ) -> None:
     """Learn the lidar's laser angles, the scan-matching odometry and the car dynamics (Algorithm 3)."""
     import numpy as np
@@ -165,6 +168,22 @@ def learn_car_cmd(
         png = figure_car_fit(
             res, data, out.with_suffix(".png"), f"Algorithm 3 on {log.name}", reference, cfg.odometry.dt_s
         )
-        console.print(f"wrote {out} and {png}")
+        written = [out, png]
+        if report:
+            from sensact.app.report import simple_report
+
+            numbers = {
+                "firings": data.distance_m.shape[0],
+                "lasers": data.distance_m.shape[1],
+                "iterations": len(history),
+                "offset C (deg)": float(np.degrees(res.offset_rad)),
+            }
+            numbers |= {f"vs the factory: {k}": v for k, v in (comparison or {}).items() if not isinstance(v, list)}
+            numbers |= {f"vs truth: {k}": v for k, v in (evaluation or {}).items() if not isinstance(v, dict | list)}
+            lead = f"Chapter 5's Algorithm 3 on {log}; the models are {out.name}."
+            figures = [(png, "the laser angles, the scan-matching odometry and the car dynamics")]
+            page = simple_report(out, f"sensact calibration: {log.name}", lead, numbers, list(data.warnings), figures)
+            written.append(page)
+        console.print("wrote " + ", ".join(str(p) for p in written))
     if calibration_yaml is not None:
         _write_ros_calibration(calibration_yaml, data, res)

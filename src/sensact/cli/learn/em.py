@@ -219,6 +219,9 @@ def learn_em_cmd(
     ] = None,
     set_: SetOpt = None,
     config: ConfigOpt = None,
+    report: Annotated[
+        bool, typer.Option("--report/--no-report", help="Write report.html beside the model (needs --out).")
+    ] = True,
 ) -> None:
     """Learn the action model, sensor functions f and noise sigmas by EM (ch. 4).
 
@@ -243,7 +246,7 @@ def learn_em_cmd(
     if out is not None:
         from sensact.app.save import save_calibration
 
-        saved = save_calibration(cal, out)
+        saved = save_calibration(cal, out, report=report)
         console.print("wrote " + ", ".join(str(p) for p in saved.written))
         if saved.removed_halves is not None and not halves:
             console.print(f"removed {saved.removed_halves}, an earlier run's --halves figure")

@@ -1,0 +1,194 @@
+"""``report.html`` beside a calibration's model: the page a person reads to decide whether to trust it.
+EM's (`learn em`): convergence, each sensor's learned function over its readings, the path (over the truth
+when the log has one), the residuals' histograms and autocorrelation, the learned action model against
+the commands in SI, the sensor's mount, and every flag and warning of the fit. Chapter 3's and chapter
+5's learners get their own figure, numbers and warnings (``simple_report``)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from sensact.app.calibrate import Calibration
+from sensact.app.scores import Scores, Unscored
+from sensact.report.page import Section, report_path, write_report
+
+
+def _num(x: Any, digits: int = 4) -> str:
+    if x is None:
+        return "-"
+    if isinstance(x, bool):
+        return "yes" if x else "no"
+    if isinstance(x, int | float):
+        return f"{x + 0.0:.{digits}g}" if math.isfinite(x) else str(x)  # + 0.0: no "-0"
+    return str(x)
+
+
+def _flags(cal: Calibration, doc: Mapping[str, Any]) -> tuple[str, ...]:
+    res = cal.result
+    flags = list(cal.diagnostics.warnings)
+    if res.stop_reason != "converged":
+        flags.append(f"EM stopped: {res.stop_reason} (not converged)")
+    for key in ("range_function_turns", "range_function_bends"):
+        for sign in doc.get(key) or []:
+            flags.append(f"{key.replace('_', ' ')}: {sign}")
+    if doc.get("em_unsettled"):
+        flags.append(f"EM unsettled: {doc['em_unsettled']}")
+    if isinstance(cal.scores, Unscored):
+        flags.append(f"not scored against the log's truth: {cal.scores.reason}")
+    if isinstance(cal.scores, Scores):
+        missed = [k for k, ok in cal.scores.bars.items() if not ok]
+        if missed:
+            flags.append("bars missed against the truth: " + ", ".join(missed))
+    return tuple(dict.fromkeys(flags))
+
+
+def _action_table(doc: Mapping[str, Any], model_path: Path) -> tuple[tuple[str, ...], tuple[tuple[str, ...], ...]]:
+    from sensact.app.export import action_model_si
+
+    act = action_model_si(dict(doc), model_path)
+    if "velocities" not in act:
+        return ("action model",), ((str(act.get("note", "")),),)
+    features = list(dict.fromkeys(f for terms in act["velocities"].values() for f in terms))
+    rows = tuple((v, *(_num(terms.get(f), 5) for f in features)) for v, terms in act["velocities"].items())
+    return ("velocity (REP 103, SI)", *features), rows
+
+
+def _mount_rows(cal: Calibration) -> tuple[tuple[str, ...], ...]:
+    m = cal.model.sensor.mount.to_dict()
+    rows = [("learned by EM", _num(m["forward_mm"] / 1000), _num(m["left_mm"] / 1000), _num(m["yaw_rad"]))]
+    meta = cal.log.folder.meta if cal.log.folder is not None else {}
+    tf = (meta.get("source") or {}).get("tf_static_mount") if isinstance(meta.get("source"), dict) else None
+    if tf:
+        rows.append(
+            ("/tf_static (the bag's)", _num(tf["x_m"]), _num(tf["y_m"]), f"{_num(tf['yaw_rad_applied'])} (applied)")
+        )
+    ev = cal.scores.evaluation if isinstance(cal.scores, Scores) else {}
+    fitted = (ev.get("sensor_mount") or {}).get("fitted_to_truth") if isinstance(ev.get("sensor_mount"), dict) else None
+    if fitted:
+        rows.append(
+            (
+                "fitted to the truth",
+                _num(fitted.get("forward_mm", math.nan) / 1000),
+                _num(fitted.get("left_mm", math.nan) / 1000),
+                _num(fitted.get("yaw_rad")),
+            )
+        )
+    return tuple(rows)
+
+
+def write_em_report(cal: Calibration, model_path: Path, figures: Sequence[Path]) -> tuple[Path, list[Path]]:
+    """The calibration's page beside ``model_path``, and the figures of its own it drew there (OUT_residuals,
+    OUT_commands and, against a truth, OUT_path); ``figures`` are those already written (OUT.png and the
+    figures against the truth)."""
+    from sensact.report.figures_calibration import figure_actions, figure_path_over_truth, figure_residuals
+
+    res, data, doc = cal.result, cal.log.data, cal.to_json()
+    stem = model_path.with_suffix("")
+    by_kind = {p.stem.removeprefix(stem.name).lstrip("_") or "fit": p for p in figures if p.suffix == ".png"}
+    summary = res.summary()
+    overview = (
+        ("log", str(data.source)),
+        ("preset", str(cal.settings.preset)),
+        ("steps", f"{data.n_steps} of {_num(data.dt_s)} s ({_num(data.n_steps * data.dt_s, 5)} s)"),
+        ("sightings", str(data.n_observations)),
+        ("EM", f"{summary.get('iterations', '-')} iterations, {res.stop_reason}, best at {res.best_iteration}"),
+        ("log-likelihood", _num(res.loglik_best, 8)),
+        ("pruned by the gates", f"{100 * cal.diagnostics.pruned_fraction:.1f} %"),
+        (
+            "residuals' lag-1 autocorrelation",
+            ", ".join(f"{k} {_num(v, 2)}" for k, v in cal.diagnostics.residual_lag1_autocorrelation.items()),
+        ),
+    )
+    drawn: list[Path] = []
+    sections = [
+        Section("Summary", table=(("quantity", "value"), overview)),
+        Section("Flags and warnings", flags=_flags(cal, doc), flag_list=True),
+    ]
+    if res.posteriors is not None:
+        sections.append(
+            Section(
+                "Convergence, the sensor functions and the path",
+                paragraphs=("From the fit alone: no truth is used.",),
+                figures=(
+                    (by_kind["fit"], "log-likelihood per iteration; each channel's f over its readings; the path"),
+                )
+                if "fit" in by_kind
+                else (),
+            )
+        )
+        resid = figure_residuals(res, data, Path(f"{stem}_residuals.png"), "residuals about the smoothed path")
+        acts = figure_actions(res, data, Path(f"{stem}_commands.png"), "the learned action model against the commands")
+        drawn += [resid, acts]
+        sections.append(
+            Section(
+                "Residuals",
+                paragraphs=(
+                    "Each reading's residual about the smoothed path over its learned sigma: a fit whose noise "
+                    "model holds scatters as N(0, 1), and independent errors keep the autocorrelation in the band.",
+                ),
+                figures=((resid, "histograms and autocorrelation"),),
+            )
+        )
+        sections.append(
+            Section(
+                "Action model",
+                paragraphs=(f"Command delay {_num(getattr(cal.model.action, 'delay_steps', 0) * data.dt_s)} s.",),
+                table=_action_table(doc, model_path),
+                figures=((acts, "velocities over 1 s windows: the smoothed path's and A(c)'s"),),
+            )
+        )
+    sections.append(Section("Sensor mount", table=(("", "x forward (m)", "y left (m)", "yaw (rad)"), _mount_rows(cal))))
+    if isinstance(cal.scores, Scores):
+        ev = cal.scores.evaluation
+        rows = tuple((k, "pass" if ok else "MISSED") for k, ok in cal.scores.bars.items())
+        figs = []
+        truth = cal.log.folder.truth_poses() if cal.log.folder is not None else None
+        if res.posteriors is not None and truth is not None:
+            drawn.append(figure_path_over_truth(res, data, *truth, Path(f"{stem}_path.png"), "path"))
+            figs.append((drawn[-1], "EM's path over the truth's"))
+        figs += [
+            (by_kind[k], k.replace("_", " "))
+            for k in ("actions", "range", "heading_noise", "bearing", "against_range")
+            if k in by_kind
+        ]
+        path_mm = (ev.get("path") or {}).get("median_mm") if isinstance(ev.get("path"), dict) else None
+        sections.append(
+            Section(
+                f"Against {cal.scores.against} (never learned from)",
+                paragraphs=(f"Path median off the truth: {_num(path_mm)} mm.",) if path_mm is not None else (),
+                table=(("bar", "result"), rows) if rows else None,
+                figures=tuple(figs),
+            )
+        )
+    page = write_report(
+        report_path(model_path),
+        f"sensact calibration: {cal.log.name}",
+        f"EM (ch. 4) on {data.source}; the model is {model_path.name}.",
+        sections,
+    )
+    return page, drawn
+
+
+def simple_report(
+    model_path: Path,
+    title: str,
+    lead: str,
+    numbers: Mapping[str, Any],
+    warnings: Sequence[str],
+    figures: Sequence[tuple[Path, str]],
+) -> Path:
+    """A learner's page with its numbers, its warnings and its figures (chapters 3 and 5)."""
+    rows = tuple((k, _num(v)) for k, v in numbers.items())
+    return write_report(
+        report_path(model_path),
+        title,
+        lead,
+        [
+            Section("Summary", table=(("quantity", "value"), rows)),
+            Section("Flags and warnings", flags=tuple(warnings), flag_list=True),
+            Section("Figures", figures=tuple(figures)),
+        ],
+    )

@@ -1,0 +1,143 @@
+"""The figures of a calibration's report that `figure_em_fit` does not draw, from the fit alone (the truth's
+path drawn when the log has one): each channel's residuals about the smoothed path (histogram against the
+model's noise, and their autocorrelation in time), the learned action model against the commands, and
+the smoothed path over the recorded one."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+
+from sensact.core.pose_models import PLANAR, landmark_bearing, relative_displacement, sensor_distance, sensor_poses
+from sensact.learn.em.estep import channel_columns
+from sensact.report.figures1d import _save
+
+MAX_LAG = 20
+WINDOW_S = 1.0  # velocities are compared over windows this long: one step's is mostly noise
+
+
+def standardized_residuals(res: Any, data: Any) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Each channel's (and the bearing's) residual about the smoothed path over its sigma, with the step of
+    each, for the sightings EM used (weight above 0), in time order."""
+    model, post = res.model, res.posteriors
+    poses = post.mean_gamma[data.obs_step]
+    mount = model.sensor.mount.as_array()
+    dist = sensor_distance(poses, data.landmarks_xy[data.obs_landmark], mount, data.mode)
+    out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for j, col in enumerate(channel_columns(model.sensor, data)):
+        ch = model.sensor.channels[j]
+        reading = data.obs_readings[:, col]
+        pred = ch.function(dist)
+        if ch.bearing_terms and data.obs_bearing_rad is not None:
+            pred = pred + dist * ch.bearing_gain(np.nan_to_num(data.obs_bearing_rad))
+        used = np.isfinite(reading) & (post.weights[:, j] > 0)
+        out[ch.name] = ((reading[used] - pred[used]) / ch.sigma, data.obs_step[used])
+    sigma_b = model.sensor.sigma_bearing_rad
+    if data.mode == PLANAR and data.obs_bearing_rad is not None and sigma_b:
+        at = sensor_poses(poses, mount)
+        r = np.angle(np.exp(1j * (data.obs_bearing_rad - landmark_bearing(at, data.landmarks_xy[data.obs_landmark]))))
+        ok = np.isfinite(r)
+        out["bearing"] = (r[ok] / sigma_b, data.obs_step[ok])
+    return out
+
+
+def autocorrelation(x: np.ndarray, max_lag: int = MAX_LAG) -> np.ndarray:
+    """The sample autocorrelation at lags 1..max_lag (NaN where too short)."""
+    x = np.asarray(x, dtype=float) - np.mean(x)
+    var = float(x @ x)
+    return np.array(
+        [float(x[k:] @ x[:-k]) / var if 0 < k < x.size and var > 0 else np.nan for k in range(1, max_lag + 1)]
+    )
+
+
+def figure_residuals(res: Any, data: Any, path: Path, title: str) -> Path:
+    """A row per channel: the standardized residuals' histogram over N(0, 1), and their autocorrelation by
+    lag in sightings (a band of 2/sqrt(n) about 0 is what independent errors stay within)."""
+    resid = standardized_residuals(res, data)
+    n = max(len(resid), 1)
+    fig, axes = plt.subplots(n, 2, figsize=(10.0, 3.0 * n), squeeze=False)
+    z = np.linspace(-5, 5, 201)
+    for (name, (r, _)), (ax_h, ax_a) in zip(resid.items(), axes, strict=False):
+        ax_h.hist(np.clip(r, -5, 5), bins=60, range=(-5, 5), density=True, color="C0", alpha=0.7)
+        ax_h.plot(z, np.exp(-0.5 * z**2) / np.sqrt(2 * np.pi), color="C3", label="N(0, 1): the model's noise")
+        ax_h.set(xlabel=f"{name} residual / learned sigma", ylabel="density", title=f"{name}: {r.size} residuals")
+        ax_h.legend(fontsize=7)
+        ac = autocorrelation(r)
+        lags = np.arange(1, ac.size + 1)
+        ax_a.bar(lags, ac, color="C0")
+        band = 2 / np.sqrt(max(r.size, 1))
+        ax_a.axhspan(-band, band, color="0.85", zorder=0, label="independent errors (95 %)")
+        ax_a.set(xlabel="lag (sightings)", ylabel="autocorrelation", title=f"{name}: correlated errors", ylim=(-1, 1))
+        ax_a.legend(fontsize=7)
+    for ax in axes.ravel():
+        ax.grid(alpha=0.3)
+    fig.suptitle(title)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def _windowed(x: np.ndarray, k: int) -> np.ndarray:
+    n = x.shape[0] // k
+    return x[: n * k].reshape(n, k, *x.shape[1:]).mean(axis=1)
+
+
+def figure_actions(res: Any, data: Any, path: Path, title: str) -> Path:
+    """Each velocity EM moves the robot by, against the command that drives it most: the smoothed path's
+    (over 1 s windows) and the learned action model's, A(c), on the same windows."""
+    model, post = res.model, res.posteriors
+    action = model.action
+    names = action.velocity_names
+    if data.step_commands is None or not hasattr(action, "step_features"):
+        fig, ax = plt.subplots(figsize=(5, 2))
+        ax.text(0.5, 0.5, "an action table: no commands to draw against", ha="center", va="center")
+        ax.set_axis_off()
+        return _save(fig, path)
+    predicted = action.step_features(data.step_commands) @ action.coefficients  # (T, n) per second
+    m = post.mean_gamma
+    moved = relative_displacement(m[:-1], m[1:], data.mode) / data.dt_s  # robot frame, per second
+    if data.mode == PLANAR:
+        moved[:, 2] = np.angle(np.exp(1j * moved[:, 2] * data.dt_s)) / data.dt_s
+    k = max(1, round(WINDOW_S / data.dt_s))
+    smoothed, pred = _windowed(moved, k), _windowed(predicted[:-1], k)
+    cmds = _windowed(data.step_commands[:-1], k)
+    fig, axes = plt.subplots(1, len(names), figsize=(4.6 * len(names), 3.8), squeeze=False)
+    for i, (name, ax) in enumerate(zip(names, axes[0], strict=True)):
+        spread = np.abs(np.corrcoef(np.column_stack([cmds, pred[:, i]]).T)[-1, :-1]) if pred[:, i].std() > 0 else None
+        c = int(np.nanargmax(spread)) if spread is not None and np.isfinite(spread).any() else 0
+        ax.scatter(cmds[:, c], smoothed[:, i], s=4, alpha=0.4, color="C0", label="smoothed path")
+        ax.scatter(cmds[:, c], pred[:, i], s=4, alpha=0.6, color="C3", label="learned A(c)")
+        ax.set(xlabel=data.command_names[c], ylabel=name, title=f"{name} against {data.command_names[c]}")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, markerscale=3)
+    fig.suptitle(title)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def figure_path_over_truth(res: Any, data: Any, truth: np.ndarray, valid: np.ndarray, path: Path, title: str) -> Path:
+    """The smoothed path over the recorded one (planar), or the state against the recorded distance."""
+    m = res.posteriors.mean_gamma
+    fig, ax = plt.subplots(figsize=(6.5, 5.5))
+    if data.mode == PLANAR:
+        tr = np.where(valid[:, None], truth[:, :2], np.nan)
+        ax.plot(tr[:, 0], tr[:, 1], color="k", lw=1.2, label="recorded (truth)")
+        ax.plot(m[:, 0], m[:, 1], color="C0", lw=0.8, label="EM's smoothed path")
+        ax.scatter(*data.landmarks_xy.T, marker="s", color="C2", s=20, label="landmarks")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set(xlabel="x (mm)", ylabel="y (mm)")
+    else:
+        t = np.arange(data.n_steps) * data.dt_s
+        ax.plot(t, np.where(valid, truth[:, 0], np.nan), color="k", lw=1.2, label="recorded distance")
+        ax.plot(t, m[:, 0], color="C0", lw=0.8, label="EM's smoothed state")
+        ax.set(xlabel="time (s)", ylabel="distance (mm)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(title)
+    fig.tight_layout()
+    return _save(fig, path)
