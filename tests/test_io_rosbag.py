@@ -5,6 +5,8 @@ bad bag gets one line."""
 from __future__ import annotations
 
 import json
+from decimal import Decimal
+from fractions import Fraction
 
 import numpy as np
 import pytest
@@ -18,6 +20,7 @@ from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
 pytest.importorskip("rosbags", reason="the ros extra (pip install 'sensact[ros]') reads bags")
 runner = CliRunner()
+SHORT = ("thesis.max_iterations=40", "search.start_candidates=2")  # the same run either way: a short one will do
 T0_NS = 1_700_000_000 * 10**9  # a wall clock's epoch time, as a real bag's
 
 
@@ -29,15 +32,20 @@ def _write_csv(path, columns):
     return path
 
 
+def _seconds(ns):
+    """Whole nanoseconds as the nearest float of seconds (what a CSV of 9-place decimal times reads as)."""
+    return np.array([float(Fraction(int(n), 10**9)) for n in ns])
+
+
 def _ok(args):
     res = runner.invoke(app, [str(a) for a in args])
     assert res.exit_code == 0, res.output
     return res
 
 
-def _learned(folder, out):
+def _learned(folder, out, *sets):
     """The model ``learn em`` writes, less the time it took and the folder's name."""
-    _ok(["learn", "em", folder, "--out", out])
+    _ok(["learn", "em", folder, "--out", out, *(a for s in sets for a in ("--set", s))])
     doc = json.loads(out.read_text())
     del doc["summary"]["seconds"], doc["log"]
     return doc
@@ -54,12 +62,12 @@ def diffdrive_source(tmp_path_factory):
     x, z = rec.tag_xyz_optical_m[:, 0], rec.tag_xyz_optical_m[:, 2]
     csv = {
         "commands": _write_csv(
-            folder / "commands.csv", {"t_s": rec.cmd_ns / 1e9, "v_m_s": rec.v_m_s, "omega_rad_s": rec.omega_rad_s}
+            folder / "commands.csv", {"t_s": _seconds(rec.cmd_ns), "v_m_s": rec.v_m_s, "omega_rad_s": rec.omega_rad_s}
         ),
         "sightings": _write_csv(
             folder / "sightings.csv",
             {
-                "t_s": rec.tag_ns / 1e9,
+                "t_s": _seconds(rec.tag_ns),
                 "landmark_id": rec.tag_id,
                 "range_m": np.hypot(z, -x),
                 "bearing_rad": np.arctan2(-x, z),
@@ -133,9 +141,8 @@ def test_learning_from_a_bag_gives_the_model_learned_from_its_csvs(diffdrive_sou
             "--landmarks", csv["landmarks"], "--truth", truth, "--out", tmp_path / "from_csv",
         ]
     )  # fmt: skip
-    a = _learned(tmp_path / "from_bag", tmp_path / "a.json")
-    b = _learned(tmp_path / "from_csv", tmp_path / "b.json")
-    assert a == b
+    a = _learned(tmp_path / "from_bag", tmp_path / "a.json", *SHORT)
+    assert a == _learned(tmp_path / "from_csv", tmp_path / "b.json", *SHORT)
 
 
 def _truth_columns(log):
@@ -170,6 +177,7 @@ def test_a_bag_with_two_command_sources_lists_its_topics_and_writes_nothing(tmp_
         ("wrong_type", "/cmd_vel is a geometry_msgs/Twist, which sensact cannot read as truth"),
         ("backwards", "/sonar's clock goes backwards"),
         ("two_clocks", "on two clocks"),
+        ("empty", "/empty (truth) has no messages"),
     ],
 )
 def test_a_bad_bag_gets_one_line(tmp_path, case, words):
@@ -182,7 +190,7 @@ def test_a_bad_bag_gets_one_line(tmp_path, case, words):
     if case == "two_clocks":
         stamps = [s - 3600 * 10**9 for s in stamps]  # sim time against the recording's wall clock
     msgs += [("/sonar", "sensor_msgs/msg/Range", t + k * 10**8 + 1, m.range(s, 1.0)) for k, s in enumerate(stamps)]
-    bag = write_bag(tmp_path / "b", "sqlite3", msgs, m)
+    bag = write_bag(tmp_path / "b", "sqlite3", msgs, m, empty=(("/empty", "geometry_msgs/msg/PoseStamped"),))
     args = ["convert", "bag", str(bag), "--out", str(tmp_path / "o")]
     if case == "not_a_bag":
         (tmp_path / "x.bag").write_bytes(b"#ROSBAG V2.0\nnot really")
@@ -191,15 +199,20 @@ def test_a_bad_bag_gets_one_line(tmp_path, case, words):
         args += ["--truth", "/nope"]
     if case == "wrong_type":
         args += ["--truth", "/cmd_vel"]
+    if case == "empty":
+        args += ["--truth", "/empty"]
     res = runner.invoke(app, args)
     text = " ".join(res.output.split())
     assert res.exit_code == 2 and words in text and "Traceback" not in text, text
 
 
-def test_turtlebot_bag_learns_the_model_its_track_csv_learns(tmp_path):
+@pytest.mark.realdata
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_turtlebot_bag_learns_the_model_its_track_csv_learns(tmp_path, fmt):
     """The real Turtlebot log as a 1-D robot's bag (Twist commands, two sonars as sensor_msgs/Range, the
-    recorded distance as a motion-capture pose facing a wall at the origin) converts to the track CSV it
-    was made from and learns the same EM model, bit for bit."""
+    recorded distance as a motion-capture pose facing a wall at the origin) converts, in each format, to
+    the track CSV it was made from, and learns the same EM model, bit for bit (learned from one format:
+    the tables are the same)."""
     from sensact.io.csvtable import read_numeric_csv
 
     log = read_numeric_csv(require(DATA / "turtlebot1d" / "training1.csv"))
@@ -211,7 +224,7 @@ def test_turtlebot_bag_learns_the_model_its_track_csv_learns(tmp_path):
     v = log["velocity_command"][:n]
     dist = log["range"][:n]
     track = {
-        "t_s": np.r_[t_ns / 1e9, t_ns / 1e9, t_ns / 1e9, t_ns / 1e9],
+        "t_s": np.tile(_seconds(t_ns), 4),
         "v_m_s": np.r_[v, np.full(3 * n, np.nan)],
         "sonar1_m": np.r_[np.full(n, np.nan), shortest(sonar1), np.full(2 * n, np.nan)],
         "sonar2_m": np.r_[np.full(2 * n, np.nan), shortest(sonar2), np.full(n, np.nan)],
@@ -219,7 +232,7 @@ def test_turtlebot_bag_learns_the_model_its_track_csv_learns(tmp_path):
     }
     src = _write_csv(tmp_path / "track.csv", track)
     _write_csv(tmp_path / "map.csv", {"id": [0], "x_m": [0.0], "y_m": [0.0]})
-    m = Msgs("mcap")
+    m = Msgs(fmt)
     msgs = []
     for k in range(n):
         t = int(t_ns[k])
@@ -229,13 +242,15 @@ def test_turtlebot_bag_learns_the_model_its_track_csv_learns(tmp_path):
             ("/sonar2", "sensor_msgs/msg/Range", t + 2, m.range(t, sonar2[k], 0.0, 10.0)),
             ("/mocap/pose", "geometry_msgs/msg/PoseStamped", t + 3, m.pose_stamped(t, -dist[k], 0.0, 0.0)),
         ]
-    bag = write_bag(tmp_path / "tb", "mcap", msgs, m)
+    bag = write_bag(tmp_path / "tb", fmt, msgs, m)
     _ok(["convert", "bag", bag, "--landmarks", tmp_path / "map.csv", "--out", tmp_path / "from_bag"])
     got, want = read_numeric_csv(tmp_path / "from_bag" / "bag_tables" / "track.csv"), read_numeric_csv(src)
     assert sorted(got) == sorted(want)
     for k in set(want) - {"t_s"}:  # each column's (time, value) rows, in any order
         pairs = [sorted(zip(t["t_s"][np.isfinite(t[k])], t[k][np.isfinite(t[k])], strict=True)) for t in (got, want)]
         assert pairs[0] == pairs[1], k
+    if fmt != "mcap":
+        return
     _ok(["convert", "track", src, "--out", tmp_path / "from_csv"])
     a = _learned(tmp_path / "from_bag", tmp_path / "a.json")
     b = _learned(tmp_path / "from_csv", tmp_path / "b.json")
@@ -264,3 +279,80 @@ def test_of_several_poses_the_motion_capture_one_is_the_truth(tmp_path):
     track = read_numeric_csv(tmp_path / "o" / "bag_tables" / "track.csv")
     d = track["distance_m"][np.isfinite(track["distance_m"])]
     np.testing.assert_allclose(d, 2.0 - 0.01 * np.arange(30))  # the distance to the map's one landmark
+
+
+def _decimal_ns(path, column=0):
+    """A .dat file's times as whole nanoseconds, read from their decimal text (a float64 holds an epoch
+    time only to 256 ns)."""
+    rows = [line.split() for line in path.read_text().splitlines() if line.strip() and not line.startswith("#")]
+    return np.array([int(Decimal(r[column]) * 10**9) for r in rows], dtype=np.int64)
+
+
+@pytest.fixture(scope="module")
+def mrclam_source(tmp_path_factory):
+    """MRCLAM Dataset 6's robot 1, its first five minutes, as a ROS robot with a tag camera records it:
+    odometry as /cmd_vel at its own times, each barcode sighting as the tag's position in the camera's
+    optical frame (other robots' barcodes as tags the map lacks), Vicon as motion capture; and the timed
+    CSVs of the same numbers."""
+    from sensact.io.rosbag_write import RobotRecording
+
+    folder = require(DATA / "mrclam" / "MRCLAM_Dataset6")
+    load = lambda n: np.loadtxt(folder / n, comments="#")  # noqa: E731
+    odo, meas, gt = load("Robot1_Odometry.dat"), load("Robot1_Measurement.dat"), load("Robot1_Groundtruth.dat")
+    odo_ns, meas_ns, gt_ns = (
+        _decimal_ns(folder / f"Robot1_{n}.dat") for n in ("Odometry", "Measurement", "Groundtruth")
+    )
+    end = odo_ns[0] + 300 * 10**9
+    o, s, g = odo_ns < end, (meas_ns < end) & (meas_ns >= odo_ns[0]), gt_ns < end
+    subject = {int(b): int(k) for k, b in load("Barcodes.dat")}
+    tag = np.array([subject.get(int(b), 99) for b in meas[s, 1]])
+    r, b = meas[s, 2], meas[s, 3]
+    rec = RobotRecording(
+        cmd_ns=odo_ns[o],
+        v_m_s=odo[o, 1],
+        omega_rad_s=odo[o, 2],
+        tag_ns=meas_ns[s],
+        tag_id=tag,
+        tag_xyz_optical_m=np.column_stack([-r * np.sin(b), np.full(r.size, 0.2), r * np.cos(b)]),
+        truth_ns=gt_ns[g],
+        truth_xy_m=gt[g, 1:3],
+        truth_yaw_rad=gt[g, 3],
+    )
+    marks = load("Landmark_Groundtruth.dat")
+    out = tmp_path_factory.mktemp("mrclam_bag")
+    x, z = rec.tag_xyz_optical_m[:, 0], rec.tag_xyz_optical_m[:, 2]
+    csv = {
+        "commands": _write_csv(out / "commands.csv", {"t_s": odo[o, 0], "v_m_s": odo[o, 1], "omega_rad_s": odo[o, 2]}),
+        "sightings": _write_csv(
+            out / "sightings.csv",
+            {"t_s": meas[s, 0], "landmark_id": tag, "range_m": np.hypot(z, -x), "bearing_rad": np.arctan2(-x, z)},
+        ),
+        "landmarks": _write_csv(out / "map.csv", {"id": marks[:, 0], "x_m": marks[:, 1], "y_m": marks[:, 2]}),
+    }
+    return csv, rec
+
+
+@pytest.mark.realdata
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_an_mrclam_bag_converts_to_the_csvs_it_was_made_from(mrclam_source, tmp_path, fmt):
+    """Real times (epoch seconds to the millisecond) and real sightings: each format's tables are the CSVs'
+    numbers, bit for bit."""
+    from sensact.io.csvtable import read_numeric_csv
+
+    csv, rec = mrclam_source
+    bag = write_robot_bag(tmp_path / "run", fmt, rec)
+    _ok(["convert", "bag", bag, "--landmarks", csv["landmarks"], "--out", tmp_path / "log"])
+    for name in ("commands", "sightings"):
+        _same_rows(read_numeric_csv(tmp_path / "log" / "bag_tables" / f"{name}.csv"), read_numeric_csv(csv[name]))
+
+
+@pytest.mark.realdata
+def test_an_mrclam_bag_learns_the_model_its_csvs_learn(mrclam_source, tmp_path):
+    csv, rec = mrclam_source
+    bag = write_robot_bag(tmp_path / "run", "sqlite3", rec)
+    _ok(["convert", "bag", bag, "--landmarks", csv["landmarks"], "--out", tmp_path / "from_bag"])
+    truth = tmp_path / "from_bag" / "bag_tables" / "truth.csv"
+    args = ["--commands", csv["commands"], "--sightings", csv["sightings"], "--landmarks", csv["landmarks"]]
+    _ok(["convert", "csv", *args, "--truth", truth, "--out", tmp_path / "from_csv"])
+    a = _learned(tmp_path / "from_bag", tmp_path / "a.json", *SHORT)
+    assert a == _learned(tmp_path / "from_csv", tmp_path / "b.json", *SHORT)

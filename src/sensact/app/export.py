@@ -25,7 +25,13 @@ RL_STATES = ("x", "y", "z", "roll", "pitch", "yaw", "vx", "vy", "vz", "vroll", "
 RL_DEFAULT_DIAG = (0.05, 0.05, 0.06, 0.03, 0.03, 0.06, 0.025, 0.025, 0.04, 0.01, 0.01, 0.02, 0.01, 0.01, 0.015)
 UNMEASURED_VAR = 1e6  # a twist's dimensions a planar robot does not measure (z, roll, pitch), as ROS drivers set
 MM = 1e-3
-VELOCITY_REP = {"v_x_mm_s": ("vy_m_s", -MM), "v_y_mm_s": ("vx_m_s", MM), "v_theta_rad_s": ("vyaw_rad_s", 1.0)}
+VELOCITY_REP = {  # sensact's velocity: its REP 103 name and factor (a track's: toward the wall or beacon)
+    "v_x_mm_s": ("vy_m_s", -MM),
+    "v_y_mm_s": ("vx_m_s", MM),
+    "v_theta_rad_s": ("vyaw_rad_s", 1.0),
+    "v_mm_s": ("v_toward_m_s", MM),
+}
+REP_ORDER = ("vx_m_s", "vy_m_s", "vyaw_rad_s", "v_toward_m_s")
 
 
 @dataclass(frozen=True)
@@ -105,11 +111,10 @@ def action_model_si(doc: dict[str, Any], source: Path) -> dict[str, Any]:
             feature = "*".join(si[k][0] for k in mono) or "1"
             terms[feature] = float(action.coefficients[i, j]) * out_scale / in_scale
         outputs[name] = terms
-    order = ("vx_m_s", "vy_m_s", "vyaw_rad_s")
     return {
         "commands": [s[0] for s in si],
         "delay_s": action.delay_steps * float(doc["dt_s"]),
-        "velocities": {k: outputs[k] for k in order},
+        "velocities": {k: outputs[k] for k in REP_ORDER if k in outputs},
     }
 
 

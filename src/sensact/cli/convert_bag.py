@@ -116,8 +116,8 @@ def convert_bag(
         roles = Roles(roles.commands, roles.readings, None, roles.truth)
     if "sightings" in named and "readings" not in named:
         roles = Roles(roles.commands, (), roles.sightings, roles.truth)
-    console.print(f"{bag}: " + "; ".join(topic_lines(topics)), highlight=False)
-    console.print("roles: " + "; ".join(roles.lines()), highlight=False)
+    console.print(f"{bag}:\n  " + "\n  ".join(topic_lines(topics)), highlight=False, soft_wrap=True)
+    console.print("roles:\n  " + "\n  ".join(roles.lines()), highlight=False, soft_wrap=True)
     unresolved = [text for settled_by, text in open_roles if not settled_by & set(named)]
     if unresolved or roles.commands is None or not (roles.readings or roles.sightings):
         raise LogFormatError(

@@ -215,8 +215,9 @@ def _stamp_ns(header) -> int:
 
 
 def _seconds(ns: np.ndarray) -> np.ndarray:
-    """Integer nanoseconds as seconds, correctly rounded: a decimal time of 9 places comes back exactly."""
-    return np.asarray(ns, dtype=np.int64).astype(np.float64) / 1e9
+    """Integer nanoseconds as seconds, correctly rounded (Python's int division is; a float64 holds an epoch
+    time's nanoseconds only to 256 ns): a decimal time of 9 places or fewer comes back exactly."""
+    return np.array([n / 1_000_000_000 for n in np.asarray(ns, dtype=np.int64).tolist()], dtype=np.float64)
 
 
 def _shortest(values: np.ndarray) -> np.ndarray:

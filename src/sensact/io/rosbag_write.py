@@ -126,8 +126,11 @@ class Msgs:
 OPTICAL_QUAT = (-0.5, 0.5, -0.5, 0.5)
 
 
-def write_bag(path: Path, fmt: str, messages: list[tuple[str, str, int, object]], m: Msgs) -> Path:
-    """``messages``: (topic, msgtype, receive time ns, message), written in time order."""
+def write_bag(
+    path: Path, fmt: str, messages: list[tuple[str, str, int, object]], m: Msgs, empty: list[tuple[str, str]] = ()
+) -> Path:
+    """``messages``: (topic, msgtype, receive time ns, message), written in time order; ``empty``: (topic,
+    msgtype) of topics recorded with no message."""
     messages = sorted(messages, key=lambda r: r[2])
     if fmt == "ros1":
         from rosbags.rosbag1 import Writer
@@ -142,7 +145,7 @@ def write_bag(path: Path, fmt: str, messages: list[tuple[str, str, int, object]]
         writer = Writer(path, version=9, storage_plugin=plugin)
         ser = m.ts.serialize_cdr
     with writer:
-        conns = {}
+        conns = {topic: writer.add_connection(topic, msgtype, typestore=m.ts) for topic, msgtype in empty}
         for topic, msgtype, t_ns, msg in messages:
             if topic not in conns:
                 conns[topic] = writer.add_connection(topic, msgtype, typestore=m.ts)
