@@ -116,3 +116,12 @@ def test_export_refuses_a_format_it_does_not_know_and_a_model_without_its_parts(
     assert res.exit_code == 2 and "no export format 'urdf'" in res.output
     res = runner.invoke(app, ["export", str(root / "model.json"), "--format", "velodyne", "--out", str(tmp_path / "x")])
     assert res.exit_code == 2 and "not a car model with learned laser angles" in " ".join(res.output.split())
+
+
+def test_export_without_out_writes_beside_the_model(learned):
+    root, _ = learned
+    _ok(["export", root / "model.json", "--format", "tum"])
+    rows = np.loadtxt(root / "model.tum")
+    truth = np.loadtxt(root / "model_truth.tum")
+    assert rows.shape[1] == 8 == truth.shape[1] and np.all(np.diff(rows[:, 0]) > 0)
+    np.testing.assert_allclose(np.linalg.norm(rows[:, 4:], axis=1), 1.0, atol=1e-12)  # unit quaternions

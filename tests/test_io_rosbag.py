@@ -176,7 +176,7 @@ def test_a_bag_with_two_command_sources_lists_its_topics_and_writes_nothing(tmp_
         ("no_such_topic", "no topic /nope (truth); the bag has"),
         ("wrong_type", "/cmd_vel is a geometry_msgs/Twist, which sensact cannot read as truth"),
         ("backwards", "/sonar's clock goes backwards"),
-        ("two_clocks", "on two clocks"),
+        ("two_clocks", "/truth's stamps are 3600 s later against the recording clock than /sonar's"),
         ("empty", "/empty (truth) has no messages"),
     ],
 )
@@ -187,8 +187,11 @@ def test_a_bad_bag_gets_one_line(tmp_path, case, words):
     stamps = [t + k * 10**8 for k in range(20)]
     if case == "backwards":
         stamps[10] = t
-    if case == "two_clocks":
-        stamps = [s - 3600 * 10**9 for s in stamps]  # sim time against the recording's wall clock
+    if case == "two_clocks":  # two stamped topics an hour apart: no shift puts both on the commands' clock
+        msgs += [
+            ("/truth", "geometry_msgs/msg/PoseStamped", t + k, m.pose_stamped(t + k + 3600 * 10**9, 0, 0, 0))
+            for k in range(5)
+        ]
     msgs += [("/sonar", "sensor_msgs/msg/Range", t + k * 10**8 + 1, m.range(s, 1.0)) for k, s in enumerate(stamps)]
     bag = write_bag(tmp_path / "b", "sqlite3", msgs, m, empty=(("/empty", "geometry_msgs/msg/PoseStamped"),))
     args = ["convert", "bag", str(bag), "--out", str(tmp_path / "o")]
@@ -201,6 +204,8 @@ def test_a_bad_bag_gets_one_line(tmp_path, case, words):
         args += ["--truth", "/cmd_vel"]
     if case == "empty":
         args += ["--truth", "/empty"]
+    if case == "two_clocks":
+        args += ["--truth", "/truth"]
     res = runner.invoke(app, args)
     text = " ".join(res.output.split())
     assert res.exit_code == 2 and words in text and "Traceback" not in text, text
@@ -356,3 +361,26 @@ def test_an_mrclam_bag_learns_the_model_its_csvs_learn(mrclam_source, tmp_path):
     _ok(["convert", "csv", *args, "--truth", truth, "--out", tmp_path / "from_csv"])
     a = _learned(tmp_path / "from_bag", tmp_path / "a.json", *SHORT)
     assert a == _learned(tmp_path / "from_csv", tmp_path / "b.json", *SHORT)
+
+
+def test_stamps_on_another_clock_than_the_recording_move_the_twists_onto_it(tmp_path):
+    """Sim-time stamps recorded on the wall's clock: the Twists (no stamp) are moved onto the stamps' clock,
+    so that each reading keeps its command, and the move is said."""
+    from sensact.io.csvtable import read_numeric_csv
+
+    m = Msgs("ros1")
+    wall, sim = T0_NS, 1000 * 10**9
+    msgs = []
+    for k in range(40):
+        msgs += [
+            ("/cmd_vel", "geometry_msgs/msg/Twist", wall + k * 10**8, m.twist(0.1 if k < 20 else -0.1, 0.0)),
+            ("/sonar", "sensor_msgs/msg/Range", wall + k * 10**8 + 5_000_000, m.range(sim + k * 10**8, 1.0)),
+        ]
+    bag = write_bag(tmp_path / "b", "ros1", msgs, m)
+    res = _ok(["convert", "bag", bag, "--out", tmp_path / "o"])
+    assert "its times are moved onto the stamps' clock" in " ".join(res.output.split())
+    t = read_numeric_csv(tmp_path / "o" / "bag_tables" / "track.csv")
+    cmd = t["t_s"][np.isfinite(t["v_m_s"])]
+    reading = t["t_s"][np.isfinite(t["sonar_m"])]
+    # each reading 5 ms after its command: the Twists take the sonar's lag from stamp to recording as their own
+    np.testing.assert_allclose(reading - cmd, 0.005, atol=1e-6)

@@ -234,6 +234,12 @@ def velodyne_yaml(doc: dict[str, Any], source: Path) -> str:
     return yaml.safe_dump(cal, sort_keys=False, default_flow_style=False)
 
 
+def default_out(model: Path, fmt: str) -> Path:
+    """Where an export goes without --out: beside the model, named by it and the format."""
+    suffix = {"tum": ".tum", "robot-localization": ".robot_localization.yaml", "velodyne": ".velodyne.yaml"}
+    return model.with_suffix(suffix.get(fmt, f".{fmt}"))
+
+
 def export_model(model: Path, fmt: str, out: Path, truth_out: Path | None = None) -> Exported:
     """``model`` in ``fmt`` at ``out`` (and, for tum, the truth's trajectory beside it)."""
     from sensact.errors import ConfigError

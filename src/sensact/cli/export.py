@@ -17,7 +17,15 @@ def export_cmd(
     format_: Annotated[
         str, typer.Option("--format", help="robot-localization (YAML), tum (trajectory for evo) or velodyne (YAML).")
     ],
-    out: Annotated[Path, typer.Option("--out", help="The file to write.")],
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            "--out",
+            help="The file to write; by default beside the model: MODEL.tum, MODEL.robot_localization.yaml or "
+            "MODEL.velodyne.yaml.",
+            show_default=False,
+        ),
+    ] = None,
     truth_out: Annotated[
         Path | None,
         typer.Option(help="tum: where the truth's trajectory goes (default OUT_truth.tum, when the log has truth)."),
@@ -30,9 +38,9 @@ def export_cmd(
     merge into robot_localization's parameters. tum: EM's smoothed path (timestamp x y z qx qy qz qw, on
     the log's own clock) and the truth's beside it, so that `evo_ape tum OUT_truth.tum OUT` compares them.
     velodyne: a car model's learned laser angles as a ROS velodyne calibration."""
-    from sensact.app.export import export_model
+    from sensact.app.export import default_out, export_model
 
-    done = export_model(model, format_, out, truth_out)
+    done = export_model(model, format_, out or default_out(model, format_), truth_out)
     for note in done.notes:
         console.print(f"[yellow]note:[/] {note}", highlight=False)
     console.print("wrote " + ", ".join(str(p) for p in done.written), highlight=False)

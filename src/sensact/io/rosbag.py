@@ -247,19 +247,25 @@ def _times(path: Path, topic: str, msgs: list[tuple[int, object]], stamped: bool
             file=path,
             fix="pass --receive-times to use when each message was recorded.",
         )
-    back = np.flatnonzero(np.diff(ns) < 0)
+    _refuse_going_back(path, topic, ns, "message", 0)
+    return ns
+
+
+def _refuse_going_back(path: Path, topic: str, ns: np.ndarray, what: str, slack_ns: int) -> None:
+    """One line for stamps that go back, in the order recorded, by more than ``slack_ns``."""
+    back = np.flatnonzero(np.diff(ns) < -slack_ns)
     if back.size:
         i = int(back[0]) + 1
         raise LogFormatError(
-            f"{topic}'s clock goes backwards: message {i}'s header stamp is {(ns[i - 1] - ns[i]) / 1e9:.6g} s "
+            f"{topic}'s clock goes backwards: {what} {i}'s header stamp is {(ns[i - 1] - ns[i]) / 1e9:.6g} s "
             "before the one recorded before it.",
             file=path,
             fix="record on one clock (use_sim_time set alike for every node), or pass --receive-times.",
         )
-    return ns
 
 
-def _commands(path: Path, reader, topic: str, receive_times: bool, clocks: dict) -> dict[str, np.ndarray]:
+def _commands(path: Path, reader, topic: str, receive_times: bool, clocks: dict) -> tuple[dict[str, np.ndarray], bool]:
+    """The commands' table, and whether their times are stamps (a TwistStamped's, an Odometry's)."""
     msgs = _read(reader, topic)
     kind = _short(msgs[0][1].__msgtype__)
 
@@ -278,7 +284,7 @@ def _commands(path: Path, reader, topic: str, receive_times: bool, clocks: dict)
     if np.any(side != 0):  # a robot that side-steps: its sideways command too
         table["v_left_m_s"] = side
     table["omega_rad_s"] = omega
-    return table
+    return table, kind != "geometry_msgs/Twist"
 
 
 def _column_of(topic: str) -> str:
@@ -390,15 +396,8 @@ def _sightings(
             fix="record one camera's detections, or split the bag by camera.",
         )
     ns = np.array([r[0] for r in rows], dtype=np.int64)
-    back = np.flatnonzero(np.diff(ns) < -int(CLOCK_GAP_S * 1e9))  # detections of one image may come in any order
-    if back.size:
-        i = int(back[0]) + 1
-        raise LogFormatError(
-            f"{topic}'s clock goes backwards: detection {i}'s stamp is {(ns[i - 1] - ns[i]) / 1e9:.6g} s "
-            "before the one recorded before it.",
-            file=path,
-            fix="record on one clock (use_sim_time set alike for every node), or pass --receive-times.",
-        )
+    # a detector may publish a frame's tags after the next frame's: only a second back is another clock
+    _refuse_going_back(path, topic, ns, "detection", int(CLOCK_GAP_S * 1e9))
     clocks[topic] = (ns, np.array(recvs, dtype=np.int64))
     tree = _static_tree(reader, topics)
     rot, pos, found = _camera_pose(tree, frames[0])
@@ -439,19 +438,24 @@ def _truth(path: Path, reader, topic: str, receive_times: bool, clocks: dict) ->
     }
 
 
-def _refuse_two_clocks(path: Path, clocks: dict[str, tuple[np.ndarray, np.ndarray]]) -> None:
-    """Every role's times must be on one clock: a Twist has no stamp, so it is on the recording clock, and a
-    stamped topic on another (sim time against wall time) would put every reading seconds from its command.
+def _one_clock(path: Path, clocks: dict[str, tuple[np.ndarray, np.ndarray]], unstamped: str | None) -> int:
+    """The shift (ns) that puts ``unstamped`` (a Twist's topic, timed when it was recorded) on the stamps'
+    clock: 0 when the stamps are on the recording clock (within CLOCK_GAP_S), else their median gap from it
+    (a bag of sim-time stamps recorded on the wall's clock). Stamped topics on two clocks are refused.
     ``clocks``: topic -> (the times used, when each was recorded), in ns."""
-    gaps = {t: float(np.median(ns - recv)) / 1e9 for t, (ns, recv) in clocks.items() if ns.size}
-    if gaps and max(gaps.values()) - min(gaps.values()) > CLOCK_GAP_S:
-        lo, hi = min(gaps, key=gaps.__getitem__), max(gaps, key=gaps.__getitem__)
+    gaps = {t: int(np.median(ns - recv)) for t, (ns, recv) in clocks.items() if ns.size and t != unstamped}
+    if not gaps:
+        return 0
+    lo, hi = min(gaps, key=gaps.__getitem__), max(gaps, key=gaps.__getitem__)
+    if (gaps[hi] - gaps[lo]) / 1e9 > CLOCK_GAP_S:
         raise LogFormatError(
-            f"{hi}'s times are {gaps[hi] - gaps[lo]:.6g} s later against the recording clock than {lo}'s: they "
-            "are on two clocks.",
+            f"{hi}'s stamps are {(gaps[hi] - gaps[lo]) / 1e9:.6g} s later against the recording clock than {lo}'s: "
+            "they are on two clocks.",
             file=path,
             fix="pass --receive-times to put every topic on the recording clock.",
         )
+    shift = int(np.median(list(gaps.values())))
+    return shift if unstamped is not None and abs(shift) / 1e9 > CLOCK_GAP_S else 0
 
 
 def read_bag_tables(path: Path, roles: Roles, *, receive_times: bool = False) -> BagTables:
@@ -463,7 +467,8 @@ def read_bag_tables(path: Path, roles: Roles, *, receive_times: bool = False) ->
         if roles.commands is None:
             raise LogFormatError("no topic holds the commands.", file=path, fix="--commands TOPIC")
         clocks: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-        out = BagTables(_commands(path, reader, roles.commands, receive_times, clocks))
+        commands, stamped = _commands(path, reader, roles.commands, receive_times, clocks)
+        out = BagTables(commands)
         if roles.readings:
             out.readings = _ranges(path, reader, roles.readings, receive_times, clocks)
         if roles.sightings:
@@ -473,7 +478,13 @@ def read_bag_tables(path: Path, roles: Roles, *, receive_times: bool = False) ->
             out.notes += notes
         if roles.truth:
             out.truth = _truth(path, reader, roles.truth, receive_times, clocks)
-        _refuse_two_clocks(path, clocks)
+        shift = _one_clock(path, clocks, None if stamped or receive_times else roles.commands)
+        if shift:
+            out.commands["t_s"] = _seconds(clocks[roles.commands][0] + shift)
+            out.notes.append(
+                f"the stamps are {shift / 1e9:.6g} s from the recording clock, on which {roles.commands} (a Twist, "
+                "with no stamp) was recorded: its times are moved onto the stamps' clock by that much"
+            )
         return out
     finally:
         reader.close()
