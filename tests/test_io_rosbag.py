@@ -153,20 +153,29 @@ def _truth_columns(log):
 
 
 def test_a_bag_with_two_command_sources_lists_its_topics_and_writes_nothing(tmp_path):
+    """... until a mapping names the one that drives the robot."""
     m = Msgs("mcap")
-    t = T0_NS
-    msgs = [
-        ("/cmd_vel", "geometry_msgs/msg/Twist", t, m.twist(0.1, 0.0)),
-        ("/teleop/cmd_vel", "geometry_msgs/msg/Twist", t + 1, m.twist(0.1, 0.0)),
-        ("/sonar", "sensor_msgs/msg/Range", t + 2, m.range(t, 1.0)),
-    ]
+    msgs = []
+    for k in range(20):
+        t = T0_NS + k * 10**8
+        msgs += [
+            ("/cmd_vel", "geometry_msgs/msg/Twist", t, m.twist(0.0, 0.0)),
+            ("/teleop/cmd_vel", "geometry_msgs/msg/Twist", t + 1, m.twist(0.1 if k < 10 else -0.1, 0.0)),
+            ("/sonar", "sensor_msgs/msg/Range", t + 2, m.range(t, 1.0 + 0.01 * k)),
+        ]
     bag = write_bag(tmp_path / "two", "mcap", msgs, m)
     res = runner.invoke(app, ["convert", "bag", str(bag), "--out", str(tmp_path / "o")])
     assert res.exit_code == 2
     text = " ".join(res.output.split())
     assert "commands: one of /cmd_vel, /teleop/cmd_vel" in text and "--commands TOPIC" in text
-    assert "/teleop/cmd_vel geometry_msgs/Twist (1 messages)" in text
+    assert "/teleop/cmd_vel geometry_msgs/Twist (20 messages)" in text
     assert not (tmp_path / "o").exists()
+    (tmp_path / "roles.yaml").write_text("commands: /teleop/cmd_vel\nreadings: /sonar\n")
+    res = runner.invoke(
+        app, ["convert", "bag", str(bag), "--mapping", str(tmp_path / "roles.yaml"), "--out", str(tmp_path / "o")]
+    )
+    meta = json.loads((tmp_path / "o" / "meta.json").read_text())
+    assert meta["source"]["roles"] == {"commands": "/teleop/cmd_vel", "readings": ["/sonar"]}
 
 
 @pytest.mark.parametrize(

@@ -126,19 +126,17 @@ def convert_bag(
             fix="name them: --commands TOPIC, --readings TOPIC or --sightings TOPIC, --truth TOPIC (or --mapping).",
         )
     check_roles(bag, roles, topics)
+    if roles.sightings and landmarks is None:
+        raise LogFormatError(
+            "tag sightings need the map.", file=bag, fix="--landmarks map.csv (id,x_m,y_m; a tag's id is its number)"
+        )
     tables = read_bag_tables(bag, roles, receive_times=receive_times)
     for note in tables.notes:
         console.print(f"[yellow]note:[/] {note}", highlight=False)
     src = out / TABLES
     src.mkdir(parents=True, exist_ok=True)
     cmd_csv = src / "commands.csv"
-    if tables.sightings is not None:
-        if landmarks is None:
-            raise LogFormatError(
-                "tag sightings need the map.",
-                file=bag,
-                fix="--landmarks map.csv (id,x_m,y_m; a tag's id is its number)",
-            )
+    if tables.sightings is not None and landmarks is not None:
         write_table(cmd_csv, tables.commands)
         write_table(src / "sightings.csv", tables.sightings, ints=("landmark_id",))
         truth_csv = None
