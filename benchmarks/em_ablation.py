@@ -15,7 +15,6 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from dataclasses import replace
 
 from sensact.evaluate.bars import robot_checks
 from sensact.experiments.diffdrive import SimulatedRobot, simulator_settings
@@ -84,7 +83,7 @@ def main() -> None:
     for name, log, cfg in scenarios(args.seconds, args.mrclam_robots):
         rows = {"full": run_one(log, cfg)}
         for heuristic, off in OFF.items():
-            changed = replace(cfg, **off)
+            changed = cfg.replace(**off)  # EMConfig.replace takes the flat names
             rows[heuristic] = run_one(log, changed) if changed != cfg else None  # None: not in this scenario
         table[name] = rows
         for k, r in rows.items():
