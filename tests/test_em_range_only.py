@@ -203,7 +203,9 @@ def test_simulate_a_radio_robot_then_learn_and_score_it_without_a_bearing(tmp_pa
     assert set(ev["sensor_mount"]["learned"]) == {"forward_mm", "left_mm", "yaw_rad"}
     assert ev["bars"] == bar_checks(ev) and "bearing_sigma" not in ev["bars"] and len(ev["bars"]) == 6
     assert "bearing_sigma_rad" not in ev["simulated"]
-    assert sorted(p.name for p in tmp_path.glob("m_*.png")) == ["m_actions.png", "m_heading_noise.png", "m_range.png"]
+    against_truth = ["m_actions.png", "m_heading_noise.png", "m_range.png"]  # no bearing figure
+    report = ["m_commands.png", "m_path.png", "m_residuals.png"]  # the report's own
+    assert sorted(p.name for p in tmp_path.glob("m_*.png")) == sorted(against_truth + report)
     # the library's score agrees, and a camera's model on this log has no bearing to be scored on either
     learned = json.loads(model.read_text())["model"]
     assert learned["sensor"]["sigma_bearing_rad"] is None
