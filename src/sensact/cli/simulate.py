@@ -149,6 +149,12 @@ def _write_bag(run, bag: Path, bag_format: str) -> None:
     from sensact.experiments.diffdrive import recording_of
     from sensact.io.rosbag_write import write_map_csv, write_robot_bag
 
+    try:
+        import rosbags  # noqa: F401
+    except ImportError:
+        raise ConfigError(
+            "writing a ROS bag needs the rosbags package.", field="--bag", fix="pip install 'sensact[ros]'"
+        ) from None
     fmt = "ros1" if bag.suffix == ".bag" else bag_format
     if fmt not in ("mcap", "sqlite3", "ros1"):
         raise ConfigError(
