@@ -393,3 +393,30 @@ def test_stamps_on_another_clock_than_the_recording_move_the_twists_onto_it(tmp_
     reading = t["t_s"][np.isfinite(t["sonar_m"])]
     # each reading 5 ms after its command: the Twists take the sonar's lag from stamp to recording as their own
     np.testing.assert_allclose(reading - cmd, 0.005, atol=1e-6)
+
+
+def test_wheel_odometry_is_the_command_where_no_twist_is_and_chapter_3_learns_the_folder(tmp_path):
+    """A robot that logs its wheel odometry (nav_msgs/Odometry) and no /cmd_vel: the odometry's twist is the
+    command; a motion-capture Odometry is the truth when named; `learn bootstrap` reads the 1-D folder."""
+    m = Msgs("sqlite3")
+    msgs = []
+    rng = np.random.default_rng(0)
+    x = 0.0
+    for k in range(1200):  # two minutes at 10 Hz, back and forth before a wall at 3 m
+        t = T0_NS + k * 10**8
+        v = 0.2 if (k // 150) % 2 == 0 else -0.2
+        x += 0.9 * v * 0.1
+        msgs += [
+            ("/odom", "nav_msgs/msg/Odometry", t, m.odometry(t, v, 0.0)),
+            ("/sonar", "sensor_msgs/msg/Range", t + 1, m.range(t, 3.0 - x + rng.normal(0, 0.01), 0.02, 6.0)),
+            ("/mocap/odom", "nav_msgs/msg/Odometry", t + 2, m.odometry(t, 0.0, 0.0)),
+        ]
+    bag = write_bag(tmp_path / "b", "sqlite3", msgs, m)
+    res = runner.invoke(app, ["convert", "bag", str(bag), "--out", str(tmp_path / "o")])
+    assert res.exit_code == 2 and "commands: one of /mocap/odom, /odom" in " ".join(res.output.split())
+    _ok(["convert", "bag", bag, "--commands", "/odom", "--truth", "/mocap/odom", "--out", tmp_path / "o"])
+    meta = json.loads((tmp_path / "o" / "meta.json").read_text())
+    assert meta["source"]["roles"] == {"commands": "/odom", "readings": ["/sonar"], "truth": "/mocap/odom"}
+    assert (tmp_path / "o" / "bootstrap_config.yaml").is_file()
+    _ok(["learn", "bootstrap", tmp_path / "o", "--out", tmp_path / "b.json"])
+    assert json.loads((tmp_path / "b.json").read_text())["status"] == "ok"
