@@ -12,7 +12,7 @@ sighting used, unsettled over 0.1), how many times EM started again because of t
 (``turn_restarts``, 2 by default) and which run was kept, the log-likelihood and the time; then how
 many parts lost the robot (median over 500 mm). ``--parts 1`` runs the whole logs.
 ``--range-start-sigma`` replaces the range channel's start sigma (100 mm by default) and
-``--turn-restarts`` the number of restarts (0: none); docs/em-real-results.md "Short logs".
+``--turn-restarts`` the number of restarts (0: none); docs/em-real.md "Short logs".
 Needs ../shared/data/mrclam (or $SENSACT_DATA). About 3 minutes for 20 quarters on 2 cores.
 """
 

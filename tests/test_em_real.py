@@ -173,7 +173,7 @@ def test_a_lost_fit_whose_f_bends_without_turning_is_seen_and_started_again():
     """Real data: robot 4's second quarter of Dataset 6 (as benchmarks/em_real_parts.py cuts it) is lost
     from MRCLAM's start with an f that rises throughout but whose slope changes about threefold; the bend
     check sees it, and the restart from a third of the start sigma finds the robot with a far higher
-    likelihood (docs/em-real-results.md, "What you see without ground truth")."""
+    likelihood (docs/em-real.md, "What you see without ground truth")."""
     from sensact.evaluate.landmark_truth import path_offset
     from sensact.io.mrclam import read_mrclam
     from sensact.learn.em import initial_model
@@ -223,7 +223,7 @@ def test_a_thinned_map_that_lost_its_robot_finds_it_with_every_sighting(tmp_path
     """Real data: Dataset 6 with 8 of its 15 landmarks (``benchmarks/em_real_landmarks.py --maps 8:2``).
     When sec. 4.4.1's gate dropped every sighting of a frame but the first, robot 4 was lost from MRCLAM's
     start (its likelihood falling far below its best, and found only by a restart from a third of the
-    start sigma; docs/em-real-results.md, "Fewer landmarks"). Judged per frame, the gate keeps them, and
+    start sigma; docs/em-real.md, "Fewer landmarks"). Judged per frame, the gate keeps them, and
     the poor start finds the robot with no restart and no sign of being lost (measured: 100 mm)."""
     from sensact.evaluate.landmark_truth import path_offset
     from sensact.io.mrclam import read_mrclam
@@ -242,7 +242,7 @@ def test_a_thinned_map_that_lost_its_robot_finds_it_with_every_sighting(tmp_path
 @pytest.mark.skipif(not MRCLAM.is_dir(), reason=f"MRCLAM data not found at {MRCLAM}")
 def test_a_robot_lost_from_the_poor_start_is_found_from_another_robots_model(tmp_path):
     """Real data: Dataset 6 with 6 of its 15 landmarks (``benchmarks/em_real_landmarks.py --maps 6:1``),
-    where robot 4 stays lost from the poor start (1169 mm off Vicon; docs/em-real-results.md, "Fewer
+    where robot 4 stays lost from the poor start (1169 mm off Vicon; docs/em-real.md, "Fewer
     landmarks"). Robot 1's model, learned on the same map from the poor start, places robot 4 on its log,
     and EM learned on from there (learn/em/warm_start.py) finds it (measured 90 mm; 107 mm before every sighting
     of a frame counted)."""
@@ -271,7 +271,7 @@ def test_a_short_real_log_finds_its_robot_and_a_lost_fit_says_so_and_starts_agai
     range start sigma EM finds the robot. With the tenfold vaguer start it had before and no restart,
     the first E-step trusts the bearings alone, EM puts the robot metres away and its f turns over; with
     mrclam_config()'s restarts, `learn em` says so, starts again from a third of that sigma, and keeps
-    the far more likely fit, which found the robot (docs/em-real-results.md, Short logs)."""
+    the far more likely fit, which found the robot (docs/em-real.md, Short logs)."""
     from typer.testing import CliRunner
 
     from sensact.config import config_to_yaml
@@ -548,7 +548,7 @@ def test_mrclam_robot1_from_an_unknown_start(tmp_path):
     window score is flat across the grid; Student-t bearings from the start lose it even from the
     true pose), and stops 0.3 m behind the robot without the ridge search. Its action and range bars
     hold in either case and after the truth restart, so those are asserted; its bearing bar is not,
-    as it passes only in the poorer basin (docs/em-real-results.md)."""
+    as it passes only in the poorer basin (docs/em-real.md)."""
     from sensact.experiments.real import mrclam_folder, run_mrclam_robot
 
     row, ml, res = run_mrclam_robot(mrclam_folder(DATA), 1, truth_restart=True)
@@ -587,7 +587,7 @@ def test_mrclam_robot1_from_an_unknown_start(tmp_path):
     assert t["sightings_used"] == t["sightings_used_poor_start"]
     assert t["loglik_best"] - t["loglik_poor_start"] < 100.0
     # `evaluate log` on real folders: on robot 1's own log it scores the model as the run did; robot 1's
-    # model on robot 3's log (the same kind of robot) holds the action bars (docs/em-real-results.md, the fleet)
+    # model on robot 3's log (the same kind of robot) holds the action bars (docs/em-real.md, the fleet)
     from typer.testing import CliRunner
 
     from sensact.io.landmark_log import write_landmark_log

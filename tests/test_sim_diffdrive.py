@@ -224,7 +224,7 @@ def test_em_with_mrclams_settings_recovers_the_simulated_robot():
     assert s["forward_gain"][0] == pytest.approx(s["forward_gain"][1], rel=0.03)
     assert s["turn_gain"][0] == pytest.approx(s["turn_gain"][1], rel=0.03)
     assert abs(s["delay_steps"][0] - s["delay_with_lag_steps"]) <= 1.5  # a lag of tau reads as tau more delay
-    # the smoothed heading's uncertainty counts into the bearing's expected residual (docs/em-real-results.md)
+    # the smoothed heading's uncertainty counts into the bearing's expected residual (docs/em-real.md)
     assert 0.9 < s["bearing_sigma_ratio"] < 1.3
     # a Student-t scale (nu 4) on Gaussian noise is below its sd
     assert 0.75 < s["range_sigma_ratio"] < 1.0

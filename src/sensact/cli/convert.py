@@ -12,7 +12,7 @@ import typer
 from sensact.cli.base import console, convert_app, friendly
 
 MRCLAM_CONFIG_HEADER = """The EM settings `sensact learn em` reads from this folder: a preset shipped with sensact
-(`sensact learn em --help` lists them; differential_drive_camera is behind docs/em-real-results.md's
+(`sensact learn em --help` lists them; differential_drive_camera is behind docs/em-real.md's
 MRCLAM results), put on this log's commands, and the fields below it that differ from it.
 Edit them for your robot (docs/em-real.md, section 2); --set overrides single fields."""
 WHEELS_CONFIG_NOTE = """

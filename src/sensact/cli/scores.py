@@ -166,7 +166,7 @@ def truth_noise_line(sc: dict[str, Any], *, reads_bearing: bool) -> str:
             if reads_bearing
             else ""
         )
-        + " (docs/em-real-results.md, Known limits)"
+        + " (docs/em-real.md, Known limits)"
     )
 
 

@@ -518,7 +518,7 @@ def _learned_drift(model: EMModel, window: int, turning_rad_s: float) -> dict[st
 def heading_removed_ratio(sigma_learned: float, sigma_truth: float, heading_error: dict[str, Any] | None) -> float:
     """The learned bearing sigma over the truth's bearing residual sd with the truth's own heading error
     (``truth_heading_error``'s variance) taken out: that error is noise in the reference, not in the
-    camera, and no learner can put it in a sigma (docs/em-real-results.md, Known limits). The plain ratio
+    camera, and no learner can put it in a sigma (docs/em-real.md, Known limits). The plain ratio
     when the error was not estimated; NaN when it is as large as the residual itself."""
     var = (heading_error or {}).get("variance_rad2")
     if var is None or not np.isfinite(var):

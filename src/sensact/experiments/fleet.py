@@ -18,7 +18,7 @@ against issue 5's Turtlebot bars).
 
 A pair is the robot's *own* when the model was learned on that log; it has a small edge there, having
 been fitted to those very sightings. MRCLAM's five robots are one kind of robot: their action models
-carry over, their cameras' range functions do not (docs/em-real-results.md, "One robot's model on another
+carry over, their cameras' range functions do not (docs/em-real.md, "One robot's model on another
 robot").
 """
 

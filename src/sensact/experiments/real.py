@@ -156,7 +156,7 @@ def run_mrclam_robot(
 def fleet_of_dataset(folder: Path, runs: dict[str, Any], several: bool, config: EMConfig) -> dict[str, Any] | None:
     """Each robot's learned model of one dataset scored on every robot's log of it, against Vicon and by
     the likelihood with each model placed by the E-step alone under ``config``, the settings it was learned
-    with (``fleet.score_fleet``; docs/em-real-results.md, "One robot's model on another robot"), or None
+    with (``fleet.score_fleet``; docs/em-real.md, "One robot's model on another robot"), or None
     with fewer than two robots."""
     from sensact.experiments.fleet import score_fleet
 

@@ -19,7 +19,7 @@ def turtlebot_logs(root: Path) -> list[Path]:
     first, the issue's log, then ``training2.csv``, ...), so that the same command runs on whichever of the
     course's training logs a data folder holds (one without a recorded range is refused by
     ``run_turtlebot_em``). ``calibration.csv`` is not one: it holds one speed, so its gain cannot be
-    scored (docs/em-real-results.md)."""
+    scored (docs/em-real.md)."""
     base = root / "turtlebot1d"
     if not base.is_dir():
         return []

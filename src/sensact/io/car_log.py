@@ -73,7 +73,7 @@ def write_car_log(
 
 
 SPIN_TOLERANCE = 0.02  # a stated firing rate or rpm this far from what the packets show is probably wrong
-CAR_LOG_DOCS = 'docs/commands.md, "Car log folders"'
+CAR_LOG_DOCS = 'docs/formats.md, "Car log folders"'
 
 
 @dataclass(frozen=True, eq=False)

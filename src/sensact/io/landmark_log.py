@@ -178,7 +178,7 @@ def _meta_parts(mpath: Path, meta: dict[str, Any], geometry: str) -> _MetaParts:
             f"{part}: {what}.",
             file=mpath,
             field=part,
-            fix='see docs/commands.md, "Log folders for EM"; `sensact simulate field2d --out DIR` writes an example.',
+            fix='see docs/formats.md, "Log folders for EM"; `sensact simulate field2d --out DIR` writes an example.',
         ) from None
     if "columns" in act and not names:
         raise LogFormatError(
@@ -326,7 +326,7 @@ def read_landmark_log(path: str | Path, *, command_bins: int = 21) -> LandmarkLo
         "meta.json declares neither a planar log (geometry: planar) nor a 1-D track (platform: track1d).",
         file=path / "meta.json",
         field="geometry",
-        fix='add "geometry": "planar" with actions.table and landmarks (docs/commands.md).',
+        fix='add "geometry": "planar" with actions.table and landmarks (docs/cli-reference.md).',
     )
 
 

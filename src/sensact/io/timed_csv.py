@@ -86,10 +86,10 @@ def table_and_sources(
     command: str = "convert csv",
 ) -> tuple[dict[str, np.ndarray], dict[str, str]]:
     """The file's columns in sensact's units, by sensact's names, and the name each had in the file.
-    ``command``: the `sensact` command whose section of docs/commands.md describes the file."""
+    ``command``: the `sensact` command whose section of docs/cli-reference.md describes the file."""
     if not path.is_file():
         raise LogFormatError(
-            f"{what} not found.", file=path, fix=f"give a CSV file of {example} (docs/commands.md, {command})."
+            f"{what} not found.", file=path, fix=f"give a CSV file of {example} (docs/cli-reference.md, {command})."
         )
     raw = read_numeric_csv(path, what=what, labels=labels)
     table: dict[str, np.ndarray] = {}
@@ -114,7 +114,7 @@ def table_and_sources(
             field=missing[0],
             fix=f"{what} needs {example} (a _m suffix for metres, _cm for centimetres, _deg for degrees"
             + ("; t_ms, t_us or t_ns for other units of time" if missing[0] == "t_s" else "")
-            + f"; docs/commands.md, {command})"
+            + f"; docs/cli-reference.md, {command})"
             + _rostopic_hint(raw),
         )
     return table, sources

@@ -284,7 +284,7 @@ def _truth_restart_table(title: str, restarts: list[tuple[str, dict[str, Any], d
 def _truth_noise_table(title: str, noise: list[tuple[str, dict[str, Any], dict[str, Any]]]) -> Table:
     """What the truth says about each robot's noise: (robot, its truth_noise, its score)."""
     return (
-        f"{title}: what the truth says about the noise (see docs/em-real-results.md, Known limits)",
+        f"{title}: what the truth says about the noise (see docs/em-real.md, Known limits)",
         [
             "robot",
             "heading drift per 1 s at rest rad, truth / Sigma_m",

@@ -124,7 +124,7 @@ class DiffDriveConfig:
     mounted_at: tuple[float, float, float] = (0.0, 0.0, 0.0)
     # an effect the learner's model leaves out (0 = none): a camera yaw error shared by every sighting that
     # wanders slowly (Ornstein-Uhlenbeck, stationary sd and time constant), as MRCLAM robot 1's bearing
-    # residuals about Vicon hold (docs/em-real-results.md, Known limits); the truth's residual counts it as noise
+    # residuals about Vicon hold (docs/em-real.md, Known limits); the truth's residual counts it as noise
     bearing_drift_sd_rad: float = 0.0
     bearing_drift_tau_s: float = 5.0
     # what the log records: 0 logs the controller's (v, omega); an axle length logs the wheel speeds

@@ -5,7 +5,7 @@ From a poor start EM can settle in a basin where the smoothed path keeps far fro
 each channel's polynomial f bends to map the readings onto the wrong distances. A range sensor's f
 rises (or falls) with distance; one that turns over within the distances it was fitted on is not a
 sensor, it is f absorbing a wrong path. On MRCLAM Dataset 6 cut into quarters every fit that lost
-its robot by metres had such an f, and none that found it (docs/em-real-results.md, "Short logs").
+its robot by metres had such an f, and none that found it (docs/em-real.md, "Short logs").
 A channel that reads a length in the map's own unit gives a second sign: its f may be off by a scale,
 but the scale does not change with distance, so an f whose slope does is bent by a wrong path.
 A third sign needs no channel: EM at a model that fits its log moves little from it, so each iteration
@@ -175,7 +175,7 @@ def describe_lost_fit(signs: list[dict[str, Any]], advice: bool = True) -> str:
         return line + "."
     return (
         line + " (a local optimum). Try a longer log, a smaller start_sigma for the channel (or more "
-        "turn_restarts) in --config (docs/em-real-results.md, Short logs), or --start-from a model learned on a "
+        "turn_restarts) in --config (docs/em-real.md, Short logs), or --start-from a model learned on a "
         "robot like it."
     )
 

@@ -134,7 +134,7 @@ class MotionNoiseSettings:
     floor_mm: float = 0.05
     floor_rad: float = 5e-4
     # the sideways sd per step on a planar log, if not motion_sd_mm (None: motion_sd_mm). The sightings hardly
-    # pin it, so a learned Sigma_m keeps about its start (docs/em-real-results.md, Known limits): a
+    # pin it, so a learned Sigma_m keeps about its start (docs/em-real.md, Known limits): a
     # differential drive, which cannot side-step, can start it small
     sideways_mm: float | None = None
 
@@ -172,7 +172,7 @@ class RobustSettings:
 @dataclass(frozen=True)
 class SearchSettings:
     """The held stage, the searches and the restarts: directions EM climbs too slowly itself, and the signs
-    that it lost the robot (docs/em-real.md; each measured in docs/em-real-results.md)."""
+    that it lost the robot (docs/em-real.md; each measured in docs/em-real.md)."""
 
     # a learned Sigma_m, the channels' bearing terms, the mount and the robust readings are held before this
     # iteration, or until EM has converged without them: learned from a poor start, they let EM settle on a
@@ -207,14 +207,14 @@ class SearchSettings:
     # the signs that a fit lost its robot, which start turn_restarts and are warned of: a length-reading f
     # whose slope changes more than this many times over its fitted distances without turning (1.00-1.15 on
     # the MRCLAM fits that found their robot, 1.70 on one 182 mm off Vicon, 2.91 on a quarter that lost it;
-    # docs/em-real-results.md, "What you see without ground truth"), ...
+    # docs/em-real.md, "What you see without ground truth"), ...
     lost_bend_ratio: float = 2.0
     # ... or the iterations after the best falling below it by more than this many log-units a sighting used,
     # on average (0.008-0.029 on the 51 MRCLAM fits that found their robot, 0.002-0.005 on simulated
-    # differential drives, 0.03-1.45 on the 9 that lost it; docs/em-real-results.md, "Fewer landmarks")
+    # differential drives, 0.03-1.45 on the 9 that lost it; docs/em-real.md, "Fewer landmarks")
     lost_fall_per_sighting: float = 0.1
     # each restart's start sigma over the last one's: on quarter-length MRCLAM logs, trusting the poor line's
-    # readings more held the robot's scale (docs/em-real-results.md, Short logs)
+    # readings more held the robot's scale (docs/em-real.md, Short logs)
     restart_sigma_factor: float = 1.0 / 3.0
     # a range-only start that EM moved more than this many of the prior's position sd was not where the robot
     # was given to be: EM runs again from where it put it (learn/em/given_start.py) ...

@@ -4,7 +4,7 @@ A continuous action model may read its command ``delay`` steps late (``action_de
 M-step picks the delay whose refitted beta best explains the smoothed displacements. Between sightings
 those displacements are mostly the motion model's own prediction, made with the current delay, so the
 M-step hands that delay back: EM barely moves it. On MRCLAM robot 4 it stayed at 1 step while the
-E-step likelihood peaks at 7 (196 log-units higher), From-Truth's delay (docs/em-real-results.md).
+E-step likelihood peaks at 7 (196 log-units higher), From-Truth's delay (docs/em-real.md).
 
 ``search_delay`` asks the likelihood instead: it runs the E-step's forward pass with the current
 coefficients at every ``stride``-th delay (and the largest), then at the best one's neighbours, and
