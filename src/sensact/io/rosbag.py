@@ -35,7 +35,7 @@ from sensact.errors import LogFormatError
 
 COMMAND_TYPES = ("geometry_msgs/Twist", "geometry_msgs/TwistStamped", "nav_msgs/Odometry")
 READING_TYPES = ("sensor_msgs/Range",)
-TF_TYPES = ("tf2_msgs/TFMessage",)
+TF_TYPES = ("tf2_msgs/TFMessage", "tf/tfMessage")  # tf/tfMessage: ROS 1 before tf2
 DETECTION_TYPES = ("apriltag_ros/AprilTagDetectionArray",)
 TRUTH_TYPES = ("geometry_msgs/PoseStamped", "geometry_msgs/PoseWithCovarianceStamped", "nav_msgs/Odometry")
 SUPPORTED = {
