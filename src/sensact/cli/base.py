@@ -22,7 +22,7 @@ from sensact.errors import SensactError
 app = typer.Typer(
     name="sensact",
     help="Learn a mobile robot's action and sensor models from its own logs, with no ground truth "
-    "(Stronger 2008). Start with `sensact reproduce`; see docs/cli-reference.md.",
+    "(Stronger 2008). Start with `sensact reproduce` or docs/tutorial.md; every command: docs/cli-reference.md.",
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
