@@ -106,7 +106,7 @@ def read_turtlebot_landmark_log(path: str | Path, dt_s: float | None = None) -> 
             "learned state's unit that the IR sensors' datasheet windows are given in.",
             file=path,
             field="sonar1",
-            fix="add the sonar1 column, or write a log folder (docs/cli-reference.md) with your own channels and windows.",
+            fix="add the sonar1 column, or write a log folder (docs/formats.md) with your own channels and windows.",
         )
     readings = tuple(r for r in EM_READINGS if r in cols)
     t = cols["time"]
