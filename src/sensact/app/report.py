@@ -127,7 +127,8 @@ def write_em_report(cal: Calibration, model_path: Path, figures: Sequence[Path])
                 "Residuals",
                 paragraphs=(
                     "Each reading's residual about the smoothed path over its learned sigma: a fit whose noise "
-                    "model holds scatters as N(0, 1), and independent errors keep the autocorrelation in the band.",
+                    "model holds scatters as that model (N(0, 1), or a robust reading's Student-t), and "
+                    "independent errors keep the autocorrelation in the band.",
                 ),
                 figures=((resid, "histograms and autocorrelation"),),
             )

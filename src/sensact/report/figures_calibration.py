@@ -56,16 +56,31 @@ def autocorrelation(x: np.ndarray, max_lag: int = MAX_LAG) -> np.ndarray:
     )
 
 
+def noise_laws(model: Any) -> dict[str, tuple[str, float]]:
+    """Each reading's noise law over its sigma as the model has it: ("none", 0) is N(0, 1), ("student_t",
+    nu) a Student-t of nu degrees of freedom (a gate's readings are Gaussian inside it)."""
+    laws = {ch.name: (ch.robust, ch.robust_param) for ch in model.sensor.channels}
+    return laws | {"bearing": (model.sensor.bearing_robust, model.sensor.bearing_robust_param)}
+
+
 def figure_residuals(res: Any, data: Any, path: Path, title: str) -> Path:
-    """A row per channel: the standardized residuals' histogram over N(0, 1), and their autocorrelation by
-    lag in sightings (a band of 2/sqrt(n) about 0 is what independent errors stay within)."""
+    """A row per channel: the standardized residuals' histogram over the model's noise law (N(0, 1), or
+    the Student-t of a robust reading), and their autocorrelation by lag in sightings (a band of 2/sqrt(n)
+    about 0 is what independent errors stay within)."""
+    from scipy.stats import t as student_t
+
     resid = standardized_residuals(res, data)
+    laws = noise_laws(res.model)
     n = max(len(resid), 1)
     fig, axes = plt.subplots(n, 2, figsize=(10.0, 3.0 * n), squeeze=False)
     z = np.linspace(-5, 5, 201)
     for (name, (r, _)), (ax_h, ax_a) in zip(resid.items(), axes, strict=False):
         ax_h.hist(np.clip(r, -5, 5), bins=60, range=(-5, 5), density=True, color="C0", alpha=0.7)
-        ax_h.plot(z, np.exp(-0.5 * z**2) / np.sqrt(2 * np.pi), color="C3", label="N(0, 1): the model's noise")
+        kind, nu = laws.get(name, ("none", 0.0))
+        if kind == "student_t":
+            ax_h.plot(z, student_t.pdf(z, nu), color="C3", label=f"Student-t, {nu:g} dof: the model's noise")
+        else:
+            ax_h.plot(z, np.exp(-0.5 * z**2) / np.sqrt(2 * np.pi), color="C3", label="N(0, 1): the model's noise")
         ax_h.set(xlabel=f"{name} residual / learned sigma", ylabel="density", title=f"{name}: {r.size} residuals")
         ax_h.legend(fontsize=7)
         ac = autocorrelation(r)
