@@ -130,7 +130,10 @@ def convert_bag(
         raise LogFormatError(
             "tag sightings need the map.", file=bag, fix="--landmarks map.csv (id,x_m,y_m; a tag's id is its number)"
         )
-    tables = read_bag_tables(bag, roles, receive_times=receive_times)
+    from sensact.cli.base import progress_bar
+
+    with progress_bar() as progress:
+        tables = read_bag_tables(bag, roles, receive_times=receive_times, progress=progress)
     for note in tables.notes:
         console.print(f"[yellow]note:[/] {note}", highlight=False)
     src = out / TABLES

@@ -26,6 +26,7 @@ decimal, so that a bag made from CSVs gives those CSVs' numbers back exactly.
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -230,9 +231,21 @@ def _received(msgs: list[tuple[int, object]]) -> np.ndarray:
     return np.array([t for t, _ in msgs], dtype=np.int64)
 
 
-def _read(reader, topic: str) -> list[tuple[int, object]]:
+Progress = Callable[[str, int, "int | None"], None]
+
+
+def _read(reader, topic: str, progress: Progress | None = None) -> list[tuple[int, object]]:
+    """``topic``'s messages, deserialized, with when each was recorded (ns); ``progress`` told every 2,000."""
     conns = [c for c in reader.connections if c.topic == topic]
-    return [(t, reader.deserialize(raw, c.msgtype)) for c, t, raw in reader.messages(connections=conns)]
+    total = sum(c.msgcount for c in conns)
+    out = []
+    for c, t, raw in reader.messages(connections=conns):
+        out.append((t, reader.deserialize(raw, c.msgtype)))
+        if progress is not None and len(out) % 2000 == 0:
+            progress(f"reading {topic}", len(out), total)
+    if progress is not None:
+        progress(f"reading {topic}", len(out), total)
+    return out
 
 
 def _times(path: Path, topic: str, msgs: list[tuple[int, object]], stamped: bool, receive_times: bool) -> np.ndarray:
@@ -264,9 +277,11 @@ def _refuse_going_back(path: Path, topic: str, ns: np.ndarray, what: str, slack_
         )
 
 
-def _commands(path: Path, reader, topic: str, receive_times: bool, clocks: dict) -> tuple[dict[str, np.ndarray], bool]:
+def _commands(
+    path: Path, reader, topic: str, receive_times: bool, clocks: dict, progress: Progress | None = None
+) -> tuple[dict[str, np.ndarray], bool]:
     """The commands' table, and whether their times are stamps (a TwistStamped's, an Odometry's)."""
-    msgs = _read(reader, topic)
+    msgs = _read(reader, topic, progress)
     kind = _short(msgs[0][1].__msgtype__)
 
     def twist(m):
@@ -292,11 +307,13 @@ def _column_of(topic: str) -> str:
     return f"{name}_m"
 
 
-def _ranges(path: Path, reader, topics: tuple[str, ...], receive_times: bool, clocks: dict) -> dict[str, np.ndarray]:
+def _ranges(
+    path: Path, reader, topics: tuple[str, ...], receive_times: bool, clocks: dict, progress: Progress | None = None
+) -> dict[str, np.ndarray]:
     """Every Range topic's readings, one row per message, the other columns empty (NaN) on it."""
     times, cols = [], {}
     for topic in topics:
-        msgs = _read(reader, topic)
+        msgs = _read(reader, topic, progress)
         ns = _times(path, topic, msgs, True, receive_times)
         clocks[topic] = (ns, _received(msgs))
         r = _shortest(np.array([m.range for _, m in msgs]))
@@ -363,10 +380,16 @@ def _camera_pose(tree, frame: str) -> tuple[np.ndarray, np.ndarray, bool]:
 
 
 def _sightings(
-    path: Path, reader, topic: str, topics: list[Topic], receive_times: bool, clocks: dict
+    path: Path,
+    reader,
+    topic: str,
+    topics: list[Topic],
+    receive_times: bool,
+    clocks: dict,
+    progress: Progress | None = None,
 ) -> tuple[dict[str, np.ndarray], str, tuple[float, float, float] | None, list[str]]:
     """Tag detections as t_s, landmark_id, range_m, bearing_rad from the camera, in the robot's axes."""
-    msgs = _read(reader, topic)
+    msgs = _read(reader, topic, progress)
     rows: list[tuple[int, int, str, float, float, float]] = []  # ns, id, frame, x, y, z (in the camera frame)
     recvs: list[int] = []
     for recv, msg in msgs:
@@ -420,8 +443,10 @@ def _sightings(
     return table, frames[0], mount, notes
 
 
-def _truth(path: Path, reader, topic: str, receive_times: bool, clocks: dict) -> dict[str, np.ndarray]:
-    msgs = _read(reader, topic)
+def _truth(
+    path: Path, reader, topic: str, receive_times: bool, clocks: dict, progress: Progress | None = None
+) -> dict[str, np.ndarray]:
+    msgs = _read(reader, topic, progress)
     ns = _times(path, topic, msgs, True, receive_times)
     clocks[topic] = (ns, _received(msgs))
 
@@ -458,8 +483,10 @@ def _one_clock(path: Path, clocks: dict[str, tuple[np.ndarray, np.ndarray]], uns
     return shift if unstamped is not None and abs(shift) / 1e9 > CLOCK_GAP_S else 0
 
 
-def read_bag_tables(path: Path, roles: Roles, *, receive_times: bool = False) -> BagTables:
-    """The tables of ``roles``' topics."""
+def read_bag_tables(
+    path: Path, roles: Roles, *, receive_times: bool = False, progress: Progress | None = None
+) -> BagTables:
+    """The tables of ``roles``' topics; ``progress(description, done, total)`` as each topic is read."""
     reader = open_bag(path)
     try:
         topics = bag_topics(reader)
@@ -467,17 +494,17 @@ def read_bag_tables(path: Path, roles: Roles, *, receive_times: bool = False) ->
         if roles.commands is None:
             raise LogFormatError("no topic holds the commands.", file=path, fix="--commands TOPIC")
         clocks: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-        commands, stamped = _commands(path, reader, roles.commands, receive_times, clocks)
+        commands, stamped = _commands(path, reader, roles.commands, receive_times, clocks, progress)
         out = BagTables(commands)
         if roles.readings:
-            out.readings = _ranges(path, reader, roles.readings, receive_times, clocks)
+            out.readings = _ranges(path, reader, roles.readings, receive_times, clocks, progress)
         if roles.sightings:
             out.sightings, out.camera_frame, out.mount_from_tf, notes = _sightings(
-                path, reader, roles.sightings, topics, receive_times, clocks
+                path, reader, roles.sightings, topics, receive_times, clocks, progress
             )
             out.notes += notes
         if roles.truth:
-            out.truth = _truth(path, reader, roles.truth, receive_times, clocks)
+            out.truth = _truth(path, reader, roles.truth, receive_times, clocks, progress)
         shift = _one_clock(path, clocks, None if stamped or receive_times else roles.commands)
         if shift:
             out.commands["t_s"] = _seconds(clocks[roles.commands][0] + shift)
