@@ -1089,3 +1089,23 @@ def test_a_log_at_one_speed_is_warned_about_and_ems_gain_not_scored(tmp_path):
     (_, _, rows) = turtlebot_tables(summary)[0]
     assert rows[0][3:6] == ["-", "not scored: no command held for 2 s", "-"]
     assert figure_real(runs, tmp_path / "models.png").stat().st_size > 10_000
+
+
+def test_an_error_line_keeps_its_own_brackets():
+    """A message's brackets (an extra's name, a list) are printed, not read as rich markup."""
+    import typer as _typer
+
+    from sensact.cli.base import friendly
+    from sensact.errors import LogFormatError
+
+    mini = _typer.Typer()
+
+    @mini.command()
+    @friendly
+    def fail() -> None:
+        raise LogFormatError("needs [fwd, left, yaw].", file="x.bag", fix="pip install 'sensact[ros]'")
+
+    res = runner.invoke(mini, [])
+    assert res.exit_code == 2
+    text = " ".join(res.output.split())
+    assert "pip install 'sensact[ros]'" in text and "needs [fwd, left, yaw]." in text
