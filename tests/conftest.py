@@ -16,6 +16,17 @@ def data_dir() -> Path:
     return DATA
 
 
+def write_csv(path: Path, columns) -> Path:
+    """Columns as a CSV with a header row, each number as its shortest round-tripping repr, NaN empty."""
+    import numpy as np
+
+    names = list(columns)
+    rows = np.column_stack([np.asarray(columns[n], dtype=float) for n in names])
+    lines = [",".join(names)] + [",".join("" if np.isnan(v) else repr(float(v)) for v in row) for row in rows]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
 def require(path: Path) -> Path:
     if not path.exists():
         pytest.skip(f"real data not found at {path} (set SENSACT_DATA or check out ../shared/data)")

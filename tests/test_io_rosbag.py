@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from conftest import DATA, require
+from conftest import DATA, require, write_csv
 from sensact.cli import app
 from sensact.experiments.diffdrive import recording_of
 from sensact.io.rosbag_write import FORMATS, Msgs, write_bag, write_map_csv, write_robot_bag
@@ -22,14 +22,6 @@ pytest.importorskip("rosbags", reason="the ros extra (pip install 'sensact[ros]'
 runner = CliRunner()
 SHORT = ("thesis.max_iterations=40", "search.start_candidates=2")  # the same run either way: a short one will do
 T0_NS = 1_700_000_000 * 10**9  # a wall clock's epoch time, as a real bag's
-
-
-def _write_csv(path, columns):
-    names = list(columns)
-    rows = np.column_stack([np.asarray(columns[n], dtype=float) for n in names])
-    lines = [",".join(names)] + [",".join("" if np.isnan(v) else repr(float(v)) for v in row) for row in rows]
-    path.write_text("\n".join(lines) + "\n")
-    return path
 
 
 def _seconds(ns):
@@ -61,10 +53,10 @@ def diffdrive_source(tmp_path_factory):
     folder = tmp_path_factory.mktemp("bag_source")
     x, z = rec.tag_xyz_optical_m[:, 0], rec.tag_xyz_optical_m[:, 2]
     csv = {
-        "commands": _write_csv(
+        "commands": write_csv(
             folder / "commands.csv", {"t_s": _seconds(rec.cmd_ns), "v_m_s": rec.v_m_s, "omega_rad_s": rec.omega_rad_s}
         ),
-        "sightings": _write_csv(
+        "sightings": write_csv(
             folder / "sightings.csv",
             {
                 "t_s": _seconds(rec.tag_ns),
@@ -131,7 +123,7 @@ def test_learning_from_a_bag_gives_the_model_learned_from_its_csvs(diffdrive_sou
     csv, rec = diffdrive_source
     bag = write_robot_bag(tmp_path / "run", "mcap", rec)
     _ok(["convert", "bag", bag, "--landmarks", csv["landmarks"], "--out", tmp_path / "from_bag"])
-    truth = _write_csv(
+    truth = write_csv(
         tmp_path / "truth.csv",
         {k: v for k, v in zip(("t_s", "x_m", "y_m", "theta_rad"), _truth_columns(tmp_path / "from_bag"), strict=True)},
     )
@@ -244,8 +236,8 @@ def test_turtlebot_bag_learns_the_model_its_track_csv_learns(tmp_path, fmt):
         "sonar2_m": np.r_[np.full(2 * n, np.nan), shortest(sonar2), np.full(n, np.nan)],
         "distance_m": np.r_[np.full(3 * n, np.nan), np.hypot(0.0 - (-dist), 0.0)],
     }
-    src = _write_csv(tmp_path / "track.csv", track)
-    _write_csv(tmp_path / "map.csv", {"id": [0], "x_m": [0.0], "y_m": [0.0]})
+    src = write_csv(tmp_path / "track.csv", track)
+    write_csv(tmp_path / "map.csv", {"id": [0], "x_m": [0.0], "y_m": [0.0]})
     m = Msgs(fmt)
     msgs = []
     for k in range(n):
@@ -284,7 +276,7 @@ def test_of_several_poses_the_motion_capture_one_is_the_truth(tmp_path):
             ("/vicon/robot/pose", "geometry_msgs/msg/PoseStamped", t + 3, m.pose_stamped(t, 0.01 * k, 0.0, 0.0)),
         ]
     bag = write_bag(tmp_path / "b", "mcap", msgs, m)
-    _write_csv(tmp_path / "map.csv", {"id": [0], "x_m": [2.0], "y_m": [0.0]})
+    write_csv(tmp_path / "map.csv", {"id": [0], "x_m": [2.0], "y_m": [0.0]})
     _ok(["convert", "bag", bag, "--landmarks", tmp_path / "map.csv", "--out", tmp_path / "o"])
     meta = json.loads((tmp_path / "o" / "meta.json").read_text())
     assert meta["source"]["roles"] == {"commands": "/cmd_vel", "readings": ["/sonar"], "truth": "/vicon/robot/pose"}
@@ -336,12 +328,12 @@ def mrclam_source(tmp_path_factory):
     out = tmp_path_factory.mktemp("mrclam_bag")
     x, z = rec.tag_xyz_optical_m[:, 0], rec.tag_xyz_optical_m[:, 2]
     csv = {
-        "commands": _write_csv(out / "commands.csv", {"t_s": odo[o, 0], "v_m_s": odo[o, 1], "omega_rad_s": odo[o, 2]}),
-        "sightings": _write_csv(
+        "commands": write_csv(out / "commands.csv", {"t_s": odo[o, 0], "v_m_s": odo[o, 1], "omega_rad_s": odo[o, 2]}),
+        "sightings": write_csv(
             out / "sightings.csv",
             {"t_s": meas[s, 0], "landmark_id": tag, "range_m": np.hypot(z, -x), "bearing_rad": np.arctan2(-x, z)},
         ),
-        "landmarks": _write_csv(out / "map.csv", {"id": marks[:, 0], "x_m": marks[:, 1], "y_m": marks[:, 2]}),
+        "landmarks": write_csv(out / "map.csv", {"id": marks[:, 0], "x_m": marks[:, 1], "y_m": marks[:, 2]}),
     }
     return csv, rec
 

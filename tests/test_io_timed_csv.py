@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from conftest import DATA, require
+from conftest import DATA, require, write_csv
 from sensact.app import read_settings_file
 from sensact.cli import app
 from sensact.errors import LogFormatError
@@ -27,14 +27,6 @@ runner = CliRunner()
 T0 = 1234.5  # the files' own clock
 
 
-def _write(path, columns):
-    names = list(columns)
-    rows = np.column_stack([np.asarray(columns[n], dtype=float) for n in names])
-    lines = [",".join(names)] + [",".join("" if np.isnan(v) else repr(float(v)) for v in row) for row in rows]
-    path.write_text("\n".join(lines) + "\n")
-    return path
-
-
 def _as_timed_files(run, folder):
     """A simulated run written as a robot would log it: commands only when they change, sightings off the
     grid and out of order, three sightings to drop, the map with ids of its own, truth heading from +x."""
@@ -43,7 +35,7 @@ def _as_timed_files(run, folder):
     grid = T0 + np.arange(d.n_steps) * dt
     sent = np.flatnonzero(np.r_[True, np.any(np.diff(d.step_commands, axis=0) != 0, axis=1)])
     order = rng.permutation(sent)
-    _write(
+    write_csv(
         folder / "commands.csv",
         {"t_s": grid[order], "v_mm_s": d.step_commands[order, 0], "omega_rad_s": d.step_commands[order, 1]},
     )
@@ -53,7 +45,7 @@ def _as_timed_files(run, folder):
     extra_id = [7.0, ids[0], ids[1]]
     extra_r = [1000.0, 1000.0, np.nan]
     perm = rng.permutation(d.obs_step.size + 3)
-    _write(
+    write_csv(
         folder / "sightings.csv",
         {
             "t_s": np.r_[t_obs, extra_t][perm],
@@ -62,8 +54,8 @@ def _as_timed_files(run, folder):
             "bearing_rad": np.r_[d.obs_bearing_rad, 0.1, 0.1, np.nan][perm],
         },
     )
-    _write(folder / "landmarks.csv", {"id": ids, "x_mm": d.landmarks_xy[:, 0], "y_mm": d.landmarks_xy[:, 1]})
-    _write(
+    write_csv(folder / "landmarks.csv", {"id": ids, "x_mm": d.landmarks_xy[:, 0], "y_mm": d.landmarks_xy[:, 1]})
+    write_csv(
         folder / "truth.csv",
         {"t_s": grid, "x_mm": run.poses[:, 0], "y_mm": run.poses[:, 1], "theta_rad": run.poses[:, 2] + 0.5 * np.pi},
     )
@@ -191,7 +183,7 @@ def test_times_in_nanoseconds_convert_as_seconds_do(timed, tmp_path):
         table = read_numeric_csv(folder / f"{name}.csv")
         if "t_s" in table:
             table = {("t_ns" if k == "t_s" else k): (np.round(v * 1e9) if k == "t_s" else v) for k, v in table.items()}
-        _write(tmp_path / f"{name}.csv", table)
+        write_csv(tmp_path / f"{name}.csv", table)
     files = ("commands", "sightings", "landmarks", "truth")
     # one step for both: the commands' median interval read in whole nanoseconds differs in its 10th digit
     seconds = read_timed_csv(*(folder / f"{n}.csv" for n in files), dt_s=1.0 / 30.0)
@@ -238,8 +230,8 @@ def test_files_as_a_spreadsheet_exports_them_convert_as_plain_csv_does(timed, tm
 def test_a_rostopic_export_is_told_what_to_rename(tmp_path):
     """ROS 1's `rostopic echo -p` writes %time (ns) and field.* columns; the error names the renames."""
     (tmp_path / "c.csv").write_text("%time,field.linear.x,field.angular.z\n1600000000000000000,0.1,0.0\n")
-    _write(tmp_path / "s.csv", {"t_s": [0.5], "landmark_id": [1], "range_m": [1.0]})
-    _write(tmp_path / "l.csv", {"id": [1], "x_m": [2.0], "y_m": [0.0]})
+    write_csv(tmp_path / "s.csv", {"t_s": [0.5], "landmark_id": [1], "range_m": [1.0]})
+    write_csv(tmp_path / "l.csv", {"id": [1], "x_m": [2.0], "y_m": [0.0]})
     with pytest.raises(LogFormatError) as err:
         read_timed_csv(tmp_path / "c.csv", tmp_path / "s.csv", tmp_path / "l.csv")
     assert err.value.field == "t_s" and "rename %time to t_ns" in err.value.fix
@@ -261,7 +253,7 @@ def test_a_column_whose_name_gives_the_wrong_unit_is_caught(timed, tmp_path):
     for n in ("commands", "landmarks"):
         (tmp_path / f"{n}.csv").write_text((folder / f"{n}.csv").read_text())
     as_degrees = sight | {"bearing_rad": np.degrees(sight["bearing_rad"])}
-    _write(tmp_path / "sightings.csv", as_degrees)
+    write_csv(tmp_path / "sightings.csv", as_degrees)
     with pytest.raises(LogFormatError) as err:
         read_timed_csv(*(tmp_path / f"{n}.csv" for n in files))
     assert err.value.field == "bearing_rad" and "bearing_deg" in err.value.fix
@@ -270,14 +262,14 @@ def test_a_column_whose_name_gives_the_wrong_unit_is_caught(timed, tmp_path):
     span = float(np.hypot(xy[:, 0].max() - xy[:, 0].min(), xy[:, 1].max() - xy[:, 1].min()))
     for name, scale, times in (("range_m", 1.0, 1000.0), ("range_mm", 1e-3, 1e-3)):
         wrong = {k: v for k, v in sight.items() if k != "range_mm"} | {name: sight["range_mm"] * scale}
-        _write(tmp_path / "sightings.csv", wrong)
+        write_csv(tmp_path / "sightings.csv", wrong)
         doubts = unit_doubts(read_timed_csv(*(tmp_path / f"{n}.csv" for n in files)).data)
         assert len(doubts) == 1 and "range_m is read as metres" in doubts[0], (name, doubts)
         doubt = doubts[0]
         ratio = float(re.search(r"is ([0-9.e+-]+) times the map", doubt).group(1))
         assert ratio == pytest.approx(times * median / span, rel=0.01), doubt
     cmd = read_numeric_csv(folder / "commands.csv")  # v in mm/s, named as if in m/s: x1000
-    _write(tmp_path / "commands.csv", {"t_s": cmd["t_s"], "v_m_s": cmd["v_mm_s"], "omega_rad_s": cmd["omega_rad_s"]})
+    write_csv(tmp_path / "commands.csv", {"t_s": cmd["t_s"], "v_m_s": cmd["v_mm_s"], "omega_rad_s": cmd["omega_rad_s"]})
     res = runner.invoke(
         app,
         ["convert", "csv", *[f"--{n}={tmp_path / f'{n}.csv'}" for n in files], "--out", str(tmp_path / "o")],
@@ -320,14 +312,14 @@ def test_a_truth_heading_read_another_way_is_named_with_the_column_that_fixes_it
     truth = read_numeric_csv(folder / "truth.csv")
     rest = {k: v for k, v in truth.items() if k != "theta_rad"}
     column = written(truth["theta_rad"])
-    _write(tmp_path / "truth.csv", rest | {name: column})
+    write_csv(tmp_path / "truth.csv", rest | {name: column})
     doubt = read_timed_csv(*files, tmp_path / "truth.csv").truth_doubt
     assert doubt is not None and said in doubt, doubt
     unit = "degrees" if name == "theta_deg" else "radians"
     assert f"{name} is read as {unit}, counterclockwise, 0 facing +x" in doubt
     fix = re.split(r" \((or )?name the column", doubt.split(f"write {name} = ")[1])[0]
     fixed = eval(fix.replace(name, "column"), {"column": column, "pi": np.pi})  # the fix as it reads
-    _write(tmp_path / "truth.csv", rest | {name: fixed})
+    write_csv(tmp_path / "truth.csv", rest | {name: fixed})
     assert read_timed_csv(*files, tmp_path / "truth.csv").truth_doubt is None, fix
 
 
@@ -340,17 +332,17 @@ def test_a_truth_heading_is_judged_only_where_the_moves_show_it(timed, wandering
     files = [folder / f"{n}.csv" for n in ("commands", "sightings", "landmarks")]
     truth = read_numeric_csv(folder / "truth.csv")
     wander = np.cumsum(np.random.default_rng(1).normal(0.0, 0.2, truth["t_s"].size))
-    _write(tmp_path / "truth.csv", truth | {"theta_rad": wander})
+    write_csv(tmp_path / "truth.csv", truth | {"theta_rad": wander})
     assert read_timed_csv(*files, tmp_path / "truth.csv").truth_doubt is None
     still = truth | {"x_mm": truth["x_mm"] * 1e-3, "y_mm": truth["y_mm"] * 1e-3, "theta_rad": truth["theta_rad"] + 1.0}
-    _write(tmp_path / "truth.csv", still)
+    write_csv(tmp_path / "truth.csv", still)
     assert read_timed_csv(*files, tmp_path / "truth.csv").truth_doubt is None
     _, straight = timed
     files = [straight / f"{n}.csv" for n in ("commands", "sightings", "landmarks")]
     truth = read_numeric_csv(straight / "truth.csv")
-    _write(tmp_path / "truth.csv", truth | {"theta_rad": np.degrees(truth["theta_rad"])})
+    write_csv(tmp_path / "truth.csv", truth | {"theta_rad": np.degrees(truth["theta_rad"])})
     assert read_timed_csv(*files, tmp_path / "truth.csv").truth_doubt is None
-    _write(tmp_path / "truth.csv", truth | {"theta_rad": truth["theta_rad"] - 0.5 * np.pi})
+    write_csv(tmp_path / "truth.csv", truth | {"theta_rad": truth["theta_rad"] - 0.5 * np.pi})
     assert "+1.571 rad (+90 deg) off" in read_timed_csv(*files, tmp_path / "truth.csv").truth_doubt
 
 
@@ -360,7 +352,7 @@ def test_convert_csv_warns_of_a_truth_heading_from_another_axis(wandering, tmp_p
     _, folder = wandering
     args = [f"--{n}={folder / f'{n}.csv'}" for n in ("commands", "sightings", "landmarks")]
     truth = read_numeric_csv(folder / "truth.csv")
-    _write(tmp_path / "from_y.csv", truth | {"theta_rad": truth["theta_rad"] - 0.5 * np.pi})
+    write_csv(tmp_path / "from_y.csv", truth | {"theta_rad": truth["theta_rad"] - 0.5 * np.pi})
     for name, out, warned in (("from_y.csv", "y", True), (folder / "truth.csv", "x", False)):
         res = runner.invoke(app, ["convert", "csv", *args, f"--truth={tmp_path / name}", "--out", str(tmp_path / out)])
         flat = " ".join(res.output.split())
@@ -375,7 +367,7 @@ def test_a_truth_path_in_another_unit_is_warned_about(timed, tmp_path):
     plain = read_timed_csv(*files, folder / "truth.csv")
     assert unit_doubts(plain.data, truth_poses_of(plain.groundtruth)) == []
     truth = read_numeric_csv(folder / "truth.csv")
-    _write(
+    write_csv(
         tmp_path / "t.csv",
         {"t_s": truth["t_s"], "x_m": truth["x_mm"], "y_m": truth["y_mm"], "theta_rad": truth["theta_rad"]},
     )
@@ -389,8 +381,8 @@ def test_a_truth_path_in_another_unit_is_warned_about(timed, tmp_path):
 
 
 def test_a_landmark_named_twice_or_a_sighting_without_its_landmark_is_refused(tmp_path):
-    _write(tmp_path / "c.csv", {"t_s": [0.0, 1.0, 2.0], "v_m_s": [0.1, 0.1, 0.1]})
-    _write(tmp_path / "s.csv", {"t_s": [0.5], "range_m": [1.0]})
+    write_csv(tmp_path / "c.csv", {"t_s": [0.0, 1.0, 2.0], "v_m_s": [0.1, 0.1, 0.1]})
+    write_csv(tmp_path / "s.csv", {"t_s": [0.5], "range_m": [1.0]})
     (tmp_path / "l.csv").write_text("id,x_m,y_m\npost_A,0,0\n4.0,1,0\n4,2,0\n")
     with pytest.raises(LogFormatError, match="landmark id 4 appears more than once") as err:
         read_timed_csv(tmp_path / "c.csv", tmp_path / "s.csv", tmp_path / "l.csv")
@@ -439,7 +431,7 @@ def test_wheel_speeds_in_metres_convert_to_what_simulate_diffdrive_logs_with_the
     axle = 235.0
     c = read_numeric_csv(folder / "commands.csv")
     half = 0.5 * axle * c["omega_rad_s"]
-    _write(
+    write_csv(
         tmp_path / "wheels.csv",
         {"t_s": c["t_s"], "left_m_s": (c["v_mm_s"] - half) / 1000, "right_m_s": (c["v_mm_s"] + half) / 1000},
     )
@@ -484,7 +476,7 @@ def test_a_legged_robots_commands_convert_with_the_sideways_velocity_free(timed,
     d = read_landmark_log(sim).data
     grid = T0 + np.arange(d.n_steps) * d.dt_s
     v, left, w = d.step_commands.T
-    _write(tmp_path / "legs.csv", {"t_s": grid, "v_m_s": v / 1000, "v_left_m_s": left / 1000, "omega_rad_s": w})
+    write_csv(tmp_path / "legs.csv", {"t_s": grid, "v_m_s": v / 1000, "v_left_m_s": left / 1000, "omega_rad_s": w})
     more = [f"--{k}={folder / f'{k}.csv'}" for k in ("sightings", "landmarks")]
     res = runner.invoke(app, ["convert", "csv", f"--commands={tmp_path / 'legs.csv'}", *more, "--out", str(out)])
     assert res.exit_code == 0, res.output
@@ -497,12 +489,12 @@ def test_a_legged_robots_commands_convert_with_the_sideways_velocity_free(timed,
 
 
 def test_other_readings_get_no_config_and_are_told_how_to_choose(tmp_path):
-    _write(tmp_path / "c.csv", {"t_s": [0.0, 1.0, 2.0], "left_wheel": [1.0, 2.0, 3.0], "right_wheel": [1, 1, 1]})
-    _write(
+    write_csv(tmp_path / "c.csv", {"t_s": [0.0, 1.0, 2.0], "left_wheel": [1.0, 2.0, 3.0], "right_wheel": [1, 1, 1]})
+    write_csv(
         tmp_path / "s.csv",
         {"t_s": [0.5, 1.5], "landmark_id": [1, 1], "sonar_m": [0.5, np.nan], "bearing_deg": [10.0, 20.0]},
     )
-    _write(tmp_path / "l.csv", {"id": [1], "x_m": [2.0], "y_m": [0.0]})
+    write_csv(tmp_path / "l.csv", {"id": [1], "x_m": [2.0], "y_m": [0.0]})
     out = tmp_path / "o"
     res = runner.invoke(
         app,
@@ -563,7 +555,7 @@ def test_bad_files_are_named_with_the_column_and_the_fix(tmp_path, name, columns
         "landmarks": {"id": [1], "x_m": [2.0], "y_m": [0.0]},
         "truth": {"t_s": [0.0, 1.0], "x_m": [0, 1], "y_m": [0, 0], "theta_rad": [0, 0]},
     } | {name: columns}
-    paths = {k: _write(tmp_path / f"{k}.csv", v) for k, v in files.items()}
+    paths = {k: write_csv(tmp_path / f"{k}.csv", v) for k, v in files.items()}
     with pytest.raises(LogFormatError) as err:
         read_timed_csv(paths["commands"], paths["sightings"], paths["landmarks"], paths["truth"], dt_s=0.1)
     e = err.value
@@ -585,8 +577,8 @@ def test_mrclams_files_as_timed_csv_read_as_io_mrclam_reads_them(tmp_path):
     odo, meas, gt = load("Robot1_Odometry.dat"), load("Robot1_Measurement.dat"), load("Robot1_Groundtruth.dat")
     barcodes, marks = load("Barcodes.dat"), load("Landmark_Groundtruth.dat")
     subject = {b: s for s, b in barcodes}
-    _write(tmp_path / "c.csv", {"t_s": odo[:, 0], "v_m_s": odo[:, 1], "omega_rad_s": odo[:, 2]})
-    _write(
+    write_csv(tmp_path / "c.csv", {"t_s": odo[:, 0], "v_m_s": odo[:, 1], "omega_rad_s": odo[:, 2]})
+    write_csv(
         tmp_path / "s.csv",
         {
             "t_s": meas[:, 0],
@@ -595,8 +587,8 @@ def test_mrclams_files_as_timed_csv_read_as_io_mrclam_reads_them(tmp_path):
             "bearing_rad": meas[:, 3],
         },
     )
-    _write(tmp_path / "l.csv", {"id": marks[:, 0], "x_m": marks[:, 1], "y_m": marks[:, 2]})
-    _write(tmp_path / "t.csv", {"t_s": gt[:, 0], "x_m": gt[:, 1], "y_m": gt[:, 2], "theta_rad": gt[:, 3]})
+    write_csv(tmp_path / "l.csv", {"id": marks[:, 0], "x_m": marks[:, 1], "y_m": marks[:, 2]})
+    write_csv(tmp_path / "t.csv", {"t_s": gt[:, 0], "x_m": gt[:, 1], "y_m": gt[:, 2], "theta_rad": gt[:, 3]})
     tl = read_timed_csv(*(tmp_path / f"{n}.csv" for n in "cslt"), dt_s=1.0 / 30.0)  # convert mrclam's step
     ml = read_mrclam(folder, 1)
     a, b = tl.data, ml.data
@@ -610,8 +602,10 @@ def test_mrclams_files_as_timed_csv_read_as_io_mrclam_reads_them(tmp_path):
     assert s["kept"] == m["kept"] and s["dropped_unknown_landmark"] == m["dropped_robot"] + m["dropped_unknown_barcode"]
     # real units and Vicon's heading raise no doubt; the same files in degrees do
     assert unit_doubts(a) == [] and tl.truth_doubt is None
-    _write(tmp_path / "c.csv", {"t_s": odo[:, 0], "v_m_s": odo[:, 1], "omega_rad_s": np.degrees(odo[:, 2])})
-    _write(tmp_path / "t.csv", {"t_s": gt[:, 0], "x_m": gt[:, 1], "y_m": gt[:, 2], "theta_rad": np.degrees(gt[:, 3])})
+    write_csv(tmp_path / "c.csv", {"t_s": odo[:, 0], "v_m_s": odo[:, 1], "omega_rad_s": np.degrees(odo[:, 2])})
+    write_csv(
+        tmp_path / "t.csv", {"t_s": gt[:, 0], "x_m": gt[:, 1], "y_m": gt[:, 2], "theta_rad": np.degrees(gt[:, 3])}
+    )
     deg = read_timed_csv(tmp_path / "c.csv", tmp_path / "s.csv", tmp_path / "l.csv", tmp_path / "t.csv")
     (turn,) = unit_doubts(deg.data)
     assert "omega_rad_s is 22.8 rad/s at its 90th percentile" in turn and "omega_deg_s" in turn, turn
@@ -625,7 +619,7 @@ def test_a_log_without_bearings_gets_no_camera_settings_and_learn_em_names_what_
 
     _, folder = timed
     sight = read_numeric_csv(folder / "sightings.csv")
-    _write(tmp_path / "s.csv", {k: v for k, v in sight.items() if k != "bearing_rad"})
+    write_csv(tmp_path / "s.csv", {k: v for k, v in sight.items() if k != "bearing_rad"})
     out = tmp_path / "o"
     args = ["--commands", str(folder / "commands.csv"), "--landmarks", str(folder / "landmarks.csv")]
     res = runner.invoke(app, ["convert", "csv", *args, "--sightings", str(tmp_path / "s.csv"), "--out", str(out)])
@@ -702,9 +696,9 @@ def test_the_step_defaults_to_the_commands_median_interval(timed, tmp_path):
     plain = read_timed_csv(*(folder / f"{n}.csv" for n in files))
     assert plain.data.dt_s == pytest.approx(run.config.dt_s)
     table = read_numeric_csv(folder / "commands.csv")
-    _write(tmp_path / "commands.csv", {**table, "t_s": T0 + 3.0 * (table["t_s"] - T0)})
+    write_csv(tmp_path / "commands.csv", {**table, "t_s": T0 + 3.0 * (table["t_s"] - T0)})
     slow = read_timed_csv(tmp_path / "commands.csv", folder / "sightings.csv", folder / "landmarks.csv")
     assert slow.data.dt_s == pytest.approx(3.0 * run.config.dt_s)
-    _write(tmp_path / "same.csv", {**table, "t_s": np.full(table["t_s"].size, T0)})
+    write_csv(tmp_path / "same.csv", {**table, "t_s": np.full(table["t_s"].size, T0)})
     with pytest.raises(LogFormatError, match="same time"):
         read_timed_csv(tmp_path / "same.csv", folder / "sightings.csv", folder / "landmarks.csv")

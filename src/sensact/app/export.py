@@ -11,6 +11,7 @@ forward, heading 0 facing +y, millimetres).
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -18,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from sensact.errors import ModelFormatError
+from sensact.models.em_model import EMModel
 
 FORMATS = ("robot-localization", "tum", "velodyne")
 RL_STATES = ("x", "y", "z", "roll", "pitch", "yaw", "vx", "vy", "vz", "vroll", "vpitch", "vyaw", "ax", "ay", "az")
@@ -46,11 +48,21 @@ def read_model_doc(path: Path) -> dict[str, Any]:
     return read_json_object(path, ModelFormatError, "give a model.json written by `sensact learn em` or `learn car`.")
 
 
-def body_sigma_m(doc: dict[str, Any], source: Path) -> tuple[np.ndarray, float]:
-    """Sigma_m per step in REP 103's body axes (x forward, y left, yaw; m, rad) and the step (s)."""
+def read_em_doc(doc: dict[str, Any], source: Path) -> tuple[EMModel, float]:
+    """A `learn em` model file's model and step (s), each checked."""
     from sensact.models.em_model import EMModel
 
     model = EMModel.from_dict(doc.get("model"), source=str(source))
+    dt = doc.get("dt_s")
+    if not isinstance(dt, int | float) or not (math.isfinite(dt) and dt > 0):
+        raise ModelFormatError(
+            f"dt_s {dt!r} is not a step.", file=source, field="dt_s", fix="learn it again with `sensact learn em`."
+        )
+    return model, float(dt)
+
+
+def body_sigma_m(model: EMModel, source: Path) -> np.ndarray:
+    """Sigma_m per step in REP 103's body axes (x forward, y left, yaw; m, rad)."""
     if model.geometry != "planar" or model.per_action_noise:
         raise ModelFormatError(
             "robot_localization takes one planar Sigma_m; this model is a 1-D track's or has one per action.",
@@ -60,7 +72,7 @@ def body_sigma_m(doc: dict[str, Any], source: Path) -> tuple[np.ndarray, float]:
         )
     sideways, forward, heading = model.motion_sd[0]
     # thesis axes (x right, y forward) to REP 103's (x forward, y left): a diagonal Sigma_m only swaps
-    return np.diag([(forward * MM) ** 2, (sideways * MM) ** 2, heading**2]), float(doc["dt_s"])
+    return np.diag([(forward * MM) ** 2, (sideways * MM) ** 2, heading**2])
 
 
 def process_noise(sigma_step: np.ndarray, dt_s: float) -> np.ndarray:
@@ -91,14 +103,11 @@ def _command_scale(name: str) -> tuple[str, float]:
     return name, 1.0
 
 
-def action_model_si(doc: dict[str, Any], source: Path) -> dict[str, Any]:
+def action_model_si(action: Any, dt_s: float) -> dict[str, Any]:
     """The action model's coefficients in SI and REP 103 axes: each velocity (vx forward, vy left, vyaw) as a
     sum of coefficient times feature (1, a command, or a product of commands in their SI units)."""
-    from sensact.models.em_model import EMModel
     from sensact.models.linear_action import LinearActionModel, monomials
 
-    model = EMModel.from_dict(doc.get("model"), source=str(source))
-    action = model.action
     if not isinstance(action, LinearActionModel):
         return {"table": action.to_dict(), "note": "an action table (discrete actions): no gains to convert"}
     si = [_command_scale(n) for n in action.command_names]
@@ -113,7 +122,7 @@ def action_model_si(doc: dict[str, Any], source: Path) -> dict[str, Any]:
         outputs[name] = terms
     return {
         "commands": [s[0] for s in si],
-        "delay_s": action.delay_steps * float(doc["dt_s"]),
+        "delay_s": action.delay_steps * dt_s,
         "velocities": {k: outputs[k] for k in REP_ORDER if k in outputs},
     }
 
@@ -121,11 +130,9 @@ def action_model_si(doc: dict[str, Any], source: Path) -> dict[str, Any]:
 def robot_localization_yaml(doc: dict[str, Any], source: Path) -> str:
     import yaml
 
-    from sensact.models.em_model import EMModel
-
-    sigma, dt = body_sigma_m(doc, source)
+    model, dt = read_em_doc(doc, source)
+    sigma = body_sigma_m(model, source)
     q = process_noise(sigma, dt)
-    model = EMModel.from_dict(doc["model"], source=str(source))
     mount = model.sensor.mount.to_dict()
     sensact = {
         "source": str(source),
@@ -133,7 +140,7 @@ def robot_localization_yaml(doc: dict[str, Any], source: Path) -> str:
         "sigma_m_per_s_body": (sigma / dt).tolist(),  # x forward, y left, yaw: Sigma_m / dt, exactly
         "turn_variance_per_s": None if model.turn_var is None else model.turn_var / dt,
         "twist_covariance": twist_covariance(sigma, dt).ravel().tolist(),
-        "action_model": action_model_si(doc, source),
+        "action_model": action_model_si(model.action, dt),
         "sensor_mount": {
             "x_m": mount["forward_mm"] * MM,
             "y_m": mount["left_mm"] * MM,

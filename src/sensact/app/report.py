@@ -45,10 +45,10 @@ def _flags(cal: Calibration, doc: Mapping[str, Any]) -> tuple[str, ...]:
     return tuple(dict.fromkeys(flags))
 
 
-def _action_table(doc: Mapping[str, Any], model_path: Path) -> tuple[tuple[str, ...], tuple[tuple[str, ...], ...]]:
+def _action_table(cal: Calibration) -> tuple[tuple[str, ...], tuple[tuple[str, ...], ...]]:
     from sensact.app.export import action_model_si
 
-    act = action_model_si(dict(doc), model_path)
+    act = action_model_si(cal.model.action, cal.log.data.dt_s)
     if "velocities" not in act:
         return ("action model",), ((str(act.get("note", "")),),)
     features = list(dict.fromkeys(f for terms in act["velocities"].values() for f in terms))
@@ -137,7 +137,7 @@ def write_em_report(cal: Calibration, model_path: Path, figures: Sequence[Path])
             Section(
                 "Action model",
                 paragraphs=(f"Command delay {_num(getattr(cal.model.action, 'delay_steps', 0) * data.dt_s)} s.",),
-                table=_action_table(doc, model_path),
+                table=_action_table(cal),
                 figures=((acts, "velocities over 1 s windows: the smoothed path's and A(c)'s"),),
             )
         )

@@ -335,14 +335,9 @@ def _ranges(
 
 
 def _quat_matrix(q) -> np.ndarray:
-    x, y, z, w = q.x, q.y, q.z, q.w
-    m = np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+    from scipy.spatial.transform import Rotation
+
+    m = Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix()
     snapped = np.round(m)
     return np.where(np.abs(m - snapped) < 1e-9, snapped, m)  # an axis permutation (an optical frame) kept exact
 
