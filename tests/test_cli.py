@@ -1048,6 +1048,16 @@ def test_a_progress_description_that_changes_while_counting_keeps_its_row():
     rows("EM: log-likelihood -97.0", 5, None)  # a known description: its own row
     assert bar.rows == ["EM: log-likelihood -100.0", "trial 2 iteration 0", "scan matching"]
     assert [u[0] for u in bar.updates[4:]] == [1, 2, 2, 0]
+    # jobs running at once, each naming itself before ": ", keep a row each however their calls interleave
+    bar = Bar()
+    rows = ProgressRows(bar)
+    rows("diffdrive seed0: start race", 1, 6)
+    rows("diffdrive seed1: start race", 1, 6)
+    rows("diffdrive seed0: EM iteration 3, log-likelihood -5.0", 4, None)
+    rows("diffdrive seed1: EM iteration 1, log-likelihood -9.0", 2, None)
+    rows("diffdrive seed0: EM iteration 4, log-likelihood -4.0", 5, None)
+    assert bar.rows == ["diffdrive seed0: start race", "diffdrive seed1: start race"]
+    assert [u[0] for u in bar.updates] == [0, 1, 0, 1, 0]
 
 
 def test_a_log_at_one_speed_is_warned_about_and_ems_gain_not_scored(tmp_path):

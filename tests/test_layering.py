@@ -12,6 +12,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "sensact"
 RANK = {
     "errors": 0,
     "config": 1,
+    "engine": 1,
     "core": 1,
     "models": 2,
     "logs": 2,

@@ -816,7 +816,7 @@ def test_a_log_that_another_model_explains_better_than_its_own_is_said_so():
 def test_a_model_is_matched_to_the_log_it_names(tmp_path, monkeypatch):
     """`learn em` records the log folder as it was given: a relative one matches the end of a log's full
     path from any folder, ``.`` only the folder it is run from; another folder never matches."""
-    from sensact.cli.evaluate import fleet_names, learned_on_log
+    from sensact.experiments.fleet import fleet_names, learned_on_log
 
     (tmp_path / "fleet" / "r1").mkdir(parents=True)
     (tmp_path / "other" / "r1").mkdir(parents=True)

@@ -10,6 +10,7 @@ from sensact.cli import (  # noqa: F401  (each registers its commands, in the or
     convert_bag,
     evaluate,
     export,
+    fleet,
     learn,
     localize,
     reproduce,

@@ -7,6 +7,7 @@ from __future__ import annotations
 import functools
 import inspect
 import logging
+import os
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -50,6 +51,22 @@ SetOpt = Annotated[
     list[str] | None, typer.Option("--set", help="Override a config field: --set name=value (repeatable).")
 ]
 ConfigOpt = Annotated[Path | None, typer.Option("--config", help="YAML file of config fields.")]
+WorkersOpt = Annotated[
+    int | None,
+    typer.Option(
+        "--workers",
+        help="Run the jobs on a Dask LocalCluster of this many worker processes (the fleet extra: "
+        "pip install 'sensact[fleet]'); 1 runs them here, one after another.",
+    ),
+]
+SchedulerOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--scheduler",
+        help="Run the jobs on the Dask cluster at this address (tcp://host:8786) instead; its workers need sensact "
+        "and the same paths to the logs.",
+    ),
+]
 EMModelOpt = Annotated[Path, typer.Option("--model", help="A model.json written by `sensact learn em`.")]
 
 
@@ -125,27 +142,40 @@ def _main(
 ) -> None:
     _state["debug"] = debug
     logging.basicConfig(level=logging.DEBUG if verbose else logging.WARNING, format="%(name)s: %(message)s")
+    # a LocalCluster's scheduler and nannies run in this process and tell every worker's start and stop, and a
+    # worker whose heartbeat meets the closed scheduler at the end logs a traceback; a job's own failure comes
+    # back as its result. Dask reads its log level when imported (and its workers inherit it).
+    os.environ.setdefault("DASK_LOGGING__DISTRIBUTED", "info" if verbose else "critical")
 
 
 class ProgressRows:
     """Which row of a progress bar a library ``progress(description, done, total)`` call moves: the row
-    with that description; else the last row, relabelled, while its count climbs toward the same total
-    (EM's description carries the current log-likelihood, so it changes every iteration); else a new
-    row (the next trial starts again from 1)."""
+    with that description; else the row whose label (the description up to its first ": ") is the same,
+    relabelled (jobs running at once, each naming itself: "diffdrive seed1: EM iteration 40, ..."); else
+    the last row, relabelled, while its count climbs toward the same total (EM's description carries the
+    current log-likelihood, so it changes every iteration); else a new row (the next trial starts again
+    from 1)."""
 
     def __init__(self, bar: Any) -> None:
         self.bar = bar
         self.rows: dict[str, Any] = {}
+        self.labels: dict[str, Any] = {}
         self.last: tuple[Any, int, int | None] | None = None  # (task, done, total) of the last call
 
     def __call__(self, desc: str, done: int, total: int | None) -> None:
+        label = desc.split(": ", 1)[0] if ": " in desc else None
         task = self.rows.get(desc)
+        if task is None and label is not None:
+            task = self.labels.get(label)
         if task is None and self.last is not None and self.last[2] == total and done > self.last[1]:
             task = self.last[0]
             self.rows = {k: v for k, v in self.rows.items() if v != task}
+            self.labels = {k: v for k, v in self.labels.items() if v != task}
         if task is None:
             task = self.bar.add_task(desc, total=total)
         self.rows[desc] = task
+        if label is not None:
+            self.labels[label] = task
         self.bar.update(task, description=desc, completed=done, total=total)
         self.last = (task, done, total)
 
@@ -154,13 +184,21 @@ class ProgressRows:
 def progress_bar() -> Iterator[Callable[[str, int, int | None], None]]:
     """A rich progress bar fed by the library's ``progress(description, done, total)`` callbacks
     (``total`` None: a count with no end known, as EM's, which stops when it converges)."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
 
     with Progress(
         TextColumn("{task.description}"),
         BarColumn(),
         MofNCompleteColumn(),
         TimeElapsedColumn(),
+        TimeRemainingColumn(),  # from the rows with a total; EM's, which stops when it converges, shows none
         console=err_console,
         transient=False,
         disable=not err_console.is_terminal,

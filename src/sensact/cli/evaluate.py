@@ -10,7 +10,7 @@ from typing import Annotated, Any
 import typer
 
 from sensact.app.logs import read_em_model, refuse_model_for_log
-from sensact.cli.base import EMModelOpt, console, evaluate_app, friendly, write_result
+from sensact.cli.base import EMModelOpt, SchedulerOpt, WorkersOpt, console, evaluate_app, friendly, write_result
 from sensact.cli.scores import print_scores, print_truth_score
 
 
@@ -163,26 +163,6 @@ def _evaluate_on_range_column(doc: dict[str, Any], m: Any, opened: Any, model: P
     console.print("wrote " + ", ".join(str(p) for p in written))
 
 
-def learned_on_log(doc: dict[str, Any], log: Path) -> bool:
-    """Whether model.json says it was learned on ``log``: ``learn em`` records the folder as it was given, so
-    a relative one matches the end of the log's full path (it may have been run from another folder)."""
-    recorded = doc.get("log")
-    if not recorded:
-        return False
-    path, full = Path(str(recorded)), log.resolve()
-    parts = tuple(q for q in path.parts if q != ".")
-    if path.is_absolute() or not parts or ".." in parts:  # "." or "../x" name a folder only from where it ran
-        return path.resolve() == full
-    return full.parts[-len(parts) :] == parts
-
-
-def fleet_names(paths: list[Path], name: Any) -> list[str]:
-    """Short, distinct names for the table: ``name(path)`` (a folder's or a file's own name), or the path as
-    given where two would share one."""
-    short = [name(p) for p in paths]
-    return [str(p) if short.count(s) > 1 else s for p, s in zip(paths, short, strict=True)]
-
-
 @evaluate_app.command("fleet")
 @friendly
 def evaluate_fleet_cmd(
@@ -201,6 +181,8 @@ def evaluate_fleet_cmd(
         Path | None,
         typer.Option("--out", help="Write the scores here (JSON), and the grids beside it (OUT.png)."),
     ] = None,
+    workers: WorkersOpt = 1,
+    scheduler: SchedulerOpt = None,
 ) -> None:
     """Score every model on every log: does one robot's model serve the others of its kind?
 
@@ -214,45 +196,23 @@ def evaluate_fleet_cmd(
     `evaluate log` scores it: the action gain's error and the best sensor's, in % of its span. A pair is
     a robot's own when the model was learned on that log. Every model must share the logs' commands,
     readings and step (a Turtlebot CSV is read onto each model's own step)."""
-    from sensact.app.logs import is_turtlebot_csv, open_log
     from sensact.cli.base import progress_bar
-    from sensact.experiments.fleet import RangeLog, score_fleet
-    from sensact.learn.em.localize import learned_config
+    from sensact.engine import open_engine
+    from sensact.experiments.fleet import fleet_names, log_name, score_fleet_on
 
-    models, configs, own = {}, {}, {}
     logs, model = list(dict.fromkeys(logs)), list(dict.fromkeys(model))  # a folder or file given twice counts once
-    docs = {path: read_em_model(path) for path in model}
-    model_names = dict(zip(model, fleet_names(model, lambda p: p.stem), strict=True))
-    log_names = dict(zip(logs, fleet_names(logs, _log_name), strict=True))
-    read: dict[Path, Any] = {}
-    for log in logs:
-        if is_turtlebot_csv(log):
-            # each model reads the CSV onto its own step, as `evaluate log` would (a track folder's steps are
-            # its own, and a model on another step is refused)
-            on_step = {model_names[p]: open_log(log, dt_s=doc.get("dt_s")) for p, (doc, _) in docs.items()}
-            read[log] = RangeLog({name: (o.data, o.recorded_distance_mm) for name, o in on_step.items()})
-        else:
-            opened = open_log(log, bins=21)  # a track1d folder's commands binned as `evaluate log` does
-            data, lf, distance = opened.data, opened.folder, opened.recorded_distance_mm
-            # a track folder's recorded distance is scored as a Turtlebot's range column, on the folder's own step
-            read[log] = lf if distance is None else RangeLog(dict.fromkeys(model_names.values(), (data, distance)))
-    for path, (doc, m) in docs.items():
-        name = model_names[path]
-        for log, lf in read.items():
-            data = lf.reads[name][0] if isinstance(lf, RangeLog) else lf.data
-            refuse_model_for_log(doc, m, data, path, log)
-        models[name] = m
-        configs[name] = learned_config((doc.get("summary") or {}).get("config"), str(path))
-        for log in logs:
-            if learned_on_log(doc, log):
-                own[name] = log_names[log]
-    n_m, n_l = len(models), len(read)
-    console.print(
-        f"{n_m} model{'s' * (n_m > 1)} on {n_l} log{'s' * (n_l > 1)}: "
-        + ", ".join(log_names[p] if isinstance(lf, RangeLog) else lf.title(p) for p, lf in read.items())
-    )
-    with progress_bar() as progress:
-        fleet = score_fleet(models, {log_names[p]: lf for p, lf in read.items()}, own, progress, configs)
+    n_m, n_l = len(model), len(logs)
+    with open_engine(workers, scheduler) as engine:
+        names = fleet_names(logs, log_name)
+        console.print(
+            f"{n_m} model{'s' * (n_m > 1)} on {n_l} log{'s' * (n_l > 1)} ({', '.join(names)}), on {engine.where}"
+        )
+        with progress_bar() as progress:
+
+            def on_progress(i: int, desc: str, done: int, total: int | None) -> None:
+                progress(f"{names[i]}: {desc}", done, total)
+
+            fleet = score_fleet_on(engine, model, logs, on_progress=on_progress)
     print_fleet(fleet)
     if out is not None:
         from sensact.report.figures_fleet import figure_fleet
@@ -260,11 +220,6 @@ def evaluate_fleet_cmd(
         write_result(out, fleet)
         figure = figure_fleet(fleet, out.with_suffix(".png"))
         console.print(f"wrote {out} and {figure}")
-
-
-def _log_name(path: Path) -> str:
-    """A log's short name: a folder's own name ("." names the folder it is), a CSV's without ``.csv``."""
-    return path.stem if path.is_file() else path.resolve().name
 
 
 def print_fleet(fleet: dict[str, Any]) -> None:

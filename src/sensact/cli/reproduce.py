@@ -4,13 +4,15 @@ RESULTS/<experiment>.json, a Markdown table and figures, and RESULTS/index.html 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
 from sensact.cli.base import (
     ConfigOpt,
+    SchedulerOpt,
     SetOpt,
+    WorkersOpt,
     app,
     console,
     friendly,
@@ -56,10 +58,13 @@ def reproduce(
             "(a local-optimum check; about doubles the time).",
         ),
     ] = False,
+    workers: WorkersOpt = 1,
+    scheduler: SchedulerOpt = None,
 ) -> None:
     """Run the thesis's experiments and write RESULTS/<experiment>.json, tables and figures.
 
-    RESULTS/index.html then shows every table and figure in the folder on one page."""
+    RESULTS/index.html then shows every table and figure in the folder on one page. With --workers N (or
+    --scheduler), the trials, seeds and robots run on a Dask cluster, with the same results."""
     from sensact.errors import ConfigError
 
     if experiment is not None and experiment not in EXPERIMENTS:
@@ -71,8 +76,38 @@ def reproduce(
     if trials is not None and trials < 1:
         raise ConfigError(f"--trials {trials} runs nothing.", field="--trials", fix="give 1 or more.")
     todo = [experiment] if experiment else list(EXPERIMENTS)
+    from sensact.engine import open_engine
+
+    with open_engine(workers, scheduler) as engine:
+        if engine.workers > 1 or scheduler is not None:
+            console.print(f"trials, seeds and robots on {engine.where}")
+        _run_experiments(todo, experiment, out, trials, seed, data, set_, config, truth_restart, engine)
+    from sensact.report.html_report import folder_scorecards, write_html_report
+
+    cards = folder_scorecards(out)
+    if len(cards) > 1:
+        console.print(f"every experiment in {out}:")
+        for name, _, checks in cards:
+            print_verdict(f"  {name}", checks)
+    page = write_html_report(out)
+    if page is not None:
+        console.print(f"wrote {page}: every table and figure in {out} on one page")
+
+
+def _run_experiments(
+    todo: list[str],
+    experiment: str | None,
+    out: Path,
+    trials: int | None,
+    seed: int,
+    data: Path | None,
+    set_: list[str] | None,
+    config: Path | None,
+    truth_restart: bool,
+    engine: Any,
+) -> None:
     if "track1d" in todo:
-        _reproduce_track1d(out, trials or 15, seed, set_, config)
+        _reproduce_track1d(out, trials or 15, seed, set_, config, engine)
     if "turtlebot" in todo:
         from sensact.experiments.shared_data import turtlebot_logs
 
@@ -89,29 +124,25 @@ def reproduce(
         else:
             _reproduce_turtlebot(out, logs)
     if "field2d" in todo:
-        _reproduce_field2d(out, trials or 5, seed, set_, config)
+        _reproduce_field2d(out, trials or 5, seed, set_, config, engine)
     if "em1d" in todo:
         _reproduce_em1d(out, seed, set_, config)
     if "car" in todo:
         _reproduce_car(out, seed, set_, config)
     if "diffdrive" in todo:
-        _reproduce_diffdrive(out, trials or 3, seed, set_, config)
+        _reproduce_diffdrive(out, trials or 3, seed, set_, config, engine)
     if "real" in todo:
-        _reproduce_real(out, _data_dir(data), experiment == "real", set_, config, truth_restart)
-    from sensact.report.html_report import folder_scorecards, write_html_report
-
-    cards = folder_scorecards(out)
-    if len(cards) > 1:
-        console.print(f"every experiment in {out}:")
-        for name, _, checks in cards:
-            print_verdict(f"  {name}", checks)
-    page = write_html_report(out)
-    if page is not None:
-        console.print(f"wrote {page}: every table and figure in {out} on one page")
+        _reproduce_real(out, _data_dir(data), experiment == "real", set_, config, truth_restart, engine)
 
 
 def _reproduce_real(
-    out: Path, root: Path, required: bool, set_: list[str] | None, config: Path | None, truth_restart: bool = False
+    out: Path,
+    root: Path,
+    required: bool,
+    set_: list[str] | None,
+    config: Path | None,
+    truth_restart: bool = False,
+    engine: Any = None,
 ) -> None:
     """MRCLAM's EM settings are ``mrclam_config()``, changed by the EM fields of ``--config``/``--set``
     (e.g. ``--set motion_noise=turning``); the Turtlebot's are fixed. ``truth_restart``: see
@@ -145,6 +176,7 @@ def _reproduce_real(
             progress=lambda msg: status.update(f"EM on real robots: {msg}"),
             config=cfg,
             truth_restart=truth_restart,
+            engine=engine,
         )
     for line in res["skipped"]:
         console.print(f"skipped {line}")
@@ -152,7 +184,9 @@ def _reproduce_real(
     figures_real.write_all(art, res, out)
 
 
-def _reproduce_diffdrive(out: Path, trials: int, seed: int, set_: list[str] | None, config: Path | None) -> None:
+def _reproduce_diffdrive(
+    out: Path, trials: int, seed: int, set_: list[str] | None, config: Path | None, engine: Any = None
+) -> None:
     """MRCLAM's EM settings on simulated differential drives; ``--set`` reaches both the learner and the
     simulator (``sim.diffdrive.DiffDriveConfig``), whichever has the field."""
     from sensact.experiments.diffdrive import DiffDriveExperiment, run_diffdrive
@@ -167,7 +201,7 @@ def _reproduce_diffdrive(out: Path, trials: int, seed: int, set_: list[str] | No
     learner = merged(EMConfig, DiffDriveExperiment(simulator=simulator).learner_config, learner_f)
     exp = DiffDriveExperiment(trials=trials, seed=seed, simulator=simulator, learner=learner)
     with progress_bar() as progress:
-        res, art = run_diffdrive(exp, progress)
+        res, art = run_diffdrive(exp, progress, engine)
     write_results(out, "diffdrive", res, diffdrive_tables(res))
     robots = art["robots"]
     key, (robot, first) = next(iter(robots.items()))
@@ -222,7 +256,9 @@ def _reproduce_car(out: Path, seed: int, set_: list[str] | None, config: Path | 
     )
 
 
-def _reproduce_field2d(out: Path, trials: int, seed: int, set_: list[str] | None, config: Path | None) -> None:
+def _reproduce_field2d(
+    out: Path, trials: int, seed: int, set_: list[str] | None, config: Path | None, engine: Any = None
+) -> None:
     from sensact.config import config_from_dict
     from sensact.experiments.field2d import Field2DExperiment, run_field2d, velocity_rms_history
     from sensact.io.atomic import write_npz
@@ -240,7 +276,7 @@ def _reproduce_field2d(out: Path, trials: int, seed: int, set_: list[str] | None
         learner=merged(EMConfig, base.learner, learner_f),
     )
     with progress_bar() as progress:
-        res, art = run_field2d(exp, progress)
+        res, art = run_field2d(exp, progress, engine)
     write_results(out, "field2d", res, field2d_tables(res))
     first = art["trials"][0]
     vr = velocity_rms_history(first)
@@ -313,7 +349,9 @@ def _reproduce_em1d(out: Path, seed: int, set_: list[str] | None, config: Path |
     console.print(f"wrote {out / 'em1d.json'}, {out / 'em1d.md'} and figures in {out} ({res['seconds']:.1f} s)")
 
 
-def _reproduce_track1d(out: Path, trials: int, seed: int, set_: list[str] | None, config: Path | None) -> None:
+def _reproduce_track1d(
+    out: Path, trials: int, seed: int, set_: list[str] | None, config: Path | None, engine: Any = None
+) -> None:
     from sensact.config import config_from_dict
     from sensact.experiments.track1d import Track1DExperiment, run_track1d
     from sensact.io.atomic import write_npz
@@ -331,7 +369,7 @@ def _reproduce_track1d(out: Path, trials: int, seed: int, set_: list[str] | None
         simulator=config_from_dict(Track1DConfig, sim_fields, source="--set/--config"),
     )
     with progress_bar() as progress:
-        res, art = run_track1d(exp, progress)
+        res, art = run_track1d(exp, progress, engine)
     write_results(out, "track1d", res, track1d_tables(res))
     linear = art["trials"].get("linear") or next(iter(art["trials"].values()))
     figures1d.figure_3_7(linear[0], out / "fig3_7_location_estimates.png")

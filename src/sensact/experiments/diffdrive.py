@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from sensact.config import config_to_dict
+from sensact.engine import Engine, InProcess, Job, untagged
 from sensact.evaluate.bars import BarCheck
 from sensact.evaluate.simulated_robot import score_against_simulated
 from sensact.experiments.real import evaluate_mrclam, robot_checks
@@ -68,36 +69,17 @@ def scorecard(summary: dict[str, Any]) -> list[BarCheck]:
 
 
 def run_diffdrive(
-    exp: DiffDriveExperiment | None = None, progress: ProgressFn | None = None
+    exp: DiffDriveExperiment | None = None, progress: ProgressFn | None = None, engine: Engine | None = None
 ) -> tuple[dict[str, Any], dict[str, Any]]:
-    """Returns (``diffdrive.json`` content, artifacts for figures: ``robots`` {key: (SimulatedRobot, EMResult)})."""
+    """Returns (``diffdrive.json`` content, artifacts for figures: ``robots`` {key: (SimulatedRobot, EMResult)}).
+    Each seed is a job of ``engine`` (``sensact.engine``; here, one after another, by default)."""
     exp = exp or DiffDriveExperiment()
     t0 = time.perf_counter()
-    seeds: dict[str, Any] = {}
-    robots: dict[str, tuple[SimulatedRobot, EMResult]] = {}
-    for k in range(exp.trials):
-        sim = replace(exp.simulator, seed=exp.seed + k)
-        key = f"seed{sim.seed}"
-        run = simulate_diffdrive(sim)
-        robot = SimulatedRobot(run.log(f"simulated {sim.robot_kind}, seed {sim.seed}"), run.poses)
-
-        def on_iteration(it: int, ll: float, best: float, since: int, key: str = key) -> None:
-            if progress:
-                progress(f"diffdrive {key}: EM iteration {it}, log-likelihood {ll:.1f}", it + 1, None)
-
-        def on_race(done: int, planned: int, key: str = key) -> None:
-            if progress:
-                progress(f"diffdrive {key}: start race", done, planned)
-
-        res = fit_em(robot.data, None, exp.learner_config, progress=on_iteration, on_race=on_race)
-        seeds[key] = {
-            "em": res.summary(),
-            "score": evaluate_mrclam(robot, res),  # as a real robot is scored against Vicon
-            "simulated": score_against_simulated(res.model, sim.truth(), sim.dt_s),
-            "sightings": int(robot.data.n_observations),
-            "misread": int(run.obs_misread.sum()),
-        }
-        robots[key] = (robot, res)
+    sims = [replace(exp.simulator, seed=exp.seed + k) for k in range(exp.trials)]
+    jobs = [Job(run_seed, (sim, exp.learner_config), f"seed{sim.seed}") for sim in sims]
+    done = (engine or InProcess()).run(jobs, on_progress=untagged(progress))
+    seeds = {f"seed{sim.seed}": row for sim, (row, _, _) in zip(sims, done, strict=True)}
+    robots = {f"seed{sim.seed}": (robot, res) for sim, (_, robot, res) in zip(sims, done, strict=True)}
     out: dict[str, Any] = {
         "experiment": "diffdrive",
         "seeds": seeds,
@@ -106,6 +88,34 @@ def run_diffdrive(
     }
     out["scorecard"] = [c.to_dict() for c in scorecard(out)]
     return out, {"robots": robots}
+
+
+def run_seed(
+    sim: DiffDriveConfig, learner: EMConfig, *, progress: ProgressFn | None = None
+) -> tuple[dict[str, Any], SimulatedRobot, EMResult]:
+    """One seed of ``run_diffdrive``: the robot simulated, learned by EM and scored (its row of
+    diffdrive.json), the robot and EM's result."""
+    key = f"seed{sim.seed}"
+    run = simulate_diffdrive(sim)
+    robot = SimulatedRobot(run.log(f"simulated {sim.robot_kind}, seed {sim.seed}"), run.poses)
+
+    def on_iteration(it: int, ll: float, best: float, since: int) -> None:
+        if progress:
+            progress(f"diffdrive {key}: EM iteration {it}, log-likelihood {ll:.1f}", it + 1, None)
+
+    def on_race(done: int, planned: int) -> None:
+        if progress:
+            progress(f"diffdrive {key}: start race", done, planned)
+
+    res = fit_em(robot.data, None, learner, progress=on_iteration, on_race=on_race)
+    row = {
+        "em": res.summary(),
+        "score": evaluate_mrclam(robot, res),  # as a real robot is scored against Vicon
+        "simulated": score_against_simulated(res.model, sim.truth(), sim.dt_s),
+        "sightings": int(robot.data.n_observations),
+        "misread": int(run.obs_misread.sum()),
+    }
+    return row, robot, res
 
 
 BAG_EPOCH_NS = 1_700_000_000 * 10**9  # a bag's clock is the wall's

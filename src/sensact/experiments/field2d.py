@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from sensact.config import config_to_dict
+from sensact.engine import Engine, InProcess, Job, untagged
 from sensact.evaluate.bars import BarCheck, at_most, miss_text
 from sensact.evaluate.em import component_rms, score_planar
 from sensact.learn.em import EMConfig, EMResult, fit_em, initial_model
@@ -166,16 +167,26 @@ def scorecard(summary: dict[str, Any]) -> list[BarCheck]:
     return checks
 
 
+def _trial_job(
+    sim: Field2DConfig, learner: EMConfig, label: str, *, progress: ProgressFn | None = None
+) -> Field2DTrial:
+    return run_trial(sim, learner, progress, label)
+
+
 def run_field2d(
-    exp: Field2DExperiment | None = None, progress: ProgressFn | None = None
+    exp: Field2DExperiment | None = None, progress: ProgressFn | None = None, engine: Engine | None = None
 ) -> tuple[dict[str, Any], dict[str, Any]]:
-    """Returns (``field2d.json`` content, artifacts for figures)."""
+    """Returns (``field2d.json`` content, artifacts for figures). The trials (each seed's, the real-robot
+    setting's) are jobs of ``engine`` (``sensact.engine``; here, one after another, by default)."""
     exp = exp or Field2DExperiment()
     t0 = time.perf_counter()
-    trials = []
-    for i in range(exp.trials):
-        sim = dataclasses.replace(exp.simulator, seed=exp.seed + i)
-        trials.append(run_trial(sim, exp.learner, progress, f"field2d seed {sim.seed}:"))
+    sims = [dataclasses.replace(exp.simulator, seed=exp.seed + i) for i in range(exp.trials)]
+    jobs = [Job(_trial_job, (sim, exp.learner, f"field2d seed {sim.seed}:"), f"seed{sim.seed}") for sim in sims]
+    if exp.real_robot:
+        real_sim = Field2DConfig.preset("real_robot", seed=exp.seed, seconds=exp.simulator.seconds)
+        jobs.append(Job(_trial_job, (real_sim, exp.real_learner, "field2d real-robot setting:"), "real-robot"))
+    done = (engine or InProcess()).run(jobs, on_progress=untagged(progress))
+    trials = done[: exp.trials]
     scores = [t.score for t in trials]
     ours = {k: float(np.mean([s[k] for s in scores])) for k in SIM_KEYS}
     ours.update(
@@ -202,10 +213,12 @@ def run_field2d(
     }
     artifacts: dict[str, Any] = {"trials": trials}
     if exp.real_robot:
-        sim = Field2DConfig.preset("real_robot", seed=exp.seed, seconds=exp.simulator.seconds)
-        real = run_trial(sim, exp.real_learner, progress, "field2d real-robot setting:")
+        real = done[-1]
         out["real_robot"] = {"ours": real.score, "thesis": THESIS["real_robot"]}
-        out["config"]["real_robot"] = {"simulator": config_to_dict(sim), "learner": config_to_dict(exp.real_learner)}
+        out["config"]["real_robot"] = {
+            "simulator": config_to_dict(real_sim),
+            "learner": config_to_dict(exp.real_learner),
+        }
         artifacts["real"] = real
     out["scorecard"] = [c.to_dict() for c in scorecard(out)]
     out["seconds"] = time.perf_counter() - t0

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from sensact.config import config_to_dict
+from sensact.engine import Engine, InProcess, Job
 from sensact.errors import LogFormatError
 from sensact.evaluate.bars import BARS, BarCheck, bar_checks, robot_checks  # the real-data bars
 from sensact.evaluate.landmark_truth import path_offset, score_against_truth
@@ -172,17 +173,43 @@ def fleet_of_dataset(folder: Path, runs: dict[str, Any], several: bool, config: 
     )
 
 
+def robot_job(
+    folder: Path, robot: int, config: EMConfig, truth_restart: bool, key: str, *, progress: Any = None
+) -> tuple[dict[str, Any] | str, MrclamLog | None, EMResult | None]:
+    """``run_mrclam_robot`` as a job of an engine, saying where it is as it goes (a robot's fit takes 20-40 s
+    on Dataset 6: the race, then each iteration); a log that cannot be learned is its line, ``(why, None,
+    None)``."""
+    label = f"MRCLAM {key}" + (" (and its restart from the truth)" if truth_restart else "")
+    if progress:
+        progress(label, 0, None)
+
+    def on_iteration(it: int, ll: float, best: float, since: int) -> None:
+        if progress:
+            progress(f"{label}: EM iteration {it}, best log-likelihood {best:.1f}", it + 1, None)
+
+    def on_race(done: int, planned: int) -> None:
+        if progress:
+            progress(f"{label}: start race, trial {done} of at most {planned}", done, planned)
+
+    try:
+        return run_mrclam_robot(folder, robot, config, on_iteration, truth_restart=truth_restart, on_race=on_race)
+    except LogFormatError as exc:
+        return str(exc), None, None
+
+
 def run_real(
     root: Path | None = None,
     robots: tuple[int, ...] = ROBOTS,
     progress: Callable[[str], None] | None = None,
     config: EMConfig | None = None,
     truth_restart: bool = False,
+    engine: Engine | None = None,
 ) -> tuple[dict[str, Any], dict[str, Any]]:
     """Every robot of every MRCLAM dataset under ``root/mrclam`` (Dataset 6 here; with ``config``,
     default ``mrclam_config()``) and every Turtlebot training log (``turtlebot_logs``); skips what is
     missing. ``truth_restart`` adds ``restart_from_truth`` per robot. Rows are keyed ``robotN``, or
-    ``<dataset>/robotN`` when the folder holds more than one dataset."""
+    ``<dataset>/robotN`` when the folder holds more than one dataset. The robots are jobs of ``engine``
+    (``sensact.engine``; here, one after another, by default)."""
     from sensact.experiments.turtlebot_em import run_turtlebot_em
 
     t0 = time.perf_counter()
@@ -194,34 +221,23 @@ def run_real(
         cfg = config or mrclam_config()
         out["mrclam_config"] = config_to_dict(cfg)
         out["mrclam_datasets"] = [str(d) for d in datasets]
+        runs = [
+            (folder, robot, mrclam_row_key(folder, robot, len(datasets) > 1)) for folder in datasets for robot in robots
+        ]
+        missing = [(f, r, k) for f, r, k in runs if not (f / f"Robot{r}_Odometry.dat").is_file()]
+        for folder, robot, key in missing:
+            out["skipped"].append(f"MRCLAM {key}: {folder / f'Robot{robot}_Odometry.dat'} not found")
+        runs = [run for run in runs if run not in missing]
+        jobs = [Job(robot_job, (folder, robot, cfg, truth_restart, key), key) for folder, robot, key in runs]
+        status = None if progress is None else (lambda i, desc, done, total: progress(desc))
+        done = (engine or InProcess()).run(jobs, on_progress=status)
+        for (folder, _, key), (row, ml, res) in zip(runs, done, strict=True):
+            if isinstance(row, str):  # this robot's log (e.g. no landmark sightings), not the settings
+                out["skipped"].append(f"MRCLAM {key}: {row}")
+                continue
+            out["mrclam"][key] = {"dataset": folder.name, **row}
+            artifacts["mrclam"][key] = (ml, res)
         for folder in datasets:
-            for robot in robots:
-                key = mrclam_row_key(folder, robot, len(datasets) > 1)
-                if not (folder / f"Robot{robot}_Odometry.dat").is_file():
-                    out["skipped"].append(f"MRCLAM {key}: {folder / f'Robot{robot}_Odometry.dat'} not found")
-                    continue
-                label = f"MRCLAM {key}" + (" (and its restart from the truth)" if truth_restart else "")
-                if progress:
-                    progress(label)
-
-                # a robot's fit takes 20-40 s on Dataset 6: say where it is (the race, then each iteration)
-                def on_iteration(it: int, ll: float, best: float, since: int, label: str = label) -> None:
-                    if progress:
-                        progress(f"{label}: EM iteration {it}, best log-likelihood {best:.1f}")
-
-                def on_race(done: int, planned: int, label: str = label) -> None:
-                    if progress:
-                        progress(f"{label}: start race, trial {done} of at most {planned}")
-
-                try:
-                    row, ml, res = run_mrclam_robot(
-                        folder, robot, cfg, on_iteration, truth_restart=truth_restart, on_race=on_race
-                    )
-                except LogFormatError as exc:  # this robot's log (e.g. no landmark sightings), not the settings
-                    out["skipped"].append(f"MRCLAM {key}: {exc}")
-                    continue
-                out["mrclam"][key] = {"dataset": folder.name, **row}
-                artifacts["mrclam"][key] = (ml, res)
             if progress:
                 progress(f"MRCLAM {folder.name}: each robot's model on every robot's log")
             fleet = fleet_of_dataset(folder, artifacts["mrclam"], len(datasets) > 1, cfg)

@@ -13,6 +13,7 @@ import numpy as np
 
 from sensact.config import config_to_dict
 from sensact.core.polyfit import weighted_polyfit
+from sensact.engine import Engine, InProcess, Job, plain
 from sensact.evaluate.bars import BarCheck, at_most
 from sensact.evaluate.scaled import ModelPairScore, fit_scale
 from sensact.evaluate.track1d import (
@@ -225,21 +226,36 @@ def run_degree_trial(sim: Track1DConfig, learner: BootstrapConfig) -> DegreeTria
 
 
 def run_track1d(
-    exp: Track1DExperiment | None = None, progress: ProgressFn | None = None
+    exp: Track1DExperiment | None = None, progress: ProgressFn | None = None, engine: Engine | None = None
 ) -> tuple[dict[str, Any], dict[str, Any]]:
-    """Run every row and the degree experiment. Returns (``track1d.json`` content, artifacts for figures)."""
+    """Run every row and the degree experiment. Returns (``track1d.json`` content, artifacts for figures).
+    Each trial is a job of ``engine`` (``sensact.engine``; here, one after another, by default)."""
     exp = exp or Track1DExperiment()
     t0 = time.perf_counter()
     rows: dict[str, Any] = {}
     artifacts: dict[str, Any] = {"trials": {}, "curves": {}}
+    jobs, groups = [], []  # every trial of every row, then the degree trials: each a job of the engine
     for row in exp.rows:
         learner = dataclasses.replace(exp.learner, a0=row)
-        trials = []
         for i in range(exp.trials):
             sim = dataclasses.replace(exp.simulator, seconds=ROW_SECONDS[row], seed=exp.seed + i)
-            trials.append(run_trial(sim, learner))
-            if progress:
-                progress(f"Table 3.1, A0 = {row}", i + 1, exp.trials)
+            jobs.append(Job(plain, (run_trial, (sim, learner)), f"{row}-seed{sim.seed}"))
+            groups.append((f"Table 3.1, A0 = {row}", exp.trials))
+    for i in range(exp.degree_trials):
+        sim = dataclasses.replace(exp.simulator, seconds=exp.degree_seconds, seed=exp.seed + 100 + i)
+        jobs.append(Job(plain, (run_degree_trial, (sim, exp.learner)), f"degree-seed{sim.seed}"))
+        groups.append(("Degree selection (sec. 3.3.3)", exp.degree_trials))
+    counted: dict[str, int] = {}
+
+    def on_done(i: int, _: Any) -> None:
+        name, total = groups[i]
+        counted[name] = counted.get(name, 0) + 1
+        if progress:
+            progress(name, counted[name], total)
+
+    done = (engine or InProcess()).run(jobs, on_done=on_done)
+    for k, row in enumerate(exp.rows):
+        trials = done[k * exp.trials : (k + 1) * exp.trials]
         rows[row] = summarize_row(trials, ROW_SECONDS[row])
         artifacts["trials"][row] = trials
         curves = [learning_curve(t) for t in trials if t.converged]
@@ -250,12 +266,7 @@ def run_track1d(
                 _finite_mean([c[1][:n] for c in curves]),
                 _finite_mean([c[2][:n] for c in curves]),
             )
-    deg_trials = []
-    for i in range(exp.degree_trials):
-        sim = dataclasses.replace(exp.simulator, seconds=exp.degree_seconds, seed=exp.seed + 100 + i)
-        deg_trials.append(run_degree_trial(sim, exp.learner))
-        if progress:
-            progress("Degree selection (sec. 3.3.3)", i + 1, exp.degree_trials)
+    deg_trials = done[len(exp.rows) * exp.trials :]
     artifacts["degree_trials"] = deg_trials
     degrees = [d.result.sensor_degree for d in deg_trials]
     s_err = [d.score.sensor_rms for d in deg_trials]

@@ -83,7 +83,7 @@ FLEET_LIKELIHOOD_TITLE = (
 def fleet_likelihood_table(
     fleet: dict[str, Any], title: str = FLEET_LIKELIHOOD_TITLE, own: Callable[[str], str] = lambda s: f"**{s}**"
 ) -> Table:
-    """``experiments.fleet.score_likelihoods``' pairs, a row per model and a column per log, and the
+    """``experiments.fleet.likelihood_grid``'s pairs, a row per model and a column per log, and the
     sightings each log's likelihood is over; ``own`` marks a robot's own pair."""
     lk = fleet["likelihood"]
 

@@ -1,0 +1,175 @@
+"""``sensact fleet``: a fleet's logs calibrated at once on a Dask cluster (issue 76)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from sensact.cli.base import (
+    ConfigOpt,
+    SchedulerOpt,
+    SetOpt,
+    app,
+    console,
+    friendly,
+    print_tables,
+    progress_bar,
+    write_result,
+)
+
+fleet_app = typer.Typer(
+    help="Calibrate a fleet's logs at once on a Dask cluster, and score every model on every log.",
+    no_args_is_help=True,
+)
+app.add_typer(fleet_app, name="fleet")
+
+# exit codes (docs/howto-fleet.md): every log learned; some failed (the others written, fleet.json says which)
+EXIT_SOME_FAILED = 3
+
+
+@fleet_app.command("learn")
+@friendly
+def fleet_learn_cmd(
+    logs: Annotated[
+        list[Path],
+        typer.Argument(help="Log folders or Turtlebot CSVs, one robot's run each.", metavar="LOG"),
+    ],
+    out: Annotated[
+        Path,
+        typer.Option(
+            "--out",
+            help="A folder: each log's model at OUT/NAME/model.json (with what `learn em --out` writes beside it), "
+            "OUT/fleet.json (each log's outcome and the cross-scores) and OUT/fleet.png.",
+        ),
+    ],
+    workers: Annotated[
+        int | None,
+        typer.Option(
+            "--workers",
+            help="Worker processes of the LocalCluster started on this machine (default: one per core); 1 runs "
+            "the logs here, one after another, without Dask.",
+        ),
+    ] = None,
+    scheduler: SchedulerOpt = None,
+    preset: Annotated[str | None, typer.Option("--preset", help="As `learn em --preset`, for every log.")] = None,
+    set_: SetOpt = None,
+    config: ConfigOpt = None,
+    report: Annotated[bool, typer.Option("--report/--no-report", help="Write report.html beside each model.")] = True,
+    cross_scores: Annotated[
+        bool,
+        typer.Option(
+            "--cross-scores/--no-cross-scores",
+            help="Then score every model on every log, as `evaluate fleet` does, on the same cluster.",
+        ),
+    ] = True,
+) -> None:
+    """Calibrate every log as `learn em LOG --out OUT/NAME/model.json` would, a job per log on Dask.
+
+    Each log's model is the one `learn em` learns on it alone (the same file, its timing aside). A log that
+    fails is reported, in the table and in fleet.json, and the others go on; the exit code is then 3 (2 when
+    every log failed on bad input). Needs the fleet extra (pip install 'sensact[fleet]') unless --workers 1."""
+    from rich.markup import escape
+
+    from sensact.app.fleet import LearnOptions
+    from sensact.engine import open_engine
+    from sensact.experiments.fleet import FleetEvents, fleet_names, learn_fleet, log_name
+
+    logs = list(dict.fromkeys(logs))  # a log given twice is learned once
+    _refuse_out(out)
+    names = fleet_names(logs, log_name)
+    options = LearnOptions(preset, config, tuple(set_ or ()), report)
+    with open_engine(workers, scheduler) as engine:
+        console.print(f"{len(logs)} log{'s' * (len(logs) > 1)} ({', '.join(names)}) on {engine.where}")
+        with progress_bar() as rows:
+            bar = rows.bar
+            overall = bar.add_task("fleet: logs learned", total=len(logs))
+            task = [bar.add_task(f"{g}: waiting for a worker", total=None) for g in names]
+            scoring: dict[int, Any] = {}
+
+            def learning(i: int, desc: str, done: int, total: int | None) -> None:
+                bar.update(task[i], description=escape(f"{names[i]}: {desc}"), completed=done, total=total)
+
+            def learned(i: int, outcome: Any) -> None:
+                desc = escape(f"{names[i]}: {_outcome_cell(outcome)}")
+                bar.update(task[i], description=desc, completed=1, total=1)
+                bar.advance(overall)
+
+            def scored(i: int, desc: str, done: int, total: int | None) -> None:
+                if i not in scoring:
+                    scoring[i] = bar.add_task("", total=total)
+                bar.update(scoring[i], description=f"cross-scores on {desc}", completed=done, total=total)
+
+            run = learn_fleet(
+                engine,
+                logs,
+                out,
+                options,
+                cross_scores=cross_scores,
+                events=FleetEvents(learning=learning, learned=learned, scoring=scored),
+            )
+    summary = out / "fleet.json"
+    write_result(summary, run.to_json())
+    _print_run(run)
+    written = [summary]
+    if run.cross_scores is not None:
+        from sensact.cli.evaluate import print_fleet
+        from sensact.report.figures_fleet import figure_fleet
+
+        print_fleet(run.cross_scores)
+        written.append(figure_fleet(run.cross_scores, out / "fleet.png"))
+    elif run.cross_scores_skipped:
+        console.print(f"[yellow]cross-scores not taken:[/] {run.cross_scores_skipped}", highlight=False)
+    console.print("wrote " + ", ".join(str(p) for p in written) + f" and each log's model under {out}")
+    if run.n_failed:
+        raise typer.Exit(_exit_code(run))
+
+
+def _refuse_out(out: Path) -> None:
+    from sensact.errors import ConfigError
+
+    if out.exists() and not out.is_dir():
+        raise ConfigError(
+            f"{out} is a file, and the fleet's results are a folder of them.",
+            field="--out",
+            fix="give a folder (new or existing).",
+        )
+
+
+def _outcome_cell(outcome: Any) -> str:
+    from sensact.engine import Failed
+
+    if isinstance(outcome, Failed):
+        return "failed: " + outcome.error
+    return f"{outcome.stop_reason} after {outcome.iterations} iterations"
+
+
+def _exit_code(run: Any) -> int:
+    """3 when some logs failed and the others were written; 2 when every log failed on bad input; 70 when
+    every log failed and sensact was at fault for one (docs/howto-fleet.md)."""
+    from sensact.engine import Failed
+
+    if run.n_failed < len(run.outcomes):
+        return EXIT_SOME_FAILED
+    return 2 if all(o.bad_input for o in run.outcomes if isinstance(o, Failed)) else 70
+
+
+def _print_run(run: Any) -> None:
+    """A row per log: how EM ended, or why the log failed."""
+    from rich.markup import escape
+
+    from sensact.engine import Failed
+
+    rows = []
+    for g, o in zip(run.names, run.outcomes, strict=True):
+        if isinstance(o, Failed):
+            rows.append([f"[red]{escape(g)}[/]", "[red]failed[/]", "", "", "", escape(o.error)])
+        else:
+            ll, warned = f"{o.loglik_best:.1f}", escape("; ".join(o.warnings))
+            rows.append([escape(g), o.stop_reason, str(o.iterations), ll, f"{o.seconds:.0f}", warned])
+    title = (
+        f"the fleet on {run.where}: {len(run.outcomes) - run.n_failed} of {len(run.outcomes)} logs learned "
+        f"in {run.seconds:.0f} s"
+    )
+    print_tables([(title, ["log", "EM stopped", "iterations", "log-likelihood", "EM s", "warnings / error"], rows)])

@@ -1,0 +1,263 @@
+"""Where a command's independent jobs run (issue 76): here, one after another, or on a Dask cluster
+(``dask.distributed``, the ``fleet`` extra), a LocalCluster on this machine's cores or a running
+scheduler's workers. A job is a module-level function called with its arguments and ``progress``, a
+``progress(description, done, total)`` callback that reaches the caller from whichever worker runs it.
+
+Jobs are handed out largest first (their ``cost``): with five logs on two workers, the long ones start
+first and the short ones fill in, instead of one worker running the last long log alone. A job's result
+does not depend on where it ran: each is a pure function of its arguments (the seeds are arguments),
+and Dask's workers run numpy on one thread, as they are spawned (``distributed.nanny.pre-spawn-environ``).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+import uuid
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+from sensact.errors import SensactError
+
+Progress = Callable[[str, int, int | None], None]
+
+
+@dataclass(frozen=True)
+class Job:
+    """One call of ``fn(*args, progress=...)``; ``name`` says which in progress and errors, ``cost`` orders them."""
+
+    fn: Callable[..., Any]
+    args: tuple[Any, ...]
+    name: str
+    cost: float = 1.0
+
+
+def plain(fn: Callable[..., Any], args: tuple[Any, ...], *, progress: Progress | None = None) -> Any:
+    """A job of a function that takes no ``progress``: ``Job(plain, (fn, args), name)``."""
+    return fn(*args)
+
+
+@dataclass(frozen=True)
+class Failed:
+    """A job that raised, as one line: ``bad_input`` when the input was at fault (a ``SensactError``), else
+    an internal error (sensact's own, or a worker that died)."""
+
+    error: str
+    bad_input: bool
+
+
+class JobFailed(SensactError):
+    """A job of an engine that does not isolate failures raised; the message is its one line."""
+
+
+# (job index, description, done, total) of a job's progress, and the job's index and outcome when it ends
+OnProgress = Callable[[int, str, int, int | None], None]
+OnDone = Callable[[int, Any], None]
+
+
+class Engine(Protocol):
+    workers: int  # how many jobs run at once
+    where: str  # "this process", "a LocalCluster of 2 workers", "the cluster at tcp://..."
+
+    def run(
+        self,
+        jobs: Sequence[Job],
+        *,
+        isolate: bool = False,
+        on_progress: OnProgress | None = None,
+        on_done: OnDone | None = None,
+    ) -> list[Any]:
+        """Each job's result, in the order given. With ``isolate``, a job that raised is its ``Failed`` and
+        the others run on; without, the first failure is raised (``JobFailed`` on a cluster)."""
+        ...
+
+
+def untagged(progress: Progress | None) -> OnProgress | None:
+    """A library ``progress(description, done, total)`` fed by every job (each job's description names it)."""
+    if progress is None:
+        return None
+    return lambda i, desc, done, total: progress(desc, done, total)
+
+
+def largest_first(jobs: Sequence[Job]) -> list[int]:
+    """The order jobs start in: by cost, largest first, the given order among equals."""
+    return sorted(range(len(jobs)), key=lambda i: -jobs[i].cost)
+
+
+def failure(exc: BaseException) -> Failed:
+    """An exception as one line: a ``SensactError``'s own, else ``internal error: ...``."""
+    if isinstance(exc, SensactError):
+        return Failed(str(exc), True)
+    text = " ".join(str(exc).split()) or "(no message)"
+    return Failed(f"internal error: {type(exc).__name__}: {text} (run it alone with --debug, and report it)", False)
+
+
+class InProcess:
+    """Every job here, one after another, largest first."""
+
+    workers = 1
+    where = "this process"
+
+    def run(
+        self,
+        jobs: Sequence[Job],
+        *,
+        isolate: bool = False,
+        on_progress: OnProgress | None = None,
+        on_done: OnDone | None = None,
+    ) -> list[Any]:
+        results: list[Any] = [None] * len(jobs)
+        for i in largest_first(jobs):
+            job = jobs[i]
+            progress = _Tagged(i, on_progress)
+            if isolate:
+                try:
+                    results[i] = job.fn(*job.args, progress=progress)
+                except Exception as exc:  # isolated: the job's failure is its result
+                    results[i] = failure(exc)
+            else:
+                results[i] = job.fn(*job.args, progress=progress)
+            if on_done is not None:
+                on_done(i, results[i])
+        return results
+
+
+@dataclass(frozen=True)
+class _Tagged:
+    index: int
+    to: OnProgress | None
+
+    def __call__(self, desc: str, done: int, total: int | None) -> None:
+        if self.to is not None:
+            self.to(self.index, desc, done, total)
+
+
+class _Publish:
+    """A job's progress on a worker, sent to the client as a Dask event (at most four a second, and its end)."""
+
+    def __init__(self, topic: str, index: int) -> None:
+        self.topic, self.index, self.last = topic, index, 0.0
+
+    def __call__(self, desc: str, done: int, total: int | None) -> None:
+        now = time.monotonic()
+        if now - self.last < 0.25 and (total is None or done < total):
+            return
+        self.last = now
+        from distributed import get_worker
+
+        get_worker().log_event(self.topic, [self.index, desc, int(done), None if total is None else int(total)])
+
+
+def _guarded(fn: Callable[..., Any], args: tuple[Any, ...], topic: str, index: int) -> Any:
+    """A job on a worker: its result, or its ``Failed`` (an exception object need not survive the trip back)."""
+    try:
+        return fn(*args, progress=_Publish(topic, index))
+    except Exception as exc:  # every failure goes back to the client as one line
+        return failure(exc)
+
+
+class OnDask:
+    """Jobs on a Dask cluster through ``client``, largest first."""
+
+    def __init__(self, client: Any, where: str) -> None:
+        self.client, self.where = client, where
+        self.workers = max(1, len(client.scheduler_info(n_workers=-1)["workers"]))
+
+    def run(
+        self,
+        jobs: Sequence[Job],
+        *,
+        isolate: bool = False,
+        on_progress: OnProgress | None = None,
+        on_done: OnDone | None = None,
+    ) -> list[Any]:
+        from distributed import as_completed
+
+        topic = f"sensact-progress-{uuid.uuid4().hex}"  # this run's, on a scheduler others may share
+        if on_progress is not None:
+            self.client.subscribe_topic(topic, lambda event: on_progress(*event[1]))
+        order = largest_first(jobs)
+        futures = {}
+        for rank, i in enumerate(order):
+            job = jobs[i]
+            fut = self.client.submit(
+                _guarded, job.fn, job.args, topic, i, key=f"{job.name}-{uuid.uuid4().hex[:8]}", priority=-rank
+            )
+            futures[fut] = i
+        results: list[Any] = [None] * len(jobs)
+        try:
+            for fut in as_completed(futures):
+                i = futures[fut]
+                try:
+                    results[i] = fut.result()
+                except Exception as exc:  # a worker that died under the job
+                    results[i] = failure(exc)
+                if isinstance(results[i], Failed) and not isolate:
+                    raise JobFailed(f"{jobs[i].name}: {results[i].error}")
+                if on_done is not None:
+                    on_done(i, results[i])
+        finally:
+            for fut in futures:
+                fut.cancel()
+            if on_progress is not None:
+                self.client.unsubscribe_topic(topic)
+        return results
+
+
+def missing_dask() -> SensactError:
+    return SensactError(
+        "running on a cluster needs dask.distributed, which is not installed.",
+        fix="pip install 'sensact[fleet]'.",
+    )
+
+
+@contextmanager
+def open_engine(workers: int | None = None, scheduler: str | None = None) -> Iterator[Engine]:
+    """The engine a command runs its jobs on: the cluster at ``scheduler`` (an address such as
+    ``tcp://host:8786``); else a LocalCluster of ``workers`` processes (this machine's cores when None),
+    one thread each; or, with ``workers`` 1 and no scheduler, this process (no Dask needed)."""
+    if scheduler is None and workers == 1:
+        yield InProcess()
+        return
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise missing_dask() from None
+    import logging
+
+    if scheduler is not None:
+        try:
+            client = Client(scheduler, timeout="10s")
+        except (OSError, TimeoutError) as exc:
+            raise SensactError(
+                f"no Dask scheduler answered at {scheduler} ({exc}).",
+                field="--scheduler",
+                fix="start one (`dask scheduler`, and `dask worker ADDRESS` on each machine) or leave out --scheduler "
+                "for a cluster on this machine.",
+            ) from None
+        with client:
+            yield OnDask(client, f"the cluster at {scheduler}")
+        return
+    if workers is not None and workers < 1:
+        raise SensactError(f"--workers {workers}: at least one is needed.", field="--workers", fix="give 1 or more.")
+    n = workers or os.cpu_count() or 1
+    import dask
+
+    # numpy on one thread a worker, as Dask spawns them; but not Dask's MALLOC_TRIM_THRESHOLD_: setting it turns
+    # off glibc's adaptive mmap threshold, and EM's large temporaries are then mapped and faulted in afresh
+    # each time (EM ran 1.5 times slower on a worker, its time in the kernel)
+    threads = {"OMP_NUM_THREADS": 1, "MKL_NUM_THREADS": 1, "OPENBLAS_NUM_THREADS": 1}
+    with (
+        dask.config.set({"distributed.nanny.pre-spawn-environ": threads}),
+        LocalCluster(
+            n_workers=n,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            silence_logs=logging.ERROR,
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        yield OnDask(client, f"a LocalCluster of {n} worker{'s' * (n > 1)}")
