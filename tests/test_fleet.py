@@ -139,3 +139,31 @@ def test_reproduce_on_two_workers_gives_what_one_gives(tmp_path, experiment, ext
         results[workers] = _untimed(json.loads((out / f"{experiment}.json").read_text()))
     assert results["1"] == results["2"]
     assert len(results["1"]["per_trial" if experiment == "field2d" else "seeds"]) == 2
+
+
+def test_a_fleets_error_bars_are_learn_ems(fleet, tmp_path):
+    """`fleet learn --uncertainty B` gives each log the model file `learn em --uncertainty B` writes (the
+    bootstrap is seeded), timing aside."""
+    root, _ = fleet
+    res = runner.invoke(
+        app,
+        [
+            "fleet",
+            "learn",
+            str(root / "a"),
+            "--out",
+            str(tmp_path / "F"),
+            "--workers",
+            "1",
+            "--uncertainty",
+            "2",
+            "--no-report",
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    alone = tmp_path / "alone.json"
+    res = runner.invoke(app, ["learn", "em", str(root / "a"), "--out", str(alone), "--uncertainty", "2", "--no-report"])
+    assert res.exit_code == 0, res.output
+    fleet_doc = _model(tmp_path / "F" / "a" / "model.json")
+    assert fleet_doc["uncertainty"]["used"] == 2
+    assert fleet_doc == _model(alone)

@@ -19,6 +19,7 @@ from sensact.learn.em.config import refuse_bearing_settings, upgrade_settings
 from sensact.learn.em.fit import OnRestart, OnStartMoved, Progress
 from sensact.learn.em.localize import Localized
 from sensact.learn.em.start import OnTrial
+from sensact.learn.em.uncertainty import Uncertainty
 from sensact.models.em_model import EMModel
 
 
@@ -68,6 +69,7 @@ class Calibration:
     diagnostics: Diagnostics
     scores: Scores | Unscored | None
     start_from: StartFrom | None = None
+    uncertainty: Uncertainty | None = None  # `--uncertainty B`'s error bars (app/uncertainty.py)
 
     @property
     def model(self) -> EMModel:
@@ -112,6 +114,8 @@ class Calibration:
                 "loglik_per_sighting": self.start_from.placed.loglik_per_sighting,
             },
             "halves": None,  # `learn em --halves`: each half learned on from this model, and compared
+            # `--uncertainty B`: each learned parameter's standard error and 90 % interval (learn/em/uncertainty.py)
+            "uncertainty": None if self.uncertainty is None else self.uncertainty.to_dict(),
         }
 
 

@@ -18,6 +18,7 @@ class LearnOptions:
     config: Path | None = None  # a settings YAML (where each worker can read it)
     sets: tuple[str, ...] = ()
     report: bool = True  # report.html beside each model
+    uncertainty: int | None = None  # `--uncertainty B`: the bootstrap's replicates, run in the log's own job
 
 
 @dataclass(frozen=True)
@@ -50,7 +51,8 @@ class Learned:
 
 
 def learn_log(log: Path, out: Path, options: LearnOptions, *, progress: Progress | None = None) -> Learned:
-    """``log`` calibrated and written at ``out`` exactly as `sensact learn em LOG --out OUT` writes it."""
+    """``log`` calibrated and written at ``out`` exactly as `sensact learn em LOG --out OUT` writes it (with
+    ``options.uncertainty``, as `learn em --uncertainty B` does: its replicates one after another here)."""
     from sensact.app.calibrate import FitEvents, calibrate
     from sensact.app.logs import open_log
     from sensact.app.save import save_calibration
@@ -66,6 +68,18 @@ def learn_log(log: Path, out: Path, options: LearnOptions, *, progress: Progress
     cal = calibrate(open_log(log), options.preset, options.config, sets=options.sets, events=events)
     out.parent.mkdir(parents=True, exist_ok=True)
     saved = save_calibration(cal, out, report=options.report)
+    if options.uncertainty is not None:  # after the model is written, as `learn em --uncertainty` does
+        from sensact.app.uncertainty import bootstrap
+
+        done = [0]
+
+        def replicated(i: int, outcome: Any) -> None:
+            done[0] += 1
+            if progress is not None:
+                progress("bootstrap: replicates learned", done[0], options.uncertainty)
+
+        cal = bootstrap(cal, options.uncertainty, on_done=replicated)
+        saved = save_calibration(cal, out, report=options.report)
     res = cal.result
     return Learned(
         log=str(log),

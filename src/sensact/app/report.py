@@ -79,6 +79,30 @@ def _mount_rows(cal: Calibration) -> tuple[tuple[str, ...], ...]:
     return tuple(rows)
 
 
+def _error_bars(u: Any) -> Section:
+    """`--uncertainty B`'s table: each parameter (in the model's units) with its standard error and interval."""
+    rows = tuple(
+        (
+            p.name,
+            _num(p.value, 5),
+            "held" if p.held else _num(p.se, 3),
+            "-" if p.interval is None else f"{_num(p.interval[0], 5)} to {_num(p.interval[1], 5)}",
+        )
+        for p in u.parameters
+    )
+    failed = f"; {len(u.failed)} failed: {u.failed[0]}" if u.failed else ""
+    lead = (
+        f"A parametric bootstrap: {u.replicates} logs drawn from the learned model with this log's commands, map "
+        f"and sighting times, each learned again from it ({u.used} learned{failed}). The standard error is the "
+        "replicates' spread; the 90 % interval is centred on the value less the replicates' bias. f is read at "
+        f"{', '.join(f'{d:g}' for d in u.f_at_mm)} mm, the 10th, 50th and 90th percentiles of the sightings' "
+        "distances. A parameter the fit holds has none."
+    )
+    return Section(
+        "Error bars", paragraphs=(lead,), table=(("parameter", "value", "standard error", "90 % interval"), rows)
+    )
+
+
 def write_em_report(cal: Calibration, model_path: Path, figures: Sequence[Path]) -> tuple[Path, list[Path]]:
     """The calibration's page beside ``model_path``, and the figures of its own it drew there (OUT_residuals,
     OUT_commands and, against a truth, OUT_path); ``figures`` are those already written (OUT.png and the
@@ -142,6 +166,8 @@ def write_em_report(cal: Calibration, model_path: Path, figures: Sequence[Path])
             )
         )
     sections.append(Section("Sensor mount", table=(("", "x forward (m)", "y left (m)", "yaw (rad)"), _mount_rows(cal))))
+    if cal.uncertainty is not None:
+        sections.append(_error_bars(cal.uncertainty))
     if isinstance(cal.scores, Scores):
         ev = cal.scores.evaluation
         rows = tuple((k, "pass" if ok else "MISSED") for k, ok in cal.scores.bars.items())

@@ -57,6 +57,14 @@ def fleet_learn_cmd(
     set_: SetOpt = None,
     config: ConfigOpt = None,
     report: Annotated[bool, typer.Option("--report/--no-report", help="Write report.html beside each model.")] = True,
+    uncertainty: Annotated[
+        int | None,
+        typer.Option(
+            "--uncertainty",
+            metavar="B",
+            help="As `learn em --uncertainty B`, for every log: each log's replicates run in its own job.",
+        ),
+    ] = None,
     cross_scores: Annotated[
         bool,
         typer.Option(
@@ -78,8 +86,16 @@ def fleet_learn_cmd(
 
     logs = list(dict.fromkeys(logs))  # a log given twice is learned once
     _refuse_out(out)
+    if uncertainty is not None and uncertainty < 2:
+        from sensact.errors import ConfigError
+
+        raise ConfigError(
+            f"--uncertainty {uncertainty}: a standard error needs at least 2 replicates.",
+            field="--uncertainty",
+            fix="give 20 or more (each replicate is a fit as long as the first).",
+        )
     names = fleet_names(logs, log_name)
-    options = LearnOptions(preset, config, tuple(set_ or ()), report)
+    options = LearnOptions(preset, config, tuple(set_ or ()), report, uncertainty)
     with open_engine(workers, scheduler) as engine:
         console.print(f"{len(logs)} log{'s' * (len(logs) > 1)} ({', '.join(names)}) on {engine.where}")
         with progress_bar() as rows:

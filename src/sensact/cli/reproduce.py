@@ -25,6 +25,8 @@ from sensact.cli.base import (
 from sensact.errors import SensactError
 
 EXPERIMENTS = ("track1d", "turtlebot", "field2d", "em1d", "car", "diffdrive", "real")
+# run only when named: long checks of what sensact adds to the thesis (about 20 minutes on two workers)
+OPT_IN = ("uncertainty",)
 
 
 def _data_dir(data: Path | None) -> Path:
@@ -36,12 +38,18 @@ def _data_dir(data: Path | None) -> Path:
 @app.command()
 @friendly
 def reproduce(
-    experiment: Annotated[str | None, typer.Argument(help=f"One of {', '.join(EXPERIMENTS)}; default: all.")] = None,
+    experiment: Annotated[
+        str | None,
+        typer.Argument(
+            help=f"One of {', '.join(EXPERIMENTS + OPT_IN)}; default: all but {', '.join(OPT_IN)} (run when named)."
+        ),
+    ] = None,
     out: Annotated[Path, typer.Option("--out", help="Results folder.")] = Path("results"),
     trials: Annotated[
         int | None,
         typer.Option(
-            help="Trials: per Table 3.1 row (default 15), field2d seeds (default 5) or diffdrive seeds (default 3)."
+            help="Trials: per Table 3.1 row (default 15), field2d seeds (default 5), diffdrive seeds (default 3) or "
+            "uncertainty's simulated logs (default 20)."
         ),
     ] = None,
     seed: Annotated[int, typer.Option(help="Seed of the first trial.")] = 0,
@@ -67,11 +75,11 @@ def reproduce(
     --scheduler), the trials, seeds and robots run on a Dask cluster, with the same results."""
     from sensact.errors import ConfigError
 
-    if experiment is not None and experiment not in EXPERIMENTS:
+    if experiment is not None and experiment not in EXPERIMENTS + OPT_IN:
         raise ConfigError(
             f"unknown experiment {experiment!r}.",
             field="EXPERIMENT",
-            fix=f"choose one of {', '.join(EXPERIMENTS)}, or none for all.",
+            fix=f"choose one of {', '.join(EXPERIMENTS + OPT_IN)}, or none for all but {', '.join(OPT_IN)}.",
         )
     if trials is not None and trials < 1:
         raise ConfigError(f"--trials {trials} runs nothing.", field="--trials", fix="give 1 or more.")
@@ -131,6 +139,8 @@ def _run_experiments(
         _reproduce_car(out, seed, set_, config)
     if "diffdrive" in todo:
         _reproduce_diffdrive(out, trials or 3, seed, set_, config, engine)
+    if "uncertainty" in todo:
+        _reproduce_uncertainty(out, trials or 20, seed, engine)
     if "real" in todo:
         _reproduce_real(out, _data_dir(data), experiment == "real", set_, config, truth_restart, engine)
 
@@ -218,6 +228,26 @@ def _reproduce_diffdrive(
     console.print(
         f"wrote {out / 'diffdrive.json'}, {out / 'diffdrive.md'} and figures in {out} ({res['seconds']:.1f} s)"
     )
+
+
+def _reproduce_uncertainty(out: Path, sims: int, seed: int, engine: Any) -> None:
+    """`--uncertainty`'s 90 % intervals checked for calibration (experiments/coverage.py): ``sims`` logs
+    drawn from a known model, each learned and bootstrapped (20 replicates)."""
+    from sensact.experiments.coverage import CoverageExperiment, run_coverage
+
+    with progress_bar() as progress:
+        res = run_coverage(CoverageExperiment(sims=sims, seed=seed), progress, engine)
+    rows = [
+        [family, str(c["covered"]), str(c["intervals"]), f"{100 * c['share']:.1f} %"]
+        for family, c in res["coverage"].items()
+        if c["intervals"]
+    ]
+    title = (
+        f"90 % intervals holding the truth over {res['sims']} simulated logs, {res['replicates']} replicates each "
+        "(bar 80-97 %)"
+    )
+    write_results(out, "uncertainty", res, [(title, ["family", "covered", "intervals", "share"], rows)])
+    console.print(f"wrote {out / 'uncertainty.json'} and {out / 'uncertainty.md'} ({res['seconds']:.1f} s)")
 
 
 def _reproduce_car(out: Path, seed: int, set_: list[str] | None, config: Path | None) -> None:

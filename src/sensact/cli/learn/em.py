@@ -10,7 +10,9 @@ import typer
 
 from sensact.cli.base import (
     ConfigOpt,
+    SchedulerOpt,
     SetOpt,
+    WorkersOpt,
     console,
     friendly,
     learn_app,
@@ -222,6 +224,18 @@ def learn_em_cmd(
     report: Annotated[
         bool, typer.Option("--report/--no-report", help="Write report.html beside the model (needs --out).")
     ] = True,
+    uncertainty: Annotated[
+        int | None,
+        typer.Option(
+            "--uncertainty",
+            metavar="B",
+            help="Then give every learned parameter a standard error and a 90 % interval by a parametric "
+            "bootstrap: B logs drawn from the learned model (this log's commands, map and sighting times), each "
+            "learned again from it; written into the model JSON (uncertainty) and onto the report.",
+        ),
+    ] = None,
+    workers: WorkersOpt = 1,
+    scheduler: SchedulerOpt = None,
 ) -> None:
     """Learn the action model, sensor functions f and noise sigmas by EM (ch. 4).
 
@@ -255,6 +269,14 @@ def learn_em_cmd(
                 "removed what an earlier run at this --out drew against a truth this log does not have: "
                 + ", ".join(str(p) for p in saved.removed)
             )
+    if uncertainty is not None:  # after the model is written, so that stopping the bootstrap loses nothing of it
+        cal = _error_bars(cal, uncertainty, workers, scheduler)
+        doc = cal.to_json()
+        if out is not None:
+            from sensact.app.save import save_calibration
+
+            save_calibration(cal, out, report=report)
+            console.print(f"wrote {out} again, with the error bars" + (" (and the report)" if report else ""))
     if halves:  # after the model is written, so that stopping the halves loses nothing of it
         if res.posteriors is None:
             console.print(f"--halves: not run, EM stopped {res.stop_reason} without a smoothed path to compare on")
@@ -268,6 +290,36 @@ def learn_em_cmd(
         if out is not None:
             write_result(out, doc | {"halves": halves_doc})
             console.print(f"wrote {out} again, with the halves")
+
+
+def _error_bars(cal: Any, replicates: int, workers: int | None, scheduler: str | None) -> Any:
+    """`--uncertainty B`: the bootstrap's replicates on the engine asked for, and their table."""
+    from rich.markup import escape
+
+    from sensact.app.uncertainty import bootstrap
+    from sensact.engine import open_engine
+
+    with open_engine(workers, scheduler) as engine:
+        console.print(f"--uncertainty {replicates}: a parametric bootstrap on {engine.where}")
+        with progress_bar() as progress:
+            done = [0]
+
+            def on_done(i: int, outcome: Any) -> None:
+                done[0] += 1
+                progress("bootstrap: replicates learned", done[0], replicates)
+
+            cal = bootstrap(cal, replicates, engine, on_progress=lambda i, d, k, n: progress(d, k, n), on_done=on_done)
+    u = cal.uncertainty
+    rows = [[escape(p.name), f"{p.value:.5g}", "held" if p.held else f"{p.se:.3g}", _interval(p)] for p in u.parameters]
+    title = f"error bars: {u.used} of {u.replicates} replicates learned, 90 % intervals (learn/em/uncertainty.py)"
+    print_tables([(title, ["parameter", "value", "standard error", "90 % interval"], rows)])
+    for line in u.failed:
+        console.print(f"[yellow]a replicate failed:[/] {escape(line)}", highlight=False)
+    return cal
+
+
+def _interval(p: Any) -> str:
+    return "" if p.interval is None else f"{p.interval[0]:.5g} to {p.interval[1]:.5g}"
 
 
 def _warn_of_the_log(opened: Any) -> None:
