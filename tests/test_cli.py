@@ -1119,3 +1119,11 @@ def test_an_error_line_keeps_its_own_brackets():
     assert res.exit_code == 2
     text = " ".join(res.output.split())
     assert "pip install 'sensact[ros]'" in text and "needs [fwd, left, yaw]." in text
+
+
+def test_help_keeps_its_brackets():
+    """Help is plain text: rich markup took "[fleet]" for a style and printed `pip install 'sensact'`."""
+    for args in (["fleet", "learn", "--help"], ["evaluate", "fleet", "--help"]):
+        res = runner.invoke(app, args)
+        assert res.exit_code == 0
+        assert "pip install 'sensact[fleet]'" in " ".join(res.output.split())

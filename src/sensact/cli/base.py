@@ -21,7 +21,10 @@ from rich.table import Table
 
 from sensact.errors import SensactError
 
+# help is plain text: a bracket in it ("sensact[fleet]") is not rich markup, which would drop it
+PLAIN: dict[str, Any] = {"rich_markup_mode": None}
 app = typer.Typer(
+    **PLAIN,
     name="sensact",
     help="Learn a mobile robot's action and sensor models from its own logs, with no ground truth "
     "(Stronger 2008). Start with `sensact reproduce` or docs/tutorial.md; every command: docs/cli-reference.md.",
@@ -29,12 +32,13 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
-simulate_app = typer.Typer(help="Write a simulated log folder (with its ground truth).", no_args_is_help=True)
-learn_app = typer.Typer(help="Learn models from a log.", no_args_is_help=True)
+simulate_app = typer.Typer(**PLAIN, help="Write a simulated log folder (with its ground truth).", no_args_is_help=True)
+learn_app = typer.Typer(**PLAIN, help="Learn models from a log.", no_args_is_help=True)
 app.add_typer(simulate_app, name="simulate")
 app.add_typer(learn_app, name="learn")
-convert_app = typer.Typer(help="Turn a dataset into a sensact log folder.", no_args_is_help=True)
+convert_app = typer.Typer(**PLAIN, help="Turn a dataset into a sensact log folder.", no_args_is_help=True)
 evaluate_app = typer.Typer(
+    **PLAIN,
     help="Score learned models against a dataset's ground truth, and a fleet's models on each other's logs.",
     no_args_is_help=True,
 )

@@ -8,6 +8,7 @@ from typing import Annotated, Any
 import typer
 
 from sensact.cli.base import (
+    PLAIN,
     ConfigOpt,
     SchedulerOpt,
     SetOpt,
@@ -20,6 +21,7 @@ from sensact.cli.base import (
 )
 
 fleet_app = typer.Typer(
+    **PLAIN,
     help="Calibrate a fleet's logs at once on a Dask cluster, and score every model on every log.",
     no_args_is_help=True,
 )
