@@ -13,6 +13,7 @@ from sensact.cli import (  # noqa: F401  (each registers its commands, in the or
     fleet,
     learn,
     localize,
+    monitor,
     reproduce,
     simulate,
 )

@@ -72,6 +72,7 @@ SchedulerOpt = Annotated[
     ),
 ]
 EMModelOpt = Annotated[Path, typer.Option("--model", help="A model.json written by `sensact learn em`.")]
+EMLogArg = Annotated[Path, typer.Argument(help="A log folder (planar or a 1-D track), or a Turtlebot CSV file.")]
 
 
 def friendly(fn: F) -> F:

@@ -9,6 +9,7 @@ import typer
 
 from sensact.cli.base import (
     ConfigOpt,
+    EMLogArg,
     EMModelOpt,
     SetOpt,
     app,
@@ -140,7 +141,7 @@ def describe_placement(loc: Any, summary: dict[str, Any], data: Any) -> float | 
 @app.command("localize")
 @friendly
 def localize_cmd(
-    log: Annotated[Path, typer.Argument(help="A log folder (planar or a 1-D track), or a Turtlebot CSV file.")],
+    log: EMLogArg,
     model: EMModelOpt,
     out: Annotated[
         Path | None,

@@ -24,7 +24,7 @@ from sensact.cli.base import (
 )
 from sensact.errors import SensactError
 
-EXPERIMENTS = ("track1d", "turtlebot", "field2d", "em1d", "car", "diffdrive", "real")
+EXPERIMENTS = ("track1d", "turtlebot", "field2d", "em1d", "monitor", "car", "diffdrive", "real")
 # run only when named: long checks of what sensact adds to the thesis (about 20 minutes on two workers)
 OPT_IN = ("uncertainty",)
 
@@ -48,8 +48,8 @@ def reproduce(
     trials: Annotated[
         int | None,
         typer.Option(
-            help="Trials: per Table 3.1 row (default 15), field2d seeds (default 5), diffdrive seeds (default 3) or "
-            "uncertainty's simulated logs (default 20)."
+            help="Trials: per Table 3.1 row (default 15), field2d seeds (default 5), monitor's sec. 4.4.3 seeds "
+            "(default 5), diffdrive seeds (default 3) or uncertainty's simulated logs (default 20)."
         ),
     ] = None,
     seed: Annotated[int, typer.Option(help="Seed of the first trial.")] = 0,
@@ -135,6 +135,8 @@ def _run_experiments(
         _reproduce_field2d(out, trials or 5, seed, set_, config, engine)
     if "em1d" in todo:
         _reproduce_em1d(out, seed, set_, config)
+    if "monitor" in todo:
+        _reproduce_monitor(out, trials or 5, seed, _data_dir(data), set_, config, engine)
     if "car" in todo:
         _reproduce_car(out, seed, set_, config)
     if "diffdrive" in todo:
@@ -228,6 +230,69 @@ def _reproduce_diffdrive(
     console.print(
         f"wrote {out / 'diffdrive.json'}, {out / 'diffdrive.md'} and figures in {out} ({res['seconds']:.1f} s)"
     )
+
+
+def _reproduce_monitor(
+    out: Path, seeds: int, seed: int, root: Path, set_: list[str] | None, config: Path | None, engine: Any
+) -> None:
+    """`sensact monitor` on sec. 4.4.3's slowdown (``seeds`` runs, with and without it) and on each MRCLAM
+    Dataset 6 robot with its own model, when the data folder holds them (experiments/monitor.py). --set and
+    --config give the monitor's fields (docs/monitor.md)."""
+    from sensact.experiments.monitor import MonitorExperiment, run_monitor_experiment
+    from sensact.experiments.real import mrclam_folder
+    from sensact.learn.em.monitor import MonitorConfig
+    from sensact.report.figures_monitor import figure_monitor
+
+    fields, _ = split_fields(set_, config, MonitorConfig)
+    exp = MonitorExperiment(seeds=seeds, seed=seed, monitor=merged(MonitorConfig, MonitorConfig(), fields))
+    folder = mrclam_folder(root)
+    mrclam = folder if (folder / "Robot1_Odometry.dat").is_file() else None
+    if mrclam is None:
+        console.print(f"monitor: no MRCLAM Dataset 6 in {folder}; the real robots are left out (pass --data DIR)")
+    with progress_bar() as progress:
+        res, art = run_monitor_experiment(exp, mrclam, progress, engine)
+    rows = [
+        [
+            str(r["seed"]),
+            "none" if r["change"] is None else f"{r['change']['stream']} at {r['change']['alarm_s']:.0f} s",
+            "-" if r["delay_s"] is None else f"{r['delay_s']:.0f} s",
+            "none" if r["without_change"] is None else f"at {r['without_change']['alarm_s']:.0f} s",
+            "-" if "relearned_on_after" not in r else f"{r['relearned_on_after']['action_rms_mm_s']:.1f} mm/s",
+            "-" if "stale_on_after" not in r else f"{r['stale_on_after']['action_rms_mm_s']:.1f} mm/s",
+        ]
+        for r in res["track"]
+    ]
+    tables = [
+        (
+            f"sec. 4.4.3: the robot slows to 3/4 at {res['track'][0]['true_change_s']:.0f} s (flag within "
+            f"{res['within_s']:.0f} s)",
+            ["seed", "change flagged", "after the true change", "without the change", "relearned", "stale"],
+            rows,
+        )
+    ]
+    if res["mrclam"]:
+        tables.append(
+            (
+                "each MRCLAM Dataset 6 robot's own model over its own log (no alarm)",
+                ["robot", "change", "episodes that did not persist"],
+                [
+                    [
+                        k,
+                        "none" if r["change"] is None else f"{r['change']['stream']} at {r['change']['alarm_s']:.0f} s",
+                        str(r["episodes"]),
+                    ]
+                    for k, r in res["mrclam"].items()
+                ],
+            )
+        )
+    write_results(out, "monitor", res, tables)
+    fig = figure_monitor(
+        art["first"],
+        out / "monitor_sec4_4_3.png",
+        "sec. 4.4.3: the robot slows to 3/4 (first seed)",
+        art["true_change_s"],
+    )
+    console.print(f"wrote {out / 'monitor.json'}, {out / 'monitor.md'} and {fig} ({res['seconds']:.1f} s)")
 
 
 def _reproduce_uncertainty(out: Path, sims: int, seed: int, engine: Any) -> None:

@@ -166,6 +166,49 @@ def _scalar_update(m, P, H, nu, r, n, PH, K, A, tmp, tmp2):
 
 
 @njit(cache=True, error_model="numpy")
+def _record(innov, innov_sens, k, c, nu, S, H, Sv, n):
+    sd = np.sqrt(S)
+    innov[k, c] = nu / sd
+    for a in range(n):
+        s = 0.0
+        for i in range(n):
+            s += H[i] * Sv[a, i]
+        innov_sens[k, c, a] = -s / sd
+
+
+@njit(cache=True, error_model="numpy")
+def _sensitivity_update(Sv, H, K, n):
+    """The measurement update's effect on d mean / d g: ``(I - K H)`` (eq. 2.18 differentiated)."""
+    for a in range(n):
+        s = 0.0
+        for i in range(n):
+            s += H[i] * Sv[a, i]
+        for i in range(n):
+            Sv[a, i] -= K[i] * s
+
+
+@njit(cache=True, error_model="numpy")
+def _sensitivity_predict(mode, m, velocity, dt, F, Sv, n):
+    """The time update's: ``F s + d g(m, disp) / d g_a`` (eq. 2.28 differentiated), where the gain ``g_a``
+    scales the displacement's component ``a``; ``F`` is the step's Jacobian at ``m``."""
+    one = np.zeros(n)
+    out = np.zeros(n)
+    Fa = np.zeros((n, n))
+    old = np.zeros(n)
+    for a in range(n):
+        for i in range(n):
+            one[i] = 0.0
+            old[i] = Sv[a, i]
+        one[a] = velocity[a] * dt
+        predict(mode, m, one, out, Fa)  # linear in the displacement: out - m is component a's move
+        for i in range(n):
+            s = out[i] - m[i]
+            for j in range(n):
+                s += F[i, j] * old[j]
+            Sv[a, i] = s
+
+
+@njit(cache=True, error_model="numpy")
 def _resolvent(A, B, w, Mx, RHS, n):
     """Solve ``(I + A B) [X | x] = [A | w]`` into ``RHS``; the form of both the backward time update and
     the alpha-beta combination. Returns False if ``I + A B`` is singular."""
@@ -222,6 +265,8 @@ def _compiled_for(n_state: int):
         d_mu,
         d_P,
         smooth,
+        innov,
+        innov_sens,
     ):
         """Run the E-step passes; fill ``mu_a, P_a`` (alpha), ``mu_g, P_g`` (gamma) and ``d_mu, d_P``
         (mean and covariance of ``D(w_t, w_t+1)`` under xi). Returns ``(status, loglik, n_used)``. With
@@ -243,7 +288,9 @@ def _compiled_for(n_state: int):
         every observation of a step judged against the same prediction.
         """
         T = mu_a.shape[0]
+        record = innov.shape[0] > 0
         n = n_state  # a compile-time constant: the small-matrix loops unroll
+        Sv = np.zeros((n, n))  # row a: d mean / d g_a (``innov_sens``)
         n2 = 2 * n
         m = prior_mean.copy()
         P = prior_cov.copy()
@@ -289,6 +336,8 @@ def _compiled_for(n_state: int):
             for k in range(obs_ptr[t], obs_ptr[t + 1]):
                 for c in range(C + 1):
                     weights[k, c] = 0.0
+                    if record:
+                        innov[k, c] = np.nan
                 if not obs_use[k]:
                     continue
                 lx = landmarks[obs_landmark[k], 0]
@@ -336,6 +385,8 @@ def _compiled_for(n_state: int):
                             continue
                         f_c = observe_height(mode, m, lx, ly, coefs[c], centers[c], scales[c], obs_gain[k, c], mount, H)
                         nu = obs_readings[k, c] - f_c
+                        if record:
+                            _record(innov, innov_sens, k, c, nu, _hph(P, H, n) + reading_var[c], H, Sv, n)
                         if joint_round:
                             w = w_joint
                         else:
@@ -344,8 +395,12 @@ def _compiled_for(n_state: int):
                         if w > 0.0:
                             weights[k, c] = w
                             _scalar_update(m, P, H, nu, reading_var[c] / w, n, PH, K, A, tmp, tmp2)
+                            if record:
+                                _sensitivity_update(Sv, H, K, n)
                     if has_b and (robust_kind[C] == STUDENT_T_JOINT) == joint_round:
                         nu = wrap(obs_bearing[k] - observe_bearing(m, lx, ly, mount, H))
+                        if record:
+                            _record(innov, innov_sens, k, C, nu, _hph(P, H, n) + var_bearing, H, Sv, n)
                         if joint_round:
                             w = w_joint
                         else:
@@ -354,6 +409,8 @@ def _compiled_for(n_state: int):
                         if w > 0.0:
                             weights[k, C] = w
                             _scalar_update(m, P, H, nu, var_bearing / w, n, PH, K, A, tmp, tmp2)
+                            if record:
+                                _sensitivity_update(Sv, H, K, n)
             for i in range(n):
                 mu_a[t, i] = m[i]
                 for j in range(n):
@@ -364,6 +421,8 @@ def _compiled_for(n_state: int):
             for i in range(n):
                 disp[i] = step_velocity[t, i] * dt
             predict(mode, m, disp, gm, F)
+            if record:
+                _sensitivity_predict(mode, m, step_velocity[t], dt, F, Sv, n)
             motion_covariance(mode, m[n - 1], step_motion_var[t], Q)
             add_sandwich(F, P, Q, tmp, n)  # Q <- F P F' + Q
             for i in range(n):

@@ -20,6 +20,7 @@ SECTIONS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
     ("turtlebot", "Chapter 3 on a real Turtlebot", ("turtlebot_",)),
     ("field2d", "Chapter 4: EM on the simulated field (secs. 4.4.1-4.4.2)", ("fig4_2", "fig4_3", "fig4_4", "fig4_5")),
     ("em1d", "Chapter 4: EM in one dimension (sec. 4.4.3)", ("fig4_6", "fig4_7")),
+    ("monitor", "Beyond the thesis: noticing when a robot changes (sec. 4.4.3)", ("monitor_",)),
     ("car", "Chapter 5: a car and its HDL-64E (Table 5.1)", ("fig5_",)),
     ("diffdrive", "Beyond the thesis: EM on simulated differential drives (MRCLAM's settings)", ("diffdrive_",)),
     ("real", "Beyond the thesis: EM on real robots (MRCLAM, Turtlebot)", ("real_",)),

@@ -10,6 +10,7 @@ import typer
 
 from sensact.cli.base import (
     ConfigOpt,
+    EMLogArg,
     SchedulerOpt,
     SetOpt,
     WorkersOpt,
@@ -181,7 +182,7 @@ def _describe_log(data: Any, lf: Any) -> None:
 @learn_app.command("em")
 @friendly
 def learn_em_cmd(
-    log: Annotated[Path, typer.Argument(help="A log folder (planar or a 1-D track), or a Turtlebot CSV file.")],
+    log: EMLogArg,
     out: Annotated[
         Path | None,
         typer.Option(

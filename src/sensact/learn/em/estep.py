@@ -108,6 +108,28 @@ def log_likelihood(model: EMModel, data: LandmarkLog, *, obs_use: np.ndarray | N
     return float(loglik) if status == OK and np.isfinite(loglik) else -np.inf
 
 
+@dataclass(frozen=True, eq=False)
+class Innovations:
+    """The forward pass's standardized innovations: under a correct linear-Gaussian model, independent
+    N(0, 1) in the order the filter met them."""
+
+    ok: bool
+    z: np.ndarray  # (K, C+1) each reading channel's, then the bearing's; NaN where not evaluated
+    # (K, C+1, n) each z's derivative in a gain 1 + g_a on velocity component a (the kernel's innov_sens)
+    sensitivity: np.ndarray
+
+
+def innovations(model: EMModel, data: LandmarkLog) -> Innovations:
+    """Every reading's standardized innovation under ``model`` (sec. 2.4's EKF, as the E-step runs it)."""
+    n = model.prior_mean.size
+    C = len(model.sensor.channels)
+    z = np.full((data.n_observations, C + 1), np.nan)
+    sens = np.zeros((data.n_observations, C + 1, n))
+    use = np.ones(data.n_observations, dtype=np.bool_)
+    status, loglik, *_ = _run_passes(model, data, None, use, 0.0, None, (z, sens))
+    return Innovations(status == OK and bool(np.isfinite(loglik)), z, sens)
+
+
 def _run_passes(
     model: EMModel,
     data: LandmarkLog,
@@ -115,9 +137,11 @@ def _run_passes(
     use: np.ndarray,
     prune_rad_per_step: float,
     smoothed: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None,
+    record: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[int, float, int, np.ndarray, np.ndarray, np.ndarray]:
     """The compiled passes on ``model`` and ``data``: ``(status, loglik, n_used, mu_a, P_a, weights)``.
-    ``smoothed`` is ``(mu_g, P_g, d_mu, d_P)`` to fill, or None for the forward pass only."""
+    ``smoothed`` is ``(mu_g, P_g, d_mu, d_P)`` to fill, or None for the forward pass only; ``record`` is
+    ``(innov, innov_sens)`` to fill with the standardized innovations and their sensitivities."""
     if model.geometry != data.geometry:
         raise ValueError(f"a {model.geometry} model cannot run on a {data.geometry} log")
     T = data.n_steps
@@ -181,5 +205,6 @@ def _run_passes(
         d_mu,
         d_P,
         smoothed is not None,
+        *(record if record is not None else (np.empty((0, C + 1)), np.empty((0, C + 1, n)))),
     )
     return status, loglik, n_used, mu_a, P_a, weights
