@@ -191,6 +191,79 @@ def test_cli_monitor_writes_the_change_and_relearns_from_it(slowdown, tmp_path):
     assert res.exit_code == 2 and "false_alarm must be between 0 and 1" in res.output
 
 
+def test_the_simulated_drive_wears_from_change_at_s():
+    """``DiffDriveConfig.change_at_s``: the same run until then; after it, the robot covers 3/4 of the
+    ground per commanded millimetre that it covered before."""
+    from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
+
+    cfg = DiffDriveConfig(seed=3, seconds=300.0, forward_sd_mm=0.0, sideways_sd_mm=0.0, forward_bias_mm_s=0.0)
+    steady, worn = simulate_diffdrive(cfg), simulate_diffdrive(dataclasses.replace(cfg, change_at_s=150.0))
+    k = round(150.0 / cfg.dt_s)
+    np.testing.assert_array_equal(worn.poses[: k + 1], steady.poses[: k + 1])
+    assert not np.array_equal(worn.poses, steady.poses)
+
+    def per_commanded_mm(run, a, b):
+        moved = np.hypot(*np.diff(run.poses[a:b, :2], axis=0).T).sum()
+        return moved / (np.abs(run.commands[a : b - 1, 0]).sum() * cfg.dt_s)
+
+    before = per_commanded_mm(worn, 60, k)
+    after = per_commanded_mm(worn, k + 60, len(worn.poses))
+    assert after / before == pytest.approx(0.75, abs=0.03)
+
+
+def test_a_planar_robot_learned_on_one_run_is_flagged_when_its_motors_wear_on_another():
+    """Off the thesis's track: a simulated differential drive in MRCLAM's conditions, learned on one 300 s
+    run; on another run its motors give 3/4 of every velocity from 150 s (``change_at_s``): the action
+    model is named within 30 s; the same run without the change raises no alarm."""
+    from sensact.experiments.diffdrive import simulator_settings
+    from sensact.learn.em import fit_em
+    from sensact.learn.em.monitor import monitor_placed
+    from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
+
+    learned_on = DiffDriveConfig(seed=0, seconds=300.0)
+    settings = simulator_settings(learned_on)
+    model = fit_em(simulate_diffdrive(learned_on).log("learned on"), None, settings).model
+    other = DiffDriveConfig(seed=1000, seconds=300.0)
+    worn = simulate_diffdrive(dataclasses.replace(other, change_at_s=150.0)).log("worn")
+    _, res = monitor_placed(model, worn, settings)
+    stream, event = res.change
+    assert stream.model == "action" and 150.0 < event.alarm_s <= 180.0 and 140.0 <= event.change_s <= 165.0
+    assert [s.name for s in res.streams] == [
+        "sensor:range_mm",
+        "sensor:bearing",
+        "action:v_y_mm_s",
+        "action:v_theta_rad_s",
+    ]
+    _, quiet = monitor_placed(model, simulate_diffdrive(other).log("steady"), settings)
+    assert quiet.change is None
+
+
+def test_a_tracks_commands_go_onto_the_models_actions_on_another_log(tmp_path):
+    """A model learned on one 1-D log of continuous commands runs on the next (`monitor`, `localize`): that
+    log's commands go into the model's own bins, not into equal bins over their own span."""
+    from sensact.app.logs import open_log, read_model_and_log
+    from sensact.learn.em import EMConfig, initial_model
+
+    for name, seed in (("a", 0), ("b", 1)):
+        res = runner.invoke(
+            app, ["simulate", "track1d", "--out", str(tmp_path / name), "--seconds", "240", "--seed", str(seed)]
+        )
+        assert res.exit_code == 0, res.output
+    a, b = open_log(tmp_path / "a"), open_log(tmp_path / "b")
+    assert not np.array_equal(a.data.action_commands, b.data.action_commands)  # each log's own span
+    model = initial_model(a.data, EMConfig())
+    (tmp_path / "m.json").write_text(json.dumps({"model": model.to_dict(), "dt_s": a.data.dt_s}))
+    _, _, opened = read_model_and_log(tmp_path / "b", tmp_path / "m.json", 21, use="run")
+    levels = a.data.action_commands[:, 0]
+    np.testing.assert_array_equal(opened.data.action_commands[:, 0], levels)
+    from sensact.io.logfolder import read_track_log
+
+    c = read_track_log(tmp_path / "b").commands
+    np.testing.assert_array_equal(opened.data.actions, np.argmin(np.abs(c[:, None] - levels[None, :]), axis=1))
+    res = runner.invoke(app, ["monitor", str(tmp_path / "b"), "--model", str(tmp_path / "m.json")])
+    assert res.exit_code == 0, res.output
+
+
 @pytest.mark.realdata
 @pytest.mark.skipif(not MRCLAM.is_dir(), reason=f"MRCLAM data not found at {MRCLAM}")
 def test_a_mrclam_robot_with_its_own_model_raises_no_alarm(tmp_path):

@@ -58,7 +58,9 @@ def is_turtlebot_csv(log: Path) -> bool:
     return log.is_file() and log.suffix.lower() == ".csv"
 
 
-def open_log(path: str | Path, *, bins: int = 21, dt_s: float | None = None) -> OpenedLog:
+def open_log(
+    path: str | Path, *, bins: int = 21, dt_s: float | None = None, command_levels: np.ndarray | None = None
+) -> OpenedLog:
     """What ``path`` is, read as EM reads it: a log folder (continuous commands of a track1d folder binned
     into ``bins`` actions; a track folder's recorded distance from groundtruth.csv's ``distance_mm``), or a
     Turtlebot CSV (on ``dt_s``, or its median step; its range column kept to score against). Anything else
@@ -78,7 +80,7 @@ def open_log(path: str | Path, *, bins: int = 21, dt_s: float | None = None) -> 
         )
     from sensact.io.landmark_log import read_landmark_log
 
-    lf = read_landmark_log(log, command_bins=bins)
+    lf = read_landmark_log(log, command_bins=bins, command_levels=command_levels)
     return OpenedLog(log, lf.data, lf, lf.truth_distance_mm(), bins)
 
 
@@ -152,8 +154,12 @@ def refuse_model_for_log(
 def read_model_and_log(log: Path, model: Path, bins: int, use: str) -> tuple[dict[str, Any], EMModel, OpenedLog]:
     """``(model.json, the model, the log)``, the log read onto the model's step; a model that does not fit the
     log is refused in one line (``use``: "run", "scored" or "start")."""
+    from sensact.models.action_table import ActionTable
+
     doc, m = read_em_model(model)
     dt = doc.get("dt_s")
-    opened = open_log(log, bins=bins, dt_s=None if dt is None else float(dt))
+    # a track's continuous commands go onto the model's own actions, not the bins of this log's span
+    levels = m.action.commands[:, 0] if m.geometry == "track" and isinstance(m.action, ActionTable) else None
+    opened = open_log(log, bins=bins, dt_s=None if dt is None else float(dt), command_levels=levels)
     refuse_model_for_log(doc, m, opened.data, model, log, use=use)
     return doc, m, opened

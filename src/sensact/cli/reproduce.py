@@ -270,6 +270,23 @@ def _reproduce_monitor(
             rows,
         )
     ]
+    if res["planar"]:
+        tables.append(
+            (
+                "a simulated differential drive learned on one run; another run slows to 3/4 (no bar)",
+                ["learned on", "monitored", "change flagged", "after the true change", "without the change"],
+                [
+                    [
+                        f"seed {r['learned_on_seed']}",
+                        f"seed {r['monitored_seed']}, from {r['true_change_s']:.0f} s",
+                        "none" if r["change"] is None else f"{r['change']['stream']} at {r['change']['alarm_s']:.0f} s",
+                        "-" if r["delay_s"] is None else f"{r['delay_s']:.0f} s",
+                        "none" if r["without_change"] is None else f"at {r['without_change']['alarm_s']:.0f} s",
+                    ]
+                    for r in res["planar"]
+                ],
+            )
+        )
     if res["mrclam"]:
         tables.append(
             (

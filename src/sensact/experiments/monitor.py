@@ -5,6 +5,10 @@
   model; the monitor then runs it over the whole log. It must flag the change within 30 s, name the action
   model, and raise no alarm on the same seed's run without the change. Relearning from the flagged change
   (``--relearn``) is scored against the slowed robot's true velocities, beside the stale model.
+* **A planar robot it has not seen** (no bar; how it fares off the thesis's track): a simulated
+  differential drive in MRCLAM's conditions (``DiffDriveConfig``) learned on one run, monitored over
+  another run whose motors give 3/4 of every velocity from 450 s (``change_at_s``), and over that run
+  without the change.
 * **Real robots**: each MRCLAM robot's own model (EM as `convert mrclam` and `learn em` learn it) over its
   own log: no alarm.
 
@@ -39,6 +43,8 @@ class MonitorExperiment:
     learner: EMConfig = field(default_factory=lambda: EM1DExperiment().learner)
     monitor: MonitorConfig = field(default_factory=MonitorConfig)
     relearn: bool = True
+    planar_seeds: int = 2
+    planar_change_at_s: float = 450.0
 
 
 def _event(res: MonitorResult) -> dict[str, Any] | None:
@@ -89,6 +95,35 @@ def track_job(exp: MonitorExperiment, seed: int, *, progress: Any = None) -> tup
         row["relearned_on_after"] = score_track(relearned.model, truth_after, height, DISTANCE_GRID_MM)
         row["stale_on_after"] = score_track(model, truth_after, height, DISTANCE_GRID_MM)
     return row, on_changed
+
+
+def planar_job(exp: MonitorExperiment, seed: int, *, progress: Any = None) -> dict[str, Any]:
+    """A simulated differential drive learned on run ``seed``, monitored over run ``seed + 1000`` with and
+    without its motors slowing to 3/4 at ``exp.planar_change_at_s``."""
+    from sensact.experiments.diffdrive import simulator_settings
+    from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
+
+    learned_on = DiffDriveConfig(seed=seed)
+    settings = simulator_settings(learned_on)
+
+    def on_iteration(it: int, ll: float, best: float, since: int) -> None:
+        if progress:
+            progress(f"planar seed {seed}: EM iteration {it}", it + 1, None)
+
+    model = fit_em(simulate_diffdrive(learned_on).log("learned on"), None, settings, progress=on_iteration).model
+    other = DiffDriveConfig(seed=seed + 1000)
+    worn = dataclasses.replace(other, change_at_s=exp.planar_change_at_s)
+    _, changed = monitor_placed(model, simulate_diffdrive(worn).log("worn"), settings, exp.monitor)
+    _, steady = monitor_placed(model, simulate_diffdrive(other).log("steady"), settings, exp.monitor)
+    found = _event(changed)
+    return {
+        "learned_on_seed": seed,
+        "monitored_seed": other.seed,
+        "true_change_s": exp.planar_change_at_s,
+        "change": found,
+        "delay_s": None if found is None else found["alarm_s"] - exp.planar_change_at_s,
+        "without_change": _event(steady),
+    }
 
 
 def robot_job(folder: Path, robot: int, cfg: MonitorConfig, key: str, *, progress: Any = None) -> dict[str, Any]:
@@ -164,7 +199,9 @@ def run_monitor_experiment(
     exp = exp or MonitorExperiment()
     t0 = time.perf_counter()
     seeds = [exp.seed + k for k in range(exp.seeds)]
+    planar = [exp.seed + k for k in range(exp.planar_seeds)]
     jobs = [Job(track_job, (exp, s), f"seed-{s}") for s in seeds]
+    jobs += [Job(planar_job, (exp, s), f"planar-{s}") for s in planar]
     robots = []
     if mrclam is not None:
         robots = [r for r in ROBOTS if (mrclam / f"Robot{r}_Odometry.dat").is_file()]
@@ -176,10 +213,12 @@ def run_monitor_experiment(
 
     done = (engine or InProcess()).run(jobs, on_progress=on_progress)
     track = [row for row, _ in done[: len(seeds)]]
+    n = len(seeds) + len(planar)
     out: dict[str, Any] = {
         "experiment": "monitor",
         "track": track,
-        "mrclam": {f"robot{r}": row for r, row in zip(robots, done[len(seeds) :], strict=True)},
+        "planar": done[len(seeds) : n],
+        "mrclam": {f"robot{r}": row for r, row in zip(robots, done[n:], strict=True)},
         "mrclam_dataset": None if mrclam is None else str(mrclam),
         "within_s": WITHIN_S,
         "config": {

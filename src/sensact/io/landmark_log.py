@@ -279,7 +279,7 @@ def _planar(path: Path, meta: dict[str, Any]) -> LandmarkLogFile:
     return LandmarkLogFile(data, meta, gt)
 
 
-def _track(path: Path, command_bins: int) -> LandmarkLogFile:
+def _track(path: Path, command_bins: int, command_levels: np.ndarray | None = None) -> LandmarkLogFile:
     log = read_track_log(path)
     dt = np.diff(log.times_s)
     if np.ptp(dt) > 1e-6 * dt.mean():
@@ -291,7 +291,21 @@ def _track(path: Path, command_bins: int) -> LandmarkLogFile:
         )
     c = log.commands
     distinct = np.unique(c)
-    if distinct.size <= MAX_DISTINCT_COMMANDS:
+    given = None if command_levels is None else np.asarray(command_levels, dtype=float)
+    tol = 1e-9 * max(1.0, float(np.abs(given).max())) if given is not None else 0.0
+    if given is not None and distinct.size <= MAX_DISTINCT_COMMANDS:
+        near = np.abs(distinct[:, None] - given[None, :]) <= tol
+        if near.any(axis=1).all():  # discrete commands, each one of a learned table's actions
+            levels, actions = given, np.argmax(near, axis=1)[np.searchsorted(distinct, c)]
+            return _track_file(
+                path, log, dt, actions, levels, f"{distinct.size} distinct commands, the model's actions"
+            )
+    if given is not None and distinct.size > MAX_DISTINCT_COMMANDS and _within(c, given):
+        # continuous commands onto a learned table's bins (equal widths: the nearest centre is the bin), so
+        # that a model learned on one log runs on the next, whose commands span a little more or less
+        levels, actions = given, np.argmin(np.abs(c[:, None] - given[None, :]), axis=1)
+        note = f"{distinct.size} distinct commands binned onto the model's {given.size} actions"
+    elif distinct.size <= MAX_DISTINCT_COMMANDS:
         levels, actions = distinct, np.searchsorted(distinct, c)
         note = f"{distinct.size} distinct commands, one action each"
     else:
@@ -299,6 +313,22 @@ def _track(path: Path, command_bins: int) -> LandmarkLogFile:
         actions = np.clip(np.searchsorted(edges, c, side="right") - 1, 0, command_bins - 1)
         levels = 0.5 * (edges[:-1] + edges[1:])
         note = f"{distinct.size} distinct commands binned into {command_bins} actions (--bins)"
+    return _track_file(path, log, dt, actions, levels, note)
+
+
+def _within(commands: np.ndarray, levels: np.ndarray) -> bool:
+    """Whether every command lies within the actions' span, widened by one action's spacing past either
+    end (a model learned on commands like these: a command a little past it goes to the end action);
+    else the log keeps its own actions, and a model of others is refused."""
+    if levels.size < 2:
+        return False
+    reach = 1.5 * float(np.median(np.diff(np.sort(levels))))  # half a bin to the edge, then one bin more
+    return bool(commands.min() >= levels.min() - reach and commands.max() <= levels.max() + reach)
+
+
+def _track_file(
+    path: Path, log: Any, dt: np.ndarray, actions: np.ndarray, levels: np.ndarray, note: str
+) -> LandmarkLogFile:
     seen = np.flatnonzero(np.isfinite(log.observations))
     name = f"command_{log.command_unit or 'unit'}"
     data = LandmarkLog.track(float(dt.mean()), actions, levels, name, seen, log.observations[seen], str(path))
@@ -306,8 +336,11 @@ def _track(path: Path, command_bins: int) -> LandmarkLogFile:
     return LandmarkLogFile(data, log.meta, gt, note)
 
 
-def read_landmark_log(path: str | Path, *, command_bins: int = 21) -> LandmarkLogFile:
-    """Read a planar or track log folder for EM."""
+def read_landmark_log(
+    path: str | Path, *, command_bins: int = 21, command_levels: np.ndarray | None = None
+) -> LandmarkLogFile:
+    """Read a planar or track log folder for EM. A track's continuous commands are binned into
+    ``command_bins`` equal actions over their span, or onto ``command_levels`` (a learned table's)."""
     path = Path(path)
     if not path.is_dir():
         raise LogFormatError(
@@ -320,7 +353,7 @@ def read_landmark_log(path: str | Path, *, command_bins: int = 21) -> LandmarkLo
     if meta.get("geometry") in ("planar", "track") or meta.get("platform") == "field2d":
         return _planar(path, meta)
     if meta.get("platform") == "track1d" or "action" in meta:
-        return _track(path, command_bins)
+        return _track(path, command_bins, command_levels)
     refuse_a_car_log(meta, path)
     raise LogFormatError(
         "meta.json declares neither a planar log (geometry: planar) nor a 1-D track (platform: track1d).",

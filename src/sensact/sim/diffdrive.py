@@ -137,6 +137,10 @@ class DiffDriveConfig:
     crab_share: float = 0.5
     sideways_gain: float = 0.85
     sideways_bias_mm_s: float = 0.0
+    # from this time on the robot's motors give only change_factor of every velocity they gave (sec. 4.4.3's
+    # degradation, on a planar robot): what `sensact monitor` must notice; None: no change
+    change_at_s: float | None = None
+    change_factor: float = 0.75
 
     def __post_init__(self) -> None:
         problems = []
@@ -330,11 +334,15 @@ def _drive(
         side[t] = l_cmd
         late = max(t - k, 0)  # the first command stands in before it, as the learner's
         v_late, w_late = commands[late]
+        worn = cfg.change_at_s is not None and t * dt >= cfg.change_at_s
+        if worn:
+            v_late, w_late = cfg.change_factor * v_late, cfg.change_factor * w_late
         fwd += lag * (cfg.forward_bias_mm_s + cfg.forward_gain * v_late - fwd)
         reached = cfg.turn_bias_rad_s + cfg.turn_gain * w_late + cfg.straight_turn_rad_per_mm * v_late
         turn += lag * (reached - turn)
         if sidesteps:
-            left += lag * (cfg.sideways_bias_mm_s + cfg.sideways_gain * side[late] - left)
+            l_late = cfg.change_factor * side[late] if worn else side[late]
+            left += lag * (cfg.sideways_bias_mm_s + cfg.sideways_gain * l_late - left)
         # eq. 2.28: the step's displacement in the robot frame (sideways to the right, forward, heading), rotated
         dx, dy, dth = noise[t, 0] - left * dt, fwd * dt + noise[t, 1], turn * dt + noise[t, 2]
         c, s = math.cos(th), math.sin(th)

@@ -122,17 +122,16 @@ class MonitorResult:
 
     @property
     def change(self) -> tuple[Stream, Event] | None:
-        """The change, if any stream confirmed one: flagged at the earliest confirmed alarm of any stream,
-        and put down to the stream whose shift persists most strongly (its event, with that alarm time):
-        a slower robot moves the sensor's innovations too, but far less than its action's."""
-        found = [s for s in self.streams if s.change is not None]
+        """The change, if any stream confirmed one: put down to the stream whose shift persists most
+        strongly (a slower robot moves the sensor's innovations too, but far less than its action's),
+        flagged at the earliest confirmed alarm of any stream, begun at the earliest change point."""
+        found = [(s, s.change) for s in self.streams if s.change is not None]
         if not found:
             return None
-        first = min(s.change.alarm_s for s in found if s.change is not None)
-        strongest = max(found, key=lambda s: s.change.persists_sigma if s.change is not None else 0.0)
-        assert strongest.change is not None
-        alarm = min(first, strongest.change.alarm_s)
-        return strongest, replace(strongest.change, alarm_s=alarm, change_s=min(strongest.change.change_s, alarm))
+        stream, strongest = max(found, key=lambda se: se[1].persists_sigma)
+        alarm = min(e.alarm_s for _, e in found)
+        began = min(e.change_s for _, e in found)
+        return stream, replace(strongest, alarm_s=alarm, change_s=min(began, alarm))
 
     def change_step(self) -> int | None:
         """The step the change began at, for relearning from it."""
