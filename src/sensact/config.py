@@ -196,7 +196,12 @@ def config_from_dict(cls: type[C], data: Mapping[str, Any], *, source: str = "co
     try:
         return cls(**kwargs)
     except (TypeError, ValueError) as exc:
-        raise ConfigError(str(exc), file=source, fix="check the values against the documentation.") from None
+        text = str(exc).rstrip()
+        raise ConfigError(
+            text if text.endswith((".", "?", ")")) else text + ".",
+            file=source,
+            fix="check the values against the documentation.",
+        ) from None
 
 
 def parse_overrides(pairs: Iterable[str]) -> dict[str, Any]:

@@ -45,9 +45,7 @@ def monitor_cmd(
         float | None,
         typer.Option(help="Probability of any alarm on a log where nothing changed (default 0.01)."),
     ] = None,
-    bin_s: Annotated[
-        float | None, typer.Option("--bin-seconds", help="Seconds a bin of scores spans (default 1).")
-    ] = None,
+    bin_s: Annotated[float | None, typer.Option("--bin-s", help="Seconds a bin of scores spans (default 1).")] = None,
     bins: Annotated[int, typer.Option(help="Actions to bin continuous 1-D commands into (as learn em's --bins).")] = 21,
     set_: SetOpt = None,
     config: ConfigOpt = None,
