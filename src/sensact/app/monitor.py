@@ -29,16 +29,12 @@ class Monitored:
         """monitor.json: ``changed``; ``change`` (``stream``, ``model``: "action" or "sensor", ``alarm_s``,
         ``change_s``, ``delay_s``, ``direction``, ``persists_sigma``) or null; every stream's test."""
         res = self.result
-        found = res.change
-        change = None
-        if found is not None:
-            s, e = found
-            change = {"stream": s.name, "model": s.model, **e.to_dict(), "delay_s": e.alarm_s - e.change_s}
+        change = res.change_dict()
         return {
             "log": str(self.log.path),
             "model": str(self.model_path),
             "start": self.model.prior_mean.tolist(),
-            "changed": found is not None,
+            "changed": change is not None,
             "change": change,
             "streams": [s.to_dict() for s in res.streams],
             "duration_s": res.duration_s,

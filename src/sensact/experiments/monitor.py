@@ -47,14 +47,6 @@ class MonitorExperiment:
     planar_change_at_s: float = 450.0
 
 
-def _event(res: MonitorResult) -> dict[str, Any] | None:
-    found = res.change
-    if found is None:
-        return None
-    s, e = found
-    return {"stream": s.name, "model": s.model, **e.to_dict()}
-
-
 def track_job(exp: MonitorExperiment, seed: int, *, progress: Any = None) -> tuple[dict[str, Any], MonitorResult]:
     """One seed of sec. 4.4.3: learn before the change, monitor the run with and without it, relearn."""
     from sensact.evaluate.em import score_track
@@ -78,13 +70,13 @@ def track_job(exp: MonitorExperiment, seed: int, *, progress: Any = None) -> tup
     model = fit_em(before, initial_model(before, exp.learner), exp.learner, progress=on_iteration("before")).model
     _, on_changed = monitor_placed(model, changed, exp.learner, exp.monitor)
     _, on_steady = monitor_placed(model, steady, exp.learner, exp.monitor)
-    found = _event(on_changed)
+    found = on_changed.change_dict()
     row: dict[str, Any] = {
         "seed": seed,
         "true_change_s": change_at,
         "change": found,
         "delay_s": None if found is None else found["alarm_s"] - change_at,
-        "without_change": _event(on_steady),
+        "without_change": on_steady.change_dict(),
         "streams": [s.to_dict() for s in on_changed.streams],
     }
     step = on_changed.change_step()
@@ -115,14 +107,14 @@ def planar_job(exp: MonitorExperiment, seed: int, *, progress: Any = None) -> di
     worn = dataclasses.replace(other, change_at_s=exp.planar_change_at_s)
     _, changed = monitor_placed(model, simulate_diffdrive(worn).log("worn"), settings, exp.monitor)
     _, steady = monitor_placed(model, simulate_diffdrive(other).log("steady"), settings, exp.monitor)
-    found = _event(changed)
+    found = changed.change_dict()
     return {
         "learned_on_seed": seed,
         "monitored_seed": other.seed,
         "true_change_s": exp.planar_change_at_s,
         "change": found,
         "delay_s": None if found is None else found["alarm_s"] - exp.planar_change_at_s,
-        "without_change": _event(steady),
+        "without_change": steady.change_dict(),
     }
 
 
@@ -141,7 +133,7 @@ def robot_job(folder: Path, robot: int, cfg: MonitorConfig, key: str, *, progres
     model = fit_em(data, None, settings, progress=on_iteration).model
     _, res = monitor_placed(model, data, settings, cfg)
     return {
-        "change": _event(res),
+        "change": res.change_dict(),
         "episodes": sum(len(s.episodes) for s in res.streams),
         "streams": [s.to_dict() for s in res.streams],
     }

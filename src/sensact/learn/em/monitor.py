@@ -133,6 +133,14 @@ class MonitorResult:
         began = min(e.change_s for _, e in found)
         return stream, replace(strongest, alarm_s=alarm, change_s=min(began, alarm))
 
+    def change_dict(self) -> dict[str, object] | None:
+        """The change as monitor.json's ``change`` holds it (``stream``, ``model``, the event, ``delay_s``)."""
+        found = self.change
+        if found is None:
+            return None
+        s, e = found
+        return {"stream": s.name, "model": s.model, **e.to_dict(), "delay_s": e.alarm_s - e.change_s}
+
     def change_step(self) -> int | None:
         """The step the change began at, for relearning from it."""
         c = self.change
