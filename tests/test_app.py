@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from conftest import assert_written
 from sensact.app import Calibration, Scores, calibrate, open_log, read_settings_file, save_calibration
 from sensact.app.settings import resolve_settings
 from sensact.cli import app
@@ -104,7 +105,7 @@ def test_calibrate_is_learn_em(diffdrive_log, tmp_path):
     out = tmp_path / "m.json"
     flags = [arg for s in sets for arg in ("--set", s)]
     res = runner.invoke(app, ["learn", "em", str(diffdrive_log), "--out", str(out), *flags])
-    assert res.exit_code == 0, res.output
+    assert_written(res)
     doc = json.loads(out.read_text())
     mine = cal.to_json()
     assert doc["model"] == json.loads(json.dumps(mine["model"]))
@@ -127,7 +128,7 @@ def test_learn_em_with_a_preset(diffdrive_log, tmp_path):
     out = tmp_path / "m.json"
     args = ["learn", "em", str(diffdrive_log), "--preset", "range_only_anchors", "--out", str(out)]
     res = runner.invoke(app, [*args, "--set", "max_iterations=3"])
-    assert res.exit_code == 0, res.output
+    assert_written(res)
     doc = json.loads(out.read_text())
     assert doc["summary"]["preset"] == "range_only_anchors"
     assert doc["summary"]["config"]["channels"][0]["bearing_degree"] == 0

@@ -11,6 +11,8 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "sensact"
 # rank of each top-level part; a module may import only parts of lower rank (or its own part)
 RANK = {
     "errors": 0,
+    "health": 0,
+    "limits": 0,
     "config": 1,
     "engine": 1,
     "core": 1,

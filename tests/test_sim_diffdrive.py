@@ -12,6 +12,7 @@ import pytest
 from typer.testing import CliRunner
 
 import sensact
+from conftest import assert_written
 from sensact.app import read_settings_file
 from sensact.cli import app
 from sensact.core.angles import wrap_angle
@@ -446,7 +447,7 @@ def test_evaluate_log_names_what_keeps_a_model_from_a_log(tmp_path):
     )
     table = tmp_path / "t.json"
     res = runner.invoke(app, ["learn", "em", str(track), "--set", "max_iterations=2", "--out", str(table)])
-    assert res.exit_code == 0, res.output
+    assert_written(res)
     assert runner.invoke(app, ["evaluate", "log", str(track), "--model", str(table)]).exit_code == 0
     doc = json.loads(table.read_text())
     doc["model"]["action"]["commands"] = [[1.5 * c for c in row] for row in doc["model"]["action"]["commands"]]

@@ -193,6 +193,7 @@ def config_from_dict(cls: type[C], data: Mapping[str, Any], *, source: str = "co
             kwargs[key] = default
             continue
         kwargs[key] = _coerce(value, hints[key], key, source)
+        refuse_non_finite(kwargs[key], default, key, source)
     try:
         return cls(**kwargs)
     except (TypeError, ValueError) as exc:
@@ -202,6 +203,19 @@ def config_from_dict(cls: type[C], data: Mapping[str, Any], *, source: str = "co
             file=source,
             fix="check the values against the documentation.",
         ) from None
+
+
+def refuse_non_finite(value: Any, default: Any, name: str, source: str) -> None:
+    """A number in a config is finite (an infinite default, "no limit", may be given as inf), and a seed is
+    one numpy accepts (0 to 2**63 - 1): NaN slips past every ``x > 0`` check, and a seed of -1 is a crash."""
+    values = value if isinstance(value, tuple) else (value,)
+    for v in values:
+        if isinstance(v, float) and not math.isfinite(v) and not (isinstance(default, float) and v == default):
+            raise ConfigError(f"{v!r} is not a finite number.", file=source, field=name, fix="give a finite number.")
+    if name.lstrip("-") == "seed" and isinstance(value, int) and not 0 <= value < 2**63:
+        raise ConfigError(
+            f"{value} is not a seed.", file=source, field=name, fix="give a whole number from 0 to 2**63 - 1."
+        )
 
 
 def parse_overrides(pairs: Iterable[str]) -> dict[str, Any]:
@@ -232,6 +246,12 @@ def load_yaml_mapping(path: str | Path) -> dict[str, Any]:
     except yaml.YAMLError as exc:
         raise ConfigError(
             f"not valid YAML ({exc.__class__.__name__}).", file=path, fix="check the indentation and quoting."
+        ) from None
+    except UnicodeDecodeError:
+        raise ConfigError("not a UTF-8 text file.", file=path, fix="save it as UTF-8 text.") from None
+    except RecursionError:
+        raise ConfigError(
+            "nested too deeply to be a settings file.", file=path, fix="write one 'field: value' per line."
         ) from None
     if data is None:
         return {}

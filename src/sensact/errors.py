@@ -1,11 +1,18 @@
 """The error hierarchy: every bad input becomes one line naming the file, the field and the fix.
 
-The CLI prints ``str(error)`` and exits non-zero; it shows a traceback only with ``--debug``.
+The CLI prints ``str(error)`` and exits non-zero; it shows a traceback only with ``--debug``. Its exit
+codes (docs/cli-reference.md) are the constants below.
 """
 
 from __future__ import annotations
 
 from os import PathLike
+
+EXIT_OK = 0
+EXIT_BAD_INPUT = 2  # a SensactError: the file, the field and the fix on one line
+EXIT_FLAGGED = 3  # the result is written, but flagged: it did not converge, or it is degenerate (``health``)
+EXIT_INTERNAL = 70  # an unexpected exception (BSD's EX_SOFTWARE): one line, and --debug for the traceback
+EXIT_INTERRUPTED = 130  # Ctrl-C or SIGTERM; what was finished is on disk, whole
 
 
 class SensactError(Exception):

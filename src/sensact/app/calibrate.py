@@ -14,6 +14,7 @@ from sensact.app.logs import OpenedLog, read_model_and_log
 from sensact.app.scores import Scores, Unscored, score_model
 from sensact.app.settings import Settings, resolve_settings
 from sensact.errors import ConfigError
+from sensact.health import Health
 from sensact.learn.em import EMConfig, EMResult, fit_em, initial_model
 from sensact.learn.em.config import refuse_bearing_settings, upgrade_settings
 from sensact.learn.em.fit import OnRestart, OnStartMoved, Progress
@@ -56,6 +57,7 @@ class Diagnostics:
     lost_signs: tuple[Mapping[str, Any], ...]  # a range function that turns over or bends, an unsettled fit
     held_sideways: Mapping[str, float] | None  # a robot that side-steps held to no sideways mean
     warnings: tuple[str, ...] = field(default=())
+    health: Health = field(default_factory=Health)  # degenerate or unfinished: written, flagged, exit 3
 
 
 @dataclass(frozen=True, eq=False)
@@ -116,6 +118,7 @@ class Calibration:
             "halves": None,  # `learn em --halves`: each half learned on from this model, and compared
             # `--uncertainty B`: each learned parameter's standard error and 90 % interval (learn/em/uncertainty.py)
             "uncertainty": None if self.uncertainty is None else self.uncertainty.to_dict(),
+            "health": diag.health.to_dict(),  # learn/em/health.py: ok, or the flags of a degenerate fit
         }
 
 
@@ -149,6 +152,7 @@ def diagnose(result: EMResult, log: OpenedLog, cfg: EMConfig) -> Diagnostics:
         lost_fit_signs,
         residual_autocorrelation,
     )
+    from sensact.learn.em.health import em_health
 
     signs: list[dict[str, Any]] = []
     autocorrelation: dict[str, float | None] = {}
@@ -166,7 +170,8 @@ def diagnose(result: EMResult, log: OpenedLog, cfg: EMConfig) -> Diagnostics:
     held = held_sideways_noise(result.model, cfg.motion_noise.kind)
     if held:
         warnings.append(describe_held_sideways(held))
-    return Diagnostics(result.pruned_fraction, autocorrelation, tuple(signs), held, tuple(warnings))
+    health = em_health(result, log.data)
+    return Diagnostics(result.pruned_fraction, autocorrelation, tuple(signs), held, tuple(warnings), health)
 
 
 def _placed_start(

@@ -3,11 +3,12 @@ em LOG --out OUT` does, where a worker runs it, with what the fleet's summary ke
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from sensact.engine import Progress
+from sensact.health import Health
 
 
 @dataclass(frozen=True)
@@ -34,6 +35,7 @@ class Learned:
     seconds: float  # EM's own time
     warnings: tuple[str, ...]  # the diagnostics' lines (``Diagnostics.warnings``)
     written: tuple[str, ...]
+    health: Health = field(default_factory=Health)  # learn/em/health.py: flagged fits end the fleet with 3
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -47,6 +49,7 @@ class Learned:
             "seconds": self.seconds,
             "warnings": list(self.warnings),
             "written": list(self.written),
+            "health": self.health.to_dict(),
         }
 
 
@@ -91,4 +94,5 @@ def learn_log(log: Path, out: Path, options: LearnOptions, *, progress: Progress
         seconds=res.seconds,
         warnings=cal.diagnostics.warnings,
         written=tuple(str(p) for p in saved.written),
+        health=cal.diagnostics.health,
     )

@@ -90,6 +90,14 @@ def read_em_model(model: Path) -> tuple[dict[str, Any], EMModel]:
     from sensact.io.jsonfile import read_json_object
 
     doc = read_json_object(model, ModelFormatError, "give the model.json `sensact learn em` wrote.")
+    dt = doc.get("dt_s")
+    if dt is not None and not (isinstance(dt, int | float) and not isinstance(dt, bool) and 0 < dt < 1e6):
+        raise ModelFormatError(
+            f"dt_s is {dt!r}, not a step in seconds.",
+            file=model,
+            field="dt_s",
+            fix="rewrite it with `sensact learn em`.",
+        )
     return doc, EMModel.from_dict(doc.get("model", doc), source=str(model))
 
 

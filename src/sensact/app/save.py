@@ -3,6 +3,7 @@ and, when the log has truth, the figures against it. Every write is atomic."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -24,6 +25,7 @@ class Saved:
     written: tuple[Path, ...]
     removed: tuple[Path, ...]  # an earlier run's figures at the same OUT against a truth this log does not have
     removed_halves: Path | None  # an earlier run's --halves figure
+    not_drawn: tuple[str, ...] = ()  # a figure that failed, one line each: the model and the rest are written
 
 
 def halves_figure(out: Path) -> Path:
@@ -44,6 +46,13 @@ def write_smoothed_path(path: Path, posteriors: Any, data: Any) -> Path:
     )
 
 
+def _page_and_figures(cal: Calibration, out: Path, written: list[Path]) -> list[Path]:
+    from sensact.app.report import write_em_report
+
+    page, figures = write_em_report(cal, out, written)
+    return [*figures, page]
+
+
 def save_calibration(
     cal: Calibration, out: Path, document: dict[str, Any] | None = None, *, report: bool = True
 ) -> Saved:
@@ -52,6 +61,16 @@ def save_calibration(
     earlier run's halves figure, and its figures against a truth this log does not have, removed."""
     res, log = cal.result, cal.log
     write_json(out, document if document is not None else cal.to_json())
+    failed: list[str] = []
+
+    def drawn(draw: Callable[[], list[Path]]) -> list[Path]:
+        """A figure is drawn after the model is written: one that fails is reported, never the run's end."""
+        try:
+            return draw()
+        except Exception as exc:  # matplotlib on a degenerate fit (NaN limits, an empty panel)
+            failed.append(f"{type(exc).__name__}: {exc}")
+            return []
+
     write_npz(
         out.with_suffix(".history.npz"),
         loglik=res.loglik_history,
@@ -63,13 +82,15 @@ def save_calibration(
         from sensact.report.figures_fit import figure_em_fit
 
         written.append(write_smoothed_path(out.with_suffix(".path.npz"), res.posteriors, log.data))
-        written.append(figure_em_fit(res, log.data, out.with_suffix(".png"), f"EM on {log.name}"))
+        written += drawn(lambda: [figure_em_fit(res, log.data, out.with_suffix(".png"), f"EM on {log.name}")])
     scores = cal.scores.evaluation if isinstance(cal.scores, Scores) else None
     if scores is not None and scores.get("truth_noise") and log.folder is not None:  # against recorded poses
         from sensact.report.figures_real import write_robot
 
-        written += write_robot(
-            log.folder, cal.model, scores, out.with_suffix(""), log.name, res.posteriors, truth="ground truth"
+        written += drawn(
+            lambda: write_robot(
+                log.folder, cal.model, scores, out.with_suffix(""), log.name, res.posteriors, truth="ground truth"
+            )
         )
     elif scores is not None and log.recorded_distance_mm is not None:  # against a recorded distance
         from sensact.evaluate.turtlebot_em import TurtlebotEMRun
@@ -77,12 +98,9 @@ def save_calibration(
 
         run = TurtlebotEMRun(log.data, log.recorded_distance_mm, res)
         path = out.with_name(f"{out.stem}_against_range.png")
-        written.append(figure_turtlebot_em(run, scores, path, f"EM on {log.name}"))
+        written += drawn(lambda: [figure_turtlebot_em(run, scores, path, f"EM on {log.name}")])
     if report:
-        from sensact.app.report import write_em_report
-
-        page, drawn = write_em_report(cal, out, written)
-        written += [*drawn, page]
+        written += drawn(lambda: _page_and_figures(cal, out, written))
     stale = [
         p for kind in TRUTH_FIGURES if (p := out.with_name(f"{out.stem}_{kind}.png")).exists() and p not in written
     ]
@@ -90,4 +108,4 @@ def save_calibration(
     earlier_halves = halves if halves.exists() else None  # this run's, if any, is drawn after the halves
     for p in [*stale, *([earlier_halves] if earlier_halves else [])]:
         p.unlink()
-    return Saved(tuple(written), tuple(stale), earlier_halves)
+    return Saved(tuple(written), tuple(stale), earlier_halves, tuple(failed))

@@ -14,12 +14,13 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated, Any, TypeVar
 
+import click
 import typer
 from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from sensact.errors import SensactError
+from sensact.errors import EXIT_BAD_INPUT, EXIT_FLAGGED, EXIT_INTERNAL, EXIT_INTERRUPTED, SensactError
 
 # help is plain text: a bracket in it ("sensact[fleet]") is not rich markup, which would drop it
 PLAIN: dict[str, Any] = {"rich_markup_mode": None}
@@ -76,29 +77,118 @@ EMLogArg = Annotated[Path, typer.Argument(help="A log folder (planar or a 1-D tr
 
 
 def friendly(fn: F) -> F:
-    """Bad input becomes one line and exit code 2; ``--debug`` shows the traceback instead."""
+    """Every way a command ends, as one line and a documented exit code (``sensact.errors``): bad input 2,
+    Ctrl-C or SIGTERM 130, anything unexpected 70 ("internal error"); ``--debug`` shows the traceback
+    instead. Exit 3 (written but flagged) is the command's own ``raise typer.Exit(EXIT_FLAGGED)``."""
 
     @functools.wraps(fn)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
-        try:
-            return fn(*args, **kwargs)
-        except SensactError as exc:
-            if _state["debug"]:
-                raise
-            # escaped: a message's own brackets ("sensact[ros]", "[fwd, left, yaw]") are not markup
-            err_console.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
-            raise typer.Exit(2) from None
-        except OSError as exc:  # a path the system refused: an --out over a file, no permission, a full disk
-            if _state["debug"]:
-                raise
-            err_console.print(f"[bold red]error:[/] {escape(os_error_line(exc))}", highlight=False, soft_wrap=True)
-            raise typer.Exit(2) from None
-        except KeyboardInterrupt:
-            err_console.print("interrupted; files already written are complete (atomic writes).")
-            raise typer.Exit(130) from None
+        from sensact.io.atomic import one_run
+
+        with _sigterm_as_interrupt(), one_run():
+            try:
+                return fn(*args, **kwargs)
+            except (
+                typer.Exit,
+                typer.Abort,
+                click.exceptions.Exit,
+                click.exceptions.ClickException,
+                click.exceptions.Abort,
+            ):
+                raise  # typer.Exit is a RuntimeError: the command's own exit code, as it chose
+            except SensactError as exc:
+                if _state["debug"]:
+                    raise
+                # escaped: a message's own brackets ("sensact[ros]", "[fwd, left, yaw]") are not markup
+                err_console.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
+                raise typer.Exit(EXIT_BAD_INPUT) from None
+            except OSError as exc:  # a path the system refused: an --out over a file, no permission, a full disk
+                if _state["debug"]:
+                    raise
+                err_console.print(f"[bold red]error:[/] {escape(os_error_line(exc))}", highlight=False, soft_wrap=True)
+                raise typer.Exit(EXIT_BAD_INPUT) from None
+            except KeyboardInterrupt:
+                err_console.print("interrupted; files already written are complete (atomic writes).")
+                raise typer.Exit(EXIT_INTERRUPTED) from None
+            except Exception as exc:  # the last line of defence: a bug, never a traceback
+                if _state["debug"]:
+                    raise
+                err_console.print(escape(internal_error_line(exc)), highlight=False, soft_wrap=True)
+                raise typer.Exit(EXIT_INTERNAL) from None
 
     wrapper.__doc__ = one_line_paragraphs(fn.__doc__)
     return wrapper  # type: ignore[return-value]
+
+
+def finish(health: Any = None, *, interrupted: bool = False) -> None:
+    """End a command that wrote its result: exit 130 when it was interrupted (what it wrote is the best so
+    far), exit 3 when its ``sensact.health.Health`` flags it, each flag on a line; else return (exit 0)."""
+    if interrupted:
+        err_console.print("interrupted: what was written is the best so far, and it is complete.")
+        raise typer.Exit(EXIT_INTERRUPTED)
+    if health is not None and not health.ok:
+        for flag in health.flags:
+            err_console.print(f"[bold yellow]flagged ({flag.code}):[/] {escape(flag.message)}", highlight=False)
+        raise typer.Exit(EXIT_FLAGGED)
+
+
+def internal_error_line(exc: BaseException) -> str:
+    from sensact import __version__
+
+    what = " ".join(str(exc).split())[:300] or "(no message)"
+    return f"internal error: {type(exc).__name__}: {what} (sensact {__version__}); run with --debug and report it."
+
+
+@contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """SIGTERM (a scheduler's kill, ``timeout``) ends a command as Ctrl-C does: the write under way is
+    dropped with its temporary file, what was finished stays, and the exit code is 130."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+SIBLING_SUFFIXES = (".png", ".npz", ".html")  # what a command writes beside its JSON --out
+
+
+def check_out_file(out: Path | None, option: str = "--out", *, others: dict[str, Path | None] | None = None) -> None:
+    """Refuse, before any work, an output path that is not a regular file or a new path (a folder, a device
+    such as /dev/full, which the atomic rename would replace), a JSON output named as one of the files
+    written beside it (``model.png`` would be overwritten by the figure), and a path another output of the
+    same command also writes (``others``: option name to path)."""
+    from sensact.errors import ConfigError
+
+    if out is None:
+        return
+    if out.exists() and not out.is_file():
+        kind = "a folder" if out.is_dir() else "not a regular file (a device, a pipe or a socket)"
+        raise ConfigError(
+            f"{out} is {kind}, and writing the result would replace it.",
+            field=option,
+            fix="give the path of a regular file, or a new one.",
+        )
+    if out.suffix.lower() in SIBLING_SUFFIXES:
+        raise ConfigError(
+            f"{out} ends in {out.suffix}, the name of a file this command writes beside its JSON, which would "
+            "overwrite it.",
+            field=option,
+            fix=f"give a .json path, e.g. {out.with_suffix('.json')}.",
+        )
+    for name, path in (others or {}).items():
+        if path is not None and path.resolve() == out.resolve():
+            raise ConfigError(f"{option} and {name} are both {out}.", field=option, fix="give each its own path.")
 
 
 def os_error_line(exc: OSError) -> str:
@@ -267,11 +357,13 @@ def layered_config(cls: type, config: Path | None, sets: list[str] | None, base:
     """``base`` or defaults < ``--config`` YAML < ``--set`` < explicit flags."""
     import dataclasses
 
-    from sensact.config import build_config
+    from sensact.config import build_config, refuse_non_finite
     from sensact.errors import ConfigError
 
     cfg = build_config(cls, config, sets or [], base=base)
     flags = {k: v for k, v in flags.items() if v is not None}
+    for k, v in flags.items():
+        refuse_non_finite(v, None, f"--{k.replace('_', '-')}", "the command line")
     try:
         return dataclasses.replace(cfg, **flags) if flags else cfg
     except ValueError as exc:  # the config's own checks, on what the flags gave it
@@ -322,5 +414,12 @@ def main() -> None:
     except SensactError as exc:  # raised outside a command, e.g. while parsing
         if _state["debug"]:
             raise
-        err_console.print(f"error: {exc}")
-        sys.exit(2)
+        err_console.print(f"error: {escape(str(exc))}", highlight=False, soft_wrap=True)
+        sys.exit(EXIT_BAD_INPUT)
+    except KeyboardInterrupt:
+        sys.exit(EXIT_INTERRUPTED)
+    except Exception as exc:
+        if _state["debug"]:
+            raise
+        err_console.print(escape(internal_error_line(exc)), highlight=False, soft_wrap=True)
+        sys.exit(EXIT_INTERNAL)

@@ -10,7 +10,16 @@ from typing import Annotated, Any
 import typer
 
 from sensact.app.logs import read_em_model, refuse_model_for_log
-from sensact.cli.base import EMModelOpt, SchedulerOpt, WorkersOpt, console, evaluate_app, friendly, write_result
+from sensact.cli.base import (
+    EMModelOpt,
+    SchedulerOpt,
+    WorkersOpt,
+    check_out_file,
+    console,
+    evaluate_app,
+    friendly,
+    write_result,
+)
 from sensact.cli.scores import print_scores, print_truth_score
 
 
@@ -30,6 +39,7 @@ def evaluate_mrclam_cmd(
     From-Truth is the same model families fitted directly to the ground truth. With --out, also draw
     the action curves, the range function, the heading noise and the bearing noise against Vicon's,
     as `reproduce real` does."""
+    check_out_file(out)
     from sensact.evaluate.landmark_truth import score_against_truth
     from sensact.experiments.real import bar_checks
     from sensact.io.mrclam import read_mrclam
@@ -79,6 +89,7 @@ def evaluate_log_cmd(
     From-Truth fitted on this log; the model must share the log's commands, readings and step. On a
     Turtlebot CSV the robot is first placed by the E-step with the model held (as `sensact localize`),
     and the model is scored against the range column as `learn em` scores it."""
+    check_out_file(out)
     from sensact.app.logs import read_model_and_log
     from sensact.errors import LogFormatError
 
@@ -196,6 +207,7 @@ def evaluate_fleet_cmd(
     `evaluate log` scores it: the action gain's error and the best sensor's, in % of its span. A pair is
     a robot's own when the model was learned on that log. Every model must share the logs' commands,
     readings and step (a Turtlebot CSV is read onto each model's own step)."""
+    check_out_file(out)
     from sensact.cli.base import progress_bar
     from sensact.engine import open_engine
     from sensact.experiments.fleet import fleet_names, log_name, score_fleet_on

@@ -140,8 +140,16 @@ def fleet_learn_cmd(
     elif run.cross_scores_skipped:
         console.print(f"[yellow]cross-scores not taken:[/] {run.cross_scores_skipped}", highlight=False)
     console.print("wrote " + ", ".join(str(p) for p in written) + f" and each log's model under {out}")
+
+    flagged = [o for o in run.outcomes if getattr(o, "health", None) is not None and not o.health.ok]
+    for o in flagged:
+        console.print(
+            f"[yellow]flagged:[/] {escape(o.log)}: " + "; ".join(f.code for f in o.health.flags), highlight=False
+        )
     if run.n_failed:
         raise typer.Exit(_exit_code(run))
+    if flagged:  # every model written, some not to be trusted (docs/errors.md)
+        raise typer.Exit(EXIT_SOME_FAILED)
 
 
 def _refuse_out(out: Path) -> None:
@@ -164,8 +172,8 @@ def _outcome_cell(outcome: Any) -> str:
 
 
 def _exit_code(run: Any) -> int:
-    """3 when some logs failed and the others were written; 2 when every log failed on bad input; 70 when
-    every log failed and sensact was at fault for one (docs/howto-fleet.md)."""
+    """3 when some logs failed and the others were written (or all were written, some flagged); 2 when every
+    log failed on bad input; 70 when every log failed and sensact was at fault for one (docs/howto-fleet.md)."""
     from sensact.engine import Failed
 
     if run.n_failed < len(run.outcomes):

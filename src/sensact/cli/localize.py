@@ -13,6 +13,7 @@ from sensact.cli.base import (
     EMModelOpt,
     SetOpt,
     app,
+    check_out_file,
     console,
     friendly,
     layered_config,
@@ -166,6 +167,7 @@ def localize_cmd(
 
     The settings are the ones the model was learned with (its JSON's summary.config); --config and --set
     override them. Only the start search, the start's spread and the first-iteration gate are used."""
+    check_out_file(out)
     import numpy as np
 
     from sensact.app.logs import read_model_and_log

@@ -13,6 +13,7 @@ from sensact.cli.base import (
     EMModelOpt,
     SetOpt,
     app,
+    check_out_file,
     console,
     friendly,
     layered_config,
@@ -56,6 +57,8 @@ def monitor_cmd(
     standardized innovations, tested by a two-sided CUSUM; a crossing whose shift lasts to the end of
     the log is a change, one that does not is an episode. Prints when the change began, when it was
     flagged and which model changed; with --relearn, learns the models again from the change on."""
+    check_out_file(out)
+    check_out_file(relearn, "--relearn", others={"--out": out})
     from sensact.app.monitor import monitor_log
     from sensact.io.atomic import write_json
     from sensact.learn.em.monitor import MonitorConfig

@@ -61,8 +61,31 @@ def command_markdown(path: tuple[str, ...], cmd: Any) -> str:
     return "\n\n".join(blocks) + "\n"
 
 
+def exit_codes() -> str:
+    """Every command's exit codes, from ``sensact.errors`` (what a script tests)."""
+    from sensact import errors
+
+    rows = [
+        (errors.EXIT_OK, "success: the result is written and healthy"),
+        (errors.EXIT_BAD_INPUT, "bad input: one line naming the file, the field and the fix; nothing is written"),
+        (
+            errors.EXIT_FLAGGED,
+            "written but flagged: the fit did not converge or is degenerate; the JSON's `health` lists why "
+            "([Bad input and flags](errors.md))",
+        ),
+        (errors.EXIT_INTERNAL, "internal error: a bug, as one line; run again with `--debug` and report it"),
+        (
+            errors.EXIT_INTERRUPTED,
+            "interrupted (Ctrl-C or SIGTERM): what was finished is on disk, whole; `learn em` writes its most likely "
+            "model so far",
+        ),
+    ]
+    table = "\n".join(["| exit code | meaning |", "|---|---|", *(f"| {c} | {m} |" for c, m in rows)])
+    return f"\n## Exit codes\n\n{table}\n"
+
+
 def render() -> str:
-    return HEADER + "".join("\n" + command_markdown(path, cmd) for path, cmd in leaf_commands())
+    return HEADER + exit_codes() + "".join("\n" + command_markdown(path, cmd) for path, cmd in leaf_commands())
 
 
 if __name__ == "__main__":

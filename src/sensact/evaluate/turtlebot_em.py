@@ -108,7 +108,8 @@ def score_turtlebot_em(res: EMResult | Localized, data: LandmarkLog, truth_mm: n
     action = res.model.action
     gain_learned = -a * action.coefficients[1, 0]  # the track state shrinks as the robot advances
     c, v_true = windowed_velocities(data, truth_mm)
-    gain_true = float(np.polyfit(c, v_true, 1)[0])
+    # commands that never vary (or too few windows) give no true gain to score against
+    gain_true = float(np.polyfit(c, v_true, 1)[0]) if c.size >= 2 and np.ptp(c) > 0 else float("nan")
     _, one_share = dominant_command(data.step_commands[:, 0])
     scored = one_share < ONE_COMMAND_SHARE
     out: dict[str, Any] = {

@@ -6,7 +6,8 @@ from __future__ import annotations
 import json
 import os
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any
 
@@ -23,8 +24,17 @@ def _process_umask() -> int:
 _FILE_MODE = 0o666 & ~_process_umask()
 
 
-def _atomic(path: str | Path, mode: str, write: Callable[[IO[Any]], None]) -> Path:
+def _atomic(path: str | Path, mode: str, write: Callable[[IO[Any]], None], kind: str) -> Path:
     path = Path(path)
+    if path.exists() and not path.is_file():  # the rename would replace a folder's name or a device (/dev/full)
+        from sensact.errors import SensactError
+
+        raise SensactError(
+            "is not a regular file (a folder, a device or a pipe), and writing here would replace it.",
+            file=path,
+            fix="give the path of a regular file, or a new one.",
+        )
+    _claim(path, kind)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
@@ -40,17 +50,47 @@ def _atomic(path: str | Path, mode: str, write: Callable[[IO[Any]], None]) -> Pa
     return path
 
 
+_claims: dict[Path, str] | None = None  # path -> the first writer's kind, while a command runs (one_run)
+
+
+@contextmanager
+def one_run() -> Iterator[None]:
+    """While a command runs: a file it wrote may be written again by the same kind of writer (a model
+    rewritten with its error bars), never by another (its figure over the model)."""
+    global _claims
+    outer, _claims = _claims, {}
+    try:
+        yield
+    finally:
+        _claims = outer
+
+
+def _claim(path: Path, kind: str) -> None:
+    if _claims is None:
+        return
+    key = path.resolve()
+    first = _claims.setdefault(key, kind)
+    if first != kind:
+        from sensact.errors import SensactError
+
+        raise SensactError(
+            "this command wrote another of its outputs here already, and this one would overwrite it.",
+            file=path,
+            fix="give each output its own path (a model's --out ends in .json).",
+        )
+
+
 def write_stream(path: str | Path, write: Callable[[IO[Any]], None]) -> Path:
     """Write a large binary file in pieces (``write(handle)``), atomically."""
-    return _atomic(path, "wb", write)
+    return _atomic(path, "wb", write, "stream")
 
 
-def write_text(path: str | Path, text: str) -> Path:
-    return _atomic(path, "w", lambda h: h.write(text))
+def write_text(path: str | Path, text: str, kind: str = "text") -> Path:
+    return _atomic(path, "w", lambda h: h.write(text), kind)
 
 
 def write_bytes(path: str | Path, data: bytes) -> Path:
-    return _atomic(path, "wb", lambda h: h.write(data))
+    return _atomic(path, "wb", lambda h: h.write(data), "bytes")
 
 
 def _jsonable(obj: Any) -> Any:
@@ -66,7 +106,7 @@ def _jsonable(obj: Any) -> Any:
 def write_json(path: str | Path, data: Any) -> Path:
     """Pretty JSON; non-finite floats are written as null so that every JSON reader accepts the file."""
     text = json.dumps(_finite_or_null(data), indent=2, default=_jsonable, allow_nan=False)
-    return write_text(path, text + "\n")
+    return write_text(path, text + "\n", "json")
 
 
 def _finite_or_null(obj: Any) -> Any:
@@ -86,4 +126,4 @@ def write_npz(path: str | Path, **arrays: np.ndarray) -> Path:
     for name, arr in arrays.items():
         if np.asarray(arr).dtype == object:
             raise TypeError(f"array {name!r} has dtype object; only numeric arrays are written")
-    return _atomic(path, "wb", lambda h: np.savez_compressed(h, **arrays))
+    return _atomic(path, "wb", lambda h: np.savez_compressed(h, **arrays), "npz")

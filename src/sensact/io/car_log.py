@@ -23,7 +23,7 @@ import numpy as np
 
 from sensact.errors import LogFormatError
 from sensact.io.atomic import write_json, write_stream
-from sensact.io.csvtable import read_numeric_csv
+from sensact.io.csvtable import read_numeric_csv, refuse_apart, refuse_unordered
 from sensact.io.logfolder import LOG_FORMAT, LOG_VERSION, _write_csv, read_meta
 from sensact.io.velodyne import (
     PCAP_HEADER,
@@ -96,10 +96,13 @@ def _lidar_number(lidar: dict[str, Any], name: str, meta_file: Path) -> float | 
     if name not in lidar:
         return None
     try:
-        return float(lidar[name])
+        value = float(lidar[name])
+        if not np.isfinite(value):
+            raise ValueError
+        return value
     except (TypeError, ValueError):
         raise LogFormatError(
-            f"lidar.{name} is not a number.",
+            f"lidar.{name} is not a finite number.",
             file=meta_file,
             field=f"lidar.{name}",
             fix="give a number, or leave it out to measure it from the packets.",
@@ -182,6 +185,26 @@ def _refuse_another_learners_folder(meta: dict[str, Any], folder: Path) -> None:
     )
 
 
+def _refuse_controls_off_the_scans(path: Path, t: np.ndarray, controls: np.ndarray, scan_s: float) -> None:
+    """The controls explain the scans' motion only on the scans' clock: at least two rows, in time order,
+    every control given, and most of them within the capture (a bogus pcap clock, a NaN time origin or
+    times in ms put them elsewhere, and the dynamics would come out exactly zero)."""
+    if t.size < 2:
+        raise LogFormatError(
+            f"{t.size} row: the dynamics need the controls over time.", file=path, field="t_s", fix="give every row."
+        )
+    refuse_unordered(path, t, strict=True)
+    empty = np.flatnonzero(~np.all(np.isfinite(controls), axis=1))
+    if empty.size:
+        raise LogFormatError(
+            f"row {empty[0] + 2} has an empty control.",
+            file=path,
+            field="throttle, brake, steering",
+            fix="give every row its throttle, brake and steering.",
+        )
+    refuse_apart(path, t, (t >= -1.0) & (t <= scan_s + 1.0), 0.0, scan_s, "the lidar capture, from its first firing")
+
+
 def read_car_log(folder: str | Path, calibration: str | Path | None = None) -> CarLog:
     """A car log folder. ``calibration``: a ROS velodyne calibration file (the factory's) whose vertical
     angles replace ``lidar.vertical_deg``; its horizontal ones are never read. ``lidar.firing_hz`` and
@@ -241,14 +264,17 @@ def read_car_log(folder: str | Path, calibration: str | Path | None = None) -> C
     first = times[0] if len(times) else t0
     action_times = actions = None
     if (folder / "actions.csv").is_file():
-        acts = read_numeric_csv(folder / "actions.csv", ["t_s", "throttle", "brake", "steering"], what="actions.csv")
+        path = folder / "actions.csv"
+        acts = read_numeric_csv(path, ["t_s", "throttle", "brake", "steering"], what="actions.csv")
         action_times = acts["t_s"] - (first - t0)
         actions = np.column_stack([acts["throttle"], acts["brake"], acts["steering"]])
+        _refuse_controls_off_the_scans(path, action_times, actions, dist.shape[0] / firing_hz)
     else:
         notes.append("no actions.csv: the laser angles and C from the scans alone (the dynamics need the controls)")
     gt = None
     if (folder / "groundtruth.csv").is_file():
         gt = read_numeric_csv(folder / "groundtruth.csv", ["t_s", "x_m", "y_m", "theta_rad"], what="groundtruth.csv")
+        refuse_unordered(folder / "groundtruth.csv", gt["t_s"], strict=True)
     return CarLog(
         np.radians(-rot_deg),
         dist,

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from sensact.errors import LogFormatError
+from sensact.limits import value_problem
 
 
 def read_csv_rows(path: Path) -> tuple[list[list[str]], bool]:
@@ -90,7 +91,14 @@ def read_numeric_csv(
             if cell == "" or j in text:
                 continue
             try:
-                out[i, j] = float(cell.replace(",", ".") if decimal_comma else cell)
+                out[i, j] = value = float(cell.replace(",", ".") if decimal_comma else cell)
+                if not np.isfinite(value):
+                    raise LogFormatError(
+                        f"row {i + 2}: {cell!r} is not a finite number.",
+                        file=path,
+                        field=header[j] or f"column {j + 1}",
+                        fix="write finite numbers only (an empty cell for a missing value).",
+                    )
             except ValueError:
                 raise LogFormatError(
                     f"row {i + 2}: {cell!r} is not a number.",
@@ -98,10 +106,35 @@ def read_numeric_csv(
                     field=header[j] or f"column {j + 1}",
                     fix="write numbers only (use an empty cell for a missing value).",
                 ) from None
+    for j, name in enumerate(header):
+        if j in text:
+            continue
+        if _is_time(name):  # a time is never missing: every row happened at one
+            empty = np.flatnonzero(np.isnan(out[:, j]))
+            if empty.size:
+                raise LogFormatError(
+                    f"row {empty[0] + 2} has no time.", file=path, field=name, fix="give every row its time."
+                )
+            continue
+        problem = value_problem(out[:, j], "the column")
+        if problem is not None:
+            row = int(np.nanargmax(np.abs(out[:, j])))
+            raise LogFormatError(
+                f"row {row + 2}: {problem}.",
+                file=path,
+                field=name or f"column {j + 1}",
+                fix="check the column's unit and the row's value.",
+            )
     table: dict[str, np.ndarray] = {name: out[:, j] for j, name in enumerate(header) if name}
     for j in text:
         table[header[j]] = np.array([row[j].strip() for row in body], dtype=str)
     return table
+
+
+def _is_time(name: str) -> bool:
+    """A clock's column (bounded by the step limit instead: a Unix time in ns is 1.7e18)."""
+    low = name.strip().lower()
+    return low in ("t", "t_s", "t_ns") or "time" in low or "stamp" in low
 
 
 def landmark_labels(path: Path, cells: np.ndarray, column: str, fix: str) -> np.ndarray:
@@ -122,3 +155,60 @@ def landmark_labels(path: Path, cells: np.ndarray, column: str, fix: str) -> np.
         else:
             out.append(str(int(number)) if number.is_integer() else repr(number))
     return np.array(out, dtype=str)
+
+
+MIN_OVERLAP = 0.5  # the share of a file's rows that must fall within the commands' span
+
+
+def refuse_unordered(path: Path, t: np.ndarray, *, strict: bool) -> None:
+    """Times must rise (``strict``) or never fall: a shuffled, reversed or doubled file is refused."""
+    d = np.diff(t)
+    bad = np.flatnonzero(d <= 0 if strict else d < 0)
+    if bad.size:
+        i = int(bad[0])
+        raise LogFormatError(
+            f"row {i + 3}: t_s = {t[i + 1]:g} after {t[i]:g}; times must "
+            + ("rise from row to row." if strict else "never fall from row to row."),
+            file=path,
+            field="t_s",
+            fix="sort the rows by time and drop repeated rows.",
+        )
+
+
+def refuse_apart(
+    path: Path, t: np.ndarray, inside: np.ndarray, t0: float, t1: float, span: str = "the commands in actions.csv"
+) -> None:
+    """Refuse a file whose clock does not overlap ``span``'s (most rows outside it, ``t0`` to ``t1`` s):
+    another clock's zero, another unit, or another log's file."""
+    if t.size and inside.mean() < MIN_OVERLAP:
+        raise LogFormatError(
+            f"{np.count_nonzero(~inside)} of {t.size} rows fall outside the span of {span} ({t0:g} to {t1:g} s; "
+            f"these run {np.min(t):g} to {np.max(t):g} s).",
+            file=path,
+            field="t_s",
+            fix="write both on one clock, in seconds.",
+        )
+
+
+MAX_REPEATED = 0.05  # the share of rows that may repeat an earlier one exactly (sensors that read alike at once)
+
+
+def refuse_repeated(path: Path, table: dict[str, np.ndarray]) -> None:
+    """A file whose rows repeat earlier ones exactly, more than now and then, is a duplicated stream (a
+    mirrored port, a file appended to itself): refused. A rare repeat is two records that read alike."""
+    columns = list(table.values())
+    seen: set[tuple[object, ...]] = set()
+    repeats: list[int] = []
+    for i, row in enumerate(zip(*columns, strict=True)):
+        key = tuple("" if isinstance(x, float) and x != x else x for x in row)  # NaN never equals itself
+        if key in seen:
+            repeats.append(i)
+        seen.add(key)
+    n = len(columns[0]) if columns else 0
+    if len(repeats) >= 2 and len(repeats) > MAX_REPEATED * n:
+        raise LogFormatError(
+            f"{len(repeats)} of {n} rows repeat an earlier row exactly (the first: row {repeats[0] + 2}).",
+            file=path,
+            field="t_s",
+            fix="drop the repeated rows (a record is logged once).",
+        )

@@ -16,10 +16,23 @@ def read_json_object(path: str | Path, error: type[SensactError], fix: str, miss
     if not path.is_file():
         raise error(f"{path.name} not found.", file=path, fix=missing_fix or fix)
     try:
-        doc: Any = json.loads(path.read_text(encoding="utf-8-sig"))  # a hand-written file may start with a BOM
+        # a hand-written file may start with a BOM; NaN and Infinity are not JSON (Python's json reads them)
+        doc: Any = json.loads(path.read_text(encoding="utf-8-sig"), parse_constant=_not_json)
+    except _NonFinite as exc:
+        raise error(f"{exc} is not a JSON number (a missing value is null).", file=path, fix=fix) from None
+    except RecursionError:
+        raise error("nested too deeply to be a sensact file.", file=path, fix=fix) from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         where = f" (line {exc.lineno})" if isinstance(exc, json.JSONDecodeError) else ""
         raise error(f"not valid JSON{where}.", file=path, fix=fix) from None
     if not isinstance(doc, dict):
         raise error(f"not a JSON object (it holds a {type(doc).__name__}).", file=path, fix=fix)
     return doc
+
+
+class _NonFinite(ValueError):
+    pass
+
+
+def _not_json(name: str) -> Any:
+    raise _NonFinite(name)

@@ -24,9 +24,17 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from sensact.errors import LogFormatError
-from sensact.io.csvtable import landmark_labels, read_numeric_csv
+from sensact.io.csvtable import (
+    MIN_OVERLAP,
+    landmark_labels,
+    read_numeric_csv,
+    refuse_apart,
+    refuse_repeated,
+    refuse_unordered,
+)
 from sensact.io.logfolder import read_meta, read_track_log, refuse_a_car_log, write_log_folder
 from sensact.io.unit_checks import refuse_degrees_as_radians
+from sensact.limits import steps_problem
 from sensact.logs.landmark_log import LandmarkLog
 
 MAX_DISTINCT_COMMANDS = 64
@@ -95,6 +103,9 @@ def _commands_on_grid(
         raise LogFormatError(
             "t_s must be strictly increasing.", file=path / "actions.csv", field="t_s", fix="sort and deduplicate."
         )
+    too_long = steps_problem((t_a[-1] - t_a[0]) / dt + 1, "the commands' span")
+    if too_long is not None:
+        raise LogFormatError(f"{too_long}.", file=path / "actions.csv", field="t_s", fix="check the times in t_s.")
     steps_a = _steps(t_a, t_a[0], dt, path, "actions.csv")
     T = int(steps_a[-1]) + 1
     filled = np.zeros(T, dtype=bool)
@@ -187,6 +198,14 @@ def _meta_parts(mpath: Path, meta: dict[str, Any], geometry: str) -> _MetaParts:
             field="actions.columns",
             fix='name the command columns of actions.csv, e.g. ["v_mm_s", "omega_rad_s"].',
         )
+    if xy.size and not np.all(np.isfinite(xy)):
+        bad = int(np.flatnonzero(~np.all(np.isfinite(xy), axis=1))[0])
+        raise LogFormatError(
+            f"landmark {raw_ids[bad] or bad + 1}'s position is not finite.",
+            file=mpath,
+            field="landmarks.x_mm / y_mm",
+            fix="give every landmark a finite x_mm and y_mm.",
+        )
     if not (np.isfinite(dt) and dt > 0):
         raise LogFormatError(
             f"dt_s is {meta['dt_s']!r}; the fixed step must be a positive number of seconds.",
@@ -217,14 +236,18 @@ def _sightings(
     need = ["t_s", *readings] + ([b_col] if b_col else []) + ([lm_col] if geometry == "planar" else [])
     # a landmark id may be a name (``post_A``), spelled as `convert csv` spells it (a track's column too)
     obs = read_numeric_csv(path / "observations.csv", need, what="observations.csv", labels=(lm_col,))
-    steps_o = _steps(obs["t_s"], t0, dt, path, "observations.csv")
+    refuse_unordered(path / "observations.csv", obs["t_s"], strict=False)
+    steps_o = np.rint((obs["t_s"] - t0) / dt)
     keep = (steps_o >= 0) & (steps_o < T)
+    refuse_apart(path / "observations.csv", obs["t_s"], keep, t0, t0 + (T - 1) * dt)
+    steps_o = _steps(obs["t_s"], t0, dt, path, "observations.csv")
     fix_obs = "give each sighting the id of a landmark in meta.json."
     lm_raw = (
         landmark_labels(path / "observations.csv", obs[lm_col], lm_col, fix_obs)
         if lm_col in obs
         else np.full(steps_o.size, ids[0])
     )
+    refuse_repeated(path / "observations.csv", obs)
     id_to_row = {v: j for j, v in enumerate(ids)}
     unknown = [x for x in np.unique(lm_raw[keep]) if x not in id_to_row]
     if unknown:
@@ -256,7 +279,8 @@ def _planar(path: Path, meta: dict[str, Any]) -> LandmarkLogFile:
     ids = _map_ids(mpath, mp.raw_ids)
     act_grid, cmd_grid, t0, T = _commands_on_grid(path, mp.actions, mp.dt, len(mp.table))
     seen = _sightings(path, geometry, mp.columns, ids, t0, mp.dt, T)
-    data = LandmarkLog(
+    data = _log_or_refuse(
+        path,
         geometry,
         mp.dt,
         act_grid,
@@ -275,6 +299,7 @@ def _planar(path: Path, meta: dict[str, Any]) -> LandmarkLogFile:
     gt = None
     if (path / "groundtruth.csv").is_file():
         g = read_numeric_csv(path / "groundtruth.csv", ["t_s"], what="groundtruth.csv")
+        refuse_bad_truth(path / "groundtruth.csv", g, t0, t0 + (T - 1) * mp.dt)
         gt = {k: np.interp(np.arange(T) * mp.dt + t0, g["t_s"], v) for k, v in g.items() if k != "t_s"}
     return LandmarkLogFile(data, meta, gt)
 
@@ -405,3 +430,30 @@ def write_landmark_log(
     }
     gt = None if groundtruth is None else {"t_s": times, **groundtruth}
     return write_log_folder(folder, meta=meta, actions=actions, observations=obs, groundtruth=gt)
+
+
+def refuse_bad_truth(path: Path, g: dict[str, np.ndarray], t0: float, t1: float) -> None:
+    """Ground truth is scored against: its times rise, its poses are all there, and it covers the commands'
+    span on their clock."""
+    refuse_unordered(path, g["t_s"], strict=True)
+    for name, v in g.items():  # a gap is a time the truth was not recorded; a column of nothing is no truth
+        if not np.isfinite(v).any():
+            raise LogFormatError("the column holds no value.", file=path, field=name, fix="fill it, or drop it.")
+    t = g["t_s"]
+    overlap = min(t1, float(t[-1])) - max(t0, float(t[0]))
+    if overlap < MIN_OVERLAP * (t1 - t0):
+        raise LogFormatError(
+            f"it runs {t[0]:g} to {t[-1]:g} s, and the commands {t0:g} to {t1:g} s: less than half of them overlap.",
+            file=path,
+            field="t_s",
+            fix="write the truth's times on the commands' clock, in seconds.",
+        )
+    refuse_apart(path, t, (t >= t0 - 1.0) & (t <= t1 + 1.0), t0, t1)  # most of it on another clock, or scale
+
+
+def _log_or_refuse(path: Path, *parts: Any) -> LandmarkLog:
+    """The log, or its own checks' complaint (too few steps, mismatched shapes) as the folder's error."""
+    try:
+        return LandmarkLog(*parts)
+    except ValueError as exc:
+        raise LogFormatError(f"{exc}.", file=path, fix='see docs/formats.md, "Log folders for EM".') from None

@@ -79,6 +79,13 @@ def read_meta(folder: str | Path, example: str = "`sensact simulate track1d --ou
             field="format",
             fix=f'add "format": "{LOG_FORMAT}" to meta.json.',
         )
+    if meta.get("version", LOG_VERSION) != LOG_VERSION:
+        raise LogFormatError(
+            f"version {meta.get('version')!r} is not one this sensact reads ({LOG_VERSION}).",
+            file=path,
+            field="version",
+            fix=f'write "version": {LOG_VERSION}, or convert the log again with this sensact.',
+        )
     return meta
 
 

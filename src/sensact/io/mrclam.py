@@ -19,6 +19,7 @@ Lines starting with ``#`` are headers; line endings may be CRLF.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -59,8 +60,14 @@ def _table(path: Path, columns: int) -> np.ndarray:
         raise LogFormatError(
             "file not found.", file=path, fix="give the dataset folder (e.g. .../MRCLAM_Dataset6) and a robot 1-5."
         )
+    try:
+        text_lines = path.read_text(encoding="utf-8").splitlines()
+    except UnicodeDecodeError:
+        raise LogFormatError(
+            "not a text file (it is not UTF-8).", file=path, fix="give the dataset's own file."
+        ) from None
     rows = []
-    for i, line in enumerate(path.read_text().splitlines(), start=1):
+    for i, line in enumerate(text_lines, start=1):
         text = line.strip()
         if not text or text.startswith("#"):
             continue
@@ -71,6 +78,12 @@ def _table(path: Path, columns: int) -> np.ndarray:
             raise LogFormatError(
                 f"line {i}: {text[:40]!r} is not numeric.", file=path, fix="only '#' lines may hold text."
             ) from None
+        if not all(math.isfinite(v) for v in values):
+            raise LogFormatError(
+                f"line {i}: {text[:40]!r} holds a number that is not finite.",
+                file=path,
+                fix="every value of an MRCLAM file is a finite number.",
+            )
         if len(values) != columns:
             raise LogFormatError(
                 f"line {i}: {len(values)} columns, expected {columns}.",
@@ -95,9 +108,17 @@ def read_mrclam(folder: str | Path, robot: int, *, dt_s: float = 1.0 / 30.0) -> 
     truth = _table(folder / f"Robot{robot}_Groundtruth.dat", 4)
     barcodes = _table(folder / "Barcodes.dat", 2)
     marks = _table(folder / "Landmark_Groundtruth.dat", 5)
+    bad = np.flatnonzero(meas[:, 2] <= 0)
+    if bad.size:
+        raise LogFormatError(
+            f"row {bad[0] + 1} has range {meas[bad[0], 2]:g} m; a range is positive.",
+            file=folder / f"Robot{robot}_Measurement.dat",
+            field="range",
+            fix="drop the row, or give the dataset's own file.",
+        )
     odo = odo[np.argsort(odo[:, 0], kind="stable")]
     truth = truth[np.argsort(truth[:, 0], kind="stable")]  # interpolated below, which needs its times in order
-    t0, held = held_on_grid(odo[:, 0], odo[:, 1:3], dt_s)
+    t0, held = held_on_grid(odo[:, 0], odo[:, 1:3], dt_s, str(folder / f"Robot{robot}_Odometry.dat"))
     commands = np.column_stack([held[:, 0] * 1000.0, held[:, 1]])
     T = len(commands)
 

@@ -8,9 +8,13 @@ step, and ground truth is interpolated. ``sensact.io.mrclam`` and ``sensact.io.t
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from sensact.core.angles import wrap_angle
+from sensact.errors import LogFormatError
+from sensact.limits import steps_problem
 
 # sensact's planar frame (sec. 2.5.1) has theta = 0 facing world +y with the robot's forward axis its +y;
 # the usual robotics frame (ROS REP 103, MRCLAM) has theta = 0 facing +x and the robot driving along its
@@ -18,12 +22,24 @@ from sensact.core.angles import wrap_angle
 HEADING_OFFSET_RAD = -0.5 * np.pi
 
 
-def held_on_grid(times: np.ndarray, values: np.ndarray, dt_s: float) -> tuple[float, np.ndarray]:
+def step_count(span_s: float, dt_s: float, source: str | None = None, field: str = "time") -> int:
+    """The steps of ``dt_s`` on a span of ``span_s`` seconds, refused by name before anything is allocated
+    when they are not finite or over ``limits.MAX_STEPS`` (a row's time in ms or ns, one bogus late row)."""
+    n = span_s / dt_s + 1 if dt_s > 0 else math.inf
+    problem = steps_problem(n, f"the commands' span of {span_s:.6g} s in steps of {dt_s:.6g} s")
+    if problem is not None:
+        raise LogFormatError(f"{problem}.", file=source, field=field, fix="check the times' column and unit.")
+    return int(np.floor(n))
+
+
+def held_on_grid(
+    times: np.ndarray, values: np.ndarray, dt_s: float, source: str | None = None
+) -> tuple[float, np.ndarray]:
     """``(t0, held)``: the grid starts at the first (sorted) command time and ends at the last; each
     step takes the last row issued at or before it. ``times`` must be sorted."""
     t0 = float(times[0])
     tol = clock_tolerance_s(times)
-    T = int(np.floor((times[-1] - t0 + tol) / dt_s)) + 1
+    T = step_count(times[-1] - t0 + tol, dt_s, source)
     grid = t0 + np.arange(T) * dt_s
     held = np.searchsorted(times, grid + tol, side="right") - 1
     return t0, values[held]

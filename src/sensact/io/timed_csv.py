@@ -38,9 +38,10 @@ from typing import Any
 import numpy as np
 
 from sensact.errors import LogFormatError
-from sensact.io.csvtable import landmark_labels, read_numeric_csv
+from sensact.io.csvtable import landmark_labels, read_numeric_csv, refuse_repeated
 from sensact.io.resample import HEADING_OFFSET_RAD, held_on_grid, nearest_steps, pose_truth_on_grid
 from sensact.io.unit_checks import refuse_degrees_as_radians, truth_heading_doubt
+from sensact.limits import MAX_STEPS
 from sensact.logs.landmark_log import LandmarkLog
 
 # a column name's unit suffix -> sensact's suffix and factor, the longer suffixes first
@@ -57,8 +58,6 @@ TIME_COLUMNS = {"t_ms": 1e-3, "t_us": 1e-6, "t_ns": 1e-9}
 MIN_TRUTH_GAP_S = 0.1  # truth samples further apart than this (or five of their periods) leave a gap
 # times a clock in seconds cannot read: after the year 5000 on a 1970 clock, so ms, us or ns under t_s
 MAX_CLOCK_S = 1e11
-# a log longer than this is beyond what EM learns from in an hour (MRCLAM's 27,000 steps take about 17 s)
-MAX_STEPS = 5_000_000
 
 
 def in_sensact_units(name: str, values: np.ndarray) -> tuple[str, np.ndarray]:
@@ -106,6 +105,7 @@ def table_and_sources(
         table[new], sources[new] = scaled, name
     if "t_s" in table:
         _refuse_a_clock_in_other_units(path, table["t_s"])
+        refuse_repeated(path, raw)  # rows out of order are sorted (a robot's threads log so); twice, refused
     missing = [c for c in required if c not in table]
     if missing:
         raise LogFormatError(

@@ -27,7 +27,8 @@ import numpy as np
 
 from sensact.errors import LogFormatError
 from sensact.io.resample import held_on_grid, nearest_steps
-from sensact.io.timed_csv import MAX_STEPS, table_and_sources
+from sensact.io.timed_csv import table_and_sources
+from sensact.limits import MAX_STEPS
 from sensact.logs.landmark_log import LandmarkLog
 
 DISTANCE_COLUMN = "distance_mm"  # the recorded distance by default, as a track folder's groundtruth.csv names it

@@ -13,6 +13,7 @@ import numpy as np
 
 from sensact.errors import LogFormatError
 from sensact.io.csvtable import read_csv_rows, read_numeric_csv
+from sensact.io.resample import step_count
 from sensact.io.track_log import TrackLog
 from sensact.logs.landmark_log import LandmarkLog
 
@@ -54,6 +55,9 @@ def turtlebot_sensors(path: str | Path) -> tuple[str, ...]:
     return tuple(s for s in UNITS if s in header)
 
 
+MAX_ROW_STEP_S = 2.0  # rows further apart than this (the median) are a clock in another unit, not a robot's log
+
+
 def _read_checked(path: str | Path, readings: tuple[str, ...]) -> dict[str, np.ndarray]:
     """The time, command and reading columns, with the time and command columns checked."""
     cols = read_numeric_csv(path, ["time", "velocity_command"], what="Turtlebot CSV", missing_fix=_not_turtlebot(path))
@@ -72,6 +76,14 @@ def _read_checked(path: str | Path, readings: tuple[str, ...]) -> dict[str, np.n
             file=path,
             field="time",
             fix="sort the rows by time and drop duplicates.",
+        )
+    step = float(np.median(np.diff(t)))
+    if step > MAX_ROW_STEP_S:
+        raise LogFormatError(
+            f"the rows are {step:.4g} s apart (the median): a Turtlebot logs about ten rows a second.",
+            file=path,
+            field="time",
+            fix="write time in seconds (a time in milliseconds divided by 1000).",
         )
     if np.any(~np.isfinite(cols["velocity_command"])):
         raise LogFormatError(
@@ -111,7 +123,7 @@ def read_turtlebot_landmark_log(path: str | Path, dt_s: float | None = None) -> 
     readings = tuple(r for r in EM_READINGS if r in cols)
     t = cols["time"]
     dt = float(np.median(np.diff(t))) if dt_s is None else dt_s
-    T = int(np.floor((t[-1] - t[0]) / dt)) + 1
+    T = step_count(t[-1] - t[0], dt, str(path))
     grid = t[0] + np.arange(T) * dt
     held = np.clip(np.searchsorted(t, grid + 1e-9, side="right") - 1, 0, len(t) - 1)
     commands = (cols["velocity_command"][held] * 1000.0).reshape(-1, 1)

@@ -3,6 +3,7 @@ and write learned angles back as ``rot_correction`` so that the standard driver 
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -20,7 +21,7 @@ def read_calibration(path: str | Path) -> LaserIntrinsics:
         raise LogFormatError("calibration file not found.", file=path, fix="check the path.")
     try:
         data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except yaml.YAMLError as exc:
+    except (yaml.YAMLError, UnicodeDecodeError, RecursionError) as exc:
         raise LogFormatError(f"not valid YAML ({exc.__class__.__name__}).", file=path, fix="repair the file.") from None
     lasers = data.get("lasers") if isinstance(data, dict) else None
     if not isinstance(lasers, list) or not lasers:
@@ -31,8 +32,9 @@ def read_calibration(path: str | Path) -> LaserIntrinsics:
     for i, entry in enumerate(lasers):
         try:
             lid = int(entry["laser_id"])
-            float(entry["rot_correction"]), float(entry["vert_correction"])
-        except (KeyError, TypeError, ValueError):
+            if not (math.isfinite(float(entry["rot_correction"])) and math.isfinite(float(entry["vert_correction"]))):
+                raise ValueError
+        except (KeyError, TypeError, ValueError, OverflowError):
             raise LogFormatError(
                 f"laser entry {i} lacks a numeric laser_id, rot_correction or vert_correction.",
                 file=path,
@@ -40,10 +42,17 @@ def read_calibration(path: str | Path) -> LaserIntrinsics:
                 fix="every laser needs laser_id, rot_correction and vert_correction (radians).",
             ) from None
         rows[lid] = dict(entry)
-    n = int(data.get("num_lasers", len(rows)))
-    if sorted(rows) != list(range(n)):
+    try:
+        n = int(data.get("num_lasers", len(rows)))
+    except (TypeError, ValueError, OverflowError):
+        n = -1
+    if n != len(rows) or sorted(rows) != list(range(n)):  # n is checked before a list of n is made
         raise LogFormatError(
-            f"laser ids are not 0..{n - 1}.", file=path, field="laser_id", fix="number the lasers 0 to num_lasers-1."
+            f"num_lasers is {data.get('num_lasers', len(rows))!r} and the file lists {len(rows)} lasers, ids "
+            f"{min(rows)} to {max(rows)}.",
+            file=path,
+            field="laser_id",
+            fix="number the lasers 0 to num_lasers-1, one entry each.",
         )
     ordered = [rows[i] for i in range(n)]
     return LaserIntrinsics(

@@ -28,6 +28,7 @@ import numpy as np
 
 from sensact.core.degree import N_STATS
 from sensact.core.polyfit import renormalize
+from sensact.health import Health, HealthFlag
 from sensact.learn.bootstrap_kernel import (
     A_READY,
     DEG_S,
@@ -618,3 +619,22 @@ def learn_action_from_sensor(
         units=units,
     )
     return _run_engine(engine, t, c, np.zeros_like(c), o, progress)
+
+
+def bootstrap_health(res: BootstrapResult, commands: np.ndarray, observations: np.ndarray) -> Health:
+    """Algorithm 1's result as issue 74 flags it: diverged, or learned from a command or a reading that
+    never varies (A's slope or S's shape is then whatever the start said)."""
+    c = np.asarray(commands, dtype=float)
+    o = np.asarray(observations, dtype=float)
+    o = o[np.isfinite(o)]
+    return Health.of(
+        HealthFlag("diverged", "Algorithm 1 diverged; the models are those before it did.")
+        if res.status == "diverged"
+        else None,
+        HealthFlag("command_constant", f"the command never varies (always {c[0]:g}).")
+        if c.size and np.ptp(c) == 0
+        else None,
+        HealthFlag("reading_constant", f"the reading never varies (always {o[0]:g}).")
+        if o.size and np.ptp(o) == 0
+        else None,
+    )

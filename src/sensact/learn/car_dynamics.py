@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sensact.core.angles import wrap_angle
+from sensact.health import Health, HealthFlag
 from sensact.learn.lidar_intrinsics import IntrinsicsConfig, IntrinsicsResult, learn_relative_angles
 from sensact.learn.scan_odometry import Odometry, OdometryConfig, offset_from_motion, scan_odometry
 from sensact.models.car_dynamics import CarDynamics, fit_car_dynamics
@@ -193,3 +194,38 @@ def learn_car(
     assert model is not None
     angles = wrap_angle(rel.relative_rad + C)
     return CarLearningResult(angles, C, rel, model, odo, mid, act, v, w, a, history, stages)
+
+
+MAX_LASER_SPREAD_RAD = np.pi / 2  # a spinning lidar's lasers point within tens of degrees of each other
+
+
+def car_health(model: CarDynamics | None, laser_angles_rad: np.ndarray) -> Health:
+    """Algorithm 3's result as issue 74 flags it: laser angles scattered around the circle (sec. 5.1's
+    cross-correlation found no common scene: a capture too short, or of a lidar standing still), and
+    dynamics all zero or not numbers, which are controls that explained nothing of the scans' motion, as
+    controls on another clock do."""
+    flags = []
+    a = np.asarray(laser_angles_rad, dtype=float)
+    spread = 0.0
+    if a.size > 1 and np.all(np.isfinite(a)):  # the shortest arc that holds every angle
+        s = np.sort(np.mod(a, 2 * np.pi))
+        spread = float(2 * np.pi - np.max(np.diff(np.append(s, s[0] + 2 * np.pi))))
+    if not np.all(np.isfinite(a)) or spread > MAX_LASER_SPREAD_RAD:
+        flags.append(
+            HealthFlag(
+                "laser_angles_scattered",
+                f"the learned laser angles spread over {np.degrees(spread):.0f} degrees: the scans did not match "
+                "(a capture too short, or too little motion in it).",
+            )
+        )
+    if model is not None:
+        c = model.as_array()
+        if not np.all(np.isfinite(c)) or not np.any(c[1:]):
+            flags.append(
+                HealthFlag(
+                    "controls_explain_nothing",
+                    "the car's dynamics came out zero or not numbers: the controls explain none of the scans' "
+                    "motion (are actions.csv's times on the lidar's clock, in seconds?).",
+                )
+            )
+    return Health(tuple(flags))

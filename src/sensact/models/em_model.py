@@ -51,6 +51,8 @@ class EMModel:
         n = 3 if self.geometry == "planar" else 1
         m = np.asarray(self.prior_mean, dtype=float).reshape(n)
         P = np.asarray(self.prior_cov, dtype=float).reshape(n, n)
+        if not (np.all(np.isfinite(m)) and np.all(np.isfinite(P)) and np.allclose(P, P.T) and _positive_definite(P)):
+            raise ValueError("prior_mean must be finite and prior_cov a symmetric positive-definite matrix")
         object.__setattr__(self, "prior_mean", m)
         object.__setattr__(self, "prior_cov", P)
         if len(self.action.velocity_names) != n:
@@ -107,7 +109,15 @@ class EMModel:
                 None if data.get("motion_sd") is None else np.asarray(data["motion_sd"], dtype=float),
                 None if data.get("turn_var") is None else float(data["turn_var"]),
             )
-        except (KeyError, TypeError, ValueError) as exc:
+        except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
             raise ModelFormatError(
                 f"bad EM model ({exc}).", file=source, field="prior_mean", fix="rewrite it with `sensact learn em`."
             ) from None
+
+
+def _positive_definite(P: np.ndarray) -> bool:
+    try:
+        np.linalg.cholesky(P)
+    except np.linalg.LinAlgError:
+        return False
+    return True

@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from sensact.errors import ModelFormatError
+from sensact.limits import MAX_STEPS
 
 BASES = ("affine", "cross", "polynomial")
 
@@ -75,7 +76,8 @@ def delayed(step_commands: np.ndarray, delay_steps: int) -> np.ndarray:
     c = np.asarray(step_commands, dtype=float)
     if delay_steps == 0:
         return c
-    return np.concatenate([np.repeat(c[:1], delay_steps, axis=0), c[:-delay_steps]])[: len(c)]
+    held = min(delay_steps, len(c))  # a delay longer than the log holds its first command throughout
+    return np.concatenate([np.repeat(c[:1], held, axis=0), c[: len(c) - held]])
 
 
 def _terms(text: str) -> list[str]:
@@ -152,9 +154,11 @@ class LinearActionModel:
         combined = any(not _is_command(w) for terms in allowed.values() for w in terms)
         if combined and self.basis != "affine":
             raise ValueError(f"a combined input such as (a-b) needs the affine action basis, not {self.basis!r}")
-        if self.delay_steps < 0:
-            raise ValueError("delay_steps must be >= 0")
+        if not 0 <= self.delay_steps <= MAX_STEPS:
+            raise ValueError(f"delay_steps must be 0 to {MAX_STEPS} (given {self.delay_steps})")
         beta = np.atleast_2d(np.asarray(self.coefficients, dtype=float))
+        if not np.all(np.isfinite(beta)):
+            raise ValueError("the action coefficients must be finite numbers")
         object.__setattr__(self, "coefficients", beta)
         object.__setattr__(self, "command_names", tuple(self.command_names))
         object.__setattr__(self, "velocity_names", tuple(self.velocity_names))

@@ -26,9 +26,12 @@ from sensact.report.figures1d import _save
 def _action_panel(ax: Any, run: Any, score: dict[str, Any], a: float) -> None:
     c, v_true = windowed_velocities(run.data, run.truth_mm)
     ax.plot(c, v_true, ".", ms=3, alpha=0.4, color="0.5", label="recorded range, 1-s windows")
-    grid = np.linspace(c.min(), c.max(), 100)
-    slope, offset = np.polyfit(c, v_true, 1)
-    ax.plot(grid, slope * grid + offset, "--", color="k", lw=1, label=f"truth's line (gain {score['gain_true']:.4f})")
+    grid = np.linspace(c.min(), c.max(), 100) if c.size else np.zeros(1)
+    if c.size >= 2 and np.ptp(c) > 0:  # one command throughout draws no line through the truth
+        slope, offset = np.polyfit(c, v_true, 1)
+        ax.plot(
+            grid, slope * grid + offset, "--", color="k", lw=1, label=f"truth's line (gain {score['gain_true']:.4f})"
+        )
     err = score["gain_error_pct"]
     off = f", {err:.2f} % off" if err is not None else ", not scored: one command"
     ax.plot(

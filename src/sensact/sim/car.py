@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from sensact.core.raycast import BOX, CYLINDER, build_grid, cast_firings
+from sensact.limits import steps_problem
 from sensact.models.laser_intrinsics import LaserIntrinsics
 
 TWO_PI = 2.0 * np.pi
@@ -94,6 +95,8 @@ class CarConfig:
         problems = []
         if self.seconds <= 0 or self.control_hz <= 0 or self.sim_hz < self.control_hz:
             problems.append("seconds and control_hz must be > 0, sim_hz >= control_hz")
+        elif (too_long := steps_problem(self.seconds * self.sim_hz, "seconds * sim_hz")) is not None:
+            problems.append(too_long)
         if not 0 <= self.dropout < 1:
             problems.append("dropout must be in [0, 1)")
         if self.firing_hz <= 0 or self.rpm <= 0:

@@ -39,6 +39,7 @@ from scipy.signal import lfilter
 
 from sensact.core.angles import wrap_angle
 from sensact.core.pose_models import landmark_bearing, landmark_distance, sensor_poses
+from sensact.limits import steps_problem
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.wheel_drive import WHEEL_COMMAND_NAMES
 
@@ -146,6 +147,8 @@ class DiffDriveConfig:
         problems = []
         if self.seconds <= 0 or self.dt_s <= 0 or self.frame_period_s < self.dt_s:
             problems.append("seconds and dt_s must be > 0, frame_period_s >= dt_s")
+        elif (too_long := steps_problem(self.seconds / self.dt_s, "seconds / dt_s")) is not None:
+            problems.append(too_long)
         if self.room_width_mm <= 2 * self.margin_mm or self.room_length_mm <= 2 * self.margin_mm:
             problems.append("the room must be wider and longer than twice margin_mm")
         if self.landmarks_per_side < 2:

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from sensact.core.pose_models import apply_displacement, landmark_bearing, landmark_distance
+from sensact.limits import steps_problem
 from sensact.logs.landmark_log import LandmarkLog
 
 OMEGAS = (-0.5, -1.0 / 6.0, 0.0, 1.0 / 6.0, 0.5)  # sec. 4.4.1
@@ -84,6 +85,8 @@ class Field2DConfig:
         problems = []
         if self.seconds <= 0 or self.dt_s <= 0 or self.action_hold_s < self.dt_s:
             problems.append("seconds, dt_s and action_hold_s must be > 0, action_hold_s >= dt_s")
+        elif (too_long := steps_problem(self.seconds / self.dt_s, "seconds / dt_s")) is not None:
+            problems.append(too_long)
         if len(self.landmarks_xy_mm) < 1:
             problems.append("at least one landmark")
         if not 0 < self.min_range_mm < self.max_range_mm:

@@ -21,6 +21,7 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 from scipy.signal import lfilter
 
+from sensact.limits import steps_problem
 from sensact.logs.landmark_log import LandmarkLog
 
 # A curve with the shape of Figure 3.8a: a small dead band (|c| <= 25 mm/s), near-unit gain at low speed,
@@ -126,6 +127,11 @@ class Track1DConfig:
             problems.append("seconds must be > 0")
         if self.dt_s <= 0:
             problems.append("dt_s must be > 0")
+        elif (
+            not self.seconds <= 0
+            and (too_long := steps_problem(self.seconds / self.dt_s, "seconds / dt_s")) is not None
+        ):
+            problems.append(too_long)
         if self.observation_rate_hz <= 0 or self.observation_rate_hz > 1.0 / self.dt_s + 1e-9:
             problems.append("observation_rate_hz must be in (0, 1/dt_s]")
         if self.command_hold_s <= 0:

@@ -10,8 +10,10 @@ import typer
 from sensact.cli.base import (
     ConfigOpt,
     SetOpt,
+    check_out_file,
     config_beside,
     console,
+    finish,
     friendly,
     layered_config,
     learn_app,
@@ -45,10 +47,11 @@ def learn_bootstrap_cmd(
     """Learn S(o) and A(c) from each other with Algorithm 1 (sec. 3.2.3).
 
     Prints the polynomials, and the scaled errors when the log carries ground truth."""
+    check_out_file(out)
     from sensact.errors import ConfigError
     from sensact.io.atomic import write_npz
     from sensact.io.logfolder import read_track_log
-    from sensact.learn.bootstrap import BootstrapConfig, learn_bootstrap
+    from sensact.learn.bootstrap import BootstrapConfig, bootstrap_health, learn_bootstrap
 
     if a0 is not None and a0 not in ("linear", "sign", "constant"):
         raise ConfigError(f"unknown starting model {a0!r}.", field="--a0", fix="use linear, sign or constant.")
@@ -88,8 +91,9 @@ def learn_bootstrap_cmd(
     console.print("  " + res.sensor.describe("S"))
     console.print("  " + res.action.describe("A"))
     evaluation = evaluate_log(data, res, cfg)
+    health = bootstrap_health(res, data.commands, data.observations)
     if out is not None:
-        payload = {**res.to_dict(), "log": data.source, "evaluation": evaluation}
+        payload = {**res.to_dict(), "log": data.source, "evaluation": evaluation, "health": health.to_dict()}
         write_result(out, payload)
         assert res.history is not None
         write_npz(out.with_suffix(".history.npz"), **res.history.arrays())
@@ -100,7 +104,7 @@ def learn_bootstrap_cmd(
         if report:
             from sensact.app.report import simple_report
 
-            if res.status != "converged":
+            if res.status != "ok":
                 warnings.append(
                     f"Algorithm 1 ended {res.status}" + (f" at {res.diverged_at_s:.1f} s" if res.diverged_at_s else "")
                 )
@@ -112,6 +116,7 @@ def learn_bootstrap_cmd(
                 simple_report(out, f"sensact calibration: {Path(data.source).name}", lead, numbers, warnings, figures)
             )
         console.print("wrote " + ", ".join(str(p) for p in written))
+    finish(health)
 
 
 def _clock_start(data: Any, log: Path) -> float:

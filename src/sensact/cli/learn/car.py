@@ -7,7 +7,18 @@ from typing import Annotated, Any
 
 import typer
 
-from sensact.cli.base import ConfigOpt, SetOpt, console, friendly, layered_config, learn_app, progress_bar, write_result
+from sensact.cli.base import (
+    ConfigOpt,
+    SetOpt,
+    check_out_file,
+    console,
+    finish,
+    friendly,
+    layered_config,
+    learn_app,
+    progress_bar,
+    write_result,
+)
 
 
 def _learn(data: Any, cfg: Any, simulated: bool) -> tuple[Any, dict | None, list, dict[str, Any] | None]:
@@ -124,6 +135,7 @@ def learn_car_cmd(
     ] = True,
 ) -> None:
     """Learn the lidar's laser angles, the scan-matching odometry and the car dynamics (Algorithm 3)."""
+    check_out_file(out)
     import numpy as np
     import yaml
 
@@ -146,6 +158,9 @@ def learn_car_cmd(
     simulated = "truth" in data.meta and data.groundtruth is not None  # scored against what it was made with
     res, model, history, evaluation = _learn(data, cfg, simulated)
     reference, comparison = _angle_reference(data, res, simulated)
+    from sensact.learn.car_dynamics import car_health
+
+    health = car_health(getattr(res, "model", None) if data.actions is not None else None, res.laser_angles_rad)
     if out is not None:
         write_result(
             out,
@@ -161,6 +176,7 @@ def learn_car_cmd(
                 "evaluation": evaluation,
                 # what `sensact export --format velodyne` writes
                 "velodyne_calibration": yaml.safe_load(ros_yaml(_ros_calibration(data, res))),
+                "health": health.to_dict(),
             },
         )
         from sensact.report.figures_car import figure_car_fit
@@ -187,3 +203,4 @@ def learn_car_cmd(
         console.print("wrote " + ", ".join(str(p) for p in written))
     if calibration_yaml is not None:
         _write_ros_calibration(calibration_yaml, data, res)
+    finish(health)

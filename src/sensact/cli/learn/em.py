@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
+from rich.markup import escape
 
 from sensact.cli.base import (
     ConfigOpt,
@@ -14,7 +15,9 @@ from sensact.cli.base import (
     SchedulerOpt,
     SetOpt,
     WorkersOpt,
+    check_out_file,
     console,
+    finish,
     friendly,
     learn_app,
     print_tables,
@@ -243,6 +246,7 @@ def learn_em_cmd(
     The settings: --preset, or else the settings file `convert` wrote into the log folder (em_config.yaml,
     which names its preset), or a Turtlebot's for a CSV, or the thesis's; --config and --set override
     them. Ctrl-C stops early and still writes the most likely model so far."""
+    check_out_file(out)
     from sensact.app import calibrate, open_log
 
     opened = open_log(log, bins=bins)
@@ -263,6 +267,8 @@ def learn_em_cmd(
 
         saved = save_calibration(cal, out, report=report)
         console.print("wrote " + ", ".join(str(p) for p in saved.written))
+        for line in saved.not_drawn:
+            console.print(f"[yellow]warning: a figure was not drawn:[/] {escape(line)}", highlight=False)
         if saved.removed_halves is not None and not halves:
             console.print(f"removed {saved.removed_halves}, an earlier run's --halves figure")
         if saved.removed:
@@ -270,6 +276,8 @@ def learn_em_cmd(
                 "removed what an earlier run at this --out drew against a truth this log does not have: "
                 + ", ".join(str(p) for p in saved.removed)
             )
+    if res.stop_reason == "interrupted":  # the most likely model so far is written; nothing more to do with it
+        finish(interrupted=True)
     if uncertainty is not None:  # after the model is written, so that stopping the bootstrap loses nothing of it
         cal = _error_bars(cal, uncertainty, workers, scheduler)
         doc = cal.to_json()
@@ -281,6 +289,7 @@ def learn_em_cmd(
     if halves:  # after the model is written, so that stopping the halves loses nothing of it
         if res.posteriors is None:
             console.print(f"--halves: not run, EM stopped {res.stop_reason} without a smoothed path to compare on")
+            finish(cal.diagnostics.health)
             return
         from sensact.app.save import halves_figure
 
@@ -291,6 +300,7 @@ def learn_em_cmd(
         if out is not None:
             write_result(out, doc | {"halves": halves_doc})
             console.print(f"wrote {out} again, with the halves")
+    finish(cal.diagnostics.health)
 
 
 def _error_bars(cal: Any, replicates: int, workers: int | None, scheduler: str | None) -> Any:

@@ -1,0 +1,33 @@
+"""Fit health (issue 74): a result that is degenerate or unfinished is written, flagged in its JSON
+(``health``), and ends the command with exit code 3 (``errors.EXIT_FLAGGED``), never reported as a success.
+
+Each learner names its own checks (``learn/em/health.py``, ``learn/bootstrap.py``, ``learn/car_dynamics.py``);
+a flag is a code a script can test and one line a person can read.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+
+@dataclass(frozen=True)
+class HealthFlag:
+    code: str  # e.g. "not_converged", "sigma_collapsed", "reading_constant"
+    message: str  # one line: what is wrong and what to do
+
+
+@dataclass(frozen=True)
+class Health:
+    flags: tuple[HealthFlag, ...] = ()
+
+    @property
+    def ok(self) -> bool:
+        return not self.flags
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"ok": self.ok, "flags": [{"code": f.code, "message": f.message} for f in self.flags]}
+
+    @classmethod
+    def of(cls, *flags: HealthFlag | None) -> Health:
+        return cls(tuple(f for f in flags if f is not None))

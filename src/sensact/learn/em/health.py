@@ -1,0 +1,139 @@
+"""Is an EM fit a result or a degenerate one? (issue 74; beyond the thesis, whose fits all converge on
+sensors that read something.)
+
+Each check looks at what the fit cannot recover from by itself, on the log it was learned on:
+
+- EM stopped by ``max_iterations`` or diverged (``EMResult.stop_reason``);
+- a command that never varies: the action model's gain on it and its offset trade freely;
+- a reading that never varies, or a sigma collapsed onto the M-step's floor (eq. 4.27 with every residual
+  zero), where the likelihood grows without bound instead of converging;
+- a reading whose learned f explains almost none of its variance (a sonar that reads noise), or whose
+  gain changes sign between the log's halves, judged on the smoothed path: f is fitted to noise.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sensact.core.pose_models import sensor_distance
+from sensact.health import Health, HealthFlag
+from sensact.learn.em.estep import channel_columns
+from sensact.learn.em.result import EMResult
+from sensact.logs.landmark_log import LandmarkLog
+
+SIGMA_COLLAPSED = 1e-6  # a reading's sigma this small, relative to its readings' size, has collapsed
+MIN_EXPLAINED = 0.05  # 1 - sigma^2 / var(readings) below this: f explains (almost) nothing of the readings
+MIN_HALF_SIGHTINGS = 10  # sightings in each half before their gains' signs are compared
+MIN_READINGS = 20  # a channel with fewer readings in its window is not judged
+
+
+def em_health(result: EMResult, data: LandmarkLog) -> Health:
+    """The flags of one fit on ``data`` (none: a result to report as one)."""
+    flags: list[HealthFlag] = []
+    if result.stop_reason == "max_iterations":
+        flags.append(
+            HealthFlag(
+                "not_converged",
+                "EM reached max_iterations while the likelihood was still rising; raise it (--set max_iterations=...).",
+            )
+        )
+    elif result.stop_reason == "diverged":
+        flags.append(HealthFlag("diverged", "the filter diverged; the model is the best before it did."))
+    if not np.isfinite(result.loglik_best):
+        flags.append(HealthFlag("loglik_not_finite", "the log-likelihood is not finite."))
+    flags += _commands(data)
+    flags += _readings(result, data)
+    return Health(tuple(flags))
+
+
+def _commands(data: LandmarkLog) -> list[HealthFlag]:
+    if data.is_continuous:
+        cmd = np.asarray(data.step_commands, dtype=float)
+        return [
+            HealthFlag(
+                "command_constant",
+                f"command {name} never varies (always {col[0]:g}), so its gain and the offset cannot be told apart.",
+            )
+            for name, col in zip(data.command_names, cmd.T, strict=True)
+            if col.size and np.ptp(col) == 0.0
+        ]
+    used = np.unique(data.actions[data.actions >= 0])
+    if used.size <= 1:
+        return [HealthFlag("command_constant", "the log has one action throughout; no other is learned from it.")]
+    return []
+
+
+def _readings(result: EMResult, data: LandmarkLog) -> list[HealthFlag]:
+    if not data.n_observations:
+        return []
+    model, post = result.model, result.posteriors
+    use = np.ones(data.n_observations, bool) if post is None else np.asarray(post.obs_used, dtype=bool)
+    cols = channel_columns(model.sensor, data)
+    dist = None
+    if post is not None:
+        steps = data.obs_step[use]
+        if data.geometry == "planar":
+            poses = post.mean_gamma[steps]
+            dist = sensor_distance(poses, data.landmarks_xy[data.obs_landmark[use]], model.sensor.mount.as_array())
+        else:
+            dist = post.mean_gamma[steps, 0]
+    flags = []
+    for j, ch in enumerate(model.sensor.channels):
+        y = data.obs_readings[use, cols[j]]
+        ok = np.isfinite(y)
+        if dist is not None:  # f is fitted, and judged, within its window only
+            ok &= (dist >= ch.valid_min) & (dist <= ch.valid_max)
+        if np.count_nonzero(ok) < MIN_READINGS:
+            continue  # too few to learn f from: left at its start, and said so by the scores
+        y = y[ok]
+        if y.size < 2:
+            continue
+        if np.ptp(y) == 0.0:
+            flags.append(HealthFlag("reading_constant", f"reading {ch.name} never varies (always {y[0]:g})."))
+            continue
+        scale = max(float(np.max(np.abs(y))), 1.0)
+        if ch.sigma <= SIGMA_COLLAPSED * scale:
+            flags.append(
+                HealthFlag(
+                    "sigma_collapsed", f"{ch.name}'s sigma collapsed to {ch.sigma:.3g}: f passes through every reading."
+                )
+            )
+            continue
+        explained = 1.0 - ch.sigma**2 / float(np.var(y))
+        if explained < MIN_EXPLAINED:
+            flags.append(
+                HealthFlag(
+                    "reading_explains_nothing",
+                    f"{ch.name}'s learned f explains {max(explained, 0.0):.0%} of its readings' variance: "
+                    "it reads noise, or the log never moved the robot enough to tell.",
+                )
+            )
+            continue
+        if dist is not None:
+            flip = _sign_flips(dist[ok], y)
+            if flip is not None:
+                flags.append(
+                    HealthFlag(
+                        "gain_sign_flips",
+                        f"{ch.name} rises with distance in one half of the log and falls in the other "
+                        f"(slopes {flip[0]:.3g} and {flip[1]:.3g}): f is fitted to noise.",
+                    )
+                )
+    return flags
+
+
+def _sign_flips(d: np.ndarray, y: np.ndarray) -> tuple[float, float] | None:
+    """The two halves' least-squares slopes of reading on distance, over the distances both halves span (an f
+    that turns over reads a different slope on a different span), when their signs differ."""
+    half = d.size // 2
+    halves = [(d[:half], y[:half]), (d[half:], y[half:])]
+    lo = max(float(np.min(h[0])) for h in halves) if half else 0.0
+    hi = min(float(np.max(h[0])) for h in halves) if half else 0.0
+    slopes = []
+    for dd, yy in halves:
+        inside = (dd >= lo) & (dd <= hi)
+        dd, yy = dd[inside], yy[inside]
+        if dd.size < MIN_HALF_SIGHTINGS or np.var(dd) == 0.0:
+            return None
+        slopes.append(float(np.mean((dd - dd.mean()) * (yy - yy.mean())) / np.var(dd)))
+    return (slopes[0], slopes[1]) if slopes[0] * slopes[1] < 0 else None
