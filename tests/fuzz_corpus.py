@@ -1,0 +1,527 @@
+"""Malformed inputs for every format a command reads, and the commands that read them (issue 74).
+
+``base_inputs(dir)`` writes well-formed inputs once: a short simulated planar log folder, a model learned on
+it, a Turtlebot-style CSV, a track CSV and a settings file. ``cases()`` lists each mutation of one of them
+with the command that reads it; ``run_case`` runs it as a user would (a fresh process, under a timeout) and
+``problems`` says what was wrong with how it ended: a traceback, an internal error, an exit code other than
+0, 2 or 3 (2 where the input must be refused), more than one line for an error, a temporary file left
+behind, over 1 GB of memory, a hang. ``tests/test_fuzz.py`` runs a sample in CI and every case with
+``SENSACT_FUZZ=all``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+TIMEOUT_S = 120.0
+MEMORY_CAP_BYTES = 1 << 30  # issue 74: never over 1 GB
+FIT = ("--set", "max_iterations=25", "--no-report")  # keeps each fit of a mutated log short
+
+Mutation = Callable[[bytes], bytes]
+
+
+@dataclass(frozen=True)
+class Case:
+    name: str
+    target: str  # the base input mutated (a path under the base folder), or "" for none
+    mutate: Mutation | None
+    argv: tuple[str, ...]  # {work}: the case's copy of the base inputs; {out}: a fresh output folder
+    refuse: bool  # the input is garbage: it must end in exit 2 (or, where noted, 3: written and flagged)
+    flagged_ok: bool = False  # a truncated file may still be a shorter well-formed one: exit 3 will do
+
+
+@dataclass(frozen=True)
+class Ended:
+    code: int | None  # None: killed by the timeout
+    stderr: str
+    seconds: float
+    peak_rss_bytes: int
+    leftovers: tuple[str, ...]  # temporary files left in the work folder
+
+
+# ---- mutations of a CSV ------------------------------------------------------------------------------------
+
+
+def _rows(data: bytes) -> list[list[str]]:
+    return [line.split(",") for line in data.decode("utf-8").splitlines() if line]
+
+
+def _join(rows: list[list[str]]) -> bytes:
+    return ("\n".join(",".join(r) for r in rows) + "\n").encode("utf-8")
+
+
+def set_cell(column: int, value: str, row: int = 5) -> Mutation:
+    def m(data: bytes) -> bytes:
+        rows = _rows(data)
+        rows[min(row, len(rows) - 1)][column] = value
+        return _join(rows)
+
+    return m
+
+
+def scale_column(column: int, factor: float) -> Mutation:
+    def m(data: bytes) -> bytes:
+        rows = _rows(data)
+        for r in rows[1:]:
+            r[column] = repr(float(r[column]) * factor) if r[column] else r[column]
+        return _join(rows)
+
+    return m
+
+
+def shift_column(column: int, offset: float) -> Mutation:
+    def m(data: bytes) -> bytes:
+        rows = _rows(data)
+        for r in rows[1:]:
+            r[column] = repr(float(r[column]) + offset) if r[column] else r[column]
+        return _join(rows)
+
+    return m
+
+
+def reorder(kind: str) -> Mutation:
+    def m(data: bytes) -> bytes:
+        rows = _rows(data)
+        head, body = rows[:1], rows[1:]
+        if kind == "reverse":
+            body = body[::-1]
+        elif kind == "shuffle":
+            body = [body[i] for i in np.random.default_rng(0).permutation(len(body))]
+        elif kind == "duplicate":
+            body = [r for r in body for _ in (0, 1)]
+        elif kind == "swap":
+            body[3], body[4] = body[4], body[3]
+        elif kind == "one_row":
+            body = body[:1]
+        elif kind == "two_rows":
+            body = body[:2]
+        elif kind == "header_only":
+            body = []
+        elif kind == "drop_column":
+            head, body = [r[:-1] for r in head], [r[:-1] for r in body]
+        elif kind == "extra_cell":
+            body[2] = [*body[2], "1"]
+        elif kind == "short_row":
+            body[2] = body[2][:1]
+        elif kind == "last_far":
+            body[-1][0] = "1e9"
+        elif kind == "constant":
+            body = [[r[0], *body[0][1:]] for r in body]
+        return _join(head + body)
+
+    return m
+
+
+def bytes_mutation(kind: str) -> Mutation:
+    def m(data: bytes) -> bytes:
+        if kind == "truncate":
+            return data[: len(data) // 2]
+        if kind == "empty":
+            return b""
+        if kind == "non_utf8":
+            return data[:40] + b"\xff\xfe\x80" + data[40:]
+        if kind == "binary":
+            return bytes(np.random.default_rng(1).integers(0, 256, 4096, dtype=np.uint8))
+        if kind == "crlf_bom":
+            return b"\xef\xbb\xbf" + data.replace(b"\n", b"\r\n")
+        raise ValueError(kind)
+
+    return m
+
+
+# ---- mutations of a pcap ----------------------------------------------------------------------------------------
+
+
+def _pcap_records(data: bytes) -> tuple[bytes, list[bytes]]:
+    """The global header and each record (its 16-byte header with its data), of a little-endian pcap."""
+    import struct
+
+    head, at, records = data[:24], 24, []
+    while at + 16 <= len(data):
+        n = struct.unpack_from("<I", data, at + 8)[0]
+        records.append(data[at : at + 16 + n])
+        at += 16 + n
+    return head, records
+
+
+def pcap_mutation(kind: str) -> Mutation:
+    def m(data: bytes) -> bytes:
+        head, records = _pcap_records(data)
+        if kind == "duplicate_packets":  # every tenth packet twice, as a mirrored switch port sends it
+            records = [r for i, r in enumerate(records) for _ in range(2 if i % 10 == 0 else 1)]
+        elif kind == "reverse_packets":
+            records = records[::-1]
+        elif kind == "few_packets":
+            records = records[:50]
+        elif kind == "bad_length":  # a record header claiming 2 GB
+            records[5] = records[5][:8] + (2**31).to_bytes(4, "little") + records[5][12:]
+        elif kind == "zero_time":  # every packet stamped at the epoch's zero
+            records = [bytes(8) + r[8:] for r in records]
+        return head + b"".join(records)
+
+    return m
+
+
+# ---- mutations of JSON and YAML ------------------------------------------------------------------------------
+
+
+def json_set(path: tuple[str | int, ...], value: object) -> Mutation:
+    def m(data: bytes) -> bytes:
+        doc = json.loads(data)
+        node = doc
+        for key in path[:-1]:
+            node = node[key]
+        node[path[-1]] = value
+        return json.dumps(doc).encode()  # NaN and Infinity as Python writes them (not JSON, read by json)
+
+    return m
+
+
+def json_drop(path: tuple[str | int, ...]) -> Mutation:
+    def m(data: bytes) -> bytes:
+        doc = json.loads(data)
+        node = doc
+        for key in path[:-1]:
+            node = node[key]
+        del node[path[-1]]
+        return json.dumps(doc).encode()
+
+    return m
+
+
+def deep_json(data: bytes) -> bytes:
+    return b'{"a": ' + b"[" * 100_000 + b"]" * 100_000 + b"}"
+
+
+def deep_yaml(data: bytes) -> bytes:
+    return b"a: " + b"[" * 20_000 + b"]" * 20_000 + b"\n"
+
+
+def yaml_line(text: str) -> Mutation:
+    return lambda data: data + ("\n" + text + "\n").encode()
+
+
+# ---- the base inputs --------------------------------------------------------------------------------------------
+
+
+CHILD = """
+import atexit, os, resource, sys
+rss = os.environ.get("SENSACT_FUZZ_RSS")
+if rss:
+    atexit.register(lambda: open(rss, "w").write(str(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024)))
+from sensact.cli import main
+sys.argv[0] = "sensact"
+main()
+"""
+
+
+def sensact_argv(*args: str) -> list[str]:
+    return [sys.executable, "-c", CHILD, *args]
+
+
+def base_inputs(base: Path) -> Path:
+    """Write the well-formed inputs under ``base`` (once): log/ (a 40-s simulated planar log), model.json
+    (learned on it), tb.csv (a Turtlebot-style 1-D log) and track.csv (a 1-D track log for `convert track`)."""
+    if (base / "done").exists():
+        return base
+    base.mkdir(parents=True, exist_ok=True)
+    subprocess.run(sensact_argv("simulate", "diffdrive", "--out", str(base / "log"), "--seconds", "40"), check=True)
+    subprocess.run(
+        sensact_argv("learn", "em", str(base / "log"), "--out", str(base / "model.json"), *FIT),
+        check=False,  # 3: flagged (max_iterations) is a model all the same
+    )
+    rng = np.random.default_rng(3)
+    t = np.arange(0.0, 60.0, 0.1)
+    cmd = np.where((t // 6) % 2 == 0, 0.15, -0.15)
+    pos = 1.0 + np.cumsum(cmd) * 0.1
+    lines = ["time,range,velocity_command,sonar1,raw_ir1"]
+    for ti, ci, pi in zip(t, cmd, pos, strict=True):
+        sonar = pi + rng.normal(0, 0.02)
+        ir = 400.0 / pi + rng.normal(0, 3)
+        lines.append(f"{ti:.2f},{pi:.4f},{ci:.3f},{sonar:.4f},{ir:.2f}")
+    (base / "tb.csv").write_text("\n".join(lines) + "\n")
+    track = ["t_s,v_mm_s,distance_mm,sonar_mm"]
+    for ti, ci, pi in zip(t, cmd, pos, strict=True):
+        track.append(f"{ti:.2f},{ci * 1000:.1f},{pi * 1000:.1f},{1000 * pi + rng.normal(0, 20):.1f}")
+    (base / "track.csv").write_text("\n".join(track) + "\n")
+    _mrclam(base / "mrclam", rng)
+    subprocess.run(sensact_argv("simulate", "car", "--out", str(base / "car"), "--seconds", "20"), check=True)
+    shutil.copy(base / "car" / "calibration_true.yaml", base / "calib.yaml")  # a factory calibration to mutate
+    (base / "settings.yaml").write_text("max_iterations: 20\n")
+    (base / "done").write_text("")
+    return base
+
+
+def _mrclam(folder: Path, rng: np.random.Generator) -> None:
+    """A minute of a made-up MRCLAM robot 1 (the dataset's five files, its column layout and units): it
+    circles among 15 landmarks and sees each within 4 m ahead of it."""
+    folder.mkdir()
+    t = 1248272262.0 + np.arange(0.0, 60.0, 0.02)
+    v, w = np.full(t.size, 0.2), np.full(t.size, 0.1)
+    th = np.cumsum(w) * 0.02
+    x, y = np.cumsum(v * np.cos(th)) * 0.02, np.cumsum(v * np.sin(th)) * 0.02
+    marks = rng.uniform(-4, 4, (15, 2))
+
+    def dat(name: str, rows: np.ndarray) -> None:
+        (folder / name).write_text(
+            "# made up for the fuzz suite\n" + "\n".join(" ".join(f"{v:.6f}" for v in r) for r in rows) + "\n"
+        )
+
+    dat("Robot1_Odometry.dat", np.column_stack([t, v, w]))
+    dat("Robot1_Groundtruth.dat", np.column_stack([t, x, y, th]))
+    dat("Barcodes.dat", np.column_stack([np.arange(1, 21), 100 + np.arange(1, 21)]))
+    dat("Landmark_Groundtruth.dat", np.column_stack([np.arange(6, 21), marks, np.full((15, 2), 0.001)]))
+    seen = []
+    for k in range(0, t.size, 25):
+        for j, (mx, my) in enumerate(marks):
+            r = float(np.hypot(mx - x[k], my - y[k]))
+            b = float(np.angle(np.exp(1j * (np.arctan2(my - y[k], mx - x[k]) - th[k]))))
+            if 0.3 < r < 4.0 and abs(b) < 0.6:
+                seen.append((t[k], 106 + j, r + rng.normal(0, 0.03), b + rng.normal(0, 0.01)))
+    dat("Robot1_Measurement.dat", np.array(seen))
+
+
+# ---- the cases --------------------------------------------------------------------------------------------------
+
+CSV_BYTES = ("truncate", "empty", "non_utf8", "binary")
+CSV_ROWS_REFUSED = ("reverse", "shuffle", "duplicate", "swap", "one_row", "header_only", "drop_column", "extra_cell")
+CSV_ROWS_REFUSED += ("short_row", "last_far")
+CELLS_REFUSED = ("nan", "inf", "-inf", "1e308", "-1e308", "abc", "0x1F", "1e400")
+
+
+def _csv_cases(
+    target: str, argv: tuple[str, ...], columns: int, time_column: bool = True, fine: tuple[str, ...] = ()
+) -> list[Case]:
+    """``fine``: row mutations that leave a well-formed file of this kind (a truth without its heading)."""
+    out = [Case(f"{target}:{k}", target, bytes_mutation(k), argv, True, k == "truncate") for k in CSV_BYTES]
+    out.append(Case(f"{target}:crlf_bom", target, bytes_mutation("crlf_bom"), argv, False))
+    out += [Case(f"{target}:{k}", target, reorder(k), argv, k not in fine) for k in CSV_ROWS_REFUSED]
+    for c in range(columns):
+        out += [Case(f"{target}:col{c}={v}", target, set_cell(c, v), argv, True) for v in CELLS_REFUSED]
+    if time_column:
+        out.append(Case(f"{target}:time_in_ms", target, scale_column(0, 1000.0), argv, "time_in_ms" not in fine))
+        out.append(Case(f"{target}:clock_shifted", target, shift_column(0, 1e5), argv, "clock_shifted" not in fine))
+    return out
+
+
+def cases() -> list[Case]:
+    em = ("learn", "em", "{work}/log", "--out", "{out}/m.json", *FIT)
+    out: list[Case] = []
+    out += _csv_cases("log/actions.csv", em, 3)
+    # a sighting outside the commands' span is dropped, as one before the first command is
+    out += _csv_cases("log/observations.csv", em, 4, fine=("last_far",))
+    out.append(Case("log/observations.csv:constant", "log/observations.csv", reorder("constant"), em, False))
+    # a truth may lack its heading, and one row past the end is never read
+    out += _csv_cases("log/groundtruth.csv", em, 4, fine=("drop_column", "last_far"))
+    meta = "log/meta.json"
+    for field, values in {
+        "dt_s": ["abc", 0, -1, 1e-9, 1e9, None, [1], float("nan"), float("inf")],
+        "geometry": ["sideways", 3, None],
+        "version": [99, "x"],
+    }.items():
+        out += [Case(f"{meta}:{field}={v!r}", meta, json_set((field,), v), em, True) for v in values]
+    for k, v in (("x_mm", float("nan")), ("y_mm", float("inf")), ("x_mm", "abc"), ("id", None)):
+        out.append(Case(f"{meta}:landmark {k}={v!r}", meta, json_set(("landmarks", 0, k), v), em, True))
+    out.append(Case(f"{meta}:no landmarks", meta, json_set(("landmarks",), []), em, True))
+    out.append(Case(f"{meta}:no observations", meta, json_drop(("observations",)), em, True))
+    out += [Case(f"{meta}:{k}", meta, bytes_mutation(k), em, True) for k in ("truncate", "empty", "non_utf8", "binary")]
+    out.append(Case(f"{meta}:deep", meta, deep_json, em, True))
+    cfg = "log/em_config.yaml"
+    out += [Case(f"{cfg}:{k}", cfg, bytes_mutation(k), em, True) for k in ("non_utf8", "binary")]
+    out.append(Case(f"{cfg}:deep", cfg, deep_yaml, em, True))
+    for line in ("max_iterations: 1e12", "max_iterations: -1", "max_iterations: abc", "bogus_field: 1", "seed: -1"):
+        out.append(Case(f"{cfg}:{line}", cfg, yaml_line(line), em, True))
+    model_cmds = {
+        "localize": ("localize", "{work}/log", "--model", "{work}/model.json", "--out", "{out}/p.json"),
+        "monitor": ("monitor", "{work}/log", "--model", "{work}/model.json", "--out", "{out}/mon.json"),
+        "export": ("export", "{work}/model.json", "--format", "robot-localization", "--out", "{out}/rl.yaml"),
+    }
+    model_mutations: dict[str, Mutation] = {
+        "truncate": bytes_mutation("truncate"),
+        "non_utf8": bytes_mutation("non_utf8"),
+        "deep": deep_json,
+        "dt_s=abc": json_set(("dt_s",), "abc"),
+        "dt_s=0": json_set(("dt_s",), 0),
+        "no model": json_drop(("model",)),
+        "prior_cov not PD": json_set(("model", "prior_cov"), [[1, 2, 0], [2, 1, 0], [0, 0, 1]]),
+        "prior_mean NaN": json_set(("model", "prior_mean"), [float("nan"), 0, 0]),
+        "motion_sd negative": json_set(("model", "motion_sd"), [[-1, 1, 0.01]]),
+        "sigma NaN": json_set(("model", "sensor", "channels", 0, "sigma"), float("nan")),
+        "sigma 0": json_set(("model", "sensor", "channels", 0, "sigma"), 0),
+        "delay 1e9": json_set(("model", "action", "delay_steps"), 1e9),
+        "coefficients NaN": json_set(("model", "action", "coefficients", 0, 0), float("nan")),
+        "coefficients short": json_set(("model", "action", "coefficients"), [[1.0]]),
+    }
+    for cname, argv in model_cmds.items():
+        out += [Case(f"model.json:{k} ({cname})", "model.json", m, argv, True) for k, m in model_mutations.items()]
+    tb = ("learn", "em", "{work}/tb.csv", "--out", "{out}/m.json", *FIT)
+    # a Turtlebot CSV without one IR column, or on another clock's zero (one file: no other clock to meet)
+    out += _csv_cases("tb.csv", tb, 5, fine=("drop_column", "clock_shifted"))
+    out.append(Case("tb.csv:never moves", "tb.csv", set_all(2, "0"), tb, False))
+    track = ("convert", "track", "{work}/track.csv", "--out", "{out}/trk")
+    # a robot's own CSV may come out of order (its threads log so): sorted by time, it is the same log
+    out += _csv_cases("track.csv", track, 4, fine=("clock_shifted", "reverse", "shuffle", "swap"))
+    mrclam = ("convert", "mrclam", "{work}/mrclam", "--robot", "1", "--out", "{out}/m")
+    for name in ("Robot1_Odometry.dat", "Robot1_Measurement.dat", "Robot1_Groundtruth.dat", "Landmark_Groundtruth.dat"):
+        target = f"mrclam/{name}"
+        out += [
+            Case(f"{target}:{k}", target, bytes_mutation(k), mrclam, True, k == "truncate")
+            for k in ("truncate", "empty", "non_utf8", "binary")
+        ]
+        out += [Case(f"{target}:{v}", target, dat_cell(1, v), mrclam, True) for v in ("nan", "inf", "abc")]
+    out.append(Case("mrclam/odometry:late row", "mrclam/Robot1_Odometry.dat", dat_late_row, mrclam, True))
+    out.append(
+        Case("mrclam/measurement:negative range", "mrclam/Robot1_Measurement.dat", dat_cell(2, "-1"), mrclam, True)
+    )
+    calib = ("learn", "car", "{work}/car", "--factory-calibration", "{work}/calib.yaml", "--out", "{out}/c.json")
+    for k, m in {
+        "num_lasers=1e8": lambda d: d.replace(b"num_lasers: 64", b"num_lasers: 100000000"),
+        "non_utf8": bytes_mutation("non_utf8"),
+        "deep": deep_yaml,
+        "rot nan": lambda d: re.sub(rb"rot_correction: [-0-9.e]+", b"rot_correction: .nan", d, count=1),
+        "no lasers": lambda d: b"num_lasers: 64\ndistance_resolution: 0.002\n",
+    }.items():
+        out.append(Case(f"calib.yaml:{k}", "calib.yaml", m, calib, True))
+    car = ("learn", "car", "{work}/car", "--out", "{out}/car.json", "--no-report")
+    out += [
+        Case(f"car/actions.csv:{k}", "car/actions.csv", bytes_mutation(k), car, True, k == "truncate")
+        for k in ("truncate", "empty", "non_utf8")
+    ]
+    out += [
+        Case(f"car/actions.csv:{k}", "car/actions.csv", reorder(k), car, True)
+        for k in ("reverse", "duplicate", "one_row", "last_far", "drop_column")
+    ]
+    out += [
+        Case(f"car/actions.csv:col1={v}", "car/actions.csv", set_cell(1, v), car, True) for v in ("nan", "1e308", "x")
+    ]
+    out.append(Case("car/actions.csv:time_in_ms", "car/actions.csv", scale_column(0, 1000.0), car, True))
+    out.append(Case("car/actions.csv:clock_shifted", "car/actions.csv", shift_column(0, 1e5), car, True))
+    out.append(Case("car/groundtruth.csv:reverse", "car/groundtruth.csv", reorder("reverse"), car, True))
+    for k in ("duplicate_packets", "reverse_packets", "few_packets", "bad_length", "zero_time"):
+        out.append(Case(f"car/velodyne.pcap:{k}", "car/velodyne.pcap", pcap_mutation(k), car, True))
+    out += [
+        Case(f"car/velodyne.pcap:{k}", "car/velodyne.pcap", bytes_mutation(k), car, True, k == "truncate")
+        for k in ("truncate", "empty", "binary")
+    ]
+    for field, v in (("time_origin_s", float("nan")), ("firing_hz", 0), ("rpm", "abc"), ("vertical_deg", [])):
+        out.append(
+            Case(f"car/meta.json:lidar.{field}={v!r}", "car/meta.json", json_set(("lidar", field), v), car, True)
+        )
+    out.append(Case("car/meta.json:deep", "car/meta.json", deep_json, car, True))
+    for sub in ("diffdrive", "track1d", "field2d"):
+        for arg, v in (("--seconds", "nan"), ("--seconds", "inf"), ("--seconds", "-1"), ("--seconds", "1e12")):
+            out.append(Case(f"simulate {sub} {arg} {v}", "", None, ("simulate", sub, "--out", "{out}/s", arg, v), True))
+        out.append(
+            Case(f"simulate {sub} --seed -1", "", None, ("simulate", sub, "--out", "{out}/s", "--seed", "-1"), True)
+        )
+    for name, path in (("a device", "/dev/full"), ("a folder", "{out}"), ("a figure's name", "{out}/m.png")):
+        out.append(Case(f"learn em --out {name}", "", None, ("learn", "em", "{work}/log", "--out", path, *FIT), True))
+    out.append(
+        Case(
+            "monitor --out and --relearn the same",
+            "",
+            None,
+            (*model_cmds["monitor"][:4], "--out", "{out}/x.json", "--relearn", "{out}/x.json"),
+            True,
+        )
+    )
+    return out
+
+
+def dat_cell(column: int, value: str, row: int = 5) -> Mutation:
+    """A whitespace-separated .dat file with one cell replaced (its comment lines kept)."""
+
+    def m(data: bytes) -> bytes:
+        lines = data.decode().splitlines()
+        cells = lines[row].split()
+        cells[column] = value
+        lines[row] = " ".join(cells)
+        return ("\n".join(lines) + "\n").encode()
+
+    return m
+
+
+def dat_late_row(data: bytes) -> bytes:
+    """One odometry row a year after the rest (a clock that jumped)."""
+    lines = data.decode().splitlines()
+    cells = lines[-1].split()
+    cells[0] = f"{float(cells[0]) + 3.15e7:.6f}"
+    return ("\n".join([*lines, " ".join(cells)]) + "\n").encode()
+
+
+def set_all(column: int, value: str) -> Mutation:
+    def m(data: bytes) -> bytes:
+        rows = _rows(data)
+        for r in rows[1:]:
+            r[column] = value
+        return _join(rows)
+
+    return m
+
+
+# ---- running one ----------------------------------------------------------------------------------------------
+
+
+def run_case(case: Case, base: Path, scratch: Path) -> Ended:
+    """The case in ``scratch`` (a copy of the base inputs with its mutation), in a fresh process."""
+    work, out = scratch / "work", scratch / "out"
+    needs_car = any("{work}/car" in a for a in case.argv)  # the 33 MB capture only where it is read
+    shutil.copytree(base, work, ignore=shutil.ignore_patterns("done", *(() if needs_car else ("car",))))
+    out.mkdir()
+    if case.target:
+        target = work / case.target
+        assert case.mutate is not None
+        target.write_bytes(case.mutate(target.read_bytes()))
+    argv = [a.replace("{work}", str(work)).replace("{out}", str(out)) for a in case.argv]
+    rss_file = scratch / "rss"
+    env = os.environ | {"COLUMNS": "200", "SENSACT_FUZZ_RSS": str(rss_file)}
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(sensact_argv(*argv), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
+    code: int | None
+    try:
+        _, stderr = proc.communicate(timeout=TIMEOUT_S)
+        code = proc.returncode
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        _, stderr = proc.communicate()
+        code = None
+    seconds = time.perf_counter() - t0
+    rss = int(rss_file.read_text() or 0) if rss_file.exists() else 0
+    leftovers = tuple(str(p) for p in scratch.rglob("*.tmp"))
+    return Ended(code, stderr.decode("utf-8", "replace"), seconds, rss, leftovers)
+
+
+def problems(case: Case, ended: Ended) -> list[str]:
+    """What was wrong with how ``case`` ended (empty: it ended as issue 74 requires)."""
+    out = []
+    err = ended.stderr
+    if ended.code is None:
+        out.append(f"hung (killed after {TIMEOUT_S:.0f} s)")
+    elif ended.code not in (0, 2, 3):
+        out.append(f"exit code {ended.code}")
+    elif case.refuse and ended.code != 2 and not (case.flagged_ok and ended.code == 3):
+        out.append(f"garbage accepted: exit {ended.code}, not 2")
+    if "Traceback" in err:
+        out.append("a traceback")
+    if "internal error" in err:
+        out.append("an internal error")
+    if ended.code == 2:
+        lines = [ln for ln in err.splitlines() if ln.strip()]
+        if len(lines) != 1 or not re.match(r"^error: ", lines[0]):
+            out.append(f"not one error line: {lines[:3]}")
+    if ended.leftovers:
+        out.append(f"temporary files left: {ended.leftovers}")
+    if ended.peak_rss_bytes > MEMORY_CAP_BYTES:
+        out.append(f"peak memory {ended.peak_rss_bytes / 2**20:.0f} MiB")
+    return out
