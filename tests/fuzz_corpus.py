@@ -70,21 +70,13 @@ def set_cell(column: int, value: str, row: int = 5) -> Mutation:
     return m
 
 
-def scale_column(column: int, factor: float) -> Mutation:
+def map_column(column: int, scale: float = 1.0, offset: float = 0.0) -> Mutation:
+    """Every value of a column times ``scale`` plus ``offset`` (a clock in ms, or on another zero)."""
+
     def m(data: bytes) -> bytes:
         rows = _rows(data)
         for r in rows[1:]:
-            r[column] = repr(float(r[column]) * factor) if r[column] else r[column]
-        return _join(rows)
-
-    return m
-
-
-def shift_column(column: int, offset: float) -> Mutation:
-    def m(data: bytes) -> bytes:
-        rows = _rows(data)
-        for r in rows[1:]:
-            r[column] = repr(float(r[column]) + offset) if r[column] else r[column]
+            r[column] = repr(float(r[column]) * scale + offset) if r[column] else r[column]
         return _join(rows)
 
     return m
@@ -310,8 +302,10 @@ def _csv_cases(
     for c in range(columns):
         out += [Case(f"{target}:col{c}={v}", target, set_cell(c, v), argv, True) for v in CELLS_REFUSED]
     if time_column:
-        out.append(Case(f"{target}:time_in_ms", target, scale_column(0, 1000.0), argv, "time_in_ms" not in fine))
-        out.append(Case(f"{target}:clock_shifted", target, shift_column(0, 1e5), argv, "clock_shifted" not in fine))
+        out.append(Case(f"{target}:time_in_ms", target, map_column(0, scale=1000.0), argv, "time_in_ms" not in fine))
+        out.append(
+            Case(f"{target}:clock_shifted", target, map_column(0, offset=1e5), argv, "clock_shifted" not in fine)
+        )
     return out
 
 
@@ -405,11 +399,12 @@ def cases() -> list[Case]:
     out += [
         Case(f"car/actions.csv:col1={v}", "car/actions.csv", set_cell(1, v), car, True) for v in ("nan", "1e308", "x")
     ]
-    out.append(Case("car/actions.csv:time_in_ms", "car/actions.csv", scale_column(0, 1000.0), car, True))
-    out.append(Case("car/actions.csv:clock_shifted", "car/actions.csv", shift_column(0, 1e5), car, True))
+    out.append(Case("car/actions.csv:time_in_ms", "car/actions.csv", map_column(0, scale=1000.0), car, True))
+    out.append(Case("car/actions.csv:clock_shifted", "car/actions.csv", map_column(0, offset=1e5), car, True))
     out.append(Case("car/groundtruth.csv:reverse", "car/groundtruth.csv", reorder("reverse"), car, True))
     for k in ("duplicate_packets", "reverse_packets", "few_packets", "bad_length", "zero_time"):
-        out.append(Case(f"car/velodyne.pcap:{k}", "car/velodyne.pcap", pcap_mutation(k), car, True))
+        # a packet captured twice is read once: the same capture, the same result
+        out.append(Case(f"car/velodyne.pcap:{k}", "car/velodyne.pcap", pcap_mutation(k), car, k != "duplicate_packets"))
     out += [
         Case(f"car/velodyne.pcap:{k}", "car/velodyne.pcap", bytes_mutation(k), car, True, k == "truncate")
         for k in ("truncate", "empty", "binary")
