@@ -250,9 +250,21 @@ def base_inputs(base: Path) -> Path:
     _mrclam(base / "mrclam", rng)
     subprocess.run(sensact_argv("simulate", "car", "--out", str(base / "car"), "--seconds", "20"), check=True)
     shutil.copy(base / "car" / "calibration_true.yaml", base / "calib.yaml")  # a factory calibration to mutate
+    _timed(base / "log", base / "timed")
     (base / "settings.yaml").write_text("max_iterations: 20\n")
     (base / "done").write_text("")
     return base
+
+
+def _timed(log: Path, folder: Path) -> None:
+    """The planar log as a robot's own timed CSVs (`convert csv`): the same rows, the map as its own file."""
+    folder.mkdir()
+    shutil.copy(log / "actions.csv", folder / "commands.csv")
+    shutil.copy(log / "observations.csv", folder / "sightings.csv")
+    shutil.copy(log / "groundtruth.csv", folder / "truth.csv")
+    marks = json.loads((log / "meta.json").read_text())["landmarks"]
+    rows = [f"{m['id']},{m['x_mm']},{m['y_mm']}" for m in marks]
+    (folder / "landmarks.csv").write_text("\n".join(["id,x_mm,y_mm", *rows]) + "\n")
 
 
 def _mrclam(folder: Path, rng: np.random.Generator) -> None:
@@ -293,14 +305,22 @@ CELLS_REFUSED = ("nan", "inf", "-inf", "1e308", "-1e308", "abc", "0x1F", "1e400"
 
 
 def _csv_cases(
-    target: str, argv: tuple[str, ...], columns: int, time_column: bool = True, fine: tuple[str, ...] = ()
+    target: str,
+    argv: tuple[str, ...],
+    columns: int,
+    time_column: bool = True,
+    fine: tuple[str, ...] = (),
+    names: tuple[int, ...] = (),
 ) -> list[Case]:
-    """``fine``: row mutations that leave a well-formed file of this kind (a truth without its heading)."""
-    out = [Case(f"{target}:{k}", target, bytes_mutation(k), argv, True, k == "truncate") for k in CSV_BYTES]
+    """``fine``: row mutations that leave a well-formed file of this kind (a truth without its heading);
+    ``names``: columns of names, where any text is a name (a landmark called "nan" is one)."""
+    # a CSV cut at a row's end is a shorter well-formed one: any clean ending will do
+    out = [Case(f"{target}:{k}", target, bytes_mutation(k), argv, k != "truncate") for k in CSV_BYTES]
     out.append(Case(f"{target}:crlf_bom", target, bytes_mutation("crlf_bom"), argv, False))
     out += [Case(f"{target}:{k}", target, reorder(k), argv, k not in fine) for k in CSV_ROWS_REFUSED]
     for c in range(columns):
-        out += [Case(f"{target}:col{c}={v}", target, set_cell(c, v), argv, True) for v in CELLS_REFUSED]
+        if c not in names:
+            out += [Case(f"{target}:col{c}={v}", target, set_cell(c, v), argv, True) for v in CELLS_REFUSED]
     if time_column:
         out.append(Case(f"{target}:time_in_ms", target, map_column(0, scale=1000.0), argv, "time_in_ms" not in fine))
         out.append(
@@ -366,6 +386,18 @@ def cases() -> list[Case]:
     track = ("convert", "track", "{work}/track.csv", "--out", "{out}/trk")
     # a robot's own CSV may come out of order (its threads log so): sorted by time, it is the same log
     out += _csv_cases("track.csv", track, 4, fine=("clock_shifted", "reverse", "shuffle", "swap"))
+    timed = (
+        "convert", "csv", "--commands", "{work}/timed/commands.csv", "--sightings", "{work}/timed/sightings.csv",
+        "--landmarks", "{work}/timed/landmarks.csv", "--truth", "{work}/timed/truth.csv", "--out", "{out}/t",
+    )  # fmt: skip
+    # a robot's own CSVs may come out of order (its threads log so): sorted by time, they are the same log
+    in_any_order = ("reverse", "shuffle", "swap", "last_far")
+    out += _csv_cases("timed/commands.csv", timed, 3, fine=(*in_any_order, "one_row", "drop_column"))
+    # a sighting of a landmark not on the map is dropped and counted, as `convert csv` documents
+    out += _csv_cases("timed/sightings.csv", timed, 4, fine=(*in_any_order, "one_row", "drop_column"), names=(1,))
+    out += _csv_cases(
+        "timed/landmarks.csv", timed, 3, time_column=False, fine=("reverse", "shuffle", "swap"), names=(0,)
+    )
     mrclam = ("convert", "mrclam", "{work}/mrclam", "--robot", "1", "--out", "{out}/m")
     for name in ("Robot1_Odometry.dat", "Robot1_Measurement.dat", "Robot1_Groundtruth.dat", "Landmark_Groundtruth.dat"):
         target = f"mrclam/{name}"

@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from sensact.errors import LogFormatError
-from sensact.io.csvtable import landmark_labels, read_numeric_csv, refuse_repeated
+from sensact.io.csvtable import landmark_labels, read_numeric_csv, refuse_apart, refuse_repeated
 from sensact.io.resample import HEADING_OFFSET_RAD, held_on_grid, nearest_steps, pose_truth_on_grid
 from sensact.io.unit_checks import refuse_degrees_as_radians, truth_heading_doubt
 from sensact.limits import MAX_STEPS
@@ -55,6 +55,7 @@ UNIT_SUFFIXES = (
 )
 # the time column in other units (a ROS bag's stamps are nanoseconds) -> seconds; other columns keep _ms
 TIME_COLUMNS = {"t_ms": 1e-3, "t_us": 1e-6, "t_ns": 1e-9}
+MAX_DEFAULT_STEP_S = 2.0  # commands further apart than this (the median) are times in another unit, not a rate
 MIN_TRUTH_GAP_S = 0.1  # truth samples further apart than this (or five of their periods) leave a gap
 # times a clock in seconds cannot read: after the year 5000 on a 1970 clock, so ms, us or ns under t_s
 MAX_CLOCK_S = 1e11
@@ -203,7 +204,16 @@ def commands_step(path: Path, t_cmd: np.ndarray) -> float:
             field="t_s",
             fix="give the whole run's commands, or a step with --dt.",
         )
-    return float(np.median(gaps))
+    step = float(np.median(gaps))
+    if step > MAX_DEFAULT_STEP_S:
+        raise LogFormatError(
+            f"the command rows are {step:.4g} s apart (the median), no controller's rate: a step that long "
+            "would hold each command for all of it.",
+            file=path,
+            field="t_s",
+            fix="write the times in seconds (t_ms for milliseconds), or give the step with --dt.",
+        )
+    return step
 
 
 def _read_commands(path: Path, dt_s: float | None) -> tuple[np.ndarray, tuple[str, ...], float, np.ndarray, float]:
@@ -301,6 +311,7 @@ def read_timed_csv(
     known = np.isin(seen_id, ids)
     read = np.any(np.isfinite(values), axis=1) | (np.isfinite(bearing) if bearing is not None else False)
     keep = known & inside & read
+    refuse_apart(sightings, t_obs, inside, t_cmd[0], t_cmd[-1], f"the commands in {commands.name}")  # another clock
     if not keep.any():
         raise LogFormatError(
             f"none of the {len(keep)} sightings is kept ({int((~known).sum())} name landmarks not in "
