@@ -27,7 +27,7 @@ import numpy as np
 
 from sensact.errors import LogFormatError
 from sensact.io.resample import held_on_grid, nearest_steps
-from sensact.io.timed_csv import table_and_sources
+from sensact.io.timed_csv import MAX_DEFAULT_STEP_S, table_and_sources
 from sensact.limits import MAX_STEPS
 from sensact.logs.landmark_log import LandmarkLog
 
@@ -171,6 +171,13 @@ def read_track_csv(
         spacing = np.diff(t[read])
         spacing = spacing[spacing > 0]
         dt_s = float(np.median(spacing)) if spacing.size else 0.0
+        if dt_s > MAX_DEFAULT_STEP_S:
+            raise LogFormatError(
+                f"the readings are {dt_s:.4g} s apart (the median), no sensor's rate.",
+                file=path,
+                field=sources["t_s"],
+                fix="write the times in seconds (t_ms for milliseconds), or give the step with --dt.",
+            )
     if not (np.isfinite(dt_s) and dt_s > 0):
         raise LogFormatError(
             f"dt = {dt_s} is not a step.", file=path, field="--dt", fix="give a step in seconds with --dt, e.g. 0.05."
