@@ -207,11 +207,18 @@ def yaml_line(text: str) -> Mutation:
 # ---- the base inputs --------------------------------------------------------------------------------------------
 
 
+# the child's own peak resident memory, VmHWM: getrusage's ru_maxrss survives fork and exec on Linux, so it
+# would report the parent's (pytest's, 1.2 GB late in a suite) for every case
 CHILD = """
-import atexit, os, resource, sys
+import atexit, os, sys
 rss = os.environ.get("SENSACT_FUZZ_RSS")
+
+def peak():
+    kb = next(int(ln.split()[1]) for ln in open("/proc/self/status") if ln.startswith("VmHWM:"))
+    open(rss, "w").write(str(kb * 1024))
+
 if rss:
-    atexit.register(lambda: open(rss, "w").write(str(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024)))
+    atexit.register(peak)
 from sensact.cli import main
 sys.argv[0] = "sensact"
 main()

@@ -455,7 +455,7 @@ def test_learn_em_on_a_turtlebot_csv_recovers_the_gain_and_sonar(tmp_path):
     write_turtlebot_csv(csv, with_range=True)
     model = tmp_path / "m.json"
     res = runner.invoke(app, ["learn", "em", str(csv), "--out", str(model)])
-    assert res.exit_code == 0, res.output
+    assert_written(res)
     assert "Turtlebot CSV" in res.output and "continuous commands (v_cmd_mm_s)" in res.output
     out = json.loads(model.read_text())
     channels = out["model"]["sensor"]["channels"]
@@ -565,7 +565,7 @@ def test_localize_follows_another_run_of_a_turtlebot_with_the_model_learned_on_o
     write_turtlebot_csv(second, with_range=True, seed=8)
     assert runner.invoke(app, ["learn", "em", str(first), "--out", str(model)]).exit_code == 0
     res = runner.invoke(app, ["localize", str(second), "--model", str(model), "--out", str(tmp_path / "l.json")])
-    assert res.exit_code == 0, res.output
+    assert_written(res)
     loc = json.loads((tmp_path / "l.json").read_text())
     assert loc["start"]["how"] == "the first readings through the learned f"
     assert (
@@ -740,7 +740,7 @@ def test_a_track_folders_recorded_distance_is_scored_as_a_turtlebot_csvs_range(t
     for kind in (0, 1):  # the CSV, then the folder
         model = tmp_path / f"m{kind}.json"
         res = runner.invoke(app, ["learn", "em", str(runs["a"][kind]), "--out", str(model)])
-        assert res.exit_code == 0, res.output
+        assert_written(res)
         learned[kind] = json.loads(model.read_text())
         against = ("range", "the recorded distance")[kind]  # what the score line names
         assert f"vs {against} (optimal scale and offset): action gain" in " ".join(res.output.split())
@@ -798,7 +798,7 @@ def test_learn_em_starts_from_a_model_learned_on_another_robot_of_its_kind(tmp_p
         write_turtlebot_csv(tmp_path / f"{name}.csv", with_range=True, seed=seed, gain=gain)
     ma, mb = tmp_path / "ma.json", tmp_path / "mb.json"
     res = runner.invoke(app, ["learn", "em", str(tmp_path / "a.csv"), "--out", str(ma), "--halves"])
-    assert res.exit_code == 0, res.output
+    assert_written(res)
     # --halves: each half learned on from a's model; a's gain does not change during its run
     halves = json.loads(ma.read_text())["halves"]
     assert [h["steps"] for h in halves["fits"]] == [[0, 1249], [1249, 2499]]
@@ -812,7 +812,7 @@ def test_learn_em_starts_from_a_model_learned_on_another_robot_of_its_kind(tmp_p
     halves_png = tmp_path / "ma_halves.png"  # a panel for the velocity, each read channel and the noise
     assert f"wrote {halves_png}" in said and halves_png.stat().st_size > 30_000
     res = runner.invoke(app, ["learn", "em", str(tmp_path / "b.csv"), "--start-from", str(ma), "--out", str(mb)])
-    assert res.exit_code == 0, res.output
+    assert_written(res)
     said = " ".join(res.output.split())
     assert f"starting from {ma} (learned on {tmp_path / 'a.csv'}): its settings, parameters" in said
     assert "start: (" in said and "from the first readings through the learned f" in said
@@ -829,7 +829,7 @@ def test_learn_em_starts_from_a_model_learned_on_another_robot_of_its_kind(tmp_p
     # from a's own model on a's own run EM starts where it ended: the same fit (written over a's, without
     # --halves, so that the earlier run's halves figure goes: it would pass for this fit's)
     res = runner.invoke(app, ["learn", "em", str(tmp_path / "a.csv"), "--start-from", str(ma), "--out", str(ma)])
-    assert res.exit_code == 0, res.output
+    assert_written(res)
     assert not halves_png.exists() and f"removed {halves_png}, an earlier run's --halves figure" in " ".join(
         res.output.split()
     )

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from conftest import assert_written
 from sensact.app import read_settings_file
 from sensact.cli import app
 from sensact.core.angles import wrap_angle
@@ -196,7 +197,7 @@ def test_simulate_a_radio_robot_then_learn_and_score_it_without_a_bearing(tmp_pa
     assert "start_prior_mean: [0.0, 0.0, 0.0]" in (log / "em_config.yaml").read_text()
     args = ["learn", "em", str(log), "--config", str(log / "em_config.yaml"), "--set", "max_iterations=30"]
     res = runner.invoke(app, [*args, "--out", str(model)])
-    assert res.exit_code == 0, res.output
+    assert_written(res)
     assert "Traceback" not in res.output and "bearing" not in res.output.split("against ground truth")[1]
     ev = json.loads(model.read_text())["evaluation"]
     assert ev["bearing"] is None and ev["sensor_mount"]["fitted_to_truth"] is None  # no bearings to fit it by
@@ -278,7 +279,7 @@ def test_a_truth_of_positions_alone_converts_learns_and_is_scored_without_headin
     assert np.isnan(lf.truth_poses()[0][:, 2]).all()
     out = tmp_path / "m.json"
     res = runner.invoke(app, ["learn", "em", str(tmp_path / "log"), "--out", str(out)])
-    assert res.exit_code == 0, res.output
+    assert_written(res)
     ev = json.loads(out.read_text())["evaluation"]
     assert ev["no_heading"] and ev["bearing"] is None and ev["truth_noise"] is None
     assert ev["action"]["ratio_rotation"] is None and ev["sensor_mount"]["fitted_to_truth"] is None

@@ -12,6 +12,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from conftest import assert_written
 from continuous_robot import continuous_config, simulate_continuous
 from sensact import cli
 from sensact.app import read_settings_file
@@ -105,7 +106,7 @@ def test_mrclam_reader_and_log_folder_round_trip(tmp_path):
     cfg += ["--set", "max_iterations=2"]
     model = tmp_path / "m" / "model.json"
     run = CliRunner().invoke(cli.app, ["learn", "em", str(tmp_path / "c"), *cfg, "--out", str(model)])
-    assert run.exit_code == 0, run.output
+    assert_written(run)
     assert "against ground truth" in run.output and "bearing sigma (rad)" in run.output
     assert (tmp_path / "m" / "model_bearing.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert read_landmark_log(tmp_path / "c").title(tmp_path / "c") == "c (MRCLAM_Dataset6 robot 1)"
@@ -301,7 +302,7 @@ def test_a_short_real_log_finds_its_robot_and_a_lost_fit_says_so_and_starts_agai
     run = CliRunner().invoke(
         cli.app, ["learn", "em", str(tmp_path / "q1"), "--config", str(tmp_path / "vague.yaml"), "--out", str(out)]
     )
-    assert run.exit_code == 0, run.output
+    assert_written(run)
     flat = " ".join(run.output.split())
     assert "range_mm's f turns over at" in flat and "EM starts again with range_mm's start sigma 333" in flat, flat
     written = json.loads(out.read_text())
@@ -381,7 +382,7 @@ def test_learn_em_on_a_folder_with_recorded_poses_draws_the_figures_against_them
     run = CliRunner().invoke(
         cli.app, ["learn", "em", str(tmp_path / "log"), "--config", str(tmp_path / "em.yaml"), "--out", str(model)]
     )
-    assert run.exit_code == 0, run.output
+    assert_written(run)
     assert "against ground truth" in run.output
     said = " ".join(run.output.split())  # one sighting a frame: no within-frame split, said so, not "nan"
     assert "no frame has two sightings" in said and "nan%" not in said and "nan rad" not in said

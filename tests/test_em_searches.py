@@ -12,6 +12,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from conftest import assert_written
 from continuous_robot import LANDMARKS, TruthLog, continuous_config, simulate_continuous, tiny_track
 from sensact import cli
 from sensact.errors import ConfigError
@@ -248,7 +249,7 @@ def test_fit_searches_the_delay_on_the_ridge_schedule_only_when_a_delay_is_learn
         "prune_rad_per_step=0",
     ]
     run = CliRunner().invoke(cli.app, ["learn", "em", str(tmp_path / "log")] + [a for x in sets for a in ("--set", x)])
-    assert run.exit_code == 0, run.output
+    assert_written(run)
     assert "delay search at iteration 4: command delay" in run.output
     plain = fit_em(data, None, continuous_config(refine_from=4, max_iterations=12, search_every=3))
     plain_off = fit_em(

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from conftest import assert_written
 from sensact.cli import app
 from sensact.core.angles import wrap_angle
 from sensact.core.pose_models import landmark_bearing, landmark_distance, relative_displacement, sensor_poses
@@ -112,7 +113,7 @@ def test_learn_em_writes_the_error_bars_into_the_model(tmp_path):
     log, out = tmp_path / "log", tmp_path / "m" / "model.json"
     assert runner.invoke(app, ["simulate", "diffdrive", "--out", str(log), "--seconds", "30"]).exit_code == 0
     res = runner.invoke(app, ["learn", "em", str(log), "--out", str(out), "--uncertainty", "3"])
-    assert res.exit_code == 0, res.output
+    assert_written(res)
     doc = json.loads(out.read_text())
     unc = doc["uncertainty"]
     assert unc["method"] == "parametric bootstrap" and (unc["replicates"], unc["used"]) == (3, 3)

@@ -9,6 +9,7 @@ import shutil
 import pytest
 from typer.testing import CliRunner
 
+from conftest import assert_written
 from sensact.cli import app
 
 runner = CliRunner()
@@ -51,7 +52,7 @@ def test_each_model_is_learn_ems_and_a_bad_log_stops_no_other(fleet):
         assert entry["status"] == "learned" and entry["model"] == str(root / "F" / g / "model.json")
         alone = root / f"alone_{g}.json"
         res = runner.invoke(app, ["learn", "em", str(root / g), "--out", str(alone), "--no-report"])
-        assert res.exit_code == 0, res.output
+        assert_written(res)
         assert _model(root / "F" / g / "model.json") == _model(alone)
         assert entry["stop_reason"] == json.loads(alone.read_text())["summary"]["stop_reason"]
 
@@ -163,7 +164,7 @@ def test_a_fleets_error_bars_are_learn_ems(fleet, tmp_path):
     assert res.exit_code == 0, res.output
     alone = tmp_path / "alone.json"
     res = runner.invoke(app, ["learn", "em", str(root / "a"), "--out", str(alone), "--uncertainty", "2", "--no-report"])
-    assert res.exit_code == 0, res.output
+    assert_written(res)
     fleet_doc = _model(tmp_path / "F" / "a" / "model.json")
     assert fleet_doc["uncertainty"]["used"] == 2
     assert fleet_doc == _model(alone)

@@ -11,7 +11,7 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
-from conftest import require
+from conftest import assert_written, require
 from sensact.cli import app
 from sensact.errors import LogFormatError
 from sensact.io.csvtable import read_numeric_csv
@@ -107,7 +107,7 @@ def test_convert_track_writes_a_folder_that_learn_em_learns_and_scores(tmp_path)
     assert chans["ir_volts"]["start_slope"] == 0.0 and "valid_min" not in chans["ir2_volts"]
     model = tmp_path / "m.json"
     res = runner.invoke(app, ["learn", "em", str(out), "--out", str(model)])
-    assert res.exit_code == 0, res.output
+    assert_written(res)
     ev = json.loads(model.read_text())["evaluation"]
     assert ev["gain_error_pct"] < 1.0 and ev["sensors"]["sonar_mm"]["rms_pct_of_span"] < 2.0, ev
     assert ev["sensors"]["ir_volts"]["rms_pct_of_span"] < 3.0, ev
@@ -253,7 +253,7 @@ def test_the_real_turtlebot_under_a_users_names_clears_the_issues_bars(tmp_path,
     assert runner.invoke(app, args).exit_code == 0
     model = tmp_path / "m.json"
     res = runner.invoke(app, ["learn", "em", str(out), "--out", str(model)])
-    assert res.exit_code == 0, res.output
+    assert_written(res)
     ev = json.loads(model.read_text())["evaluation"]
     assert ev["gain_error_pct"] < 5.0 and ev["sensors"]["sonar_mm"]["rms_pct_of_span"] < 3.0, ev
     # chapter 3's learner beside it, as `reproduce turtlebot` reports it on the Turtlebot's own file

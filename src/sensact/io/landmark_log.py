@@ -436,9 +436,14 @@ def refuse_bad_truth(path: Path, g: dict[str, np.ndarray], t0: float, t1: float)
     """Ground truth is scored against: its times rise, its poses are all there, and it covers the commands'
     span on their clock."""
     refuse_unordered(path, g["t_s"], strict=True)
-    for name, v in g.items():  # a gap is a time the truth was not recorded; a column of nothing is no truth
-        if not np.isfinite(v).any():
-            raise LogFormatError("the column holds no value.", file=path, field=name, fix="fill it, or drop it.")
+    poses = [name for name in g if name != "t_s"]  # a gap is a time the truth was not recorded
+    if poses and not any(np.isfinite(g[name]).any() for name in poses):
+        raise LogFormatError(
+            "no row holds a pose: the truth is empty.",
+            file=path,
+            field=", ".join(poses),
+            fix="fill it, or drop the file.",
+        )
     t = g["t_s"]
     overlap = min(t1, float(t[-1])) - max(t0, float(t[0]))
     if overlap < MIN_OVERLAP * (t1 - t0):

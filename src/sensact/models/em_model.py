@@ -51,8 +51,6 @@ class EMModel:
         n = 3 if self.geometry == "planar" else 1
         m = np.asarray(self.prior_mean, dtype=float).reshape(n)
         P = np.asarray(self.prior_cov, dtype=float).reshape(n, n)
-        if not (np.all(np.isfinite(m)) and np.all(np.isfinite(P)) and np.allclose(P, P.T) and _positive_definite(P)):
-            raise ValueError("prior_mean must be finite and prior_cov a symmetric positive-definite matrix")
         object.__setattr__(self, "prior_mean", m)
         object.__setattr__(self, "prior_cov", P)
         if len(self.action.velocity_names) != n:
@@ -100,12 +98,16 @@ class EMModel:
                 "not an EM model.", file=source, field="kind", fix="give a model.json written by `sensact learn em`."
             )
         try:
+            prior_mean = np.asarray(data["prior_mean"], dtype=float)
+            prior_cov = np.asarray(data["prior_cov"], dtype=float)
+            if not (np.all(np.isfinite(prior_mean)) and prior_cov.ndim == 2 and _positive_definite(prior_cov)):
+                raise ValueError("prior_mean must be finite and prior_cov a symmetric positive-definite matrix")
             return cls(
                 data["geometry"],
                 action_from_dict(data["action"], source=source),
                 LandmarkSensor.from_dict(data["sensor"], source=source),
-                np.asarray(data["prior_mean"], dtype=float),
-                np.asarray(data["prior_cov"], dtype=float),
+                prior_mean,
+                prior_cov,
                 None if data.get("motion_sd") is None else np.asarray(data["motion_sd"], dtype=float),
                 None if data.get("turn_var") is None else float(data["turn_var"]),
             )
@@ -116,6 +118,8 @@ class EMModel:
 
 
 def _positive_definite(P: np.ndarray) -> bool:
+    if not (np.all(np.isfinite(P)) and np.allclose(P, P.T)):
+        return False
     try:
         np.linalg.cholesky(P)
     except np.linalg.LinAlgError:
