@@ -403,7 +403,7 @@ def cases() -> list[Case]:
     # a sighting of a landmark not on the map is dropped and counted, as `convert csv` documents
     out += _csv_cases("timed/sightings.csv", timed, 4, fine=(*in_any_order, "one_row", "drop_column"), names=(1,))
     out += _csv_cases(
-        "timed/landmarks.csv", timed, 3, time_column=False, fine=("reverse", "shuffle", "swap"), names=(0,)
+        "timed/landmarks.csv", timed, 3, time_column=False, fine=("reverse", "shuffle", "swap", "last_far"), names=(0,)
     )
     mrclam = ("convert", "mrclam", "{work}/mrclam", "--robot", "1", "--out", "{out}/m")
     for name in ("Robot1_Odometry.dat", "Robot1_Measurement.dat", "Robot1_Groundtruth.dat", "Landmark_Groundtruth.dat"):
