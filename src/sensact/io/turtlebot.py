@@ -14,6 +14,7 @@ import numpy as np
 from sensact.errors import LogFormatError
 from sensact.io.csvtable import read_csv_rows, read_numeric_csv
 from sensact.io.resample import step_count
+from sensact.io.timed_csv import MAX_DEFAULT_STEP_S
 from sensact.io.track_log import TrackLog
 from sensact.logs.landmark_log import LandmarkLog
 
@@ -55,9 +56,6 @@ def turtlebot_sensors(path: str | Path) -> tuple[str, ...]:
     return tuple(s for s in UNITS if s in header)
 
 
-MAX_ROW_STEP_S = 2.0  # rows further apart than this (the median) are a clock in another unit, not a robot's log
-
-
 def _read_checked(path: str | Path, readings: tuple[str, ...]) -> dict[str, np.ndarray]:
     """The time, command and reading columns, with the time and command columns checked."""
     cols = read_numeric_csv(path, ["time", "velocity_command"], what="Turtlebot CSV", missing_fix=_not_turtlebot(path))
@@ -78,7 +76,7 @@ def _read_checked(path: str | Path, readings: tuple[str, ...]) -> dict[str, np.n
             fix="sort the rows by time and drop duplicates.",
         )
     step = float(np.median(np.diff(t)))
-    if step > MAX_ROW_STEP_S:
+    if step > MAX_DEFAULT_STEP_S:  # the same bound as a timed CSV's commands: a clock in another unit
         raise LogFormatError(
             f"the rows are {step:.4g} s apart (the median): a Turtlebot logs about ten rows a second.",
             file=path,
