@@ -180,13 +180,23 @@ def test_a_bag_with_two_command_sources_lists_its_topics_and_writes_nothing(tmp_
         ("backwards", "/sonar's clock goes backwards"),
         ("two_clocks", "/truth's stamps are 3600 s later against the recording clock than /sonar's"),
         ("empty", "/empty (truth) has no messages"),
+        ("nan_twist", "/cmd_vel: message 6's twist is not a finite number (1 such messages)"),
+        ("inf_pose", "/truth: message 3's pose is not a finite number"),
+        ("zero_quaternion", "/truth: message 1's orientation (0, 0, 0, 0) is not a unit quaternion"),
+        ("no_range_in_span", "/sonar: 1 of its 20 ranges lie within their message's [min_range, max_range]"),
     ],
 )
 def test_a_bad_bag_gets_one_line(tmp_path, case, words):
     m = Msgs("sqlite3")
     t = T0_NS
-    msgs = [("/cmd_vel", "geometry_msgs/msg/Twist", t + k * 10**8, m.twist(0.1, 0.0)) for k in range(20)]
+    v = [float("nan") if case == "nan_twist" and k == 5 else 0.1 for k in range(20)]
+    msgs = [("/cmd_vel", "geometry_msgs/msg/Twist", t + k * 10**8, m.twist(v[k], 0.0)) for k in range(20)]
     stamps = [t + k * 10**8 for k in range(20)]
+    if case in ("inf_pose", "zero_quaternion"):  # a motion capture that lost the robot, or never set w
+        poses = [m.pose_stamped(t + k * 10**8, 0.1 * k, 0.0, 0.0) for k in range(5)]
+        poses[2].pose.position.x = float("inf") if case == "inf_pose" else 0.2
+        poses[0].pose.orientation.w = 0.0 if case == "zero_quaternion" else 1.0
+        msgs += [("/truth", "geometry_msgs/msg/PoseStamped", t + k * 10**8 + 2, p) for k, p in enumerate(poses)]
     if case == "backwards":
         stamps[10] = t
     if case == "two_clocks":  # two stamped topics an hour apart: no shift puts both on the commands' clock
@@ -194,7 +204,10 @@ def test_a_bad_bag_gets_one_line(tmp_path, case, words):
             ("/truth", "geometry_msgs/msg/PoseStamped", t + k, m.pose_stamped(t + k + 3600 * 10**9, 0, 0, 0))
             for k in range(5)
         ]
-    msgs += [("/sonar", "sensor_msgs/msg/Range", t + k * 10**8 + 1, m.range(s, 1.0)) for k, s in enumerate(stamps)]
+    ranges = [1.0 if case != "no_range_in_span" or k == 0 else 9.0 for k in range(20)]  # 9 m: beyond max_range
+    msgs += [
+        ("/sonar", "sensor_msgs/msg/Range", t + k * 10**8 + 1, m.range(s, ranges[k])) for k, s in enumerate(stamps)
+    ]
     bag = write_bag(tmp_path / "b", "sqlite3", msgs, m, empty=(("/empty", "geometry_msgs/msg/PoseStamped"),))
     args = ["convert", "bag", str(bag), "--out", str(tmp_path / "o")]
     if case == "not_a_bag":
@@ -206,7 +219,7 @@ def test_a_bad_bag_gets_one_line(tmp_path, case, words):
         args += ["--truth", "/cmd_vel"]
     if case == "empty":
         args += ["--truth", "/empty"]
-    if case == "two_clocks":
+    if case in ("two_clocks", "inf_pose", "zero_quaternion"):
         args += ["--truth", "/truth"]
     res = runner.invoke(app, args)
     text = " ".join(res.output.split())

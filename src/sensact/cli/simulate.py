@@ -121,6 +121,7 @@ def simulate_diffdrive_cmd(
     from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
     cfg = layered_config(DiffDriveConfig, config, set_, seconds=seconds, seed=seed)
+    fmt = _bag_format(bag, bag_format) if bag is not None else None
     run = simulate_diffdrive(cfg)
     log = run.log()
     write_landmark_log(out, log, groundtruth=run.groundtruth(), meta_extra={"truth": cfg.truth()})
@@ -140,14 +141,12 @@ def simulate_diffdrive_cmd(
         f"learn with `sensact learn em {out}` (settings: {em_cfg})"
     )
     if bag is not None:
-        _write_bag(run, bag, bag_format)
+        _write_bag(run, bag, fmt)
 
 
-def _write_bag(run, bag: Path, bag_format: str) -> None:
-    """The run as a ROS robot records it (experiments.diffdrive.recording_of), and its map beside it."""
+def _bag_format(bag: Path, bag_format: str) -> str:
+    """The bag's format, checked before anything is simulated: ros1 for a .bag path, else ``bag_format``."""
     from sensact.errors import ConfigError
-    from sensact.experiments.diffdrive import recording_of
-    from sensact.io.rosbag_write import write_map_csv, write_robot_bag
 
     try:
         import rosbags  # noqa: F401
@@ -160,12 +159,21 @@ def _write_bag(run, bag: Path, bag_format: str) -> None:
         raise ConfigError(
             f"--bag-format {bag_format} is not a ROS 2 storage.", field="--bag-format", fix="mcap or sqlite3"
         )
+    if bag.exists():
+        raise ConfigError(f"{bag} is there already.", field="--bag", fix="give a new path (a bag is never overwritten)")
+    return fmt
+
+
+def _write_bag(run, bag: Path, fmt: str) -> None:
+    """The run as a ROS robot records it (experiments.diffdrive.recording_of), and its map beside it."""
+    from sensact.errors import ConfigError
+    from sensact.experiments.diffdrive import recording_of
+    from sensact.io.rosbag_write import write_map_csv, write_robot_bag
+
     try:
         rec = recording_of(run)
     except ValueError as err:
         raise ConfigError(f"cannot write this robot as a bag: {err}.", field="--bag", fix="drop --bag") from None
-    if bag.exists():
-        raise ConfigError(f"{bag} is there already.", field="--bag", fix="give a new path (a bag is never overwritten)")
     path = write_robot_bag(bag, fmt, rec)
     grid = write_map_csv(bag.parent / "map.csv", rec.map_xy_m)
     console.print(

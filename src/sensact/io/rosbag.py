@@ -277,6 +277,18 @@ def _refuse_going_back(path: Path, topic: str, ns: np.ndarray, what: str, slack_
         )
 
 
+def _refuse_non_finite(path: Path, topic: str, what: str, values, first: int = 0) -> None:
+    """One line for a NaN or infinite number in a message (a driver's garbage: no row of sensact's may hold one).
+    ``values``: one row per message, the first being message ``first`` (from 0)."""
+    bad = np.flatnonzero(~np.isfinite(np.asarray(values, dtype=np.float64)).reshape(len(values), -1).all(axis=1))
+    if bad.size:
+        raise LogFormatError(
+            f"{topic}: message {first + int(bad[0]) + 1}'s {what} is not a finite number ({bad.size} such messages).",
+            file=path,
+            fix="fix the publisher, or cut the bag to the span it published numbers (ros2 bag convert, rosbag filter).",
+        )
+
+
 def _commands(
     path: Path, reader, topic: str, receive_times: bool, clocks: dict, progress: Progress | None = None
 ) -> tuple[dict[str, np.ndarray], bool]:
@@ -295,6 +307,7 @@ def _commands(
     v = np.array([t.linear.x for t in tw])
     side = np.array([t.linear.y for t in tw])
     omega = np.array([t.angular.z for t in tw])
+    _refuse_non_finite(path, topic, "twist", np.column_stack([v, side, omega]))
     table = {"t_s": _seconds(ns), "v_m_s": v}
     if np.any(side != 0):  # a robot that side-steps: its sideways command too
         table["v_left_m_s"] = side
@@ -320,6 +333,13 @@ def _ranges(
         lo = _shortest(np.array([m.min_range for _, m in msgs]))
         hi = _shortest(np.array([m.max_range for _, m in msgs]))
         r = np.where(np.isfinite(r) & (r >= lo) & (r <= hi), r, np.nan)  # REP 117: outside the span is no reading
+        if np.isfinite(r).sum() < 2:  # a sensor's model is learned from two readings at the least
+            raise LogFormatError(
+                f"{topic}: {int(np.isfinite(r).sum())} of its {r.size} ranges lie within their message's "
+                "[min_range, max_range] (outside it, nothing was seen: REP 117): too few to learn from.",
+                file=path,
+                fix="check the sensor's min_range and max_range, or give another --readings TOPIC.",
+            )
         times.append(ns)
         cols[topic] = r
     ns_all = np.concatenate(times)
@@ -334,6 +354,20 @@ def _ranges(
     return {k: v[order] for k, v in table.items()}
 
 
+QUATERNION_TOLERANCE = 0.01  # tf2 refuses a transform whose quaternion's squared norm is further than this from 1
+
+
+def _unit_quaternion(path: Path, topic: str, k: int, q) -> None:
+    norm2 = q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w
+    if not np.isfinite(norm2) or abs(norm2 - 1.0) > QUATERNION_TOLERANCE:
+        raise LogFormatError(
+            f"{topic}: message {k + 1}'s orientation ({q.x:g}, {q.y:g}, {q.z:g}, {q.w:g}) is not a unit quaternion "
+            "(tf2 refuses it too).",
+            file=path,
+            fix="fix the publisher to normalize its quaternions.",
+        )
+
+
 def _quat_matrix(q) -> np.ndarray:
     from scipy.spatial.transform import Rotation
 
@@ -346,14 +380,16 @@ def _yaw(q) -> float:
     return float(np.arctan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z)))
 
 
-def _static_tree(reader, topics: list[Topic]) -> dict[str, tuple[str, np.ndarray, np.ndarray]]:
+def _static_tree(path: Path, reader, topics: list[Topic]) -> dict[str, tuple[str, np.ndarray, np.ndarray]]:
     """child frame -> (parent, rotation, translation) from every /tf_static message."""
     tree: dict[str, tuple[str, np.ndarray, np.ndarray]] = {}
     for t in topics:
         if t.msgtype in TF_TYPES and t.name.endswith("tf_static"):
-            for _, msg in _read(reader, t.name):
+            for k, (_, msg) in enumerate(_read(reader, t.name)):
                 for tr in msg.transforms:
                     tl = tr.transform.translation
+                    _refuse_non_finite(path, t.name, f"translation to {tr.child_frame_id}", [[tl.x, tl.y, tl.z]], k)
+                    _unit_quaternion(path, t.name, k, tr.transform.rotation)
                     tree[tr.child_frame_id.lstrip("/")] = (
                         tr.header.frame_id.lstrip("/"),
                         _quat_matrix(tr.transform.rotation),
@@ -362,12 +398,18 @@ def _static_tree(reader, topics: list[Topic]) -> dict[str, tuple[str, np.ndarray
     return tree
 
 
-def _camera_pose(tree, frame: str) -> tuple[np.ndarray, np.ndarray, bool]:
+def _camera_pose(path: Path, tree, frame: str) -> tuple[np.ndarray, np.ndarray, bool]:
     """The camera frame's rotation and position in the static tree's root, and whether the tree had it."""
     rot, pos, found = np.eye(3), np.zeros(3), False
-    seen = set()
-    while frame in tree and frame not in seen:
-        seen.add(frame)
+    seen = [frame]
+    while frame in tree:
+        if tree[frame][0] in seen:
+            raise LogFormatError(
+                f"/tf_static's frames form a loop ({' -> '.join([*seen, tree[frame][0]])}): no frame is the robot's.",
+                file=path,
+                fix="publish each frame's parent once, from the robot's base_link down.",
+            )
+        seen.append(tree[frame][0])
         parent, r, p = tree[frame]
         rot, pos, found = r @ rot, r @ pos + p, True
         frame = parent
@@ -417,8 +459,8 @@ def _sightings(
     # a detector may publish a frame's tags after the next frame's: only a second back is another clock
     _refuse_going_back(path, topic, ns, "detection", int(CLOCK_GAP_S * 1e9))
     clocks[topic] = (ns, np.array(recvs, dtype=np.int64))
-    tree = _static_tree(reader, topics)
-    rot, pos, found = _camera_pose(tree, frames[0])
+    tree = _static_tree(path, reader, topics)
+    rot, pos, found = _camera_pose(path, tree, frames[0])
     notes = []
     if not found:
         rot = OPTICAL_TO_BODY
@@ -426,7 +468,9 @@ def _sightings(
             f"/tf_static does not place {frames[0]}: read as an optical frame (z forward, x right, y down) facing "
             "the robot's forward"
         )
-    xyz = np.array([r[3:] for r in rows]) @ rot.T  # the tag in the robot's axes, from the camera
+    xyz = np.array([r[3:] for r in rows])
+    _refuse_non_finite(path, topic, "tag position", xyz)
+    xyz = xyz @ rot.T  # the tag in the robot's axes, from the camera
     table = {
         "t_s": _seconds(ns),
         "landmark_id": np.array([r[1] for r in rows], dtype=np.float64),
@@ -450,6 +494,9 @@ def _truth(
         return p.pose if hasattr(p, "pose") else p
 
     poses = [pose(m) for _, m in msgs]
+    _refuse_non_finite(path, topic, "pose", [[p.position.x, p.position.y, p.position.z] for p in poses])
+    for k, p in enumerate(poses):
+        _unit_quaternion(path, topic, k, p.orientation)
     return {
         "t_s": _seconds(ns),
         "x_m": np.array([p.position.x for p in poses]),

@@ -6,6 +6,9 @@ PoseStamped, as a ROS robot records them. What ``sensact simulate diffdrive --ba
 from __future__ import annotations
 
 import math
+import os
+import shutil
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -132,24 +135,33 @@ def write_bag(
     """``messages``: (topic, msgtype, receive time ns, message), written in time order; ``empty``: (topic,
     msgtype) of topics recorded with no message."""
     messages = sorted(messages, key=lambda r: r[2])
-    if fmt == "ros1":
-        from rosbags.rosbag1 import Writer
+    path = Path(path).with_suffix(".bag") if fmt == "ros1" else Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    # written under a temporary folder beside it and moved into place whole: an interrupted write leaves no bag
+    # (a ROS 2 bag is a folder, which io.atomic's files are not)
+    scratch = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
+    try:
+        inner = scratch / path.name
+        if fmt == "ros1":
+            from rosbags.rosbag1 import Writer
 
-        path = path.with_suffix(".bag")
-        writer = Writer(path)
-        ser = m.ts.serialize_ros1
-    else:
-        from rosbags.rosbag2 import StoragePlugin, Writer
+            writer = Writer(inner)
+            ser = m.ts.serialize_ros1
+        else:
+            from rosbags.rosbag2 import StoragePlugin, Writer
 
-        plugin = StoragePlugin.MCAP if fmt == "mcap" else StoragePlugin.SQLITE3
-        writer = Writer(path, version=9, storage_plugin=plugin)
-        ser = m.ts.serialize_cdr
-    with writer:
-        conns = {topic: writer.add_connection(topic, msgtype, typestore=m.ts) for topic, msgtype in empty}
-        for topic, msgtype, t_ns, msg in messages:
-            if topic not in conns:
-                conns[topic] = writer.add_connection(topic, msgtype, typestore=m.ts)
-            writer.write(conns[topic], int(t_ns), ser(msg, msgtype))
+            plugin = StoragePlugin.MCAP if fmt == "mcap" else StoragePlugin.SQLITE3
+            writer = Writer(inner, version=9, storage_plugin=plugin)
+            ser = m.ts.serialize_cdr
+        with writer:
+            conns = {topic: writer.add_connection(topic, msgtype, typestore=m.ts) for topic, msgtype in empty}
+            for topic, msgtype, t_ns, msg in messages:
+                if topic not in conns:
+                    conns[topic] = writer.add_connection(topic, msgtype, typestore=m.ts)
+                writer.write(conns[topic], int(t_ns), ser(msg, msgtype))
+        os.rename(inner, path)  # refuses (never merges into) a folder that appeared meanwhile
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
     return path
 
 
