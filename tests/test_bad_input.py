@@ -130,19 +130,42 @@ def test_a_degenerate_fit_is_written_flagged_and_exits_3(planar_log, tmp_path, k
         assert codes & {"reading_explains_nothing", "gain_sign_flips"}
 
 
-def test_a_healthy_fit_has_no_flags(planar_log, tmp_path):
-    out = tmp_path / "m.json"
+@pytest.fixture(scope="module")
+def healthy_model(planar_log: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("healthy") / "m.json"
     res = runner.invoke(app, ["learn", "em", str(planar_log), "--out", str(out), "--no-report"])
     assert res.exit_code == 0, res.output
-    assert json.loads(out.read_text())["health"] == {"ok": True, "flags": []}
+    return out
 
 
-def test_a_model_that_is_not_a_model_is_refused(planar_log, tmp_path):
+def test_a_healthy_fit_has_no_flags(healthy_model):
+    assert json.loads(healthy_model.read_text())["health"] == {"ok": True, "flags": []}
+
+
+@pytest.mark.parametrize("command", ["localize", "monitor"])
+def test_what_a_flagged_model_gives_is_flagged_too(planar_log, healthy_model, tmp_path, command):
+    doc = json.loads(healthy_model.read_text())
+    for name, health, code in (
+        ("ok.json", doc["health"], 0),
+        ("flagged.json", {"ok": False, "flags": [{"code": "sigma_collapsed", "message": "range_mm's sigma."}]}, 3),
+    ):
+        shutil.copy(healthy_model.with_suffix(".path.npz"), (tmp_path / name).with_suffix(".path.npz"))
+        (tmp_path / name).write_text(json.dumps(doc | {"health": health}))
+        out = tmp_path / f"{command}_{name}"
+        res = runner.invoke(app, [command, str(planar_log), "--model", str(tmp_path / name), "--out", str(out)])
+        assert res.exit_code == code, res.output
+        got = json.loads(out.read_text())["health"]
+        if code:
+            assert [f["code"] for f in got["flags"]] == ["model_flagged"] and "sigma_collapsed" in res.output
+        else:
+            assert got == {"ok": True, "flags": []}
+
+
+def test_a_model_that_is_not_a_model_is_refused(healthy_model):
     from sensact.app.logs import read_em_model
 
-    res = runner.invoke(app, ["learn", "em", str(planar_log), "--out", str(tmp_path / "m.json"), "--no-report"])
-    assert res.exit_code == 0
-    good = json.loads((tmp_path / "m.json").read_text())
+    tmp_path = healthy_model.parent
+    good = json.loads(healthy_model.read_text())
     bad = {
         "prior_cov": [[1, 2, 0], [2, 1, 0], [0, 0, 1]],
         "prior_mean": [float("nan"), 0, 0],
@@ -166,3 +189,75 @@ def test_delayed_commands_never_allocate_more_than_the_log():
     c = np.arange(5.0)[:, None]
     assert delayed(c, 2).ravel().tolist() == [0, 0, 0, 1, 2]
     assert delayed(c, 10**12).ravel().tolist() == [0, 0, 0, 0, 0]
+
+
+def test_a_wrong_option_is_one_line_with_exit_2(monkeypatch, capsys):
+    """click's usage errors (a wrong type, an unknown option, a missing argument) end as every bad input does."""
+    from sensact.cli import main
+
+    for argv, where in (
+        (["reproduce", "track1d", "--trials", "abc"], "sensact reproduce"),
+        (["learn", "em", "--bogus", "1"], "sensact learn em"),
+        (["learn", "em"], "sensact learn em"),
+    ):
+        monkeypatch.setattr("sys.argv", ["python -m sensact", *argv])
+        with pytest.raises(SystemExit) as end:
+            main()
+        err = capsys.readouterr().err
+        lines = [ln for ln in err.splitlines() if ln.strip()]
+        assert end.value.code == EXIT_BAD_INPUT and len(lines) == 1, err
+        assert lines[0].startswith("error: ") and lines[0].endswith(f"Fix: see `{where} --help`."), lines[0]
+
+
+def test_a_late_row_is_refused_by_chapter_3_before_allocating(tmp_path):
+    rows = ["time,range,velocity_command,sonar1"] + [f"{0.1 * k:.1f},1.0,0.1,1.0" for k in range(50)]
+    (tmp_path / "tb.csv").write_text("\n".join([*rows, "1e9,1.0,0.1,1.0"]) + "\n")
+    res = runner.invoke(app, ["learn", "bootstrap", str(tmp_path / "tb.csv"), "--no-report"])
+    assert res.exit_code == EXIT_BAD_INPUT and "SENSACT_MAX_STEPS" in res.output, res.output
+
+
+def test_reproduce_bounds_its_trials():
+    res = runner.invoke(app, ["reproduce", "track1d", "--trials", "1000000000"])
+    assert res.exit_code == EXIT_BAD_INPUT and "SENSACT_MAX_TRIALS" in res.output, res.output
+
+
+def test_export_checks_the_path_and_the_calibration_it_writes(healthy_model, tmp_path):
+    from sensact.io.velodyne_calibration import calibration_yaml
+    from sensact.models.laser_intrinsics import LaserIntrinsics
+
+    model = tmp_path / "m.json"
+    shutil.copy(healthy_model, model)
+    with np.load(healthy_model.with_suffix(".path.npz")) as z:
+        arrays = {k: z[k] for k in z.files}
+    tum = ["export", str(model), "--format", "tum", "--out", str(tmp_path / "m.tum")]
+    for key, broken, words in (
+        ("mean", lambda a: np.where(np.arange(a.shape[0])[:, None] == 3, np.nan, a), "not finite"),
+        ("time_s", lambda a: a[::-1].copy(), "do not rise"),
+        ("mean", lambda a: a[:-1], "times for poses"),
+    ):
+        np.savez(model.with_suffix(".path.npz"), **(arrays | {key: broken(arrays[key])}))
+        res = runner.invoke(app, tum)
+        assert res.exit_code == EXIT_BAD_INPUT and words in res.output, res.output
+    np.savez(model.with_suffix(".path.npz"), **arrays)
+    assert runner.invoke(app, tum).exit_code == 0
+    import yaml
+
+    cal = yaml.safe_load(calibration_yaml(LaserIntrinsics(np.zeros(4), np.full(4, 0.01), 0.002, ())))
+    car = tmp_path / "car.json"
+    velodyne = ["export", str(car), "--format", "velodyne", "--out", str(tmp_path / "v.yaml")]
+    car.write_text(json.dumps({"velodyne_calibration": cal}))
+    assert runner.invoke(app, velodyne).exit_code == 0
+    assert yaml.safe_load((tmp_path / "v.yaml").read_text()) == cal  # what learn car wrote, as it wrote it
+    cal["num_lasers"] = 10**8
+    car.write_text(json.dumps({"velodyne_calibration": cal}))
+    res = runner.invoke(app, velodyne)
+    assert res.exit_code == EXIT_BAD_INPUT and "num_lasers" in res.output, res.output
+
+
+def test_a_static_transform_tree_that_loops_is_refused(tmp_path):
+    from sensact.io.rosbag import _camera_pose
+
+    eye, zero = np.eye(3), np.zeros(3)
+    assert _camera_pose(tmp_path, {"cam": ("base_link", eye, np.ones(3))}, "cam")[2]
+    with pytest.raises(SensactError, match="form a loop"):
+        _camera_pose(tmp_path, {"cam": ("link", eye, zero), "link": ("cam", eye, zero)}, "cam")

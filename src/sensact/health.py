@@ -31,3 +31,30 @@ class Health:
     @classmethod
     def of(cls, *flags: HealthFlag | None) -> Health:
         return cls(tuple(f for f in flags if f is not None))
+
+
+def learned_health(doc: dict[str, Any]) -> Health:
+    """What a model.json says of its own fit (``health``, as the learner wrote it; none in a file that predates
+    it), kept as flags: a path placed or a change tested with a flagged model is as doubtful as the model."""
+    node = doc.get("health")
+    flags = node.get("flags") if isinstance(node, dict) else None
+    if not isinstance(flags, list):
+        return Health()
+    return Health.of(
+        *(
+            HealthFlag(
+                "model_flagged",
+                f"the model was flagged when it was learned ({f.get('code')}: "
+                f"{str(f.get('message')).rstrip('.')}); what it gives here is as doubtful.",
+            )
+            for f in flags
+            if isinstance(f, dict)
+        )
+    )
+
+
+def filter_failed(ok: bool, what: str) -> HealthFlag | None:
+    """The flag of an E-step whose covariances lost positive definiteness (``what``: what not to trust)."""
+    if ok:
+        return None
+    return HealthFlag("filter_failed", f"the Kalman filter lost positive definiteness: {what} is not to be trusted.")

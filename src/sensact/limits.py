@@ -48,3 +48,7 @@ def value_problem(values: object, what: str) -> str | None:
     if v.size and float(v.max()) > MAX_VALUE:
         return f"{what} holds {float(v.max()):.3g}, beyond {MAX_VALUE:.3g} in any unit (SENSACT_MAX_VALUE raises it)"
     return None
+
+
+# trials of one experiment (`reproduce --trials`): 10,000 of the shortest (track1d's) take about a day here
+MAX_TRIALS = _env_int("SENSACT_MAX_TRIALS", 10_000)

@@ -10,15 +10,15 @@ forward, heading 0 facing +y, millimetres).
 
 from __future__ import annotations
 
-import json
 import math
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from sensact.errors import ModelFormatError
+from sensact.errors import LogFormatError, ModelFormatError
 from sensact.models.em_model import EMModel
 
 FORMATS = ("robot-localization", "tum", "velodyne")
@@ -175,10 +175,20 @@ def _t0_s(folder: Path | None) -> float:
     """The log's first step on the recording's own clock (a bag's: epoch seconds), 0 when unknown."""
     if folder is None:
         return 0.0
-    meta = json.loads((folder / "meta.json").read_text(encoding="utf-8"))
-    src = meta.get("source") or {}
-    t0 = src.get("t0_s", (src.get("tables") or {}).get("t0_s", 0.0))
-    return float(t0) if isinstance(t0, int | float) else 0.0
+    from sensact.io.jsonfile import read_json_object
+
+    meta = read_json_object(folder / "meta.json", LogFormatError, "give the log folder's own meta.json.")
+    src = meta.get("source") if isinstance(meta.get("source"), dict) else {}
+    tables = src.get("tables") if isinstance(src.get("tables"), dict) else {}
+    t0 = src.get("t0_s", tables.get("t0_s", 0.0))
+    if not isinstance(t0, int | float) or not math.isfinite(t0):
+        raise LogFormatError(
+            f"source.t0_s {t0!r} is not a time.",
+            file=folder / "meta.json",
+            field="source.t0_s",
+            fix="convert the log again.",
+        )
+    return float(t0)
 
 
 def tum_rows(t_s: np.ndarray, x_mm: np.ndarray, y_mm: np.ndarray, theta: np.ndarray) -> str:
@@ -191,21 +201,39 @@ def tum_rows(t_s: np.ndarray, x_mm: np.ndarray, y_mm: np.ndarray, theta: np.ndar
     )
 
 
+def _read_path(npz: Path) -> tuple[np.ndarray, np.ndarray]:
+    """A planar path's times (s) and poses (x_mm, y_mm, theta_rad), checked: finite, as many times as poses,
+    times rising."""
+    again = "learn it again with `sensact learn em` (or `localize`)."
+    try:
+        with np.load(npz, allow_pickle=False) as z:
+            names = tuple(str(s) for s in z["state"])
+            t, mean = np.asarray(z["time_s"], dtype=np.float64), np.asarray(z["mean"], dtype=np.float64)
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
+        raise ModelFormatError(f"not a path sensact wrote ({type(exc).__name__}).", file=npz, fix=again) from None
+    if names != ("x_mm", "y_mm", "theta_rad"):
+        raise ModelFormatError(
+            "a 1-D track's path has no pose to write as TUM.", file=npz, fix="export a planar model's path."
+        )
+    if t.ndim != 1 or mean.shape != (t.size, 3) or not t.size:
+        raise ModelFormatError(f"{t.shape} times for poses of shape {mean.shape}.", file=npz, field="mean", fix=again)
+    if not (np.isfinite(t).all() and np.isfinite(mean).all()):
+        raise ModelFormatError("the path holds a number that is not finite.", file=npz, field="mean", fix=again)
+    if np.any(np.diff(t) <= 0):
+        raise ModelFormatError("the path's times do not rise.", file=npz, field="time_s", fix=again)
+    return t, mean
+
+
 def export_tum(doc: dict[str, Any], source: Path, out: Path, truth_out: Path | None) -> Exported:
     from sensact.io.atomic import write_text
 
+    read_em_doc(doc, source)  # the path is exported only beside a model that reads as one
     npz = source.with_suffix(".path.npz")
     if not npz.is_file():
         raise ModelFormatError(
             f"no smoothed path beside it ({npz.name}).", file=source, fix="learn it again with `sensact learn em`."
         )
-    with np.load(npz) as z:
-        names = tuple(str(s) for s in z["state"])
-        if names != ("x_mm", "y_mm", "theta_rad"):
-            raise ModelFormatError(
-                "a 1-D track's path has no pose to write as TUM.", file=npz, fix="export a planar model's path."
-            )
-        t, mean = z["time_s"], z["mean"]
+    t, mean = _read_path(npz)
     folder = _log_folder(doc, source)
     t0 = _t0_s(folder)
     write_text(out, tum_rows(t0 + t, mean[:, 0], mean[:, 1], mean[:, 2]))
@@ -228,8 +256,6 @@ def export_tum(doc: dict[str, Any], source: Path, out: Path, truth_out: Path | N
 
 
 def velodyne_yaml(doc: dict[str, Any], source: Path) -> str:
-    import yaml
-
     cal = doc.get("velodyne_calibration")
     if not isinstance(cal, dict):
         raise ModelFormatError(
@@ -238,7 +264,9 @@ def velodyne_yaml(doc: dict[str, Any], source: Path) -> str:
             field="velodyne_calibration",
             fix="give a model.json written by `sensact learn car` (learn it again if it predates the export).",
         )
-    return yaml.safe_dump(cal, sort_keys=False, default_flow_style=False)
+    from sensact.io.velodyne_calibration import calibration_from_dict, calibration_yaml
+
+    return calibration_yaml(calibration_from_dict(cal, source))  # checked as a calibration file is
 
 
 def default_out(model: Path, fmt: str) -> Path:

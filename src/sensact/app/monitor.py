@@ -11,6 +11,7 @@ import numpy as np
 
 from sensact.app.calibrate import Calibration, FitEvents, calibrate, learned_settings
 from sensact.app.logs import OpenedLog, read_model_and_log
+from sensact.health import Health, filter_failed, learned_health
 from sensact.learn.em.localize import learned_config
 from sensact.learn.em.monitor import MonitorConfig, MonitorResult, monitor_placed
 from sensact.models.em_model import EMModel
@@ -25,12 +26,18 @@ class Monitored:
     result: MonitorResult
     seconds: float
 
+    @property
+    def health(self) -> Health:
+        """The model's own flags when it was learned, and a filter that failed here."""
+        return Health.of(*learned_health(self.model_doc).flags, filter_failed(self.result.filter_ok, "the change test"))
+
     def to_json(self) -> dict[str, Any]:
         """monitor.json: ``changed``; ``change`` (``stream``, ``model``: "action" or "sensor", ``alarm_s``,
         ``change_s``, ``delay_s``, ``direction``, ``persists_sigma``) or null; every stream's test."""
         res = self.result
         change = res.change_dict()
         return {
+            "health": self.health.to_dict(),
             "log": str(self.log.path),
             "model": str(self.model_path),
             "start": self.model.prior_mean.tolist(),

@@ -87,6 +87,10 @@ def friendly(fn: F) -> F:
 
         with _sigterm_as_interrupt(), one_run():
             try:
+                if isinstance(kwargs.get("seed"), int):  # every command's --seed, before any work
+                    from sensact.config import refuse_non_finite
+
+                    refuse_non_finite(kwargs["seed"], None, "--seed", "the command line")
                 return fn(*args, **kwargs)
             except (
                 typer.Exit,
@@ -407,10 +411,39 @@ def merged(cls: type, base: Any, fields: dict[str, Any]) -> Any:
     )
 
 
+def _is(exc: BaseException, name: str) -> bool:
+    """Whether ``exc`` is click's exception ``name``: typer 0.29 raises those of its own copy of click, earlier
+    typers click's, so the class is matched by name."""
+    return any(c.__name__ == name for c in type(exc).__mro__)
+
+
+def usage_error_line(exc: Any) -> str:
+    """A wrong option or argument (click's UsageError) as one line, as every other bad input ends (click's
+    own ending prints three)."""
+    ctx = getattr(exc, "ctx", None)
+    where = ctx.command_path if ctx is not None else "sensact"
+    return f"error: {exc.format_message().rstrip('.')}. Fix: see `{where} --help`."
+
+
 def main() -> None:
     """Console-script entry point."""
     try:
-        app()
+        try:
+            code = app(standalone_mode=False, prog_name="sensact")  # click's errors come here, to end in one line
+        except Exception as exc:
+            if _is(exc, "NoArgsIsHelpError"):  # `sensact learn`: its help, as --help prints it
+                err_console.print(escape(exc.format_message()), highlight=False, soft_wrap=True)  # type: ignore[attr-defined]
+                sys.exit(EXIT_BAD_INPUT)
+            if _is(exc, "UsageError"):
+                err_console.print(escape(usage_error_line(exc)), highlight=False, soft_wrap=True)
+                sys.exit(EXIT_BAD_INPUT)
+            if _is(exc, "Abort"):  # click's name for Ctrl-C while it parses
+                sys.exit(EXIT_INTERRUPTED)
+            if _is(exc, "ClickException"):
+                err_console.print(f"error: {escape(exc.format_message())}", highlight=False, soft_wrap=True)  # type: ignore[attr-defined]
+                sys.exit(getattr(exc, "exit_code", EXIT_BAD_INPUT))
+            raise
+        sys.exit(code if isinstance(code, int) else 0)
     except SensactError as exc:  # raised outside a command, e.g. while parsing
         if _state["debug"]:
             raise

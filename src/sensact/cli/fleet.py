@@ -14,6 +14,7 @@ from sensact.cli.base import (
     SetOpt,
     app,
     console,
+    err_console,
     friendly,
     print_tables,
     progress_bar,
@@ -147,7 +148,17 @@ def fleet_learn_cmd(
             f"[yellow]flagged:[/] {escape(o.log)}: " + "; ".join(f.code for f in o.health.flags), highlight=False
         )
     if run.n_failed:
-        raise typer.Exit(_exit_code(run))
+        from sensact.engine import Failed
+
+        code = _exit_code(run)
+        name, first = next((g, o) for g, o in zip(run.names, run.outcomes, strict=True) if isinstance(o, Failed))
+        err_console.print(
+            f"{'error' if code == 2 else 'failed'}: {run.n_failed} of {len(run.outcomes)} logs could not be learned "
+            f"(fleet.json says why); the first, {escape(name)}: {escape(first.error)}",
+            highlight=False,
+            soft_wrap=True,
+        )
+        raise typer.Exit(code)
     if flagged:  # every model written, some not to be trusted (docs/errors.md)
         raise typer.Exit(EXIT_SOME_FAILED)
 

@@ -15,6 +15,7 @@ from sensact.cli.base import (
     app,
     check_out_file,
     console,
+    finish,
     friendly,
     layered_config,
     progress_bar,
@@ -172,6 +173,7 @@ def localize_cmd(
 
     from sensact.app.logs import read_model_and_log
     from sensact.app.save import write_smoothed_path
+    from sensact.health import Health, filter_failed, learned_health
 
     doc, m, opened = read_model_and_log(log, model, bins, use="run")
     data, lf, truth_mm = opened.data, opened.folder, opened.recorded_distance_mm
@@ -179,10 +181,12 @@ def localize_cmd(
     loc, per_learned = place_robot(doc, m, data, model, config, set_, _parse_start(start, m.prior_mean.size))
     post = loc.posteriors
     scores = _truth_scores(loc, poses, truth_mm, (doc.get("evaluation") or {}).get("state_map"), data.dt_s)
+    health = Health.of(*learned_health(doc).flags, filter_failed(post.ok, "the path"))
     if out is not None:
         write_result(
             out,
             {
+                "health": health.to_dict(),
                 "log": data.source,
                 "model": str(model),
                 "start": loc.start,
@@ -205,3 +209,4 @@ def localize_cmd(
             figure_localized(loc, data, out.with_suffix(".png"), f"{Path(model).name} on {name}", truth_path)
         )
         console.print("wrote " + ", ".join(str(p) for p in written))
+    finish(health)

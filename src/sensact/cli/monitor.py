@@ -15,6 +15,7 @@ from sensact.cli.base import (
     app,
     check_out_file,
     console,
+    finish,
     friendly,
     layered_config,
     progress_bar,
@@ -60,6 +61,7 @@ def monitor_cmd(
     check_out_file(out)
     check_out_file(relearn, "--relearn", others={"--out": out})
     from sensact.app.monitor import monitor_log
+    from sensact.health import Health
     from sensact.io.atomic import write_json
     from sensact.learn.em.monitor import MonitorConfig
 
@@ -81,8 +83,7 @@ def monitor_cmd(
             f"({e.alarm_s - e.change_s:.1f} s later)",
             highlight=False,
         )
-    if not res.filter_ok:
-        console.print("[yellow]the filter lost positive definiteness: the test is not to be trusted.[/]")
+    health = mon.health
     if out is not None:
         from sensact.report.figures_monitor import figure_monitor
 
@@ -92,6 +93,7 @@ def monitor_cmd(
     if relearn is not None:
         if found is None:
             console.print("nothing changed: nothing relearned")
+            finish(health)
             return
         from sensact.app.calibrate import FitEvents
         from sensact.app.monitor import relearn as relearn_from_change
@@ -113,3 +115,5 @@ def monitor_cmd(
                 f"relearned from {began:.1f} s: {res2.stop_reason} after {res2.iterations} iterations; wrote {relearn}",
                 highlight=False,
             )
+            health = Health.of(*health.flags, *cal.diagnostics.health.flags)
+    finish(health)

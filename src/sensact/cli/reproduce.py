@@ -83,6 +83,14 @@ def reproduce(
         )
     if trials is not None and trials < 1:
         raise ConfigError(f"--trials {trials} runs nothing.", field="--trials", fix="give 1 or more.")
+    from sensact.limits import MAX_TRIALS
+
+    if trials is not None and trials > MAX_TRIALS:
+        raise ConfigError(
+            f"--trials {trials:,} is over the limit of {MAX_TRIALS:,} (SENSACT_MAX_TRIALS raises it).",
+            field="--trials",
+            fix="give fewer trials; a table's rows are usually 15.",
+        )
     todo = [experiment] if experiment else list(EXPERIMENTS)
     from sensact.engine import open_engine
 

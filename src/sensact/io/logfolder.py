@@ -22,6 +22,7 @@ from sensact.errors import LogFormatError
 from sensact.io.atomic import write_json, write_text
 from sensact.io.csvtable import read_numeric_csv
 from sensact.io.jsonfile import read_json_object
+from sensact.io.resample import step_count
 from sensact.io.track_log import TrackLog
 
 LOG_FORMAT = "sensact-log"
@@ -181,6 +182,8 @@ def read_track_log(path: str | Path, sensor: str | None = None) -> TrackLog:
             fix="give a log whose sensor read something, on the same clock as actions.csv.",
         )
     times = np.union1d(t_a, t_o)
+    # chapter 3's learner steps at the commands' rate: bounded before it allocates (sensact.limits)
+    step_count(times[-1] - times[0], float(np.median(np.diff(t_a))), str(path / "observations.csv"), "t_s")
     commands = c[np.searchsorted(t_a, times, side="right") - 1]
     observations = np.full(len(times), np.nan)
     observations[np.searchsorted(times, t_o)] = o

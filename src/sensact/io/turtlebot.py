@@ -83,6 +83,7 @@ def _read_checked(path: str | Path, readings: tuple[str, ...]) -> dict[str, np.n
             field="time",
             fix="write time in seconds (a time in milliseconds divided by 1000).",
         )
+    step_count(t[-1] - t[0], step, str(path))  # bounded before anything steps at this rate (sensact.limits)
     if np.any(~np.isfinite(cols["velocity_command"])):
         raise LogFormatError(
             "a velocity_command cell is empty.", file=path, field="velocity_command", fix="fill every command cell."

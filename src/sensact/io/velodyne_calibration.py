@@ -23,6 +23,12 @@ def read_calibration(path: str | Path) -> LaserIntrinsics:
         data = yaml.safe_load(path.read_text(encoding="utf-8"))
     except (yaml.YAMLError, UnicodeDecodeError, RecursionError) as exc:
         raise LogFormatError(f"not valid YAML ({exc.__class__.__name__}).", file=path, fix="repair the file.") from None
+    return calibration_from_dict(data, path)
+
+
+def calibration_from_dict(data: Any, path: str | Path) -> LaserIntrinsics:
+    """A calibration file's content (or a car model's ``velodyne_calibration``), checked; ``path`` names it."""
+    path = Path(path)
     lasers = data.get("lasers") if isinstance(data, dict) else None
     if not isinstance(lasers, list) or not lasers:
         raise LogFormatError(
@@ -55,6 +61,14 @@ def read_calibration(path: str | Path) -> LaserIntrinsics:
             fix="number the lasers 0 to num_lasers-1, one entry each.",
         )
     ordered = [rows[i] for i in range(n)]
+    resolution = data.get("distance_resolution", 0.002)
+    if not isinstance(resolution, int | float) or not (math.isfinite(resolution) and resolution > 0):
+        raise LogFormatError(
+            f"distance_resolution {resolution!r} is not a length.",
+            file=path,
+            field="distance_resolution",
+            fix="give the unit's range step in metres (0.002 for an HDL-64E).",
+        )
     return LaserIntrinsics(
         np.array([float(r["vert_correction"]) for r in ordered]),
         np.array([float(r["rot_correction"]) for r in ordered]),
