@@ -204,6 +204,100 @@ def yaml_line(text: str) -> Mutation:
     return lambda data: data + ("\n" + text + "\n").encode()
 
 
+# ---- mutations of a ROS 1 bag ----------------------------------------------------------------------------------
+
+# edit(topic, receive ns, message, k: the message's index on its topic) -> the (receive ns, message)s in its place
+BagEdit = Callable[[str, int, object, int], list[tuple[int, object]]]
+
+
+def bag_rewrite(edit: BagEdit) -> Mutation:
+    """A ROS 1 bag with each message replaced by what ``edit`` gives (message-level garbage, as a broken
+    driver or a merged recording writes it), rewritten with rosbags' own writer."""
+
+    def m(data: bytes) -> bytes:
+        import tempfile
+
+        from rosbags.rosbag1 import Reader, Writer
+
+        from sensact.io.rosbag_write import typestore
+
+        ts = typestore("ros1")
+        with tempfile.TemporaryDirectory() as d:
+            src, dst = Path(d) / "in.bag", Path(d) / "out.bag"
+            src.write_bytes(data)
+            out, seen = [], {}
+            with Reader(src) as r:
+                for c, t, raw in r.messages():
+                    k = seen[c.topic] = seen.get(c.topic, -1) + 1
+                    msg = ts.deserialize_ros1(raw, c.msgtype)
+                    out += [(c.topic, c.msgtype, t2, m2) for t2, m2 in edit(c.topic, t, msg, k)]
+            with Writer(dst) as w:
+                conns = {}
+                for topic, msgtype, t, msg in out:
+                    if topic not in conns:
+                        conns[topic] = w.add_connection(topic, msgtype, typestore=ts)
+                    w.write(conns[topic], int(t), ts.serialize_ros1(msg, msgtype))
+            return dst.read_bytes()
+
+    return m
+
+
+def _stamp(msg) -> object:
+    return msg.header.stamp if hasattr(msg, "header") else msg.transforms[0].header.stamp
+
+
+def on(topic: str, change: Callable[[object], None], which: Callable[[int], bool] = lambda k: k == 20) -> Mutation:
+    """``change`` (in place) of the messages of ``topic`` whose index ``which`` picks (by default the 21st)."""
+
+    def edit(t_topic: str, t: int, msg: object, k: int) -> list[tuple[int, object]]:
+        if t_topic == topic and which(k):
+            change(msg)
+        return [(t, msg)]
+
+    return bag_rewrite(edit)
+
+
+def _set(path: str, value: float) -> Callable[[object], None]:
+    """Set a dotted field of a message (``transforms.0.transform.translation.x``) to ``value``."""
+
+    def change(msg: object) -> None:
+        *parents, last = path.split(".")
+        node = msg
+        for p in parents:
+            node = node[int(p)] if p.isdigit() else getattr(node, p)
+        setattr(node, last, value)
+
+    return change
+
+
+def _shift_stamp(seconds: float) -> Callable[[object], None]:
+    def change(msg: object) -> None:
+        for st in [tr.header.stamp for tr in getattr(msg, "transforms", [])] or [msg.header.stamp]:
+            ns = st.sec * 10**9 + st.nanosec + int(seconds * 1e9)
+            st.sec, st.nanosec = ns // 10**9, ns % 10**9
+
+    return change
+
+
+def every(k: int) -> bool:
+    return True
+
+
+def bag_keep(topic: str, which: Callable[[int], bool]) -> Mutation:
+    """Only the messages of ``topic`` whose index ``which`` picks (the others' all)."""
+    return bag_rewrite(lambda tp, t, msg, k: [(t, msg)] if tp != topic or which(k) else [])
+
+
+def bag_twice(topic: str) -> Mutation:
+    """Every message of ``topic`` recorded twice (two recorders merged)."""
+    return bag_rewrite(lambda tp, t, msg, k: [(t, msg)] * (2 if tp == topic else 1))
+
+
+def bag_late(topic: str, seconds: float) -> Mutation:
+    """One message of ``topic`` recorded ``seconds`` after it was (a recording clock that jumped)."""
+    return bag_rewrite(lambda tp, t, msg, k: [(t + int(seconds * 1e9) if tp == topic and k == 20 else t, msg)])
+
+
 # ---- the base inputs --------------------------------------------------------------------------------------------
 
 
@@ -257,7 +351,13 @@ def base_inputs(base: Path) -> Path:
     _mrclam(base / "mrclam", rng)
     subprocess.run(sensact_argv("simulate", "car", "--out", str(base / "car"), "--seconds", "20"), check=True)
     shutil.copy(base / "car" / "calibration_true.yaml", base / "calib.yaml")  # a factory calibration to mutate
+    import yaml
+
+    # what `export --format velodyne` reads of a `learn car` model (learning one would take 17 s here)
+    cal = yaml.safe_load((base / "calib.yaml").read_text())
+    (base / "car_model.json").write_text(json.dumps({"velodyne_calibration": cal}))
     _timed(base / "log", base / "timed")
+    _bags(base, t, cmd, pos, rng)
     (base / "settings.yaml").write_text("max_iterations: 20\n")
     (base / "done").write_text("")
     return base
@@ -272,6 +372,28 @@ def _timed(log: Path, folder: Path) -> None:
     marks = json.loads((log / "meta.json").read_text())["landmarks"]
     rows = [f"{m['id']},{m['x_mm']},{m['y_mm']}" for m in marks]
     (folder / "landmarks.csv").write_text("\n".join(["id,x_mm,y_mm", *rows]) + "\n")
+
+
+def _bags(base: Path, t: np.ndarray, cmd: np.ndarray, pos: np.ndarray, rng: np.random.Generator) -> None:
+    """bag/robot.bag (ROS 1: /cmd_vel, tags on /tf, /tf_static, /mocap/pose) with bag/map.csv, the same robot's
+    ROS 2 MCAP bag folder bag2/robot/ (with bag2/map.csv), and bag1d.bag: the Turtlebot-style robot's /cmd_vel and
+    one sonar as sensor_msgs/Range."""
+    from sensact.io.rosbag_write import Msgs, write_bag
+
+    for folder, fmt, name in (("bag", "ros1", "robot.bag"), ("bag2", "mcap", "robot")):
+        sim = base / f"{folder}_sim"
+        bag_args = ("--bag", str(base / folder / name), "--bag-format", "mcap") if fmt == "mcap" else ()
+        bag_args = bag_args or ("--bag", str(base / folder / name))
+        argv = sensact_argv("simulate", "diffdrive", "--out", str(sim), "--seconds", "40", *bag_args)
+        subprocess.run(argv, check=True)
+        shutil.rmtree(sim)
+    m = Msgs("ros1")
+    msgs = []
+    for ti, ci, pi in zip(t, cmd, pos, strict=True):
+        ns = 1_700_000_000 * 10**9 + round(ti * 1e9)
+        msgs.append(("/cmd_vel", "geometry_msgs/msg/Twist", ns, m.twist(ci, 0.0)))
+        msgs.append(("/sonar", "sensor_msgs/msg/Range", ns + 1_000_000, m.range(ns, pi + rng.normal(0, 0.02))))
+    write_bag(base / "bag1d.bag", "ros1", msgs, m)
 
 
 def _mrclam(folder: Path, rng: np.random.Generator) -> None:
@@ -384,8 +506,14 @@ def cases() -> list[Case]:
         "coefficients NaN": json_set(("model", "action", "coefficients", 0, 0), float("nan")),
         "coefficients short": json_set(("model", "action", "coefficients"), [[1.0]]),
     }
+    model_cmds |= {
+        "evaluate log": ("evaluate", "log", "{work}/log", "--model", "{work}/model.json", "--out", "{out}/e.json"),
+        "evaluate fleet": ("evaluate", "fleet", "{work}/log", "--model", "{work}/model.json", "--out", "{out}/f.json"),
+        "export tum": ("export", "{work}/model.json", "--format", "tum", "--out", "{out}/m.tum"),
+    }
     for cname, argv in model_cmds.items():
         out += [Case(f"model.json:{k} ({cname})", "model.json", m, argv, True) for k, m in model_mutations.items()]
+    out += _other_commands()
     tb = ("learn", "em", "{work}/tb.csv", "--out", "{out}/m.json", *FIT)
     # a Turtlebot CSV without one IR column, or on another clock's zero (one file: no other clock to meet)
     out += _csv_cases("tb.csv", tb, 5, fine=("drop_column", "clock_shifted"))
@@ -455,6 +583,7 @@ def cases() -> list[Case]:
             Case(f"car/meta.json:lidar.{field}={v!r}", "car/meta.json", json_set(("lidar", field), v), car, True)
         )
     out.append(Case("car/meta.json:deep", "car/meta.json", deep_json, car, True))
+    out += _bag_cases()
     for sub in ("diffdrive", "track1d", "field2d"):
         for arg, v in (("--seconds", "nan"), ("--seconds", "inf"), ("--seconds", "-1"), ("--seconds", "1e12")):
             out.append(Case(f"simulate {sub} {arg} {v}", "", None, ("simulate", sub, "--out", "{out}/s", arg, v), True))
@@ -473,6 +602,214 @@ def cases() -> list[Case]:
         )
     )
     return out
+
+
+def _other_commands() -> list[Case]:
+    """The log mutations a model is scored or a path smoothed on, the Turtlebot CSV's through Algorithm 1, a
+    fleet with one bad log among good ones, and wrong arguments (click's usage errors, reproduce's)."""
+    out = []
+    model = "{work}/model.json"
+    readers = {
+        "evaluate log": ("evaluate", "log", "{work}/log", "--model", model, "--out", "{out}/e.json"),
+        "localize": ("localize", "{work}/log", "--model", model, "--out", "{out}/p.json"),
+        "monitor": ("monitor", "{work}/log", "--model", model, "--out", "{out}/mon.json"),
+    }
+    log_mutations: dict[str, tuple[str, Mutation]] = {
+        "actions nan": ("log/actions.csv", set_cell(1, "nan")),
+        "actions reversed": ("log/actions.csv", reorder("reverse")),
+        "actions late row": ("log/actions.csv", reorder("last_far")),
+        "observations inf": ("log/observations.csv", set_cell(2, "inf")),
+        "meta dt_s 1e-9": ("log/meta.json", json_set(("dt_s",), 1e-9)),
+    }
+    for cname, argv in readers.items():
+        for k, (target, m) in log_mutations.items():
+            out.append(Case(f"{target}:{k} ({cname})", target, m, argv, True))
+    # the issue's "all-NaN or shuffled ground truth is scored as valid"
+    truth = "log/groundtruth.csv"
+    for k, m in {"shuffled": reorder("shuffle"), "all nan": set_all(1, "nan"), "reversed": reorder("reverse")}.items():
+        out.append(Case(f"{truth}:{k} (evaluate log)", truth, m, readers["evaluate log"], True))
+    boot = ("learn", "bootstrap", "{work}/tb.csv", "--out", "{out}/b.json", "--no-report")
+    for k, m in {
+        "time 1e9": reorder("last_far"),
+        "sonar nan": set_cell(3, "nan"),
+        "sonar 1e308": set_cell(3, "1e308"),
+        "reversed": reorder("reverse"),
+        "one row": reorder("one_row"),
+        "truncate": bytes_mutation("truncate"),
+    }.items():
+        out.append(Case(f"tb.csv:{k} (learn bootstrap)", "tb.csv", m, boot, k != "truncate"))
+    out.append(Case("tb.csv:never moves (learn bootstrap)", "tb.csv", set_all(2, "0"), boot, False))
+    out.append(Case("tb.csv:sonar constant (learn bootstrap)", "tb.csv", set_all(3, "1.0"), boot, False))
+    fleet = ("fleet", "learn", "{work}/log", "{work}/tb.csv", "--out", "{out}/fl", "--workers", "1", *FIT)
+    fleet += ("--no-cross-scores",)
+    # one bad log among good ones: the others are learned, the bad one named (exit 3: some failed)
+    for target, m in (("log/actions.csv", set_cell(1, "nan")), ("tb.csv", reorder("last_far"))):
+        out.append(Case(f"{target}:bad log in a fleet", target, m, fleet, True, flagged_ok=True))
+    alone = ("fleet", "learn", "{work}/log", "--out", "{out}/fl", "--workers", "1", *FIT)  # every log bad: exit 2
+    out.append(Case("log/actions.csv:a fleet of one bad log", "log/actions.csv", reorder("reverse"), alone, True))
+    args = {
+        "learn em --bins abc": ("learn", "em", "{work}/tb.csv", "--bins", "abc"),
+        "learn em --bogus": ("learn", "em", "{work}/log", "--bogus", "1"),
+        "learn em no log": ("learn", "em"),
+        "learn em --set nonsense": ("learn", "em", "{work}/log", "--set", "nonsense"),
+        "localize --start nan,0,0": ("localize", "{work}/log", "--model", model, "--start", "nan,0,0"),
+        "localize --start 1,2,3,4": ("localize", "{work}/log", "--model", model, "--start", "1,2,3,4"),
+        "reproduce --trials abc": ("reproduce", "track1d", "--out", "{out}/r", "--trials", "abc"),
+        "reproduce --trials -1": ("reproduce", "track1d", "--out", "{out}/r", "--trials", "-1"),
+        "reproduce --trials 1e9": ("reproduce", "track1d", "--out", "{out}/r", "--trials", "1000000000"),
+        "reproduce nonsense": ("reproduce", "nonsense", "--out", "{out}/r"),
+        "reproduce --data missing": ("reproduce", "real", "--out", "{out}/r", "--data", "{out}/none"),
+        "fleet learn --workers 0": ("fleet", "learn", "{work}/log", "--out", "{out}/fl", "--workers", "0"),
+        "evaluate fleet no model": ("evaluate", "fleet", "{work}/log"),
+        "export --format bogus": ("export", model, "--format", "bogus", "--out", "{out}/x"),
+        "export velodyne of an EM model": ("export", model, "--format", "velodyne", "--out", "{out}/x.yaml"),
+        "convert bag --dt nan": ("convert", "bag", "{work}/bag/robot.bag", "--landmarks", "{work}/bag/map.csv",
+                                 "--out", "{out}/b", "--dt", "nan"),
+        "convert bag --commands /nope": ("convert", "bag", "{work}/bag/robot.bag", "--landmarks",
+                                         "{work}/bag/map.csv", "--out", "{out}/b", "--commands", "/nope"),
+        "convert bag --readings /tf": ("convert", "bag", "{work}/bag/robot.bag", "--out", "{out}/b",
+                                       "--readings", "/tf"),
+        "unknown command": ("calibrate-everything",),
+    }  # fmt: skip
+    out += [Case(name, "", None, argv, True) for name, argv in args.items()]
+    velodyne = ("export", "{work}/car_model.json", "--format", "velodyne", "--out", "{out}/v.yaml")
+    out.append(Case("car_model.json: as written (export velodyne)", "", None, velodyne, False))
+    for k, m in {
+        "num_lasers 1e8": json_set(("velodyne_calibration", "num_lasers"), 100_000_000),
+        "rot nan": json_set(("velodyne_calibration", "lasers", 3, "rot_correction"), float("nan")),
+        "rot abc": json_set(("velodyne_calibration", "lasers", 3, "rot_correction"), "abc"),
+        "lasers not a list": json_set(("velodyne_calibration", "lasers"), {"a": 1}),
+        "distance_resolution -1": json_set(("velodyne_calibration", "distance_resolution"), -1),
+        "no calibration": json_drop(("velodyne_calibration",)),
+    }.items():
+        out.append(Case(f"car_model.json:{k} (export velodyne)", "car_model.json", m, velodyne, True))
+    tum = ("export", model, "--format", "tum", "--out", "{out}/m.tum")
+    for k, m in {
+        "truncate": bytes_mutation("truncate"),
+        "binary": bytes_mutation("binary"),
+        "empty": bytes_mutation("empty"),
+        "a pose nan": npz_set("mean", (5, 0), float("nan")),
+        "times reversed": npz_map("time_s", lambda a: a[::-1].copy()),
+        "a pose short": npz_map("mean", lambda a: a[:-1]),
+    }.items():
+        out.append(Case(f"model.path.npz:{k} (export tum)", "model.path.npz", m, tum, True))
+    out.append(
+        Case("reproduce --seed -1", "", None, ("reproduce", "track1d", "--out", "{out}/r", "--seed", "-1"), True)
+    )
+    return out
+
+
+def _npz_edit(edit: Callable[[dict[str, np.ndarray]], None]) -> Mutation:
+    def m(data: bytes) -> bytes:
+        import io
+
+        with np.load(io.BytesIO(data)) as z:
+            arrays = {k: z[k] for k in z.files}
+        edit(arrays)
+        buf = io.BytesIO()
+        np.savez(buf, **arrays)
+        return buf.getvalue()
+
+    return m
+
+
+def npz_set(key: str, index: tuple[int, ...], value: float) -> Mutation:
+    def edit(a: dict[str, np.ndarray]) -> None:
+        a[key] = a[key].astype(np.float64)
+        a[key][index] = value
+
+    return _npz_edit(edit)
+
+
+def npz_map(key: str, f: Callable[[np.ndarray], np.ndarray]) -> Mutation:
+    def edit(a: dict[str, np.ndarray]) -> None:
+        a[key] = f(a[key])
+
+    return _npz_edit(edit)
+
+
+OPTICAL = "camera_color_optical_frame"  # rosbag_write's camera frame
+
+
+def _bag_cases() -> list[Case]:
+    bag = ("convert", "bag", "{work}/bag/robot.bag", "--landmarks", "{work}/bag/map.csv", "--out", "{out}/b")
+    mcap = ("convert", "bag", "{work}/bag2/robot", "--landmarks", "{work}/bag2/map.csv", "--out", "{out}/b")
+    bag1d = ("convert", "bag", "{work}/bag1d.bag", "--out", "{out}/b")
+    nan, inf = float("nan"), float("inf")
+    tag_x, tag_frame = "transforms.0.transform.translation.x", "transforms.0.child_frame_id"
+    static = "transforms.1.transform"  # the camera link to its optical frame
+    out = [
+        Case(f"bag/robot.bag:{k}", "bag/robot.bag", bytes_mutation(k), bag, True, k == "truncate")
+        for k in ("truncate", "empty", "binary")
+    ]
+    out.append(Case("bag/robot.bag:bytes flipped", "bag/robot.bag", flip_bytes, bag, True, True))
+    out += [
+        Case(f"bag2/robot/robot.mcap:{k}", "bag2/robot/robot.mcap", bytes_mutation(k), mcap, True, k == "truncate")
+        for k in ("truncate", "empty", "binary")
+    ]
+    out.append(Case("bag2/robot/robot.mcap:bytes flipped", "bag2/robot/robot.mcap", flip_bytes, mcap, True, True))
+    meta = "bag2/robot/metadata.yaml"
+    out += [Case(f"{meta}:{k}", meta, bytes_mutation(k), mcap, True) for k in ("truncate", "empty", "non_utf8")]
+    out.append(Case(f"{meta}:deep", meta, deep_yaml, mcap, True))
+    edits: dict[str, tuple[Mutation, bool]] = {  # name: (mutation, refuse)
+        "cmd v=nan": (on("/cmd_vel", _set("linear.x", nan)), True),
+        "cmd v=inf": (on("/cmd_vel", _set("linear.x", inf)), True),
+        "cmd v=1e308": (on("/cmd_vel", _set("linear.x", 1e308)), True),
+        "cmd omega=nan everywhere": (on("/cmd_vel", _set("angular.z", nan), every), True),
+        "cmd recorded twice": (bag_twice("/cmd_vel"), True),
+        "cmd one message": (bag_keep("/cmd_vel", lambda k: k == 0), True),
+        "cmd first tenth only": (bag_keep("/cmd_vel", lambda k: k < 12), True),
+        "cmd recorded 1e9 s late": (bag_late("/cmd_vel", 1e9), True),
+        "cmd recorded a day early": (bag_late("/cmd_vel", -86400.0), True),
+        "tag x=nan": (on("/tf", _set(tag_x, nan)), True),
+        "tag x=inf": (on("/tf", _set(tag_x, inf)), True),
+        "tag x=1e308": (on("/tf", _set(tag_x, 1e308)), True),
+        "tag quaternion zero": (on("/tf", _set("transforms.0.transform.rotation.w", 0.0)), False),
+        "tag stamped 10 s back": (on("/tf", _shift_stamp(-10.0)), True),
+        "tag stamped 1e8 s on": (on("/tf", _shift_stamp(1e8)), True),
+        "tags stamped zero": (on("/tf", _shift_stamp(-1.7e9), every), True),
+        "tags on another clock": (on("/tf", _shift_stamp(1e5), every), True),
+        "tag named tag36h11:99999999999": (on("/tf", _set(f"{tag_frame}", "tag36h11:99999999999")), False),
+        "no tags": (bag_keep("/tf", lambda k: False), True),
+        "static quaternion zero": (on("/tf_static", _set(f"{static}.rotation.w", 0.0), every), True),
+        "static quaternion nan": (on("/tf_static", _set(f"{static}.rotation.x", nan), every), True),
+        "static translation inf": (on("/tf_static", _set("transforms.0.transform.translation.z", inf), every), True),
+        "static tree a loop": (on("/tf_static", _set("transforms.0.header.frame_id", OPTICAL), every), True),
+        "mocap x=nan": (on("/mocap/pose", _set("pose.position.x", nan)), True),
+        "mocap x=1e308": (on("/mocap/pose", _set("pose.position.x", 1e308)), True),
+        "mocap quaternion zero": (on("/mocap/pose", _set("pose.orientation.w", 0.0)), True),
+        "mocap stamped 1e8 s on": (on("/mocap/pose", _shift_stamp(1e8)), True),
+        "mocap stamped 10 s back": (on("/mocap/pose", _shift_stamp(-10.0)), True),
+    }  # fmt: skip
+    out += [Case(f"bag/robot.bag:{k}", "bag/robot.bag", m, bag, r) for k, (m, r) in edits.items()]
+    # a tag's id is a name here too: a map row of a tag never seen is left out
+    out += _csv_cases(
+        "bag/map.csv", bag, 3, time_column=False, fine=("reverse", "shuffle", "swap", "last_far"), names=(0,)
+    )
+    range_edits: dict[str, tuple[Mutation, bool]] = {
+        # REP 117: a range outside [min_range, max_range] (inf, nan too) is "nothing seen", no garbage
+        "range=nan": (on("/sonar", _set("range", nan)), False),
+        "range=inf": (on("/sonar", _set("range", inf)), False),
+        "range=-1": (on("/sonar", _set("range", -1.0)), False),
+        "max_range=nan everywhere": (on("/sonar", _set("max_range", nan), every), True),
+        "range constant": (on("/sonar", _set("range", 1.5), every), False),
+        "cmd v=nan": (on("/cmd_vel", _set("linear.x", nan)), True),
+        "sonar stamped back 10 s": (on("/sonar", _shift_stamp(-10.0)), True),
+        # stamps on sim time, recorded on the wall's clock: the Twist is moved onto the stamps' clock
+        "sonar stamps from zero": (on("/sonar", _shift_stamp(-1.7e9), every), False),
+        "sonar one message": (bag_keep("/sonar", lambda k: k == 0), True),
+        "sonar recorded twice": (bag_twice("/sonar"), True),
+    }
+    out += [Case(f"bag1d.bag:{k}", "bag1d.bag", m, bag1d, r) for k, (m, r) in range_edits.items()]
+    return out
+
+
+def flip_bytes(data: bytes) -> bytes:
+    """Every 997th byte from the middle on inverted (a bad disk or a broken copy)."""
+    b = bytearray(data)
+    for i in range(len(b) // 2, len(b), 997):
+        b[i] ^= 0xFF
+    return bytes(b)
 
 
 def dat_cell(column: int, value: str, row: int = 5) -> Mutation:

@@ -27,14 +27,23 @@ def _chosen() -> list[Case]:
     return every if ALL else every[::SAMPLE_EVERY]
 
 
-def test_the_corpus_holds_at_least_300_cases_over_every_kind_of_input():
+def test_the_corpus_holds_at_least_300_cases_over_every_kind_of_input_and_command():
     every = cases()
     targets = {c.target.split(":")[0] for c in every}
     assert len(every) >= 300
     assert len({c.name for c in every}) == len(every)  # each case is told apart by its name
     expected = {"log/actions.csv", "log/observations.csv", "log/groundtruth.csv", "log/meta.json"}
     expected |= {"log/em_config.yaml", "model.json", "tb.csv", "track.csv", ""}
+    expected |= {"bag/robot.bag", "bag/map.csv", "bag2/robot/robot.mcap", "bag2/robot/metadata.yaml", "bag1d.bag"}
+    expected |= {"model.path.npz", "car_model.json", "car/velodyne.pcap", "calib.yaml", "mrclam/Robot1_Odometry.dat"}
     assert expected <= targets
+    # every command a user runs on a file, by its first two words
+    commands = {" ".join(a for a in c.argv[:2] if not a.startswith(("{", "-"))) for c in every}
+    for command in ("learn em", "learn bootstrap", "learn car", "localize", "monitor", "evaluate log"):
+        assert command in commands
+    for command in ("evaluate fleet", "fleet learn", "convert bag", "convert csv", "convert track", "convert mrclam"):
+        assert command in commands
+    assert {"export", "reproduce track1d", "simulate diffdrive"} <= commands
 
 
 @pytest.fixture(scope="module")
