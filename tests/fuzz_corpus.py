@@ -748,6 +748,11 @@ def _bag_cases() -> list[Case]:
         for k in ("truncate", "empty", "binary")
     ]
     out.append(Case("bag2/robot/robot.mcap:bytes flipped", "bag2/robot/robot.mcap", flip_bytes, mcap, True, True))
+    # a few bytes damaged inside the messages, past an index that still opens: refused where rosbags cannot
+    # read a message or a number is absurd, read where the damage left plausible numbers (no check can tell)
+    for seed in range(4):
+        for target, argv in (("bag/robot.bag", bag), ("bag2/robot/robot.mcap", mcap)):
+            out.append(Case(f"{target}:damaged inside ({seed})", target, damage(seed), argv, False))
     meta = "bag2/robot/metadata.yaml"
     out += [Case(f"{meta}:{k}", meta, bytes_mutation(k), mcap, True) for k in ("truncate", "empty", "non_utf8")]
     out.append(Case(f"{meta}:deep", meta, deep_yaml, mcap, True))
@@ -802,6 +807,20 @@ def _bag_cases() -> list[Case]:
     }
     out += [Case(f"bag1d.bag:{k}", "bag1d.bag", m, bag1d, r) for k, (m, r) in range_edits.items()]
     return out
+
+
+def damage(seed: int) -> Mutation:
+    """One to seven bytes overwritten at random, from a tenth of the way in (a bad sector, a broken copy)."""
+
+    def m(data: bytes) -> bytes:
+        rng = np.random.default_rng(seed)
+        b = bytearray(data)
+        at = int(rng.integers(len(b) // 10, len(b) - 100))
+        for j in range(int(rng.integers(1, 8))):
+            b[at + j] = int(rng.integers(0, 256))
+        return bytes(b)
+
+    return m
 
 
 def flip_bytes(data: bytes) -> bytes:

@@ -426,3 +426,32 @@ def test_wheel_odometry_is_the_command_where_no_twist_is_and_chapter_3_learns_th
     assert (tmp_path / "o" / "bootstrap_config.yaml").is_file()
     _ok(["learn", "bootstrap", tmp_path / "o", "--out", tmp_path / "b.json"])
     assert json.loads((tmp_path / "b.json").read_text())["status"] == "ok"
+
+
+def test_a_message_that_does_not_read_is_one_line_naming_its_topic_and_number(tmp_path):
+    """A bag whose index opens but whose messages are damaged (rosbags, struct or an assertion raises)."""
+    import struct
+    from types import SimpleNamespace
+
+    from sensact.errors import SensactError
+    from sensact.io.rosbag import _messages
+
+    class Damaged:
+        def __init__(self):
+            self.connections = [SimpleNamespace(topic="/cmd_vel", msgtype="geometry_msgs/msg/Twist", msgcount=3)]
+            self.paths = [tmp_path / "robot.bag"]
+
+        def messages(self, connections):
+            yield connections[0], 1, b"ok"
+            raise struct.error("unpack requires a buffer of 8 bytes")
+
+        def deserialize(self, raw, msgtype):
+            return raw
+
+    got = []
+    with pytest.raises(SensactError) as err:
+        got.extend(_messages(Damaged(), "/cmd_vel"))
+    assert got == [(1, b"ok")]
+    text = str(err.value)
+    assert "/cmd_vel: message 2 cannot be read (error: unpack requires" in text and "robot.bag" in text
+    assert "\n" not in text

@@ -26,7 +26,7 @@ decimal, so that a bag made from CSVs gives those CSVs' numbers back exactly.
 from __future__ import annotations
 
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -134,15 +134,31 @@ def topic_lines(topics: list[Topic]) -> list[str]:
     return [f"{t.name:<{width}}  {t.msgtype}  ({t.count} messages)" for t in topics]
 
 
+def _messages(reader, topic: str) -> Iterator[tuple[int, object]]:
+    """``topic``'s messages, deserialized, with when each was recorded (ns). A bag whose index opened but whose
+    messages do not read (damaged on disk, cut mid-chunk) is one line, whatever rosbags raised."""
+    conns = [c for c in reader.connections if c.topic == topic]
+    k = 0
+    try:
+        for c, t, raw in reader.messages(connections=conns):
+            yield t, reader.deserialize(raw, c.msgtype)
+            k += 1
+    except Exception as err:  # rosbags raises its own per format, and struct's, numpy's or an assertion
+        what = str(err).splitlines()[0] if str(err) else type(err).__name__
+        raise LogFormatError(
+            f"{topic}: message {k + 1} cannot be read ({type(err).__name__}: {what}): the bag is damaged.",
+            file=(getattr(reader, "paths", None) or [None])[0],
+            fix="copy the bag again, or cut it before the damage (rosbag filter, ros2 bag convert).",
+        ) from None
+
+
 def _tag_topics(reader, topics: list[Topic]) -> list[str]:
     """The /tf-like topics that carry a transform to a tag frame (read until the first one)."""
     found = []
     for t in topics:
         if t.msgtype not in TF_TYPES or t.name.endswith("tf_static"):
             continue
-        conns = [c for c in reader.connections if c.topic == t.name]
-        for c, _, raw in reader.messages(connections=conns):
-            msg = reader.deserialize(raw, c.msgtype)
+        for _, msg in _messages(reader, t.name):
             if any(TAG_FRAME.match(tr.child_frame_id) for tr in msg.transforms):
                 found.append(t.name)
                 break
@@ -236,11 +252,10 @@ Progress = Callable[[str, int, "int | None"], None]
 
 def _read(reader, topic: str, progress: Progress | None = None) -> list[tuple[int, object]]:
     """``topic``'s messages, deserialized, with when each was recorded (ns); ``progress`` told every 2,000."""
-    conns = [c for c in reader.connections if c.topic == topic]
-    total = sum(c.msgcount for c in conns)
+    total = sum(c.msgcount for c in reader.connections if c.topic == topic)
     out = []
-    for c, t, raw in reader.messages(connections=conns):
-        out.append((t, reader.deserialize(raw, c.msgtype)))
+    for t, msg in _messages(reader, topic):
+        out.append((t, msg))
         if progress is not None and len(out) % 2000 == 0:
             progress(f"reading {topic}", len(out), total)
     if progress is not None:
