@@ -102,7 +102,8 @@ def open_page(browser, path: Path) -> dict:
     return seen | {"console_errors": errors, "failed_requests": failed}
 
 
-CAPPED = ("not_converged", "reading_explains_nothing")  # a few iterations stop EM before it learns every f
+# a few iterations stop EM before it learns every f; a path placed with such a model carries its flag
+CAPPED = ("not_converged", "reading_explains_nothing", "model_flagged")
 
 
 def assert_written(res, allowed=CAPPED):
