@@ -160,6 +160,19 @@ def pcap_mutation(kind: str) -> Mutation:
             records[5] = records[5][:8] + (2**31).to_bytes(4, "little") + records[5][12:]
         elif kind == "zero_time":  # every packet stamped at the epoch's zero
             records = [bytes(8) + r[8:] for r in records]
+        elif kind in ("rotation_damaged", "block_id_damaged", "sensor_stamp_damaged", "capture_time_damaged"):
+            k, r = len(records) // 3, bytearray(records[len(records) // 3])  # one packet, a third of the way in
+            payload = 16 + 42  # the record header, then Ethernet, IPv4 and UDP headers
+            if kind == "rotation_damaged":
+                r[payload + 2 : payload + 4] = (40000).to_bytes(2, "little")
+            elif kind == "block_id_damaged":
+                r[payload : payload + 2] = b"\x12\x34"
+            elif kind == "sensor_stamp_damaged":  # forty minutes on, by the lidar's clock
+                at = payload + 1200
+                r[at : at + 4] = (int.from_bytes(r[at : at + 4], "little") + 2_400_000_000).to_bytes(4, "little")
+            else:  # a day on, by the capture's clock
+                r[0:4] = (int.from_bytes(r[0:4], "little") + 86_400).to_bytes(4, "little")
+            records[k] = bytes(r)
         return head + b"".join(records)
 
     return m
@@ -571,7 +584,8 @@ def cases() -> list[Case]:
     out.append(Case("car/actions.csv:time_in_ms", "car/actions.csv", map_column(0, scale=1000.0), car, True))
     out.append(Case("car/actions.csv:clock_shifted", "car/actions.csv", map_column(0, offset=1e5), car, True))
     out.append(Case("car/groundtruth.csv:reverse", "car/groundtruth.csv", reorder("reverse"), car, True))
-    for k in ("duplicate_packets", "reverse_packets", "few_packets", "bad_length", "zero_time"):
+    damaged = ("rotation_damaged", "block_id_damaged", "sensor_stamp_damaged", "capture_time_damaged")
+    for k in ("duplicate_packets", "reverse_packets", "few_packets", "bad_length", "zero_time", *damaged):
         # a packet captured twice is read once: the same capture, the same result
         out.append(Case(f"car/velodyne.pcap:{k}", "car/velodyne.pcap", pcap_mutation(k), car, k != "duplicate_packets"))
     out += [

@@ -261,3 +261,18 @@ def test_a_static_transform_tree_that_loops_is_refused(tmp_path):
     assert _camera_pose(tmp_path, {"cam": ("base_link", eye, np.ones(3))}, "cam")[2]
     with pytest.raises(SensactError, match="form a loop"):
         _camera_pose(tmp_path, {"cam": ("link", eye, zero), "link": ("cam", eye, zero)}, "cam")
+
+
+def test_one_damaged_stamp_is_told_from_a_gap_of_dropped_packets():
+    from sensact.io.car_log import _isolated_jumps
+
+    t = np.arange(10.0) * 0.001  # a packet a millisecond
+    gap = t.copy()
+    gap[5:] += 100.0  # packets dropped: one step forward, never back
+    assert not _isolated_jumps(gap, 1.0).any()
+    one = t.copy()
+    one[4] += 1e6  # one stamp damaged: away from both neighbours, which agree
+    assert _isolated_jumps(one, 1.0).tolist() == [k == 4 for k in range(10)]
+    last = t.copy()
+    last[-1] -= 5e5
+    assert _isolated_jumps(last, 1.0).tolist() == [k == 9 for k in range(10)]

@@ -26,7 +26,10 @@ from sensact.io.atomic import write_json, write_stream
 from sensact.io.csvtable import read_numeric_csv, refuse_apart, refuse_unordered
 from sensact.io.logfolder import LOG_FORMAT, LOG_VERSION, _write_csv, read_meta
 from sensact.io.velodyne import (
+    LOWER,
+    PACKET,
     PCAP_HEADER,
+    UPPER,
     encode_hdl64e,
     hdl64e_firings,
     measure_spin,
@@ -134,6 +137,43 @@ def _without_repeats(times: np.ndarray, payloads: np.ndarray) -> tuple[np.ndarra
     _, first = np.unique(keys, return_index=True)
     keep = np.sort(first)
     return times[keep], payloads[keep], len(payloads) - len(keep)
+
+
+def _isolated_jumps(t: np.ndarray, gap: float) -> np.ndarray:
+    """Which values of a clock jump away from both neighbours while the neighbours agree with each other
+    (one damaged stamp), by more than ``gap``; a dropped packet is one step, not a jump there and back. The
+    first and the last value, with one neighbour each, are damaged when they are that far from it."""
+    out = np.zeros(t.size, dtype=bool)
+    if t.size >= 3:
+        into, out_of = t[1:-1] - t[:-2], t[2:] - t[1:-1]
+        out[1:-1] = (np.abs(into) > gap) & (np.abs(into + out_of) <= gap)
+    if t.size >= 2:
+        out[0], out[-1] = abs(t[1] - t[0]) > gap, abs(t[-1] - t[-2]) > gap
+    return out
+
+
+def _refuse_damaged(pcap: Path, times: np.ndarray, payloads: np.ndarray) -> None:
+    """One line for packets damaged on disk or on the wire: a block id that is not an HDL-64E's, a rotation
+    over 359.99 degrees or unlike its block pair's (the upper and lower blocks of a firing share one), or a
+    sensor or capture time that jumps from both neighbours. One such packet cuts a revolution short (laser
+    angles 155 degrees RMS off) or, by its clock, asks for an hour of empty firings; the scan matching does
+    not bridge them, so they are refused rather than learned from."""
+    pk = np.ascontiguousarray(payloads).view(PACKET).reshape(-1)
+    ids, rot = pk["blocks"]["id"], pk["blocks"]["rotation"].astype(np.int64)
+    bad_ids = ~(np.all(ids[:, 0::2] == UPPER, axis=1) & np.all(ids[:, 1::2] == LOWER, axis=1))
+    bad_rot = ~(np.all(rot < 36000, axis=1) & np.all(rot[:, 0::2] == rot[:, 1::2], axis=1))
+    sensor_us = pk["timestamp_us"].astype(np.int64)
+    sensor_us = sensor_us + 3_600_000_000 * np.cumsum(np.r_[0, np.diff(sensor_us) < -1_800_000_000])  # the hour
+    bad_clock = _isolated_jumps(sensor_us.astype(float), 100_000.0)  # 0.1 s: over a hundred packet periods
+    bad_clock |= _isolated_jumps(np.asarray(times, dtype=float), 1.0)
+    for bad, what in ((bad_ids, "block ids"), (bad_rot, "rotations"), (bad_clock, "time stamp")):
+        if bad.any():
+            raise LogFormatError(
+                f"{int(bad.sum())} of its {len(bad)} packets are damaged, the first (packet {int(np.argmax(bad))}) "
+                f"in its {what}: no HDL-64E sends such a packet.",
+                file=pcap,
+                fix="copy the capture again, or cut it before the damage (editcap -r).",
+            )
 
 
 def _hdl64e_capture(pcap: Path) -> tuple[np.ndarray, np.ndarray, str]:
@@ -249,10 +289,19 @@ def read_car_log(folder: str | Path, calibration: str | Path | None = None) -> C
         )
     t0 = _lidar_number(lidar, "time_origin_s", meta_file) or 0.0
     # the capture before the angles: no angles fix a capture of another lidar
-    times, payloads, model = _hdl64e_capture(folder / str(lidar.get("file", "velodyne.pcap")))
+    pcap = folder / str(lidar.get("file", "velodyne.pcap"))
+    times, payloads, model = _hdl64e_capture(pcap)
     times, payloads, repeated = _without_repeats(times, payloads)
+    _refuse_damaged(pcap, times, payloads)
     vertical_rad, factory, vertical_file, vertical_field = _vertical_angles(lidar, meta_file, calibration)
     slots = packet_slots(payloads)
+    if slots[-1] + 1 > 2 * len(payloads) + 1000:  # the empty firings of dropped packets are held: bounded first
+        raise LogFormatError(
+            f"the lidar's own clock spans {int(slots[-1]) + 1} packet periods, but {len(payloads)} packets came: "
+            "over half would be dropped ones.",
+            file=pcap,
+            fix="capture the lidar again (a clock that jumps, or a capture of several runs joined, is not one drive).",
+        )
     rot_deg, dist = hdl64e_firings(payloads, slots)
     if len(vertical_rad) != dist.shape[1]:
         raise LogFormatError(
