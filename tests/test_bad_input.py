@@ -276,3 +276,16 @@ def test_one_damaged_stamp_is_told_from_a_gap_of_dropped_packets():
     last = t.copy()
     last[-1] -= 5e5
     assert _isolated_jumps(last, 1.0).tolist() == [k == 9 for k in range(10)]
+
+
+def test_a_scan_match_further_than_the_lidar_sees_is_flagged():
+    from sensact.learn.car_dynamics import car_health
+
+    angles = np.radians(np.linspace(-5.0, 5.0, 64))
+    motion = np.column_stack([np.full(10, 2.0), np.zeros(10), np.zeros(10)])  # 2 m a revolution
+    assert car_health(None, angles, motion, 120.0).ok
+    motion[3, 0] = 4e17  # the matched motion of a failed ICP
+    flags = car_health(None, angles, motion, 120.0).flags
+    assert [f.code for f in flags] == ["scan_matching_failed"] and "1 of 10" in flags[0].message
+    motion[5, 1] = np.nan
+    assert "2 of 10" in car_health(None, angles, motion, 120.0).flags[0].message

@@ -132,7 +132,9 @@ def finish(health: Any = None, *, interrupted: bool = False) -> None:
         raise typer.Exit(EXIT_INTERRUPTED)
     if health is not None and not health.ok:
         for flag in health.flags:
-            err_console.print(f"[bold yellow]flagged ({flag.code}):[/] {escape(flag.message)}", highlight=False)
+            err_console.print(
+                f"[bold yellow]flagged ({flag.code}):[/] {escape(flag.message)}", highlight=False, soft_wrap=True
+            )
         raise typer.Exit(EXIT_FLAGGED)
 
 

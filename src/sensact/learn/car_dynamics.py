@@ -199,12 +199,31 @@ def learn_car(
 MAX_LASER_SPREAD_RAD = np.pi / 2  # a spinning lidar's lasers point within tens of degrees of each other
 
 
-def car_health(model: CarDynamics | None, laser_angles_rad: np.ndarray) -> Health:
+def car_health(
+    model: CarDynamics | None,
+    laser_angles_rad: np.ndarray,
+    motion: np.ndarray | None = None,
+    reach_m: float | None = None,
+) -> Health:
     """Algorithm 3's result as issue 74 flags it: laser angles scattered around the circle (sec. 5.1's
-    cross-correlation found no common scene: a capture too short, or of a lidar standing still), and
-    dynamics all zero or not numbers, which are controls that explained nothing of the scans' motion, as
-    controls on another clock do."""
+    cross-correlation found no common scene: a capture too short, or of a lidar standing still), dynamics
+    all zero or not numbers, which are controls that explained nothing of the scans' motion, as controls on
+    another clock do, and a scan match that moved the car further between two revolutions than the lidar
+    sees (``motion`` (K, 3) of the odometry, ``reach_m`` the farthest return): two scans that far apart
+    share no point, so the match failed, and the dynamics fitted to it are not the car's."""
     flags = []
+    if motion is not None and reach_m is not None and len(motion):
+        step = np.hypot(motion[:, 0], motion[:, 1])
+        bad = ~np.isfinite(step) | (step > reach_m)
+        if bad.any():
+            flags.append(
+                HealthFlag(
+                    "scan_matching_failed",
+                    f"{int(bad.sum())} of {len(step)} scan matches moved the car further than the lidar sees "
+                    f"({reach_m:.0f} m; up to {float(np.nanmax(step)):.3g} m): dropped or damaged packets, or too "
+                    "little structure; what was fitted to them is not the car's.",
+                )
+            )
     a = np.asarray(laser_angles_rad, dtype=float)
     spread = 0.0
     if a.size > 1 and np.all(np.isfinite(a)):  # the shortest arc that holds every angle

@@ -160,7 +160,13 @@ def learn_car_cmd(
     reference, comparison = _angle_reference(data, res, simulated)
     from sensact.learn.car_dynamics import car_health
 
-    health = car_health(getattr(res, "model", None) if data.actions is not None else None, res.laser_angles_rad)
+    odometry = getattr(res, "odometry", None)
+    health = car_health(
+        getattr(res, "model", None) if data.actions is not None else None,
+        res.laser_angles_rad,
+        None if odometry is None else odometry.motion,
+        float(np.max(data.distance_m, initial=0.0)),
+    )
     if out is not None:
         write_result(
             out,
