@@ -50,5 +50,5 @@ def value_problem(values: object, what: str) -> str | None:
     return None
 
 
-# trials of one experiment (`reproduce --trials`): 10,000 of the shortest (track1d's) take about a day here
+# trials of one experiment (`reproduce --trials`): a mistyped count is refused, not run for days
 MAX_TRIALS = _env_int("SENSACT_MAX_TRIALS", 10_000)

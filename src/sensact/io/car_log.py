@@ -30,6 +30,7 @@ from sensact.io.velodyne import (
     PACKET,
     PCAP_HEADER,
     UPPER,
+    _clock_steps_us,
     encode_hdl64e,
     hdl64e_firings,
     measure_spin,
@@ -162,8 +163,7 @@ def _refuse_damaged(pcap: Path, times: np.ndarray, payloads: np.ndarray) -> None
     ids, rot = pk["blocks"]["id"], pk["blocks"]["rotation"].astype(np.int64)
     bad_ids = ~(np.all(ids[:, 0::2] == UPPER, axis=1) & np.all(ids[:, 1::2] == LOWER, axis=1))
     bad_rot = ~(np.all(rot < 36000, axis=1) & np.all(rot[:, 0::2] == rot[:, 1::2], axis=1))
-    sensor_us = pk["timestamp_us"].astype(np.int64)
-    sensor_us = sensor_us + 3_600_000_000 * np.cumsum(np.r_[0, np.diff(sensor_us) < -1_800_000_000])  # the hour
+    sensor_us = int(pk["timestamp_us"][0]) + np.r_[0, np.cumsum(_clock_steps_us(pk))]  # across the hour's wrap
     bad_clock = _isolated_jumps(sensor_us.astype(float), 100_000.0)  # 0.1 s: over a hundred packet periods
     bad_clock |= _isolated_jumps(np.asarray(times, dtype=float), 1.0)
     for bad, what in ((bad_ids, "block ids"), (bad_rot, "rotations"), (bad_clock, "time stamp")):
