@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from sensact.cli.compiling import MESSAGE as COMPILE_MESSAGE
+
 TIMEOUT_S = 120.0
 MEMORY_CAP_BYTES = 1 << 30  # issue 74: never over 1 GB
 FIT = ("--set", "max_iterations=25", "--no-report")  # keeps each fit of a mutated log short
@@ -932,7 +934,8 @@ def problems(case: Case, ended: Ended) -> list[str]:
     if "internal error" in err:
         out.append("an internal error")
     if ended.code == 2:
-        lines = [ln for ln in err.splitlines() if ln.strip()]
+        # the first run's compile notice is progress, not part of the error
+        lines = [ln for ln in err.splitlines() if ln.strip() and ln.strip() != COMPILE_MESSAGE]
         if len(lines) != 1 or not re.match(r"^error: ", lines[0]):
             out.append(f"not one error line: {lines[:3]}")
     if ended.leftovers:

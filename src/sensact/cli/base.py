@@ -83,9 +83,11 @@ def friendly(fn: F) -> F:
 
     @functools.wraps(fn)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
+        from sensact.cli.compiling import announce_compiles
         from sensact.io.atomic import one_run
 
-        with _sigterm_as_interrupt(), one_run():
+        say = functools.partial(err_console.print, style="dim", highlight=False, soft_wrap=True, markup=False)
+        with _sigterm_as_interrupt(), one_run(), announce_compiles(say):
             try:
                 if isinstance(kwargs.get("seed"), int):  # every command's --seed, before any work
                     from sensact.config import refuse_non_finite
