@@ -27,6 +27,18 @@ def write_csv(path: Path, columns) -> Path:
     return path
 
 
+def rewrite_capture(src: Path, dst: Path, writer) -> Path:
+    """The records of the classic pcap ``src`` written again by ``writer(handle)``, a dpkt writer (pcapng, or a
+    nanosecond pcap): the same packets in another framing."""
+    import dpkt
+
+    with open(src, "rb") as fin, open(dst, "wb") as fout:
+        w = writer(fout)
+        for stamp, frame in dpkt.pcap.Reader(fin):
+            w.writepkt(frame, ts=stamp)
+    return dst
+
+
 def require(path: Path) -> Path:
     if not path.exists():
         pytest.skip(f"real data not found at {path} (set SENSACT_DATA or check out ../shared/data)")

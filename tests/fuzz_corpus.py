@@ -183,6 +183,33 @@ def pcap_mutation(kind: str) -> Mutation:
     return m
 
 
+def pcapng_mutation(kind: str) -> Mutation:
+    """The capture saved as pcapng (the reader goes by the magic number, not the name), then damaged."""
+
+    def m(data: bytes) -> bytes:
+        import io
+
+        import dpkt
+
+        out = io.BytesIO()
+        writer = dpkt.pcapng.Writer(out)
+        for stamp, frame in dpkt.pcap.Reader(io.BytesIO(data)):
+            writer.writepkt(frame, ts=stamp)
+        ng = out.getvalue()
+        if kind == "as_pcapng":
+            return ng
+        if kind == "pcapng_truncate":
+            return ng[: len(ng) // 2]
+        if kind == "pcapng_bad_block_length":  # the tenth block claims 1 GB
+            at = 0
+            for _ in range(10):
+                at += int.from_bytes(ng[at + 4 : at + 8], "little")
+            return ng[: at + 4] + (2**30).to_bytes(4, "little") + ng[at + 8 :]
+        raise ValueError(kind)
+
+    return m
+
+
 # ---- mutations of JSON and YAML ------------------------------------------------------------------------------
 
 
@@ -602,6 +629,10 @@ def cases() -> list[Case]:
     out += [
         Case(f"car/velodyne.pcap:{k}", "car/velodyne.pcap", bytes_mutation(k), car, True, k == "truncate")
         for k in ("truncate", "empty", "binary")
+    ]
+    out += [
+        Case(f"car/velodyne.pcap:{k}", "car/velodyne.pcap", pcapng_mutation(k), car, k != "as_pcapng")
+        for k in ("as_pcapng", "pcapng_truncate", "pcapng_bad_block_length")
     ]
     for field, v in (("time_origin_s", float("nan")), ("firing_hz", 0), ("rpm", "abc"), ("vertical_deg", [])):
         out.append(

@@ -6,9 +6,11 @@ import dataclasses
 import json
 import shutil
 
+import dpkt
 import numpy as np
 import pytest
 
+from conftest import rewrite_capture
 from sensact.core.raycast import BOX, CYLINDER, _hit_box, _hit_cylinder, build_grid, cast_firings
 from sensact.errors import LogFormatError
 from sensact.experiments.car import learn_angles_from_log, learn_from_log, simulate_car_log
@@ -153,6 +155,13 @@ def test_a_users_car_folder_needs_no_rates_and_takes_the_factory_calibration(sho
     assert log.factory is None and mine.factory is not None  # kept for the export: the file is read once
     np.testing.assert_allclose(mine.action_times_s, log.action_times_s, atol=1e-9)
     assert [n.split()[0] for n in mine.notes] == ["firing_hz", "rpm"] and not mine.warnings
+    # the same capture saved as pcapng, as Wireshark saves it
+    rewrite_capture(sim / "velodyne.pcap", own / "velodyne.pcapng", dpkt.pcapng.Writer)
+    write_meta(file="velodyne.pcapng")
+    np.testing.assert_array_equal(
+        read_car_log(own, calibration=sim / "calibration_true.yaml").distance_m, log.distance_m
+    )
+    write_meta()
     assert all("measured from the packets' clock" in n for n in mine.notes)
     # a stated rate wins, but one the packets contradict is said
     write_meta(rpm=300)

@@ -7,7 +7,7 @@ import re
 import numpy as np
 import pytest
 
-from conftest import DATA, require
+from conftest import DATA, require, rewrite_capture
 from sensact.errors import LogFormatError
 from sensact.io.velodyne import (
     LOWER,
@@ -92,6 +92,48 @@ def test_hdl64e_write_then_read_round_trip(tmp_path):
     assert np.allclose(np.diff(r.time_s[r.laser == 0]), 1 / 7800.0, atol=1e-3)
 
 
+def _big_endian(data: bytes) -> bytes:
+    """A little-endian classic pcap with its global and record headers byte-swapped, as a big-endian
+    host's libpcap writes it (the frames themselves are network bytes either way)."""
+    import struct
+
+    out = [struct.pack(">IHHiIII", *struct.unpack_from("<IHHiIII", data, 0))]
+    at = 24
+    while at < len(data):
+        head = struct.unpack_from("<IIII", data, at)
+        out += [struct.pack(">IIII", *head), data[at + 16 : at + 16 + head[2]]]
+        at += 16 + head[2]
+    return b"".join(out)
+
+
+def test_pcapng_nanosecond_and_big_endian_captures_read_as_the_pcap(tmp_path):
+    import dpkt
+
+    payloads = encode_hdl64e(np.arange(60) * 0.4615, np.ones((60, 64)), np.zeros((60, 64)), np.arange(10) * 769)
+    src = write_pcap(tmp_path / "v.pcap", payloads, 1_600_000_000.0 + np.arange(10) / 1300.0)
+    want_t, want_p, want_skip = read_pcap_payloads(src)
+    rewrite_capture(src, tmp_path / "v.pcapng", dpkt.pcapng.Writer)
+    rewrite_capture(src, tmp_path / "nano.pcap", lambda h: dpkt.pcap.Writer(h, nano=True))
+    (tmp_path / "be.pcap").write_bytes(_big_endian(src.read_bytes()))
+    for name in ("v.pcapng", "nano.pcap", "be.pcap"):
+        t, p, skip = read_pcap_payloads(tmp_path / name)
+        np.testing.assert_array_equal(p, want_p)
+        np.testing.assert_allclose(t, want_t, atol=1e-6)
+        assert skip == want_skip == 0
+    assert read_velodyne_pcap(tmp_path / "v.pcapng").model == "HDL-64E"
+
+
+def test_a_real_capture_reads_the_same_as_pcapng(tmp_path):
+    import dpkt
+
+    src = require(VELO / "hdl32_example.pcap")
+    rewrite_capture(src, tmp_path / "hdl32.pcapng", dpkt.pcapng.Writer)
+    a, b = read_velodyne_pcap(src), read_velodyne_pcap(tmp_path / "hdl32.pcapng")
+    assert (b.model, b.n_packets, b.n_skipped) == ("HDL-32E", 876, 100)
+    np.testing.assert_array_equal(a.distance_m, b.distance_m)
+    np.testing.assert_allclose(a.time_s, b.time_s, atol=1e-6)
+
+
 def test_the_spin_is_measured_from_the_packets_own_clock():
     """A written HDL-64E capture at a known firing rate and rpm, with dropped packets, jittered capture
     times and the sensor clock wrapping at the hour: both come back to the clock's microsecond."""
@@ -156,13 +198,24 @@ def test_bad_files_are_rejected_clearly(tmp_path):
     with pytest.raises(LogFormatError, match="not found"):
         read_velodyne_pcap(tmp_path / "none.pcap")
     (tmp_path / "junk.pcap").write_bytes(b"\x0a\x0d\x0d\x0a" + bytes(60))
-    with pytest.raises(LogFormatError, match="pcapng"):
+    with pytest.raises(LogFormatError, match="not a pcap or pcapng capture"):
         read_velodyne_pcap(tmp_path / "junk.pcap")
+    (tmp_path / "text.pcap").write_bytes(b"time,x\n" * 10)
+    with pytest.raises(LogFormatError, match="not a pcap or pcapng capture"):
+        read_velodyne_pcap(tmp_path / "text.pcap")
     payloads = encode_hdl64e(np.zeros(6), np.ones((6, 64)), np.zeros((6, 64)), [0])
     data = pcap_bytes(payloads, [0.0])
     (tmp_path / "cut.pcap").write_bytes(data[:-100])
     with pytest.raises(LogFormatError, match="truncated or corrupt"):
         read_velodyne_pcap(tmp_path / "cut.pcap")
+    (tmp_path / "cut_header.pcap").write_bytes(data[:30])  # inside the first record's header
+    with pytest.raises(LogFormatError, match="truncated or corrupt"):
+        read_velodyne_pcap(tmp_path / "cut_header.pcap")
+    huge = bytearray(data)
+    huge[32:36] = (2**31).to_bytes(4, "little")  # the first record claims 2 GB
+    (tmp_path / "huge.pcap").write_bytes(bytes(huge))
+    with pytest.raises(LogFormatError, match="claims 2147483648 bytes"):
+        read_velodyne_pcap(tmp_path / "huge.pcap")
     bad = payloads.copy()
     bad[0, 0:2] = 0
     with pytest.raises(LogFormatError, match="block id"):

@@ -1,5 +1,5 @@
-"""Velodyne UDP packet captures (pcap): decode HDL-64E, HDL-32E and VLP-16 data packets, and write
-HDL-64E packets the way the sensor does (sec. 2.5.2).
+"""Velodyne UDP packet captures (pcap or pcapng): decode HDL-64E, HDL-32E and VLP-16 data packets, and
+write HDL-64E packets the way the sensor does (sec. 2.5.2).
 
 A data packet is a 1206-byte UDP payload on port 2368: 12 blocks of 100 bytes, each a 2-byte block id
 (0xEEFF upper, 0xDDFF lower on the HDL-64E), a 2-byte rotation in 0.01° and 32 returns of a uint16
@@ -7,18 +7,21 @@ distance in 2 mm units and a uint8 intensity; then a 4-byte timestamp (µs past 
 bytes (on the HDL-32E and VLP-16: return mode and product id, 0x21 and 0x22). Multi-byte values are
 little-endian. Position packets (port 8308, 512 bytes) and anything else are skipped.
 
-Decoding is vectorized: a small compiled walk finds each record's offset, then the payloads are read as
-one numpy structured array.
+dpkt frames the capture's records (classic pcap in either byte order and resolution, or pcapng, whose
+first interface's link type is taken for every packet); the Ethernet, IPv4 and UDP headers are then
+checked and the payloads read as one numpy structured array, vectorized.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import struct
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
+import dpkt
 import numpy as np
-from numba import njit
 
 from sensact.errors import LogFormatError
 from sensact.io.atomic import write_bytes
@@ -35,8 +38,6 @@ _RETURN = np.dtype([("distance", "<u2"), ("intensity", "u1")])
 _BLOCK_RAW = np.dtype([("id", "<u2"), ("rotation", "<u2"), ("returns", _RETURN, 32)])
 PACKET = np.dtype([("blocks", _BLOCK_RAW, 12), ("timestamp_us", "<u4"), ("status_type", "u1"), ("status_value", "u1")])
 assert PACKET.itemsize == PAYLOAD_BYTES
-
-_MAGIC = {0xA1B2C3D4: ("<", 1e-6), 0xD4C3B2A1: (">", 1e-6), 0xA1B23C4D: ("<", 1e-9), 0x4D3CB2A1: (">", 1e-9)}
 
 
 @dataclass(frozen=True, eq=False)
@@ -58,76 +59,99 @@ class VelodyneReturns:
         return self.distance_m > 0
 
 
-@njit(cache=True)
-def _records(buf, big_endian):
-    """Offsets and captured lengths of every pcap record after the 24-byte global header."""
-    n = buf.shape[0]
-    offs = np.empty(n // 16 + 1, np.int64)
-    lens = np.empty(n // 16 + 1, np.int64)
-    secs = np.empty(n // 16 + 1, np.int64)
-    frac = np.empty(n // 16 + 1, np.int64)
-    k = 0
-    pos = 24
-    vals = np.empty(4, np.int64)
-    while pos + 16 <= n:
-        for j in range(4):
-            b = buf[pos + 4 * j : pos + 4 * j + 4]
-            if big_endian:
-                vals[j] = (b[0] << 24) | (b[1] << 16) | (b[2] << 8) | b[3]
-            else:
-                vals[j] = (b[3] << 24) | (b[2] << 16) | (b[1] << 8) | b[0]
-        incl = vals[2]
-        if incl < 0 or pos + 16 + incl > n:
-            return offs[:k], lens[:k], secs[:k], frac[:k], pos
-        secs[k] = vals[0]
-        frac[k] = vals[1]
-        offs[k] = pos + 16
-        lens[k] = incl
-        k += 1
-        pos += 16 + incl
-    return offs[:k], lens[:k], secs[:k], frac[:k], pos
+MAX_RECORD_BYTES = 262_144  # libpcap's largest snapshot length: a longer record is corrupt
+PCAPNG_MAGIC = 0x0A0D0D0A
+_LINK_HEADER_BYTES = {1: 14, 0: 4, 101: 0, 113: 16}  # Ethernet, BSD loopback, raw IP, Linux cooked
+
+
+class _CheckedReads:
+    """The capture file as dpkt reads it, record by record: a read that asks for more than any record
+    holds, or that the file ends inside, is refused here, before dpkt allocates or hands on a cut record."""
+
+    def __init__(self, handle: Any, path: Path) -> None:
+        self._handle = handle
+        self._path = path
+        self.position = 0
+
+    def read(self, n: int = -1) -> bytes:
+        if n > MAX_RECORD_BYTES + 64:
+            raise LogFormatError(
+                f"corrupt: a record at byte {self.position} claims {n} bytes (no capture holds a record over "
+                f"{MAX_RECORD_BYTES}).",
+                file=self._path,
+                fix="re-capture, or cut the file before that record.",
+            )
+        data = self._handle.read(n)
+        if 0 < len(data) < n:
+            raise LogFormatError(
+                f"truncated or corrupt: a record at byte {self.position} runs past the end of the file "
+                f"({self.position + len(data)} bytes).",
+                file=self._path,
+                fix="re-capture, or cut the file at the last complete packet.",
+            )
+        self.position += len(data)
+        return data
+
+
+def _capture_frames(path: Path) -> tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Every record of a pcap or pcapng capture, framed by dpkt: ``(link type, buf, record start, record
+    length, capture time s)``, the records laid end to end in ``buf``."""
+    if not path.is_file():
+        raise LogFormatError("pcap file not found.", file=path, fix="check the path.")
+    if path.stat().st_size == 0:
+        raise LogFormatError("empty file.", file=path, fix="give a pcap or pcapng capture of the lidar's packets.")
+    with path.open("rb") as handle:
+        head = handle.read(4)
+        handle.seek(0)
+        magic = int.from_bytes(head.ljust(4, b"\0"), "little")
+        reads = _CheckedReads(handle, path)
+        try:
+            reader = (dpkt.pcapng.Reader if magic == PCAPNG_MAGIC else dpkt.pcap.Reader)(reads)
+        except (ValueError, dpkt.UnpackError, struct.error) as exc:
+            raise LogFormatError(
+                f"not a pcap or pcapng capture ({exc}).",
+                file=path,
+                fix="give a libpcap (.pcap) or pcapng (.pcapng) capture, as tcpdump or Wireshark writes it.",
+            ) from None
+        link = int(reader.datalink())
+        frames: list[bytes] = []
+        times: list[float] = []
+        try:
+            for stamp, frame in reader:
+                times.append(float(stamp))  # a nanosecond pcap's stamps are Decimals
+                frames.append(frame)
+        except (ValueError, dpkt.UnpackError, struct.error) as exc:
+            raise LogFormatError(
+                f"truncated or corrupt: record {len(frames)} near byte {reads.position} does not read ({exc}).",
+                file=path,
+                fix="re-capture, or cut the file at the last complete packet.",
+            ) from None
+    lens = np.array([len(f) for f in frames], dtype=np.int64)
+    offs = np.concatenate([[0], np.cumsum(lens)[:-1]]).astype(np.int64) if len(lens) else np.zeros(0, np.int64)
+    return link, np.frombuffer(b"".join(frames), dtype=np.uint8), offs, lens, np.array(times, dtype=float)
 
 
 def _udp_datagrams(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Every IPv4 UDP datagram of a classic pcap: ``(buf, record ok, payload start, destination port, payload
-    bytes, capture time s)``; the arrays run over the records, ``ok`` marks the UDP ones."""
-    if not path.is_file():
-        raise LogFormatError("pcap file not found.", file=path, fix="check the path.")
-    buf = np.fromfile(path, dtype=np.uint8)
-    if buf.size < 24:
-        raise LogFormatError("too short for a pcap file.", file=path, fix="give a complete .pcap capture.")
-    magic = int.from_bytes(buf[:4].tobytes(), "little")
-    if magic not in _MAGIC:
-        hint = " (this looks like pcapng: convert it with `editcap -F pcap`)" if magic == 0x0A0D0D0A else ""
-        raise LogFormatError(
-            f"not a pcap file: magic number {magic:#010x}{hint}.",
-            file=path,
-            fix="give a classic libpcap capture (.pcap).",
-        )
-    order, frac_unit = _MAGIC[magic]
-    link = int(np.frombuffer(buf[20:24].tobytes(), dtype=f"{order}u4")[0])
-    offs, lens, secs, frac, end = _records(buf, order == ">")
-    if end != buf.size:
-        raise LogFormatError(
-            f"truncated or corrupt: a record at byte {end} runs past the end of the file ({buf.size} bytes).",
-            file=path,
-            fix="re-capture, or cut the file at the last complete packet.",
-        )
-    link_header = {1: 14, 0: 4, 101: 0, 113: 16}.get(link)
+    """Every IPv4 UDP datagram of a pcap or pcapng capture: ``(buf, record ok, payload start, destination
+    port, payload bytes, capture time s)``; the arrays run over the records, ``ok`` marks the UDP ones."""
+    link, buf, offs, lens, times = _capture_frames(path)
+    link_header = _LINK_HEADER_BYTES.get(link)
     if link_header is None:
         raise LogFormatError(f"unsupported link type {link}.", file=path, fix="capture on Ethernet (link type 1).")
+    if buf.size == 0:
+        buf = np.zeros(1, np.uint8)  # the clipped indexing below needs one byte
     ip = offs + link_header
     ok = lens >= link_header + 28
     if link == 1:
         ok &= (buf[np.minimum(offs + 12, buf.size - 1)] == 0x08) & (buf[np.minimum(offs + 13, buf.size - 1)] == 0x00)
-    ipc = np.minimum(ip, buf.size - 28)
+    ipc = np.clip(ip, 0, max(buf.size - 28, 0))
     ihl = (buf[ipc] & 0x0F).astype(np.int64) * 4
     ok &= ((buf[ipc] >> 4) == 4) & (buf[ipc + 9] == 17)
-    udp = np.minimum(ip + ihl, buf.size - 8)
+    udp = np.clip(ip + ihl, 0, max(buf.size - 8, 0))
     dport = buf[udp + 2].astype(np.int64) * 256 + buf[udp + 3]
     size = buf[udp + 4].astype(np.int64) * 256 + buf[udp + 5] - 8
     ok &= lens >= (udp - offs) + 8 + np.maximum(size, 0)  # the whole payload was captured
-    return buf, ok, udp + 8, dport, size, (secs + frac * frac_unit).astype(float)
+    return buf, ok, udp + 8, dport, size, times
 
 
 def read_pcap_payloads(path: str | Path, port: int = DATA_PORT) -> tuple[np.ndarray, np.ndarray, int]:
