@@ -26,19 +26,23 @@ from sensact.io.atomic import write_json, write_stream
 from sensact.io.csvtable import read_numeric_csv, refuse_apart, refuse_unordered
 from sensact.io.logfolder import LOG_FORMAT, LOG_VERSION, _write_csv, read_meta
 from sensact.io.velodyne import (
+    DISTANCE_UNIT_M,
+    HDL64_FIRINGS_PER_PACKET,
     LOWER,
     PACKET,
+    PAYLOAD_BYTES,
     PCAP_HEADER,
     UPPER,
-    _clock_steps_us,
+    _model_of,
+    clock_steps_us,
     encode_hdl64e,
-    hdl64e_firings,
-    measure_spin,
-    packet_slots,
+    firings_in_place,
+    hdl64e_fields,
+    iter_payloads,
     pcap_records,
-    read_pcap_payloads,
+    slots_from_clock,
+    spin_from_clock,
     udp_traffic,
-    velodyne_model,
 )
 from sensact.io.velodyne_calibration import write_calibration
 from sensact.models.laser_intrinsics import LaserIntrinsics
@@ -129,15 +133,111 @@ def _spin_value(
     return stated
 
 
-def _without_repeats(times: np.ndarray, payloads: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
-    """The capture with every packet that repeats an earlier one byte for byte left out: a unit stamps each
-    packet with its own clock, so two alike are one packet captured twice, which would be read as two
-    firings (laser angles 96.6 degrees off on a capture with its packets doubled)."""
-    rows = np.ascontiguousarray(payloads)
-    keys = rows.view(np.dtype((np.void, rows.dtype.itemsize * rows.shape[1]))).reshape(-1)
-    _, first = np.unique(keys, return_index=True)
-    keep = np.sort(first)
-    return times[keep], payloads[keep], len(payloads) - len(keep)
+@dataclass(frozen=True, eq=False)
+class _Hdl64eCapture:
+    """What chapter 5 keeps of an HDL-64E capture, read a chunk at a time: the payloads themselves (a 200-s
+    drive's are 330 MB) are never all held, and each distance is written once, where the learner reads it."""
+
+    times_s: np.ndarray  # (P,) capture times
+    timestamp_us: np.ndarray  # (P,) the sensor's clock, µs past the hour
+    rotation: np.ndarray  # (P, 6) each firing's rotation field, 0.01° clockwise
+    distance_m: np.ndarray  # (R, 64) float32 by laser id: the first P * 6 rows the firings as they came
+    repeated: int  # packets left out as byte-for-byte repeats of earlier ones
+
+
+# the smallest record a data packet can be: a 16-byte record header, raw IPv4 and UDP headers, the payload
+_MIN_PACKET_RECORD = 16 + 28 + PAYLOAD_BYTES
+# two 64-bit linear hashes of a payload's words with odd multipliers: a 128-bit key per packet, and two
+# packets that differ in any one word always differ in both
+_HASH_WORDS = (PAYLOAD_BYTES + 7) // 8
+_HASH_MULTIPLIERS = 2 * np.random.default_rng(20081).integers(1, 2**62, (2, _HASH_WORDS), dtype=np.uint64) + 1
+
+
+def _payload_keys(payloads: np.ndarray) -> np.ndarray:
+    """A 128-bit key (two uint64) per payload row, for finding repeats without holding the payloads."""
+    padded = np.zeros((len(payloads), _HASH_WORDS * 8), dtype=np.uint8)
+    padded[:, :PAYLOAD_BYTES] = payloads
+    words = padded.view(np.uint64)
+    with np.errstate(over="ignore"):
+        return np.stack([(words * m).sum(axis=1, dtype=np.uint64) for m in _HASH_MULTIPLIERS], axis=1)
+
+
+def _refuse_another_model(pcap: Path, packets: np.ndarray) -> None:
+    """An HDL-64E alternates upper and lower blocks in every packet: a first chunk with no lower block is
+    another unit's capture (decoded by ``sensact.io.velodyne.read_velodyne_pcap``, not learned here)."""
+    if np.any(packets["blocks"]["id"] == LOWER):
+        return
+    raise LogFormatError(
+        f"{_model_of(packets)} packets: chapter 5's learner reads an HDL-64E, whose 64 lasers fire in upper and "
+        "lower blocks (0xEEFF, 0xDDFF).",
+        file=pcap,
+        field="lidar.file",
+        fix="give an HDL-64E capture (sensact.io.velodyne.read_velodyne_pcap decodes this one).",
+    )
+
+
+def max_slots(packets: int) -> int:
+    """The most packet periods a capture of ``packets`` packets may span by its clock: the rest are dropped
+    ones, whose empty firings are held in place (``read_car_log`` refuses a capture that spans more)."""
+    return 2 * packets + 1000
+
+
+def _read_hdl64e(pcap: Path) -> _Hdl64eCapture:
+    """The capture's HDL-64E data packets, a chunk at a time: repeats of an earlier packet left out (a unit
+    stamps each packet with its own clock, so two alike are one packet captured twice, which would be read
+    as two firings: laser angles 96.6 degrees off on a capture with its packets doubled), another unit's
+    capture and damaged packets refused (``_say_damaged``). The distances go straight into one float32
+    array sized for the most firings the file can hold with its drops (``max_slots``); the pages it never
+    writes are never in memory."""
+    rows = max_slots(pcap.stat().st_size // _MIN_PACKET_RECORD) * HDL64_FIRINGS_PER_PACKET if pcap.is_file() else 0
+    distance = np.zeros((rows, 64), dtype=np.float32)
+    seen: set[tuple[int, int]] = set()
+    times, stamps, rotations = [], [], []
+    repeated = kept = 0
+    bad = {"block ids": [0, -1], "rotations": [0, -1]}  # how many packets, and the first
+    for chunk_times, payloads, _ in iter_payloads(pcap):
+        if not len(payloads):
+            continue
+        keep = np.zeros(len(payloads), dtype=bool)
+        for i, key in enumerate(map(tuple, _payload_keys(payloads).tolist())):
+            if key not in seen:
+                seen.add(key)
+                keep[i] = True
+        repeated += int((~keep).sum())
+        pk = np.ascontiguousarray(payloads[keep]).view(PACKET).reshape(-1)
+        if not times:
+            _refuse_another_model(pcap, pk)
+        ids, rot = pk["blocks"]["id"], pk["blocks"]["rotation"].astype(np.int64)
+        flags = {
+            "block ids": ~(np.all(ids[:, 0::2] == UPPER, axis=1) & np.all(ids[:, 1::2] == LOWER, axis=1)),
+            "rotations": ~(np.all(rot < 36000, axis=1) & np.all(rot[:, 0::2] == rot[:, 1::2], axis=1)),
+        }
+        for what, flag in flags.items():
+            if flag.any() and bad[what][0] == 0:
+                bad[what][1] = kept + int(np.argmax(flag))
+            bad[what][0] += int(flag.sum())
+        rotation, dist = hdl64e_fields(pk)
+        at = kept * HDL64_FIRINGS_PER_PACKET
+        np.multiply(dist, np.float32(DISTANCE_UNIT_M), out=distance[at : at + len(dist)], casting="unsafe")
+        times.append(chunk_times[keep])
+        stamps.append(pk["timestamp_us"].copy())
+        rotations.append(rotation)
+        kept += len(pk)
+    if not kept:
+        raise LogFormatError(
+            f"no Velodyne data packets (1206-byte UDP payloads to port 2368); it holds {udp_traffic(pcap)}.",
+            file=pcap,
+            fix="capture the HDL-64E's data port (2368); sensact learn car reads Velodyne HDL-64E packets only.",
+        )
+    capture = _Hdl64eCapture(
+        np.concatenate(times), np.concatenate(stamps), np.concatenate(rotations), distance, repeated
+    )
+    _refuse_backwards(pcap, capture.times_s)
+    for what, (count, first) in bad.items():
+        if count:
+            _say_damaged(pcap, count, kept, first, what)
+    _refuse_clock_jumps(pcap, capture)
+    return capture
 
 
 def _isolated_jumps(t: np.ndarray, gap: float) -> np.ndarray:
@@ -153,38 +253,30 @@ def _isolated_jumps(t: np.ndarray, gap: float) -> np.ndarray:
     return out
 
 
-def _refuse_damaged(pcap: Path, times: np.ndarray, payloads: np.ndarray) -> None:
+def _say_damaged(pcap: Path, count: int, of: int, first: int, what: str) -> None:
     """One line for packets damaged on disk or on the wire: a block id that is not an HDL-64E's, a rotation
     over 359.99 degrees or unlike its block pair's (the upper and lower blocks of a firing share one), or a
     sensor or capture time that jumps from both neighbours. One such packet cuts a revolution short (laser
     angles 155 degrees RMS off) or, by its clock, asks for an hour of empty firings; the scan matching does
     not bridge them, so they are refused rather than learned from."""
-    pk = np.ascontiguousarray(payloads).view(PACKET).reshape(-1)
-    ids, rot = pk["blocks"]["id"], pk["blocks"]["rotation"].astype(np.int64)
-    bad_ids = ~(np.all(ids[:, 0::2] == UPPER, axis=1) & np.all(ids[:, 1::2] == LOWER, axis=1))
-    bad_rot = ~(np.all(rot < 36000, axis=1) & np.all(rot[:, 0::2] == rot[:, 1::2], axis=1))
-    sensor_us = int(pk["timestamp_us"][0]) + np.r_[0, np.cumsum(_clock_steps_us(pk))]  # across the hour's wrap
-    bad_clock = _isolated_jumps(sensor_us.astype(float), 100_000.0)  # 0.1 s: over a hundred packet periods
-    bad_clock |= _isolated_jumps(np.asarray(times, dtype=float), 1.0)
-    for bad, what in ((bad_ids, "block ids"), (bad_rot, "rotations"), (bad_clock, "time stamp")):
-        if bad.any():
-            raise LogFormatError(
-                f"{int(bad.sum())} of its {len(bad)} packets are damaged, the first (packet {int(np.argmax(bad))}) "
-                f"in its {what}: no HDL-64E sends such a packet.",
-                file=pcap,
-                fix="copy the capture again, or cut it before the damage (editcap -r).",
-            )
+    raise LogFormatError(
+        f"{count} of its {of} packets are damaged, the first (packet {first}) in its {what}: no HDL-64E sends "
+        "such a packet.",
+        file=pcap,
+        fix="copy the capture again, or cut it before the damage (editcap -r).",
+    )
 
 
-def _hdl64e_capture(pcap: Path) -> tuple[np.ndarray, np.ndarray, str]:
-    """The capture's packet times and data payloads (P, 1206), refused unless they are an HDL-64E's."""
-    times, payloads, _ = read_pcap_payloads(pcap)
-    if len(payloads) == 0:
-        raise LogFormatError(
-            f"no Velodyne data packets (1206-byte UDP payloads to port 2368); it holds {udp_traffic(pcap)}.",
-            file=pcap,
-            fix="capture the HDL-64E's data port (2368); sensact learn car reads Velodyne HDL-64E packets only.",
-        )
+def _refuse_clock_jumps(pcap: Path, capture: _Hdl64eCapture) -> None:
+    ts = capture.timestamp_us
+    sensor_us = int(ts[0]) + np.r_[0, np.cumsum(clock_steps_us(ts))]  # across the hour's wrap
+    bad = _isolated_jumps(sensor_us.astype(float), 100_000.0)  # 0.1 s: over a hundred packet periods
+    bad |= _isolated_jumps(np.asarray(capture.times_s, dtype=float), 1.0)
+    if bad.any():
+        _say_damaged(pcap, int(bad.sum()), len(bad), int(np.argmax(bad)), "time stamp")
+
+
+def _refuse_backwards(pcap: Path, times: np.ndarray) -> None:
     steps = np.diff(np.asarray(times, dtype=float))
     if steps.size and (np.mean(steps < 0) > 0.05 or not np.any(steps > 0)):
         raise LogFormatError(
@@ -193,16 +285,6 @@ def _hdl64e_capture(pcap: Path) -> tuple[np.ndarray, np.ndarray, str]:
             file=pcap,
             fix="capture the lidar again, or give the capture as it was recorded (packets in the order they came).",
         )
-    model = velodyne_model(payloads)
-    if model != "HDL-64E":
-        raise LogFormatError(
-            f"{model} packets: chapter 5's learner reads an HDL-64E, whose 64 lasers fire in upper and lower "
-            "blocks (0xEEFF, 0xDDFF).",
-            file=pcap,
-            field="lidar.file",
-            fix="give an HDL-64E capture (sensact.io.velodyne.read_velodyne_pcap decodes this one).",
-        )
-    return times, payloads, model
 
 
 def _vertical_angles(
@@ -290,19 +372,20 @@ def read_car_log(folder: str | Path, calibration: str | Path | None = None) -> C
     t0 = _lidar_number(lidar, "time_origin_s", meta_file) or 0.0
     # the capture before the angles: no angles fix a capture of another lidar
     pcap = folder / str(lidar.get("file", "velodyne.pcap"))
-    times, payloads, model = _hdl64e_capture(pcap)
-    times, payloads, repeated = _without_repeats(times, payloads)
-    _refuse_damaged(pcap, times, payloads)
+    capture = _read_hdl64e(pcap)
+    times, repeated = capture.times_s, capture.repeated
     vertical_rad, factory, vertical_file, vertical_field = _vertical_angles(lidar, meta_file, calibration)
-    slots = packet_slots(payloads)
-    if slots[-1] + 1 > 2 * len(payloads) + 1000:  # the empty firings of dropped packets are held: bounded first
+    slots = slots_from_clock(capture.timestamp_us)
+    P = len(times)
+    if slots[-1] + 1 > max_slots(P):  # the empty firings of dropped packets are held: bounded first
         raise LogFormatError(
-            f"the lidar's own clock spans {int(slots[-1]) + 1} packet periods, but {len(payloads)} packets came: "
+            f"the lidar's own clock spans {int(slots[-1]) + 1} packet periods, but {P} packets came: "
             "over half would be dropped ones.",
             file=pcap,
             fix="capture the lidar again (a clock that jumps, or a capture of several runs joined, is not one drive).",
         )
-    rot_deg, dist = hdl64e_firings(payloads, slots)
+    spin = spin_from_clock(capture.timestamp_us, capture.rotation[:, 0], "HDL-64E")
+    rot_deg, dist = firings_in_place(capture.rotation, capture.distance_m, slots)
     if len(vertical_rad) != dist.shape[1]:
         raise LogFormatError(
             f"{len(vertical_rad)} vertical angles for {dist.shape[1]} lasers.",
@@ -314,14 +397,13 @@ def read_car_log(folder: str | Path, calibration: str | Path | None = None) -> C
     warnings: list[str] = []
     if repeated:
         notes.append(f"{repeated} packets repeated byte for byte (a mirrored port sends some twice): each read once")
-    dropped = int(slots[-1]) + 1 - len(payloads)
+    dropped = int(slots[-1]) + 1 - P
     if dropped > 0:
         gaps = int(np.count_nonzero(np.diff(slots) > 1))
         notes.append(
             f"{dropped} dropped packets in {gaps} gaps (by the sensor's clock): their firings are left empty, "
             "so that each firing keeps its time"
         )
-    spin = measure_spin(payloads, model)
     stated_hz, stated_rpm = _lidar_number(lidar, "firing_hz", meta_file), _lidar_number(lidar, "rpm", meta_file)
     firing_hz = _spin_value(stated_hz, spin and spin.firing_hz, "firing_hz", "Hz", notes, warnings)
     rpm = _spin_value(stated_rpm, spin and spin.rpm, "rpm", "rpm", notes, warnings)

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import dataclasses
 import struct
+from collections import Counter
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -93,9 +95,21 @@ class _CheckedReads:
         return data
 
 
-def _capture_frames(path: Path) -> tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Every record of a pcap or pcapng capture, framed by dpkt: ``(link type, buf, record start, record
-    length, capture time s)``, the records laid end to end in ``buf``."""
+CHUNK_RECORDS = 4096  # records framed, checked and gathered at a time: memory stays bounded by a chunk
+
+
+@dataclass(frozen=True, eq=False)
+class _Frames:
+    """A chunk of a capture's records laid end to end in ``buf``."""
+
+    buf: np.ndarray  # uint8
+    start: np.ndarray  # each record's first byte in buf
+    length: np.ndarray
+    time_s: np.ndarray  # capture time
+
+
+def _capture_chunks(path: Path, records: int = CHUNK_RECORDS) -> Iterator[tuple[int, _Frames]]:
+    """The records of a pcap or pcapng capture, framed by dpkt, ``records`` at a time: ``(link type, frames)``."""
     if not path.is_file():
         raise LogFormatError("pcap file not found.", file=path, fix="check the path.")
     if path.stat().st_size == 0:
@@ -116,34 +130,45 @@ def _capture_frames(path: Path) -> tuple[int, np.ndarray, np.ndarray, np.ndarray
         link = int(reader.datalink())
         frames: list[bytes] = []
         times: list[float] = []
-        try:
-            for stamp, frame in reader:
-                times.append(float(stamp))  # a nanosecond pcap's stamps are Decimals
-                frames.append(frame)
-        except (ValueError, dpkt.UnpackError, struct.error) as exc:
-            raise LogFormatError(
-                f"truncated or corrupt: record {len(frames)} near byte {reads.position} does not read ({exc}).",
-                file=path,
-                fix="re-capture, or cut the file at the last complete packet.",
-            ) from None
-    lens = np.array([len(f) for f in frames], dtype=np.int64)
-    offs = np.concatenate([[0], np.cumsum(lens)[:-1]]).astype(np.int64) if len(lens) else np.zeros(0, np.int64)
-    return link, np.frombuffer(b"".join(frames), dtype=np.uint8), offs, lens, np.array(times, dtype=float)
+        done = 0
+        records_read = iter(reader)
+        while True:
+            try:
+                for stamp, frame in records_read:
+                    times.append(float(stamp))  # a nanosecond pcap's stamps are Decimals
+                    frames.append(frame)
+                    if len(frames) == records:
+                        break
+            except (ValueError, dpkt.UnpackError, struct.error) as exc:
+                raise LogFormatError(
+                    f"truncated or corrupt: record {done + len(frames)} near byte {reads.position} does not read "
+                    f"({exc}).",
+                    file=path,
+                    fix="re-capture, or cut the file at the last complete packet.",
+                ) from None
+            if frames:
+                lens = np.fromiter(map(len, frames), dtype=np.int64, count=len(frames))
+                starts = np.concatenate([[0], np.cumsum(lens)[:-1]]).astype(np.int64)
+                buf = np.frombuffer(b"".join(frames), dtype=np.uint8)
+                yield link, _Frames(buf, starts, lens, np.array(times, dtype=float))
+            if len(frames) < records:
+                return
+            done += len(frames)
+            frames, times = [], []
 
 
-def _udp_datagrams(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Every IPv4 UDP datagram of a pcap or pcapng capture: ``(buf, record ok, payload start, destination
-    port, payload bytes, capture time s)``; the arrays run over the records, ``ok`` marks the UDP ones."""
-    link, buf, offs, lens, times = _capture_frames(path)
+def _udp_fields(path: Path, link: int, f: _Frames) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Which records of a chunk are whole IPv4 UDP datagrams: ``(ok, payload start, destination port,
+    payload bytes)``, vectorized over the records."""
     link_header = _LINK_HEADER_BYTES.get(link)
     if link_header is None:
         raise LogFormatError(f"unsupported link type {link}.", file=path, fix="capture on Ethernet (link type 1).")
-    if buf.size == 0:
-        buf = np.zeros(1, np.uint8)  # the clipped indexing below needs one byte
+    buf, offs, lens = (f.buf if f.buf.size else np.zeros(1, np.uint8)), f.start, f.length
+    last = buf.size - 1
     ip = offs + link_header
     ok = lens >= link_header + 28
     if link == 1:
-        ok &= (buf[np.minimum(offs + 12, buf.size - 1)] == 0x08) & (buf[np.minimum(offs + 13, buf.size - 1)] == 0x00)
+        ok &= (buf[np.minimum(offs + 12, last)] == 0x08) & (buf[np.minimum(offs + 13, last)] == 0x00)
     ipc = np.clip(ip, 0, max(buf.size - 28, 0))
     ihl = (buf[ipc] & 0x0F).astype(np.int64) * 4
     ok &= ((buf[ipc] >> 4) == 4) & (buf[ipc + 9] == 17)
@@ -151,30 +176,49 @@ def _udp_datagrams(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.n
     dport = buf[udp + 2].astype(np.int64) * 256 + buf[udp + 3]
     size = buf[udp + 4].astype(np.int64) * 256 + buf[udp + 5] - 8
     ok &= lens >= (udp - offs) + 8 + np.maximum(size, 0)  # the whole payload was captured
-    return buf, ok, udp + 8, dport, size, times
+    return ok, udp + 8, dport, size
+
+
+def iter_payloads(
+    path: str | Path, port: int = DATA_PORT, size: int = PAYLOAD_BYTES, records: int = CHUNK_RECORDS
+) -> Iterator[tuple[np.ndarray, np.ndarray, int]]:
+    """The capture's UDP payloads of ``size`` bytes to ``port``, a chunk at a time: ``(capture_time_s,
+    payloads (n, size) uint8, records skipped)``. Never more than a chunk of the capture is held."""
+    path = Path(path)
+    for link, f in _capture_chunks(path, records):
+        ok, start, dport, got = _udp_fields(path, link, f)
+        ok &= (dport == port) & (got == size)
+        # rows of a sliding view: no index array as large as the payloads themselves
+        payloads = (
+            np.lib.stride_tricks.sliding_window_view(f.buf, size)[start[ok]]
+            if ok.any()
+            else np.zeros((0, size), np.uint8)
+        )
+        yield f.time_s[ok], payloads, int((~ok).sum())
 
 
 def read_pcap_payloads(path: str | Path, port: int = DATA_PORT) -> tuple[np.ndarray, np.ndarray, int]:
     """``(capture_time_s, payloads (P, 1206) uint8, n_skipped)`` of the Velodyne data packets in a pcap."""
-    buf, ok, start, dport, size, times = _udp_datagrams(Path(path))
-    ok = ok & (dport == port) & (size == PAYLOAD_BYTES)
-    payloads = (
-        buf[start[ok][:, None] + np.arange(PAYLOAD_BYTES)[None, :]]
-        if ok.any()
-        else np.zeros((0, PAYLOAD_BYTES), np.uint8)
-    )
-    return times[ok], payloads, int((~ok).sum())
+    times, payloads, skipped = [np.zeros(0)], [np.zeros((0, PAYLOAD_BYTES), np.uint8)], 0
+    for t, p, n in iter_payloads(path, port):
+        times.append(t)
+        payloads.append(p)
+        skipped += n
+    return np.concatenate(times), np.concatenate(payloads), skipped
 
 
 def udp_traffic(path: str | Path, most: int = 3) -> str:
     """The capture's commonest UDP streams, for an error that found none it could read: "UDP to port
     7502 (12608-byte payloads) x 1280, ..." or "no UDP packets"."""
-    _, ok, _, dport, size, _ = _udp_datagrams(Path(path))
-    if not ok.any():
+    path = Path(path)
+    counts: Counter[tuple[int, int]] = Counter()
+    for link, f in _capture_chunks(path):
+        ok, _, dport, size = _udp_fields(path, link, f)
+        counts.update(zip(dport[ok].tolist(), size[ok].tolist(), strict=True))
+    if not counts:
         return "no UDP packets"
-    streams, counts = np.unique(np.column_stack([dport[ok], size[ok]]), axis=0, return_counts=True)
-    order = np.argsort(-counts, kind="stable")[:most]
-    return ", ".join(f"UDP to port {streams[i, 0]} ({streams[i, 1]}-byte payloads) x {counts[i]}" for i in order)
+    ranked = sorted(counts.items(), key=lambda kv: (-kv[1], kv[0]))[:most]
+    return ", ".join(f"UDP to port {port} ({size}-byte payloads) x {n}" for (port, size), n in ranked)
 
 
 def _model_of(packets: np.ndarray) -> str:
@@ -192,24 +236,28 @@ def _model_of(packets: np.ndarray) -> str:
     return PRODUCT_IDS.get(product, "HDL-32E")
 
 
-def _clock_steps_us(packets: np.ndarray) -> np.ndarray:
+def clock_steps_us(timestamp_us: np.ndarray) -> np.ndarray:
     """Steps of the sensor's clock between packets (µs past the hour, so a step back by most of an hour
     is the wrap)."""
-    step = np.diff(packets["timestamp_us"].astype(np.int64))
+    step = np.diff(np.asarray(timestamp_us).astype(np.int64))
     step[step < -1_800_000_000] += 3_600_000_000
     return step
 
 
-def packet_slots(payloads: np.ndarray) -> np.ndarray:
+def slots_from_clock(timestamp_us: np.ndarray) -> np.ndarray:
     """Each packet's place in time, in packet periods from the first, by the sensor's clock: a dropped
     packet leaves its slot empty. A step of less than a period (a repeated or reordered packet) takes the
     next slot, so a capture without drops gets 0, 1, 2, ..."""
-    packets = np.ascontiguousarray(payloads).view(PACKET).reshape(-1)
-    step = _clock_steps_us(packets)
+    step = clock_steps_us(timestamp_us)
     if not np.any(step > 0):
-        return np.arange(len(packets))
+        return np.arange(len(timestamp_us))
     periods = np.maximum(np.rint(step / float(np.median(step[step > 0]))), 1).astype(np.int64)
     return np.concatenate([[0], np.cumsum(periods)])
+
+
+def packet_slots(payloads: np.ndarray) -> np.ndarray:
+    """``slots_from_clock`` of the payloads' own clock."""
+    return slots_from_clock(np.ascontiguousarray(payloads).view(PACKET).reshape(-1)["timestamp_us"])
 
 
 FIRINGS_PER_PACKET = {"HDL-64E": HDL64_FIRINGS_PER_PACKET, "HDL-32E": 12, "VLP-16": 24}
@@ -231,22 +279,28 @@ def velodyne_model(payloads: np.ndarray) -> str:
 
 
 def measure_spin(payloads: np.ndarray, model: str | None = None) -> Spin | None:
-    """The firing rate and the spin rate from the packets' own clock (µs past the hour), not the host's
-    capture times, which carry its jitter: the usual packet period, over the whole capture, with each
-    step counted as the whole number of periods it spans (dropped packets), holds a model's fixed number
-    of firings; the first block's clockwise rotation over the steps that are not gaps gives the spin.
-    None for fewer than three packets or a clock that never advances."""
+    """``spin_from_clock`` of the payloads' own clock and first blocks' rotations."""
     packets = np.ascontiguousarray(payloads).view(PACKET).reshape(-1)
     if len(packets) < 3:
         return None
-    model = model or _model_of(packets)
-    step = _clock_steps_us(packets)
+    return spin_from_clock(packets["timestamp_us"], packets["blocks"]["rotation"][:, 0], model or _model_of(packets))
+
+
+def spin_from_clock(timestamp_us: np.ndarray, first_rotation: np.ndarray, model: str) -> Spin | None:
+    """The firing rate and the spin rate from the packets' own clock (µs past the hour), not the host's
+    capture times, which carry its jitter: the usual packet period, over the whole capture, with each
+    step counted as the whole number of periods it spans (dropped packets), holds a model's fixed number
+    of firings; the first block's clockwise rotation (0.01°, ``first_rotation``) over the steps that are
+    not gaps gives the spin. None for fewer than three packets or a clock that never advances."""
+    if len(timestamp_us) < 3:
+        return None
+    step = clock_steps_us(timestamp_us)
     if not np.any(step > 0):
         return None
     usual = float(np.median(step[step > 0]))
     periods = np.rint(np.maximum(step, 0) / usual)
     packet_s = float(step[periods > 0].sum()) * 1e-6 / float(periods.sum())
-    turn = np.mod(np.diff(packets["blocks"]["rotation"][:, 0].astype(float) / 100.0), 360.0)
+    turn = np.mod(np.diff(np.asarray(first_rotation).astype(float) / 100.0), 360.0)
     near = (step > 0) & (periods <= SPIN_GAP_PACKETS)
     clockwise = bool(np.median(turn[near]) < 180.0) if near.any() else True
     if not clockwise:
@@ -272,7 +326,7 @@ def decode_packets(times_s: np.ndarray, payloads: np.ndarray, model: str = "auto
     P = len(packets)
     # packet times on the sensor's clock (µs past the hour, unwrapped), anchored at the first capture time:
     # capture times carry the host's jitter
-    step = _clock_steps_us(packets)
+    step = clock_steps_us(packets["timestamp_us"])
     times_s = float(times_s[0]) + np.concatenate([[0], np.cumsum(step)]) * 1e-6 if P else np.zeros(0)
     blocks = packets["blocks"]
     dist = blocks["returns"]["distance"].astype(float) * DISTANCE_UNIT_M  # (P, 12, 32)
@@ -369,9 +423,7 @@ def encode_hdl64e(
 def hdl64e_firings(payloads: np.ndarray, slots: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """HDL-64E payloads as ``(rotation_deg (F,), distance_m (F, 64) float32)``, one row per firing and one
     column per laser id: the compact form the angle learner reads (100 million returns fit in 400 MB).
-    ``slots`` (``packet_slots``) puts each packet's firings at its place in time: the firings of dropped
-    packets have no returns and a rotation interpolated between their neighbours', so that a firing's
-    index stays its time times the firing rate, which the learners assume."""
+    ``slots`` (``packet_slots``): see ``firings_in_place``."""
     pk = np.ascontiguousarray(payloads).view(PACKET).reshape(-1)
     blocks = pk["blocks"]
     if not (np.all(blocks["id"][:, 0::2] == UPPER) and np.all(blocks["id"][:, 1::2] == LOWER)):
@@ -380,18 +432,55 @@ def hdl64e_firings(payloads: np.ndarray, slots: np.ndarray | None = None) -> tup
             field="block id",
             fix="give an HDL-64E capture.",
         )
+    rotation, distance = hdl64e_fields(pk)
     P = len(pk)
-    d = blocks["returns"]["distance"].reshape(P, 6, 2, 32).reshape(P * 6, 64)
-    rot = blocks["rotation"][:, 0::2].reshape(-1).astype(float) / 100.0
-    dist = d.astype(np.float32) * np.float32(DISTANCE_UNIT_M)
+    rows = P if slots is None or P == 0 else int(slots[-1]) + 1
+    out = np.zeros((rows * HDL64_FIRINGS_PER_PACKET, 64), dtype=np.float32)
+    np.multiply(distance, np.float32(DISTANCE_UNIT_M), out=out[: P * HDL64_FIRINGS_PER_PACKET], casting="unsafe")
+    return firings_in_place(rotation, out, slots)
+
+
+def hdl64e_fields(packets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """HDL-64E packets (``PACKET`` records) as each firing's rotation (P, 6) in 0.01° and distances
+    (P * 6, 64) uint16 in 2 mm units by laser id: an upper block and the lower block after it are one
+    firing of lasers 0-31 and 32-63."""
+    P = len(packets)
+    blocks = packets["blocks"]
+    return blocks["rotation"][:, 0::2].copy(), blocks["returns"]["distance"].reshape(P * 6, 64).copy()
+
+
+def firings_in_place(
+    rotation: np.ndarray, distance_m: np.ndarray, slots: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(rotation_deg (F,), distance_m (F, 64))`` of P packets: ``rotation`` (P, 6) in 0.01° and
+    ``distance_m`` whose first P * 6 rows hold their firings in the order they came. ``slots``
+    (``slots_from_clock``) puts each packet's firings at its place in time, moved within ``distance_m``
+    (which needs the F rows): the firings of dropped packets have no returns and a rotation interpolated
+    between their neighbours', so that a firing's index stays its time times the firing rate, which the
+    learners assume."""
+    n = HDL64_FIRINGS_PER_PACKET
+    P = len(rotation)
+    rot = rotation.reshape(-1).astype(float) / 100.0
     if slots is None or P == 0 or int(slots[-1]) == P - 1:
-        return rot, dist
-    F = (int(slots[-1]) + 1) * HDL64_FIRINGS_PER_PACKET
-    at = (np.asarray(slots)[:, None] * HDL64_FIRINGS_PER_PACKET + np.arange(HDL64_FIRINGS_PER_PACKET)).reshape(-1)
-    full = np.zeros((F, 64), dtype=np.float32)
-    full[at] = dist
+        return rot, distance_m[: P * n]
+    F = (int(slots[-1]) + 1) * n
+    if distance_m.shape[0] < F:
+        raise ValueError(f"{distance_m.shape[0]} rows for {F} firings")
+    slots = np.asarray(slots, dtype=np.int64)
+    block = 1 << 12
+    # from the last packet back: a packet only moves later, so none is overwritten before it moves
+    for end in range(P, 0, -block):
+        start = max(end - block, 0)
+        src = (np.arange(start, end)[:, None] * n + np.arange(n)).reshape(-1)
+        dst = (slots[start:end, None] * n + np.arange(n)).reshape(-1)
+        moved = src != dst
+        if not moved.any():
+            break  # slots equal indices from here back, as they do before the first drop
+        distance_m[dst[moved]] = distance_m[src[moved]]
+        distance_m[np.setdiff1d(src[moved], dst, assume_unique=True)] = 0.0
+    at = (slots[:, None] * n + np.arange(n)).reshape(-1)
     turned = np.unwrap(rot, period=360.0)
-    return np.mod(np.interp(np.arange(F), at, turned), 360.0), full
+    return np.mod(np.interp(np.arange(F), at, turned), 360.0), distance_m[:F]
 
 
 def _ip_checksum(header: np.ndarray) -> np.ndarray:
