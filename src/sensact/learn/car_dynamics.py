@@ -12,6 +12,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
@@ -40,6 +41,7 @@ class CarLearningConfig:
     icp_tolerance: float = 1e-5
     min_speed_m_s: float = 2.0
     voxel_m: float = 0.2  # thin D1 to one point per 0.2 m cell: 4x faster ICP, same accuracy (docs/car.md)
+    matcher: Literal["algorithm2", "kiss_icp"] = "algorithm2"  # OdometryConfig.matcher
 
     @property
     def intrinsics(self) -> IntrinsicsConfig:
@@ -55,6 +57,7 @@ class CarLearningConfig:
             self.icp_tolerance,
             self.min_speed_m_s,
             self.voxel_m,
+            self.matcher,
         )
 
 
@@ -72,6 +75,7 @@ class CarLearningResult:
     accel_m_s2: np.ndarray
     history: list[dict[str, float]]  # coefficients and C per iteration
     seconds_by_stage: dict[str, float]
+    converged: bool = True  # False: max_iterations ran out before the coefficients settled to tolerance
 
     @property
     def iterations(self) -> int:
@@ -162,6 +166,7 @@ def learn_car(
     stages = {**first.seconds_by_stage, "regression": 0.0}
     guess = None
     model = None
+    done = False
     history: list[dict[str, float]] = []
     for it in range(cfg.max_iterations):
         t1 = time.perf_counter()
@@ -193,7 +198,7 @@ def learn_car(
         guess = np.column_stack([pv * dt * fwd[0], pv * dt * fwd[1], pw * dt])
     assert model is not None
     angles = wrap_angle(rel.relative_rad + C)
-    return CarLearningResult(angles, C, rel, model, odo, mid, act, v, w, a, history, stages)
+    return CarLearningResult(angles, C, rel, model, odo, mid, act, v, w, a, history, stages, bool(done))
 
 
 MAX_LASER_SPREAD_RAD = np.pi / 2  # a spinning lidar's lasers point within tens of degrees of each other

@@ -46,7 +46,8 @@ def _learn(data: Any, cfg: Any, simulated: bool) -> tuple[Any, dict | None, list
         with progress_bar() as progress:
             res = learn_from_log(data, cfg, progress)
         m = res.model
-        console.print(f"converged after {res.iterations} iterations; C = {np.degrees(res.offset_rad):.3f}°")
+        ended = "converged after" if res.converged else "max_iterations reached, not converged, after"
+        console.print(f"{ended} {res.iterations} iterations; C = {np.degrees(res.offset_rad):.3f}°")
         console.print(f"  a = {m.C5:.4g} + {m.C6:.4g} g + {m.C7:.4g} v + {m.C8:.4g} v b   (eq. 5.3)")
         console.print(f"  omega = {m.C9:.4g} v + {m.C10:.4g} v s   (eq. 5.4)")
         if simulated:
@@ -175,6 +176,7 @@ def learn_car_cmd(
                 "offset_C_deg": float(np.degrees(res.offset_rad)),
                 "car_dynamics": model,
                 "iterations": len(history),
+                "converged": bool(getattr(res, "converged", True)),
                 "history": history,
                 "seconds_by_stage": res.seconds_by_stage,
                 "config": config_to_dict(cfg),
