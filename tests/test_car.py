@@ -214,6 +214,14 @@ def test_a_users_car_folder_needs_no_rates_and_takes_the_factory_calibration(sho
     np.testing.assert_array_equal(lossy.distance_m[~lost], log.distance_m[~lost])
     np.testing.assert_allclose(np.angle(np.exp(1j * (lossy.rotation_rad - log.rotation_rad))), 0, atol=2e-4)
     assert lossy.notes[0].startswith("4 dropped packets in 2 gaps")
+    # a gap longer than the file's size leaves room for (3 % of the drive): placed the same way
+    keep[5000:6200] = False
+    write_pcap(own / "lossy.pcap", payloads[keep], times[keep])
+    gappy = read_car_log(own)
+    lost = np.repeat(~keep, 6)
+    assert gappy.distance_m.shape == log.distance_m.shape and not gappy.distance_m[lost].any()
+    np.testing.assert_array_equal(gappy.distance_m[~lost], log.distance_m[~lost])
+    assert gappy.notes[0].startswith("1204 dropped packets in 3 gaps")
     # a calibration for another unit, the capture itself given as the log, and a capture of another model
     write_calibration(tmp_path / "vlp16.yaml", LaserIntrinsics(np.zeros(16), np.zeros(16)))
     with pytest.raises(LogFormatError, match="16 vertical angles for 64 lasers") as err:

@@ -187,9 +187,8 @@ def _read_hdl64e(pcap: Path) -> _Hdl64eCapture:
     stamps each packet with its own clock, so two alike are one packet captured twice, which would be read
     as two firings: laser angles 96.6 degrees off on a capture with its packets doubled), another unit's
     capture and damaged packets refused (``_say_damaged``). The distances go straight into one float32
-    array sized for the most firings the file can hold with its drops (``max_slots``); the pages it never
-    writes are never in memory."""
-    rows = max_slots(pcap.stat().st_size // _MIN_PACKET_RECORD) * HDL64_FIRINGS_PER_PACKET if pcap.is_file() else 0
+    array sized for the most packets the file can hold; the pages it never writes are never in memory."""
+    rows = pcap.stat().st_size // _MIN_PACKET_RECORD * HDL64_FIRINGS_PER_PACKET if pcap.is_file() else 0
     distance = np.zeros((rows, 64), dtype=np.float32)
     seen: set[tuple[int, int]] = set()
     times, stamps, rotations = [], [], []
@@ -385,7 +384,12 @@ def read_car_log(folder: str | Path, calibration: str | Path | None = None) -> C
             fix="capture the lidar again (a clock that jumps, or a capture of several runs joined, is not one drive).",
         )
     spin = spin_from_clock(capture.timestamp_us, capture.rotation[:, 0], "HDL-64E")
-    rot_deg, dist = firings_in_place(capture.rotation, capture.distance_m, slots)
+    held = capture.distance_m
+    need = (int(slots[-1]) + 1) * HDL64_FIRINGS_PER_PACKET
+    if need > len(held):  # more dropped packets than the file's size left room for: one copy, rarely
+        held = np.zeros((need, held.shape[1]), dtype=np.float32)
+        held[: P * HDL64_FIRINGS_PER_PACKET] = capture.distance_m[: P * HDL64_FIRINGS_PER_PACKET]
+    rot_deg, dist = firings_in_place(capture.rotation, held, slots)
     if len(vertical_rad) != dist.shape[1]:
         raise LogFormatError(
             f"{len(vertical_rad)} vertical angles for {dist.shape[1]} lasers.",
