@@ -64,7 +64,6 @@ def test_one_line_for_a_compile_however_nested():
         assert notice.kernels == 1
         other(1.0)
         assert notice.kernels == 2
-        assert notice.cpu_s > 0.0
     assert lines == [MESSAGE]  # said once, however many kernels compile
     other(3.0)
     lines.clear()

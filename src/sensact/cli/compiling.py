@@ -9,7 +9,6 @@ show; without a word it looks like a hang.
 from __future__ import annotations
 
 import sys
-import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
@@ -23,29 +22,24 @@ MESSAGE = (
 
 class CompileNotice(event.Listener):
     """A numba event listener that says ``MESSAGE`` once, when the first kernel starts compiling, and
-    counts the kernels compiled and their CPU time (nested compiles are counted in their caller's)."""
+    counts the kernels compiled (a nested compile is counted in its caller's)."""
 
     def __init__(self, say: Callable[[str], None]) -> None:
         self._say = say
         self._depth = 0
-        self._started = 0.0
         self.announced = False
         self.kernels = 0
-        self.cpu_s = 0.0
 
     def on_start(self, event: Any) -> None:
-        if self._depth == 0:
-            if not self.announced:
-                self._say(MESSAGE)
-                self.announced = True
-            self._started = time.process_time()
+        if self._depth == 0 and not self.announced:
+            self._say(MESSAGE)
+            self.announced = True
         self._depth += 1
 
     def on_end(self, event: Any) -> None:
         self._depth -= 1
         if self._depth == 0:
             self.kernels += 1
-            self.cpu_s += time.process_time() - self._started
 
 
 @contextmanager

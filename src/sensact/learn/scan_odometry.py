@@ -7,7 +7,7 @@ more than 1 m below the sensor are dropped: the ground's circles move with the c
 toward no motion. ICP matches the scan with fewer points (D1) into the other (D2) with a k-d tree, fits
 ``(dx, dy, dtheta)`` by linearized least squares around the current estimate, and ignores pairs more
 than 7 m apart. ``matcher="kiss_icp"`` (not the thesis's; the ``kiss`` extra) matches every revolution
-with KISS-ICP instead (``kiss_icp_odometry``).
+with KISS-ICP instead (``_kiss_icp_odometry``).
 """
 
 from __future__ import annotations
@@ -110,9 +110,8 @@ def scan_odometry(
     """Motions between scans every ``dt``. ``guess`` (K, 3) are initial motions in (x_C, y_C), or identity."""
     cfg = config or OdometryConfig()
     if cfg.matcher == "kiss_icp":
-        return kiss_icp_odometry(
-            rot_rad, dist, vertical_rad, relative_rad, firing_hz, omega_rad_s, guess, cfg, progress
-        )
+        scan = (rot_rad, dist, vertical_rad, relative_rad, firing_hz, omega_rad_s)
+        return _kiss_icp_odometry(scan, guess, cfg, progress)
     per_rev = round(2 * np.pi / abs(omega_rad_s) * firing_hz)
     step = round(cfg.dt_s * firing_hz)
     starts = np.arange(0, len(rot_rad) - per_rev + 1, step)
@@ -187,23 +186,17 @@ def _register(kiss, points: np.ndarray, frac: np.ndarray, predicted: np.ndarray 
     kiss.last_pose = new_pose
 
 
-def kiss_icp_odometry(
-    rot_rad: np.ndarray,
-    dist: np.ndarray,
-    vertical_rad: np.ndarray,
-    relative_rad: np.ndarray,
-    firing_hz: float,
-    omega_rad_s: float,
-    guess: np.ndarray | None = None,
-    config: OdometryConfig | None = None,
-    progress: Callable[[str, int, int], None] | None = None,
+def _kiss_icp_odometry(
+    scan: tuple, guess: np.ndarray | None, cfg: OdometryConfig, progress: Callable[[str, int, int], None] | None
 ) -> Odometry:
     """``scan_odometry``'s motions, by KISS-ICP (Vizzo et al. 2023) instead of Algorithm 2: every revolution,
     deskewed, matched point to point against a local voxel map with an adaptive threshold. The motion over
     each interval is read off its poses, interpolated to the middles of the revolutions that start and end
     the interval, as Algorithm 2's scans stand for. ``guess`` (the learned dynamics' motions, sec. 5.3)
     seeds each revolution's registration in place of KISS-ICP's constant-velocity guess: the API gap its
-    users ask about (kiss-icp issue #183), filled by setting its predicted motion before each frame."""
+    users ask about (kiss-icp issue #183), filled by setting its predicted motion before each frame.
+    ``scan`` is ``scan_odometry``'s first six arguments."""
+    rot_rad, dist, vertical_rad, relative_rad, firing_hz, omega_rad_s = scan
     try:
         from kiss_icp.config import KISSConfig
         from kiss_icp.kiss_icp import KissICP
@@ -213,7 +206,6 @@ def kiss_icp_odometry(
             field="matcher",
             fix="pip install 'sensact[kiss]', or leave matcher at algorithm2.",
         ) from None
-    cfg = config or OdometryConfig()
     per_rev = round(2 * np.pi / abs(omega_rad_s) * firing_hz)
     step = round(cfg.dt_s * firing_hz)
     starts = np.arange(0, len(rot_rad) - per_rev + 1, step)
@@ -248,13 +240,11 @@ def kiss_icp_odometry(
     mid = (starts + per_rev / 2) / firing_hz
     at = np.column_stack([np.interp(mid, pose_t, track[:, i]) for i in range(3)])
     K = len(starts) - 1
-    motion = np.zeros((K, 3))
-    for k in range(K):
-        d = at[k + 1] - at[k]
-        c, s = np.cos(at[k, 2]), np.sin(at[k, 2])
-        M = (c * d[0] + s * d[1], -s * d[0] + c * d[1], d[2])  # in the earlier scan's frame
-        c, s = np.cos(-M[2] / 2), np.sin(-M[2] / 2)
-        motion[k] = (c * M[0] - s * M[1], s * M[0] + c * M[1], M[2])
+    d = np.diff(at, axis=0)
+    c, s = np.cos(at[:K, 2]), np.sin(at[:K, 2])
+    mx, my = c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]  # in the earlier scan's frame
+    c, s = np.cos(-d[:, 2] / 2), np.sin(-d[:, 2] / 2)  # then turned by -m_theta/2, as Algorithm 2's are
+    motion = np.column_stack([c * mx - s * my, s * mx + c * my, d[:, 2]])
     return Odometry(starts[:K] / firing_hz, motion, np.full(K, np.nan), np.zeros(K, dtype=int), n_points)
 
 
