@@ -9,13 +9,13 @@ import pytest
 
 from conftest import DATA, require, rewrite_capture
 from sensact.errors import LogFormatError
+from sensact.io.lidar_packets import firings
 from sensact.io.velodyne import (
     LOWER,
     PACKET,
     UPPER,
     decode_packets,
     encode_hdl64e,
-    hdl64e_firings,
     measure_spin,
     packet_slots,
     pcap_bytes,
@@ -25,6 +25,7 @@ from sensact.io.velodyne import (
     write_pcap,
 )
 from sensact.io.velodyne_calibration import calibration_yaml, read_calibration, write_calibration
+from sensact.models.lidar_unit import UNITS
 
 VELO = DATA / "velodyne"
 
@@ -181,12 +182,12 @@ def test_dropped_packets_leave_their_firings_empty_in_place():
     stamp = np.rint(np.mod(3599.99 + np.arange(F // 6) * 6 / 7800.0, 3600.0) * 1e6)  # across the hour
     payloads = encode_hdl64e(rot, dist, np.zeros((F, 64)), stamp)
     np.testing.assert_array_equal(packet_slots(payloads), np.arange(F // 6))
-    whole_rot, whole = hdl64e_firings(payloads, packet_slots(payloads))
+    whole_rot, whole = firings(UNITS["HDL-64E"], payloads, packet_slots(payloads))
     keep = np.ones(F // 6, dtype=bool)
     keep[[3, 17, 18, 19, 39]] = False  # the last one too: the capture ends early, nothing to place after it
     slots = packet_slots(payloads[keep])
     np.testing.assert_array_equal(slots, np.flatnonzero(keep))
-    got_rot, got = hdl64e_firings(payloads[keep], slots)
+    got_rot, got = firings(UNITS["HDL-64E"], payloads[keep], slots)
     kept = np.repeat(keep[:39], 6)
     assert got.shape == (39 * 6, 64)
     np.testing.assert_array_equal(got[kept], whole[: 39 * 6][kept])

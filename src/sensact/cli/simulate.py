@@ -70,7 +70,8 @@ def simulate_car(
     set_: SetOpt = None,
     config: ConfigOpt = None,
 ) -> None:
-    """Simulate the chapter-5 car with a Velodyne HDL-64E driving through a town (secs. 2.5.2, 5.4)."""
+    """Simulate the chapter-5 car with a spinning lidar driving through a town (secs. 2.5.2, 5.4): the thesis's
+    Velodyne HDL-64E, or --set lidar=HDL-32E, VLP-32C, VLP-16 or OS-1."""
     from sensact.experiments.car import simulate_car_log
     from sensact.sim.car import CarConfig, log_summary
 
@@ -81,7 +82,7 @@ def simulate_car(
     console.print(
         f"wrote {out}: {s['seconds']:.0f} s drive, top speed {s['max_speed_m_s']:.2f} m/s, turned "
         f"{s['turned_deg']:.0f}°, {s['obstacles']} obstacles; velodyne.pcap holds "
-        f"{int(cfg.seconds * cfg.firing_hz) // 6} HDL-64E packets (seed {cfg.seed})"
+        f"{int(cfg.seconds * cfg.firing_rate_hz) // cfg.unit.firings_per_packet} {cfg.lidar} packets (seed {cfg.seed})"
     )
 
 

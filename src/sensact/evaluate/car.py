@@ -8,12 +8,14 @@ from sensact.core.angles import wrap_angle
 from sensact.models.car_dynamics import CarDynamics, fit_car_dynamics
 
 
-def laser_angle_error(learned_rad: np.ndarray, true_rad: np.ndarray) -> dict[str, float]:
-    """RMS over the lasers of the learned theta_l + theta_b, in degrees and as % of the true angles' range."""
+def laser_angle_error(learned_rad: np.ndarray, true_rad: np.ndarray) -> dict[str, float | None]:
+    """RMS over the lasers of the learned theta_l + theta_b, in degrees and as % of the true angles' range
+    (None for a unit whose lasers all point alike, as an HDL-32E's and a VLP-16's do)."""
     err = np.degrees(wrap_angle(np.asarray(learned_rad) - np.asarray(true_rad)))
     rms = float(np.sqrt(np.mean(err**2)))
     span = float(np.degrees(np.ptp(np.unwrap(true_rad))))
-    return {"laser_angle_rms_deg": rms, "laser_angle_rms_pct": 100 * rms / span, "laser_angle_range_deg": span}
+    pct = 100 * rms / span if span > 0 else None
+    return {"laser_angle_rms_deg": rms, "laser_angle_rms_pct": pct, "laser_angle_range_deg": span}
 
 
 def factory_comparison(learned_rad: np.ndarray, factory_horizontal_rad: np.ndarray) -> dict[str, float]:

@@ -24,7 +24,15 @@ from sensact.learn.car_dynamics import (
     learn_laser_angles,
 )
 from sensact.models.laser_intrinsics import LaserIntrinsics
-from sensact.sim.car import CarConfig, CarRun, log_tables, nominal_intrinsics, scan_chunks, simulate_drive
+from sensact.sim.car import (
+    CarConfig,
+    CarRun,
+    log_tables,
+    nominal_intrinsics,
+    nominal_unit_intrinsics,
+    scan_chunks,
+    simulate_drive,
+)
 
 ProgressFn = Callable[[str, int, int], None]
 
@@ -83,19 +91,31 @@ def scorecard(summary: dict[str, Any]) -> list[BarCheck]:
     return checks
 
 
-def default_calibration_path() -> Path:
+# each model's calibration in the shared data: the geometry of a real unit
+SHARED_CALIBRATIONS = {
+    "HDL-64E": "calibration/64e_utexas.yaml",
+    "HDL-32E": "calibration/32db.yaml",
+    "VLP-16": "calibration/VLP16db.yaml",
+    "OS-1": "ouster_example.json",
+}
+
+
+def default_calibration_path(model: str = "HDL-64E") -> Path | None:
     from sensact.experiments.shared_data import data_root
 
-    return data_root() / "velodyne" / "calibration" / "64e_utexas.yaml"
+    name = SHARED_CALIBRATIONS.get(model)
+    return None if name is None else data_root() / "velodyne" / name
 
 
 def true_intrinsics(cfg: CarConfig) -> LaserIntrinsics:
-    """The simulated unit's true geometry: ``calibration_yaml``, else the UT Austin HDL-64E of the shared
-    data (the thesis's unit), else the thesis's nominal geometry."""
+    """The simulated unit's true geometry: ``calibration_yaml``, else the model's real unit in the shared
+    data (the UT Austin HDL-64E is the thesis's), else its nominal geometry (``nominal_unit_intrinsics``)."""
     if cfg.calibration_yaml:
         return read_calibration(cfg.calibration_yaml)
-    path = default_calibration_path()
-    return read_calibration(path) if path.is_file() else nominal_intrinsics()
+    path = default_calibration_path(cfg.lidar)
+    if path is not None and path.is_file():
+        return read_calibration(path)
+    return nominal_intrinsics() if cfg.lidar == "HDL-64E" else nominal_unit_intrinsics(cfg.unit)
 
 
 def simulate_car_log(cfg: CarConfig, folder: str | Path, progress: ProgressFn | None = None) -> CarRun:
@@ -113,7 +133,7 @@ def learn_from_log(
     if log.actions is None or log.action_times_s is None:
         raise ValueError("Algorithm 3 needs the log's actions; learn_angles_from_log needs none")
     fields = (log.rotation_rad, log.distance_m, log.vertical_rad, log.firing_hz, log.omega_rad_s)
-    return learn_car(*fields, log.action_times_s, log.actions, config, progress)
+    return learn_car(*fields, log.action_times_s, log.actions, config, progress, log.delay_s)
 
 
 def learn_angles_from_log(
@@ -121,7 +141,7 @@ def learn_angles_from_log(
 ) -> LaserAnglesResult:
     """The laser angles and C from a car log's scans alone (no actions needed)."""
     fields = (log.rotation_rad, log.distance_m, log.vertical_rad, log.firing_hz, log.omega_rad_s)
-    return learn_laser_angles(*fields, config, progress)
+    return learn_laser_angles(*fields, config, progress, log.delay_s)
 
 
 @dataclass(frozen=True)

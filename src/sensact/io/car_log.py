@@ -4,7 +4,7 @@
 
     car-001/
       meta.json            platform "car", lidar {file, vertical_deg, firing_hz, rpm, time_origin_s}, truth if simulated
-      velodyne.pcap        HDL-64E UDP packets
+      velodyne.pcap        the lidar's UDP packets: an HDL-64E, HDL-32E, VLP-32C, VLP-16 or Ouster OS-1
       actions.csv          t_s, throttle, brake, steering (about 20 Hz)
       groundtruth.csv      optional: t_s, x_m, y_m, theta_rad, ... (evaluation only)
 
@@ -14,6 +14,7 @@ file; the horizontal ones are what is learned, and are never read from the log.
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,28 +25,34 @@ import numpy as np
 from sensact.errors import LogFormatError
 from sensact.io.atomic import write_json, write_stream
 from sensact.io.csvtable import read_numeric_csv, refuse_apart, refuse_unordered
+from sensact.io.lidar_packets import encode_packets, packet_fields, velodyne_unit
 from sensact.io.logfolder import LOG_FORMAT, LOG_VERSION, _write_csv, read_meta
 from sensact.io.velodyne import (
-    DISTANCE_UNIT_M,
-    HDL64_FIRINGS_PER_PACKET,
-    LOWER,
+    DATA_PORT,
+    DUAL_RETURN,
     PACKET,
     PAYLOAD_BYTES,
     PCAP_HEADER,
-    UPPER,
-    _model_of,
+    _capture_chunks,
+    _udp_fields,
     clock_steps_us,
-    encode_hdl64e,
     firings_in_place,
-    hdl64e_fields,
     iter_payloads,
     pcap_records,
     slots_from_clock,
     spin_from_clock,
     udp_traffic,
 )
-from sensact.io.velodyne_calibration import write_calibration
+from sensact.io.velodyne_calibration import ouster_metadata, write_calibration
 from sensact.models.laser_intrinsics import LaserIntrinsics
+from sensact.models.lidar_unit import (
+    MODEL_NAMES,
+    OUSTER_PORT,
+    UNITS,
+    LidarUnit,
+    ouster_payload_bytes,
+    ouster_unit,
+)
 
 
 def write_car_log(
@@ -54,28 +61,34 @@ def write_car_log(
     scans: Iterable[tuple[np.ndarray, np.ndarray, np.ndarray]],
     true_intrinsics: LaserIntrinsics | None = None,
 ) -> Path:
-    """Write a car log folder: ``velodyne.pcap`` from the scan chunks ``(firing_times_s, theta_r, distances
-    (F, 64))`` as HDL-64E packets (streamed, atomic), ``actions.csv``, ``groundtruth.csv``, the true
-    calibration if given, and ``meta.json`` last."""
+    """Write a car log folder: the lidar's capture (``lidar.file``) from the scan chunks ``(firing_times_s,
+    theta_r, distances (F, lasers))`` as ``lidar.model``'s packets (streamed, atomic), ``actions.csv``,
+    ``groundtruth.csv``, the true calibration if given, and ``meta.json`` last."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    origin = float(tables["meta"]["lidar"].get("time_origin_s", 0.0))
+    lidar = tables["meta"]["lidar"]
+    origin = float(lidar.get("time_origin_s", 0.0))
+    unit = UNITS[lidar.get("model", "HDL-64E")]
+    if not unit.velodyne:  # an OS-1 of as many beams as angles, and as many columns as fit in a turn
+        unit = ouster_unit(len(lidar["vertical_deg"]), round(float(lidar["firing_hz"]) * 60.0 / float(lidar["rpm"])))
+    n = unit.firings_per_packet
 
     def stream(handle: Any) -> None:
         handle.write(PCAP_HEADER)
         for t, rot, dist in scans:
-            inten = np.where(dist > 0, 40 + (np.arange(dist.shape[1]) % 7) * 20, 0)
-            stamp = np.rint(np.mod(origin + t[::6], 3600.0) * 1e6).astype(np.uint32)
-            # a Velodyne reports its rotation clockwise (seen from above): the field holds -theta_r
-            payloads = encode_hdl64e(np.degrees(-rot), dist, inten, stamp)
-            handle.write(pcap_records(payloads, origin + t[::6]))
+            # a Velodyne reports its rotation clockwise (seen from above), as an OS-1 counts its encoder
+            payloads = encode_packets(unit, np.degrees(-rot), dist, origin + t[::n])
+            handle.write(pcap_records(payloads, origin + t[::n], unit.port))
 
-    write_stream(folder / tables["meta"]["lidar"]["file"], stream)
+    write_stream(folder / lidar["file"], stream)
     _write_csv(folder / "actions.csv", tables["actions"])
     if tables.get("groundtruth") is not None:
         _write_csv(folder / "groundtruth.csv", tables["groundtruth"])
     if true_intrinsics is not None:
-        write_calibration(folder / "calibration_true.yaml", true_intrinsics)
+        if unit.velodyne:
+            write_calibration(folder / "calibration_true.yaml", true_intrinsics)
+        else:
+            write_json(folder / "metadata_true.json", ouster_metadata(true_intrinsics))
     write_json(folder / "meta.json", {"format": LOG_FORMAT, "version": LOG_VERSION, **tables["meta"]})
     return folder
 
@@ -87,8 +100,8 @@ CAR_LOG_DOCS = 'docs/formats.md, "Car log folders"'
 @dataclass(frozen=True, eq=False)
 class CarLog:
     rotation_rad: np.ndarray  # (F,) theta_r per firing, counterclockwise (the packets hold it clockwise)
-    distance_m: np.ndarray  # (F, 64) float32 by laser id
-    vertical_rad: np.ndarray  # (64,)
+    distance_m: np.ndarray  # (F, lasers) float32 by laser id
+    vertical_rad: np.ndarray  # (lasers,)
     firing_hz: float
     omega_rad_s: float  # d theta_r / dt, counterclockwise: negative for a Velodyne, which turns clockwise
     action_times_s: np.ndarray | None  # (M,) on the lidar's clock, from the first firing; None: no actions.csv
@@ -98,6 +111,8 @@ class CarLog:
     notes: tuple[str, ...] = ()  # what the reader measured, for the user to see
     warnings: tuple[str, ...] = ()  # what in the folder contradicts itself
     factory: LaserIntrinsics | None = None  # the calibration file the vertical angles came from, if one
+    model: str = "HDL-64E"  # sensact.io.lidar_units.UNITS
+    delay_s: np.ndarray | None = None  # (lasers,) when each laser fires after its firing's start; None: at once
 
 
 def _lidar_number(lidar: dict[str, Any], name: str, meta_file: Path) -> float | None:
@@ -134,46 +149,65 @@ def _spin_value(
 
 
 @dataclass(frozen=True, eq=False)
-class _Hdl64eCapture:
-    """What chapter 5 keeps of an HDL-64E capture, read a chunk at a time: the payloads themselves (a 200-s
+class _Capture:
+    """What chapter 5 keeps of a lidar capture, read a chunk at a time: the payloads themselves (a 200-s
     drive's are 330 MB) are never all held, and each distance is written once, where the learner reads it."""
 
+    unit: LidarUnit
     times_s: np.ndarray  # (P,) capture times
-    timestamp_us: np.ndarray  # (P,) the sensor's clock, µs past the hour
-    rotation: np.ndarray  # (P, 6) each firing's rotation field, 0.01° clockwise
-    distance_m: np.ndarray  # (R, 64) float32 by laser id: the first P * 6 rows the firings as they came
+    timestamp_us: np.ndarray  # (P,) the sensor's clock, µs (a Velodyne's past the hour)
+    rotation: np.ndarray  # (P, firings per packet) each firing's rotation, 0.01° clockwise
+    distance_m: np.ndarray  # (R, lasers) float32 by laser id: the first P * n rows the firings as they came
     repeated: int  # packets left out as byte-for-byte repeats of earlier ones
 
 
-# the smallest record a data packet can be: a 16-byte record header, raw IPv4 and UDP headers, the payload
-_MIN_PACKET_RECORD = 16 + 28 + PAYLOAD_BYTES
-# two 64-bit linear hashes of a payload's words with odd multipliers: a 128-bit key per packet, and two
-# packets that differ in any one word always differ in both
-_HASH_WORDS = (PAYLOAD_BYTES + 7) // 8
-_HASH_MULTIPLIERS = 2 * np.random.default_rng(20081).integers(1, 2**62, (2, _HASH_WORDS), dtype=np.uint64) + 1
+_RECORD_OVERHEAD = 16 + 28  # a record header, raw IPv4 and UDP headers: the least around a payload
+_HASH_SEED = 20081
 
 
 def _payload_keys(payloads: np.ndarray) -> np.ndarray:
-    """A 128-bit key (two uint64) per payload row, for finding repeats without holding the payloads."""
-    padded = np.zeros((len(payloads), _HASH_WORDS * 8), dtype=np.uint8)
-    padded[:, :PAYLOAD_BYTES] = payloads
+    """A 128-bit key (two uint64) per payload row, for finding repeats without holding the payloads: two
+    64-bit linear hashes of its words with odd multipliers, so two packets that differ in any one word
+    always differ in both."""
+    words_n = (payloads.shape[1] + 7) // 8
+    padded = np.zeros((len(payloads), words_n * 8), dtype=np.uint8)
+    padded[:, : payloads.shape[1]] = payloads
     words = padded.view(np.uint64)
+    mult = 2 * np.random.default_rng(_HASH_SEED).integers(1, 2**62, (2, words_n), dtype=np.uint64) + 1
     with np.errstate(over="ignore"):
-        return np.stack([(words * m).sum(axis=1, dtype=np.uint64) for m in _HASH_MULTIPLIERS], axis=1)
+        return np.stack([(words * m).sum(axis=1, dtype=np.uint64) for m in mult], axis=1)
 
 
-def _refuse_another_model(pcap: Path, packets: np.ndarray) -> None:
-    """An HDL-64E alternates upper and lower blocks in every packet: a first chunk with no lower block is
-    another unit's capture (decoded by ``sensact.io.velodyne.read_velodyne_pcap``, not learned here)."""
-    if np.any(packets["blocks"]["id"] == LOWER):
-        return
-    raise LogFormatError(
-        f"{_model_of(packets)} packets: chapter 5's learner reads an HDL-64E, whose 64 lasers fire in upper and "
-        "lower blocks (0xEEFF, 0xDDFF).",
-        file=pcap,
-        field="lidar.file",
-        fix="give an HDL-64E capture (sensact.io.velodyne.read_velodyne_pcap decodes this one).",
-    )
+def _lidar_stream(pcap: Path, port: int | None = None) -> tuple[int, int] | None:
+    """The (port, payload bytes) of the lidar data in the capture's first chunk: a Velodyne's (1206 bytes,
+    to port 2368) or an OS-1's (its legacy packet for 16 to 128 beams, to port 7502), or either's to
+    ``port`` when a unit was set to send elsewhere; None when it holds neither."""
+    sizes = {PAYLOAD_BYTES: DATA_PORT} | {ouster_payload_bytes(b): OUSTER_PORT for b in (16, 32, 64, 128)}
+    for link, frames in _capture_chunks(pcap):
+        ok, _, ports, got = _udp_fields(pcap, link, frames)
+        found = Counter(
+            (p, n)
+            for p, n in zip(ports[ok].tolist(), got[ok].tolist(), strict=True)
+            if n in sizes and p == (sizes[n] if port is None else port)
+        )
+        return found.most_common(1)[0][0] if found else None
+    return None
+
+
+def _unit_of(pcap: Path, port: int, size: int, payloads: np.ndarray) -> LidarUnit:
+    if size != PAYLOAD_BYTES:
+        return ouster_unit(next(b for b in (16, 32, 64, 128) if ouster_payload_bytes(b) == size))
+    packets = np.ascontiguousarray(payloads).view(PACKET).reshape(-1)
+    unit = velodyne_unit(packets)
+    if np.any(packets["status_type"] == DUAL_RETURN):
+        if unit.name == "HDL-64E":
+            raise LogFormatError(
+                "dual-return HDL-64E packets (return mode 0x39), which chapter 5 does not read.",
+                file=pcap,
+                fix="capture with the unit set to Strongest or Last return.",
+            )
+        return unit.in_dual_return()
+    return unit
 
 
 def max_slots(packets: int) -> int:
@@ -182,19 +216,31 @@ def max_slots(packets: int) -> int:
     return 2 * packets + 1000
 
 
-def _read_hdl64e(pcap: Path) -> _Hdl64eCapture:
-    """The capture's HDL-64E data packets, a chunk at a time: repeats of an earlier packet left out (a unit
+def _read_capture(pcap: Path, port: int | None = None) -> _Capture:
+    """The capture's lidar data packets, a chunk at a time: repeats of an earlier packet left out (a unit
     stamps each packet with its own clock, so two alike are one packet captured twice, which would be read
-    as two firings: laser angles 96.6 degrees off on a capture with its packets doubled), another unit's
-    capture and damaged packets refused (``_say_damaged``). The distances go straight into one float32
-    array sized for the most packets the file can hold; the pages it never writes are never in memory."""
-    rows = pcap.stat().st_size // _MIN_PACKET_RECORD * HDL64_FIRINGS_PER_PACKET if pcap.is_file() else 0
-    distance = np.zeros((rows, 64), dtype=np.float32)
+    as two firings: laser angles 96.6 degrees off on a capture with its packets doubled), and damaged
+    packets refused (``_say_damaged``). The unit is told from the first chunk's packets. The distances go
+    straight into one float32 array sized for the most packets the file can hold; the pages it never writes
+    are never in memory."""
+    stream = _lidar_stream(pcap, port)
+    if stream is None:
+        where = "port 2368, or an Ouster OS-1's to port 7502" if port is None else f"port {port}"
+        raise LogFormatError(
+            f"no lidar data packets (a Velodyne's 1206-byte UDP payloads to {where}); it holds {udp_traffic(pcap)}.",
+            file=pcap,
+            fix="capture the lidar's data port, or name it in meta.json (lidar.port); sensact learn car reads "
+            + ", ".join(MODEL_NAMES)
+            + " packets.",
+        )
+    port, size = stream
     seen: set[tuple[int, int]] = set()
     times, stamps, rotations = [], [], []
     repeated = kept = 0
-    bad = {"block ids": [0, -1], "rotations": [0, -1]}  # how many packets, and the first
-    for chunk_times, payloads, _ in iter_payloads(pcap):
+    unit: LidarUnit | None = None
+    distance = np.zeros((0, 0), dtype=np.float32)
+    bad: dict[str, list[int]] = {}  # how many packets, and the first, by what is wrong
+    for chunk_times, payloads, _ in iter_payloads(pcap, port, size):
         if not len(payloads):
             continue
         keep = np.zeros(len(payloads), dtype=bool)
@@ -203,38 +249,31 @@ def _read_hdl64e(pcap: Path) -> _Hdl64eCapture:
                 seen.add(key)
                 keep[i] = True
         repeated += int((~keep).sum())
-        pk = np.ascontiguousarray(payloads[keep]).view(PACKET).reshape(-1)
-        if not times:
-            _refuse_another_model(pcap, pk)
-        ids, rot = pk["blocks"]["id"], pk["blocks"]["rotation"].astype(np.int64)
-        flags = {
-            "block ids": ~(np.all(ids[:, 0::2] == UPPER, axis=1) & np.all(ids[:, 1::2] == LOWER, axis=1)),
-            "rotations": ~(np.all(rot < 36000, axis=1) & np.all(rot[:, 0::2] == rot[:, 1::2], axis=1)),
-        }
-        for what, flag in flags.items():
-            if flag.any() and bad[what][0] == 0:
-                bad[what][1] = kept + int(np.argmax(flag))
-            bad[what][0] += int(flag.sum())
-        rotation, dist = hdl64e_fields(pk)
-        at = kept * HDL64_FIRINGS_PER_PACKET
-        np.multiply(dist, np.float32(DISTANCE_UNIT_M), out=distance[at : at + len(dist)], casting="unsafe")
+        if unit is None:
+            unit = _unit_of(pcap, port, size, payloads[keep])
+            rows = pcap.stat().st_size // (_RECORD_OVERHEAD + size) * unit.firings_per_packet
+            distance = np.zeros((rows, unit.lasers), dtype=np.float32)
+        fields = packet_fields(unit, payloads[keep])
+        for what, flag in fields.damaged.items():
+            count = bad.setdefault(what, [0, -1])
+            if flag.any() and count[0] == 0:
+                count[1] = kept + int(np.argmax(flag))
+            count[0] += int(flag.sum())
+        at = kept * unit.firings_per_packet
+        dist = fields.distance
+        np.multiply(dist, np.float32(unit.distance_unit_m), out=distance[at : at + len(dist)], casting="unsafe")
         times.append(chunk_times[keep])
-        stamps.append(pk["timestamp_us"].copy())
-        rotations.append(rotation)
-        kept += len(pk)
-    if not kept:
-        raise LogFormatError(
-            f"no Velodyne data packets (1206-byte UDP payloads to port 2368); it holds {udp_traffic(pcap)}.",
-            file=pcap,
-            fix="capture the HDL-64E's data port (2368); sensact learn car reads Velodyne HDL-64E packets only.",
-        )
-    capture = _Hdl64eCapture(
-        np.concatenate(times), np.concatenate(stamps), np.concatenate(rotations), distance, repeated
+        stamps.append(fields.stamp_us)
+        rotations.append(fields.rotation)
+        kept += int(keep.sum())
+    assert unit is not None  # the first chunk held the stream
+    capture = _Capture(
+        unit, np.concatenate(times), np.concatenate(stamps), np.concatenate(rotations), distance, repeated
     )
     _refuse_backwards(pcap, capture.times_s)
     for what, (count, first) in bad.items():
         if count:
-            _say_damaged(pcap, count, kept, first, what)
+            _say_damaged(pcap, unit.name, count, kept, first, what)
     _refuse_clock_jumps(pcap, capture)
     return capture
 
@@ -252,27 +291,28 @@ def _isolated_jumps(t: np.ndarray, gap: float) -> np.ndarray:
     return out
 
 
-def _say_damaged(pcap: Path, count: int, of: int, first: int, what: str) -> None:
-    """One line for packets damaged on disk or on the wire: a block id that is not an HDL-64E's, a rotation
-    over 359.99 degrees or unlike its block pair's (the upper and lower blocks of a firing share one), or a
+def _say_damaged(pcap: Path, unit: str, count: int, of: int, first: int, what: str) -> None:
+    """One line for packets damaged on disk or on the wire: a block id that is not the unit's, a rotation
+    over 359.99 degrees or, on an HDL-64E, unlike its block pair's (the upper and lower blocks of a firing
+    share one), an OS-1 encoder count past a turn, or a
     sensor or capture time that jumps from both neighbours. One such packet cuts a revolution short (laser
     angles 155 degrees RMS off) or, by its clock, asks for an hour of empty firings; the scan matching does
     not bridge them, so they are refused rather than learned from."""
     raise LogFormatError(
-        f"{count} of its {of} packets are damaged, the first (packet {first}) in its {what}: no HDL-64E sends "
+        f"{count} of its {of} packets are damaged, the first (packet {first}) in its {what}: no {unit} sends "
         "such a packet.",
         file=pcap,
         fix="copy the capture again, or cut it before the damage (editcap -r).",
     )
 
 
-def _refuse_clock_jumps(pcap: Path, capture: _Hdl64eCapture) -> None:
+def _refuse_clock_jumps(pcap: Path, capture: _Capture) -> None:
     ts = capture.timestamp_us
     sensor_us = int(ts[0]) + np.r_[0, np.cumsum(clock_steps_us(ts))]  # across the hour's wrap
     bad = _isolated_jumps(sensor_us.astype(float), 100_000.0)  # 0.1 s: over a hundred packet periods
     bad |= _isolated_jumps(np.asarray(capture.times_s, dtype=float), 1.0)
     if bad.any():
-        _say_damaged(pcap, int(bad.sum()), len(bad), int(np.argmax(bad)), "time stamp")
+        _say_damaged(pcap, capture.unit.name, int(bad.sum()), len(bad), int(np.argmax(bad)), "time stamp")
 
 
 def _refuse_backwards(pcap: Path, times: np.ndarray) -> None:
@@ -287,24 +327,37 @@ def _refuse_backwards(pcap: Path, times: np.ndarray) -> None:
 
 
 def _vertical_angles(
-    lidar: dict[str, Any], meta_file: Path, calibration: str | Path | None
+    lidar: dict[str, Any], meta_file: Path, calibration: str | Path | None, unit: LidarUnit
 ) -> tuple[np.ndarray, LaserIntrinsics | None, Path, str]:
-    """Each laser's factory vertical angle (rad), from the calibration file when given, else meta.json;
-    the calibration read (None without one), and the file and field the angles came from."""
+    """Each laser's factory vertical angle (rad): from the calibration file when given (a ROS velodyne YAML
+    or an OS-1's metadata JSON; ``lidar.calibration`` names one in the folder), else meta.json's
+    ``vertical_deg``, else the model's datasheet (HDL-32E, VLP-32C, VLP-16: every unit alike). Returns the
+    calibration read (None without one), and the file and field the angles came from."""
+    if calibration is None and isinstance(lidar.get("calibration"), str):
+        calibration = meta_file.parent / lidar["calibration"]
     if calibration is not None:
         from sensact.io.velodyne_calibration import read_calibration
 
         factory = read_calibration(calibration)
-        return factory.vertical_rad, factory, Path(calibration), "vert_correction"
+        field = "vert_correction" if unit.velodyne else "beam_altitude_angles"
+        return factory.vertical_rad, factory, Path(calibration), field
+    if "vertical_deg" not in lidar and unit.vertical_deg is not None:
+        return np.radians(np.asarray(unit.vertical_deg)), None, meta_file, f"the {unit.name} datasheet's angles"
     try:
         vertical_rad = np.radians(np.asarray(lidar["vertical_deg"], dtype=float).reshape(-1))
     except (KeyError, TypeError, ValueError):
+        fix = (
+            f"add the {unit.lasers} factory vertical angles, or pass the factory calibration file "
+            "(sensact learn car LOG --factory-calibration FILE.yaml)."
+            if unit.velodyne
+            else "pass the OS-1's metadata JSON (sensact learn car LOG --factory-calibration metadata.json), "
+            'or name it in meta.json ("lidar": {"calibration": "metadata.json"}).'
+        )
         raise LogFormatError(
             "no numeric lidar.vertical_deg (the factory's vertical angle of each laser, in degrees).",
             file=meta_file,
             field="lidar.vertical_deg",
-            fix="add the 64 factory vertical angles, or pass the factory calibration file "
-            "(sensact learn car LOG --factory-calibration FILE.yaml).",
+            fix=fix,
         ) from None
     return vertical_rad, None, meta_file, "lidar.vertical_deg"
 
@@ -371,9 +424,10 @@ def read_car_log(folder: str | Path, calibration: str | Path | None = None) -> C
     t0 = _lidar_number(lidar, "time_origin_s", meta_file) or 0.0
     # the capture before the angles: no angles fix a capture of another lidar
     pcap = folder / str(lidar.get("file", "velodyne.pcap"))
-    capture = _read_hdl64e(pcap)
-    times, repeated = capture.times_s, capture.repeated
-    vertical_rad, factory, vertical_file, vertical_field = _vertical_angles(lidar, meta_file, calibration)
+    port = _lidar_number(lidar, "port", meta_file)
+    capture = _read_capture(pcap, None if port is None else int(port))
+    unit, times, repeated = capture.unit, capture.times_s, capture.repeated
+    vertical_rad, factory, vertical_file, vertical_field = _vertical_angles(lidar, meta_file, calibration, unit)
     slots = slots_from_clock(capture.timestamp_us)
     P = len(times)
     if slots[-1] + 1 > max_slots(P):  # the empty firings of dropped packets are held: bounded first
@@ -383,21 +437,26 @@ def read_car_log(folder: str | Path, calibration: str | Path | None = None) -> C
             file=pcap,
             fix="capture the lidar again (a clock that jumps, or a capture of several runs joined, is not one drive).",
         )
-    spin = spin_from_clock(capture.timestamp_us, capture.rotation[:, 0], "HDL-64E")
+    n = unit.firings_per_packet
+    spin = spin_from_clock(capture.timestamp_us, capture.rotation[:, 0], n)
     held = capture.distance_m
-    need = (int(slots[-1]) + 1) * HDL64_FIRINGS_PER_PACKET
+    need = (int(slots[-1]) + 1) * n
     if need > len(held):  # more dropped packets than the file's size left room for: one copy, rarely
         held = np.zeros((need, held.shape[1]), dtype=np.float32)
-        held[: P * HDL64_FIRINGS_PER_PACKET] = capture.distance_m[: P * HDL64_FIRINGS_PER_PACKET]
+        held[: P * n] = capture.distance_m[: P * n]
     rot_deg, dist = firings_in_place(capture.rotation, held, slots)
     if len(vertical_rad) != dist.shape[1]:
         raise LogFormatError(
-            f"{len(vertical_rad)} vertical angles for {dist.shape[1]} lasers.",
+            f"{len(vertical_rad)} vertical angles for the {unit.name}'s {dist.shape[1]} lasers.",
             file=vertical_file,
             field=vertical_field,
             fix="give one vertical angle per laser id.",
         )
     notes: list[str] = []
+    if unit.dual:
+        notes.append("dual-return packets: each firing's last return read")
+    if vertical_field.startswith("the "):
+        notes.append(f"vertical angles from {vertical_field} (meta.json gives no lidar.vertical_deg)")
     warnings: list[str] = []
     if repeated:
         notes.append(f"{repeated} packets repeated byte for byte (a mirrored port sends some twice): each read once")
@@ -447,4 +506,6 @@ def read_car_log(folder: str | Path, calibration: str | Path | None = None) -> C
         tuple(notes),
         tuple(warnings),
         factory,
+        unit.name,
+        np.asarray(unit.delay_s, dtype=float),
     )

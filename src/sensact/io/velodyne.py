@@ -1,4 +1,4 @@
-"""Velodyne UDP packet captures (pcap or pcapng): decode HDL-64E, HDL-32E and VLP-16 data packets, and
+"""Velodyne UDP packet captures (pcap or pcapng): decode HDL-64E, HDL-32E, VLP-32C and VLP-16 data packets, and
 write HDL-64E packets the way the sensor does (sec. 2.5.2).
 
 A data packet is a 1206-byte UDP payload on port 2368: 12 blocks of 100 bytes, each a 2-byte block id
@@ -27,11 +27,13 @@ import numpy as np
 
 from sensact.errors import LogFormatError
 from sensact.io.atomic import write_bytes
+from sensact.models.lidar_unit import UNITS, VELODYNE_PAYLOAD_BYTES, VELODYNE_PORT
 
-PAYLOAD_BYTES = 1206
-DATA_PORT = 2368
+PAYLOAD_BYTES = VELODYNE_PAYLOAD_BYTES
+DATA_PORT = VELODYNE_PORT
 UPPER, LOWER = 0xEEFF, 0xDDFF
-PRODUCT_IDS = {0x21: "HDL-32E", 0x22: "VLP-16"}
+PRODUCT_IDS = {0x21: "HDL-32E", 0x22: "VLP-16", 0x28: "VLP-32C"}
+DUAL_RETURN = 0x39  # the return-mode byte when every firing fills two blocks (strongest and last)
 DISTANCE_UNIT_M = 0.002
 HDL64_FIRINGS_PER_PACKET = 6
 
@@ -222,8 +224,9 @@ def udp_traffic(path: str | Path, most: int = 3) -> str:
 
 
 def _model_of(packets: np.ndarray) -> str:
-    """HDL-64E if any block is a lower block; otherwise the packet period tells the 32E (12 firings of
-    46.08 µs: 0.55 ms) from the VLP-16 (24 firings of 55.296 µs: 1.33 ms). Some VLP-16 firmware reports
+    """HDL-64E if any block is a lower block; otherwise the packet period on the unit's own clock tells the
+    HDL-32E (12 firings of 46.08 µs: 0.55 ms), the VLP-32C (12 of 55.296 µs: 0.66 ms) and the VLP-16 (24 of
+    55.296 µs: 1.33 ms) apart; in dual-return mode a firing fills two blocks. Some VLP-16 firmware reports
     the HDL-32E product id, so the id byte alone is not trusted."""
     if np.any(packets["blocks"]["id"] == LOWER):
         return "HDL-64E"
@@ -231,7 +234,10 @@ def _model_of(packets: np.ndarray) -> str:
     steps = np.diff(ts)
     steps = steps[(steps > 0) & (steps < 10_000)]
     if steps.size:
-        return "VLP-16" if np.median(steps) > 940 else "HDL-32E"
+        block_us = float(np.median(steps)) * (2 if np.any(packets["status_type"] == DUAL_RETURN) else 1) / 12.0
+        if block_us > 80.0:  # two firings a block: the VLP-16 (110.6 µs)
+            return "VLP-16"
+        return "VLP-32C" if block_us > 50.0 else "HDL-32E"  # 55.3 µs and 46.1 µs a block
     product = int(np.bincount(packets["status_value"]).argmax()) if len(packets) else 0
     return PRODUCT_IDS.get(product, "HDL-32E")
 
@@ -260,7 +266,7 @@ def packet_slots(payloads: np.ndarray) -> np.ndarray:
     return slots_from_clock(np.ascontiguousarray(payloads).view(PACKET).reshape(-1)["timestamp_us"])
 
 
-FIRINGS_PER_PACKET = {"HDL-64E": HDL64_FIRINGS_PER_PACKET, "HDL-32E": 12, "VLP-16": 24}
+FIRINGS_PER_PACKET = {name: unit.firings_per_packet for name, unit in UNITS.items() if unit.velodyne}
 SPIN_GAP_PACKETS = 5  # packets further apart than this many periods are a gap, not a step of the spin
 
 
@@ -283,15 +289,17 @@ def measure_spin(payloads: np.ndarray, model: str | None = None) -> Spin | None:
     packets = np.ascontiguousarray(payloads).view(PACKET).reshape(-1)
     if len(packets) < 3:
         return None
-    return spin_from_clock(packets["timestamp_us"], packets["blocks"]["rotation"][:, 0], model or _model_of(packets))
+    firings = FIRINGS_PER_PACKET[model or _model_of(packets)]
+    return spin_from_clock(packets["timestamp_us"], packets["blocks"]["rotation"][:, 0], firings)
 
 
-def spin_from_clock(timestamp_us: np.ndarray, first_rotation: np.ndarray, model: str) -> Spin | None:
+def spin_from_clock(timestamp_us: np.ndarray, first_rotation: np.ndarray, firings_per_packet: int) -> Spin | None:
     """The firing rate and the spin rate from the packets' own clock (µs past the hour), not the host's
     capture times, which carry its jitter: the usual packet period, over the whole capture, with each
     step counted as the whole number of periods it spans (dropped packets), holds a model's fixed number
     of firings; the first block's clockwise rotation (0.01°, ``first_rotation``) over the steps that are
-    not gaps gives the spin. None for fewer than three packets or a clock that never advances."""
+    not gaps gives the spin. None for fewer than three packets or a clock that never advances. (An OS-1's
+    clock, in ns, is given here in µs, and its encoder in 0.01°.)"""
     if len(timestamp_us) < 3:
         return None
     step = clock_steps_us(timestamp_us)
@@ -306,7 +314,7 @@ def spin_from_clock(timestamp_us: np.ndarray, first_rotation: np.ndarray, model:
     if not clockwise:
         turn = 360.0 - turn
     deg_s = float(turn[near].sum()) / (float(step[near].sum()) * 1e-6)
-    return Spin(FIRINGS_PER_PACKET[model] / packet_s, deg_s / 6.0, clockwise)
+    return Spin(firings_per_packet / packet_s, deg_s / 6.0, clockwise)
 
 
 def decode_packets(times_s: np.ndarray, payloads: np.ndarray, model: str = "auto", firing_rate_hz: float | None = None):
@@ -344,8 +352,10 @@ def decode_packets(times_s: np.ndarray, payloads: np.ndarray, model: str = "auto
         t = np.broadcast_to(t[..., None], shape)
         firing = np.broadcast_to(firing[..., None], shape)
         rot3 = np.broadcast_to(rot[..., None], shape)
-    elif model == "HDL-32E":
-        period = 1.0 / firing_rate_hz if firing_rate_hz else 46.08e-6
+    elif model in ("HDL-32E", "VLP-32C"):
+        period = 1.0 / firing_rate_hz if firing_rate_hz else (46.08e-6 if model == "HDL-32E" else 55.296e-6)
+        if model == "VLP-32C":
+            dist = dist * 2.0  # 4 mm steps
         laser = np.broadcast_to(np.arange(32)[None, None, :], (P, 12, 32))
         firing = np.broadcast_to((np.arange(P)[:, None] * 12 + np.arange(12)[None, :])[..., None], (P, 12, 32))
         t = np.broadcast_to((times_s[:, None] + np.arange(12)[None, :] * period)[..., None], (P, 12, 32))
@@ -361,7 +371,9 @@ def decode_packets(times_s: np.ndarray, payloads: np.ndarray, model: str = "auto
         step = np.mod(step, 360.0)
         rot3 = np.mod(rot[..., None] + (np.arange(32) // 16)[None, None, :] * 0.5 * step[..., None], 360.0)
     else:
-        raise LogFormatError(f"unknown model {model!r}.", field="model", fix="use HDL-64E, HDL-32E, VLP-16 or auto.")
+        raise LogFormatError(
+            f"unknown model {model!r}.", field="model", fix="use HDL-64E, HDL-32E, VLP-32C, VLP-16 or auto."
+        )
     return VelodyneReturns(
         model,
         np.asarray(t, dtype=float).reshape(-1),
@@ -420,46 +432,16 @@ def encode_hdl64e(
     return pk.view(np.uint8).reshape(P, PAYLOAD_BYTES)
 
 
-def hdl64e_firings(payloads: np.ndarray, slots: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """HDL-64E payloads as ``(rotation_deg (F,), distance_m (F, 64) float32)``, one row per firing and one
-    column per laser id: the compact form the angle learner reads (100 million returns fit in 400 MB).
-    ``slots`` (``packet_slots``): see ``firings_in_place``."""
-    pk = np.ascontiguousarray(payloads).view(PACKET).reshape(-1)
-    blocks = pk["blocks"]
-    if not (np.all(blocks["id"][:, 0::2] == UPPER) and np.all(blocks["id"][:, 1::2] == LOWER)):
-        raise LogFormatError(
-            "not HDL-64E packets: blocks must alternate upper (0xEEFF) and lower (0xDDFF).",
-            field="block id",
-            fix="give an HDL-64E capture.",
-        )
-    rotation, distance = hdl64e_fields(pk)
-    P = len(pk)
-    rows = P if slots is None or P == 0 else int(slots[-1]) + 1
-    out = np.zeros((rows * HDL64_FIRINGS_PER_PACKET, 64), dtype=np.float32)
-    np.multiply(distance, np.float32(DISTANCE_UNIT_M), out=out[: P * HDL64_FIRINGS_PER_PACKET], casting="unsafe")
-    return firings_in_place(rotation, out, slots)
-
-
-def hdl64e_fields(packets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """HDL-64E packets (``PACKET`` records) as each firing's rotation (P, 6) in 0.01° and distances
-    (P * 6, 64) uint16 in 2 mm units by laser id: an upper block and the lower block after it are one
-    firing of lasers 0-31 and 32-63."""
-    P = len(packets)
-    blocks = packets["blocks"]
-    return blocks["rotation"][:, 0::2].copy(), blocks["returns"]["distance"].reshape(P * 6, 64).copy()
-
-
 def firings_in_place(
     rotation: np.ndarray, distance_m: np.ndarray, slots: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``(rotation_deg (F,), distance_m (F, 64))`` of P packets: ``rotation`` (P, 6) in 0.01° and
-    ``distance_m`` whose first P * 6 rows hold their firings in the order they came. ``slots``
+    """``(rotation_deg (F,), distance_m (F, lasers))`` of P packets of n firings: ``rotation`` (P, n) in 0.01°
+    and ``distance_m`` whose first P * n rows hold their firings in the order they came. ``slots``
     (``slots_from_clock``) puts each packet's firings at its place in time, moved within ``distance_m``
     (which needs the F rows): the firings of dropped packets have no returns and a rotation interpolated
     between their neighbours', so that a firing's index stays its time times the firing rate, which the
     learners assume."""
-    n = HDL64_FIRINGS_PER_PACKET
-    P = len(rotation)
+    P, n = rotation.shape
     rot = rotation.reshape(-1).astype(float) / 100.0
     if slots is None or P == 0 or int(slots[-1]) == P - 1:
         return rot, distance_m[: P * n]

@@ -3,6 +3,7 @@ and write learned angles back as ``rot_correction`` so that the standard driver 
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 from typing import Any
@@ -16,14 +17,50 @@ from sensact.models.laser_intrinsics import LaserIntrinsics
 
 
 def read_calibration(path: str | Path) -> LaserIntrinsics:
+    """A ROS velodyne calibration (YAML), or an Ouster OS-1's metadata JSON (which YAML reads too)."""
     path = Path(path)
     if not path.is_file():
         raise LogFormatError("calibration file not found.", file=path, fix="check the path.")
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (yaml.YAMLError, UnicodeDecodeError, RecursionError) as exc:
-        raise LogFormatError(f"not valid YAML ({exc.__class__.__name__}).", file=path, fix="repair the file.") from None
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise LogFormatError("not text (UnicodeDecodeError).", file=path, fix="give the calibration file.") from None
+    kind = "JSON" if text.lstrip().startswith("{") else "YAML"
+    try:
+        # an OS-1 writes its metadata as JSON indented with tabs, which YAML does not allow
+        data = json.loads(text) if kind == "JSON" else yaml.safe_load(text)
+    except (yaml.YAMLError, ValueError, RecursionError) as exc:
+        problem = f"not valid {kind} ({exc.__class__.__name__})."
+        raise LogFormatError(problem, file=path, fix="repair the file.") from None
+    if isinstance(data, dict) and "beam_altitude_angles" in data:
+        return _ouster_intrinsics(data, path)
     return calibration_from_dict(data, path)
+
+
+def _ouster_intrinsics(data: dict[str, Any], path: Path) -> LaserIntrinsics:
+    """An OS-1 puts beam i at ``theta_encoder - 2 pi beam_azimuth_angles[i] / 360`` (counterclockwise) and
+    elevation ``beam_altitude_angles[i]``, degrees (its user manual): theta_l is minus the azimuth."""
+    try:
+        alt = np.asarray(data["beam_altitude_angles"], dtype=float).reshape(-1)
+        az = np.asarray(data.get("beam_azimuth_angles", np.zeros(alt.size)), dtype=float).reshape(-1)
+        if alt.size == 0 or az.shape != alt.shape or not (np.all(np.isfinite(alt)) and np.all(np.isfinite(az))):
+            raise ValueError
+    except (TypeError, ValueError):
+        raise LogFormatError(
+            "beam_altitude_angles and beam_azimuth_angles are not two equal lists of numbers.",
+            file=path,
+            field="beam_altitude_angles",
+            fix="give the metadata JSON the OS-1 itself wrote (one altitude and one azimuth per beam, degrees).",
+        ) from None
+    return LaserIntrinsics(np.radians(alt), -np.radians(az), 0.001)
+
+
+def ouster_metadata(intrinsics: LaserIntrinsics) -> dict[str, Any]:
+    """The angles as an OS-1's metadata JSON holds them (degrees; see ``_ouster_intrinsics``)."""
+    return {
+        "beam_altitude_angles": np.degrees(intrinsics.vertical_rad).tolist(),
+        "beam_azimuth_angles": (-np.degrees(intrinsics.horizontal_rad)).tolist(),
+    }
 
 
 def calibration_from_dict(data: Any, path: str | Path) -> LaserIntrinsics:

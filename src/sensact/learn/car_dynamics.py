@@ -122,6 +122,17 @@ class LaserAnglesResult:
     seconds_by_stage: dict[str, float]
 
 
+def laser_angles(
+    relative_rad: np.ndarray, offset_rad: float, omega_rad_s: float, delay_s: np.ndarray | None
+) -> np.ndarray:
+    """theta_hat_l = theta'_l + C (sec. 5.1), less the turn ``omega tau_l`` of a laser that fires ``tau_l``
+    into its firing (``delay_s``, by laser id; None: all at once, as the thesis's HDL-64E): sec. 5.1's
+    cross-correlation sees where a laser points when it fires, and scan matching uses that, but the angle
+    a calibration holds is the laser's own."""
+    late = 0.0 if delay_s is None else omega_rad_s * np.asarray(delay_s, dtype=float)
+    return wrap_angle(relative_rad + offset_rad - late)
+
+
 def learn_laser_angles(
     rot_rad: np.ndarray,
     dist: np.ndarray,
@@ -130,11 +141,12 @@ def learn_laser_angles(
     omega_rad_s: float,
     config: CarLearningConfig | None = None,
     progress: Callable[[str, int, int], None] | None = None,
+    delay_s: np.ndarray | None = None,
 ) -> LaserAnglesResult:
     """The laser angles with respect to the car from a drive's scans alone: the relative angles (sec. 5.1),
     one pass of scan matching from identity guesses (sec. 5.2), and C from its fast motions. This is
     Algorithm 3's first iteration; the later ones only reseed ICP with the learned dynamics, which needs
-    the throttle, brake and steering."""
+    the throttle, brake and steering. ``delay_s``: see ``laser_angles``."""
     cfg = config or CarLearningConfig()
     t0 = time.perf_counter()
     rel = learn_relative_angles(dist, vertical_rad, firing_hz, omega_rad_s, cfg.intrinsics, progress)
@@ -144,7 +156,7 @@ def learn_laser_angles(
     t2 = time.perf_counter()
     C = offset_from_motion(odo.motion, cfg.odometry.dt_s, cfg.odometry.min_speed_m_s)
     stages = {"laser_angles": t1 - t0, "scan_matching": t2 - t1}
-    return LaserAnglesResult(wrap_angle(rel.relative_rad + C), C, rel, odo, stages)
+    return LaserAnglesResult(laser_angles(rel.relative_rad, C, omega_rad_s, delay_s), C, rel, odo, stages)
 
 
 def learn_car(
@@ -157,11 +169,13 @@ def learn_car(
     actions: np.ndarray,
     config: CarLearningConfig | None = None,
     progress: Callable[[str, int, int], None] | None = None,
+    delay_s: np.ndarray | None = None,
 ) -> CarLearningResult:
-    """Algorithm 3 on one drive: firings (F,) rotations and (F, 64) distances, actions (M, 3) = (g, b, s)."""
+    """Algorithm 3 on one drive: firings (F,) rotations and (F, lasers) distances, actions (M, 3) = (g, b, s).
+    ``delay_s``: see ``laser_angles``."""
     cfg = config or CarLearningConfig()
     dt = cfg.odometry.dt_s
-    first = learn_laser_angles(rot_rad, dist, vertical_rad, firing_hz, omega_rad_s, cfg, progress)
+    first = learn_laser_angles(rot_rad, dist, vertical_rad, firing_hz, omega_rad_s, cfg, progress, delay_s)
     rel, odo = first.intrinsics, first.odometry
     stages = {**first.seconds_by_stage, "regression": 0.0}
     guess = None
@@ -197,7 +211,7 @@ def learn_car(
         fwd = np.array([np.cos(np.pi / 2 - C), np.sin(np.pi / 2 - C)])
         guess = np.column_stack([pv * dt * fwd[0], pv * dt * fwd[1], pw * dt])
     assert model is not None
-    angles = wrap_angle(rel.relative_rad + C)
+    angles = laser_angles(rel.relative_rad, C, omega_rad_s, delay_s)
     return CarLearningResult(angles, C, rel, model, odo, mid, act, v, w, a, history, stages, bool(done))
 
 

@@ -9,10 +9,11 @@
 * **Town**: a ground plane, buildings along both sides of the streets the car drives, poles, trees and
   parked cars; all vertical prisms, ray-cast through a uniform grid (``sensact.core.raycast``).
 * **HDL-64E** (sec. 2.5.2): 64 lasers firing together at ``f = 7800`` Hz while the unit turns clockwise (seen
-  from above, as every Velodyne does) at 600 rpm;
+  from above, as every Velodyne does) at 600 rpm; or another unit of ``sensact.models.lidar_unit`` (``lidar``),
+  each laser fired at its own delay into the firing;
   vertical angles and true horizontal angles from a ROS calibration file (``64e_utexas.yaml`` when the
   shared data is present, else the thesis's nominal geometry), a mounting yaw ``theta_b``, range noise,
-  a maximum range and dropouts. The returns are written as real HDL-64E UDP packets in ``velodyne.pcap``.
+  a maximum range and dropouts. The returns are written as the unit's real UDP packets in ``velodyne.pcap``.
 * **Ground truth** in the manner of the Applanix: pose, velocity, acceleration and turn rate at 20 Hz.
 """
 
@@ -26,6 +27,7 @@ import numpy as np
 from sensact.core.raycast import BOX, CYLINDER, build_grid, cast_firings
 from sensact.limits import steps_problem
 from sensact.models.laser_intrinsics import LaserIntrinsics
+from sensact.models.lidar_unit import UNITS, LidarUnit
 
 TWO_PI = 2.0 * np.pi
 TIME_ORIGIN_S = 1.6e9  # the capture clock of the written pcap at the start of the drive
@@ -38,6 +40,16 @@ def nominal_intrinsics() -> LaserIntrinsics:
     k = np.arange(64)
     horiz = np.radians(1.0 + 9.0 * np.sin(0.9 * k + 0.3 * (k // 32)))
     return LaserIntrinsics(vert, horiz)
+
+
+def nominal_unit_intrinsics(unit: LidarUnit) -> LaserIntrinsics:
+    """A unit's datasheet geometry; an OS-1-64's typical one (beams 0.53° apart from +16.6°, azimuths
+    repeating +3.1°, +1.0°, -1.1°, -3.1° every four beams, as its metadata lists them)."""
+    if unit.vertical_deg is not None and unit.rot_correction_deg is not None:
+        return LaserIntrinsics(np.radians(unit.vertical_deg), np.radians(unit.rot_correction_deg))
+    altitude = np.linspace(16.6, -16.6, unit.lasers)
+    azimuth = np.resize([3.1, 1.0, -1.1, -3.1], unit.lasers)
+    return LaserIntrinsics(np.radians(altitude), -np.radians(azimuth), 0.001)
 
 
 @dataclass(frozen=True)
@@ -78,10 +90,12 @@ class CarConfig:
     tree_spacing_m: float = 18.0
     parked_car_spacing_m: float = 30.0
     grid_cell_m: float = 8.0
-    # the HDL-64E, sec. 2.5.2
-    calibration_yaml: str | None = None  # true angles; None: 64e_utexas.yaml from the shared data, else nominal
-    # (read by sensact.experiments.car.true_intrinsics)
-    firing_hz: float = 7800.0  # f
+    # the lidar, sec. 2.5.2: the thesis's HDL-64E, or an HDL-32E, VLP-32C, VLP-16 or Ouster OS-1 (64 beams)
+    lidar: str = "HDL-64E"
+    calibration_yaml: str | None = None  # true angles (ROS YAML, or an OS-1's metadata JSON); None: the
+    # model's file in the shared data (64e_utexas.yaml, 32db.yaml, VLP16db.yaml, ouster_example.json), else its
+    # nominal geometry (read by sensact.experiments.car.true_intrinsics)
+    firing_hz: float | None = None  # f; None: the model's (HDL-64E: the thesis's 7800 Hz)
     rpm: float = 600.0  # |omega| = 20 pi rad/s
     clockwise: bool = True  # seen from above, as every Velodyne turns (theta_r, counterclockwise, falls)
     mount_yaw_deg: float = 89.1  # theta_b, sec. 5.4
@@ -99,10 +113,20 @@ class CarConfig:
             problems.append(too_long)
         if not 0 <= self.dropout < 1:
             problems.append("dropout must be in [0, 1)")
-        if self.firing_hz <= 0 or self.rpm <= 0:
+        if (self.firing_hz is not None and self.firing_hz <= 0) or self.rpm <= 0:
             problems.append("firing_hz and rpm must be > 0")
+        if self.lidar not in UNITS:
+            problems.append(f"lidar must be one of {', '.join(UNITS)}")
         if problems:
             raise ValueError("; ".join(problems))
+
+    @property
+    def unit(self) -> LidarUnit:
+        return UNITS[self.lidar]
+
+    @property
+    def firing_rate_hz(self) -> float:
+        return self.firing_hz if self.firing_hz is not None else self.unit.firing_hz
 
     @property
     def omega_rad_s(self) -> float:
@@ -292,20 +316,26 @@ def simulate_drive(config: CarConfig | None = None, intrinsics: LaserIntrinsics 
 
 
 def scan_chunks(run: CarRun, progress=None):
-    """Yield ``(firing_times_s, rotation_rad, distances_m (F, 64))`` chunk by chunk over the drive."""
+    """Yield ``(firing_times_s, rotation_rad, distances_m (F, lasers))`` chunk by chunk over the drive; F is
+    a whole number of the unit's packets."""
     cfg = run.config
     rng = np.random.default_rng(np.random.SeedSequence(cfg.seed).spawn(3)[2])
     origin, cell, shape, start, items = build_grid(run.kinds, run.params, cfg.grid_cell_m)
-    n_total = int(cfg.seconds * cfg.firing_hz) // 6 * 6
-    chunk = max(6, int(cfg.chunk_s * cfg.firing_hz) // 6 * 6)
+    per = cfg.unit.firings_per_packet
+    hz = cfg.firing_rate_hz
+    n_total = int(cfg.seconds * hz) // per * per
+    chunk = max(per, int(cfg.chunk_s * hz) // per * per)
     d = run.drive
     heading = np.unwrap(d.sim_poses[:, 2])
     vert = run.intrinsics.vertical_rad
-    horiz = run.intrinsics.horizontal_rad
+    # a laser that fires tau_l into its firing points omega tau_l further round (the car barely moves in
+    # those microseconds)
+    delay = np.asarray(cfg.unit.delay_s) if cfg.unit.velodyne else np.zeros(vert.size)  # an OS-1's fire at once
+    horiz = run.intrinsics.horizontal_rad + cfg.omega_rad_s * delay
     mount = np.radians(cfg.mount_yaw_deg)
     for f0 in range(0, n_total, chunk):
         f = np.arange(f0, min(f0 + chunk, n_total))
-        t = f / cfg.firing_hz
+        t = f / hz
         poses = np.column_stack(
             [
                 np.interp(t, d.sim_times_s, d.sim_poses[:, 0]),
@@ -338,7 +368,7 @@ def scan_chunks(run: CarRun, progress=None):
         out[rng.random(out.shape) < cfg.dropout] = 0.0
         out[(out < 0.5) | (out > cfg.max_range_m)] = 0.0
         if progress:
-            progress("HDL-64E scans", int(f[-1]) + 1, n_total)
+            progress(f"{cfg.lidar} scans", int(f[-1]) + 1, n_total)
         yield t, rot, out
 
 
@@ -354,8 +384,8 @@ def log_tables(run: CarRun) -> dict[str, Any]:
             "actions": {"columns": ["throttle", "brake", "steering"]},
             "lidar": {
                 "file": "velodyne.pcap",
-                "model": "HDL-64E",
-                "firing_hz": cfg.firing_hz,
+                "model": cfg.lidar,
+                "firing_hz": cfg.firing_rate_hz,
                 "rpm": cfg.rpm,
                 "time_origin_s": TIME_ORIGIN_S,
                 "vertical_deg": np.degrees(run.intrinsics.vertical_rad).tolist(),  # factory-known, sec. 2.5.2

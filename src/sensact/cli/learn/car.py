@@ -102,9 +102,27 @@ def _ros_calibration(data: Any, res: Any) -> Any:
     )
 
 
+def _calibration_doc(data: Any, res: Any) -> tuple[str, dict[str, Any]]:
+    """The learned angles as the unit's own calibration format: a ROS velodyne calibration, or an OS-1's
+    metadata fields (``beam_azimuth_angles`` = 90° - learned angle, the same mount convention)."""
+    import yaml
+
+    from sensact.io.velodyne_calibration import calibration_yaml, ouster_metadata
+
+    cal = _ros_calibration(data, res)
+    if data.model == "OS-1":
+        return "ouster_metadata", ouster_metadata(cal)
+    return "velodyne_calibration", yaml.safe_load(calibration_yaml(cal))
+
+
 def _write_ros_calibration(path: Path, data: Any, res: Any) -> None:
+    from sensact.io.atomic import write_json
     from sensact.io.velodyne_calibration import write_calibration
 
+    if data.model == "OS-1":
+        write_json(path, _calibration_doc(data, res)[1])
+        console.print(f"wrote {path} (beam_azimuth_angles = 90° - learned angle, the OS-1's metadata fields)")
+        return
     write_calibration(path, _ros_calibration(data, res))
     console.print(f"wrote {path} (rot_correction = learned angle - 90°)")
 
@@ -119,14 +137,17 @@ def learn_car_cmd(
     ] = None,
     calibration_yaml: Annotated[
         Path | None,
-        typer.Option("--calibration-yaml", help="Also write the learned angles as a ROS velodyne calibration."),
+        typer.Option(
+            "--calibration-yaml",
+            help="Also write the learned angles as a ROS velodyne calibration (an OS-1: its metadata JSON's angles).",
+        ),
     ] = None,
     factory_calibration: Annotated[
         Path | None,
         typer.Option(
             "--factory-calibration",
-            help="The unit's ROS velodyne calibration (YAML): its vertical angles are used (sec. 2.5.2), its "
-            "horizontal ones never; --calibration-yaml then keeps its other fields.",
+            help="The unit's ROS velodyne calibration (YAML) or an OS-1's metadata JSON: its vertical angles are "
+            "used (sec. 2.5.2), its horizontal ones never; --calibration-yaml then keeps its other fields.",
         ),
     ] = None,
     set_: SetOpt = None,
@@ -138,18 +159,16 @@ def learn_car_cmd(
     """Learn the lidar's laser angles, the scan-matching odometry and the car dynamics (Algorithm 3)."""
     check_out_file(out)
     import numpy as np
-    import yaml
 
     from sensact.config import config_to_dict
     from sensact.io.car_log import read_car_log
-    from sensact.io.velodyne_calibration import calibration_yaml as ros_yaml
     from sensact.learn.car_dynamics import CarLearningConfig
 
     cfg = layered_config(CarLearningConfig, config, set_)
     data = read_car_log(log, calibration=factory_calibration)
     rows = f"{len(data.actions)} action rows" if data.actions is not None else "no actions"
     console.print(
-        f"{log}: {data.distance_m.shape[0]} firings of {data.distance_m.shape[1]} lasers "
+        f"{log}: {data.model}, {data.distance_m.shape[0]} firings of {data.distance_m.shape[1]} lasers "
         f"({data.distance_m.shape[0] / data.firing_hz:.1f} s), {rows}"
     )
     for note in data.notes:
@@ -182,8 +201,9 @@ def learn_car_cmd(
                 "config": config_to_dict(cfg),
                 "factory_comparison": comparison,
                 "evaluation": evaluation,
-                # what `sensact export --format velodyne` writes
-                "velodyne_calibration": yaml.safe_load(ros_yaml(_ros_calibration(data, res))),
+                # what `sensact export --format velodyne` writes (an OS-1: its metadata's angle fields)
+                "lidar_model": data.model,
+                **dict([_calibration_doc(data, res)]),
                 "health": health.to_dict(),
             },
         )
