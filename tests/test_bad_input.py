@@ -80,6 +80,7 @@ def test_an_atomic_write_never_replaces_a_device_or_another_output_of_the_run(tm
     assert list(tmp_path.glob("*.tmp")) == []
 
 
+@pytest.mark.slow
 def test_sigterm_ends_em_as_ctrl_c_does_with_the_best_model_written_and_no_temporary_file(planar_log, tmp_path):
     out = tmp_path / "m.json"
     never_done = ("--set", "max_iterations=100000", "--set", "patience=100000")
@@ -113,6 +114,7 @@ def _copy_with_readings(log: Path, dest: Path, readings) -> Path:
     return dest
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["constant", "noise"])
 def test_a_degenerate_fit_is_written_flagged_and_exits_3(planar_log, tmp_path, kind):
     rng = np.random.default_rng(5)

@@ -346,6 +346,7 @@ def test_field2d_bar_misses_name_each_bar_a_trial_misses():
     assert bar_misses(mean)[1] == "mean: v_theta RMS 0.090 rad/s (bar ≤ 0.086 rad/s)"
 
 
+@pytest.mark.slow
 def test_simulate_car_then_learn_car_with_ros_export(tmp_path):
     log = tmp_path / "car"
     res = runner.invoke(
@@ -450,6 +451,7 @@ def test_a_track_velocity_is_told_toward_or_away_from_what_the_robot_ranges_to()
     assert describe_track_velocity(curved).endswith("a negative v_mm_s takes the robot away from it")
 
 
+@pytest.mark.slow
 def test_learn_em_on_a_turtlebot_csv_recovers_the_gain_and_sonar(tmp_path):
     csv = tmp_path / "robot.csv"
     write_turtlebot_csv(csv, with_range=True)
@@ -554,6 +556,7 @@ def test_the_turtlebot_figure_draws_the_scored_models_of_a_known_robot(tmp_path)
     assert path.stat().st_size > 30_000
 
 
+@pytest.mark.slow
 def test_localize_follows_another_run_of_a_turtlebot_with_the_model_learned_on_one(tmp_path):
     """`sensact localize`: a model learned on one seeded run, held, places the robot in another run; its
     start comes from the first readings through the learned f, so that one outlier cannot set it; the
@@ -609,6 +612,7 @@ def test_localize_follows_another_run_of_a_turtlebot_with_the_model_learned_on_o
     assert res.exit_code == 2 and "the log has no reading raw_ir4" in said and "cannot be run on" in said, said
 
 
+@pytest.mark.slow
 def test_evaluate_log_scores_a_turtlebot_model_on_another_run_against_its_range(tmp_path):
     """`evaluate log` on a Turtlebot CSV: a model learned on one seeded run holds on another run of the same
     robot (gain and sonar1 scored as `learn em` scores them), and shows a robot that now drives at 0.72 of
@@ -656,6 +660,7 @@ def test_evaluate_log_scores_a_turtlebot_model_on_another_run_against_its_range(
     assert res.exit_code == 2 and re.search(r"range: the range column has \d+ empty steps to score against", said), said
 
 
+@pytest.mark.slow
 def test_evaluate_fleet_scores_turtlebot_models_on_each_others_runs_against_their_range(tmp_path):
     """`evaluate fleet` on Turtlebot CSVs: two robots (gains 0.9 and 0.72, on a floor each), each model
     learned on its own run; every model placed on every run and scored against its range column as
@@ -726,6 +731,7 @@ def _as_track_folder(csv, folder):
     return folder
 
 
+@pytest.mark.slow
 def test_a_track_folders_recorded_distance_is_scored_as_a_turtlebot_csvs_range(tmp_path):
     """A 1-D robot's own track folder (continuous commands, groundtruth.csv's distance_mm) is scored
     against its recorded distance by `learn em`, `evaluate log`, `evaluate fleet` and `localize` exactly
@@ -787,6 +793,7 @@ def test_a_track_folders_recorded_distance_is_scored_as_a_turtlebot_csvs_range(t
     assert bare["model"] == learned[1]["model"] and bare["evaluation"] is None
 
 
+@pytest.mark.slow
 def test_learn_em_starts_from_a_model_learned_on_another_robot_of_its_kind(tmp_path):
     """`learn em --start-from`: robot b (gain 0.72) learned from robot a's model (gain 0.9) learns b's own
     gain, with a's settings read back whole from a's model.json; started from a's model on a's own run, EM

@@ -131,6 +131,7 @@ def misread_with_plausible_bearings(data, poses: np.ndarray, fraction: float, se
     return replace(data, obs_landmark=landmark), rows
 
 
+@pytest.mark.slow
 def test_misread_barcodes_whose_bearing_fits_are_discounted_by_their_range():
     """Seeded recovery: 5 % of a simulated robot's sightings misread to a landmark in about the same
     direction. With a weight per reading their bearings count (the smoother bends the heading to them) and

@@ -146,6 +146,7 @@ def test_only_a_range_only_start_given_and_moved_past_three_sds_counts_as_moved(
     assert start_moved_mm(cam_start, cam_start.replace(prior_mean=past.prior_mean), camera, cfg) is None
 
 
+@pytest.mark.slow
 def test_a_range_only_start_metres_off_runs_again_from_where_em_moved_it():
     """Seeded recovery (given_start.py): from a start 3.2 m off, EM finds the path with a wrong turn
     model (the heading noise carries the turns; the turn gain -1.12) and moves the start to within
@@ -166,6 +167,7 @@ def test_a_range_only_start_metres_off_runs_again_from_where_em_moved_it():
     assert offset["median_mm"] < 30.0
 
 
+@pytest.mark.slow
 def test_a_range_only_start_metres_and_radians_off_races_its_heading_where_em_moved_it():
     """Seeded recovery (given_start.py, fit.headings_at): the given start 3.2 m off and its heading 2 rad
     off (a UWB robot's log, whose start nobody wrote down). EM moves the start near the true position;
@@ -183,6 +185,7 @@ def test_a_range_only_start_metres_and_radians_off_races_its_heading_where_em_mo
     assert offset["median_mm"] < 60.0
 
 
+@pytest.mark.slow
 def test_simulate_a_radio_robot_then_learn_and_score_it_without_a_bearing(tmp_path):
     """`simulate diffdrive --set sensor=radio` writes a log without bearings and settings that start where
     the robot was put; `learn em --out` scores it with no bearing row, bar or figure (a traceback before)."""
@@ -248,6 +251,7 @@ def test_simulate_a_radio_robot_then_learn_and_score_it_without_a_bearing(tmp_pa
             assert "where each sighting read a bearing too: not comparable" in said
 
 
+@pytest.mark.slow
 def test_a_truth_of_positions_alone_converts_learns_and_is_scored_without_heading(tmp_path):
     """A UWB robot's truth often has no heading: `convert csv` takes a truth.csv of t_s, x_m, y_m, and
     `learn em` scores what positions can score. The translation on each window's chord, From-Truth

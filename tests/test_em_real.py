@@ -169,6 +169,7 @@ def test_mrclam_reader_reads_vicon_rows_in_any_order(tmp_path):
         np.testing.assert_array_equal(there.groundtruth[key], here.groundtruth[key])
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not MRCLAM.is_dir(), reason=f"MRCLAM data not found at {MRCLAM}")
 def test_a_lost_fit_whose_f_bends_without_turning_is_seen_and_started_again():
     """Real data: robot 4's second quarter of Dataset 6 (as benchmarks/em_real_parts.py cuts it) is lost
@@ -219,6 +220,7 @@ def dataset_with_landmarks(tmp_path: Path, kept: set[int]) -> Path:
     return copy
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not MRCLAM.is_dir(), reason=f"MRCLAM data not found at {MRCLAM}")
 def test_a_thinned_map_that_lost_its_robot_finds_it_with_every_sighting(tmp_path):
     """Real data: Dataset 6 with 8 of its 15 landmarks (``benchmarks/em_real_landmarks.py --maps 8:2``).
@@ -240,6 +242,7 @@ def test_a_thinned_map_that_lost_its_robot_finds_it_with_every_sighting(tmp_path
     assert res.pruned_fraction < 0.01
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not MRCLAM.is_dir(), reason=f"MRCLAM data not found at {MRCLAM}")
 def test_a_robot_lost_from_the_poor_start_is_found_from_another_robots_model(tmp_path):
     """Real data: Dataset 6 with 6 of its 15 landmarks (``benchmarks/em_real_landmarks.py --maps 6:1``),
@@ -266,6 +269,7 @@ def test_a_robot_lost_from_the_poor_start_is_found_from_another_robots_model(tmp
     assert all(score["bars"][k] for k in held), score["bars"]
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not MRCLAM.is_dir(), reason=f"MRCLAM data not found at {MRCLAM}")
 def test_a_short_real_log_finds_its_robot_and_a_lost_fit_says_so_and_starts_again(tmp_path):
     """The first quarter of MRCLAM robot 1 (3.7 minutes) from the poor start: with mrclam_config()'s
@@ -543,6 +547,7 @@ def test_turtlebot_em_clears_its_bars(tmp_path):
     assert other["sensors"]["sonar1"]["rms_pct_of_span"] < 10.0
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not MRCLAM.is_dir(), reason=f"MRCLAM data not found at {MRCLAM}")
 def test_mrclam_robot1_from_an_unknown_start(tmp_path):
     """Real data, end to end: robot 1 is lost without the start race and graduated robustness (its
@@ -630,6 +635,7 @@ def test_mrclam_robot1_from_an_unknown_start(tmp_path):
         assert fleet["cells"]["m1"][f"r{robot}"] == json.loads(json.dumps(fleet_cell(scores[robot])))
 
 
+@pytest.mark.slow
 def test_reproduce_real_runs_every_mrclam_dataset_it_finds(tmp_path):
     """The same command on other datasets: every dataset folder under DATA/mrclam is run, keyed
     by dataset when there are several, with the tables titled and the figures named after them."""

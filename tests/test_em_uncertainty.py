@@ -109,6 +109,7 @@ def test_coverage_counts_each_familys_intervals_that_hold_the_truth():
     assert got["sigma"]["intervals"] == 0
 
 
+@pytest.mark.slow
 def test_learn_em_writes_the_error_bars_into_the_model(tmp_path):
     log, out = tmp_path / "log", tmp_path / "m" / "model.json"
     assert runner.invoke(app, ["simulate", "diffdrive", "--out", str(log), "--seconds", "30"]).exit_code == 0

@@ -38,6 +38,7 @@ def fleet(tmp_path_factory):
     return root, res
 
 
+@pytest.mark.slow
 def test_each_model_is_learn_ems_and_a_bad_log_stops_no_other(fleet):
     root, res = fleet
     assert res.exit_code == 3, res.output  # written, but not every log learned
@@ -127,6 +128,7 @@ def _untimed(doc):
     return doc
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("experiment", "extra"),
     [("field2d", ["--trials", "2", "--set", "seconds=120"]), ("diffdrive", ["--trials", "2", "--set", "seconds=60"])],
@@ -142,6 +144,7 @@ def test_reproduce_on_two_workers_gives_what_one_gives(tmp_path, experiment, ext
     assert len(results["1"]["per_trial" if experiment == "field2d" else "seeds"]) == 2
 
 
+@pytest.mark.slow
 def test_a_fleets_error_bars_are_learn_ems(fleet, tmp_path):
     """`fleet learn --uncertainty B` gives each log the model file `learn em --uncertainty B` writes (the
     bootstrap is seeded), timing aside."""

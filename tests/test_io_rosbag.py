@@ -366,6 +366,7 @@ def test_an_mrclam_bag_converts_to_the_csvs_it_was_made_from(mrclam_source, tmp_
         _same_rows(read_numeric_csv(tmp_path / "log" / "bag_tables" / f"{name}.csv"), read_numeric_csv(csv[name]))
 
 
+@pytest.mark.slow
 @pytest.mark.realdata
 def test_an_mrclam_bag_learns_the_model_its_csvs_learn(mrclam_source, tmp_path):
     csv, rec = mrclam_source

@@ -157,6 +157,7 @@ def test_monitor_flags_sec_4_4_3s_slowdown_within_30_s_and_nothing_without_it(sl
     assert {s.name for s in quiet.streams} == {"sensor:height_px", "action:v_mm_s"}
 
 
+@pytest.mark.slow
 def test_cli_monitor_writes_the_change_and_relearns_from_it(slowdown, tmp_path):
     from sensact.evaluate.em import score_track
     from sensact.evaluate.track1d import DISTANCE_GRID_MM
@@ -265,6 +266,7 @@ def test_a_tracks_commands_go_onto_the_models_actions_on_another_log(tmp_path):
     assert res.exit_code == 0, res.output
 
 
+@pytest.mark.slow
 @pytest.mark.realdata
 @pytest.mark.skipif(not MRCLAM.is_dir(), reason=f"MRCLAM data not found at {MRCLAM}")
 def test_a_mrclam_robot_with_its_own_model_raises_no_alarm(tmp_path):

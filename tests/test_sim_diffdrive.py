@@ -234,6 +234,7 @@ def test_em_with_mrclams_settings_recovers_the_simulated_robot():
     assert held_sideways_noise(res.model, "shared") is None  # a differential drive held to no sideways mean is right
 
 
+@pytest.mark.slow
 def test_em_learns_a_robot_that_side_steps_with_every_velocity_free():
     """Seeded recovery on a robot the differential drive's settings do not describe: a legged robot's
     (v, v_left, omega). The settings for any other commands (``planar_config``) free the sideways mean
@@ -274,6 +275,7 @@ def test_em_learns_a_robot_that_side_steps_with_every_velocity_free():
     assert note is not None and note["ratio"] > 2.0 and "drop v_x_mm_s" in describe_held_sideways(note)
 
 
+@pytest.mark.slow
 def test_simulate_diffdrive_then_learn_em_scores_against_the_simulation(tmp_path):
     from sensact.config import config_from_dict
     from sensact.learn.em import EMConfig
@@ -654,6 +656,7 @@ def _true_model_file(log, path):
     return path
 
 
+@pytest.mark.slow
 def test_evaluate_fleet_scores_every_model_on_every_log(tmp_path):
     """Two robots of one kind whose motors differ (forward and turn gains 0.95 / 0.92 against 0.75 / 0.70),
     each with its own true action model: every pair scores exactly as `evaluate log` scores it and is

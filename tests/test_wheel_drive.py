@@ -52,6 +52,7 @@ def test_the_simulated_drive_on_wheel_speeds_turns_as_its_axle_over_the_turn_gai
     assert as_differential_drive(on_vw) is None
 
 
+@pytest.mark.slow
 def test_em_on_wheel_speeds_reads_back_a_wheel_mismatch():
     """Seeded recovery: a simulated drive that turns 0.0003 rad/s per mm/s of forward command (the curve of
     a wheel mismatch), logged by its wheel speeds on a 235-mm axle and learned with the settings `simulate
