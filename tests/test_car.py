@@ -398,13 +398,12 @@ def test_algorithm_3_on_a_short_drive(short_drive):
     assert res.model.C6 > 0 and res.model.C8 < 0
 
 
-def test_a_standard_decoder_reads_the_simulated_pcap(short_drive, tmp_path_factory):
+def test_a_standard_decoder_reads_the_simulated_pcap(short_drive_folder, short_drive):
     """velodyne-decoder (test-only), reading the simulator's HDL-64E pcap with its true calibration,
     finds every return that sensact's reader finds."""
     vd = pytest.importorskip("velodyne_decoder")
     _, log = short_drive
-    folder = tmp_path_factory.getbasetemp()
-    pcap = next(folder.rglob("velodyne.pcap"))
+    pcap = short_drive_folder[1] / "velodyne.pcap"
     conf = vd.Config(
         model=vd.Model.HDL64E_S1, calibration=vd.Calibration.read(str(pcap.parent / "calibration_true.yaml"))
     )

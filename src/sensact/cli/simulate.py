@@ -71,7 +71,7 @@ def simulate_car(
     config: ConfigOpt = None,
 ) -> None:
     """Simulate the chapter-5 car with a spinning lidar driving through a town (secs. 2.5.2, 5.4): the thesis's
-    Velodyne HDL-64E, or --set lidar=HDL-32E, VLP-32C, VLP-16 or OS-1."""
+    Velodyne HDL-64E, or --set lidar=HDL-32E, VLP-32C, VLP-16, "Puck Hi-Res" or OS-1."""
     from sensact.experiments.car import simulate_car_log
     from sensact.sim.car import CarConfig, log_summary
 

@@ -49,6 +49,7 @@ from sensact.models.lidar_unit import (
     MODEL_NAMES,
     OUSTER_PORT,
     UNITS,
+    UNREAD_PRODUCTS,
     LidarUnit,
     ouster_payload_bytes,
     ouster_unit,
@@ -198,6 +199,14 @@ def _unit_of(pcap: Path, port: int, size: int, payloads: np.ndarray) -> LidarUni
     if size != PAYLOAD_BYTES:
         return ouster_unit(next(b for b in (16, 32, 64, 128) if ouster_payload_bytes(b) == size))
     packets = np.ascontiguousarray(payloads).view(PACKET).reshape(-1)
+    product = int(np.bincount(packets["status_value"]).argmax()) if len(packets) else 0
+    if product in UNREAD_PRODUCTS:
+        raise LogFormatError(
+            f"{UNREAD_PRODUCTS[product]} packets (product id {product:#04x}), whose lasers sensact does not lay out.",
+            file=pcap,
+            field="lidar.file",
+            fix="learn car reads " + ", ".join(MODEL_NAMES) + " captures.",
+        )
     unit = velodyne_unit(packets)
     if np.any(packets["status_type"] == DUAL_RETURN):
         if unit.name == "HDL-64E":

@@ -70,7 +70,7 @@ def velodyne_fields(unit: LidarUnit, payloads: np.ndarray) -> PacketFields:
         damaged["rotations"] |= ~np.all(rot[:, 0::2] == rot[:, 1::2], axis=1)
         rot, dist = rot[:, 0::2], dist[:, 0::2]
     B = rot.shape[1]
-    if unit.name != "VLP-16":
+    if unit.firings_per_packet <= B:  # one firing a block
         return PacketFields(pk["timestamp_us"].astype(np.int64), rot.astype(float), dist.reshape(P * B, 32), damaged)
     # the VLP-16's second firing of a block is halfway round to the next block (the last block's step is
     # its predecessor's), as ROS's driver interpolates it
@@ -153,7 +153,7 @@ def encode_packets(
     blocks = pk["blocks"]
     d = steps.astype(np.uint16)
     blocks["id"] = UPPER
-    blocks["rotation"] = rot[:, 0::2] if unit.name == "VLP-16" else rot  # a VLP-16 block: the first of two
+    blocks["rotation"] = rot[:, 0::2] if unit.lasers == 16 else rot  # a 16-laser block: the first of two firings
     blocks["returns"]["distance"] = d.reshape(P, 12, 32)
     blocks["returns"]["intensity"] = inten.reshape(P, 12, 32)
     pk["status_type"] = 0x37  # strongest return

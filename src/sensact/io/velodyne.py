@@ -32,7 +32,7 @@ from sensact.models.lidar_unit import UNITS, VELODYNE_PAYLOAD_BYTES, VELODYNE_PO
 PAYLOAD_BYTES = VELODYNE_PAYLOAD_BYTES
 DATA_PORT = VELODYNE_PORT
 UPPER, LOWER = 0xEEFF, 0xDDFF
-PRODUCT_IDS = {0x21: "HDL-32E", 0x22: "VLP-16", 0x28: "VLP-32C"}
+PRODUCT_IDS = {0x21: "HDL-32E", 0x22: "VLP-16", 0x24: "Puck Hi-Res", 0x28: "VLP-32C"}
 DUAL_RETURN = 0x39  # the return-mode byte when every firing fills two blocks (strongest and last)
 DISTANCE_UNIT_M = 0.002
 HDL64_FIRINGS_PER_PACKET = 6
@@ -235,11 +235,15 @@ def _model_of(packets: np.ndarray) -> str:
     steps = steps[(steps > 0) & (steps < 10_000)]
     if steps.size:
         block_us = float(np.median(steps)) * (2 if np.any(packets["status_type"] == DUAL_RETURN) else 1) / 12.0
-        if block_us > 80.0:  # two firings a block: the VLP-16 (110.6 µs)
-            return "VLP-16"
+        if block_us > 80.0:  # two firings a block: a VLP-16 (110.6 µs), or its Hi-Res twin by its product id
+            return "Puck Hi-Res" if _product(packets) == 0x24 else "VLP-16"
         return "VLP-32C" if block_us > 50.0 else "HDL-32E"  # 55.3 µs and 46.1 µs a block
-    product = int(np.bincount(packets["status_value"]).argmax()) if len(packets) else 0
-    return PRODUCT_IDS.get(product, "HDL-32E")
+    return PRODUCT_IDS.get(_product(packets), "HDL-32E")
+
+
+def _product(packets: np.ndarray) -> int:
+    """The commonest product id byte (a Velodyne's last status byte)."""
+    return int(np.bincount(packets["status_value"]).argmax()) if len(packets) else 0
 
 
 def clock_steps_us(timestamp_us: np.ndarray) -> np.ndarray:
@@ -360,7 +364,7 @@ def decode_packets(times_s: np.ndarray, payloads: np.ndarray, model: str = "auto
         firing = np.broadcast_to((np.arange(P)[:, None] * 12 + np.arange(12)[None, :])[..., None], (P, 12, 32))
         t = np.broadcast_to((times_s[:, None] + np.arange(12)[None, :] * period)[..., None], (P, 12, 32))
         rot3 = np.broadcast_to(rot[..., None], (P, 12, 32))
-    elif model == "VLP-16":
+    elif model in ("VLP-16", "Puck Hi-Res"):
         period = 1.0 / firing_rate_hz if firing_rate_hz else 55.296e-6
         laser = np.broadcast_to((np.arange(32) % 16)[None, None, :], (P, 12, 32))
         seq = np.arange(12)[:, None] * 2 + (np.arange(32) // 16)[None, :]  # (12, 32) firing sequence

@@ -9,8 +9,8 @@ within a firing each laser fires:
 * **HDL-32E**: 32 lasers fired one after another, 1.152 µs apart, in a 46.08 µs firing; 12 firings a packet.
 * **VLP-32C**: 32 lasers fired in pairs, 2.304 µs apart, in a 55.296 µs firing; 12 firings a packet; 4 mm
   distance steps.
-* **VLP-16**: 16 lasers, 2.304 µs apart, in a 55.296 µs firing; two firings a block (the second's rotation
-  halfway to the next block's), 24 firings a packet.
+* **VLP-16** and its **Puck Hi-Res** twin (±10°, product id 0x24): 16 lasers, 2.304 µs apart, in a 55.296 µs
+  firing; two firings a block (the second's rotation halfway to the next block's), 24 firings a packet.
 * **Ouster OS-1** (legacy lidar packets on port 7502): a column of 16, 32, 64 or 128 beams a firing, all at
   once, 16 columns a packet; the rotation from the encoder (90,112 counts a turn, clockwise), ranges in mm.
 
@@ -39,6 +39,11 @@ def ouster_payload_bytes(beams: int) -> int:
 
 def _vlp16_vertical() -> tuple[float, ...]:
     return tuple(float(i - 15 if i % 2 == 0 else i) for i in range(16))  # -15, 1, -13, 3, ... 15
+
+
+def _hi_res_vertical() -> tuple[float, ...]:
+    # the Puck Hi-Res: -10° to -0.67° on the even ids and +0.67° to +10° on the odd, 4/3° apart
+    return tuple(float((-10.0 if i % 2 == 0 else 2.0 / 3.0) + (i // 2) * 4.0 / 3.0) for i in range(16))
 
 
 def _hdl32e_vertical() -> tuple[float, ...]:
@@ -100,6 +105,20 @@ def ouster_unit(beams: int = 64, columns: int = 1024, hz: float = 10.0) -> Lidar
     )
 
 
+_VLP16 = LidarUnit(
+    "VLP-16",
+    16,
+    24,
+    55.296e-6,
+    tuple(2.304e-6 * i for i in range(16)),
+    0.002,
+    VELODYNE_PORT,
+    VELODYNE_PAYLOAD_BYTES,
+    0x22,
+    _vlp16_vertical(),
+    (0.0,) * 16,
+)
+
 UNITS: dict[str, LidarUnit] = {
     "HDL-64E": LidarUnit("HDL-64E", 64, 6, 1.0 / 7800.0, (0.0,) * 64, 0.002, VELODYNE_PORT, VELODYNE_PAYLOAD_BYTES),
     "HDL-32E": LidarUnit(
@@ -128,19 +147,11 @@ UNITS: dict[str, LidarUnit] = {
         _VLP32C_VERTICAL,
         _VLP32C_ROT,
     ),
-    "VLP-16": LidarUnit(
-        "VLP-16",
-        16,
-        24,
-        55.296e-6,
-        tuple(2.304e-6 * i for i in range(16)),
-        0.002,
-        VELODYNE_PORT,
-        VELODYNE_PAYLOAD_BYTES,
-        0x22,
-        _vlp16_vertical(),
-        (0.0,) * 16,
-    ),
+    "VLP-16": _VLP16,
+    # the VLP-16's Hi-Res twin: the same firings, its lasers within ±10°, told apart by its product id
+    "Puck Hi-Res": replace(_VLP16, name="Puck Hi-Res", product_id=0x24, vertical_deg=_hi_res_vertical()),
     "OS-1": ouster_unit(),
 }
+# Velodynes whose packets lay their lasers out otherwise (more block ids a firing): named, not read
+UNREAD_PRODUCTS = {0xA1: "VLS-128", 0x31: "Velarray"}
 MODEL_NAMES = tuple(UNITS)

@@ -90,7 +90,7 @@ class CarConfig:
     tree_spacing_m: float = 18.0
     parked_car_spacing_m: float = 30.0
     grid_cell_m: float = 8.0
-    # the lidar, sec. 2.5.2: the thesis's HDL-64E, or an HDL-32E, VLP-32C, VLP-16 or Ouster OS-1 (64 beams)
+    # the lidar, sec. 2.5.2: the thesis's HDL-64E, or an HDL-32E, VLP-32C, VLP-16, Puck Hi-Res or OS-1 (64 beams)
     lidar: str = "HDL-64E"
     calibration_yaml: str | None = None  # true angles (ROS YAML, or an OS-1's metadata JSON); None: the
     # model's file in the shared data (64e_utexas.yaml, 32db.yaml, VLP16db.yaml, ouster_example.json), else its
