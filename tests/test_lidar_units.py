@@ -255,3 +255,15 @@ def test_a_dual_return_capture_reads_as_its_last_returns(tmp_path, model):
     np.testing.assert_array_equal(two.distance_m, one.distance_m)
     np.testing.assert_allclose(np.angle(np.exp(1j * (two.rotation_rad - one.rotation_rad))), 0.0, atol=2e-4)
     assert two.firing_hz == pytest.approx(one.firing_hz, rel=1e-3)
+
+
+def test_a_calibration_of_another_unit_is_refused_before_simulating(tmp_path):
+    from sensact.errors import ConfigError
+    from sensact.io.velodyne_calibration import write_calibration
+    from sensact.models.laser_intrinsics import LaserIntrinsics
+
+    write_calibration(tmp_path / "vlp16.yaml", LaserIntrinsics(np.zeros(16), np.zeros(16)))
+    with pytest.raises(ConfigError, match="16 lasers, but lidar is HDL-64E") as err:
+        simulate_car_log(CarConfig(seconds=1.0, calibration_yaml=str(tmp_path / "vlp16.yaml")), tmp_path / "log")
+    assert err.value.field == "calibration_yaml" and "VLP-16" in (err.value.fix or "")
+    assert not (tmp_path / "log").exists()

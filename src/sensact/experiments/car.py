@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from sensact.config import config_to_dict
+from sensact.errors import ConfigError
 from sensact.evaluate.bars import BarCheck, at_most
 from sensact.evaluate.car import laser_angle_error, table_5_1, truth_motion
 from sensact.io.car_log import CarLog, read_car_log, write_car_log
@@ -24,6 +25,7 @@ from sensact.learn.car_dynamics import (
     learn_laser_angles,
 )
 from sensact.models.laser_intrinsics import LaserIntrinsics
+from sensact.models.lidar_unit import UNITS
 from sensact.sim.car import (
     CarConfig,
     CarRun,
@@ -111,7 +113,18 @@ def true_intrinsics(cfg: CarConfig) -> LaserIntrinsics:
     """The simulated unit's true geometry: ``calibration_yaml``, else the model's real unit in the shared
     data (the UT Austin HDL-64E is the thesis's), else its nominal geometry (``nominal_unit_intrinsics``)."""
     if cfg.calibration_yaml:
-        return read_calibration(cfg.calibration_yaml)
+        intr = read_calibration(cfg.calibration_yaml)
+        unit = cfg.unit
+        if intr.n_lasers != unit.lasers and (unit.velodyne or intr.n_lasers not in (16, 32, 64, 128)):
+            fits = [name for name, u in UNITS.items() if u.lasers == intr.n_lasers and u.velodyne]
+            raise ConfigError(
+                f"{cfg.calibration_yaml} gives {intr.n_lasers} lasers, but lidar is {cfg.lidar}, of {unit.lasers}.",
+                field="calibration_yaml",
+                fix="set lidar to the unit the file is of ("
+                + " or ".join([*fits, "OS-1 for its metadata JSON"])
+                + ").",
+            )
+        return intr
     path = default_calibration_path(cfg.lidar)
     if path is not None and path.is_file():
         return read_calibration(path)
