@@ -25,7 +25,7 @@ from sensact.learn.car_dynamics import (
     learn_laser_angles,
 )
 from sensact.models.laser_intrinsics import LaserIntrinsics
-from sensact.models.lidar_unit import UNITS
+from sensact.models.lidar_unit import OUSTER_BEAMS, UNITS
 from sensact.sim.car import (
     CarConfig,
     CarRun,
@@ -115,7 +115,7 @@ def true_intrinsics(cfg: CarConfig) -> LaserIntrinsics:
     if cfg.calibration_yaml:
         intr = read_calibration(cfg.calibration_yaml)
         unit = cfg.unit
-        if intr.n_lasers != unit.lasers and (unit.velodyne or intr.n_lasers not in (16, 32, 64, 128)):
+        if intr.n_lasers != unit.lasers and (unit.velodyne or intr.n_lasers not in OUSTER_BEAMS):
             fits = [name for name, u in UNITS.items() if u.lasers == intr.n_lasers and u.velodyne]
             raise ConfigError(
                 f"{cfg.calibration_yaml} gives {intr.n_lasers} lasers, but lidar is {cfg.lidar}, of {unit.lasers}.",

@@ -17,6 +17,7 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -47,6 +48,7 @@ from sensact.io.velodyne_calibration import ouster_metadata, write_calibration
 from sensact.models.laser_intrinsics import LaserIntrinsics
 from sensact.models.lidar_unit import (
     MODEL_NAMES,
+    OUSTER_BEAMS,
     OUSTER_PORT,
     UNITS,
     UNREAD_PRODUCTS,
@@ -112,7 +114,7 @@ class CarLog:
     notes: tuple[str, ...] = ()  # what the reader measured, for the user to see
     warnings: tuple[str, ...] = ()  # what in the folder contradicts itself
     factory: LaserIntrinsics | None = None  # the calibration file the vertical angles came from, if one
-    model: str = "HDL-64E"  # sensact.io.lidar_units.UNITS
+    model: str = "HDL-64E"  # a name of sensact.models.lidar_unit.UNITS
     delay_s: np.ndarray | None = None  # (lasers,) when each laser fires after its firing's start; None: at once
 
 
@@ -163,7 +165,12 @@ class _Capture:
 
 
 _RECORD_OVERHEAD = 16 + 28  # a record header, raw IPv4 and UDP headers: the least around a payload
-_HASH_SEED = 20081
+_OUSTER_BEAMS_BY_SIZE = {ouster_payload_bytes(b): b for b in OUSTER_BEAMS}
+
+
+@lru_cache(maxsize=8)
+def _hash_multipliers(words: int) -> np.ndarray:
+    return 2 * np.random.default_rng(20081).integers(1, 2**62, (2, words), dtype=np.uint64) + 1
 
 
 def _payload_keys(payloads: np.ndarray) -> np.ndarray:
@@ -174,16 +181,15 @@ def _payload_keys(payloads: np.ndarray) -> np.ndarray:
     padded = np.zeros((len(payloads), words_n * 8), dtype=np.uint8)
     padded[:, : payloads.shape[1]] = payloads
     words = padded.view(np.uint64)
-    mult = 2 * np.random.default_rng(_HASH_SEED).integers(1, 2**62, (2, words_n), dtype=np.uint64) + 1
     with np.errstate(over="ignore"):
-        return np.stack([(words * m).sum(axis=1, dtype=np.uint64) for m in mult], axis=1)
+        return np.stack([(words * m).sum(axis=1, dtype=np.uint64) for m in _hash_multipliers(words_n)], axis=1)
 
 
 def _lidar_stream(pcap: Path, port: int | None = None) -> tuple[int, int] | None:
     """The (port, payload bytes) of the lidar data in the capture's first chunk: a Velodyne's (1206 bytes,
     to port 2368) or an OS-1's (its legacy packet for 16 to 128 beams, to port 7502), or either's to
     ``port`` when a unit was set to send elsewhere; None when it holds neither."""
-    sizes = {PAYLOAD_BYTES: DATA_PORT} | {ouster_payload_bytes(b): OUSTER_PORT for b in (16, 32, 64, 128)}
+    sizes = {PAYLOAD_BYTES: DATA_PORT} | dict.fromkeys(_OUSTER_BEAMS_BY_SIZE, OUSTER_PORT)
     for link, frames in _capture_chunks(pcap):
         ok, _, ports, got = _udp_fields(pcap, link, frames)
         found = Counter(
@@ -195,9 +201,9 @@ def _lidar_stream(pcap: Path, port: int | None = None) -> tuple[int, int] | None
     return None
 
 
-def _unit_of(pcap: Path, port: int, size: int, payloads: np.ndarray) -> LidarUnit:
+def _unit_of(pcap: Path, size: int, payloads: np.ndarray) -> LidarUnit:
     if size != PAYLOAD_BYTES:
-        return ouster_unit(next(b for b in (16, 32, 64, 128) if ouster_payload_bytes(b) == size))
+        return ouster_unit(_OUSTER_BEAMS_BY_SIZE[size])
     packets = np.ascontiguousarray(payloads).view(PACKET).reshape(-1)
     product = int(np.bincount(packets["status_value"]).argmax()) if len(packets) else 0
     if product in UNREAD_PRODUCTS:
@@ -259,7 +265,7 @@ def _read_capture(pcap: Path, port: int | None = None) -> _Capture:
                 keep[i] = True
         repeated += int((~keep).sum())
         if unit is None:
-            unit = _unit_of(pcap, port, size, payloads[keep])
+            unit = _unit_of(pcap, size, payloads[keep])
             rows = pcap.stat().st_size // (_RECORD_OVERHEAD + size) * unit.firings_per_packet
             distance = np.zeros((rows, unit.lasers), dtype=np.float32)
         fields = packet_fields(unit, payloads[keep])
@@ -340,7 +346,7 @@ def _vertical_angles(
 ) -> tuple[np.ndarray, LaserIntrinsics | None, Path, str]:
     """Each laser's factory vertical angle (rad): from the calibration file when given (a ROS velodyne YAML
     or an OS-1's metadata JSON; ``lidar.calibration`` names one in the folder), else meta.json's
-    ``vertical_deg``, else the model's datasheet (HDL-32E, VLP-32C, VLP-16: every unit alike). Returns the
+    ``vertical_deg``, else the model's datasheet (HDL-32E, VLP-32C, VLP-16, Puck Hi-Res: every unit alike). Returns the
     calibration read (None without one), and the file and field the angles came from."""
     if calibration is None and isinstance(lidar.get("calibration"), str):
         calibration = meta_file.parent / lidar["calibration"]
@@ -351,7 +357,7 @@ def _vertical_angles(
         field = "vert_correction" if unit.velodyne else "beam_altitude_angles"
         return factory.vertical_rad, factory, Path(calibration), field
     if "vertical_deg" not in lidar and unit.vertical_deg is not None:
-        return np.radians(np.asarray(unit.vertical_deg)), None, meta_file, f"the {unit.name} datasheet's angles"
+        return np.radians(np.asarray(unit.vertical_deg)), None, meta_file, "lidar.vertical_deg"
     try:
         vertical_rad = np.radians(np.asarray(lidar["vertical_deg"], dtype=float).reshape(-1))
     except (KeyError, TypeError, ValueError):
@@ -464,8 +470,8 @@ def read_car_log(folder: str | Path, calibration: str | Path | None = None) -> C
     notes: list[str] = []
     if unit.dual:
         notes.append("dual-return packets: each firing's last return read")
-    if vertical_field.startswith("the "):
-        notes.append(f"vertical angles from {vertical_field} (meta.json gives no lidar.vertical_deg)")
+    if factory is None and "vertical_deg" not in lidar:
+        notes.append(f"vertical angles from the {unit.name} datasheet's (meta.json gives no lidar.vertical_deg)")
     warnings: list[str] = []
     if repeated:
         notes.append(f"{repeated} packets repeated byte for byte (a mirrored port sends some twice): each read once")

@@ -32,7 +32,7 @@ from sensact.models.lidar_unit import UNITS, VELODYNE_PAYLOAD_BYTES, VELODYNE_PO
 PAYLOAD_BYTES = VELODYNE_PAYLOAD_BYTES
 DATA_PORT = VELODYNE_PORT
 UPPER, LOWER = 0xEEFF, 0xDDFF
-PRODUCT_IDS = {0x21: "HDL-32E", 0x22: "VLP-16", 0x24: "Puck Hi-Res", 0x28: "VLP-32C"}
+PRODUCT_IDS = {unit.product_id: name for name, unit in UNITS.items() if unit.product_id is not None}
 DUAL_RETURN = 0x39  # the return-mode byte when every firing fills two blocks (strongest and last)
 DISTANCE_UNIT_M = 0.002
 HDL64_FIRINGS_PER_PACKET = 6
@@ -236,7 +236,7 @@ def _model_of(packets: np.ndarray) -> str:
     if steps.size:
         block_us = float(np.median(steps)) * (2 if np.any(packets["status_type"] == DUAL_RETURN) else 1) / 12.0
         if block_us > 80.0:  # two firings a block: a VLP-16 (110.6 µs), or its Hi-Res twin by its product id
-            return "Puck Hi-Res" if _product(packets) == 0x24 else "VLP-16"
+            return "Puck Hi-Res" if _product(packets) == UNITS["Puck Hi-Res"].product_id else "VLP-16"
         return "VLP-32C" if block_us > 50.0 else "HDL-32E"  # 55.3 µs and 46.1 µs a block
     return PRODUCT_IDS.get(_product(packets), "HDL-32E")
 
@@ -323,7 +323,7 @@ def spin_from_clock(timestamp_us: np.ndarray, first_rotation: np.ndarray, firing
 
 def decode_packets(times_s: np.ndarray, payloads: np.ndarray, model: str = "auto", firing_rate_hz: float | None = None):
     """Per-return arrays from raw payloads. ``firing_rate_hz`` spaces the firings inside a packet in time
-    (defaults: HDL-64E the thesis's 7800 Hz per laser, HDL-32E 1/46.08 µs, VLP-16 1/55.296 µs)."""
+    (default: the unit's own, ``sensact.models.lidar_unit.UNITS``; the HDL-64E's is the thesis's 7800 Hz)."""
     packets = np.ascontiguousarray(payloads).view(PACKET).reshape(-1)
     bad = ~np.isin(packets["blocks"]["id"], (UPPER, LOWER))
     if bad.any():
@@ -335,37 +335,38 @@ def decode_packets(times_s: np.ndarray, payloads: np.ndarray, model: str = "auto
         )
     if model == "auto":
         model = _model_of(packets)
+    if model not in FIRINGS_PER_PACKET:
+        raise LogFormatError(
+            f"unknown model {model!r}.", field="model", fix="use " + ", ".join(FIRINGS_PER_PACKET) + " or auto."
+        )
+    unit = UNITS[model]
+    period = 1.0 / firing_rate_hz if firing_rate_hz else unit.firing_s
     P = len(packets)
     # packet times on the sensor's clock (µs past the hour, unwrapped), anchored at the first capture time:
     # capture times carry the host's jitter
     step = clock_steps_us(packets["timestamp_us"])
     times_s = float(times_s[0]) + np.concatenate([[0], np.cumsum(step)]) * 1e-6 if P else np.zeros(0)
     blocks = packets["blocks"]
-    dist = blocks["returns"]["distance"].astype(float) * DISTANCE_UNIT_M  # (P, 12, 32)
+    dist = blocks["returns"]["distance"].astype(float) * unit.distance_unit_m  # (P, 12, 32)
     inten = blocks["returns"]["intensity"]
     rot = blocks["rotation"].astype(float) / 100.0  # (P, 12)
     if model == "HDL-64E":
-        rate = firing_rate_hz or 7800.0
         lower = blocks["id"] == LOWER
         laser = np.where(lower[..., None], 32, 0) + np.arange(32)[None, None, :]
         # an upper block and the lower block after it fire together: firing = packet * 6 + block // 2
         fire_in_packet = np.broadcast_to(np.arange(12)[None, :] // 2, (P, 12))
         firing = np.arange(P)[:, None] * 6 + fire_in_packet
-        t = times_s[:, None] + fire_in_packet / rate
+        t = times_s[:, None] + fire_in_packet * period
         shape = (P, 12, 32)
         t = np.broadcast_to(t[..., None], shape)
         firing = np.broadcast_to(firing[..., None], shape)
         rot3 = np.broadcast_to(rot[..., None], shape)
-    elif model in ("HDL-32E", "VLP-32C"):
-        period = 1.0 / firing_rate_hz if firing_rate_hz else (46.08e-6 if model == "HDL-32E" else 55.296e-6)
-        if model == "VLP-32C":
-            dist = dist * 2.0  # 4 mm steps
+    elif unit.lasers == 32:  # one firing a block
         laser = np.broadcast_to(np.arange(32)[None, None, :], (P, 12, 32))
         firing = np.broadcast_to((np.arange(P)[:, None] * 12 + np.arange(12)[None, :])[..., None], (P, 12, 32))
         t = np.broadcast_to((times_s[:, None] + np.arange(12)[None, :] * period)[..., None], (P, 12, 32))
         rot3 = np.broadcast_to(rot[..., None], (P, 12, 32))
-    elif model in ("VLP-16", "Puck Hi-Res"):
-        period = 1.0 / firing_rate_hz if firing_rate_hz else 55.296e-6
+    else:  # 16 lasers, two firings a block
         laser = np.broadcast_to((np.arange(32) % 16)[None, None, :], (P, 12, 32))
         seq = np.arange(12)[:, None] * 2 + (np.arange(32) // 16)[None, :]  # (12, 32) firing sequence
         firing = np.arange(P)[:, None, None] * 24 + seq[None]
@@ -374,10 +375,6 @@ def decode_packets(times_s: np.ndarray, payloads: np.ndarray, model: str = "auto
         step = np.diff(rot, axis=1, append=rot[:, -1:] + (rot[:, -1:] - rot[:, -2:-1]))
         step = np.mod(step, 360.0)
         rot3 = np.mod(rot[..., None] + (np.arange(32) // 16)[None, None, :] * 0.5 * step[..., None], 360.0)
-    else:
-        raise LogFormatError(
-            f"unknown model {model!r}.", field="model", fix="use HDL-64E, HDL-32E, VLP-32C, VLP-16 or auto."
-        )
     return VelodyneReturns(
         model,
         np.asarray(t, dtype=float).reshape(-1),

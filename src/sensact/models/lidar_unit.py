@@ -29,6 +29,7 @@ VELODYNE_PAYLOAD_BYTES = 1206
 OUSTER_PORT = 7502
 OUSTER_COLUMNS_PER_PACKET = 16
 OUSTER_ENCODER_COUNTS = 90_112  # a turn, as the OS-1 counts it
+OUSTER_BEAMS = (16, 32, 64, 128)  # the OS-1's models
 OUSTER_VALID = 0xFFFFFFFF  # a column's status word when it holds a measurement
 
 
