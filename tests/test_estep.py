@@ -172,13 +172,28 @@ def test_first_iteration_pruning_drops_false_positives():
 
 
 def test_the_passes_are_compiled_for_a_track_and_a_planar_pose_only():
-    """Each state size has its own compiled kernel (its loops unrolled); another size is refused with
-    the sizes there are, rather than running a kernel whose loops stop short."""
-    from sensact.core.ekf_smoother import ekf_smoother_for
+    """Each state size has its own compiled passes (their loops unrolled); another size is refused with
+    the sizes there are, rather than running passes whose loops stop short."""
+    from sensact.core.ekf_smoother import passes_for
 
-    assert ekf_smoother_for(1) is not ekf_smoother_for(3)
+    assert all(a is not b for a, b in zip(passes_for(1), passes_for(3), strict=True))
     with pytest.raises(ValueError, match=r"1 \(track\) or 3 \(planar\) numbers, not 2"):
-        ekf_smoother_for(2)
+        passes_for(2)
+
+
+def test_an_e_step_compiles_no_record_and_no_joint_t_it_does_not_use():
+    """The innovations' record and the joint Student-t are passed as None when off, so numba prunes
+    their code from the forward pass it compiles for an E-step (a typed None could not index an array:
+    were the branches kept, this compile would fail)."""
+    from numba import types
+
+    from sensact.core.ekf_smoother import passes_for
+
+    _run, data, model = _planar_case(T=60)
+    assert e_step(model, data).ok
+    forward = passes_for(3)[0]
+    # (..., joint_dof, weights, mu_a, P_a, innov, innov_sens)
+    assert any(sig[7] == types.none and sig[11] == types.none and sig[12] == types.none for sig in forward.signatures)
 
 
 def test_the_forward_pass_alone_gives_the_e_steps_likelihood_bit_for_bit():

@@ -1,6 +1,9 @@
-"""The E-step's compiled passes (sec. 4.2): an EKF forward, a two-filter smoother backward.
+"""The E-step's compiled passes (sec. 4.2): an EKF forward, a two-filter smoother backward, the pairwise
+posteriors.
 
-One call runs, over ``T`` steps:
+Three passes run over ``T`` steps, each compiled on its own (``passes_for``), as dynamax splits its
+filter and smoother; their inputs travel as three typed tuples (``StepInputs``, ``Sightings``,
+``SensorInputs``):
 
 * **forward (alpha):** the EKF of sec. 2.4. Each observation's channels (every reading channel
   ``f_i(dist)``, then the bearing) are scalar measurement updates in Joseph form, so the covariance
@@ -14,10 +17,12 @@ One call runs, over ``T`` steps:
   ``e = w - mu_alpha,t``. It starts from ``Y = 0``: the thesis's "infinite covariance", exactly.
   Its linearizations use the forward means; the thesis's backward EKF would linearize at its own mean,
   which does not exist while ``Y`` is singular.
-* **gamma** (eqs. 4.9, 4.10): alpha times beta.
-* **xi** (eqs. 4.11, 4.12): the joint of ``(w_t, w_t+1)`` from ``alpha_t``, ``delta_t+1 = beta_t+1 P(o_t+1 | w_t+1)``
-  and the pseudo-measurement ``D(w_t, w_t+1) ~ N(A(c_t) dt, Sigma_m)``, linearized at the smoothed
-  means. It is solved in information form because ``delta``'s covariance may be infinite.
+* **gamma** (eqs. 4.9, 4.10): alpha times beta, in the same backward pass, which keeps each step's
+  ``delta`` for the next.
+* **pairwise: xi** (eqs. 4.11, 4.12): the joint of ``(w_t, w_t+1)`` from ``alpha_t``,
+  ``delta_t+1 = beta_t+1 P(o_t+1 | w_t+1)`` and the
+  pseudo-measurement ``D(w_t, w_t+1) ~ N(A(c_t) dt, Sigma_m)``, linearized at the smoothed means. It is
+  solved in information form because ``delta``'s covariance may be infinite.
 
 Exact for a linear-Gaussian model: the forward pass is then the Kalman filter, gamma the RTS smoother's
 marginals and xi the exact pairwise posterior (tests/test_estep.py checks all three against dense
@@ -30,6 +35,10 @@ of their sighting's innovations as one multivariate t (``_joint_weight``), and u
 channel drops a reading beyond ``gate`` innovation sigmas and adds the Gaussian log density at the gate,
 so that the likelihood cannot grow by gating more.
 
+What a run does not use is not compiled: the innovations' record (``innov`` None) and the joint Student-t
+(``joint_dof`` None) are pruned from the forward pass before numba types it, so the E-step's first run
+compiles neither.
+
 Angles inside the passes are not wrapped, so that theta is one continuous coordinate for the
 information-form algebra; only differences and innovations are wrapped.
 """
@@ -37,6 +46,7 @@ information-form algebra; only differences and innovations are wrapped.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -223,75 +233,112 @@ def _resolvent(A, B, w, Mx, RHS, n):
     return lu_solve_inplace(Mx, RHS, n, n + 1)
 
 
-def _compiled_for(n_state: int):
-    """The passes compiled for a state of ``n_state`` numbers. With the size a constant the compiler
-    unrolls every small-matrix loop: a third faster on MRCLAM's 3-number pose, the results unchanged
-    bit for bit (the same operations in the same order)."""
+class StepInputs(NamedTuple):
+    """The action model along the log: step ``t`` moves by ``velocity[t] * dt`` (robot frame) with the
+    diagonal motion noise ``motion_var[t]``."""
 
-    # nogil: the start race runs its trials in threads. error_model="numpy" (here and in the helpers): IEEE
-    # division without a zero check before each one, a third of the E-step's time on MRCLAM, the results
-    # bit for bit the same; a zero divisor gives inf or NaN, which the status checks below report
+    mode: int  # pose_models.PLANAR or TRACK
+    dt: float
+    velocity: np.ndarray  # (T, n)
+    motion_var: np.ndarray  # (T, n)
+
+
+class Sightings(NamedTuple):
+    """The log's observations: rows ``ptr[t]:ptr[t+1]`` belong to step ``t``. A NaN reading or bearing is
+    a missing channel."""
+
+    ptr: np.ndarray  # (T+1,) int64
+    landmark: np.ndarray  # (K,) int64, rows of SensorInputs.landmarks
+    readings: np.ndarray  # (K, C) reading channel c of row k
+    gain: np.ndarray  # (K, C) adds gain * d to channel c's prediction (its bearing terms; 0 in the thesis)
+    bearing: np.ndarray  # (K,) rad
+
+
+class SensorInputs(NamedTuple):
+    """The sensor model: channel ``c`` predicts the polynomial ``coefs[c]`` in ``(d - centers[c]) / scales[c]``
+    with variance ``reading_var[c]``, read only within ``[window_lo[c], window_hi[c]]``; ``robust_kind`` and
+    ``robust_param`` pick each channel's likelihood, the last entry the bearing's. ``mount`` (forward mm,
+    left mm, yaw rad) is where the sensor sits on the robot (zeros: eq. 4.19 exactly)."""
+
+    landmarks: np.ndarray  # (L, 2)
+    coefs: np.ndarray  # (C, P)
+    centers: np.ndarray  # (C,)
+    scales: np.ndarray  # (C,)
+    reading_var: np.ndarray  # (C,)
+    window_lo: np.ndarray  # (C,)
+    window_hi: np.ndarray  # (C,)
+    var_bearing: float
+    mount: np.ndarray  # (3,)
+    robust_kind: np.ndarray  # (C+1,) int64
+    robust_param: np.ndarray  # (C+1,)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _channel(
+    mode, k, c, w, lx, ly, readings, gain, bearing, coefs, centers, scales, reading_var, var_bearing, mount, H
+):
+    """Channel ``c`` of sighting ``k`` predicted at ``w``: ``(innovation, variance)``, ``H`` its gradient;
+    ``c = C`` is the bearing (its innovation wrapped). Inlined: called per reading in every pass."""
+    if c < readings.shape[1]:
+        f_c = observe_height(mode, w, lx, ly, coefs[c], centers[c], scales[c], gain[k, c], mount, H)
+        return readings[k, c] - f_c, reading_var[c]
+    return wrap(bearing[k] - observe_bearing(w, lx, ly, mount, H)), var_bearing
+
+
+def _passes_for(n_state: int):
+    """The three passes compiled for a state of ``n_state`` numbers. With the size a constant the compiler
+    unrolls every small-matrix loop: a third faster on MRCLAM's 3-number pose, the results unchanged
+    bit for bit (the same operations in the same order).
+
+    nogil: the start race runs its trials in threads. error_model="numpy" (here and in the helpers): IEEE
+    division without a zero check before each one, a third of the E-step's time on MRCLAM, the results bit
+    for bit the same; a zero divisor gives inf or NaN, which the status checks report.
+    """
+    n = n_state
+
     @njit(cache=True, nogil=True, error_model="numpy")
-    def kernel(
-        mode,
-        dt,
-        step_velocity,
-        step_motion_var,
+    def forward(
+        steps,
+        sight,
+        sensor,
         prior_mean,
         prior_cov,
-        obs_ptr,
-        obs_landmark,
-        obs_readings,
-        obs_gain,
-        obs_bearing,
         obs_use,
-        landmarks,
-        coefs,
-        centers,
-        scales,
-        reading_var,
-        window_lo,
-        window_hi,
-        var_bearing,
-        mount,
-        robust_kind,
-        robust_param,
         prune_rad_per_step,
+        joint_dof,
         weights,
         mu_a,
         P_a,
-        mu_g,
-        P_g,
-        d_mu,
-        d_P,
-        smooth,
         innov,
         innov_sens,
     ):
-        """Run the E-step passes; fill ``mu_a, P_a`` (alpha), ``mu_g, P_g`` (gamma) and ``d_mu, d_P``
-        (mean and covariance of ``D(w_t, w_t+1)`` under xi). Returns ``(status, loglik, n_used)``. With
-        ``smooth`` False only the forward pass runs (alpha and the likelihood, a quarter of the time): the
-        gamma and xi arrays are left untouched and may be of any length.
+        """alpha_t (eq. 4.3) into ``mu_a, P_a`` and the likelihood (eq. 4.14); returns ``(status, loglik,
+        n_used)``. Decides each reading's weight into ``weights[k, c]`` (0 = not used) for the later passes.
 
-        ``step_velocity[t]`` and ``step_motion_var[t]`` (robot frame, diagonal) are the action model's mean
-        velocity and the motion noise from step ``t`` to ``t+1``. Observation rows ``obs_ptr[t]:obs_ptr[t+1]``
-        belong to step ``t``; reading channel ``c`` of row ``k`` is ``obs_readings[k, c]`` with the
-        polynomial ``coefs[c]`` in ``(d - centers[c]) / scales[c]``, variance ``reading_var[c]`` and
-        distance window ``[window_lo[c], window_hi[c]]``; a NaN reading or bearing is a missing channel.
-        ``obs_gain[k, c]`` adds ``gain * d`` to channel c's prediction (its bearing terms, 0 in the thesis).
-        ``robust_kind[c]``/``robust_param[c]`` pick each channel's likelihood (the last entry is the
-        bearing's). ``weights[k, c]`` receives each reading's weight (0 = not used).
-        ``mount`` (forward mm, left mm, yaw rad) is where the sensor sits on the robot: every reading is
-        predicted from the sensor's pose (core/pose_models.py; zeros: eq. 4.19 exactly).
+        ``joint_dof`` is the joint Student-t's degrees of freedom, None when no reading is joint.
+        ``innov, innov_sens`` receive the standardized innovations and their sensitivities, or are None.
         With ``prune_rad_per_step > 0`` an observation whose bearing innovation exceeds that times the
         steps since the last step with a kept observation is marked unused in ``obs_use`` (sec. 4.4.1),
         every observation of a step judged against the same prediction.
         """
+        mode, dt, velocity, motion_var = steps
+        ptr, landmark_of, readings, gain, bearing = sight
+        (
+            landmarks,
+            coefs,
+            centers,
+            scales,
+            reading_var,
+            window_lo,
+            window_hi,
+            var_bearing,
+            mount,
+            robust_kind,
+            robust_param,
+        ) = sensor
         T = mu_a.shape[0]
-        record = innov.shape[0] > 0
-        n = n_state  # a compile-time constant: the small-matrix loops unroll
+        C = readings.shape[1]
         Sv = np.zeros((n, n))  # row a: d mean / d g_a (``innov_sens``)
-        n2 = 2 * n
         m = prior_mean.copy()
         P = prior_cov.copy()
         H = np.zeros(n)
@@ -304,50 +351,43 @@ def _compiled_for(n_state: int):
         Q = np.zeros((n, n))
         gm = np.zeros(n)
         disp = np.zeros(n)
-        loglik = 0.0
-        n_used = 0
-        last_obs = -1
-
-        # ---------------- forward: alpha_t (eq. 4.3) and the likelihood (eq. 4.14)
-        C = obs_readings.shape[1]
-        joint_param = 0.0  # the joint Student-t's degrees of freedom; 0: no reading is joint
-        for c in range(C + 1):
-            if robust_kind[c] == STUDENT_T_JOINT:
-                joint_param = robust_param[c]
         Hj = np.zeros((C + 1, n))
         ej = np.zeros(C + 1)
         rj = np.zeros(C + 1)
         Sj = np.zeros((C + 1, C + 1))
         Lj = np.zeros((C + 1, C + 1))
         yj = np.zeros(C + 1)
+        loglik = 0.0
+        n_used = 0
+        last_obs = -1
         for t in range(T):
             if prune_rad_per_step > 0.0 and mode == 0:
                 # sec. 4.4.1's gate, per frame: every sighting of step t is judged against the same
                 # prediction, and k counts the steps since the last step with a kept sighting (read per
                 # sighting, the 2nd..nth sightings of a frame would have k = 0 and all be dropped)
-                steps = t - last_obs if last_obs >= 0 else t + 1
-                for k in range(obs_ptr[t], obs_ptr[t + 1]):
-                    if obs_use[k] and np.isfinite(obs_bearing[k]):
-                        lx = landmarks[obs_landmark[k], 0]
-                        ly = landmarks[obs_landmark[k], 1]
-                        nu = wrap(obs_bearing[k] - observe_bearing(m, lx, ly, mount, H))
-                        if abs(nu) > prune_rad_per_step * steps:
+                steps_since = t - last_obs if last_obs >= 0 else t + 1
+                for k in range(ptr[t], ptr[t + 1]):
+                    if obs_use[k] and np.isfinite(bearing[k]):
+                        lx = landmarks[landmark_of[k], 0]
+                        ly = landmarks[landmark_of[k], 1]
+                        nu = wrap(bearing[k] - observe_bearing(m, lx, ly, mount, H))
+                        if abs(nu) > prune_rad_per_step * steps_since:
                             obs_use[k] = False
-            for k in range(obs_ptr[t], obs_ptr[t + 1]):
+            for k in range(ptr[t], ptr[t + 1]):
                 for c in range(C + 1):
                     weights[k, c] = 0.0
-                    if record:
+                    if innov is not None:
                         innov[k, c] = np.nan
                 if not obs_use[k]:
                     continue
-                lx = landmarks[obs_landmark[k], 0]
-                ly = landmarks[obs_landmark[k], 1]
-                has_b = mode == 0 and np.isfinite(obs_bearing[k])
+                lx = landmarks[landmark_of[k], 0]
+                ly = landmarks[landmark_of[k], 1]
+                has_b = mode == 0 and np.isfinite(bearing[k])
                 last_obs = t
                 n_used += 1
                 dist = landmark_range(mode, m, lx, ly, mount)  # the windows are judged once, at the prediction
                 w_joint = 1.0
-                if joint_param > 0.0:
+                if joint_dof is not None:
                     # the sighting's joint readings are one multivariate t, judged at the prediction: a
                     # misread barcode spoils its range and its bearing together (docs/em-real.md)
                     d = 0
@@ -355,61 +395,76 @@ def _compiled_for(n_state: int):
                         if robust_kind[c] != STUDENT_T_JOINT:
                             continue
                         if c < C:
-                            if not np.isfinite(obs_readings[k, c]) or dist < window_lo[c] or dist > window_hi[c]:
+                            if not np.isfinite(readings[k, c]) or dist < window_lo[c] or dist > window_hi[c]:
                                 continue
-                            f_c = observe_height(
-                                mode, m, lx, ly, coefs[c], centers[c], scales[c], obs_gain[k, c], mount, H
-                            )
-                            ej[d] = obs_readings[k, c] - f_c
-                            rj[d] = reading_var[c]
-                        else:
-                            if not has_b:
-                                continue
-                            ej[d] = wrap(obs_bearing[k] - observe_bearing(m, lx, ly, mount, H))
-                            rj[d] = var_bearing
+                        elif not has_b:
+                            continue
+                        ej[d], rj[d] = _channel(
+                            mode,
+                            k,
+                            c,
+                            m,
+                            lx,
+                            ly,
+                            readings,
+                            gain,
+                            bearing,
+                            coefs,
+                            centers,
+                            scales,
+                            reading_var,
+                            var_bearing,
+                            mount,
+                            H,
+                        )
                         for i in range(n):
                             Hj[d, i] = H[i]
                         d += 1
                     if d > 0:
-                        w_joint, ld, ok = _joint_weight(Hj, ej, rj, d, P, n, Sj, Lj, yj, joint_param)
+                        w_joint, ld, ok = _joint_weight(Hj, ej, rj, d, P, n, Sj, Lj, yj, joint_dof)
                         if not ok:
                             return NOT_POSITIVE_DEFINITE, loglik, n_used
                         loglik += ld
                 # the joint readings update first, so that the others' densities are conditional on them
-                # (the chain rule); without joint readings the second round is the whole, as before
+                # (the chain rule); without joint readings the second round is the whole
                 for joint_round in (True, False):
-                    for c in range(C):
+                    for c in range(C + 1):
                         if (robust_kind[c] == STUDENT_T_JOINT) != joint_round:
                             continue
-                        if not np.isfinite(obs_readings[k, c]) or dist < window_lo[c] or dist > window_hi[c]:
+                        if c < C:
+                            if not np.isfinite(readings[k, c]) or dist < window_lo[c] or dist > window_hi[c]:
+                                continue
+                        elif not has_b:
                             continue
-                        f_c = observe_height(mode, m, lx, ly, coefs[c], centers[c], scales[c], obs_gain[k, c], mount, H)
-                        nu = obs_readings[k, c] - f_c
-                        if record:
-                            _record(innov, innov_sens, k, c, nu, _hph(P, H, n) + reading_var[c], H, Sv, n)
+                        nu, r = _channel(
+                            mode,
+                            k,
+                            c,
+                            m,
+                            lx,
+                            ly,
+                            readings,
+                            gain,
+                            bearing,
+                            coefs,
+                            centers,
+                            scales,
+                            reading_var,
+                            var_bearing,
+                            mount,
+                            H,
+                        )
+                        if innov is not None:
+                            _record(innov, innov_sens, k, c, nu, _hph(P, H, n) + r, H, Sv, n)
                         if joint_round:
                             w = w_joint
                         else:
-                            w, ld = _reading_weight(robust_kind[c], robust_param[c], nu, _hph(P, H, n) + reading_var[c])
+                            w, ld = _reading_weight(robust_kind[c], robust_param[c], nu, _hph(P, H, n) + r)
                             loglik += ld
                         if w > 0.0:
                             weights[k, c] = w
-                            _scalar_update(m, P, H, nu, reading_var[c] / w, n, PH, K, A, tmp, tmp2)
-                            if record:
-                                _sensitivity_update(Sv, H, K, n)
-                    if has_b and (robust_kind[C] == STUDENT_T_JOINT) == joint_round:
-                        nu = wrap(obs_bearing[k] - observe_bearing(m, lx, ly, mount, H))
-                        if record:
-                            _record(innov, innov_sens, k, C, nu, _hph(P, H, n) + var_bearing, H, Sv, n)
-                        if joint_round:
-                            w = w_joint
-                        else:
-                            w, ld = _reading_weight(robust_kind[C], robust_param[C], nu, _hph(P, H, n) + var_bearing)
-                            loglik += ld
-                        if w > 0.0:
-                            weights[k, C] = w
-                            _scalar_update(m, P, H, nu, var_bearing / w, n, PH, K, A, tmp, tmp2)
-                            if record:
+                            _scalar_update(m, P, H, nu, r / w, n, PH, K, A, tmp, tmp2)
+                            if innov is not None:
                                 _sensitivity_update(Sv, H, K, n)
             for i in range(n):
                 mu_a[t, i] = m[i]
@@ -419,89 +474,98 @@ def _compiled_for(n_state: int):
                 break
             # time update (eqs. 2.20, 2.21 with the Jacobian of eq. 2.28)
             for i in range(n):
-                disp[i] = step_velocity[t, i] * dt
+                disp[i] = velocity[t, i] * dt
             predict(mode, m, disp, gm, F)
-            if record:
-                _sensitivity_predict(mode, m, step_velocity[t], dt, F, Sv, n)
-            motion_covariance(mode, m[n - 1], step_motion_var[t], Q)
+            if innov is not None:
+                _sensitivity_predict(mode, m, velocity[t], dt, F, Sv, n)
+            motion_covariance(mode, m[n - 1], motion_var[t], Q)
             add_sandwich(F, P, Q, tmp, n)  # Q <- F P F' + Q
             for i in range(n):
                 m[i] = gm[i]
                 for j in range(n):
                     P[i, j] = Q[i, j]
             symmetrize(P, n)
+        return OK, loglik, n_used
 
-        if not smooth:
-            return OK, loglik, n_used
-
-        # ---------------- backward: beta_t (eq. 4.4), gamma_t (4.9, 4.10), xi_t (4.11, 4.12)
-        Y = np.zeros((n, n))
+    @njit(cache=True, nogil=True, error_model="numpy")
+    def backward(steps, sight, sensor, obs_use, weights, mu_a, P_a, mu_g, P_g, Yd_all, zd_all):
+        """beta_t (eq. 4.4) in information form and gamma_t (eqs. 4.9, 4.10) into ``mu_g, P_g``; keeps
+        ``delta_t+1 = beta_t+1 P(o_t+1 | w_t+1)`` as ``(Yd_all[t], zd_all[t])`` for ``pairwise``. Returns
+        the status."""
+        mode, dt, velocity, motion_var = steps
+        ptr, landmark_of, readings, gain, bearing = sight
+        landmarks, coefs, centers, scales, reading_var, _, _, var_bearing, mount, _, _ = sensor
+        T = mu_a.shape[0]
+        C = readings.shape[1]
+        H = np.zeros(n)
+        F = np.zeros((n, n))
+        Q = np.zeros((n, n))
+        gm = np.zeros(n)
+        disp = np.zeros(n)
+        tmp = np.zeros((n, n))
+        Y = np.zeros((n, n))  # Y = 0: the thesis's "infinite covariance", exactly
         Ft = np.zeros((n, n))
         z = np.zeros(n)
-        Yd = np.zeros((n, n))
-        zd = np.zeros(n)
         Mx = np.zeros((n, n))
         RHS = np.zeros((n, n + 1))
         J = np.zeros((n, n))
         jv = np.zeros(n)
         b = np.zeros(n)
-        Lam = np.zeros((n2, n2))
-        L2 = np.zeros((n2, n2))
-        Wt = np.zeros((n2, n))
-        eta = np.zeros(n2)
-        Lp = np.zeros((n, n))
-        Pinv = np.zeros((n, n))
         colp = np.zeros(n)
-        D = np.zeros(n)
-        G = np.zeros((n, n2))
-        wbar1 = np.zeros(n)
-        wbar2 = np.zeros(n)
-        rv = np.zeros(n)
-        mx1 = np.zeros(n)
-        mx2 = np.zeros(n)
-        Dm = np.zeros(n)
-        Gm = np.zeros((n, n2))
         for i in range(n):
             mu_g[T - 1, i] = mu_a[T - 1, i]
             for j in range(n):
                 P_g[T - 1, i, j] = P_a[T - 1, i, j]
         for t in range(T - 2, -1, -1):
             # delta_t+1 = beta_t+1 x P(o_t+1 | w_t+1), linearized at mu_alpha,t+1
+            Yd = Yd_all[t]
+            zd = zd_all[t]
             for i in range(n):
                 zd[i] = z[i]
                 for j in range(n):
                     Yd[i, j] = Y[i, j]
             mref = mu_a[t + 1]
-            for k in range(obs_ptr[t + 1], obs_ptr[t + 2]):
+            for k in range(ptr[t + 1], ptr[t + 2]):
                 if not obs_use[k]:
                     continue
-                lx = landmarks[obs_landmark[k], 0]
-                ly = landmarks[obs_landmark[k], 1]
+                lx = landmarks[landmark_of[k], 0]
+                ly = landmarks[landmark_of[k], 1]
                 for c in range(C + 1):
                     if weights[k, c] <= 0.0:
                         continue
-                    if c < C:
-                        nu = obs_readings[k, c] - observe_height(
-                            mode, mref, lx, ly, coefs[c], centers[c], scales[c], obs_gain[k, c], mount, H
-                        )
-                        r = reading_var[c] / weights[k, c]
-                    else:
-                        nu = wrap(obs_bearing[k] - observe_bearing(mref, lx, ly, mount, H))
-                        r = var_bearing / weights[k, c]
+                    nu, r = _channel(
+                        mode,
+                        k,
+                        c,
+                        mref,
+                        lx,
+                        ly,
+                        readings,
+                        gain,
+                        bearing,
+                        coefs,
+                        centers,
+                        scales,
+                        reading_var,
+                        var_bearing,
+                        mount,
+                        H,
+                    )
+                    r = r / weights[k, c]
                     for i in range(n):
                         zd[i] += H[i] * nu / r
                         for j in range(n):
                             Yd[i, j] += H[i] * H[j] / r
             # backward time update through w_t+1 = g(w_t) + q, linearized at mu_alpha,t
             for i in range(n):
-                disp[i] = step_velocity[t, i] * dt
+                disp[i] = velocity[t, i] * dt
             predict(mode, mu_a[t], disp, gm, F)
-            motion_covariance(mode, mu_a[t, n - 1], step_motion_var[t], Q)
+            motion_covariance(mode, mu_a[t, n - 1], motion_var[t], Q)
             for i in range(n):
                 b[i] = gm[i] - mu_a[t + 1, i]
             # J = (I + Yd Q)^-1 Yd, j = (I + Yd Q)^-1 zd
             if not _resolvent(Yd, Q, zd, Mx, RHS, n):
-                return SINGULAR, loglik, n_used
+                return SINGULAR
             for i in range(n):
                 jv[i] = RHS[i, n]
                 for j in range(n):
@@ -533,48 +597,78 @@ def _compiled_for(n_state: int):
                     s += Pa[i, k] * z[k]
                 colp[i] = s
             if not _resolvent(Pa, Y, colp, Mx, RHS, n):
-                return SINGULAR, loglik, n_used
+                return SINGULAR
             for i in range(n):
                 mu_g[t, i] = mu_a[t, i] + RHS[i, n]
                 for j in range(n):
                     P_g[t, i, j] = RHS[i, j]
             symmetrize(P_g[t], n)
-            # xi_t in information form over e = (w_t - mu_alpha,t, w_t+1 - mu_alpha,t+1)
-            if not cholesky(Pa, Lp, n):
-                return NOT_POSITIVE_DEFINITE, loglik, n_used
-            cholesky_inverse(Lp, Pinv, colp, n)
-            for i in range(n2):
-                eta[i] = 0.0
-                for j in range(n2):
-                    Lam[i, j] = 0.0
+        return OK
+
+    n2 = 2 * n
+
+    @njit(cache=True, nogil=True, error_model="numpy")
+    def pairwise(steps, mu_a, P_a, mu_g, Yd_all, zd_all, d_mu, d_P):
+        """xi_t (eqs. 4.11, 4.12): the joint of ``(w_t, w_t+1)`` from ``alpha_t``, ``delta_t+1`` and the
+        pseudo-measurement ``D(w_t, w_t+1) ~ N(A(c_t) dt, Sigma_m)`` linearized at the smoothed means,
+        solved in information form over ``e = (w_t - mu_alpha,t, w_t+1 - mu_alpha,t+1)``; the mean and
+        covariance of ``D`` under it into ``d_mu, d_P``. Returns the status."""
+        mode, dt, velocity, motion_var = steps
+        T = mu_a.shape[0]
+        disp = np.zeros(n)
+        Lam = np.zeros((n2, n2))
+        L2 = np.zeros((n2, n2))
+        Wt = np.zeros((n2, n))
+        eta = np.zeros(n2)
+        Lp = np.zeros((n, n))
+        Pinv = np.zeros((n, n))
+        colp = np.zeros(n)
+        D = np.zeros(n)
+        G = np.zeros((n, n2))
+        rv = np.zeros(n)
+        mx1 = np.zeros(n)
+        mx2 = np.zeros(n)
+        Dm = np.zeros(n)
+        Gm = np.zeros((n, n2))
+        for t in range(T - 2, -1, -1):
+            var = motion_var[t]
             for i in range(n):
-                eta[n + i] = zd[i]
+                disp[i] = velocity[t, i] * dt
+            if not cholesky(P_a[t], Lp, n):
+                return NOT_POSITIVE_DEFINITE
+            cholesky_inverse(Lp, Pinv, colp, n)
+            # Lam = diag(P_alpha^-1, Yd) + G' Sigma_m^-1 G. The Cholesky factorization reads only the lower
+            # triangle, so only that is formed; G's zeros add nothing and are skipped (the sums unchanged)
+            Yd = Yd_all[t]
+            for i in range(n):
+                eta[i] = 0.0
+                eta[n + i] = zd_all[t, i]
                 for j in range(n):
+                    Lam[n + i, j] = 0.0
+                for j in range(i + 1):
                     Lam[i, j] = Pinv[i, j]
                     Lam[n + i, n + j] = Yd[i, j]
-            for i in range(n):
-                wbar1[i] = mu_g[t, i]
-                wbar2[i] = mu_g[t + 1, i]
-            displacement(mode, wbar1, wbar2, D, G)
+            displacement(mode, mu_g[t], mu_g[t + 1], D, G)
             for i in range(n):
                 s = disp[i] - D[i]
                 if mode == 0 and i == 2:
                     s = wrap(s)
                 for j in range(n):
-                    s += G[i, j] * (wbar1[j] - mu_a[t, j]) + G[i, n + j] * (wbar2[j] - mu_a[t + 1, j])
-                rv[i] = s / step_motion_var[t, i]
+                    s += G[i, j] * (mu_g[t, j] - mu_a[t, j]) + G[i, n + j] * (mu_g[t + 1, j] - mu_a[t + 1, j])
+                rv[i] = s / var[i]
             for i in range(n2):
                 s = 0.0
                 for k in range(n):
                     s += G[k, i] * rv[k]
                 eta[i] += s
-                for j in range(n2):
+                for j in range(i + 1):
                     s = 0.0
                     for k in range(n):
-                        s += G[k, i] * G[k, j] / step_motion_var[t, k]
+                        if G[k, i] != 0.0 and G[k, j] != 0.0:
+                            s += G[k, i] * G[k, j] / var[k]
                     Lam[i, j] += s
             if not cholesky(Lam, L2, n2):
-                return NOT_POSITIVE_DEFINITE, loglik, n_used
+                return NOT_POSITIVE_DEFINITE
             cholesky_solve_vec(L2, eta, eta, n2)
             for i in range(n):
                 mx1[i] = mu_a[t, i] + eta[i]
@@ -582,28 +676,28 @@ def _compiled_for(n_state: int):
             displacement(mode, mx1, mx2, Dm, Gm)
             for i in range(n):
                 d_mu[t, i] = Dm[i]  # D(mu_xi,t): eq. 4.18 with D linearized, as the thesis does
-            # Cov[D] = G Lam^-1 G' = W'W with W = L2^-1 G'
+            # Cov[D] = G Lam^-1 G' = W'W with W = L2^-1 G'; W'W is formed once per pair (i, j)
             for i in range(n2):
                 for j in range(n):
                     Wt[i, j] = Gm[j, i]
             forward_substitute(L2, Wt, n2, n)
             for i in range(n):
-                for j in range(n):
+                for j in range(i + 1):
                     s = 0.0
                     for k in range(n2):
                         s += Wt[k, i] * Wt[k, j]
                     d_P[t, i, j] = s
-            symmetrize(d_P[t], n)
-        return OK, loglik, n_used
+                    d_P[t, j, i] = s
+        return OK
 
-    return kernel
-
-
-_KERNELS = {size: _compiled_for(size) for size in (1, 3)}  # a track's distance; a planar pose
+    return forward, backward, pairwise
 
 
-def ekf_smoother_for(n_state: int):
-    """The compiled E-step passes (``kernel`` above) for a state of ``n_state`` numbers."""
-    if n_state not in _KERNELS:
+_PASSES = {size: _passes_for(size) for size in (1, 3)}  # a track's distance; a planar pose
+
+
+def passes_for(n_state: int):
+    """The compiled E-step passes ``(forward, backward, pairwise)`` for a state of ``n_state`` numbers."""
+    if n_state not in _PASSES:
         raise ValueError(f"the E-step is compiled for states of 1 (track) or 3 (planar) numbers, not {n_state}")
-    return _KERNELS[n_state]
+    return _PASSES[n_state]

@@ -12,7 +12,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sensact.core.ekf_smoother import GATE, GAUSSIAN, OK, STUDENT_T, STUDENT_T_JOINT, ekf_smoother_for
+from sensact.core.ekf_smoother import (
+    GATE,
+    GAUSSIAN,
+    OK,
+    STUDENT_T,
+    STUDENT_T_JOINT,
+    SensorInputs,
+    Sightings,
+    StepInputs,
+    passes_for,
+)
 from sensact.learn.em.actions import step_motion_var, step_velocity
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
@@ -165,26 +175,18 @@ def _run_passes(
     sb = sensor.sigma_bearing_rad
     mu_a = np.empty((T, n))
     P_a = np.empty((T, n, n))
-    if smoothed is None:  # the kernel does not touch them
-        mu_g, P_g, d_mu, d_P = np.empty((1, n)), np.empty((1, n, n)), np.empty((1, n)), np.empty((1, n, n))
-    else:
-        mu_g, P_g, d_mu, d_P = smoothed
     weights = np.zeros((data.n_observations, C + 1))
     readings, gain = channel_inputs(sensor, data)
-    status, loglik, n_used = ekf_smoother_for(n)(
-        data.mode,
-        data.dt_s,
-        np.ascontiguousarray(velocity),
-        np.ascontiguousarray(var_steps),
-        model.prior_mean.copy(),
-        model.prior_cov.copy(),
+    steps = StepInputs(data.mode, float(data.dt_s), np.ascontiguousarray(velocity), np.ascontiguousarray(var_steps))
+    sight = Sightings(
         data.obs_ptr,
         data.obs_landmark,
         readings,
         gain,
         # a sensor without sigma_2 (a range-only one) reads no bearing, whatever the log holds
         data.obs_bearing_rad if sb is not None else np.full(data.n_observations, np.nan),
-        use,
+    )
+    inputs = SensorInputs(
         data.landmarks_xy if len(data.landmarks_xy) else np.zeros((1, 2)),
         coefs,
         np.array([c.function.center for c in chans], dtype=float),
@@ -192,19 +194,33 @@ def _run_passes(
         np.array([c.sigma**2 for c in chans], dtype=float),
         np.array([c.valid_min for c in chans], dtype=float),
         np.array([c.valid_max for c in chans], dtype=float),
-        (sb if sb is not None else 1.0) ** 2,
+        float((sb if sb is not None else 1.0) ** 2),
         sensor.mount.as_array(),
         kinds,
         params,
+    )
+    joint_dof = float(params[kinds == STUDENT_T_JOINT][0]) if np.any(kinds == STUDENT_T_JOINT) else None
+    forward, backward, pairwise = passes_for(n)
+    innov, innov_sens = record if record is not None else (None, None)
+    status, loglik, n_used = forward(
+        steps,
+        sight,
+        inputs,
+        model.prior_mean.copy(),
+        model.prior_cov.copy(),
+        use,
         float(prune_rad_per_step),
+        joint_dof,
         weights,
         mu_a,
         P_a,
-        mu_g,
-        P_g,
-        d_mu,
-        d_P,
-        smoothed is not None,
-        *(record if record is not None else (np.empty((0, C + 1)), np.empty((0, C + 1, n)))),
+        innov,
+        innov_sens,
     )
+    if smoothed is not None and status == OK:
+        mu_g, P_g, d_mu, d_P = smoothed
+        delta_Y, delta_z = np.empty((T, n, n)), np.empty((T, n))
+        status = backward(steps, sight, inputs, use, weights, mu_a, P_a, mu_g, P_g, delta_Y, delta_z)
+        if status == OK:
+            status = pairwise(steps, mu_a, P_a, mu_g, delta_Y, delta_z, d_mu, d_P)
     return status, loglik, n_used, mu_a, P_a, weights
