@@ -15,7 +15,7 @@ def wrap_angle(a: np.ndarray | float) -> np.ndarray:
 
 @njit(cache=True, error_model="numpy")
 def wrap(a):
-    """Scalar ``wrap_angle`` for compiled loops, bit for bit."""
+    """``wrap_angle`` of one number, bit for bit, for compiled loops (arrays go to ``wrap_angle``)."""
     b = a + np.pi
     if 0.0 <= b < TWO_PI:  # b % TWO_PI is b itself: skip the modulo's library call (5 % of an E-step)
         return b - np.pi

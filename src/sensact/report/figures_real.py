@@ -175,17 +175,17 @@ def bearing_residuals(ml: Any, score: dict[str, Any], posteriors: Any = None) ->
     """The bearing residuals about the ground truth's pose moved to the fitted sensor pose, at the
     sightings with valid truth (the ones the bar's sigma is the trimmed RMS of), and, given EM's
     posteriors, about its smoothed path at the sightings whose bearing the E-step used (else None)."""
-    from sensact.core.angles import wrap
+    from sensact.core.angles import wrap_angle
     from sensact.core.pose_models import landmark_bearing
 
     d, post = ml.data, posteriors
     ok, sensor_poses, lm = _truth_at_sensor(ml, score)
-    truth = wrap(d.obs_bearing_rad[ok] - landmark_bearing(sensor_poses, lm))
+    truth = wrap_angle(d.obs_bearing_rad[ok] - landmark_bearing(sensor_poses, lm))
     if post is None:
         return truth, None
     used = post.obs_used & (post.weights[:, -1] > 0)
     lm_used = d.landmarks_xy[d.obs_landmark[used]]
-    em = wrap(d.obs_bearing_rad[used] - landmark_bearing(post.mean_gamma[d.obs_step[used]], lm_used))
+    em = wrap_angle(d.obs_bearing_rad[used] - landmark_bearing(post.mean_gamma[d.obs_step[used]], lm_used))
     return truth, em
 
 
