@@ -274,6 +274,15 @@ class SensorInputs(NamedTuple):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def _is_read(readings, k, c, dist, window_lo, window_hi, has_b):
+    """Whether channel ``c`` of sighting ``k`` is read: a reading within its channel's distance window
+    (``dist`` predicted), or a bearing the sighting has (``c = C``)."""
+    if c < readings.shape[1]:
+        return np.isfinite(readings[k, c]) and not (dist < window_lo[c] or dist > window_hi[c])
+    return has_b
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _channel(
     mode, k, c, w, lx, ly, readings, gain, bearing, coefs, centers, scales, reading_var, var_bearing, mount, H
 ):
@@ -395,10 +404,7 @@ def _passes_for(n_state: int):
                     for c in range(C + 1):
                         if robust_kind[c] != STUDENT_T_JOINT:
                             continue
-                        if c < C:
-                            if not np.isfinite(readings[k, c]) or dist < window_lo[c] or dist > window_hi[c]:
-                                continue
-                        elif not has_b:
+                        if not _is_read(readings, k, c, dist, window_lo, window_hi, has_b):
                             continue
                         ej[d], rj[d] = _channel(
                             mode,
@@ -432,10 +438,7 @@ def _passes_for(n_state: int):
                     for c in range(C + 1):
                         if (robust_kind[c] == STUDENT_T_JOINT) != joint_round:
                             continue
-                        if c < C:
-                            if not np.isfinite(readings[k, c]) or dist < window_lo[c] or dist > window_hi[c]:
-                                continue
-                        elif not has_b:
+                        if not _is_read(readings, k, c, dist, window_lo, window_hi, has_b):
                             continue
                         nu, r = _channel(
                             mode,
