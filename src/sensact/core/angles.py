@@ -17,6 +17,7 @@ def wrap_angle(a: np.ndarray | float) -> np.ndarray:
 def wrap(a):
     """``wrap_angle`` of one number, bit for bit, for compiled loops (arrays go to ``wrap_angle``)."""
     b = a + np.pi
-    if 0.0 <= b < TWO_PI:  # b % TWO_PI is b itself: skip the modulo's library call (5 % of an E-step)
+    # in range, b % TWO_PI is b itself: skip the modulo's library call (3 % of an E-step loop's perf samples)
+    if 0.0 <= b < TWO_PI:
         return b - np.pi
     return b % TWO_PI - np.pi
