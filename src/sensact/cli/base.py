@@ -14,7 +14,6 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated, Any, TypeVar
 
-import click
 import typer
 from rich.console import Console
 from rich.markup import escape
@@ -94,13 +93,7 @@ def friendly(fn: F) -> F:
 
                     refuse_non_finite(kwargs["seed"], None, "--seed", "the command line")
                 return fn(*args, **kwargs)
-            except (
-                typer.Exit,
-                typer.Abort,
-                click.exceptions.Exit,
-                click.exceptions.ClickException,
-                click.exceptions.Abort,
-            ):
+            except (typer.Exit, typer.Abort):
                 raise  # typer.Exit is a RuntimeError: the command's own exit code, as it chose
             except SensactError as exc:
                 if _state["debug"]:
@@ -117,8 +110,8 @@ def friendly(fn: F) -> F:
                 err_console.print("interrupted; files already written are complete (atomic writes).")
                 raise typer.Exit(EXIT_INTERRUPTED) from None
             except Exception as exc:  # the last line of defence: a bug, never a traceback
-                if _state["debug"]:
-                    raise
+                if _state["debug"] or any(_is(exc, n) for n in ("Exit", "ClickException", "Abort")):
+                    raise  # click's own (typer's copy or click itself, matched by name): its exit, as it chose
                 err_console.print(escape(internal_error_line(exc)), highlight=False, soft_wrap=True)
                 raise typer.Exit(EXIT_INTERNAL) from None
 

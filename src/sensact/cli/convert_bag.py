@@ -82,9 +82,11 @@ def convert_bag(
     meta.json to compare. The tables read from the bag stay in OUT/bag_tables/."""
     from sensact.errors import LogFormatError
     from sensact.io.rosbag import (
+        TF_TYPES,
         Roles,
         bag_topics,
         check_roles,
+        no_supported_line,
         open_bag,
         propose_roles,
         read_bag_tables,
@@ -106,11 +108,20 @@ def convert_bag(
     reader = open_bag(bag)
     try:
         topics = bag_topics(reader)
-        proposal, open_roles = propose_roles(reader, topics)
+        if not topics:
+            raise LogFormatError("the bag holds no topic.", file=bag, fix="record the robot's topics into it.")
+        check_roles(bag, Roles(**named), topics)  # a named topic of the wrong type first: naming both types
+        proposal, open_roles, unfilled = propose_roles(reader, topics)
     finally:
         reader.close()
-    if not topics:
-        raise LogFormatError("the bag holds no topic.", file=bag, fix="record the robot's topics into it.")
+    missing = [role for role in unfilled if not set(role.split(" or ")) & set(named)]
+    if missing:  # no naming can fix this: say what the bag has and what sensact reads
+        tag_free = [t.name for t in topics if t.msgtype in TF_TYPES and not t.name.endswith("tf_static")]
+        raise LogFormatError(
+            no_supported_line(missing, topics, tag_free if "readings or sightings" in missing else []),
+            file=bag,
+            fix="record the commands (/cmd_vel or wheel odometry) and a sensor_msgs/Range or AprilTag detections.",
+        )
     roles = Roles(**{**proposal.__dict__, **named})
     if "readings" in named and "sightings" not in named:
         roles = Roles(roles.commands, roles.readings, None, roles.truth)

@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from sensact.errors import LogFormatError
+from sensact.io.rosbag1_scan import ros1_version
 
 COMMAND_TYPES = ("geometry_msgs/Twist", "geometry_msgs/TwistStamped", "nav_msgs/Odometry")
 READING_TYPES = ("sensor_msgs/Range",)
@@ -113,10 +114,36 @@ def open_bag(path: Path):  # -> rosbags.highlevel.AnyReader, opened
     try:
         reader.open()
     except (AnyReaderError, Exception) as err:  # rosbags raises its own per format; all mean "not a bag I can read"
+        why = str(err).splitlines()[0] if str(err) else type(err).__name__
+        if path.is_file() and ros1_version(path) is not None:
+            return _scanned(path, why)
         raise LogFormatError(
-            f"not a ROS bag rosbags can read ({str(err).splitlines()[0] if str(err) else type(err).__name__}).",
+            f"not a ROS bag rosbags can read ({why}).",
             file=path,
             fix="give a ROS 1 .bag file, or a ROS 2 bag folder (with metadata.yaml) or its .mcap file.",
+        ) from None
+    return reader
+
+
+def _scanned(path: Path, why: str):  # -> rosbags.highlevel.AnyReader, opened
+    """A ROS 1 bag rosbags' reader refused (``why``: an index of an older version, none, format 1.2), read
+    front to back with its index rebuilt in memory (``sensact.io.rosbag1_scan``)."""
+    from rosbags.highlevel import AnyReader
+
+    from sensact.io.rosbag1_scan import Rosbag1Scan
+
+    reader = AnyReader([path])
+    reader.readers = [Rosbag1Scan(path)]
+    try:
+        reader.open()
+    except Exception as err:  # the scan's own refusal, or a type definition rosbags cannot parse
+        detail = str(err).splitlines()[0] if str(err) else type(err).__name__
+        raise LogFormatError(
+            f"a ROS 1 bag whose index rosbags cannot read ({why}), and reading it record by record failed too "
+            f"({detail}).",
+            file=path,
+            fix=f"rebuild its index with ROS 1's `rosbag reindex {path.name}` (or `rosbag fix` for format 1.2), "
+            "then convert the .bag it writes.",
         ) from None
     return reader
 
@@ -165,9 +192,10 @@ def _tag_topics(reader, topics: list[Topic]) -> list[str]:
     return found
 
 
-def propose_roles(reader, topics: list[Topic]) -> tuple[Roles, list[tuple[frozenset[str], str]]]:
-    """The roles a bag's types suggest, and why any role is left open (ambiguous): with exactly one command
-    source, one kind of reading and at most one truth the proposal is complete.
+def propose_roles(reader, topics: list[Topic]) -> tuple[Roles, list[tuple[frozenset[str], str]], list[str]]:
+    """The roles a bag's types suggest, why any role is left open (ambiguous), and the roles no topic's type
+    can play: with exactly one command source, one kind of reading and at most one truth the proposal is
+    complete.
 
     Twists are the commands; an Odometry is one only where no Twist is (a robot that logs its wheel
     odometry, not what it was told); a PoseStamped is the truth (of several, the one named as motion capture's),
@@ -178,16 +206,17 @@ def propose_roles(reader, topics: list[Topic]) -> tuple[Roles, list[tuple[frozen
     twists = [t.name for t in topics if t.msgtype in COMMAND_TYPES[:2] and t.count]
     odoms = [t.name for t in topics if t.msgtype == "nav_msgs/Odometry" and t.count]
     commands = twists or odoms
-    if len(commands) != 1:
-        open_roles.append(
-            (frozenset(("commands",)), f"commands: {'none' if not commands else 'one of ' + ', '.join(commands)}")
-        )
+    unfilled = []  # roles no topic's type can play: no naming fixes those
+    if not commands:
+        unfilled.append("commands")
+    if len(commands) > 1:
+        open_roles.append((frozenset(("commands",)), f"commands: one of {', '.join(commands)}"))
     ranges = [t.name for t in topics if t.msgtype in READING_TYPES and t.count]
     sightings = _tag_topics(reader, topics) + [t.name for t in topics if t.msgtype in DETECTION_TYPES and t.count]
     if len(sightings) > 1:
         open_roles.append((either, f"sightings: one of {', '.join(sightings)}"))
     if not ranges and not sightings:
-        open_roles.append((either, "readings or sightings: none (sensor_msgs/Range, AprilTag transforms on /tf)"))
+        unfilled.append("readings or sightings")
     if ranges and sightings:
         open_roles.append((either, f"readings {', '.join(ranges)} or sightings {', '.join(sightings)}: not both"))
     truths = [t.name for t in topics if t.msgtype in TRUTH_TYPES[:2] and t.count]
@@ -202,7 +231,38 @@ def propose_roles(reader, topics: list[Topic]) -> tuple[Roles, list[tuple[frozen
         sightings[0] if len(sightings) == 1 and not ranges else None,
         truths[0] if len(truths) == 1 else None,
     )
-    return roles, open_roles
+    return roles, open_roles, unfilled
+
+
+# types a robot's bag often holds that sensact does not read, and what would add them
+NOT_READ = {
+    "sensor_msgs/LaserScan": "a 2-D lidar: planned, issue 93 (wheel encoders and a 2-D lidar)",
+    "sensor_msgs/JointState": "wheel encoders: planned, issue 93 (wheel encoders and a 2-D lidar)",
+}
+
+
+def no_supported_line(missing: list[str], topics: list[Topic], tag_free_tf: list[str]) -> str:
+    """Why no topic can play ``missing`` (roles no naming can fill): the types the bag has, the types sensact
+    reads for each role, and what would add the others."""
+    found = sorted({t.msgtype for t in topics if t.msgtype not in NOT_READ})
+    planned = sorted({t.msgtype for t in topics if t.msgtype in NOT_READ})
+    reads = "; ".join(
+        f"{role} from {', '.join(types)}" + (" (transforms to AprilTag frames)" if role == "sightings" else "")
+        for role, types in SUPPORTED.items()
+    )
+    line = (
+        f"no topic of a type sensact reads plays the {' or the '.join(missing)}: the bag has "
+        f"{', '.join(found + planned) or 'no typed topic'}"
+    )
+    if tag_free_tf:
+        line += f" ({', '.join(tag_free_tf)} without AprilTag frames)"
+    line += f". sensact reads {reads}"
+    if planned:
+        line += "; " + "; ".join(f"{t} is {NOT_READ[t]}" for t in planned)
+    others = [t for t in found if not any(t in types for types in SUPPORTED.values())]
+    if others:
+        line += f"; {', '.join(others)} {'is' if len(others) == 1 else 'are'} not read by sensact"
+    return line + "."
 
 
 def check_roles(path: Path, roles: Roles, topics: list[Topic]) -> None:
