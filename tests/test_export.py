@@ -50,7 +50,10 @@ def test_robot_localization_yaml_is_sigma_m_in_si_per_second(learned, tmp_path):
     root, doc = learned
     _ok(["export", root / "model.json", "--format", "robot-localization", "--out", tmp_path / "rl.yaml"])
     params = yaml.safe_load((tmp_path / "rl.yaml").read_text())
+    # a ROS 2 parameter file, as `--params-file` parses it: every top-level key a node's ros__parameters
+    assert all(set(node) == {"ros__parameters"} for node in params.values()) and list(params) == ["ekf_filter_node"]
     q = np.array(params["ekf_filter_node"]["ros__parameters"]["process_noise_covariance"]).reshape(15, 15)
+    params |= yaml.safe_load((tmp_path / "rl.sensact.yaml").read_text())  # sensact's numbers, beside it
     assert np.array_equal(q, q.T) and np.linalg.eigvalsh(q).min() > 0  # symmetric positive-definite
     dt = doc["dt_s"]
     side, fwd, head = doc["model"]["motion_sd"][0]  # sensact's robot frame: x right, y forward (mm, per step)
@@ -74,13 +77,13 @@ def test_exported_action_model_predicts_what_the_model_predicts(learned, tmp_pat
     into REP 103's axes (forward = sensact's y, left = -x)."""
     root, doc = learned
     _ok(["export", root / "model.json", "--format", "robot-localization", "--out", tmp_path / "rl.yaml"])
-    act = yaml.safe_load((tmp_path / "rl.yaml").read_text())["sensact"]["action_model"]
+    act = yaml.safe_load((tmp_path / "rl.sensact.yaml").read_text())["sensact"]["action_model"]
     assert act["commands"] == ["v_m_s", "omega_rad_s"]
     model = EMModel.from_dict(doc["model"])
     rng = np.random.default_rng(0)
     for v, w in rng.uniform([-0.3, -1.0], [0.3, 1.0], size=(20, 2)):
         vx, vy, vth = (model.action.features(np.array([[v * 1000, w]])) @ model.action.coefficients)[0]
-        values = {"1": 1.0, "v_m_s": v, "omega_rad_s": w, "v_m_s*omega_rad_s": v * w}
+        values = {"constant": 1.0, "v_m_s": v, "omega_rad_s": w, "v_m_s*omega_rad_s": v * w}
         si = {k: sum(c * values[f] for f, c in terms.items()) for k, terms in act["velocities"].items()}
         assert si["vx_m_s"] == pytest.approx(vy / 1000, abs=1e-12)
         assert si["vy_m_s"] == pytest.approx(-vx / 1000, abs=1e-12)
@@ -125,3 +128,34 @@ def test_export_without_out_writes_beside_the_model(learned):
     truth = np.loadtxt(root / "model_truth.tum")
     assert rows.shape[1] == 8 == truth.shape[1] and np.all(np.diff(rows[:, 0]) > 0)
     np.testing.assert_allclose(np.linalg.norm(rows[:, 4:], axis=1), 1.0, atol=1e-12)  # unit quaternions
+
+
+# what ROS's velodyne driver (velodyne_pointcloud/src/lib/calibration.cc) reads of each laser without checking
+# that it is there, and of the file
+DRIVER_LASER_KEYS = {
+    "laser_id", "rot_correction", "vert_correction", "dist_correction", "dist_correction_x", "dist_correction_y",
+    "vert_offset_correction", "horiz_offset_correction", "min_intensity", "focal_distance", "focal_slope",
+}
+
+
+@pytest.mark.parametrize("factory", [False, True])
+def test_the_velodyne_export_holds_every_key_the_ros_driver_reads(tmp_path, factory):
+    """With or without a factory calibration: num_lasers and every laser's keys as the driver reads them,
+    the learned angles as given, and a factory calibration's own corrections kept."""
+    n = 16
+    lasers = [{"laser_id": i, "rot_correction": 0.001 * i, "vert_correction": -0.2 + 0.02 * i} for i in range(n)]
+    if factory:
+        for entry in lasers:
+            entry.update(dist_correction=1.2, dist_correction_x=1.1, dist_correction_y=1.3, focal_slope=0.5)
+    (tmp_path / "car.json").write_text(json.dumps({"velodyne_calibration": {"num_lasers": n, "lasers": lasers}}))
+    _ok(["export", tmp_path / "car.json", "--format", "velodyne", "--out", tmp_path / "v.yaml"])
+    text = (tmp_path / "v.yaml").read_text()
+    doc = yaml.safe_load(text)
+    assert doc["num_lasers"] == n == len(doc["lasers"])
+    for i, entry in enumerate(doc["lasers"]):
+        assert DRIVER_LASER_KEYS <= set(entry), DRIVER_LASER_KEYS - set(entry)
+        assert all(isinstance(v, int | float) for v in entry.values())
+        assert entry["laser_id"] == i and entry["rot_correction"] == lasers[i]["rot_correction"]
+        assert entry["dist_correction"] == (1.2 if factory else 0.0)
+    said = text.splitlines()[0]
+    assert said.startswith("#") and "vert_offset_correction" in said and ("dist_correction," in said) != factory

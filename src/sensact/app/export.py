@@ -117,7 +117,7 @@ def action_model_si(action: Any, dt_s: float) -> dict[str, Any]:
         terms = {}
         for i, mono in enumerate(monomials(action.basis, len(action.command_names), action.degree)):
             in_scale = float(np.prod([si[k][1] for k in mono])) if mono else 1.0
-            feature = "*".join(si[k][0] for k in mono) or "1"
+            feature = "*".join(si[k][0] for k in mono) or "constant"
             terms[feature] = float(action.coefficients[i, j]) * out_scale / in_scale
         outputs[name] = terms
     return {
@@ -127,7 +127,9 @@ def action_model_si(action: Any, dt_s: float) -> dict[str, Any]:
     }
 
 
-def robot_localization_yaml(doc: dict[str, Any], source: Path) -> str:
+def robot_localization_yaml(doc: dict[str, Any], source: Path) -> tuple[str, str]:
+    """Two files' text: the node's ROS 2 parameter file (only what robot_localization reads, so that
+    ``--params-file`` loads it), and sensact's own beside it (what ROS has no parameter for)."""
     import yaml
 
     model, dt = read_em_doc(doc, source)
@@ -147,6 +149,7 @@ def robot_localization_yaml(doc: dict[str, Any], source: Path) -> str:
             "yaw_rad": mount["yaw_rad"],
         },
     }
+    _refuse_non_finite(sensact | {"process_noise_covariance": q.ravel().tolist()}, source)
     rows = ",\n".join("      " + ", ".join(repr(v) for v in row) for row in q.tolist())
     node = f"ekf_filter_node:\n  ros__parameters:\n    two_d_mode: true\n    process_noise_covariance: [\n{rows}]\n"
     header = (
@@ -155,10 +158,40 @@ def robot_localization_yaml(doc: dict[str, Any], source: Path) -> str:
         + ", ".join(RL_STATES)
         + ";\n# x, y and yaw from the learned Sigma_m (x and y averaged over headings, as robot_localization\n"
         "# applies them in the world frame), the rest robot_localization's defaults. Merge the node's\n"
-        "# ros__parameters into your EKF's. sensact.twist_covariance (vx vy vz vroll vpitch vyaw, row-major)\n"
-        "# is a command's (or wheel odometry's) covariance as a twist over one step, for its messages.\n"
+        "# ros__parameters into your EKF's; sensact's other numbers (the twist covariance, the action model,\n"
+        "# the sensor's mount) are in the .sensact.yaml file beside this one.\n"
     )
-    return header + node + yaml.safe_dump({"sensact": sensact}, sort_keys=False, default_flow_style=None, width=120)
+    extra = (
+        f"# sensact's calibration from {source.name} beyond robot_localization's parameters (SI, REP 103).\n"
+        "# twist_covariance (vx vy vz vroll vpitch vyaw, row-major) is a command's (or wheel odometry's)\n"
+        "# covariance as a twist over one step, for its messages; action_model's velocities are sums of\n"
+        "# coefficient times feature (constant, a command, or a product of commands).\n"
+    )
+    return header + node, extra + yaml.safe_dump(
+        {"sensact": sensact}, sort_keys=False, default_flow_style=None, width=120
+    )
+
+
+def _refuse_non_finite(values: Any, source: Path, where: str = "") -> None:
+    """An export never holds NaN or inf: a model whose numbers make one is refused, naming the field."""
+    if isinstance(values, dict):
+        for k, v in values.items():
+            _refuse_non_finite(v, source, f"{where}.{k}" if where else str(k))
+    elif isinstance(values, list | tuple):
+        for v in values:
+            _refuse_non_finite(v, source, where)
+    elif isinstance(values, float) and not math.isfinite(values):
+        raise ModelFormatError(
+            f"its export's {where} would be {values} (a model field out of range).",
+            file=source,
+            field="model",
+            fix="learn it again with `sensact learn em`.",
+        )
+
+
+def companion_path(out: Path) -> Path:
+    """Where sensact's own numbers go beside a robot_localization file: rl.yaml -> rl.sensact.yaml."""
+    return out.with_name(f"{out.stem}.sensact{out.suffix or '.yaml'}")
 
 
 def _log_folder(doc: dict[str, Any], source: Path) -> Path | None:
@@ -285,6 +318,10 @@ def export_model(model: Path, fmt: str, out: Path, truth_out: Path | None = None
     doc = read_model_doc(model)
     if fmt == "tum":
         return export_tum(doc, model, out, truth_out)
-    text = robot_localization_yaml(doc, model) if fmt == "robot-localization" else velodyne_yaml(doc, model)
-    write_text(out, text)
-    return Exported((out,))
+    if fmt == "velodyne":
+        write_text(out, velodyne_yaml(doc, model))
+        return Exported((out,))
+    node, extra = robot_localization_yaml(doc, model)
+    write_text(out, node)
+    write_text(companion_path(out), extra)
+    return Exported((out, companion_path(out)))

@@ -33,9 +33,10 @@ def export_cmd(
 ) -> None:
     """Write a learned model in SI units and REP 103 axes (x forward, y left; yaw 0 facing the map's +x).
 
-    robot-localization: the process_noise_covariance (15x15, per second) from the learned Sigma_m, a
-    command's twist covariance, the action model's gains and offsets and the sensor's mount, as YAML to
-    merge into robot_localization's parameters. tum: EM's smoothed path (timestamp x y z qx qy qz qw, on
+    robot-localization: the process_noise_covariance (15x15, per second) from the learned Sigma_m as a ROS 2
+    parameter file for robot_localization's ekf_filter_node (--params-file loads it), and beside it
+    OUT.sensact.yaml with a command's twist covariance, the action model's gains and offsets and the
+    sensor's mount. tum: EM's smoothed path (timestamp x y z qx qy qz qw, on
     the log's own clock) and the truth's beside it, so that `evo_ape tum OUT_truth.tum OUT` compares them.
     velodyne: a car model's learned laser angles as a ROS velodyne calibration."""
     from sensact.app.export import default_out, export_model

@@ -114,20 +114,48 @@ def calibration_from_dict(data: Any, path: str | Path) -> LaserIntrinsics:
     )
 
 
+# what ROS's velodyne driver (velodyne_pointcloud's calibration.cc) reads of every laser besides the two angles
+# sec. 5.1 learns, and the value that means "no correction" (a unit's nominal geometry) where no factory
+# calibration gave one
+DRIVER_DEFAULTS: dict[str, Any] = {
+    "dist_correction": 0.0,
+    "dist_correction_x": 0.0,
+    "dist_correction_y": 0.0,
+    "focal_distance": 0.0,
+    "focal_slope": 0.0,
+    "horiz_offset_correction": 0.0,
+    "max_intensity": 255,
+    "min_intensity": 0,
+    "two_pt_correction_available": False,
+    "vert_offset_correction": 0.0,
+}
+
+
 def calibration_yaml(intrinsics: LaserIntrinsics) -> str:
-    lasers = []
+    """The ROS driver's calibration file: every key its ``calibration.cc`` reads for each laser, the learned
+    angles as ``rot_correction``/``vert_correction``, the rest the factory calibration's where one was given,
+    else the nominal geometry's (no correction), said in a comment at the top."""
+    lasers, filled = [], set()
     for i in range(intrinsics.n_lasers):
-        extra = dict(intrinsics.extra[i]) if intrinsics.extra else {"laser_id": i}
-        extra["laser_id"] = i
-        extra["rot_correction"] = float(intrinsics.horizontal_rad[i])
-        extra["vert_correction"] = float(intrinsics.vertical_rad[i])
-        lasers.append(dict(sorted(extra.items())))
+        entry = dict(intrinsics.extra[i]) if intrinsics.extra else {}
+        filled |= set(DRIVER_DEFAULTS) - set(entry)
+        entry = {**DRIVER_DEFAULTS, **entry}
+        entry["laser_id"] = i
+        entry["rot_correction"] = float(intrinsics.horizontal_rad[i])
+        entry["vert_correction"] = float(intrinsics.vertical_rad[i])
+        lasers.append(dict(sorted(entry.items())))
     doc = {
         "distance_resolution": intrinsics.distance_resolution_m,
         "lasers": lasers,
         "num_lasers": intrinsics.n_lasers,
     }
-    return yaml.safe_dump(doc, sort_keys=False, default_flow_style=False)
+    note = ""
+    if filled:
+        note = (
+            f"# {', '.join(sorted(filled))}: not learned and not in a factory calibration, so the unit's nominal\n"
+            "# geometry (no correction); rot_correction and vert_correction are the angles sensact uses.\n"
+        )
+    return note + yaml.safe_dump(doc, sort_keys=False, default_flow_style=False)
 
 
 def write_calibration(path: str | Path, intrinsics: LaserIntrinsics) -> Path:
