@@ -99,6 +99,7 @@ def test_sigterm_ends_em_as_ctrl_c_does_with_the_best_model_written_and_no_tempo
     if out.exists():  # interrupted in EM: the best model so far, whole
         doc = json.loads(out.read_text())
         assert doc["summary"]["stop_reason"] == "interrupted"
+        assert doc["health"]["ok"] is False and "interrupted" in [f["code"] for f in doc["health"]["flags"]]
 
 
 def _copy_with_readings(log: Path, dest: Path, readings) -> Path:

@@ -47,7 +47,9 @@ def _import_sites(path: Path) -> list[tuple[str, int, bool]]:
                 eager = False
             elif isinstance(child, ast.If) and "TYPE_CHECKING" in ast.unparse(child.test):
                 eager = False
-            elif isinstance(child, ast.Try) and any("ImportError" in ast.unparse(h.type or ast.Name("")) for h in child.handlers):
+            elif isinstance(child, ast.Try) and any(
+                "ImportError" in ast.unparse(h.type or ast.Name("")) for h in child.handlers
+            ):
                 eager = False
             if isinstance(child, ast.Import):
                 out.extend((a.name.split(".")[0], child.lineno, eager) for a in child.names)

@@ -133,8 +133,17 @@ def test_export_without_out_writes_beside_the_model(learned):
 # what ROS's velodyne driver (velodyne_pointcloud/src/lib/calibration.cc) reads of each laser without checking
 # that it is there, and of the file
 DRIVER_LASER_KEYS = {
-    "laser_id", "rot_correction", "vert_correction", "dist_correction", "dist_correction_x", "dist_correction_y",
-    "vert_offset_correction", "horiz_offset_correction", "min_intensity", "focal_distance", "focal_slope",
+    "laser_id",
+    "rot_correction",
+    "vert_correction",
+    "dist_correction",
+    "dist_correction_x",
+    "dist_correction_y",
+    "vert_offset_correction",
+    "horiz_offset_correction",
+    "min_intensity",
+    "focal_distance",
+    "focal_slope",
 }
 
 

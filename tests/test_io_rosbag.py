@@ -514,22 +514,37 @@ def test_a_ros1_bag_rosbags_refuses_is_read_record_by_record(diffdrive_source, t
     csv, rec = diffdrive_source
     bag = write_robot_bag(tmp_path / "run", "ros1", rec)
     old = variant(bag, tmp_path / "old.bag")
-    with pytest.raises(Exception):  # noqa: B017, PT011: whatever rosbags raises, it refuses
+    with pytest.raises(Exception):  # noqa: B017 (whatever rosbags raises, it refuses)
         AnyReader([old]).open()
     for source, out in ((bag, tmp_path / "new"), (old, tmp_path / "old")):
         _ok(["convert", "bag", source, "--landmarks", csv["landmarks"], "--out", out])
     for name in ("commands", "sightings", "truth"):
-        _same_rows(read_numeric_csv(tmp_path / "old" / "bag_tables" / f"{name}.csv"),
-                   read_numeric_csv(tmp_path / "new" / "bag_tables" / f"{name}.csv"))
+        _same_rows(
+            read_numeric_csv(tmp_path / "old" / "bag_tables" / f"{name}.csv"),
+            read_numeric_csv(tmp_path / "new" / "bag_tables" / f"{name}.csv"),
+        )
 
 
-NUMERIC = {"bool": np.bool_, "int8": np.int8, "uint8": np.uint8, "byte": np.uint8, "char": np.uint8, "int16": np.int16,
-           "uint16": np.uint16, "int32": np.int32, "uint32": np.uint32, "int64": np.int64, "uint64": np.uint64,
-           "float32": np.float32, "float64": np.float64}
+NUMERIC = {
+    "bool": np.bool_,
+    "int8": np.int8,
+    "uint8": np.uint8,
+    "byte": np.uint8,
+    "char": np.uint8,
+    "int16": np.int16,
+    "uint16": np.uint16,
+    "int32": np.int32,
+    "uint32": np.uint32,
+    "int64": np.int64,
+    "uint64": np.uint64,
+    "float32": np.float32,
+    "float64": np.float64,
+}
 FIDUCIALS = {  # ROS's fiducial_msgs, as aruco_detect publishes them
     "fiducial_msgs/msg/FiducialTransform": "int32 fiducial_id\ngeometry_msgs/Transform transform\n"
     "float64 image_error\nfloat64 object_error\nfloat64 fiducial_area",
-    "fiducial_msgs/msg/FiducialTransformArray": "std_msgs/Header header\nint32 image_seq\nFiducialTransform[] transforms",
+    "fiducial_msgs/msg/FiducialTransformArray": "std_msgs/Header header\nint32 image_seq\n"
+    "FiducialTransform[] transforms",
 }
 
 

@@ -13,6 +13,7 @@ RANK = {
     "errors": 0,
     "health": 0,
     "limits": 0,
+    "reprs": 0,
     "config": 1,
     "engine": 1,
     "core": 1,

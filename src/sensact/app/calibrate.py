@@ -73,6 +73,25 @@ class Calibration:
     start_from: StartFrom | None = None
     uncertainty: Uncertainty | None = None  # `--uncertainty B`'s error bars (app/uncertainty.py)
 
+    def __repr__(self) -> str:
+        """What was calibrated, how good the fit is, and how to write it: a few lines, never the arrays."""
+        res, data = self.result, self.log.data
+        health = self.diagnostics.health
+        if isinstance(self.scores, Scores):
+            path = (self.scores.evaluation.get("path") or {}).get("median_mm")
+            bars = self.scores.bars
+            scored = f"scored against {self.scores.against}" + (f": path median {path:.4g} mm" if path else "")
+            scored += f", {sum(bars.values())} of {len(bars)} bars" if bars else ""
+        else:
+            scored = f"not scored ({self.scores.reason})" if self.scores is not None else "no truth to score against"
+        return (
+            f"Calibration of {self.log.name!r} ({data.geometry}, {data.n_steps} steps, {res.n_observations} readings)\n"
+            f"  model: {type(self.model.action).__name__}, {type(self.model.sensor).__name__}\n"
+            f"  EM: {res.stop_reason} after {res.iterations} iterations, log-likelihood {res.loglik_best:.6g}\n"
+            f"  health: {'ok' if health.ok else 'flagged ' + ', '.join(f.code for f in health.flags)}; {scored}\n"
+            "  write it with sensact.app.save_calibration(cal, 'model.json')"
+        )
+
     @property
     def model(self) -> EMModel:
         return self.result.model

@@ -20,6 +20,7 @@ import numpy as np
 
 from sensact.errors import LogFormatError, ModelFormatError
 from sensact.models.em_model import EMModel
+from sensact.reprs import compact_repr
 
 FORMATS = ("robot-localization", "tum", "velodyne")
 RL_STATES = ("x", "y", "z", "roll", "pitch", "yaw", "vx", "vy", "vz", "vroll", "vpitch", "vyaw", "ax", "ay", "az")
@@ -38,6 +39,7 @@ REP_ORDER = ("vx_m_s", "vy_m_s", "vyaw_rad_s", "v_toward_m_s")
 
 @dataclass(frozen=True)
 class Exported:
+    __repr__ = compact_repr  # a line, never the arrays
     written: tuple[Path, ...]
     notes: tuple[str, ...] = ()
 

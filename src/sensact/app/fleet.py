@@ -9,6 +9,7 @@ from typing import Any
 
 from sensact.engine import Progress
 from sensact.health import Health
+from sensact.reprs import compact_repr
 
 
 @dataclass(frozen=True)
@@ -25,6 +26,8 @@ class LearnOptions:
 @dataclass(frozen=True)
 class Learned:
     """A log calibrated: where its model is and how EM ended (the model's JSON has the rest)."""
+
+    __repr__ = compact_repr  # a line, never the arrays
 
     log: str
     model: str  # its model.json

@@ -14,6 +14,7 @@ from sensact.errors import LogFormatError
 from sensact.io.landmark_log import LandmarkLogFile
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
+from sensact.reprs import compact_repr
 
 SETTINGS_FILE = "em_config.yaml"  # the EM settings `convert` and `simulate` write into a log folder
 # what a 1-D fit is scored against, as its score line names it
@@ -24,6 +25,8 @@ RECORDED_DISTANCE = "the recorded distance"  # a track folder's groundtruth.csv 
 @dataclass(frozen=True, eq=False)
 class OpenedLog:
     """A log as EM reads it, and what came with it."""
+
+    __repr__ = compact_repr  # a line, never the arrays
 
     path: Path
     data: LandmarkLog

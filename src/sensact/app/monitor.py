@@ -15,10 +15,12 @@ from sensact.health import Health, filter_failed, learned_health
 from sensact.learn.em.localize import learned_config
 from sensact.learn.em.monitor import MonitorConfig, MonitorResult, monitor_placed
 from sensact.models.em_model import EMModel
+from sensact.reprs import compact_repr
 
 
 @dataclass(frozen=True, eq=False)
 class Monitored:
+    __repr__ = compact_repr  # a line, never the arrays
     log: OpenedLog
     model_path: Path
     model_doc: dict[str, Any]

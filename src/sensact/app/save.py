@@ -27,6 +27,12 @@ class Saved:
     removed_halves: Path | None  # an earlier run's --halves figure
     not_drawn: tuple[str, ...] = ()  # a figure that failed, one line each: the model and the rest are written
 
+    def __repr__(self) -> str:
+        if not self.written:
+            return "Saved(nothing)"
+        head = f"Saved({self.written[0]} and {len(self.written) - 1} files beside it"
+        return head + (f"; not drawn: {'; '.join(self.not_drawn)})" if self.not_drawn else ")")
+
 
 def halves_figure(out: Path) -> Path:
     """Where `learn em --halves --out OUT.json` draws the halves: OUT_halves.png."""
@@ -54,11 +60,12 @@ def _page_and_figures(cal: Calibration, out: Path, written: list[Path]) -> list[
 
 
 def save_calibration(
-    cal: Calibration, out: Path, document: dict[str, Any] | None = None, *, report: bool = True
+    cal: Calibration, out: str | Path, document: dict[str, Any] | None = None, *, report: bool = True
 ) -> Saved:
     """``cal`` at ``out`` (its JSON, or ``document`` in its place), OUT.history.npz, OUT.path.npz, OUT.png,
     the figures against the log's truth and, with ``report``, report.html beside them (``app.report``); an
     earlier run's halves figure, and its figures against a truth this log does not have, removed."""
+    out = Path(out)
     res, log = cal.result, cal.log
     write_json(out, document if document is not None else cal.to_json())
     failed: list[str] = []

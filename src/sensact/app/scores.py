@@ -13,6 +13,7 @@ import numpy as np
 from sensact.app.logs import OpenedLog
 from sensact.errors import LogFormatError
 from sensact.models.em_model import EMModel
+from sensact.reprs import compact_repr
 
 # what a fit was scored against (``Scores.against``)
 RECORDED_POSES = "recorded poses"
@@ -22,6 +23,8 @@ SIMULATED_MODEL = "the simulated model"
 @dataclass(frozen=True)
 class Scores:
     """A fit's errors against its log's truth."""
+
+    __repr__ = compact_repr  # a line, never the arrays
 
     against: str  # RECORDED_POSES, SIMULATED_MODEL, or the 1-D log's recorded distance (logs.RANGE_COLUMN, ...)
     evaluation: dict[str, Any]  # the model JSON's ``evaluation``: its keys are what checks and reports read

@@ -14,10 +14,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sensact.core.pose_models import PLANAR, TRACK
+from sensact.reprs import compact_repr
 
 
 @dataclass(frozen=True, eq=False)
 class LandmarkLog:
+    __repr__ = compact_repr  # a line, never the arrays
     geometry: str  # "planar" or "track"
     dt_s: float
     actions: np.ndarray  # (T,) int, index into action_commands; -1 = no discrete action

@@ -27,12 +27,14 @@ from sensact.learn.em.actions import step_motion_var, step_velocity
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 from sensact.models.landmark_sensor import LandmarkSensor
+from sensact.reprs import compact_repr
 
 ROBUST_CODES = {"none": GAUSSIAN, "student_t": STUDENT_T, "gate": GATE}
 
 
 @dataclass(frozen=True, eq=False)
 class Posteriors:
+    __repr__ = compact_repr  # a line, never the arrays
     loglik: float  # log P(O | C, lambda), eq. 4.14
     ok: bool  # False if a covariance stopped being positive definite
     mean_alpha: np.ndarray  # (T, n) filtered means
@@ -122,6 +124,8 @@ def log_likelihood(model: EMModel, data: LandmarkLog, *, obs_use: np.ndarray | N
 class Innovations:
     """The forward pass's standardized innovations: under a correct linear-Gaussian model, independent
     N(0, 1) in the order the filter met them."""
+
+    __repr__ = compact_repr  # a line, never the arrays
 
     ok: bool
     z: np.ndarray  # (K, C+1) each reading channel's, then the bearing's; NaN where not evaluated

@@ -22,12 +22,14 @@ from sensact.learn.em.localize import Localized, Progress
 from sensact.learn.em.warm_start import start_from_model
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
+from sensact.reprs import compact_repr
 
 HALF_NAMES = ("first half", "second half")
 
 
 @dataclass(frozen=True)
 class HalfFit:
+    __repr__ = compact_repr  # a line, never the arrays
     name: str  # "first half" or "second half"
     steps: tuple[int, int]  # the log's steps start:stop
     data: LandmarkLog

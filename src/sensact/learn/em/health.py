@@ -37,6 +37,14 @@ def em_health(result: EMResult, data: LandmarkLog) -> Health:
                 "EM reached max_iterations while the likelihood was still rising; raise it (--set max_iterations=...).",
             )
         )
+    elif result.stop_reason == "interrupted":
+        flags.append(
+            HealthFlag(
+                "interrupted",
+                "the fit was stopped (Ctrl-C or SIGTERM) before it converged; the model is the best so far: "
+                "run it again to the end.",
+            )
+        )
     elif result.stop_reason == "diverged":
         flags.append(HealthFlag("diverged", "the filter diverged; the model is the best before it did."))
     if not np.isfinite(result.loglik_best):

@@ -41,6 +41,7 @@ from sensact.learn.em.fit import refuse_no_sightings
 from sensact.learn.em.start import DISTINCT_CELLS, search_grid, search_window, start_candidates
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
+from sensact.reprs import compact_repr
 
 SEARCH_WINDOW_S = 30.0  # the planar start search's window when the config sets none (MRCLAM's setting)
 TRACK_SIGHTINGS = 5  # a track's start candidates come from this many first sightings
@@ -61,6 +62,7 @@ LEARNED_SETTINGS = (
 
 @dataclass(frozen=True, eq=False)
 class Localized:
+    __repr__ = compact_repr  # a line, never the arrays
     model: EMModel  # the learned model, with the start it was run from as its prior
     posteriors: Posteriors
     start: dict[str, Any]  # how the start was found, and every candidate's log-likelihood

@@ -13,10 +13,12 @@ from sensact.learn.em.config import EMConfig
 from sensact.learn.em.estep import Posteriors
 from sensact.learn.em.mount import MountFreedom
 from sensact.models.em_model import EMModel
+from sensact.reprs import compact_repr
 
 
 @dataclass(frozen=True, eq=False)
 class EMResult:
+    __repr__ = compact_repr  # a line, never the arrays
     model: EMModel  # the model with the highest likelihood
     loglik_history: np.ndarray  # log P(O | C, lambda_i) for every iteration i
     velocity_history: np.ndarray  # (iterations, A, n) the action table (or beta) of every lambda_i
