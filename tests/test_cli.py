@@ -402,7 +402,7 @@ def test_simulate_car_then_learn_car_with_ros_export(tmp_path):
     np.testing.assert_allclose(np.degrees(cal.horizontal_rad) + 90.0, model["laser_angles_deg"], atol=1e-9)
     np.testing.assert_allclose(cal.vertical_rad, factory.vertical_rad, atol=1e-12)
     assert [e["dist_correction"] for e in cal.extra] == [0.01 * i for i in range(64)]
-    page = (tmp_path / "report.html").read_text()  # the page a browser opens (tests/test_report_page.py)
+    page = (tmp_path / "car.report.html").read_text()  # the page a browser opens (tests/test_report_page.py)
     assert "Algorithm 3 on" in page and page.count('src="data:image/png;base64,') == 1
     # `sensact export --format velodyne` writes the same calibration from the model alone
     exp = runner.invoke(app, ["export", str(out), "--format", "velodyne", "--out", str(tmp_path / "exported.yaml")])

@@ -14,6 +14,7 @@ RANK = {
     "health": 0,
     "limits": 0,
     "reprs": 0,
+    "outputs": 0,
     "config": 1,
     "engine": 1,
     "core": 1,

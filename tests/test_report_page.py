@@ -63,12 +63,12 @@ def test_the_report_flags_what_the_fit_flags(em_report):
 def test_no_report_writes_none(tmp_path):
     _ok(["simulate", "diffdrive", "--out", tmp_path / "log", "--seconds", "30", "--seed", "4"])
     _ok(["learn", "em", tmp_path / "log", "--out", tmp_path / "m.json", "--no-report"])
-    assert not (tmp_path / "report.html").exists() and (tmp_path / "m.json").is_file()
+    assert not list(tmp_path.glob("*.html")) and (tmp_path / "m.json").is_file()
 
 
 def test_learn_bootstrap_writes_a_report_a_browser_opens_whole(tmp_path, browser):
     _ok(["simulate", "track1d", "--seconds", "60", "--seed", "2", "--out", tmp_path / "log"])
     _ok(["learn", "bootstrap", tmp_path / "log", "--out", tmp_path / "m.json"])
-    seen = open_page(browser, tmp_path / "report.html")
+    seen = open_page(browser, tmp_path / "m.report.html")
     assert {"Summary", "Flags and warnings", "Figures"} <= set(seen["headings"])
     _loads_whole(seen, 1)

@@ -104,6 +104,7 @@ class Calibration:
         """The model file `learn em --out` writes (its key names are fixed: checks and reports read them)."""
         from sensact import __version__
         from sensact.models.wheel_drive import as_differential_drive
+        from sensact.outputs import EM_MODEL, OUTPUT_KEY
 
         res, diag = self.result, self.diagnostics
         evaluation = self.scores.evaluation if isinstance(self.scores, Scores) else None
@@ -112,6 +113,7 @@ class Calibration:
         signs = list(diag.lost_signs)
         return {
             "sensact_version": __version__,  # what EM learns has changed between versions: name the code
+            OUTPUT_KEY: EM_MODEL,  # what this file is: an --out replaces only its own kind (io.atomic)
             "model": self.model.to_dict(),
             "summary": res.summary() | {"preset": self.settings.preset},
             "log": self.log.data.source,

@@ -310,13 +310,56 @@ def default_out(model: Path, fmt: str) -> Path:
     return model.with_suffix(suffix.get(fmt, f".{fmt}"))
 
 
-def export_model(model: Path, fmt: str, out: Path, truth_out: Path | None = None) -> Exported:
+def is_export(path: Path) -> bool:
+    """Whether ``path`` is a file sensact exported (any format): its header names sensact, or it is a TUM
+    trajectory (rows of eight numbers)."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return False
+    first = text.split("\n", 1)[0]
+    if first.startswith("#") and "sensact" in first:
+        return True
+    rows = [ln.split() for ln in text.splitlines() if ln.strip()]
+    try:
+        return bool(rows) and all(len(r) == 8 and all(math.isfinite(float(v)) for v in r) for r in rows)
+    except ValueError:
+        return False
+
+
+def refuse_to_replace(paths: list[Path | None], model: Path, force: bool) -> None:
+    """An export replaces an earlier export, never the model it reads nor a file of the user's (``force``
+    overrides the latter); no two of its outputs share a path."""
+    from sensact.errors import ConfigError
+
+    given = [p for p in paths if p is not None]
+    for p in given:
+        if p.exists() and p.resolve() == model.resolve():
+            raise ConfigError(f"{p} is the model being exported.", field="--out", fix="give the export its own path.")
+        if p.is_file() and not force and not is_export(p):
+            raise ConfigError(
+                f"{p} exists and is not a sensact export; writing here would replace it.",
+                field="--out",
+                fix="give a new path, or pass --force to replace it.",
+            )
+    if len({p.resolve() for p in given}) < len(given):
+        raise ConfigError(
+            f"two of the export's files would be {given[-1]}.", field="--truth-out", fix="give each its own path."
+        )
+
+
+def export_model(model: Path, fmt: str, out: Path, truth_out: Path | None = None, *, force: bool = False) -> Exported:
     """``model`` in ``fmt`` at ``out`` (and, for tum, the truth's trajectory beside it)."""
     from sensact.errors import ConfigError
     from sensact.io.atomic import write_text
 
     if fmt not in FORMATS:
         raise ConfigError(f"no export format {fmt!r}.", field="--format", fix=f"one of {', '.join(FORMATS)}")
+    beside = {
+        "tum": truth_out or out.with_name(f"{out.stem}_truth{out.suffix}"),
+        "robot-localization": companion_path(out),
+    }
+    refuse_to_replace([out, beside.get(fmt)], model, force)
     doc = read_model_doc(model)
     if fmt == "tum":
         return export_tum(doc, model, out, truth_out)

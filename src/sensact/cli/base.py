@@ -164,15 +164,36 @@ def _sigterm_as_interrupt() -> Iterator[None]:
 SIBLING_SUFFIXES = (".png", ".npz", ".html")  # what a command writes beside its JSON --out
 
 
-def check_out_file(out: Path | None, option: str = "--out", *, others: dict[str, Path | None] | None = None) -> None:
+ForceOpt = Annotated[
+    bool, typer.Option("--force", help="Replace a file at --out that is not a sensact output of this kind.")
+]
+
+
+def check_out_file(
+    out: Path | None,
+    option: str = "--out",
+    *,
+    others: dict[str, Path | None] | None = None,
+    kind: str | None = None,
+    force: bool = False,
+) -> None:
     """Refuse, before any work, an output path that is not a regular file or a new path (a folder, a device
     such as /dev/full, which the atomic rename would replace), a JSON output named as one of the files
-    written beside it (``model.png`` would be overwritten by the figure), and a path another output of the
-    same command also writes (``others``: option name to path)."""
+    written beside it (``model.png`` would be overwritten by the figure), a path another output of the
+    same command also writes (``others``: option name to path), and, unless ``force``, an existing file that
+    is not a sensact output of ``kind`` (``write_result``'s stamp): a user's own file is never replaced
+    silently."""
     from sensact.errors import ConfigError
+    from sensact.outputs import is_output_of
 
     if out is None:
         return
+    if kind is not None and out.is_file() and not force and not is_output_of(out, kind):
+        raise ConfigError(
+            f"{out} exists and is not a sensact {kind}; writing here would replace it.",
+            field=option,
+            fix="give a new path, or pass --force to replace it.",
+        )
     if out.exists() and not out.is_file():
         kind = "a folder" if out.is_dir() else "not a regular file (a device, a pipe or a socket)"
         raise ConfigError(
@@ -318,13 +339,16 @@ def print_tables(tables: list[tuple[str, list[str], list[list[str]]]]) -> None:
         console.print(t)
 
 
-def write_result(path: Path, doc: dict[str, Any]) -> Path:
-    """A model or result JSON, atomically, stamped first with the sensact version that wrote it: what EM
-    learns from a log has changed between versions, so a model names the code it came from."""
+def write_result(path: Path, doc: dict[str, Any], kind: str | None = None) -> Path:
+    """A model or result JSON, atomically, stamped first with the sensact version that wrote it (what EM
+    learns from a log has changed between versions, so a model names the code it came from) and with what
+    it is (``kind``: ``check_out_file`` replaces only an output of the same kind)."""
     from sensact import __version__
     from sensact.io.atomic import write_json
+    from sensact.outputs import OUTPUT_KEY
 
-    return write_json(path, {"sensact_version": __version__} | doc)
+    stamp = {"sensact_version": __version__} | ({OUTPUT_KEY: kind} if kind else {})
+    return write_json(path, stamp | doc)
 
 
 def write_results(out: Path, name: str, res: dict[str, Any], tables: list[Any]) -> None:

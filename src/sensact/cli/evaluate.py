@@ -12,6 +12,7 @@ import typer
 from sensact.app.logs import read_em_model, refuse_model_for_log
 from sensact.cli.base import (
     EMModelOpt,
+    ForceOpt,
     SchedulerOpt,
     WorkersOpt,
     check_out_file,
@@ -21,6 +22,7 @@ from sensact.cli.base import (
     write_result,
 )
 from sensact.cli.scores import print_scores, print_truth_score
+from sensact.outputs import EVALUATION, FLEET_EVALUATION
 
 
 @evaluate_app.command("mrclam")
@@ -33,13 +35,14 @@ def evaluate_mrclam_cmd(
         Path | None,
         typer.Option("--out", help="Write the scores here (JSON), and four figures beside it (OUT_actions.png, ...)."),
     ] = None,
+    force: ForceOpt = False,
 ) -> None:
     """Score a learned MRCLAM model against Vicon, next to From-Truth.
 
     From-Truth is the same model families fitted directly to the ground truth. With --out, also draw
     the action curves, the range function, the heading noise and the bearing noise against Vicon's,
     as `reproduce real` does."""
-    check_out_file(out)
+    check_out_file(out, kind=EVALUATION, force=force)
     from sensact.evaluate.landmark_truth import score_against_truth
     from sensact.experiments.real import bar_checks
     from sensact.io.mrclam import read_mrclam
@@ -57,7 +60,7 @@ def evaluate_mrclam_cmd(
     if out is not None:
         from sensact.report.figures_real import write_robot
 
-        write_result(out, sc)
+        write_result(out, sc, EVALUATION)
         figures = write_robot(ml, m, sc, out.with_suffix(""), f"robot {robot}")
         console.print("wrote " + ", ".join(str(p) for p in (out, *figures)))
 
@@ -81,6 +84,7 @@ def evaluate_log_cmd(
             "CSV OUT_against_range.png).",
         ),
     ] = None,
+    force: ForceOpt = False,
 ) -> None:
     """Score a model learned on one log against another log's ground truth, next to From-Truth.
 
@@ -89,7 +93,7 @@ def evaluate_log_cmd(
     From-Truth fitted on this log; the model must share the log's commands, readings and step. On a
     Turtlebot CSV the robot is first placed by the E-step with the model held (as `sensact localize`),
     and the model is scored against the range column as `learn em` scores it."""
-    check_out_file(out)
+    check_out_file(out, kind=EVALUATION, force=force)
     from sensact.app.logs import read_model_and_log
     from sensact.errors import LogFormatError
 
@@ -113,7 +117,7 @@ def evaluate_log_cmd(
         )
     sc = scores.evaluation
     if out is not None:
-        write_result(out, sc)
+        write_result(out, sc, EVALUATION)
         written = [out]
         if sc.get("truth_noise"):  # scored against recorded poses (with their heading): the figures too
             from sensact.report.figures_real import write_robot
@@ -170,7 +174,8 @@ def _evaluate_on_range_column(doc: dict[str, Any], m: Any, opened: Any, model: P
     }
     path = out.with_name(f"{out.stem}_against_range.png")
     run = TurtlebotEMRun(data, truth_mm, loc)
-    written = [write_result(out, doc_out), figure_turtlebot_em(run, sc, path, f"{model.name} on {log.name}")]
+    written = [write_result(out, doc_out, EVALUATION)]
+    written.append(figure_turtlebot_em(run, sc, path, f"{model.name} on {log.name}"))
     console.print("wrote " + ", ".join(str(p) for p in written))
 
 
@@ -194,6 +199,7 @@ def evaluate_fleet_cmd(
     ] = None,
     workers: WorkersOpt = 1,
     scheduler: SchedulerOpt = None,
+    force: ForceOpt = False,
 ) -> None:
     """Score every model on every log: does one robot's model serve the others of its kind?
 
@@ -207,7 +213,7 @@ def evaluate_fleet_cmd(
     `evaluate log` scores it: the action gain's error and the best sensor's, in % of its span. A pair is
     a robot's own when the model was learned on that log. Every model must share the logs' commands,
     readings and step (a Turtlebot CSV is read onto each model's own step)."""
-    check_out_file(out)
+    check_out_file(out, kind=FLEET_EVALUATION, force=force)
     from sensact.cli.base import progress_bar
     from sensact.engine import open_engine
     from sensact.experiments.fleet import fleet_names, log_name, score_fleet_on
@@ -229,7 +235,7 @@ def evaluate_fleet_cmd(
     if out is not None:
         from sensact.report.figures_fleet import figure_fleet
 
-        write_result(out, fleet)
+        write_result(out, fleet, FLEET_EVALUATION)
         figure = figure_fleet(fleet, out.with_suffix(".png"))
         console.print(f"wrote {out} and {figure}")
 

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from sensact.cli.base import app, console, friendly
+from sensact.cli.base import ForceOpt, app, console, friendly
 
 
 @app.command("export")
@@ -30,6 +30,7 @@ def export_cmd(
         Path | None,
         typer.Option(help="tum: where the truth's trajectory goes (default OUT_truth.tum, when the log has truth)."),
     ] = None,
+    force: ForceOpt = False,
 ) -> None:
     """Write a learned model in SI units and REP 103 axes (x forward, y left; yaw 0 facing the map's +x).
 
@@ -41,7 +42,7 @@ def export_cmd(
     velodyne: a car model's learned laser angles as a ROS velodyne calibration."""
     from sensact.app.export import default_out, export_model
 
-    done = export_model(model, format_, out or default_out(model, format_), truth_out)
+    done = export_model(model, format_, out or default_out(model, format_), truth_out, force=force)
     for note in done.notes:
         console.print(f"[yellow]note:[/] {note}", highlight=False)
     console.print("wrote " + ", ".join(str(p) for p in done.written), highlight=False)

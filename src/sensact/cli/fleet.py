@@ -59,7 +59,7 @@ def fleet_learn_cmd(
     preset: Annotated[str | None, typer.Option("--preset", help="As `learn em --preset`, for every log.")] = None,
     set_: SetOpt = None,
     config: ConfigOpt = None,
-    report: Annotated[bool, typer.Option("--report/--no-report", help="Write report.html beside each model.")] = True,
+    report: Annotated[bool, typer.Option("--report/--no-report", help="Write a report page beside each model.")] = True,
     uncertainty: Annotated[
         int | None,
         typer.Option(

@@ -11,6 +11,7 @@ from sensact.cli.base import (
     ConfigOpt,
     EMLogArg,
     EMModelOpt,
+    ForceOpt,
     SetOpt,
     app,
     check_out_file,
@@ -21,6 +22,7 @@ from sensact.cli.base import (
     progress_bar,
     write_result,
 )
+from sensact.outputs import LOCALIZATION
 
 
 def _parse_start(text: str | None, n: int) -> Any:
@@ -163,12 +165,13 @@ def localize_cmd(
     bins: Annotated[int, typer.Option(help="Actions to bin continuous 1-D commands into (as learn em's --bins).")] = 21,
     set_: SetOpt = None,
     config: ConfigOpt = None,
+    force: ForceOpt = False,
 ) -> None:
     """Place the robot in a log with a learned model: the E-step alone, nothing learned.
 
     The settings are the ones the model was learned with (its JSON's summary.config); --config and --set
     override them. Only the start search, the start's spread and the first-iteration gate are used."""
-    check_out_file(out)
+    check_out_file(out, kind=LOCALIZATION, force=force)
     import numpy as np
 
     from sensact.app.logs import read_model_and_log
@@ -198,6 +201,7 @@ def localize_cmd(
                 "filter_ok": post.ok,
                 "truth": scores,
             },
+            LOCALIZATION,
         )
         from sensact.report.figures_fit import figure_localized
 

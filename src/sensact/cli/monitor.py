@@ -11,6 +11,7 @@ from sensact.cli.base import (
     ConfigOpt,
     EMLogArg,
     EMModelOpt,
+    ForceOpt,
     SetOpt,
     app,
     check_out_file,
@@ -19,7 +20,9 @@ from sensact.cli.base import (
     friendly,
     layered_config,
     progress_bar,
+    write_result,
 )
+from sensact.outputs import EM_MODEL, MONITOR
 
 
 @app.command("monitor")
@@ -51,6 +54,7 @@ def monitor_cmd(
     bins: Annotated[int, typer.Option(help="Actions to bin continuous 1-D commands into (as learn em's --bins).")] = 21,
     set_: SetOpt = None,
     config: ConfigOpt = None,
+    force: ForceOpt = False,
 ) -> None:
     """Run a learned model's filter over a log and test its innovations for a change.
 
@@ -58,11 +62,10 @@ def monitor_cmd(
     standardized innovations, tested by a two-sided CUSUM; a crossing whose shift lasts to the end of
     the log is a change, one that does not is an episode. Prints when the change began, when it was
     flagged and which model changed; with --relearn, learns the models again from the change on."""
-    check_out_file(out)
-    check_out_file(relearn, "--relearn", others={"--out": out})
+    check_out_file(out, kind=MONITOR, force=force)
+    check_out_file(relearn, "--relearn", others={"--out": out}, kind=EM_MODEL, force=force)
     from sensact.app.monitor import monitor_log
     from sensact.health import Health
-    from sensact.io.atomic import write_json
     from sensact.learn.em.monitor import MonitorConfig
 
     cfg = layered_config(MonitorConfig, config, set_, false_alarm=false_alarm, bin_s=bin_s)
@@ -87,7 +90,7 @@ def monitor_cmd(
     if out is not None:
         from sensact.report.figures_monitor import figure_monitor
 
-        written = [write_json(out, mon.to_json())]
+        written = [write_result(out, mon.to_json(), MONITOR)]
         written.append(figure_monitor(res, out.with_suffix(".png"), f"{model.name} on {mon.log.name}"))
         console.print("wrote " + ", ".join(str(p) for p in written), highlight=False)
     if relearn is not None:

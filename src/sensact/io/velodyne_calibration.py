@@ -149,9 +149,9 @@ def calibration_yaml(intrinsics: LaserIntrinsics) -> str:
         "lasers": lasers,
         "num_lasers": intrinsics.n_lasers,
     }
-    note = ""
+    note = "# a ROS velodyne calibration (velodyne_pointcloud), written by sensact\n"
     if filled:
-        note = (
+        note += (
             f"# {', '.join(sorted(filled))}: not learned and not in a factory calibration, so the unit's nominal\n"
             "# geometry (no correction); rot_correction and vert_correction are the angles sensact uses.\n"
         )

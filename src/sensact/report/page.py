@@ -1,4 +1,4 @@
-"""One self-contained HTML page for one calibration (``report.html`` beside the model): sections of
+"""One self-contained HTML page for one calibration (``MODEL.report.html`` beside it, ``report_path``): sections of
 paragraphs, tables, flags and figures, every figure inlined as a data URI, no script and no link out, so
 that the page opens offline, mailed or copied on its own."""
 
@@ -33,9 +33,9 @@ class Section:
 
 
 def report_path(model: Path) -> Path:
-    """Where a model's report goes: report.html in the model's folder (one calibration a folder, as a
-    calibration's files are kept; a second model learned into the same folder replaces it)."""
-    return model.parent / "report.html"
+    """Where a model's report goes: named after the model, so that two models in one folder never share a
+    page (``run_a.json`` -> ``run_a.report.html``), ``report.html`` for the usual ``model.json``."""
+    return model.with_name("report.html" if model.name == "model.json" else f"{model.stem}.report.html")
 
 
 def _image(png: Path) -> str:

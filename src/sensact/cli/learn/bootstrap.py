@@ -9,6 +9,7 @@ import typer
 
 from sensact.cli.base import (
     ConfigOpt,
+    ForceOpt,
     SetOpt,
     check_out_file,
     config_beside,
@@ -21,6 +22,7 @@ from sensact.cli.base import (
     write_result,
 )
 from sensact.cli.scores import evaluate_log, warn_if_one_command
+from sensact.outputs import BOOTSTRAP_MODEL
 
 
 @learn_app.command("bootstrap")
@@ -41,13 +43,14 @@ def learn_bootstrap_cmd(
     set_: SetOpt = None,
     config: ConfigOpt = None,
     report: Annotated[
-        bool, typer.Option("--report/--no-report", help="Write report.html beside the models (needs --out).")
+        bool, typer.Option("--report/--no-report", help="Write OUT.report.html beside it (needs --out).")
     ] = True,
+    force: ForceOpt = False,
 ) -> None:
     """Learn S(o) and A(c) from each other with Algorithm 1 (sec. 3.2.3).
 
     Prints the polynomials, and the scaled errors when the log carries ground truth."""
-    check_out_file(out)
+    check_out_file(out, kind=BOOTSTRAP_MODEL, force=force)
     from sensact.errors import ConfigError
     from sensact.io.atomic import write_npz
     from sensact.io.logfolder import read_track_log
@@ -94,7 +97,7 @@ def learn_bootstrap_cmd(
     health = bootstrap_health(res, data.commands, data.observations)
     if out is not None:
         payload = {**res.to_dict(), "log": data.source, "evaluation": evaluation, "health": health.to_dict()}
-        write_result(out, payload)
+        write_result(out, payload, BOOTSTRAP_MODEL)
         assert res.history is not None
         write_npz(out.with_suffix(".history.npz"), **res.history.arrays())
         from sensact.report.figures_bootstrap import figure_bootstrap_fit

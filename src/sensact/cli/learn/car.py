@@ -9,6 +9,7 @@ import typer
 
 from sensact.cli.base import (
     ConfigOpt,
+    ForceOpt,
     SetOpt,
     check_out_file,
     console,
@@ -19,6 +20,7 @@ from sensact.cli.base import (
     progress_bar,
     write_result,
 )
+from sensact.outputs import CAR_MODEL
 
 
 def _learn(data: Any, cfg: Any, simulated: bool) -> tuple[Any, dict | None, list, dict[str, Any] | None]:
@@ -153,11 +155,12 @@ def learn_car_cmd(
     set_: SetOpt = None,
     config: ConfigOpt = None,
     report: Annotated[
-        bool, typer.Option("--report/--no-report", help="Write report.html beside the models (needs --out).")
+        bool, typer.Option("--report/--no-report", help="Write OUT.report.html beside it (needs --out).")
     ] = True,
+    force: ForceOpt = False,
 ) -> None:
     """Learn the lidar's laser angles, the scan-matching odometry and the car dynamics (Algorithm 3)."""
-    check_out_file(out)
+    check_out_file(out, kind=CAR_MODEL, force=force)
     import numpy as np
 
     from sensact.config import config_to_dict
@@ -206,6 +209,7 @@ def learn_car_cmd(
                 **dict([_calibration_doc(data, res)]),
                 "health": health.to_dict(),
             },
+            CAR_MODEL,
         )
         from sensact.report.figures_car import figure_car_fit
 

@@ -12,6 +12,7 @@ from rich.markup import escape
 from sensact.cli.base import (
     ConfigOpt,
     EMLogArg,
+    ForceOpt,
     SchedulerOpt,
     SetOpt,
     WorkersOpt,
@@ -25,6 +26,7 @@ from sensact.cli.base import (
     write_result,
 )
 from sensact.cli.scores import print_em_model, print_scores, warn_if_one_command
+from sensact.outputs import EM_MODEL
 
 if TYPE_CHECKING:  # numpy is imported where a command needs it, so that --help stays quick
     import numpy as np
@@ -226,7 +228,7 @@ def learn_em_cmd(
     set_: SetOpt = None,
     config: ConfigOpt = None,
     report: Annotated[
-        bool, typer.Option("--report/--no-report", help="Write report.html beside the model (needs --out).")
+        bool, typer.Option("--report/--no-report", help="Write OUT.report.html beside it (needs --out).")
     ] = True,
     uncertainty: Annotated[
         int | None,
@@ -240,13 +242,14 @@ def learn_em_cmd(
     ] = None,
     workers: WorkersOpt = 1,
     scheduler: SchedulerOpt = None,
+    force: ForceOpt = False,
 ) -> None:
     """Learn the action model, sensor functions f and noise sigmas by EM (ch. 4).
 
     The settings: --preset, or else the settings file `convert` wrote into the log folder (em_config.yaml,
     which names its preset), or a Turtlebot's for a CSV, or the thesis's; --config and --set override
     them. Ctrl-C stops early and still writes the most likely model so far."""
-    check_out_file(out)
+    check_out_file(out, kind=EM_MODEL, force=force)
     from sensact.app import calibrate, open_log
 
     opened = open_log(log, bins=bins)
@@ -298,7 +301,7 @@ def learn_em_cmd(
             res, cal.log.data, cfg, figure, f"{cal.log.name}: halves against the whole"
         )
         if out is not None:
-            write_result(out, doc | {"halves": halves_doc})
+            write_result(out, doc | {"halves": halves_doc}, EM_MODEL)
             console.print(f"wrote {out} again, with the halves")
     finish(cal.diagnostics.health)
 
