@@ -288,17 +288,24 @@ class ProgressRows:
             task = self.last[0]
             self.rows = {k: v for k, v in self.rows.items() if v != task}
             self.labels = {k: v for k, v in self.labels.items() if v != task}
+        if task is not None and total is None and self.bar.tasks[self._index(task)].total is not None:
+            task = None  # a count with no end after one with an end (a race, then EM): rich keeps an old total
         if task is None:
             task = self.bar.add_task(desc, total=total)
         self.rows[desc] = task
         if label is not None:
             self.labels[label] = task
+        if total is not None and done > total:  # never a count over its total (an estimate that fell short)
+            total = done
         self.bar.update(task, description=desc, completed=done, total=total)
         self.last = (task, done, total)
 
+    def _index(self, task: Any) -> int:
+        return next(i for i, t in enumerate(self.bar.tasks) if t.id == task)
+
 
 @contextmanager
-def progress_bar() -> Iterator[Callable[[str, int, int | None], None]]:
+def progress_bar(to: Console | None = None) -> Iterator[Callable[[str, int, int | None], None]]:
     """A rich progress bar fed by the library's ``progress(description, done, total)`` callbacks
     (``total`` None: a count with no end known, as EM's, which stops when it converges)."""
     from rich.progress import (
@@ -309,16 +316,19 @@ def progress_bar() -> Iterator[Callable[[str, int, int | None], None]]:
         TimeElapsedColumn,
         TimeRemainingColumn,
     )
+    from rich.table import Column
 
     with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
+        # the description gives way first: at 80 columns the count, the time and the ETA stay whole
+        TextColumn("{task.description}", table_column=Column(ratio=1, no_wrap=True, overflow="ellipsis")),
+        BarColumn(bar_width=12),
         MofNCompleteColumn(),
         TimeElapsedColumn(),
-        TimeRemainingColumn(),  # from the rows with a total; EM's, which stops when it converges, shows none
-        console=err_console,
+        TimeRemainingColumn(),  # EM's total is projected from its convergence rate (learn/em/eta.py)
+        console=to or err_console,
         transient=False,
-        disable=not err_console.is_terminal,
+        disable=not (to or err_console).is_terminal,
+        expand=True,
     ) as bar:
         yield ProgressRows(bar)
 

@@ -110,6 +110,49 @@ def reproduce(
         console.print(f"wrote {page}: every table and figure in {out} on one page")
 
 
+# each experiment's minutes with the default trials, measured on this project's two-core machine
+# (`sensact reproduce NAME`, 2026-11-29): the ETA's weights, scaled by how fast this machine runs them
+EXPECTED_MIN = {
+    "track1d": 0.2,
+    "turtlebot": 0.5,
+    "field2d": 0.7,
+    "em1d": 0.8,
+    "monitor": 3.6,
+    "car": 1.4,
+    "diffdrive": 1.5,
+    "uncertainty": 35.0,
+    "real": 4.0,
+}
+
+
+class Overall:
+    """One line as each of several experiments starts: which of how many, the time so far and an ETA, the
+    remaining experiments' expected times scaled by how this machine's pace compares with them so far."""
+
+    def __init__(self, todo: list[str]) -> None:
+        import time
+
+        self.todo, self.done, self.t0, self.clock = todo, [], time.perf_counter(), time.perf_counter
+
+    def start(self, name: str) -> None:
+        if len(self.todo) < 2:
+            return
+        elapsed = self.clock() - self.t0
+        expected_done = sum(EXPECTED_MIN[n] for n in self.done)
+        pace = elapsed / 60 / expected_done if expected_done > 0 else 1.0
+        left = pace * sum(EXPECTED_MIN[n] for n in self.todo[len(self.done) :])
+        console.print(
+            f"[bold]experiment {len(self.done) + 1} of {len(self.todo)}: {name}[/] "
+            f"({_minutes(elapsed / 60)} elapsed, about {_minutes(left)} left)",
+            highlight=False,
+        )
+        self.done.append(name)
+
+
+def _minutes(m: float) -> str:
+    return f"{m * 60:.0f} s" if m < 1 else f"{m:.0f} min"
+
+
 def _run_experiments(
     todo: list[str],
     experiment: str | None,
@@ -122,9 +165,12 @@ def _run_experiments(
     truth_restart: bool,
     engine: Any,
 ) -> None:
+    overall = Overall(todo)
     if "track1d" in todo:
+        overall.start("track1d")
         _reproduce_track1d(out, trials or 15, seed, set_, config, engine)
     if "turtlebot" in todo:
+        overall.start("turtlebot")
         from sensact.experiments.shared_data import turtlebot_logs
 
         root = _data_dir(data)
@@ -140,18 +186,25 @@ def _run_experiments(
         else:
             _reproduce_turtlebot(out, logs)
     if "field2d" in todo:
+        overall.start("field2d")
         _reproduce_field2d(out, trials or 5, seed, set_, config, engine)
     if "em1d" in todo:
+        overall.start("em1d")
         _reproduce_em1d(out, seed, set_, config)
     if "monitor" in todo:
+        overall.start("monitor")
         _reproduce_monitor(out, trials or 5, seed, _data_dir(data), set_, config, engine)
     if "car" in todo:
+        overall.start("car")
         _reproduce_car(out, seed, set_, config)
     if "diffdrive" in todo:
+        overall.start("diffdrive")
         _reproduce_diffdrive(out, trials or 3, seed, set_, config, engine)
     if "uncertainty" in todo:
+        overall.start("uncertainty")
         _reproduce_uncertainty(out, trials or 20, seed, engine)
     if "real" in todo:
+        overall.start("real")
         _reproduce_real(out, _data_dir(data), experiment == "real", set_, config, truth_restart, engine)
 
 

@@ -20,6 +20,7 @@ from sensact.evaluate.bars import BarCheck
 from sensact.evaluate.simulated_robot import score_against_simulated
 from sensact.experiments.real import evaluate_mrclam, robot_checks
 from sensact.learn.em import EMConfig, EMResult, fit_em
+from sensact.learn.em.eta import iteration_progress
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.presets import planar_config, range_only_config
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
@@ -99,9 +100,9 @@ def run_seed(
     run = simulate_diffdrive(sim)
     robot = SimulatedRobot(run.log(f"simulated {sim.robot_kind}, seed {sim.seed}"), run.poses)
 
-    def on_iteration(it: int, ll: float, best: float, since: int) -> None:
-        if progress:
-            progress(f"diffdrive {key}: EM iteration {it}, log-likelihood {ll:.1f}", it + 1, None)
+    on_iteration = iteration_progress(
+        progress, lambda it, ll, best: f"diffdrive {key}: EM iteration {it}, log-likelihood {ll:.1f}", learner.thesis
+    )
 
     def on_race(done: int, planned: int) -> None:
         if progress:

@@ -21,7 +21,8 @@ from sensact.errors import ConfigError
 from sensact.evaluate.bars import BarCheck, at_most
 from sensact.evaluate.em import score_track
 from sensact.evaluate.track1d import DISTANCE_GRID_MM
-from sensact.learn.em import EMConfig, EMResult, fit_em, initial_model
+from sensact.learn.em import EMConfig, EMResult, fit_em
+from sensact.learn.em.eta import initial_model, iteration_progress
 from sensact.models.em_model import EMModel
 from sensact.sim.track1d import Track1DConfig, TrackRun, simulate_track, to_landmark_log
 
@@ -146,13 +147,11 @@ def run_em1d(
     for name, (a, b) in (("before", (0, split)), ("after", (split, data.n_steps))):
         part = data.slice_steps(a, b)
 
-        def on_iteration(it: int, ll: float, best: float, since: int, name: str = name) -> None:
-            if progress:
-                progress(
-                    f"em1d {name} the change: iteration {it}, log-likelihood {ll:.1f}",
-                    it + 1,
-                    exp.learner.thesis.max_iterations,
-                )
+        on_iteration = iteration_progress(
+            progress,
+            lambda it, ll, best, name=name: f"em1d {name} the change: iteration {it}, log-likelihood {ll:.1f}",
+            exp.learner.thesis,
+        )
 
         res = fit_em(part, initial_model(part, exp.learner), exp.learner, progress=on_iteration)
         halves[name] = Half(name, res, true_velocities(sim, name == "after"))

@@ -16,6 +16,7 @@ from sensact.evaluate.bars import BarCheck, at_most, miss_text
 from sensact.evaluate.em import component_rms, score_planar
 from sensact.learn.em import EMConfig, EMResult, fit_em, initial_model
 from sensact.learn.em.checks import fall_per_sighting
+from sensact.learn.em.eta import iteration_progress
 from sensact.sim.field2d import Field2DConfig, Field2DRun, simulate_field, to_landmark_log
 
 ProgressFn = Callable[[str, int, int], None]
@@ -91,9 +92,9 @@ def run_trial(
     run = simulate_field(sim)
     data = to_landmark_log(run)
 
-    def on_iteration(it: int, ll: float, best: float, since: int) -> None:
-        if progress:
-            progress(f"{label} iteration {it}, log-likelihood {ll:.1f}", it + 1, learner.thesis.max_iterations)
+    on_iteration = iteration_progress(
+        progress, lambda it, ll, best: f"{label} iteration {it}, log-likelihood {ll:.1f}", learner.thesis
+    )
 
     res = fit_em(data, initial_model(data, learner), learner, progress=on_iteration)
     score = score_planar(res.model, run.true_velocities, sim.height_px, sim.sigma_height_px, sim.sigma_bearing_rad)

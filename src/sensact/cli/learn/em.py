@@ -352,6 +352,7 @@ def _events(opened: Any, preset: str | None, show: Any) -> Any:
     """What the CLI shows as a calibration goes: the settings, the placement, EM's progress, restarts."""
     from sensact.app import FitEvents
     from sensact.learn.em.checks import describe_lost_fit
+    from sensact.learn.em.eta import ConvergenceEta
 
     cfg_of: dict[str, Any] = {}  # the settings, once read
 
@@ -390,9 +391,12 @@ def _events(opened: Any, preset: str | None, show: Any) -> Any:
         )
         describe_placement(start.placed, start.document.get("summary") or {}, start.log.data)
 
-    def progress(it: int, ll: float, best: float, since: int) -> None:  # it stops by patience: no end to show
-        patience = cfg_of["cfg"].thesis.patience
-        show(f"EM: log-likelihood {ll:.1f} (best {best:.1f}, {since} of {patience} iterations since)", it + 1, None)
+    eta = ConvergenceEta()
+
+    def progress(it: int, ll: float, best: float, since: int) -> None:  # its end projected from its convergence
+        thesis = cfg_of["cfg"].thesis
+        total = eta.total(it, best, since, thesis.patience, thesis.max_iterations)
+        show(f"EM: log-likelihood {ll:.1f} (best {best:.1f}, {since} of {thesis.patience} since)", it + 1, total)
 
     return FitEvents(
         progress=progress,
