@@ -409,3 +409,16 @@ def test_a_standard_decoder_reads_the_simulated_pcap(short_drive_folder, short_d
     )
     n = sum(len(p) for _, p in vd.read_pcap(str(pcap), conf, as_pcl_structs=True))
     assert n == int((log.distance_m > 0).sum())
+
+
+def test_learn_car_takes_kiss_icp_where_installed_else_the_thesis_matcher(monkeypatch):
+    import importlib.util
+
+    from sensact.cli.learn.car import best_matcher
+    from sensact.learn.car_dynamics import CarLearningConfig
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name: None if name == "kiss_icp" else real(name))
+    assert best_matcher() == "algorithm2" == CarLearningConfig().matcher  # reproduce car: the thesis's
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name: object() if name == "kiss_icp" else real(name))
+    assert best_matcher() == "kiss_icp"

@@ -398,6 +398,11 @@ def test_simulate_car_then_learn_car_with_ros_export(tmp_path):
     model = json.loads(out.read_text())
     assert len(model["laser_angles_deg"]) == 64 and model["car_dynamics"]["kind"] == "car_dynamics"
     assert model["evaluation"]["laser_angle_rms_deg"] < 1.0  # 20 s: C rests on a few fast intervals
+    from sensact.cli.learn.car import best_matcher
+
+    # the best matcher it has, said in one line: KISS-ICP with the kiss extra (the test extra has it)
+    assert model["config"]["matcher"] == best_matcher()
+    assert ("scan matcher: KISS-ICP" in res.output) == (best_matcher() == "kiss_icp")
     cal = read_calibration(yml)
     np.testing.assert_allclose(np.degrees(cal.horizontal_rad) + 90.0, model["laser_angles_deg"], atol=1e-9)
     np.testing.assert_allclose(cal.vertical_rad, factory.vertical_rad, atol=1e-12)
