@@ -147,6 +147,9 @@ def test_residual_autocorrelation_and_warnings(mounted):
     assert all(abs(v) < 0.3 for v in ac.values()), ac
     assert describe_correlated(ac) == []
     assert len(describe_correlated({"laser": 0.97})) == 1
+    # either sign beyond 0.3: a path that follows the bearings alternates their errors (issue 90's -0.38)
+    assert "below -0.3" in describe_correlated({"bearing": -0.38})[0]
+    assert describe_correlated({"bearing": -0.29, "laser": 0.29, "none": None}) == []
     assert describe_pruned(0.1) is None and "prune_rad_per_step" in describe_pruned(0.4)
 
 

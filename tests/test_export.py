@@ -168,3 +168,24 @@ def test_the_velodyne_export_holds_every_key_the_ros_driver_reads(tmp_path, fact
         assert entry["dist_correction"] == (1.2 if factory else 0.0)
     said = " ".join(ln for ln in text.splitlines() if ln.startswith("#"))
     assert "written by sensact" in said and "vert_offset_correction" in said and ("dist_correction," in said) != factory
+
+
+def test_the_report_shows_error_bars_in_the_frame_and_units_of_the_exports(learned):
+    """Each action coefficient the report's error-bar table shows (REP 103, SI) is the one the
+    robot_localization export writes; lengths are metres."""
+    from sensact.app.export import action_model_si
+    from sensact.app.report import si_parameter
+    from sensact.learn.em.uncertainty import model_parameters
+
+    _, doc = learned
+    model = EMModel.from_dict(doc["model"])
+    exported = action_model_si(model.action, doc["dt_s"])["velocities"]
+    shown = {}
+    for name, (family, value) in model_parameters(model, (1000.0,)).items():
+        label, k = si_parameter(name)
+        shown[label] = value * k
+        if family == "action":
+            velocity, feature = label.removeprefix("action.").rstrip("]").split("[")
+            assert shown[label] == pytest.approx(exported[velocity][feature], rel=1e-12, abs=1e-15)
+    assert shown["mount.forward_m"] == pytest.approx(doc["model"]["sensor"]["mount"]["forward_mm"] / 1000)
+    assert "f.range_m(1 m)" in shown or "f.height_px(1 m)" in shown

@@ -4,6 +4,7 @@ that a real headless browser opens offline with every image loaded and no reques
 from __future__ import annotations
 
 import json
+import re
 
 import pytest
 from typer.testing import CliRunner
@@ -58,6 +59,8 @@ def test_the_report_flags_what_the_fit_flags(em_report):
     doc = json.loads((root / "model.json").read_text())
     text = (root / "report.html").read_text()
     assert ("No flag raised." in text) == (doc["pruned_fraction"] <= 0.2 and not doc["range_function_turns"])
+    # one frame and one set of units, as the exports: REP 103 and SI (no millimetre left on the page)
+    assert "REP 103" in text and not re.search(r"\bmm\b|_mm\b|mm/s", re.sub(r'src="data:[^"]*"', "", text))
 
 
 def test_no_report_writes_none(tmp_path):

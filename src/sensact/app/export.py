@@ -20,6 +20,7 @@ import numpy as np
 
 from sensact.errors import LogFormatError, ModelFormatError
 from sensact.models.em_model import EMModel
+from sensact.report.frames import MM, REP_ORDER, VELOCITY_REP, si
 from sensact.reprs import compact_repr
 
 FORMATS = ("robot-localization", "tum", "velodyne")
@@ -27,14 +28,6 @@ RL_STATES = ("x", "y", "z", "roll", "pitch", "yaw", "vx", "vy", "vz", "vroll", "
 # robot_localization's own defaults (its ekf.yaml template) for the states a planar EM model says nothing of
 RL_DEFAULT_DIAG = (0.05, 0.05, 0.06, 0.03, 0.03, 0.06, 0.025, 0.025, 0.04, 0.01, 0.01, 0.02, 0.01, 0.01, 0.015)
 UNMEASURED_VAR = 1e6  # a twist's dimensions a planar robot does not measure (z, roll, pitch), as ROS drivers set
-MM = 1e-3
-VELOCITY_REP = {  # sensact's velocity: its REP 103 name and factor (a track's: toward the wall or beacon)
-    "v_x_mm_s": ("vy_m_s", -MM),
-    "v_y_mm_s": ("vx_m_s", MM),
-    "v_theta_rad_s": ("vyaw_rad_s", 1.0),
-    "v_mm_s": ("v_toward_m_s", MM),
-}
-REP_ORDER = ("vx_m_s", "vy_m_s", "vyaw_rad_s", "v_toward_m_s")
 
 
 @dataclass(frozen=True)
@@ -97,14 +90,6 @@ def twist_covariance(sigma_step: np.ndarray, dt_s: float) -> np.ndarray:
     return np.diag([per[0], per[1], UNMEASURED_VAR, UNMEASURED_VAR, UNMEASURED_VAR, per[2]])
 
 
-def _command_scale(name: str) -> tuple[str, float]:
-    """A command's SI name and the factor from sensact's unit to it (v_mm_s -> v_m_s, times 1e-3)."""
-    for suffix, si, factor in (("_mm_s", "_m_s", MM), ("_mm", "_m", MM)):
-        if name.endswith(suffix):
-            return name[: -len(suffix)] + si, factor
-    return name, 1.0
-
-
 def action_model_si(action: Any, dt_s: float) -> dict[str, Any]:
     """The action model's coefficients in SI and REP 103 axes: each velocity (vx forward, vy left, vyaw) as a
     sum of coefficient times feature (1, a command, or a product of commands in their SI units)."""
@@ -112,18 +97,18 @@ def action_model_si(action: Any, dt_s: float) -> dict[str, Any]:
 
     if not isinstance(action, LinearActionModel):
         return {"table": action.to_dict(), "note": "an action table (discrete actions): no gains to convert"}
-    si = [_command_scale(n) for n in action.command_names]
+    scaled = [si(n) for n in action.command_names]
     outputs: dict[str, dict[str, float]] = {}
     for j, v in enumerate(action.velocity_names):
         name, out_scale = VELOCITY_REP[v]
         terms = {}
         for i, mono in enumerate(monomials(action.basis, len(action.command_names), action.degree)):
-            in_scale = float(np.prod([si[k][1] for k in mono])) if mono else 1.0
-            feature = "*".join(si[k][0] for k in mono) or "constant"
+            in_scale = float(np.prod([scaled[k][1] for k in mono])) if mono else 1.0
+            feature = "*".join(scaled[k][0] for k in mono) or "constant"
             terms[feature] = float(action.coefficients[i, j]) * out_scale / in_scale
         outputs[name] = terms
     return {
-        "commands": [s[0] for s in si],
+        "commands": [s[0] for s in scaled],
         "delay_s": action.delay_steps * dt_s,
         "velocities": {k: outputs[k] for k in REP_ORDER if k in outputs},
     }

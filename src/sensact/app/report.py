@@ -7,12 +7,14 @@ the commands in SI, the sensor's mount, and every flag and warning of the fit. C
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from sensact.app.calibrate import Calibration
 from sensact.app.scores import Scores, Unscored
+from sensact.report.frames import MM, si, velocity_rep
 from sensact.report.page import Section, report_path, write_report
 
 
@@ -79,27 +81,54 @@ def _mount_rows(cal: Calibration) -> tuple[tuple[str, ...], ...]:
     return tuple(rows)
 
 
+def si_parameter(name: str) -> tuple[str, float]:
+    """An error bar's parameter (``learn/em/uncertainty.model_parameters``'s name, sensact's frame and mm) in
+    REP 103 and SI, as the page's other tables, and the factor from its value to the shown one (a standard
+    deviation's is taken without its sign)."""
+    if m := re.fullmatch(r"action\.(\w+)\[(.*)\]", name):
+        (v, kv), feats = velocity_rep(m[1]), [si(f) for f in m[2].split("*") if f != "1"]
+        return f"action.{v}[{'*'.join(n for n, _ in feats) or 'constant'}]", kv / math.prod(k for _, k in feats)
+    if m := re.fullmatch(r"(action\[\d+\]|Sigma_m\[\d+\])\.(\w+)", name):
+        v, kv = velocity_rep(m[2])
+        return f"{m[1]}.{v}", kv if m[1].startswith("action") else abs(kv)
+    if m := re.fullmatch(r"f\.(\w+)\(([^ ]+) mm\)", name):
+        channel, k = si(m[1])
+        return f"f.{channel}({float(m[2]) * MM:g} m)", k
+    if m := re.fullmatch(r"f\.(\w+)\.(bearing_term\d+)", name):  # d g(b) in the reading's unit, d in m
+        channel, k = si(m[1])
+        return f"f.{channel}.{m[2]}", k / MM
+    head, _, tail = name.rpartition(".")
+    shown, k = si(tail)
+    return (f"{head}.{shown}" if head else shown), k
+
+
 def _error_bars(u: Any) -> Section:
-    """`--uncertainty B`'s table: each parameter (in the model's units) with its standard error and interval."""
-    rows = tuple(
-        (
-            p.name,
-            _num(p.value, 5),
-            "held" if p.held else _num(p.se, 3),
-            "-" if p.interval is None else f"{_num(p.interval[0], 5)} to {_num(p.interval[1], 5)}",
+    """`--uncertainty B`'s table: each parameter (REP 103, SI) with its standard error and interval."""
+    rows = []
+    for p in u.parameters:
+        name, k = si_parameter(p.name)
+        lo, hi = sorted((p.interval[0] * k, p.interval[1] * k)) if p.interval is not None else (None, None)
+        rows.append(
+            (
+                name,
+                _num(p.value * k, 5),
+                "held" if p.held else _num(p.se * abs(k), 3),
+                "-" if p.interval is None else f"{_num(lo, 5)} to {_num(hi, 5)}",
+            )
         )
-        for p in u.parameters
-    )
+    rows = tuple(rows)
     failed = f"; {len(u.failed)} failed: {u.failed[0]}" if u.failed else ""
     lead = (
         f"A parametric bootstrap: {u.replicates} logs drawn from the learned model with this log's commands, map "
         f"and sighting times, each learned again from it ({u.used} learned{failed}). The standard error is the "
         "replicates' spread; the 90 % interval is centred on the value less the replicates' bias. f is read at "
-        f"{', '.join(f'{d:g}' for d in u.f_at_mm)} mm, the 10th, 50th and 90th percentiles of the sightings' "
+        f"{', '.join(f'{d * MM:g}' for d in u.f_at_mm)} m, the 10th, 50th and 90th percentiles of the sightings' "
         "distances. A parameter the fit holds has none."
     )
     return Section(
-        "Error bars", paragraphs=(lead,), table=(("parameter", "value", "standard error", "90 % interval"), rows)
+        "Error bars",
+        paragraphs=(lead + " Values in REP 103 axes and SI units, as the exports give them.",),
+        table=(("parameter", "value", "standard error", "90 % interval"), rows),
     )
 
 
@@ -123,7 +152,7 @@ def write_em_report(cal: Calibration, model_path: Path, figures: Sequence[Path])
         ("pruned by the gates", f"{100 * cal.diagnostics.pruned_fraction:.1f} %"),
         (
             "residuals' lag-1 autocorrelation",
-            ", ".join(f"{k} {_num(v, 2)}" for k, v in cal.diagnostics.residual_lag1_autocorrelation.items()),
+            ", ".join(f"{si(k)[0]} {_num(v, 2)}" for k, v in cal.diagnostics.residual_lag1_autocorrelation.items()),
         ),
     )
     drawn: list[Path] = []
@@ -185,7 +214,7 @@ def write_em_report(cal: Calibration, model_path: Path, figures: Sequence[Path])
         sections.append(
             Section(
                 f"Against {cal.scores.against} (never learned from)",
-                paragraphs=(f"Path median off the truth: {_num(path_mm)} mm.",) if path_mm is not None else (),
+                paragraphs=(f"Path median off the truth: {_num(path_mm * MM)} m.",) if path_mm is not None else (),
                 table=(("bar", "result"), rows) if rows else None,
                 figures=tuple(figs),
             )

@@ -17,6 +17,7 @@ import numpy as np
 from sensact.core.pose_models import PLANAR, landmark_bearing, relative_displacement, sensor_distance, sensor_poses
 from sensact.learn.em.estep import channel_columns
 from sensact.report.figures1d import _save
+from sensact.report.frames import LABEL, MM, REP_ORDER, si, velocity_rep
 
 MAX_LAG = 20
 WINDOW_S = 1.0  # velocities are compared over windows this long: one step's is mostly noise
@@ -81,7 +82,11 @@ def figure_residuals(res: Any, data: Any, path: Path, title: str) -> Path:
             ax_h.plot(z, student_t.pdf(z, nu), color="C3", label=f"Student-t, {nu:g} dof: the model's noise")
         else:
             ax_h.plot(z, np.exp(-0.5 * z**2) / np.sqrt(2 * np.pi), color="C3", label="N(0, 1): the model's noise")
-        ax_h.set(xlabel=f"{name} residual / learned sigma", ylabel="density", title=f"{name}: {r.size} residuals")
+        ax_h.set(
+            xlabel=f"{si(name)[0]} residual / learned sigma",
+            ylabel="density",
+            title=f"{si(name)[0]}: {r.size} residuals",
+        )
         ax_h.legend(fontsize=7)
         ac = autocorrelation(r)
         lags = np.arange(1, ac.size + 1)
@@ -121,16 +126,19 @@ def figure_actions(res: Any, data: Any, path: Path, title: str) -> Path:
     k = max(1, round(WINDOW_S / data.dt_s))
     smoothed, pred = _windowed(moved, k), _windowed(predicted[:-1], k)
     cmds = _windowed(data.step_commands[:-1], k)
+    rep = [velocity_rep(n) for n in names]  # REP 103 and SI, as the page's table and the exports
+    order = sorted(range(len(names)), key=lambda i: REP_ORDER.index(rep[i][0]) if rep[i][0] in REP_ORDER else i)
     fig, axes = plt.subplots(1, len(names), figsize=(4.6 * len(names), 3.8), squeeze=False)
-    for i, (name, ax) in enumerate(zip(names, axes[0], strict=True)):
+    for i, ax in zip(order, axes[0], strict=True):
         spread = np.abs(np.corrcoef(np.column_stack([cmds, pred[:, i]]).T)[-1, :-1]) if pred[:, i].std() > 0 else None
         c = int(np.nanargmax(spread)) if spread is not None and np.isfinite(spread).any() else 0
-        ax.scatter(cmds[:, c], smoothed[:, i], s=4, alpha=0.4, color="C0", label="smoothed path")
-        ax.scatter(cmds[:, c], pred[:, i], s=4, alpha=0.6, color="C3", label="learned A(c)")
-        ax.set(xlabel=data.command_names[c], ylabel=name, title=f"{name} against {data.command_names[c]}")
+        (name, k), (command, kc) = rep[i], si(data.command_names[c])
+        ax.scatter(cmds[:, c] * kc, smoothed[:, i] * k, s=4, alpha=0.4, color="C0", label="smoothed path")
+        ax.scatter(cmds[:, c] * kc, pred[:, i] * k, s=4, alpha=0.6, color="C3", label="learned A(c)")
+        ax.set(xlabel=command, ylabel=name, title=f"{name} against {command}")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, markerscale=3)
-    fig.suptitle(title)
+    fig.suptitle(f"{title} ({LABEL})")
     fig.tight_layout()
     return _save(fig, path)
 
@@ -140,17 +148,17 @@ def figure_path_over_truth(res: Any, data: Any, truth: np.ndarray, valid: np.nda
     m = res.posteriors.mean_gamma
     fig, ax = plt.subplots(figsize=(6.5, 5.5))
     if data.mode == PLANAR:
-        tr = np.where(valid[:, None], truth[:, :2], np.nan)
+        tr = np.where(valid[:, None], truth[:, :2], np.nan) * MM
         ax.plot(tr[:, 0], tr[:, 1], color="k", lw=1.2, label="recorded (truth)")
-        ax.plot(m[:, 0], m[:, 1], color="C0", lw=0.8, label="EM's smoothed path")
-        ax.scatter(*data.landmarks_xy.T, marker="s", color="C2", s=20, label="landmarks")
+        ax.plot(m[:, 0] * MM, m[:, 1] * MM, color="C0", lw=0.8, label="EM's smoothed path")
+        ax.scatter(*(data.landmarks_xy * MM).T, marker="s", color="C2", s=20, label="landmarks")
         ax.set_aspect("equal", adjustable="datalim")
-        ax.set(xlabel="x (mm)", ylabel="y (mm)")
+        ax.set(xlabel="map x (m)", ylabel="map y (m)")
     else:
         t = np.arange(data.n_steps) * data.dt_s
-        ax.plot(t, np.where(valid, truth[:, 0], np.nan), color="k", lw=1.2, label="recorded distance")
-        ax.plot(t, m[:, 0], color="C0", lw=0.8, label="EM's smoothed state")
-        ax.set(xlabel="time (s)", ylabel="distance (mm)")
+        ax.plot(t, np.where(valid, truth[:, 0], np.nan) * MM, color="k", lw=1.2, label="recorded distance")
+        ax.plot(t, m[:, 0] * MM, color="C0", lw=0.8, label="EM's smoothed state")
+        ax.set(xlabel="time (s)", ylabel="distance (m)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     ax.set_title(title)

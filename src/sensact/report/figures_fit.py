@@ -3,7 +3,7 @@ writes beside the model so that a user can judge a fit on a log nobody has measu
 
 Panels: the log-likelihood per iteration; each reading channel's readings against the smoothed distance
 to the landmark, with the learned f over them; the smoothed path (planar: in the plane among the
-landmarks; track: the distance against time)."""
+landmarks; track: the distance against time), in SI units and the map's axes (``report.frames``)."""
 
 from __future__ import annotations
 
@@ -20,6 +20,7 @@ import numpy as np
 from sensact.core.pose_models import TRACK, sensor_distance
 from sensact.learn.em.estep import channel_columns
 from sensact.report.figures1d import _save
+from sensact.report.frames import MM, si
 
 
 def _loglik_panel(ax: Any, res: Any) -> None:
@@ -51,25 +52,25 @@ def _channel_panel(ax: Any, res: Any, data: Any, j: int, col: int, dist: np.ndar
     used = has & (w > 0)
     # a robust channel's outliers stay in with a small Student-t weight
     low = used & (w < 0.5)
-    ax.scatter(
-        dist[has & ~used], reading[has & ~used], s=3, alpha=0.3, color="0.7", label="not used (pruned, robust, window)"
-    )
-    ax.scatter(dist[used & ~low], reading[used & ~low], s=3, alpha=0.3, color="C0", label="used")
+    name, k = si(ch.name)  # shown in SI: a range in mm as metres (a height in px stays px)
+    d, y = dist * MM, reading * k
+    ax.scatter(d[has & ~used], y[has & ~used], s=3, alpha=0.3, color="0.7", label="not used (pruned, robust, window)")
+    ax.scatter(d[used & ~low], y[used & ~low], s=3, alpha=0.3, color="C0", label="used")
     if low.any():
-        ax.scatter(dist[low], reading[low], s=3, alpha=0.3, color="C1", label="weight below 0.5 (robust)")
+        ax.scatter(d[low], y[low], s=3, alpha=0.3, color="C1", label="weight below 0.5 (robust)")
     lo, hi = (dist[used].min(), dist[used].max()) if used.any() else (dist[has].min(), dist[has].max())
     x = np.linspace(lo, hi, 200)
-    ax.plot(x, ch.function(x), color="C3", lw=2, label=f"learned f, σ = {ch.sigma:.3g}")
+    ax.plot(x * MM, ch.function(x) * k, color="C3", lw=2, label=f"learned f, σ = {ch.sigma * k:.3g}")
     for edge in (ch.valid_min, ch.valid_max):
         if math.isfinite(edge):
-            ax.axvline(edge, color="k", ls=":", lw=1)
+            ax.axvline(edge * MM, color="k", ls=":", lw=1)
     if used.any():
-        r = reading[used]
+        r = reading[used] * k
         pad = 0.15 * (np.percentile(r, 99.5) - np.percentile(r, 0.5))
         ax.set_ylim(np.percentile(r, 0.5) - pad, np.percentile(r, 99.5) + pad)
     extra = " − bearing terms" if ch.bearing_terms else ""
     ax.set(
-        xlabel="smoothed distance to the landmark", ylabel=f"{ch.name}{extra}", title=f"{ch.name}: f over the readings"
+        xlabel="smoothed distance to the landmark (m)", ylabel=f"{name}{extra}", title=f"{name}: f over the readings"
     )
     ax.legend(fontsize=7, markerscale=3)
 
@@ -78,14 +79,14 @@ def _path_panel(ax: Any, res: Any, data: Any) -> None:
     m = res.posteriors.mean_gamma
     t = np.arange(data.n_steps) * data.dt_s
     if data.mode == TRACK:
-        ax.plot(t, m[:, 0], lw=0.8)
-        ax.set(xlabel="time (s)", ylabel="smoothed distance", title="smoothed state")
+        ax.plot(t, m[:, 0] * MM, lw=0.8)
+        ax.set(xlabel="time (s)", ylabel="smoothed distance (m)", title="smoothed state")
         return
-    ax.plot(m[:, 0], m[:, 1], lw=0.6, label="smoothed path")
-    ax.plot(m[0, 0], m[0, 1], "o", color="C2", label="start")
-    ax.scatter(*data.landmarks_xy.T, marker="s", color="k", s=20, label="landmarks")
+    ax.plot(m[:, 0] * MM, m[:, 1] * MM, lw=0.6, label="smoothed path")
+    ax.plot(m[0, 0] * MM, m[0, 1] * MM, "o", color="C2", label="start")
+    ax.scatter(*(data.landmarks_xy * MM).T, marker="s", color="k", s=20, label="landmarks")
     ax.set_aspect("equal", adjustable="datalim")
-    ax.set(xlabel="x (mm)", ylabel="y (mm)", title="smoothed path")
+    ax.set(xlabel="map x (m)", ylabel="map y (m)", title="smoothed path")
     ax.legend(fontsize=7)
 
 
@@ -124,23 +125,24 @@ def _localized_path_panel(ax: Any, posteriors: Any, data: Any, truth: Any) -> No
     m = posteriors.mean_gamma
     t = np.arange(data.n_steps) * data.dt_s
     if data.mode == TRACK:
-        sd = np.sqrt(posteriors.cov_gamma[:, 0, 0])
-        ax.fill_between(t, m[:, 0] - 2 * sd, m[:, 0] + 2 * sd, color="C0", alpha=0.25, lw=0, label="± 2 sd")
-        ax.plot(t, m[:, 0], lw=0.8, color="C0", label="smoothed distance")
+        sd = np.sqrt(posteriors.cov_gamma[:, 0, 0]) * MM
+        d = m[:, 0] * MM
+        ax.fill_between(t, d - 2 * sd, d + 2 * sd, color="C0", alpha=0.25, lw=0, label="± 2 sd")
+        ax.plot(t, d, lw=0.8, color="C0", label="smoothed distance")
         if truth is not None:
-            ax.plot(t, truth[0][:, 0], lw=0.8, color="k", ls="--", label="recorded")
-        ax.set(xlabel="time (s)", ylabel="distance (the model's unit)", title="where the model puts the robot")
+            ax.plot(t, truth[0][:, 0] * MM, lw=0.8, color="k", ls="--", label="recorded")
+        ax.set(xlabel="time (s)", ylabel="distance (m)", title="where the model puts the robot")
         ax.legend(fontsize=7)
         return
     if truth is not None:
         poses, valid = truth
-        xy = np.where(valid[:, None], poses[:, :2], np.nan)  # a gap in the truth stays a gap
+        xy = np.where(valid[:, None], poses[:, :2], np.nan) * MM  # a gap in the truth stays a gap
         ax.plot(xy[:, 0], xy[:, 1], lw=0.6, color="k", ls="--", label="recorded poses")
-    ax.plot(m[:, 0], m[:, 1], lw=0.6, color="C0", label="smoothed path")
-    ax.plot(m[0, 0], m[0, 1], "o", color="C2", label="start found")
-    ax.scatter(*data.landmarks_xy.T, marker="s", color="k", s=20, label="landmarks")
+    ax.plot(m[:, 0] * MM, m[:, 1] * MM, lw=0.6, color="C0", label="smoothed path")
+    ax.plot(m[0, 0] * MM, m[0, 1] * MM, "o", color="C2", label="start found")
+    ax.scatter(*(data.landmarks_xy * MM).T, marker="s", color="k", s=20, label="landmarks")
     ax.set_aspect("equal", adjustable="datalim")
-    ax.set(xlabel="x (mm)", ylabel="y (mm)", title="where the model puts the robot")
+    ax.set(xlabel="map x (m)", ylabel="map y (m)", title="where the model puts the robot")
     ax.legend(fontsize=7)
 
 

@@ -18,6 +18,7 @@ from sensact.core.pose_models import landmark_distance
 from sensact.models.polynomial import Polynomial1D
 from sensact.report.figures1d import _save
 from sensact.report.figures_turtlebot_em import figure_turtlebot_em
+from sensact.report.frames import MM, si, velocity_rep
 
 
 def _truth_at_sensor(ml: Any, score: dict[str, Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -34,10 +35,10 @@ def _truth_at_sensor(ml: Any, score: dict[str, Any]) -> tuple[np.ndarray, np.nda
     return ok, at_sensor(poses[d.obs_step[ok]], mount), d.landmarks_xy[d.obs_landmark[ok]]
 
 
-_VELOCITY_LABELS = {  # the panel's title word and its axis
-    "v_x_mm_s": ("sideways velocity", "sideways velocity v_x, + right (mm/s)"),  # sec. 2.5.1: a left step is < 0
-    "v_y_mm_s": ("forward velocity", "forward velocity v_y (mm/s)"),
-    "v_theta_rad_s": ("turn rate", "turn rate v_theta (rad/s)"),
+_VELOCITY_LABELS = {  # the panel's title word and its axis, in REP 103 and SI (report.frames)
+    "v_x_mm_s": ("sideways velocity", "sideways velocity vy, + left (m/s)"),
+    "v_y_mm_s": ("forward velocity", "forward velocity vx (m/s)"),
+    "v_theta_rad_s": ("turn rate", "turn rate vyaw (rad/s)"),
 }
 # A command asks for a velocity outright only when it is the log's one command in that velocity's unit: a
 # differential drive's v_mm_s is the forward speed it asks for, while two wheel speeds ask for none alone.
@@ -79,16 +80,17 @@ def figure_action_curves(
             x = np.linspace(c[:, i].min(), c[:, i].max(), 50)
             grid = np.tile(held, (x.size, 1))
             grid[:, i] = x
-            ax.plot(x, act.features(grid) @ act.coefficients[:, j], label="learned (EM)")
-            ax.plot(x, act.features(grid) @ beta_ft[:, j], "--", label=f"From-Truth ({truth})")
+            (_, kv), (si_name, kc) = velocity_rep(velocities[j]), si(name)  # REP 103, SI
+            ax.plot(x * kc, act.features(grid) @ act.coefficients[:, j] * kv, label="learned (EM)")
+            ax.plot(x * kc, act.features(grid) @ beta_ft[:, j] * kv, "--", label=f"From-Truth ({truth})")
             if asking == [name]:
-                ax.plot(x, x, ":", color="0.5", label="command")
-            others = ", ".join(f"{n} at {held[k]:.3g}" for k, n in enumerate(commands) if k != i)
+                ax.plot(x * kc, x * kc, ":", color="0.5", label="command")
+            others = ", ".join(f"{si(n)[0]} at {held[k] * si(n)[1]:.3g}" for k, n in enumerate(commands) if k != i)
             word, axis = _VELOCITY_LABELS.get(velocities[j], (velocities[j], velocities[j]))
             ax.set(
-                xlabel=f"commanded {name}" + (f"\n({others})" if others else ""),  # a line of its own: 3 columns fit
+                xlabel=f"commanded {si_name}" + (f"\n({others})" if others else ""),  # a line of its own: 3 fit
                 ylabel=axis,
-                title=f"{title}: {word} against {name}",
+                title=f"{title}: {word} against {si_name}",
             )
             ax.legend(fontsize=7)
             ax.grid(alpha=0.3)
@@ -112,11 +114,13 @@ def figure_range_function(
     x = np.linspace(dist.min(), dist.max(), 200)
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     what = "sightings, learned bearing terms removed" if chan.bearing_terms else "sightings"
-    ax.scatter(dist, reading, s=3, alpha=0.25, color="0.4", label=f"{what} ({truth}, at the fitted sensor pose)")
-    ax.plot(x, f(x), lw=2, label="learned f (EM)")
-    ax.plot(x, f_ft(x), "--", lw=2, label="From-Truth f")
-    ax.set(xlabel="true distance (mm)", ylabel="range reading (mm)", title=f"{title}: range function")
-    ax.set_ylim(0, np.percentile(reading, 99.5) * 1.1)
+    name, k = si(chan.name)
+    label = f"{what} ({truth}, at the fitted sensor pose)"
+    ax.scatter(dist * MM, reading * k, s=3, alpha=0.25, color="0.4", label=label)
+    ax.plot(x * MM, f(x) * k, lw=2, label="learned f (EM)")
+    ax.plot(x * MM, f_ft(x) * k, "--", lw=2, label="From-Truth f")
+    ax.set(xlabel="true distance (m)", ylabel=f"reading {name}", title=f"{title}: range function")
+    ax.set_ylim(0, np.percentile(reading * k, 99.5) * 1.1)
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()

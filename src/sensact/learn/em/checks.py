@@ -218,10 +218,12 @@ def describe_held_sideways(held: dict[str, float]) -> str:
     )
 
 
-# above this lag-1 autocorrelation of a channel's smoothed residuals, its errors are not independent from one
-# reading to the next as eq. 4.19 assumes: EM reads the shared part as motion, and the sigma it learns is a
-# lower bound (issue 73: a real 1-D robot's laser at 0.97 learned a sigma 10x too small)
-AUTOCORRELATION_WARN = 0.5
+# beyond this lag-1 autocorrelation (either sign) of a channel's smoothed residuals, its errors are not
+# independent from one reading to the next as eq. 4.19 assumes. Above it EM reads the shared part as motion
+# and the sigma it learns is a lower bound (issue 73: a real 1-D robot's laser at 0.97 learned a sigma 10x
+# too small); below minus it the path follows the readings, each error undone by the next (a real robot's
+# bearings at -0.38 raised no warning at 0.5, issue 90).
+AUTOCORRELATION_WARN = 0.3
 # above this share of the sightings pruned by the gates, the gate is doing more than dropping outliers
 PRUNED_WARN = 0.2
 
@@ -266,15 +268,24 @@ def _lag1(e: np.ndarray) -> float | None:
 
 
 def describe_correlated(autocorrelation: dict[str, float | None]) -> list[str]:
-    """A warning for each channel whose residuals' lag-1 autocorrelation is above ``AUTOCORRELATION_WARN``."""
-    return [
-        f"{name}'s residuals about the smoothed path have a lag-1 autocorrelation of {r:.2f} (above "
-        f"{AUTOCORRELATION_WARN}): reading errors persist from one reading to the next, in this channel or in "
-        "another whose error the path follows as motion; eq. 4.19 takes them as independent, so the learned "
-        "sigmas are lower bounds on the sensors' noise"
-        for name, r in autocorrelation.items()
-        if r is not None and r > AUTOCORRELATION_WARN
-    ]
+    """A warning for each channel whose residuals' lag-1 autocorrelation is beyond +-``AUTOCORRELATION_WARN``."""
+    out = []
+    for name, r in autocorrelation.items():
+        if r is not None and r > AUTOCORRELATION_WARN:
+            out.append(
+                f"{name}'s residuals about the smoothed path have a lag-1 autocorrelation of {r:.2f} (above "
+                f"{AUTOCORRELATION_WARN}): reading errors persist from one reading to the next, in this channel or "
+                "in another whose error the path follows as motion; eq. 4.19 takes them as independent, so the "
+                "learned sigmas are lower bounds on the sensors' noise"
+            )
+        elif r is not None and r < -AUTOCORRELATION_WARN:
+            out.append(
+                f"{name}'s residuals about the smoothed path have a lag-1 autocorrelation of {r:.2f} (below "
+                f"-{AUTOCORRELATION_WARN}): each error is undone by the next, so the path follows these readings "
+                "(too little motion noise, or a wrong mount or delay) or the sensor's errors alternate; either "
+                "way its learned sigma is not the sensor's noise"
+            )
+    return out
 
 
 def describe_pruned(fraction: float, setting: str = "prune_rad_per_step") -> str | None:
