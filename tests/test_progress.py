@@ -81,3 +81,17 @@ def test_several_experiments_get_one_overall_line_with_an_eta_from_the_pace(monk
     left = 2 * (rep.EXPECTED_MIN["field2d"] + rep.EXPECTED_MIN["car"])
     assert "experiment 1 of 3: track1d" in printed[0]
     assert "experiment 2 of 3: field2d" in printed[1] and f"about {rep._minutes(left)} left" in printed[1]
+
+
+
+def test_the_eta_is_the_rows_own_pace_whatever_its_total_did():
+    """rich forgets its pace whenever a row's total changes, as EM's projection does each iteration: the
+    ETA column reads the row's elapsed time over its count instead."""
+    from sensact.cli.base import _remaining_column
+
+    class Task:
+        total, completed, elapsed = 300, 100, 50.0  # 0.5 s an iteration, 200 left
+
+    assert str(_remaining_column().render(Task())) == "0:01:40"
+    Task.total = None
+    assert str(_remaining_column().render(Task())) == "-:--:--"

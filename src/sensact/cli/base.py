@@ -304,6 +304,22 @@ class ProgressRows:
         return next(i for i, t in enumerate(self.bar.tasks) if t.id == task)
 
 
+def _remaining_column() -> Any:
+    """Time left as this row's own pace says it: its elapsed time over its count, times what is left.
+    (rich's column forgets its pace whenever a total changes, as EM's projected total does.)"""
+    from rich.progress import ProgressColumn
+    from rich.text import Text
+
+    class Remaining(ProgressColumn):
+        def render(self, task: Any) -> Text:
+            if task.total is None or not task.completed or task.elapsed is None:
+                return Text("-:--:--", style="progress.remaining")
+            left = int(task.elapsed / task.completed * max(task.total - task.completed, 0) + 0.5)
+            return Text(f"{left // 3600}:{left // 60 % 60:02d}:{left % 60:02d}", style="progress.remaining")
+
+    return Remaining()
+
+
 @contextmanager
 def progress_bar(to: Console | None = None) -> Iterator[Callable[[str, int, int | None], None]]:
     """A rich progress bar fed by the library's ``progress(description, done, total)`` callbacks
@@ -314,7 +330,6 @@ def progress_bar(to: Console | None = None) -> Iterator[Callable[[str, int, int 
         Progress,
         TextColumn,
         TimeElapsedColumn,
-        TimeRemainingColumn,
     )
     from rich.table import Column
 
@@ -324,7 +339,7 @@ def progress_bar(to: Console | None = None) -> Iterator[Callable[[str, int, int 
         BarColumn(bar_width=12),
         MofNCompleteColumn(),
         TimeElapsedColumn(),
-        TimeRemainingColumn(),  # EM's total is projected from its convergence rate (learn/em/eta.py)
+        _remaining_column(),  # EM's total is projected from its convergence rate (learn/em/eta.py)
         console=to or err_console,
         transient=False,
         disable=not (to or err_console).is_terminal,
