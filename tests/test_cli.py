@@ -1067,11 +1067,14 @@ def test_a_progress_description_that_changes_while_counting_keeps_its_row():
     rows = ProgressRows(bar)
     rows("diffdrive seed0: start race", 1, 6)
     rows("diffdrive seed1: start race", 1, 6)
-    rows("diffdrive seed0: EM iteration 3, log-likelihood -5.0", 4, None)
-    rows("diffdrive seed1: EM iteration 1, log-likelihood -9.0", 2, None)
-    rows("diffdrive seed0: EM iteration 4, log-likelihood -4.0", 5, None)
+    rows("diffdrive seed0: EM iteration 3, log-likelihood -5.0", 4, 80)  # EM's projected total
+    rows("diffdrive seed1: EM iteration 1, log-likelihood -9.0", 2, 90)
+    rows("diffdrive seed0: EM iteration 4, log-likelihood -4.0", 5, 81)
     assert bar.rows == ["diffdrive seed0: start race", "diffdrive seed1: start race"]
     assert [u[0] for u in bar.updates] == [0, 1, 0, 1, 0]
+    # a count with no end after one with an end gets a row of its own: rich would keep the old total (322/11)
+    rows("diffdrive seed1: EM iteration 2, no end known", 3, None)
+    assert bar.rows[-1] == "diffdrive seed1: EM iteration 2, no end known" and bar.updates[-1][0] == 2
 
 
 def test_a_log_at_one_speed_is_warned_about_and_ems_gain_not_scored(tmp_path):

@@ -463,14 +463,18 @@ def test_action_curves_draw_each_velocity_against_each_command(axle, monkeypatch
     figures_real.figure_action_curves(SimpleNamespace(data=d), model, score, Path("a.png"), "t")
     axes = np.asarray(drawn["fig"].axes).reshape(3, 2)
     at_medians = command_features("affine", 1, np.median(d.step_commands, axis=0)[None]) @ np.c_[learned, from_truth]
+    from sensact.report.frames import si, velocity_rep
+
     for r, j in enumerate([1, 2, 0]):  # forward, turn, sideways
         for i, name in enumerate(d.command_names):
             ax = axes[r, i]
             lines = {ln.get_label(): ln for ln in ax.get_lines()}
+            kv, kc = velocity_rep(model.action.velocity_names[j])[1], si(name)[1]  # drawn in REP 103 and SI
             for label, beta, k in (("learned (EM)", learned, j), ("From-Truth (Vicon)", from_truth, 3 + j)):
                 x, y = lines[label].get_data()
-                np.testing.assert_allclose(np.diff(y) / np.diff(x), beta[1 + i, j], rtol=1e-6, atol=1e-12)
-                np.testing.assert_allclose(np.interp(np.median(d.step_commands[:, i]), x, y), at_medians[0, k])
+                np.testing.assert_allclose(np.diff(y) / np.diff(x), beta[1 + i, j] * kv / kc, rtol=1e-6, atol=1e-12)
+                median = np.median(d.step_commands[:, i]) * kc
+                np.testing.assert_allclose(np.interp(median, x, y), at_medians[0, k] * kv, atol=1e-12)
             asks = (name, j) in {("v_mm_s", 1), ("omega_rad_s", 2)}
             assert ("command" in lines) == asks, (name, j)
     assert figures_real.action_panels(("v_x_mm_s", "v_y_mm_s", "v_theta_rad_s"), learned, learned) == [1, 2]

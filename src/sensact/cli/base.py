@@ -278,6 +278,7 @@ class ProgressRows:
         self.rows: dict[str, Any] = {}
         self.labels: dict[str, Any] = {}
         self.last: tuple[Any, int, int | None] | None = None  # (task, done, total) of the last call
+        self.totals: dict[Any, int | None] = {}  # each row's total as last given
 
     def __call__(self, desc: str, done: int, total: int | None) -> None:
         label = desc.split(": ", 1)[0] if ": " in desc else None
@@ -288,7 +289,7 @@ class ProgressRows:
             task = self.last[0]
             self.rows = {k: v for k, v in self.rows.items() if v != task}
             self.labels = {k: v for k, v in self.labels.items() if v != task}
-        if task is not None and total is None and self.bar.tasks[self._index(task)].total is not None:
+        if task is not None and total is None and self.totals.get(task) is not None:
             task = None  # a count with no end after one with an end (a race, then EM): rich keeps an old total
         if task is None:
             task = self.bar.add_task(desc, total=total)
@@ -298,10 +299,8 @@ class ProgressRows:
         if total is not None and done > total:  # never a count over its total (an estimate that fell short)
             total = done
         self.bar.update(task, description=desc, completed=done, total=total)
+        self.totals[task] = total
         self.last = (task, done, total)
-
-    def _index(self, task: Any) -> int:
-        return next(i for i, t in enumerate(self.bar.tasks) if t.id == task)
 
 
 def _remaining_column() -> Any:
