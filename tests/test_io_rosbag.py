@@ -517,7 +517,8 @@ def test_a_ros1_bag_rosbags_refuses_is_read_record_by_record(diffdrive_source, t
     with pytest.raises(Exception):  # noqa: B017 (whatever rosbags raises, it refuses)
         AnyReader([old]).open()
     for source, out in ((bag, tmp_path / "new"), (old, tmp_path / "old")):
-        _ok(["convert", "bag", source, "--landmarks", csv["landmarks"], "--out", out])
+        res = _ok(["convert", "bag", source, "--landmarks", csv["landmarks"], "--out", out])
+    assert "the bag is read record by record" in " ".join(res.output.split())
     for name in ("commands", "sightings", "truth"):
         _same_rows(
             read_numeric_csv(tmp_path / "old" / "bag_tables" / f"{name}.csv"),
@@ -623,3 +624,24 @@ def test_a_named_topic_of_the_wrong_type_is_refused_naming_both_types(tmp_path, 
     short = kind.replace("/msg/", "/")
     assert f"{topic} is a {short}, which sensact cannot read as {role[2:]}" in text
     assert "give a topic of type" in text  # the types the role takes
+
+
+def test_a_bag_whose_definitions_do_not_parse_is_read_with_the_standard_ones(diffdrive_source, tmp_path):
+    """A ROS 2 bag whose recorded message definitions rosbags cannot parse (a recorder's quirk) converts
+    with ROS 2 Humble's, to the tables the same bag converts to, and says so."""
+    import sqlite3
+
+    from sensact.io.csvtable import read_numeric_csv
+
+    csv, rec = diffdrive_source
+    bag = write_robot_bag(tmp_path / "run", "sqlite3", rec)
+    _ok(["convert", "bag", bag, "--landmarks", csv["landmarks"], "--out", tmp_path / "good"])
+    with sqlite3.connect(next(bag.glob("*.db3"))) as con:
+        con.execute("update message_definitions set encoded_message_definition = 'not a definition !!'")
+    res = _ok(["convert", "bag", bag, "--landmarks", csv["landmarks"], "--out", tmp_path / "std"])
+    assert "ROS's standard definitions are used" in " ".join(res.output.split())
+    for name in ("commands", "sightings", "truth"):
+        _same_rows(
+            read_numeric_csv(tmp_path / "std" / "bag_tables" / f"{name}.csv"),
+            read_numeric_csv(tmp_path / "good" / "bag_tables" / f"{name}.csv"),
+        )

@@ -106,6 +106,8 @@ def convert_bag(
     }
     named = {**_mapping(mapping), **given}
     reader = open_bag(bag)
+    if getattr(reader, "sensact_note", None):
+        console.print(f"[yellow]note:[/] {reader.sensact_note}", highlight=False)
     try:
         topics = bag_topics(reader)
         if not topics:

@@ -97,9 +97,14 @@ def _short(msgtype: str) -> str:
 
 
 def open_bag(path: Path):  # -> rosbags.highlevel.AnyReader, opened
-    """The bag at ``path`` (a ROS 1 ``.bag``, or a ROS 2 bag folder or its ``.db3``/``.mcap`` file), open."""
+    """The bag at ``path`` (a ROS 1 ``.bag``, or a ROS 2 bag folder or its ``.db3``/``.mcap`` file), open.
+
+    Where rosbags refuses a bag that is whole, it is opened again another way, and ``reader.sensact_note``
+    says how: a message definition rosbags cannot parse is replaced by ROS's standard one (ROS 2 Humble's,
+    ROS 1 Noetic's), and a ROS 1 bag whose index rosbags cannot read is read record by record
+    (``sensact.io.rosbag1_scan``)."""
     try:
-        from rosbags.highlevel import AnyReader, AnyReaderError
+        from rosbags.highlevel import AnyReader
         from rosbags.typesys import Stores, get_typestore
     except ImportError:
         raise LogFormatError(
@@ -113,39 +118,90 @@ def open_bag(path: Path):  # -> rosbags.highlevel.AnyReader, opened
     reader = AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
     try:
         reader.open()
-    except (AnyReaderError, Exception) as err:  # rosbags raises its own per format; all mean "not a bag I can read"
-        why = str(err).splitlines()[0] if str(err) else type(err).__name__
-        if path.is_file() and ros1_version(path) is not None:
-            return _scanned(path, why)
+        return reader
+    except Exception as err:  # rosbags raises its own per format; each means "not as it stands"
+        why = _first_line(err)
+    ros1 = path.is_file() and ros1_version(path) is not None
+    failed = why
+    for inner, standard, note in _other_ways(path, ros1):
+        try:
+            return _reopen(path, inner(), Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE, standard, note(why))
+        except Exception as err:  # this way fails too: the next, and the last one's reason is the one said
+            failed = _first_line(err)
+    if ros1:
         raise LogFormatError(
-            f"not a ROS bag rosbags can read ({why}).",
-            file=path,
-            fix="give a ROS 1 .bag file, or a ROS 2 bag folder (with metadata.yaml) or its .mcap file.",
-        ) from None
-    return reader
-
-
-def _scanned(path: Path, why: str):  # -> rosbags.highlevel.AnyReader, opened
-    """A ROS 1 bag rosbags' reader refused (``why``: an index of an older version, none, format 1.2), read
-    front to back with its index rebuilt in memory (``sensact.io.rosbag1_scan``)."""
-    from rosbags.highlevel import AnyReader
-
-    from sensact.io.rosbag1_scan import Rosbag1Scan
-
-    reader = AnyReader([path])
-    reader.readers = [Rosbag1Scan(path)]
-    try:
-        reader.open()
-    except Exception as err:  # the scan's own refusal, or a type definition rosbags cannot parse
-        detail = str(err).splitlines()[0] if str(err) else type(err).__name__
-        raise LogFormatError(
-            f"a ROS 1 bag whose index rosbags cannot read ({why}), and reading it record by record failed too "
-            f"({detail}).",
+            f"a ROS 1 bag that rosbags cannot read ({why}), and reading it record by record failed too ({failed}).",
             file=path,
             fix=f"rebuild its index with ROS 1's `rosbag reindex {path.name}` (or `rosbag fix` for format 1.2), "
             "then convert the .bag it writes.",
-        ) from None
+        )
+    raise LogFormatError(
+        f"not a ROS bag rosbags can read ({why}).",
+        file=path,
+        fix="give a ROS 1 .bag file, or a ROS 2 bag folder (with metadata.yaml) or its .mcap file.",
+    )
+
+
+def _first_line(err: BaseException) -> str:
+    return str(err).splitlines()[0] if str(err) else type(err).__name__
+
+
+def _other_ways(path: Path, ros1: bool) -> list[tuple[Callable[[], object], bool, Callable[[str], str]]]:
+    """How else to open a bag rosbags refused: (its reader, whether with ROS's standard definitions, the note)."""
+    from sensact.io.rosbag1_scan import Rosbag1Scan
+
+    standard = "its message definitions do not parse ({}): ROS's standard definitions are used".format
+    scanned = "rosbags cannot read its index ({}): the bag is read record by record".format
+    if not ros1:
+        from rosbags.rosbag2 import Reader as Reader2
+
+        return [(lambda: Reader2(path), True, standard)]
+    from rosbags.rosbag1 import Reader as Reader1
+
+    return [
+        (lambda: Reader1(path), True, standard),
+        (lambda: Rosbag1Scan(path), False, scanned),
+        (lambda: Rosbag1Scan(path), True, lambda why: scanned(why) + ", with ROS's standard definitions"),
+    ]
+
+
+def _reopen(path: Path, inner: object, store: object, standard: bool, note: str):  # -> AnyReader, opened
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import get_typestore
+
+    reader = AnyReader([path], default_typestore=get_typestore(store))
+    reader.readers = [_StandardTypes(inner) if standard else inner]
+    reader.open()
+    reader.sensact_note = note
     return reader
+
+
+class _StandardTypes:
+    """A rosbags reader whose connections claim no message definition of their own, so that ``AnyReader``
+    deserializes with its default typestore (ROS's standard types): for a bag whose own definitions rosbags
+    cannot parse. Messages are the inner reader's, handed back on these connections."""
+
+    def __init__(self, inner: object) -> None:
+        self.inner = inner
+        self.connections: list = []
+
+    def __enter__(self) -> _StandardTypes:
+        from rosbags.interfaces import MessageDefinition, MessageDefinitionFormat
+
+        self.inner.__enter__()
+        none = MessageDefinition(MessageDefinitionFormat.NONE, "")
+        self.connections = [c._replace(msgdef=none, digest="", owner=self) for c in self.inner.connections]
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.inner.__exit__(*exc)
+
+    def messages(self, connections=(), start=None, stop=None):
+        ours = {c.id: c for c in self.connections}
+        wanted = {c.id for c in connections} or set(ours)
+        inner = [c for c in self.inner.connections if c.id in wanted]
+        for c, t, raw in self.inner.messages(connections=inner, start=start, stop=stop):
+            yield ours[c.id], t, raw
 
 
 def bag_topics(reader) -> list[Topic]:
