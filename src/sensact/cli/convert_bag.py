@@ -82,7 +82,6 @@ def convert_bag(
     meta.json to compare. The tables read from the bag stay in OUT/bag_tables/."""
     from sensact.errors import LogFormatError
     from sensact.io.rosbag import (
-        TF_TYPES,
         Roles,
         bag_topics,
         check_roles,
@@ -116,11 +115,10 @@ def convert_bag(
         proposal, open_roles, unfilled = propose_roles(reader, topics)
     finally:
         reader.close()
-    missing = [role for role in unfilled if not set(role.split(" or ")) & set(named)]
+    missing = [roles for roles in unfilled if not set(roles) & set(named)]
     if missing:  # no naming can fix this: say what the bag has and what sensact reads
-        tag_free = [t.name for t in topics if t.msgtype in TF_TYPES and not t.name.endswith("tf_static")]
         raise LogFormatError(
-            no_supported_line(missing, topics, tag_free if "readings or sightings" in missing else []),
+            no_supported_line(missing, topics),
             file=bag,
             fix="record the commands (/cmd_vel or wheel odometry) and a sensor_msgs/Range or AprilTag detections.",
         )

@@ -135,7 +135,7 @@ class Overall:
         self.todo, self.done, self.t0, self.clock = todo, [], time.perf_counter(), time.perf_counter
 
     def start(self, name: str) -> None:
-        if len(self.todo) < 2:
+        if len(self.todo) < 2 or name not in self.todo:
             return
         elapsed = self.clock() - self.t0
         expected_done = sum(EXPECTED_MIN[n] for n in self.done)
@@ -165,7 +165,11 @@ def _run_experiments(
     truth_restart: bool,
     engine: Any,
 ) -> None:
-    overall = Overall(todo)
+    from sensact.experiments.shared_data import turtlebot_logs
+
+    root = _data_dir(data)
+    skipped = {"turtlebot": not turtlebot_logs(root), "real": not root.is_dir()}  # said as each is reached
+    overall = Overall([n for n in todo if not skipped.get(n)])
     if "track1d" in todo:
         overall.start("track1d")
         _reproduce_track1d(out, trials or 15, seed, set_, config, engine)

@@ -248,7 +248,7 @@ def _tag_topics(reader, topics: list[Topic]) -> list[str]:
     return found
 
 
-def propose_roles(reader, topics: list[Topic]) -> tuple[Roles, list[tuple[frozenset[str], str]], list[str]]:
+def propose_roles(reader, topics: list[Topic]) -> tuple[Roles, list[tuple[frozenset[str], str]], list[tuple[str, ...]]]:
     """The roles a bag's types suggest, why any role is left open (ambiguous), and the roles no topic's type
     can play: with exactly one command source, one kind of reading and at most one truth the proposal is
     complete.
@@ -262,9 +262,9 @@ def propose_roles(reader, topics: list[Topic]) -> tuple[Roles, list[tuple[frozen
     twists = [t.name for t in topics if t.msgtype in COMMAND_TYPES[:2] and t.count]
     odoms = [t.name for t in topics if t.msgtype == "nav_msgs/Odometry" and t.count]
     commands = twists or odoms
-    unfilled = []  # roles no topic's type can play: no naming fixes those
+    unfilled: list[tuple[str, ...]] = []  # roles no topic's type can play: no naming fixes those
     if not commands:
-        unfilled.append("commands")
+        unfilled.append(("commands",))
     if len(commands) > 1:
         open_roles.append((frozenset(("commands",)), f"commands: one of {', '.join(commands)}"))
     ranges = [t.name for t in topics if t.msgtype in READING_TYPES and t.count]
@@ -272,7 +272,7 @@ def propose_roles(reader, topics: list[Topic]) -> tuple[Roles, list[tuple[frozen
     if len(sightings) > 1:
         open_roles.append((either, f"sightings: one of {', '.join(sightings)}"))
     if not ranges and not sightings:
-        unfilled.append("readings or sightings")
+        unfilled.append(("readings", "sightings"))
     if ranges and sightings:
         open_roles.append((either, f"readings {', '.join(ranges)} or sightings {', '.join(sightings)}: not both"))
     truths = [t.name for t in topics if t.msgtype in TRUTH_TYPES[:2] and t.count]
@@ -297,9 +297,12 @@ NOT_READ = {
 }
 
 
-def no_supported_line(missing: list[str], topics: list[Topic], tag_free_tf: list[str]) -> str:
-    """Why no topic can play ``missing`` (roles no naming can fill): the types the bag has, the types sensact
-    reads for each role, and what would add the others."""
+def no_supported_line(missing: list[tuple[str, ...]], topics: list[Topic]) -> str:
+    """Why no topic can play ``missing`` (each: roles any one of which would do; no naming can fill them): the
+    types the bag has, the types sensact reads for each role, and what would add the others."""
+    tag_free_tf = [t.name for t in topics if t.msgtype in TF_TYPES and not t.name.endswith("tf_static")]
+    if ("readings", "sightings") not in missing:
+        tag_free_tf = []
     found = sorted({t.msgtype for t in topics if t.msgtype not in NOT_READ})
     planned = sorted({t.msgtype for t in topics if t.msgtype in NOT_READ})
     reads = "; ".join(
@@ -307,7 +310,7 @@ def no_supported_line(missing: list[str], topics: list[Topic], tag_free_tf: list
         for role, types in SUPPORTED.items()
     )
     line = (
-        f"no topic of a type sensact reads plays the {' or the '.join(missing)}: the bag has "
+        f"no topic of a type sensact reads plays the {' or the '.join(' or '.join(m) for m in missing)}: the bag has "
         f"{', '.join(found + planned) or 'no typed topic'}"
     )
     if tag_free_tf:
