@@ -110,18 +110,19 @@ def reproduce(
         console.print(f"wrote {page}: every table and figure in {out} on one page")
 
 
-# each experiment's minutes with the default trials, measured on this project's two-core machine
-# (`sensact reproduce NAME`, 2026-11-29): the ETA's weights, scaled by how fast this machine runs them
+# each experiment's minutes with the default trials on this project's two-core machine, measured with
+# `sensact reproduce` on 2026-11-29 (track1d's with the first compile of the kernels, turtlebot's and real's
+# with ../shared/data; uncertainty's from docs/uncertainty.md): the ETA's weights, scaled by this run's pace
 EXPECTED_MIN = {
-    "track1d": 0.2,
-    "turtlebot": 0.5,
-    "field2d": 0.7,
-    "em1d": 0.8,
-    "monitor": 3.6,
-    "car": 1.4,
-    "diffdrive": 1.5,
+    "track1d": 0.17,
+    "turtlebot": 0.02,
+    "field2d": 0.6,
+    "em1d": 0.75,
+    "monitor": 3.3,
+    "car": 1.3,
+    "diffdrive": 0.83,
     "uncertainty": 35.0,
-    "real": 4.0,
+    "real": 1.9,
 }
 
 
