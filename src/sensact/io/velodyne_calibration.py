@@ -117,7 +117,7 @@ def calibration_from_dict(data: Any, path: str | Path) -> LaserIntrinsics:
 # what ROS's velodyne driver (velodyne_pointcloud's calibration.cc) reads of every laser besides the two angles
 # sec. 5.1 learns, and the value that means "no correction" (a unit's nominal geometry) where no factory
 # calibration gave one
-DRIVER_DEFAULTS: dict[str, Any] = {
+DRIVER_DEFAULTS: dict[str, float | int | bool] = {
     "dist_correction": 0.0,
     "dist_correction_x": 0.0,
     "dist_correction_y": 0.0,
