@@ -46,18 +46,41 @@ def learned(tmp_path_factory):
     return root, json.loads((root / "model.json").read_text())
 
 
+def _ros2_parameters(doc) -> list[str]:
+    """What a ROS 2 `--params-file` parser refuses in ``doc``: a top-level key without exactly
+    `ros__parameters`, or a leaf that is not a scalar or a flat list of one scalar type (nested lists, nulls)."""
+    bad = [k for k, node in doc.items() if not (isinstance(node, dict) and set(node) == {"ros__parameters"})]
+
+    def leaves(node, name):
+        if isinstance(node, dict):
+            for k, v in node.items():
+                leaves(v, f"{name}.{k}")
+        elif isinstance(node, list):
+            kinds = {type(v) for v in node}
+            if not (len(kinds) <= 1 and kinds <= {bool, int, float, str}):
+                bad.append(name)
+        elif not isinstance(node, bool | int | float | str):
+            bad.append(name)
+
+    for k, node in doc.items():
+        leaves(node.get("ros__parameters") if isinstance(node, dict) else None, k)
+    return bad
+
+
 def test_robot_localization_yaml_is_sigma_m_in_si_per_second(learned, tmp_path):
     root, doc = learned
     _ok(["export", root / "model.json", "--format", "robot-localization", "--out", tmp_path / "rl.yaml"])
     params = yaml.safe_load((tmp_path / "rl.yaml").read_text())
     # a ROS 2 parameter file, as `--params-file` parses it: every top-level key a node's ros__parameters
-    assert all(set(node) == {"ros__parameters"} for node in params.values()) and list(params) == ["ekf_filter_node"]
+    assert _ros2_parameters(params) == [] and list(params) == ["ekf_filter_node"]
     q = np.array(params["ekf_filter_node"]["ros__parameters"]["process_noise_covariance"]).reshape(15, 15)
-    params |= yaml.safe_load((tmp_path / "rl.sensact.yaml").read_text())  # sensact's numbers, beside it
+    beside = yaml.safe_load((tmp_path / "rl.sensact.yaml").read_text())  # sensact's numbers, beside it
+    assert _ros2_parameters(beside) == []  # a ROS 2 parameter file too
+    params["sensact"] = beside["sensact_calibration"]["ros__parameters"]
     assert np.array_equal(q, q.T) and np.linalg.eigvalsh(q).min() > 0  # symmetric positive-definite
     dt = doc["dt_s"]
     side, fwd, head = doc["model"]["motion_sd"][0]  # sensact's robot frame: x right, y forward (mm, per step)
-    body = np.array(params["sensact"]["sigma_m_per_s_body"])
+    body = np.array(params["sensact"]["sigma_m_per_s_body"]).reshape(3, 3)
     np.testing.assert_allclose(body, np.diag([(fwd / 1000) ** 2, (side / 1000) ** 2, head**2]) / dt, rtol=1e-12)
     # world x, y: the body covariance averaged over headings (a rotated covariance's mean is trace/2 * I)
     headings = np.linspace(0, 2 * np.pi, 3600, endpoint=False)
@@ -77,7 +100,8 @@ def test_exported_action_model_predicts_what_the_model_predicts(learned, tmp_pat
     into REP 103's axes (forward = sensact's y, left = -x)."""
     root, doc = learned
     _ok(["export", root / "model.json", "--format", "robot-localization", "--out", tmp_path / "rl.yaml"])
-    act = yaml.safe_load((tmp_path / "rl.sensact.yaml").read_text())["sensact"]["action_model"]
+    act = yaml.safe_load((tmp_path / "rl.sensact.yaml").read_text())["sensact_calibration"]["ros__parameters"]
+    act = act["action_model"]
     assert act["commands"] == ["v_m_s", "omega_rad_s"]
     model = EMModel.from_dict(doc["model"])
     rng = np.random.default_rng(0)

@@ -83,7 +83,6 @@ def test_several_experiments_get_one_overall_line_with_an_eta_from_the_pace(monk
     assert "experiment 2 of 3: field2d" in printed[1] and f"about {rep._minutes(left)} left" in printed[1]
 
 
-
 def test_the_eta_is_the_rows_own_pace_whatever_its_total_did():
     """rich forgets its pace whenever a row's total changes, as EM's projection does each iteration: the
     ETA column reads the row's elapsed time over its count instead."""

@@ -126,8 +126,8 @@ def robot_localization_yaml(doc: dict[str, Any], source: Path) -> tuple[str, str
     sensact = {
         "source": str(source),
         "step_s": dt,
-        "sigma_m_per_s_body": (sigma / dt).tolist(),  # x forward, y left, yaw: Sigma_m / dt, exactly
-        "turn_variance_per_s": None if model.turn_var is None else model.turn_var / dt,
+        "sigma_m_per_s_body": (sigma / dt).ravel().tolist(),  # x forward, y left, yaw: Sigma_m / dt, row-major
+        **({} if model.turn_var is None else {"turn_variance_per_s": model.turn_var / dt}),
         "twist_covariance": twist_covariance(sigma, dt).ravel().tolist(),
         "action_model": action_model_si(model.action, dt),
         "sensor_mount": {
@@ -149,14 +149,24 @@ def robot_localization_yaml(doc: dict[str, Any], source: Path) -> tuple[str, str
         "# the sensor's mount) are in the .sensact.yaml file beside this one.\n"
     )
     extra = (
-        f"# sensact's calibration from {source.name} beyond robot_localization's parameters (SI, REP 103).\n"
-        "# twist_covariance (vx vy vz vroll vpitch vyaw, row-major) is a command's (or wheel odometry's)\n"
-        "# covariance as a twist over one step, for its messages; action_model's velocities are sums of\n"
-        "# coefficient times feature (constant, a command, or a product of commands).\n"
+        f"# sensact's calibration from {source.name} beyond robot_localization's parameters (SI, REP 103), as\n"
+        "# ROS 2 parameters too. sigma_m_per_s_body is 3x3 (x forward, y left, yaw) and twist_covariance 6x6\n"
+        "# (vx vy vz vroll vpitch vyaw), row-major: the latter is a command's (or wheel odometry's) covariance\n"
+        "# as a twist over one step, for its messages; action_model's velocities are sums of coefficient times\n"
+        "# feature (constant, a command, or a product of commands).\n"
     )
-    return header + node, extra + yaml.safe_dump(
-        {"sensact": sensact}, sort_keys=False, default_flow_style=None, width=120
-    )
+    doc = {"sensact_calibration": {"ros__parameters": _ros_values(sensact)}}
+    return header + node, extra + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=120)
+
+
+def _ros_values(value: Any) -> Any:
+    """What a ROS 2 parameter file holds: maps, scalars and flat lists (an action table's rows flattened
+    row-major), no null."""
+    if isinstance(value, dict):
+        return {k: _ros_values(v) for k, v in value.items() if v is not None}
+    if isinstance(value, list | tuple) and any(isinstance(v, list | tuple) for v in value):
+        return [x for v in value for x in (_ros_values(v) if isinstance(v, list | tuple) else [v])]
+    return value
 
 
 def _refuse_non_finite(values: Any, source: Path, where: str = "") -> None:
