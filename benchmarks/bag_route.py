@@ -23,8 +23,7 @@ import numpy as np
 from typer.testing import CliRunner
 
 from sensact.cli import app
-from sensact.experiments.diffdrive import recording_of
-from sensact.io.rosbag_write import FORMATS, write_map_csv, write_robot_bag
+from sensact.io.rosbag_write import FORMATS, recording_of, write_map_csv, write_robot_bag
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
 ROBOT = dict(

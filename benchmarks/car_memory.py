@@ -18,7 +18,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from sensact.experiments.car import simulate_car_log
+from sensact.app.car import simulate_car_log
 from sensact.sim.car import CarConfig
 
 GOAL_BYTES = 1 << 30

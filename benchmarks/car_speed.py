@@ -16,7 +16,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from sensact.experiments.car import learn_from_log, simulate_car_log
+from sensact.app.car import learn_from_log, simulate_car_log
 from sensact.io.car_log import read_car_log
 from sensact.learn.car_dynamics import CarLearningConfig
 from sensact.learn.lidar_intrinsics import IntrinsicsConfig, learn_relative_angles

@@ -17,10 +17,10 @@ import json
 import time
 
 from sensact.evaluate.bars import robot_checks
-from sensact.experiments.diffdrive import SimulatedRobot, simulator_settings
+from sensact.experiments.diffdrive import SimulatedRobot
 from sensact.experiments.real import evaluate_mrclam, mrclam_folder
 from sensact.learn.em import EMConfig, fit_em
-from sensact.presets import mrclam_config
+from sensact.presets import mrclam_config, simulator_settings
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
 # each heuristic, and the settings that turn it off

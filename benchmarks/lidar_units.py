@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from sensact.app.car import learn_from_log, simulate_car_log
 from sensact.evaluate.car import laser_angle_error
-from sensact.experiments.car import learn_from_log, simulate_car_log
 from sensact.io.car_log import read_car_log
 from sensact.models.lidar_unit import UNITS
 from sensact.sim.car import CarConfig

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sensact.experiments.car import simulate_car_log
+from sensact.app.car import simulate_car_log
 from sensact.io.car_log import read_car_log
 from sensact.learn.scan_odometry import OdometryConfig, scan_odometry
 from sensact.sim.car import CarConfig

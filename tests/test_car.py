@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from conftest import rewrite_capture
+from sensact.app.car import learn_angles_from_log, learn_from_log, simulate_car_log
 from sensact.core.raycast import BOX, CYLINDER, _hit_box, _hit_cylinder, build_grid, cast_firings
 from sensact.errors import LogFormatError
-from sensact.experiments.car import learn_angles_from_log, learn_from_log, simulate_car_log
 from sensact.io.car_log import read_car_log
 from sensact.io.velodyne import PACKET, UPPER, encode_hdl64e, read_pcap_payloads, write_pcap
 from sensact.io.velodyne_calibration import write_calibration

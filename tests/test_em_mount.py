@@ -11,7 +11,6 @@ import pytest
 
 from sensact.core.pose_models import landmark_bearing, landmark_distance, relative_displacement, sensor_poses
 from sensact.evaluate.landmark_truth import path_offset
-from sensact.experiments.diffdrive import simulator_settings
 from sensact.learn.em import fit_em
 from sensact.learn.em.checks import describe_correlated, describe_pruned, residual_autocorrelation
 from sensact.learn.em.estep import e_step
@@ -19,6 +18,7 @@ from sensact.learn.em.mount import mount_freedom, mount_update, remounted
 from sensact.models.em_model import EMModel
 from sensact.models.landmark_sensor import LandmarkSensor, SensorMount
 from sensact.models.polynomial import Polynomial1D
+from sensact.presets import simulator_settings
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
 MOUNT = (220.0, 40.0, np.deg2rad(2.0))  # the camera: 22 cm ahead, 4 cm left, yawed 2 degrees

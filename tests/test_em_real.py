@@ -625,7 +625,7 @@ def test_mrclam_robot1_from_an_unknown_start(tmp_path):
         and scores[3]["range"]["learned_residual_rms_mm"] > row["score"]["range"]["learned_residual_rms_mm"]
     )
     # `evaluate fleet` on the same two folders: each pair is the `evaluate log` score of it
-    from sensact.experiments.fleet import fleet_cell
+    from sensact.app.fleet import fleet_cell
 
     out = tmp_path / "fleet.json"
     run = CliRunner().invoke(
@@ -677,7 +677,7 @@ def test_reproduce_real_runs_every_mrclam_dataset_it_finds(tmp_path):
     keys = [c["key"] for c in res["scorecard"]]  # every robot's bars, under its row's name
     assert len(keys) == 21 and keys[7] == "MRCLAM_Dataset6/robot3.action_translation_ratio"
     # a dataset with two robots or more gets its fleet table: on its diagonal, each robot's own score
-    from sensact.experiments.fleet import fleet_cell
+    from sensact.app.fleet import fleet_cell
 
     assert list(res["fleet"]) == ["MRCLAM_Dataset6"]  # Dataset 9 has one robot left
     fleet = res["fleet"]["MRCLAM_Dataset6"]

@@ -92,7 +92,7 @@ def test_the_real_robot_gain_goes_through_the_sensor_scale_not_the_actions_own()
     A twice too fast has gain 1.8, which A's own optimal scale would have hidden (0.9 again)."""
     from types import SimpleNamespace
 
-    from sensact.experiments.turtlebot import evaluate_real
+    from sensact.evaluate.real_track import evaluate_real
     from sensact.io.logfolder import TrackLog
     from sensact.learn.bootstrap import BootstrapConfig
 
@@ -126,7 +126,7 @@ def test_the_real_robot_sensor_is_scored_in_10_cm_bins_in_any_distance_unit():
     does not name is binned in 1/32 of the distances' span."""
     from types import SimpleNamespace
 
-    from sensact.experiments.turtlebot import evaluate_real, sensor_bin_width
+    from sensact.evaluate.real_track import evaluate_real, sensor_bin_width
     from sensact.io.logfolder import TrackLog
     from sensact.learn.bootstrap import BootstrapConfig
 

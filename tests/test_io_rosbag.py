@@ -14,8 +14,7 @@ from typer.testing import CliRunner
 
 from conftest import CAPPED, DATA, assert_written, require, write_csv
 from sensact.cli import app
-from sensact.experiments.diffdrive import recording_of
-from sensact.io.rosbag_write import FORMATS, Msgs, write_bag, write_map_csv, write_robot_bag
+from sensact.io.rosbag_write import FORMATS, Msgs, recording_of, write_bag, write_map_csv, write_robot_bag
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
 pytest.importorskip("rosbags", reason="the ros extra (pip install 'sensact[ros]') reads bags")

@@ -70,6 +70,19 @@ def test_imports_only_go_downward():
     assert not bad, "\n".join(bad)
 
 
+def test_cli_imports_experiments_only_in_reproduce():
+    """The commands' work lives in app/ (DESIGN.md): the CLI parses, calls one app function, prints and
+    saves; only `sensact reproduce` runs the thesis's experiments."""
+    bad = [
+        f"{path.relative_to(SRC)} imports {mod}"
+        for path in (SRC / "cli").rglob("*.py")
+        if path.name != "reproduce.py"
+        for mod in _imports(path)
+        if mod.startswith("sensact.experiments")
+    ]
+    assert not bad, "\n".join(bad)
+
+
 def test_numeric_layers_name_no_ui_library():
     bad = []
     for part in NUMERIC_PARTS:

@@ -10,8 +10,8 @@ import pytest
 import yaml
 
 from conftest import require
-from sensact.experiments.car import learn_angles_from_log, simulate_car_log
-from sensact.experiments.shared_data import data_root
+from sensact.app.car import learn_angles_from_log, simulate_car_log
+from sensact.app.logs import data_root
 from sensact.io.car_log import read_car_log
 from sensact.io.lidar_packets import encode_packets, packet_fields
 from sensact.io.logfolder import LOG_FORMAT, LOG_VERSION

@@ -217,9 +217,9 @@ def test_a_planar_robot_learned_on_one_run_is_flagged_when_its_motors_wear_on_an
     """Off the thesis's track: a simulated differential drive in MRCLAM's conditions, learned on one 300 s
     run; on another run its motors give 3/4 of every velocity from 150 s (``change_at_s``): the action
     model is named within 30 s; the same run without the change raises no alarm."""
-    from sensact.experiments.diffdrive import simulator_settings
     from sensact.learn.em import fit_em
     from sensact.learn.em.monitor import monitor_placed
+    from sensact.presets import simulator_settings
     from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
     learned_on = DiffDriveConfig(seed=0, seconds=300.0)

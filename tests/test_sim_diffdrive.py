@@ -664,7 +664,7 @@ def test_evaluate_fleet_scores_every_model_on_every_log(tmp_path):
     its log, clears the action bars and is the more likely, the other robot's misses them; the pairs a
     model was learned on are found from model.json's ``log``; without recorded poses, the likelihood
     alone."""
-    from sensact.experiments.fleet import fleet_cell
+    from sensact.app.fleet import fleet_cell
 
     logs = {"slow": ["--set", "forward_gain=0.75", "--set", "turn_gain=0.70"], "std": []}
     models = {}
@@ -757,8 +757,8 @@ def test_evaluate_fleet_scores_every_model_on_every_log(tmp_path):
 def test_a_fleet_pair_the_filter_fails_on_is_a_cell_without_a_likelihood(tmp_path, monkeypatch):
     """A model the filter fails with from every start (``localize`` refuses it) does not stop the fleet:
     its cell has no likelihood, the others are ranked without it, and the table and a line say so."""
+    from sensact.app import fleet as fleet_mod
     from sensact.errors import ConfigError
-    from sensact.experiments import fleet as fleet_mod
     from sensact.learn.em import EMConfig
     from sensact.report.tables_fleet import fleet_likelihood_lines, fleet_likelihood_table
 
@@ -796,7 +796,7 @@ def test_a_log_that_another_model_explains_better_than_its_own_is_said_so():
     """The likelihood lines: where another robot's model is the most likely on a log, the line names the
     log's own model and its fall, not a fall of 0 for the other (turtlebot1d's calibration.csv, whose own
     model was learned at one command), and suggests learning that log again from the better model."""
-    from sensact.experiments.fleet import likelihood_summary
+    from sensact.app.fleet import likelihood_summary
     from sensact.report.tables_fleet import fleet_likelihood_lines
 
     per = {"tr1": {"training1": -5.771, "calibration": -6.241}, "cal": {"training1": -8.064, "calibration": -6.316}}
@@ -824,7 +824,7 @@ def test_a_log_that_another_model_explains_better_than_its_own_is_said_so():
 def test_a_model_is_matched_to_the_log_it_names(tmp_path, monkeypatch):
     """`learn em` records the log folder as it was given: a relative one matches the end of a log's full
     path from any folder, ``.`` only the folder it is run from; another folder never matches."""
-    from sensact.experiments.fleet import fleet_names, learned_on_log
+    from sensact.app.fleet import fleet_names, learned_on_log
 
     (tmp_path / "fleet" / "r1").mkdir(parents=True)
     (tmp_path / "other" / "r1").mkdir(parents=True)

@@ -58,8 +58,8 @@ def test_em_on_wheel_speeds_reads_back_a_wheel_mismatch():
     a wheel mismatch), logged by its wheel speeds on a 235-mm axle and learned with the settings `simulate
     diffdrive` writes (the camera pins the curve), reads back the curve within 10 %, the wheels' ratio
     within 0.01 and the axle within 2 %."""
-    from sensact.experiments.diffdrive import simulator_settings
     from sensact.learn.em import fit_em
+    from sensact.presets import simulator_settings
     from sensact.sim.diffdrive import simulate_diffdrive
 
     sim = DiffDriveConfig(seed=1, seconds=600, wheel_axle_mm=235.0, straight_turn_rad_per_mm=0.0003)

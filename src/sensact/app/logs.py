@@ -4,6 +4,7 @@ have been learned from (another geometry, other commands or readings, another st
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -174,3 +175,9 @@ def read_model_and_log(log: Path, model: Path, bins: int, use: str) -> tuple[dic
     opened = open_log(log, bins=bins, dt_s=None if dt is None else float(dt), command_levels=levels)
     refuse_model_for_log(doc, m, opened.data, model, log, use=use)
     return doc, m, opened
+
+
+def data_root() -> Path:
+    """Where the real-data folder is: ``$SENSACT_DATA``, else ``../shared/data`` from the working directory."""
+    env = os.environ.get("SENSACT_DATA")
+    return Path(env) if env else Path("..") / "shared" / "data"

@@ -322,11 +322,10 @@ def convert_track(
     import numpy as np
 
     from sensact.config import config_to_yaml
-    from sensact.experiments.turtlebot import track_learner
     from sensact.io.atomic import write_text
     from sensact.io.landmark_log import write_landmark_log
     from sensact.io.track_csv import named_columns, read_track_csv
-    from sensact.presets import settings_yaml, track_em_config
+    from sensact.presets import settings_yaml, track_em_config, track_learner
     from sensact.report.figures_log import figure_track_overview
 
     tc = read_track_csv(csv, commands=tuple(command or ()), readings=tuple(reading or ()), distance=distance, dt_s=dt)

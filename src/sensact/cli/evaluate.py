@@ -43,8 +43,8 @@ def evaluate_mrclam_cmd(
     the action curves, the range function, the heading noise and the bearing noise against Vicon's,
     as `reproduce real` does."""
     check_out_file(out, kind=EVALUATION, force=force)
+    from sensact.evaluate.bars import bar_checks
     from sensact.evaluate.landmark_truth import score_against_truth
-    from sensact.experiments.real import bar_checks
     from sensact.io.mrclam import read_mrclam
 
     doc, m = read_em_model(model)
@@ -214,9 +214,9 @@ def evaluate_fleet_cmd(
     a robot's own when the model was learned on that log. Every model must share the logs' commands,
     readings and step (a Turtlebot CSV is read onto each model's own step)."""
     check_out_file(out, kind=FLEET_EVALUATION, force=force)
+    from sensact.app.fleet import fleet_names, log_name, score_fleet_on
     from sensact.cli.base import progress_bar
     from sensact.engine import open_engine
-    from sensact.experiments.fleet import fleet_names, log_name, score_fleet_on
 
     logs, model = list(dict.fromkeys(logs)), list(dict.fromkeys(model))  # a folder or file given twice counts once
     n_m, n_l = len(model), len(logs)

@@ -83,9 +83,8 @@ def fleet_learn_cmd(
     every log failed on bad input). Needs the fleet extra (pip install 'sensact[fleet]') unless --workers 1."""
     from rich.markup import escape
 
-    from sensact.app.fleet import LearnOptions
+    from sensact.app.fleet import FleetEvents, LearnOptions, fleet_names, learn_fleet, log_name
     from sensact.engine import open_engine
-    from sensact.experiments.fleet import FleetEvents, fleet_names, learn_fleet, log_name
 
     logs = list(dict.fromkeys(logs))  # a log given twice is learned once
     _refuse_out(out)

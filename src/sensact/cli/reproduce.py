@@ -30,7 +30,7 @@ OPT_IN = ("uncertainty",)
 
 
 def _data_dir(data: Path | None) -> Path:
-    from sensact.experiments.shared_data import data_root
+    from sensact.app.logs import data_root
 
     return data if data is not None else data_root()
 

@@ -173,7 +173,7 @@ def truth_noise_line(sc: dict[str, Any], *, reads_bearing: bool) -> str:
 def print_truth_score(sc: dict[str, Any]) -> None:
     import numpy as np
 
-    from sensact.experiments.real import BARS, bar_checks
+    from sensact.evaluate.bars import BARS, bar_checks
     from sensact.report.tables import bars_sentence
 
     a, r, b = sc["action"], sc["range"], sc["bearing"]
@@ -330,7 +330,7 @@ def evaluate_log(data: Any, res: Any, cfg: Any) -> dict[str, Any] | None:
         )
         return sc.to_dict()
     if data.true_position is not None:
-        from sensact.experiments.turtlebot import evaluate_real
+        from sensact.evaluate.real_track import evaluate_real
         from sensact.report.tables import NOT_TIMED
 
         run = evaluate_real(data, res, cfg)

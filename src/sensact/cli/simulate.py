@@ -72,7 +72,7 @@ def simulate_car(
 ) -> None:
     """Simulate the chapter-5 car with a spinning lidar driving through a town (secs. 2.5.2, 5.4): the thesis's
     Velodyne HDL-64E, or --set lidar=HDL-32E, VLP-32C, VLP-16, "Puck Hi-Res" or OS-1."""
-    from sensact.experiments.car import simulate_car_log
+    from sensact.app.car import simulate_car_log
     from sensact.sim.car import CarConfig, log_summary
 
     cfg = layered_config(CarConfig, config, set_, seconds=seconds, seed=seed)
@@ -115,10 +115,9 @@ def simulate_diffdrive_cmd(
     reads ranges alone, in every direction (UWB anchors, sonar beacons): no bearings in the log, and
     settings without them that start EM where the robot was put (start_pose)."""
     from sensact.cli.convert import config_header
-    from sensact.experiments.diffdrive import simulator_settings
     from sensact.io.atomic import write_text
     from sensact.io.landmark_log import write_landmark_log
-    from sensact.presets import settings_yaml
+    from sensact.presets import settings_yaml, simulator_settings
     from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
     cfg = layered_config(DiffDriveConfig, config, set_, seconds=seconds, seed=seed)
@@ -166,10 +165,9 @@ def _bag_format(bag: Path, bag_format: str) -> str:
 
 
 def _write_bag(run, bag: Path, fmt: str) -> None:
-    """The run as a ROS robot records it (experiments.diffdrive.recording_of), and its map beside it."""
+    """The run as a ROS robot records it (io.rosbag_write.recording_of), and its map beside it."""
     from sensact.errors import ConfigError
-    from sensact.experiments.diffdrive import recording_of
-    from sensact.io.rosbag_write import write_map_csv, write_robot_bag
+    from sensact.io.rosbag_write import recording_of, write_map_csv, write_robot_bag
 
     try:
         rec = recording_of(run)

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from sensact.evaluate.bars import BarCheck, at_most, not_scored
 from sensact.evaluate.measured import ONE_COMMAND_SHARE, dominant_command
 from sensact.learn.em import EMResult
 from sensact.learn.em.localize import Localized
@@ -152,3 +153,35 @@ class TurtlebotEMRun:
     data: LandmarkLog
     truth_mm: np.ndarray
     result: EMResult | Localized  # what is read: its model and posteriors
+
+
+# issue 5's Turtlebot bars: the gain within 5 % of the truth's, one sensor within 3 % of the range
+GAIN_BAR_PCT = 5.0
+
+
+SENSOR_BAR_PCT = 3.0
+
+
+def scorecard(summary: dict[str, Any], name: str | None = None) -> list[BarCheck]:
+    """The Turtlebot's bars on ``run_turtlebot_em``'s summary: the gain, and the best-scored sensor. With
+    ``name`` (a log beside the issue's ``training1.csv``) the keys and questions carry it."""
+    sc = summary["score"]
+    key, who = (f"turtlebot/{name}", f"Turtlebot {name}") if name else ("turtlebot", "Turtlebot")
+    gain_q = f"{who}: action gain error"
+    gain_bar = f"≤ {GAIN_BAR_PCT:.2f} %"
+    if sc["gain_error_pct"] is None:
+        gain = not_scored(f"{key}.gain", gain_q, gain_bar, "the log holds one command")
+    else:
+        gain = at_most(f"{key}.gain", gain_q, sc["gain_error_pct"], GAIN_BAR_PCT, "%")
+    best, pct = best_sensor(sc)
+    sensor_q = f"{who}: best sensor ({best}), % of its span" if best else f"{who}: best sensor, % of its span"
+    sensor = at_most(f"{key}.sensor", sensor_q, float("nan") if pct is None else pct, SENSOR_BAR_PCT, "%")
+    return [gain, sensor]
+
+
+def best_sensor(score: dict[str, Any]) -> tuple[str | None, float | None]:
+    """The sensor of a ``score_turtlebot_em`` result whose error is the least % of its span, and that error;
+    (None, None) when no sensor could be scored."""
+    pcts = {k: v["rms_pct_of_span"] for k, v in score["sensors"].items() if np.isfinite(v["rms_pct_of_span"])}
+    best = min(pcts, key=pcts.__getitem__, default=None)
+    return best, None if best is None else float(pcts[best])

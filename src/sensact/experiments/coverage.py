@@ -39,7 +39,7 @@ class CoverageExperiment:
 
 def truth_of(exp: CoverageExperiment) -> tuple[Any, EMModel, EMConfig]:
     """The template log (the simulator's, seed ``exp.seed``), the true model (EM's on it) and the settings."""
-    from sensact.experiments.diffdrive import simulator_settings
+    from sensact.presets import simulator_settings
 
     sim = replace(exp.simulator, seed=exp.seed)
     run = simulate_diffdrive(sim)

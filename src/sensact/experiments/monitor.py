@@ -92,7 +92,7 @@ def track_job(exp: MonitorExperiment, seed: int, *, progress: Any = None) -> tup
 def planar_job(exp: MonitorExperiment, seed: int, *, progress: Any = None) -> dict[str, Any]:
     """A simulated differential drive learned on run ``seed``, monitored over run ``seed + 1000`` with and
     without its motors slowing to 3/4 at ``exp.planar_change_at_s``."""
-    from sensact.experiments.diffdrive import simulator_settings
+    from sensact.presets import simulator_settings
     from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
     learned_on = DiffDriveConfig(seed=seed)

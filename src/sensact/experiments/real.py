@@ -25,12 +25,13 @@ from typing import Any
 
 import numpy as np
 
+from sensact.app.logs import data_root
 from sensact.config import config_to_dict
 from sensact.engine import Engine, InProcess, Job
 from sensact.errors import LogFormatError
 from sensact.evaluate.bars import BARS, BarCheck, bar_checks, robot_checks  # the real-data bars
 from sensact.evaluate.landmark_truth import path_offset, score_against_truth
-from sensact.experiments.shared_data import data_root, turtlebot_logs
+from sensact.experiments.shared_data import turtlebot_logs
 from sensact.io.mrclam import MrclamLog, read_mrclam
 from sensact.learn.em import EMConfig, EMResult, fit_em
 from sensact.models.em_model import EMModel
@@ -70,7 +71,7 @@ def evaluate_mrclam(ml: MrclamLog | Any, res: EMResult) -> dict[str, Any]:
 
 def scorecard(summary: dict[str, Any]) -> list[BarCheck]:
     """Issue 5's bars on ``real.json``: every MRCLAM robot's, then each Turtlebot log's."""
-    from sensact.experiments.turtlebot_em import scorecard as turtlebot_scorecard
+    from sensact.evaluate.turtlebot_em import scorecard as turtlebot_scorecard
 
     checks = [c for key, row in summary["mrclam"].items() for c in robot_checks(row["score"], key)]
     if "turtlebot" in summary:
@@ -159,7 +160,7 @@ def fleet_of_dataset(folder: Path, runs: dict[str, Any], several: bool, config: 
     the likelihood with each model placed by the E-step alone under ``config``, the settings it was learned
     with (``fleet.score_fleet``; docs/em-real.md, "One robot's model on another robot"), or None
     with fewer than two robots."""
-    from sensact.experiments.fleet import score_fleet
+    from sensact.app.fleet import score_fleet
 
     keys = [k for k in runs if not several or k.startswith(f"{folder.name}/")]
     if len(keys) < 2:

@@ -1,17 +1,10 @@
-"""Where the real-data folder is (``$SENSACT_DATA``, else ``../shared/data`` from the working directory), and
-which of its logs the reproduce commands run."""
+"""Which of the real-data folder's logs (``app.logs.data_root``) the reproduce commands run."""
 
 from __future__ import annotations
 
-import os
 import re
 from pathlib import Path
 from typing import Any
-
-
-def data_root() -> Path:
-    env = os.environ.get("SENSACT_DATA")
-    return Path(env) if env else Path("..") / "shared" / "data"
 
 
 def turtlebot_logs(root: Path) -> list[Path]:

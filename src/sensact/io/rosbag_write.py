@@ -225,3 +225,37 @@ def write_robot_bag(path: Path, fmt: str, rec: RobotRecording, *, detections: bo
             ("/mocap/pose", "geometry_msgs/msg/PoseStamped", int(t) + 500_000, m.pose_stamped(int(t), x, y, yaw))
         )
     return write_bag(path, fmt, msgs, m)
+
+
+BAG_EPOCH_NS = 1_700_000_000 * 10**9  # a bag's clock is the wall's
+
+
+def recording_of(run, camera_height_m: float = 0.3):  # -> io.rosbag_write.RobotRecording
+    """A simulated camera robot's run as a ROS robot records it (``sensact simulate diffdrive --bag``): the
+    commands when they change, each sighting as the tag's position in the camera's optical frame (the tags
+    hang ``camera_height_m`` below it: a range from it in the ground plane is the simulator's), the poses as
+    motion capture; times whole nanoseconds on a wall clock."""
+    from sensact.io.rosbag_write import RobotRecording
+
+    d, dt = run.log(), run.config.dt_s
+    if d.command_names != ("v_mm_s", "omega_rad_s") or not np.isfinite(d.obs_bearing_rad).all():
+        raise ValueError("a bag is written for a differential drive (v, omega) with a camera (bearings)")
+    grid = BAG_EPOCH_NS + np.arange(d.n_steps, dtype=np.int64) * round(dt * 1e9)
+    sent = np.flatnonzero(np.r_[True, np.any(np.diff(d.step_commands, axis=0) != 0, axis=1)])
+    r, b = d.obs_readings[:, 0] / 1000.0, d.obs_bearing_rad
+    xyz = np.column_stack([-r * np.sin(b), np.full(r.size, camera_height_m), r * np.cos(b)])
+    fwd, left, _ = run.config.mounted_at
+    poses = run.poses  # sensact's frame: heading 0 faces +y; REP 103's yaw 0 faces +x
+    return RobotRecording(
+        cmd_ns=grid[sent],
+        v_m_s=d.step_commands[sent, 0] / 1000.0,
+        omega_rad_s=d.step_commands[sent, 1],
+        tag_ns=grid[d.obs_step],
+        tag_id=d.obs_landmark.copy(),  # tag k is the map's landmark k
+        tag_xyz_optical_m=xyz,
+        truth_ns=grid,
+        truth_xy_m=poses[:, :2] / 1000.0,
+        truth_yaw_rad=poses[:, 2] + 0.5 * np.pi,
+        camera_xyz_m=(fwd / 1000.0, left / 1000.0, camera_height_m),
+        map_xy_m=d.landmarks_xy / 1000.0,
+    )

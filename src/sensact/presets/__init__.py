@@ -9,20 +9,25 @@ override fields below it; `convert` writes one so (``settings_yaml``).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import replace
 from functools import cache
 from importlib import resources
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from sensact.config import config_from_dict, config_to_yaml
 from sensact.errors import ConfigError
-from sensact.io.turtlebot import EM_READINGS, SPEC_RANGE_M
+from sensact.io.turtlebot import EM_READINGS, LEARNER_SETTINGS, SPEC_RANGE_M
+from sensact.learn.bootstrap import BootstrapConfig
 from sensact.learn.em.config import ChannelConfig, EMConfig
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.wheel_drive import wheel_pair
+
+if TYPE_CHECKING:
+    from sensact.sim.diffdrive import DiffDriveConfig
 
 # name -> what it is for (`sensact learn em --help` lists them)
 PRESETS = {
@@ -195,3 +200,31 @@ def settings_yaml(
     """A settings file for ``data`` naming preset ``name`` and the fields of ``config`` that differ from the
     preset on the log's columns (and those in ``always``), which ``app.settings`` reads back to ``config``."""
     return config_to_yaml(config, header, always, against=for_log(name, data), lead={PRESET_KEY: name})
+
+
+def simulator_settings(sim: DiffDriveConfig) -> EMConfig:
+    """The EM settings for a simulated robot's log, as ``sensact simulate diffdrive`` writes them:
+    ``planar_config`` for its logged commands (MRCLAM's on a differential drive's, every
+    velocity free on a side-stepper's), or for a radio sensor ``range_only_config`` from where the robot
+    was put."""
+    if sim.reads_bearing:
+        return planar_config(sim.logged_command_names)
+    return range_only_config(sim.logged_command_names, sim.start_pose)
+
+
+# chapter 3 on the Turtlebot (experiments/turtlebot.py): an affine action model, since a wheel-speed controller
+# tracks its command nearly linearly and four speeds cannot identify a quartic (eq. 3.2); t_start 60 s, so
+# that A_t replaces A0 only after the log's first, single-command leg
+TURTLEBOT_LEARNER = BootstrapConfig(t_start_s=60.0, action_degree=1)
+
+
+def learner_for(sensor: str, base: BootstrapConfig = TURTLEBOT_LEARNER) -> BootstrapConfig:
+    return dataclasses.replace(base, **LEARNER_SETTINGS.get(sensor, {}))
+
+
+def track_learner(robust: bool) -> BootstrapConfig:
+    """Chapter 3's settings for another 1-D robot's distance reading (``sensact convert track``): the
+    Turtlebot's, with sonar1's outlier gate for a reading asked to be robust. Its windows in value are
+    sonar1's datasheet in metres, not this reading's, and are left out."""
+    gate = LEARNER_SETTINGS["sonar1"]["outlier_gate"] if robust else None
+    return dataclasses.replace(TURTLEBOT_LEARNER, outlier_gate=gate)

@@ -1,4 +1,4 @@
-"""A fleet's models scored on every robot's log (``experiments.fleet.score_fleet``) as grids, a row per
+"""A fleet's models scored on every robot's log (``app.fleet.score_fleet``) as grids, a row per
 model and a column per log: against the truth, the translation and rotation ratios to From-Truth, the
 range residual about the truth and the bearing sigma ratio; by the likelihood, with no truth, how far
 each model falls below the log's most likely one; on Turtlebot CSVs, against the range column, the action

@@ -1,4 +1,4 @@
-"""A fleet's tables (``experiments.fleet.score_fleet``): every model on every log, a row per model and a
+"""A fleet's tables (``app.fleet.score_fleet``): every model on every log, a row per model and a
 column per log, against the truth, against a Turtlebot CSV's range column, and by the likelihood, with the
 lines that say what each table shows."""
 
@@ -23,7 +23,7 @@ def fleet_table(
     miss: Callable[[str], str] = lambda s: f"{s} (miss)",
     own: Callable[[str], str] = lambda s: f"**{s}**",
 ) -> Table:
-    """``experiments.fleet.score_fleet``'s pairs, a row per model and a column per log, and From-Truth's
+    """``app.fleet.score_fleet``'s pairs, a row per model and a column per log, and From-Truth's
     range residual per log; ``miss`` marks a number that misses its bar, ``own`` a robot's own pair (the
     console passes colour, Markdown the defaults)."""
 
@@ -83,7 +83,7 @@ FLEET_LIKELIHOOD_TITLE = (
 def fleet_likelihood_table(
     fleet: dict[str, Any], title: str = FLEET_LIKELIHOOD_TITLE, own: Callable[[str], str] = lambda s: f"**{s}**"
 ) -> Table:
-    """``experiments.fleet.likelihood_grid``'s pairs, a row per model and a column per log, and the
+    """``app.fleet.likelihood_grid``'s pairs, a row per model and a column per log, and the
     sightings each log's likelihood is over; ``own`` marks a robot's own pair."""
     lk = fleet["likelihood"]
 
@@ -167,7 +167,7 @@ def fleet_range_table(
     miss: Callable[[str], str] = lambda s: f"{s} (miss)",
     own: Callable[[str], str] = lambda s: f"**{s}**",
 ) -> Table:
-    """``experiments.fleet.range_grid``'s pairs, a row per model and a column per CSV with its range; ``miss``
+    """``app.fleet.range_grid``'s pairs, a row per model and a column per CSV with its range; ``miss``
     marks a number past its bar, ``own`` a robot's own pair."""
     rng = fleet["range"]
 

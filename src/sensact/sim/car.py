@@ -94,7 +94,7 @@ class CarConfig:
     lidar: str = "HDL-64E"
     calibration_yaml: str | None = None  # true angles (ROS YAML, or an OS-1's metadata JSON); None: the
     # model's file in the shared data (64e_utexas.yaml, 32db.yaml, VLP16db.yaml, ouster_example.json), else its
-    # nominal geometry (read by sensact.experiments.car.true_intrinsics)
+    # nominal geometry (read by sensact.app.car.true_intrinsics)
     firing_hz: float | None = None  # f; None: the model's (HDL-64E: the thesis's 7800 Hz)
     rpm: float = 600.0  # |omega| = 20 pi rad/s
     clockwise: bool = True  # seen from above, as every Velodyne turns (theta_r, counterclockwise, falls)

@@ -61,7 +61,7 @@ def learn_bootstrap_cmd(
     data = read_track_log(log, sensor=sensor)
     base = None
     if data.meta.get("platform") == "turtlebot1d":
-        from sensact.experiments.turtlebot import learner_for
+        from sensact.presets import learner_for
 
         base = learner_for(data.observation_name)
         console.print(

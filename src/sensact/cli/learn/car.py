@@ -29,7 +29,7 @@ def _learn(data: Any, cfg: Any, simulated: bool) -> tuple[Any, dict | None, list
     evaluation)``."""
     import numpy as np
 
-    from sensact.experiments.car import learn_angles_from_log, learn_from_log
+    from sensact.app.car import learn_angles_from_log, learn_from_log
 
     evaluation = None
     if data.actions is None:
@@ -53,7 +53,7 @@ def _learn(data: Any, cfg: Any, simulated: bool) -> tuple[Any, dict | None, list
         console.print(f"  a = {m.C5:.4g} + {m.C6:.4g} g + {m.C7:.4g} v + {m.C8:.4g} v b   (eq. 5.3)")
         console.print(f"  omega = {m.C9:.4g} v + {m.C10:.4g} v s   (eq. 5.4)")
         if simulated:
-            from sensact.experiments.car import evaluate_run
+            from sensact.app.car import evaluate_run
 
             evaluation, _ = evaluate_run(data.meta["truth"], data.groundtruth, res, cfg.odometry.dt_s)
             console.print(
