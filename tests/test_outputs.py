@@ -69,3 +69,21 @@ def test_export_never_replaces_the_model_or_a_users_file(learned, tmp_path):
         assert res.exit_code == 0, res.output
     res = _run("export", model, "--format", "tum", "--out", tmp_path / "p.tum", "--truth-out", tmp_path / "p.tum")
     assert res.exit_code == 2 and "each its own path" in " ".join(res.output.split())
+
+
+def test_no_command_writes_over_its_own_input_model_even_forced(learned):
+    """localize --out, monitor --out or --relearn, evaluate log --out and learn em --start-from: the model read
+    is never the path written, whatever --force says."""
+    model = learned / "a.json"
+    before = model.read_bytes()
+    for args in (
+        ("localize", learned / "log", "--model", model, "--out", model, "--force"),
+        ("monitor", learned / "log", "--model", model, "--relearn", model, "--force"),
+        ("monitor", learned / "log", "--model", model, "--out", model),
+        ("evaluate", "log", learned / "log", "--model", model, "--out", model, "--force"),
+        ("learn", "em", learned / "log", "--start-from", model, "--out", model, *QUICK),
+    ):
+        res = _run(*args)
+        text = " ".join(res.output.split())
+        assert res.exit_code == 2 and "are both" in text and ("--model" in text or "--start-from" in text), text
+        assert model.read_bytes() == before

@@ -180,7 +180,8 @@ def check_out_file(
     """Refuse, before any work, an output path that is not a regular file or a new path (a folder, a device
     such as /dev/full, which the atomic rename would replace), a JSON output named as one of the files
     written beside it (``model.png`` would be overwritten by the figure), a path another output of the
-    same command also writes (``others``: option name to path), and, unless ``force``, an existing file that
+    same command also writes or reads (``others``: option name to path; never overridden: a command writes
+    over none of its inputs), and, unless ``force``, an existing file that
     is not a sensact output of ``kind`` (``write_result``'s stamp): a user's own file is never replaced
     silently."""
     from sensact.errors import ConfigError
@@ -188,12 +189,6 @@ def check_out_file(
 
     if out is None:
         return
-    if kind is not None and out.is_file() and not force and not is_output_of(out, kind):
-        raise ConfigError(
-            f"{out} exists and is not a sensact {kind}; writing here would replace it.",
-            field=option,
-            fix="give a new path, or pass --force to replace it.",
-        )
     if out.exists() and not out.is_file():
         kind = "a folder" if out.is_dir() else "not a regular file (a device, a pipe or a socket)"
         raise ConfigError(
@@ -211,6 +206,12 @@ def check_out_file(
     for name, path in (others or {}).items():
         if path is not None and path.resolve() == out.resolve():
             raise ConfigError(f"{option} and {name} are both {out}.", field=option, fix="give each its own path.")
+    if kind is not None and out.is_file() and not force and not is_output_of(out, kind):
+        raise ConfigError(
+            f"{out} exists and is not a sensact {kind}; writing here would replace it.",
+            field=option,
+            fix="give a new path, or pass --force to replace it.",
+        )
 
 
 def os_error_line(exc: OSError) -> str:

@@ -42,7 +42,7 @@ def evaluate_mrclam_cmd(
     From-Truth is the same model families fitted directly to the ground truth. With --out, also draw
     the action curves, the range function, the heading noise and the bearing noise against Vicon's,
     as `reproduce real` does."""
-    check_out_file(out, kind=EVALUATION, force=force)
+    check_out_file(out, others={"--model": model}, kind=EVALUATION, force=force)
     from sensact.evaluate.bars import bar_checks
     from sensact.evaluate.landmark_truth import score_against_truth
     from sensact.io.mrclam import read_mrclam
@@ -93,7 +93,7 @@ def evaluate_log_cmd(
     From-Truth fitted on this log; the model must share the log's commands, readings and step. On a
     Turtlebot CSV the robot is first placed by the E-step with the model held (as `sensact localize`),
     and the model is scored against the range column as `learn em` scores it."""
-    check_out_file(out, kind=EVALUATION, force=force)
+    check_out_file(out, others={"--model": model}, kind=EVALUATION, force=force)
     from sensact.app.logs import read_model_and_log
     from sensact.errors import LogFormatError
 

@@ -171,7 +171,7 @@ def localize_cmd(
 
     The settings are the ones the model was learned with (its JSON's summary.config); --config and --set
     override them. Only the start search, the start's spread and the first-iteration gate are used."""
-    check_out_file(out, kind=LOCALIZATION, force=force)
+    check_out_file(out, others={"--model": model}, kind=LOCALIZATION, force=force)
     import numpy as np
 
     from sensact.app.logs import read_model_and_log

@@ -62,8 +62,8 @@ def monitor_cmd(
     standardized innovations, tested by a two-sided CUSUM; a crossing whose shift lasts to the end of
     the log is a change, one that does not is an episode. Prints when the change began, when it was
     flagged and which model changed; with --relearn, learns the models again from the change on."""
-    check_out_file(out, kind=MONITOR, force=force)
-    check_out_file(relearn, "--relearn", others={"--out": out}, kind=EM_MODEL, force=force)
+    check_out_file(out, others={"--model": model}, kind=MONITOR, force=force)
+    check_out_file(relearn, "--relearn", others={"--out": out, "--model": model}, kind=EM_MODEL, force=force)
     from sensact.app.monitor import monitor_log
     from sensact.health import Health
     from sensact.learn.em.monitor import MonitorConfig

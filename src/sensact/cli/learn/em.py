@@ -249,7 +249,7 @@ def learn_em_cmd(
     The settings: --preset, or else the settings file `convert` wrote into the log folder (em_config.yaml,
     which names its preset), or a Turtlebot's for a CSV, or the thesis's; --config and --set override
     them. Ctrl-C stops early and still writes the most likely model so far."""
-    check_out_file(out, kind=EM_MODEL, force=force)
+    check_out_file(out, others={"--start-from": start_from}, kind=EM_MODEL, force=force)
     from sensact.app import calibrate, open_log
 
     opened = open_log(log, bins=bins)
