@@ -239,7 +239,7 @@ def test_simulate_field2d_then_learn_em(tmp_path):
     assert out["summary"]["iterations"] <= 40 and out["evaluation"]["vtheta_rms_rad_s"] < 0.5
     from sensact.models.em_model import EMModel
 
-    assert EMModel.from_dict(out["model"]).geometry == "planar"
+    assert EMModel.from_dict(out["model"]).geometry.name == "planar"
     import numpy as np
 
     with np.load(tmp_path / "model.history.npz", allow_pickle=False) as h:

@@ -15,11 +15,13 @@ from sensact.config import config_from_dict
 from sensact.core.pose_models import landmark_distance
 from sensact.errors import ConfigError
 from sensact.learn.em import EMConfig, e_step, fit_em, initial_model
-from sensact.learn.em.actions import linear_action_update, linear_coefficients, step_motion_var, table_velocities
+from sensact.learn.em.actions import step_motion_var
 from sensact.learn.em.config import ChannelConfig
 from sensact.logs.landmark_log import LandmarkLog
+from sensact.models.action_table import table_velocities
 from sensact.models.em_model import EMModel
 from sensact.models.linear_action import LinearActionModel, command_features, delayed, one_hot
+from sensact.models.linear_action_fit import linear_coefficients
 
 
 def test_one_hot_basis_is_the_action_table():
@@ -73,14 +75,14 @@ def test_action_update_picks_the_delay_and_beta_that_least_squares_on_the_delaye
         refs.append((float(np.sum((disp - X @ beta) ** 2 / var)), beta))
     best = int(np.argmin([r[0] for r in refs]))
     assert best == true_delay
-    got = linear_action_update(act, data, disp, var, 8)
+    got = act.update(data, disp, var, 8)
     assert got.delay_steps == best
     np.testing.assert_allclose(got.coefficients, refs[best][1], rtol=1e-8, atol=1e-12)
     for d, (_, ref) in enumerate(refs):
-        at_d = linear_action_update(act.with_coefficients(act.coefficients, d), data, disp, var, 0)
+        at_d = act.with_coefficients(act.coefficients, d).update(data, disp, var, 0)
         np.testing.assert_allclose(at_d.coefficients, ref, rtol=1e-8, atol=1e-12)
     # at delay 5 the turn command has no nonzero row: its coefficients are kept
-    kept = linear_action_update(act.with_coefficients(act.coefficients, 5), data, disp, var, 0)
+    kept = act.with_coefficients(act.coefficients, 5).update(data, disp, var, 0)
     assert kept.delay_steps == 5
     np.testing.assert_array_equal(kept.coefficients[2, 2], act.coefficients[2, 2])
     X5 = delayed(Phi0, 5)[:-1] * dt
@@ -117,7 +119,7 @@ def test_combined_inputs_on_wheel_speeds_are_the_v_omega_restriction(weights):
             "planar", dt, np.full(T, -1), np.zeros((0, 2)), names, [], [], [], [], np.zeros((1, 2)),
             reading_names=("r",), step_commands=commands,
         )  # fmt: skip
-        fits[names[0]] = (act, commands, linear_action_update(act, data, disp, var, 6))
+        fits[names[0]] = (act, commands, act.update(data, disp, var, 6))
     (act_w, wheels, got_w), (_, vw, got_vw) = fits["left_mm_s"], fits["v_mm_s"]
     assert got_w.delay_steps == got_vw.delay_steps == 3
     np.testing.assert_allclose(got_w.features(wheels) @ got_w.coefficients, got_vw.features(vw) @ got_vw.coefficients,

@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from sensact.core.geometry import PLANAR
 from sensact.evaluate.em import score_planar, score_track
 from sensact.evaluate.track1d import DISTANCE_GRID_MM
-from sensact.learn.em import EMConfig, e_step, fit_em, initial_model, motion_variance
+from sensact.learn.em import EMConfig, e_step, fit_em, initial_model
 
 
 @pytest.fixture(scope="module")
@@ -38,7 +39,7 @@ def test_result_is_the_most_likely_model(field_fit):
     assert res.best_iteration == int(np.argmax(ll))
     assert res.iterations - 1 - res.best_iteration == em.thesis.patience  # stopped by the 50-iteration rule
     np.testing.assert_array_equal(res.velocity_history[res.best_iteration], res.model.action.velocities)
-    again = e_step(res.model, data, motion_variance("planar", em.thesis.motion_sd_mm, em.thesis.motion_sd_rad))
+    again = e_step(res.model, data, PLANAR.motion_variance(em.thesis.motion_sd_mm, em.thesis.motion_sd_rad))
     assert again.loglik == pytest.approx(res.loglik_best, abs=1e-6)
 
 

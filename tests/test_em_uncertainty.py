@@ -13,7 +13,7 @@ from conftest import assert_written
 from sensact.cli import app
 from sensact.core.angles import wrap_angle
 from sensact.core.pose_models import landmark_bearing, landmark_distance, relative_displacement, sensor_poses
-from sensact.learn.em.actions import step_motion_var, step_velocity
+from sensact.learn.em.actions import step_motion_var
 from sensact.learn.em.simulate import simulate_from_model
 from sensact.learn.em.uncertainty import Parameter, Uncertainty, Z, coverage, model_parameters, summarize
 
@@ -26,7 +26,7 @@ def test_a_log_drawn_from_a_model_reads_as_the_model_says(continuous_fit):
     data, _, res = continuous_fit
     model = res.model
     drawn, path = simulate_from_model(model, data, seed=5)
-    v = step_velocity(model.action, data)[:-1] * data.dt_s
+    v = model.action.step_velocity(data)[:-1] * data.dt_s
     sd = np.sqrt(step_motion_var(model, data))[:-1]
     z = (relative_displacement(path[:-1], path[1:]) - v) / sd
     assert np.all(np.abs(z.mean(axis=0)) < 0.05)

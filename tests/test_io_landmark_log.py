@@ -152,6 +152,6 @@ def test_a_track_log_written_by_write_landmark_log_reads_back(tmp_path):
     data = track1d.to_landmark_log(run)
     write_landmark_log(tmp_path / "t", data)
     back = read_landmark_log(tmp_path / "t").data
-    assert back.geometry == "track"
+    assert back.geometry.name == "track"
     for name in ("actions", "obs_step", "obs_landmark", "obs_readings", "action_commands"):
         np.testing.assert_array_equal(getattr(back, name), getattr(data, name), err_msg=name)

@@ -54,7 +54,7 @@ def test_a_turtlebot_run_under_a_users_names_reads_as_the_turtlebot_csv(tmp_path
     want, want_mm = read_turtlebot_landmark_log(csv)
     got = read_track_csv(_as_users_csv(csv, tmp_path / "robot.csv"))
     d, T = got.data, want.n_steps
-    assert d.geometry == "track" and d.command_names == ("v_cmd_mm_s",)
+    assert d.geometry.name == "track" and d.command_names == ("v_cmd_mm_s",)
     assert d.reading_names == ("sonar_mm", "ir_volts", "ir2_volts") and got.distance_reading == "sonar_mm"
     assert d.dt_s == pytest.approx(want.dt_s, rel=1e-12) and d.n_steps == T + 1 == 2500
     np.testing.assert_allclose(d.step_commands[:T], want.step_commands, rtol=1e-12)

@@ -7,8 +7,9 @@ import pytest
 
 from sensact.core.pose_models import landmark_bearing, landmark_distance
 from sensact.learn.em.estep import Posteriors
-from sensact.learn.em.mstep import action_velocities, prior, sample_gamma, sensor_model
+from sensact.learn.em.mstep import prior, sample_gamma, sensor_model
 from sensact.logs.landmark_log import LandmarkLog
+from sensact.models.action_table import ActionTable
 from sensact.models.landmark_sensor import LandmarkSensor
 from sensact.models.polynomial import Polynomial1D
 
@@ -30,7 +31,8 @@ def test_action_table_is_the_mean_displacement_over_q_a():
     data = LandmarkLog("planar", dt, actions, np.eye(4, 3), ("a", "b", "c"), [], [], [], [], np.zeros((1, 2)))
     post = _post(np.zeros((T, 3)), np.tile(np.eye(3), (T, 1, 1)), disp)
     prev = np.full((4, 3), 7.0)
-    v = action_velocities(post, data, prev)
+    table = ActionTable(np.eye(4, 3), prev, ("a", "b", "c"), ("v_x_mm_s", "v_y_mm_s", "v_theta_rad_s"))
+    v = table.update(data, post.disp_mean, np.ones_like(post.disp_mean), 0).velocities
     for a in range(3):
         np.testing.assert_allclose(v[a], disp[actions[:-1] == a].mean(axis=0) / dt)
     np.testing.assert_array_equal(v[3], prev[3])

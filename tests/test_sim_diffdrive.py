@@ -602,7 +602,6 @@ def test_wheel_speeds_learn_what_v_and_omega_learn(sensor):
     a sensor without bearings, the turn rate to their difference): the family of (v, omega)'s settings,
     forward from v (and turn from omega), in other commands. So EM on one drive logged either way has the
     same likelihood at every iteration and moves the robot alike."""
-    from sensact.learn.em.actions import step_velocity
 
     base = DiffDriveConfig(seconds=60, seed=4, sensor=sensor)
     fits = []
@@ -615,7 +614,7 @@ def test_wheel_speeds_learn_what_v_and_omega_learn(sensor):
     assert log_w.command_names == ("left_mm_s", "right_mm_s")
     np.testing.assert_allclose(w.loglik_history, vw.loglik_history, rtol=1e-9)
     np.testing.assert_allclose(
-        step_velocity(w.model.action, log_w), step_velocity(vw.model.action, log_vw), rtol=1e-6, atol=1e-9
+        w.model.action.step_velocity(log_w), vw.model.action.step_velocity(log_vw), rtol=1e-6, atol=1e-9
     )
     beta = w.model.action.coefficients  # rows 1, left, right
     assert beta[1, 1] == beta[2, 1] and (sensor == "camera") != (beta[1, 2] == -beta[2, 2])

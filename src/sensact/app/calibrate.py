@@ -146,7 +146,7 @@ class Calibration:
 def refuse_table_on_continuous_commands(log: OpenedLog, cfg: EMConfig) -> None:
     """The thesis's action table needs discrete actions; a planar log of continuous commands needs a basis."""
     data = log.data
-    if not (data.is_continuous and cfg.action.basis == "table" and data.geometry == "planar"):
+    if not (data.is_continuous and cfg.action.basis == "table" and data.geometry.has_heading):
         return
     beside = log.settings_file
     raise ConfigError(

@@ -58,7 +58,7 @@ def read_em_doc(doc: dict[str, Any], source: Path) -> tuple[EMModel, float]:
 
 def body_sigma_m(model: EMModel, source: Path) -> np.ndarray:
     """Sigma_m per step in REP 103's body axes (x forward, y left, yaw; m, rad)."""
-    if model.geometry != "planar" or model.per_action_noise:
+    if not model.geometry.has_heading or model.per_action_noise:
         raise ModelFormatError(
             "robot_localization takes one planar Sigma_m; this model is a 1-D track's or has one per action.",
             file=source,

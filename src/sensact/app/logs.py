@@ -145,7 +145,7 @@ def refuse_model_for_log(
     missing = [ch.name for ch in m.sensor.channels if ch.name not in data.reading_names]
     if missing:
         refuse(f"the log has no reading {missing[0]} (it has {', '.join(data.reading_names)})", "sensor", relearn)
-    if data.geometry == "planar" and not np.isfinite(data.obs_bearing_rad).any():
+    if data.geometry.has_heading and not np.isfinite(data.obs_bearing_rad).any():
         bent = [ch.name for ch in m.sensor.channels if ch.bearing_terms]
         if bent:
             refuse(
@@ -171,7 +171,7 @@ def read_model_and_log(log: Path, model: Path, bins: int, use: str) -> tuple[dic
     doc, m = read_em_model(model)
     dt = doc.get("dt_s")
     # a track's continuous commands go onto the model's own actions, not the bins of this log's span
-    levels = m.action.commands[:, 0] if m.geometry == "track" and isinstance(m.action, ActionTable) else None
+    levels = m.action.commands[:, 0] if m.geometry.state_is_range and isinstance(m.action, ActionTable) else None
     opened = open_log(log, bins=bins, dt_s=None if dt is None else float(dt), command_levels=levels)
     refuse_model_for_log(doc, m, opened.data, model, log, use=use)
     return doc, m, opened

@@ -42,7 +42,7 @@ def halves_figure(out: Path) -> Path:
 def write_smoothed_path(path: Path, posteriors: Any, data: Any) -> Path:
     """Where EM puts the robot at every step: the smoothed mean and sd of each state component (eqs. 4.9,
     4.10), for a user's own plots or as the robot's path; ``time_s`` counts from the log's first step."""
-    names = ("x_mm", "y_mm", "theta_rad") if data.geometry == "planar" else ("distance",)
+    names = data.geometry.state_names
     return write_npz(
         path,
         time_s=np.arange(data.n_steps) * data.dt_s,

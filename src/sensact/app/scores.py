@@ -76,7 +76,7 @@ def score_model(
     truth = lf.meta.get("truth")
     if not truth:
         return None
-    if lf.data.geometry == "planar" and "velocities" in truth:
+    if lf.data.geometry.has_heading and "velocities" in truth:
         from sensact.evaluate.em import score_planar
         from sensact.sim.track1d import TrackTruth
 
@@ -86,7 +86,7 @@ def score_model(
             model, np.asarray(truth["velocities"]), height, truth["sigma_height_px"], truth["sigma_bearing_rad"]
         )
         return Scores(SIMULATED_MODEL, sc)
-    if lf.data.geometry == "track" and "action" in truth:
+    if lf.data.geometry.state_is_range and "action" in truth:
         from sensact.evaluate.em import score_track
         from sensact.evaluate.track1d import DISTANCE_GRID_MM
         from sensact.sim.track1d import TrackTruth

@@ -133,7 +133,7 @@ def describe_placement(loc: Any, summary: dict[str, Any], data: Any) -> float | 
     per_learned = best / used if best is not None and used else None
     if per_learned is not None:
         line += f" (on the log it was learned from, {per_learned:.3f}"
-        if m.sensor.sigma_bearing_rad is not None and not np.isfinite(data.obs_bearing_rad).any():
+        if m.sensor.reads_bearing and not np.isfinite(data.obs_bearing_rad).any():
             line += ", where each sighting read a bearing too: not comparable"
         line += ")"
     console.print(line)

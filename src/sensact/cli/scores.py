@@ -13,7 +13,6 @@ if TYPE_CHECKING:
 
 
 def print_em_model(m: Any) -> None:
-    from sensact.models.action_table import ActionTable
     from sensact.models.wheel_drive import as_differential_drive
 
     for ch in m.sensor.channels:
@@ -22,7 +21,7 @@ def print_em_model(m: Any) -> None:
     if sb:
         console.print(f"  bearing sigma_2 = {sb:.4g} rad")
     mount = m.sensor.mount
-    if m.geometry == "planar":
+    if m.geometry.has_heading:
         console.print(
             f"  sensor mount: {mount.forward_mm:.1f} mm forward, {mount.left_mm:.1f} mm left, "
             f"yaw {mount.yaw_rad:+.4f} rad"
@@ -31,23 +30,14 @@ def print_em_model(m: Any) -> None:
     if m.turn_var is not None:
         console.print(f"  heading variance per step grows by {m.turn_var:.4g} rad^2 per rad/s of turning")
     a = m.action
-    if isinstance(a, ActionTable):
-        t = titled_table("learned velocity of each action")
-        for name in (*a.command_names, *a.velocity_names):
-            t.add_column(name)
-        for c, v in zip(a.commands, a.velocities, strict=True):
-            t.add_row(*(f"{x:.3g}" for x in c), *(f"{x:.4g}" for x in v))
-    else:
-        from sensact.models.linear_action import feature_names
-
-        t = titled_table(f"learned A(c) = Phi(c) beta ({a.basis}; delay {a.delay_steps} steps)")
-        t.add_column("feature")
-        for name in a.velocity_names:
-            t.add_column(name)
-        for fname, row in zip(feature_names(a.basis, a.degree, a.command_names), a.coefficients, strict=True):
-            t.add_row(fname, *(f"{x:.4g}" for x in row))
+    title, columns, rows = a.table()
+    t = titled_table(title)
+    for name in columns:
+        t.add_column(name)
+    for row in rows:
+        t.add_row(*row)
     console.print(t)
-    if m.geometry == "track":
+    if m.geometry.state_is_range:
         console.print(describe_track_velocity(a), markup=False)
     drive = as_differential_drive(a)
     if drive is not None:

@@ -13,7 +13,6 @@ from typing import Any
 
 import numpy as np
 
-from sensact.learn.em.actions import step_velocity
 from sensact.learn.em.checks import fitted_distances
 from sensact.learn.em.estep import Posteriors
 from sensact.logs.landmark_log import LandmarkLog
@@ -25,8 +24,8 @@ GRID = 50  # distances at which two f are compared, spread evenly over a channel
 def velocity_difference(a: EMModel, b: EMModel, data: LandmarkLog) -> dict[str, float]:
     """RMS over ``data``'s steps of the difference of the two models' mean velocities: on a plane the
     translation (its x and y together, mm/s) and the rotation (rad/s); on a track the velocity."""
-    e = step_velocity(a.action, data) - step_velocity(b.action, data)
-    if data.geometry == "planar":
+    e = a.action.step_velocity(data) - b.action.step_velocity(data)
+    if data.geometry.has_heading:
         return {
             "translation_mm_s": float(np.sqrt(np.mean(e[:, 0] ** 2 + e[:, 1] ** 2))),
             "rotation_rad_s": float(np.sqrt(np.mean(e[:, 2] ** 2))),
@@ -48,10 +47,10 @@ def noise(model: EMModel) -> dict[str, float]:
     """The model's noise parameters by name: each channel's sigma, the bearing's, and Sigma_m's standard
     deviations per step (shared noise only; per action there is one row an action)."""
     out = {f"{c.name} sigma": float(c.sigma) for c in model.sensor.channels}
-    if model.sensor.sigma_bearing_rad is not None:
+    if model.sensor.reads_bearing:
         out["bearing sigma"] = float(model.sensor.sigma_bearing_rad)
     if model.motion_sd is not None and len(model.motion_sd) == 1:
-        names = ("x", "y", "theta") if model.geometry == "planar" else ("distance",)
+        names = [n.split("_")[0] for n in model.geometry.state_names]
         out.update({f"Sigma_m {n} sd": float(s) for n, s in zip(names, model.motion_sd[0], strict=True)})
     return out
 

@@ -56,11 +56,12 @@ from sensact.core.polyfit import weighted_lstsq
 from sensact.core.pose_models import apply_displacement, landmark_bearing, landmark_distance, relative_displacement
 from sensact.errors import LogFormatError
 from sensact.io.unit_checks import groundtruth_heading_doubt
-from sensact.learn.em.actions import linear_coefficients, turning_variance
+from sensact.learn.em.actions import turning_variance
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 from sensact.models.landmark_sensor import reading_features
 from sensact.models.linear_action import LinearActionModel, delayed
+from sensact.models.linear_action_fit import linear_coefficients
 
 
 def valid_throughout(valid: np.ndarray, first: np.ndarray, last: np.ndarray) -> np.ndarray:
@@ -619,7 +620,7 @@ def score_against_truth(
     lm = data.landmarks_xy[data.obs_landmark[rows]]
     bearing = data.obs_bearing_rad[rows]
     # a range-only sensor (radio beacons) has no bearing to score, nor to fit its pose on the robot by
-    reads_bearing = model.sensor.sigma_bearing_rad is not None and bool(np.isfinite(bearing).any())
+    reads_bearing = model.sensor.reads_bearing and bool(np.isfinite(bearing).any())
     mount = fit_sensor_mount(at_origin, lm, bearing, trim) if fit_mount and reads_bearing else np.zeros(3)
     poses = at_sensor(at_origin, mount)
     range_score = _score_range(

@@ -13,6 +13,8 @@ from typing import IO, Any
 
 import numpy as np
 
+from sensact.core.geometry import Geometry
+
 
 def _process_umask() -> int:
     mask = os.umask(0)  # reading the umask means setting it; put it straight back
@@ -100,6 +102,8 @@ def _jsonable(obj: Any) -> Any:
         return obj.item()
     if isinstance(obj, Path):
         return str(obj)
+    if isinstance(obj, Geometry):
+        return obj.name
     raise TypeError(f"not JSON serializable: {type(obj).__name__}")
 
 

@@ -23,6 +23,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from sensact.core.geometry import GEOMETRIES, Geometry, geometry_named
 from sensact.errors import LogFormatError
 from sensact.io.csvtable import (
     MIN_OVERLAP,
@@ -63,7 +64,12 @@ class LandmarkLogFile:
         """A 1-D robot's recorded distance on the step grid (``groundtruth.csv``'s ``distance_mm`` in a
         track folder of continuous commands), scored as a Turtlebot CSV's ``range`` column; else None."""
         gt = self.groundtruth
-        if gt is None or "distance_mm" not in gt or self.data.geometry != "track" or not self.data.is_continuous:
+        if (
+            gt is None
+            or "distance_mm" not in gt
+            or not self.data.geometry.state_is_range
+            or not self.data.is_continuous
+        ):
             return None
         return np.asarray(gt["distance_mm"], dtype=float)
 
@@ -164,7 +170,7 @@ class _MetaParts(NamedTuple):
     columns: dict[str, Any]  # meta.json's "observations"
 
 
-def _meta_parts(mpath: Path, meta: dict[str, Any], geometry: str) -> _MetaParts:
+def _meta_parts(mpath: Path, meta: dict[str, Any], geometry: Geometry) -> _MetaParts:
     """meta.json's parts, each missing or malformed one named in one line."""
     part = "dt_s"  # the part of meta.json being read, for the error
     try:
@@ -178,7 +184,9 @@ def _meta_parts(mpath: Path, meta: dict[str, Any], geometry: str) -> _MetaParts:
             table = np.asarray(act["table"], dtype=float)
             names = tuple(act.get("names") or [f"c{j}" for j in range(table.shape[1])])
         part = "landmarks"
-        marks = meta["landmarks"] if geometry == "planar" else meta.get("landmarks", [{"id": 0, "x_mm": 0, "y_mm": 0}])
+        # a track's state is the range to its one beacon: no map to read
+        beacon = [{"id": 0, "x_mm": 0, "y_mm": 0}]
+        marks = meta.get("landmarks", beacon) if geometry.state_is_range else meta["landmarks"]
         raw_ids = [str(m["id"]).strip() if m["id"] is not None else "" for m in marks]
         xy = np.array([[float(m["x_mm"]), float(m["y_mm"])] for m in marks])
         cols = meta.get("observations", {})
@@ -227,13 +235,13 @@ class _Sightings(NamedTuple):
 
 
 def _sightings(
-    path: Path, geometry: str, cols: dict[str, Any], ids: list[str], t0: float, dt: float, T: int
+    path: Path, geometry: Geometry, cols: dict[str, Any], ids: list[str], t0: float, dt: float, T: int
 ) -> _Sightings:
     """observations.csv on the step grid: rows outside the commands' ``T`` steps dropped, every landmark id
     in the map (``ids``), bearings in radians."""
     lm_col, b_col = cols.get("landmark", "landmark_id"), cols.get("bearing")
     readings = list(cols.get("readings") or [cols.get("height", "height_px")])
-    need = ["t_s", *readings] + ([b_col] if b_col else []) + ([lm_col] if geometry == "planar" else [])
+    need = ["t_s", *readings] + ([b_col] if b_col else []) + ([] if geometry.state_is_range else [lm_col])
     # a landmark id may be a name (``post_A``), spelled as `convert csv` spells it (a track's column too)
     obs = read_numeric_csv(path / "observations.csv", need, what="observations.csv", labels=(lm_col,))
     refuse_unordered(path / "observations.csv", obs["t_s"], strict=False)
@@ -274,7 +282,11 @@ def _sightings(
 def _planar(path: Path, meta: dict[str, Any]) -> LandmarkLogFile:
     """A landmark log folder (planar, or a track declared with ``"geometry": "track"``)."""
     mpath = path / "meta.json"
-    geometry = meta.get("geometry", "planar")
+    try:
+        geometry = geometry_named(meta.get("geometry", "planar"))
+    except ValueError as exc:
+        fix = 'use "geometry": "planar" or "track".'
+        raise LogFormatError(f"{exc}.", file=mpath, field="geometry", fix=fix) from None
     mp = _meta_parts(mpath, meta, geometry)
     ids = _map_ids(mpath, mp.raw_ids)
     act_grid, cmd_grid, t0, T = _commands_on_grid(path, mp.actions, mp.dt, len(mp.table))
@@ -375,7 +387,7 @@ def read_landmark_log(
             "`simulate` writes one).",
         )
     meta = read_meta(path, example="`sensact simulate field2d --out DIR` (or `sensact convert mrclam`)")
-    if meta.get("geometry") in ("planar", "track") or meta.get("platform") == "field2d":
+    if meta.get("geometry") in GEOMETRIES or meta.get("platform") == "field2d":
         return _planar(path, meta)
     if meta.get("platform") == "track1d" or "action" in meta:
         return _track(path, command_bins, command_levels)
@@ -413,12 +425,12 @@ def write_landmark_log(
     obs: dict[str, np.ndarray] = {"t_s": times[data.obs_step], "landmark_id": data.obs_landmark.astype(float)}
     obs.update({r: data.obs_readings[:, j] for j, r in enumerate(data.reading_names)})
     cols: dict[str, Any] = {"landmark": "landmark_id", "readings": list(data.reading_names)}
-    if data.geometry == "planar" and np.isfinite(data.obs_bearing_rad).any():  # a range-only sensor's log has none
+    if data.geometry.has_heading and np.isfinite(data.obs_bearing_rad).any():  # a range-only sensor's log has none
         obs["bearing_rad"] = data.obs_bearing_rad
         cols["bearing"] = "bearing_rad"
     names = data.landmark_names or tuple(str(j) for j in range(len(data.landmarks_xy)))
     meta = {
-        "geometry": data.geometry,
+        "geometry": data.geometry.name,
         "dt_s": data.dt_s,
         "actions": act_meta,
         "landmarks": [

@@ -13,14 +13,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sensact.core.pose_models import PLANAR, TRACK
+from sensact.core.geometry import Geometry, geometry_named
 from sensact.reprs import compact_repr
 
 
 @dataclass(frozen=True, eq=False)
 class LandmarkLog:
     __repr__ = compact_repr  # a line, never the arrays
-    geometry: str  # "planar" or "track"
+    geometry: Geometry  # or its name, "planar" or "track"
     dt_s: float
     actions: np.ndarray  # (T,) int, index into action_commands; -1 = no discrete action
     action_commands: np.ndarray  # (A, k) attempted command of each action; (0, k) for continuous logs
@@ -37,8 +37,7 @@ class LandmarkLog:
     obs_ptr: np.ndarray = field(init=False)
 
     def __post_init__(self) -> None:
-        if self.geometry not in ("planar", "track"):
-            raise ValueError("geometry must be 'planar' or 'track'")
+        object.__setattr__(self, "geometry", geometry_named(self.geometry))
         conv = {
             "actions": np.int64,
             "obs_step": np.int64,
@@ -150,7 +149,7 @@ class LandmarkLog:
 
     @property
     def mode(self) -> int:
-        return PLANAR if self.geometry == "planar" else TRACK
+        return self.geometry.mode
 
     @property
     def obs_height_px(self) -> np.ndarray:

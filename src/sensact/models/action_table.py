@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
 from sensact.errors import ModelFormatError
+from sensact.models.action_model import CommandLog
 
 
 @dataclass(frozen=True, eq=False)
@@ -38,6 +39,52 @@ class ActionTable:
     def with_velocities(self, velocities: np.ndarray) -> ActionTable:
         return ActionTable(self.commands, np.array(velocities, dtype=float), self.command_names, self.velocity_names)
 
+    # ---------------------------------------------------------------- the action-model protocol
+
+    zero_mean: ClassVar[tuple[str, ...]] = ()  # a table's velocities are free: the thesis's Aibo side-steps
+    delay_steps = 0
+    can_delay = False
+
+    @property
+    def noise_groups(self) -> int:
+        return self.n_actions
+
+    @property
+    def parameters(self) -> np.ndarray:
+        return self.velocities
+
+    def with_parameters(self, values: np.ndarray) -> ActionTable:
+        return self.with_velocities(values)
+
+    def step_velocity(self, data: CommandLog) -> np.ndarray:
+        if data.n_actions != self.n_actions:
+            raise ValueError(f"the action table has {self.n_actions} actions but the log has {data.n_actions}")
+        out = np.zeros((data.n_steps, self.velocities.shape[1]))
+        ok = data.actions >= 0
+        out[ok] = self.velocities[data.actions[ok]]
+        return out
+
+    def update(self, data: CommandLog, disp_mean: np.ndarray, var: np.ndarray, max_delay_steps: int) -> ActionTable:
+        """Eq. 4.18 (``var`` and the delay do not enter: each action's velocity is its steps' mean)."""
+        return self.with_velocities(table_velocities(disp_mean, data, self.velocities))
+
+    def named_parameters(self) -> dict[str, float]:
+        return {
+            f"action[{i}].{v}": float(self.velocities[i, j])
+            for i in range(self.n_actions)
+            for j, v in enumerate(self.velocity_names)
+        }
+
+    def form(self) -> list[tuple[str, Any]]:
+        return [("action.basis", "table"), ("actions", self.n_actions)]
+
+    def table(self) -> tuple[str, list[str], list[list[str]]]:
+        rows = [
+            [*(f"{x:.3g}" for x in c), *(f"{x:.4g}" for x in v)]
+            for c, v in zip(self.commands, self.velocities, strict=True)
+        ]
+        return "learned velocity of each action", [*self.command_names, *self.velocity_names], rows
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "kind": "action_table",
@@ -67,3 +114,19 @@ class ActionTable:
                 field="velocities",
                 fix="commands and velocities must be lists of equal-length rows, one per action.",
             ) from None
+
+
+def table_velocities(disp_mean: np.ndarray, data: CommandLog, previous: np.ndarray) -> np.ndarray:
+    """Eq. 4.18: mu_a is the mean of D(mu_xi,t) over Q(a) = {t : c_t = a}, divided by dt.
+
+    An action that never ran keeps its previous velocity.
+    """
+    a = data.actions[:-1]
+    valid = a >= 0
+    counts = np.bincount(a[valid], minlength=data.n_actions).astype(float)
+    out = np.array(previous, dtype=float, copy=True)
+    seen = counts > 0
+    for i in range(out.shape[1]):
+        sums = np.bincount(a[valid], weights=disp_mean[valid, i], minlength=data.n_actions)
+        out[seen, i] = sums[seen] / counts[seen] / data.dt_s
+    return out

@@ -11,28 +11,29 @@ variance grow with the turn rate: wheels slip in turns, and MRCLAM's Vicon shows
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 
+from sensact.core.geometry import PLANAR, TRACK, Geometry, geometry_named
 from sensact.errors import ModelFormatError
+from sensact.models.action_model import ActionModel
 from sensact.models.action_table import ActionTable
 from sensact.models.landmark_sensor import LandmarkSensor
 from sensact.models.linear_action import LinearActionModel
 
-Geometry = Literal["planar", "track"]
-ActionModel = ActionTable | LinearActionModel
 # the robot-frame velocities a planar model moves by (sideways, forward, turn; theta = 0 faces +y) and a track's
-PLANAR_VELOCITY_NAMES = ("v_x_mm_s", "v_y_mm_s", "v_theta_rad_s")
-TRACK_VELOCITY_NAMES = ("v_mm_s",)
-# the thesis's fixed Sigma_m per step (sec. 4.4.1: 10 mm, 10 mm, 0.1 rad)
-THESIS_MOTION_SD = {"planar": (10.0, 10.0, 0.1), "track": (10.0,)}
+PLANAR_VELOCITY_NAMES = PLANAR.velocity_names
+TRACK_VELOCITY_NAMES = TRACK.velocity_names
+
+
+# the action models a model.json may hold, by the "kind" each writes
+ACTION_KINDS: dict[str, Any] = {"linear_action_model": LinearActionModel, "action_table": ActionTable}
 
 
 def action_from_dict(data: dict[str, Any], *, source: str) -> ActionModel:
-    if isinstance(data, dict) and data.get("kind") == "linear_action_model":
-        return LinearActionModel.from_dict(data, source=source)
-    return ActionTable.from_dict(data, source=source)
+    kind = data.get("kind") if isinstance(data, dict) else None
+    return ACTION_KINDS.get(kind, ActionTable).from_dict(data, source=source)
 
 
 @dataclass(frozen=True, eq=False)
@@ -48,22 +49,23 @@ class EMModel:
     turn_var: float | None = None
 
     def __post_init__(self) -> None:
-        n = 3 if self.geometry == "planar" else 1
+        object.__setattr__(self, "geometry", geometry_named(self.geometry))
+        n = self.geometry.n
         m = np.asarray(self.prior_mean, dtype=float).reshape(n)
         P = np.asarray(self.prior_cov, dtype=float).reshape(n, n)
         object.__setattr__(self, "prior_mean", m)
         object.__setattr__(self, "prior_cov", P)
         if len(self.action.velocity_names) != n:
             raise ValueError(f"a {self.geometry} model needs {n} velocity components per action")
-        sd = THESIS_MOTION_SD[self.geometry] if self.motion_sd is None else self.motion_sd
+        sd = self.geometry.thesis_motion_sd if self.motion_sd is None else self.motion_sd
         sd = np.atleast_2d(np.asarray(sd, dtype=float))
         if sd.shape[1] != n or not np.all(sd > 0):
             raise ValueError(f"motion_sd needs rows of {n} positive standard deviations")
-        if sd.shape[0] != 1 and not (isinstance(self.action, ActionTable) and sd.shape[0] == self.action.n_actions):
+        if sd.shape[0] not in (1, self.action.noise_groups):
             raise ValueError("motion_sd needs one row (shared) or one row per action of the table")
         object.__setattr__(self, "motion_sd", sd)
         if self.turn_var is not None:
-            if self.geometry != "planar" or sd.shape[0] != 1:
+            if not self.geometry.has_heading or sd.shape[0] != 1:
                 raise ValueError("turn_var needs a planar model with one shared motion_sd row")
             if not (np.isfinite(self.turn_var) and self.turn_var >= 0):
                 raise ValueError("turn_var must be >= 0")
@@ -82,7 +84,7 @@ class EMModel:
     def to_dict(self) -> dict[str, Any]:
         return {
             "kind": "em_model",
-            "geometry": self.geometry,
+            "geometry": self.geometry.name,
             "action": self.action.to_dict(),
             "sensor": self.sensor.to_dict(),
             "prior_mean": self.prior_mean.tolist(),

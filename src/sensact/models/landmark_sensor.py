@@ -189,6 +189,12 @@ class LandmarkSensor:
             )
 
     @property
+    def reads_bearing(self) -> bool:
+        """Whether the sensor reports each landmark's bearing (eq. 4.19's second component): a camera
+        does, radio anchors and a 1-D ranger do not."""
+        return self.sigma_bearing_rad is not None
+
+    @property
     def student_t_params(self) -> list[float]:
         """The degrees of freedom of each Student-t reading, the channels' then the bearing's."""
         return student_t_params(self.channels, self.bearing_robust, self.bearing_robust_param)

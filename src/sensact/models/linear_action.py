@@ -40,6 +40,8 @@ import numpy as np
 
 from sensact.errors import ModelFormatError
 from sensact.limits import MAX_STEPS
+from sensact.models.action_model import CommandLog
+from sensact.models.linear_action_fit import delayed, fits_by_delay
 
 BASES = ("affine", "cross", "polynomial")
 
@@ -69,15 +71,6 @@ def one_hot(actions: np.ndarray, n_actions: int) -> np.ndarray:
     ok = a >= 0
     out[np.flatnonzero(ok), a[ok]] = 1.0
     return out
-
-
-def delayed(step_commands: np.ndarray, delay_steps: int) -> np.ndarray:
-    """Row t is the command of step ``t - delay_steps`` (row 0 before the log's start)."""
-    c = np.asarray(step_commands, dtype=float)
-    if delay_steps == 0:
-        return c
-    held = min(delay_steps, len(c))  # a delay longer than the log holds its first command throughout
-    return np.concatenate([np.repeat(c[:1], held, axis=0), c[: len(c) - held]])
 
 
 def _terms(text: str) -> list[str]:
@@ -222,6 +215,61 @@ class LinearActionModel:
     def with_coefficients(self, beta: np.ndarray, delay_steps: int | None = None) -> LinearActionModel:
         delay = self.delay_steps if delay_steps is None else delay_steps
         return replace(self, coefficients=beta, delay_steps=delay)
+
+    # ---------------------------------------------------------------- the action-model protocol
+
+    noise_groups = 1  # Sigma_m is shared: the commands are continuous
+    can_delay = True
+
+    @property
+    def parameters(self) -> np.ndarray:
+        return self.coefficients
+
+    def with_parameters(self, values: np.ndarray) -> LinearActionModel:
+        return self.with_coefficients(values)
+
+    def step_velocity(self, data: CommandLog) -> np.ndarray:
+        if data.step_commands is None:
+            raise ValueError("a continuous action model needs a log with per-step commands")
+        return self.step_features(data.step_commands) @ self.coefficients
+
+    def update(
+        self, data: CommandLog, disp_mean: np.ndarray, var: np.ndarray, max_delay_steps: int
+    ) -> LinearActionModel:
+        """The M-step of ``A(c) = Phi(c) beta`` with its command delay: for each delay in
+        ``0..max_delay_steps`` the weighted least-squares beta, and of those the pair with the least
+        weighted squared error (the same expected log-likelihood, maximized over a discrete parameter too)."""
+        delays = list(range(max_delay_steps + 1)) if max_delay_steps > 0 else [self.delay_steps]
+        Phi0 = self.step_features(data.step_commands, 0)
+        free, combined = self.free_coefficients, self.combined_inputs
+        fits = fits_by_delay(Phi0, disp_mean, var, data.dt_s, self.coefficients, free, delays, combined)
+        best = min(range(len(fits)), key=lambda k: fits[k][0])  # the first of equals, as a strict < keeps
+        return self.with_coefficients(fits[best][1], delays[best])
+
+    def named_parameters(self) -> dict[str, float]:
+        return {
+            f"action.{v}[{feature}]": float(self.coefficients[i, j])
+            for i, feature in enumerate(feature_names(self.basis, self.degree, self.command_names))
+            for j, v in enumerate(self.velocity_names)
+        }
+
+    def form(self) -> list[tuple[str, Any]]:
+        return [
+            ("action.basis", self.basis),
+            ("action.degree", self.degree if self.basis == "polynomial" else None),
+            ("action.zero_mean", tuple(self.zero_mean)),
+            ("action.inputs", tuple(self.inputs)),
+        ]
+
+    def table(self) -> tuple[str, list[str], list[list[str]]]:
+        rows = [
+            [fname, *(f"{x:.4g}" for x in row)]
+            for fname, row in zip(
+                feature_names(self.basis, self.degree, self.command_names), self.coefficients, strict=True
+            )
+        ]
+        title = f"learned A(c) = Phi(c) beta ({self.basis}; delay {self.delay_steps} steps)"
+        return title, ["feature", *self.velocity_names], rows
 
     def to_dict(self) -> dict[str, Any]:
         return {

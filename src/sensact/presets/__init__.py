@@ -167,11 +167,11 @@ def for_log(name: str, data: LandmarkLog) -> EMConfig:
     flat lines. A preset that cannot fit the log is one line."""
     cfg = load_preset(name)
     planar = name != "track_1d"
-    if planar != (data.geometry == "planar"):
+    if planar != (data.geometry.has_heading):
         raise ConfigError(
             f"preset {name} is for a {'planar' if planar else '1-D'} robot and {data.source} is a {data.geometry} log.",
             field="--preset",
-            fix=f"use one of {', '.join(n for n in PRESETS if (n != 'track_1d') == (data.geometry == 'planar'))}.",
+            fix=f"use one of {', '.join(n for n in PRESETS if (n != 'track_1d') == data.geometry.has_heading)}.",
         )
     if name == "differential_drive_camera":
         return planar_config(data.command_names)

@@ -20,7 +20,6 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from sensact.evaluate.halves import GRID
-from sensact.learn.em.actions import step_velocity
 from sensact.report.figures1d import _save
 
 _VELOCITY_WORDS = {
@@ -84,9 +83,9 @@ def figure_halves(
 ) -> Path:
     """``halves``' models (``(name, model)``, "first half" and "second half") against ``whole``, learned
     on ``data``; ``comparison`` is ``compare_halves``' (its channels' spans and noise parameters)."""
-    v_whole = step_velocity(whole.action, data)
+    v_whole = whole.action.step_velocity(data)
     moving = [j for j in range(v_whole.shape[1]) if np.any(v_whole[:, j] != 0)]  # not a diff-drive's sideways
-    v_halves = [(name, step_velocity(m.action, data)) for name, m in halves]
+    v_halves = [(name, m.action.step_velocity(data)) for name, m in halves]
     spans = comparison["f"]["spans"]
     channels = [j for j, ch in enumerate(whole.sensor.channels) if ch.name in spans]
     n = len(moving) + len(channels) + 1

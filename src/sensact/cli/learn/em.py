@@ -121,7 +121,7 @@ def _describe_fit(res: Any, cfg: Any) -> None:
             else ""
         )
     )
-    if res.mount is not None and res.model.geometry == "planar":
+    if res.mount is not None and res.model.geometry.has_heading:
         console.print(f"sensor mount: {res.mount.describe()}", highlight=False)
     if res.start_moved:
         first, again = res.start_moved["loglik"]
@@ -344,7 +344,7 @@ def _warn_of_the_log(opened: Any) -> None:
     if opened.folder is not None:
         for doubt in unit_doubts(data, opened.folder.truth_poses()):
             console.print(f"[yellow]warning:[/] {doubt} (in {opened.path})")
-    if data.geometry == "track" and data.step_commands is not None:
+    if data.geometry.state_is_range and data.step_commands is not None:
         warn_if_one_command(data.step_commands[:, 0], data.source, data.command_names[0])
 
 
@@ -375,7 +375,7 @@ def _events(opened: Any, preset: str | None, show: Any) -> Any:
             absent = [r for r in EM_READINGS if r not in names]
             if absent:
                 console.print(f"Channels {', '.join(names)} ({', '.join(absent)} not in the file).")
-        if cfg.search.start_s is not None and opened.data.geometry == "planar" and not cfg.search.warm_start:
+        if cfg.search.start_s is not None and opened.data.geometry.has_heading and not cfg.search.warm_start:
             console.print(
                 f"finding the start pose: a {cfg.search.start_grid_mm:g} mm grid scored on the first "
                 f"{cfg.search.start_s:g} s, then EM from its {cfg.search.start_candidates} best, the better half kept "

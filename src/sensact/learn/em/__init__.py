@@ -16,7 +16,7 @@ thesis, for real logs:
 """
 
 from sensact.learn.em.config import EMConfig
-from sensact.learn.em.estep import Posteriors, e_step, log_likelihood, motion_variance
+from sensact.learn.em.estep import Posteriors, e_step, log_likelihood
 from sensact.learn.em.fit import EMResult, fit_em
 from sensact.learn.em.initial import initial_model
 from sensact.learn.em.mstep import m_step
@@ -32,5 +32,4 @@ __all__ = [
     "initial_model",
     "log_likelihood",
     "m_step",
-    "motion_variance",
 ]

@@ -36,7 +36,7 @@ SIDEWAYS_NOISE_RATIO = 2.0
 
 def _fitted_distances(model: EMModel, post: Posteriors, data: LandmarkLog) -> list[tuple[Any, tuple[float, float]]]:
     """``fitted_distances`` on a planar log (the lost-fit signs); none on a track."""
-    return fitted_distances(model, post, data) if data.geometry == "planar" else []
+    return fitted_distances(model, post, data) if data.geometry.has_heading else []
 
 
 def fitted_distances(model: EMModel, post: Posteriors, data: LandmarkLog) -> list[tuple[Any, tuple[float, float]]]:
@@ -45,7 +45,7 @@ def fitted_distances(model: EMModel, post: Posteriors, data: LandmarkLog) -> lis
     if not data.n_observations:
         return []
     use = np.asarray(post.obs_used, dtype=bool)
-    if data.geometry == "planar":
+    if data.geometry.has_heading:
         poses = post.mean_gamma[data.obs_step[use]]
         dist = sensor_distance(poses, data.landmarks_xy[data.obs_landmark[use]], model.sensor.mount.as_array())
     else:  # a track's state is the distance to the beacon
@@ -153,7 +153,7 @@ def lost_fit_signs(
     cfg = config or EMConfig()
     fitted = _fitted_distances(model, post, data)
     signs = _turns(fitted) + _bends(fitted, cfg.search.lost_bend_ratio)
-    if loglik_history is not None and data.geometry == "planar":
+    if loglik_history is not None and data.geometry.has_heading:
         used = int(np.count_nonzero(post.obs_used))
         signs += unsettled_fit(loglik_history, best_iteration, used, cfg.search.lost_fall_per_sighting)
     return signs
@@ -200,7 +200,7 @@ def held_sideways_noise(model: EMModel, motion_noise: str) -> dict[str, float] |
     The action bars cannot show it, since From-Truth is fitted in the same family. None when Sigma_m was
     not learned (``motion_noise`` ``fixed``: its sds are the config's)."""
     held = "v_x_mm_s" in getattr(model.action, "zero_mean", ())
-    if motion_noise == "fixed" or model.geometry != "planar" or model.motion_sd.shape[0] != 1 or not held:
+    if motion_noise == "fixed" or not model.geometry.has_heading or model.motion_sd.shape[0] != 1 or not held:
         return None
     sideways, forward = (float(v) for v in model.motion_sd[0, :2])
     if sideways <= SIDEWAYS_NOISE_RATIO * forward:
@@ -240,7 +240,7 @@ def residual_autocorrelation(model: EMModel, post: Posteriors, data: LandmarkLog
         return out
     poses = post.mean_gamma[data.obs_step[rows]]
     lm = data.landmarks_xy[data.obs_landmark[rows]]
-    if data.geometry == "planar":
+    if data.geometry.has_heading:
         poses = sensor_poses(poses, model.sensor.mount.as_array())
     dist = landmark_distance(poses, lm, data.mode)
     readings = channel_inputs(model.sensor, data)[0][rows]
@@ -250,7 +250,7 @@ def residual_autocorrelation(model: EMModel, post: Posteriors, data: LandmarkLog
         use = w > 0
         pred = ch.predict(dist[use], bearings[use] if ch.bearing_terms else None)
         out[ch.name] = _lag1(np.sqrt(w[use]) * (readings[use, j] - pred))
-    if model.sensor.sigma_bearing_rad is not None and data.geometry == "planar":
+    if model.sensor.reads_bearing and data.geometry.has_heading:
         w = post.weights[rows, -1]
         use = w > 0
         out["bearing"] = _lag1(np.sqrt(w[use]) * wrap_angle(bearings[use] - landmark_bearing(poses[use], lm[use])))

@@ -396,7 +396,7 @@ def refuse_bearing_settings(config: EMConfig, data: Any) -> None:
     """A planar log (``LandmarkLog``) without a single bearing cannot run settings that need one: a channel
     with bearing terms predicts none of its readings (they count as missing), and the start search scores
     poses by bearings. One line naming the field (``ConfigError``), before EM would fail on it."""
-    if data.geometry != "planar" or np.isfinite(data.obs_bearing_rad).any():
+    if not data.geometry.has_heading or np.isfinite(data.obs_bearing_rad).any():
         return
     source = data.source
     for i, ch in enumerate(config.channels):

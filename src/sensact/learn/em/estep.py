@@ -23,7 +23,7 @@ from sensact.core.ekf_smoother import (
     StepInputs,
     passes_for,
 )
-from sensact.learn.em.actions import step_motion_var, step_velocity
+from sensact.learn.em.actions import step_motion_var
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 from sensact.models.landmark_sensor import LandmarkSensor
@@ -48,13 +48,6 @@ class Posteriors:
     weights: np.ndarray  # (K, C+1) each reading channel's weight, then the bearing's; 0 = not used
 
 
-def motion_variance(geometry: str, motion_sd_mm: float, motion_sd_rad: float) -> np.ndarray:
-    """The diagonal of Sigma_m in the robot frame (sec. 4.4.1)."""
-    if geometry == "track":
-        return np.array([motion_sd_mm**2])
-    return np.array([motion_sd_mm**2, motion_sd_mm**2, motion_sd_rad**2])
-
-
 def channel_columns(sensor: LandmarkSensor, data: LandmarkLog) -> list[int]:
     """The log's reading column of each of the sensor's channels, matched by name."""
     names = [c.name for c in sensor.channels]
@@ -77,7 +70,7 @@ def channel_inputs(sensor: LandmarkSensor, data: LandmarkLog) -> tuple[np.ndarra
     for c, ch in enumerate(sensor.channels):
         if not ch.bearing_terms:
             continue
-        if data.geometry != "planar":
+        if not data.geometry.has_heading:
             raise ValueError(f"channel {ch.name} has bearing terms but the log {data.source} has no bearings")
         g = ch.bearing_gain(data.obs_bearing_rad)
         readings[~np.isfinite(g), c] = np.nan
@@ -171,7 +164,7 @@ def _run_passes(
     if sensor.joint_student_t:
         kinds[kinds == STUDENT_T] = STUDENT_T_JOINT
     params = np.array([c.robust_param for c in chans] + [sensor.bearing_robust_param], dtype=float)
-    velocity = step_velocity(model.action, data)
+    velocity = model.action.step_velocity(data)
     if motion_var is None:
         var_steps = step_motion_var(model, data, velocity)
     else:

@@ -115,7 +115,7 @@ def restart_while_lost(fit: Fit, data: LandmarkLog, cfg: EMConfig, heard: Heard)
     last one's, at most ``turn_restarts`` times, and none after Ctrl-C. EM maximizes the likelihood, so the
     fit kept is the most likely one, each scored with the configured readings model on the sightings that
     every run kept after its first-iteration prune. ``restarts`` of the result lists every run."""
-    if cfg.search.turn_restarts == 0 or data.geometry != "planar":
+    if cfg.search.turn_restarts == 0 or not data.geometry.has_heading:
         return fit
 
     def restarting(start: EMModel) -> EMResult:
@@ -258,14 +258,14 @@ def facing_forward(res: EMResult, data: LandmarkLog) -> EMResult:
 
 def refuse_settings_for_log(cfg: EMConfig, data: LandmarkLog, initial: EMModel | None) -> None:
     """Settings this log cannot be learned with, each one line naming the field, before any work."""
-    if cfg.search.ridge_mm is not None and data.geometry != "planar":
+    if cfg.search.ridge_mm is not None and not data.geometry.has_heading:
         raise ConfigError(
             "search.ridge_mm moves the path along the robot's heading and needs a planar log.",
             file=data.source,
             field="search.ridge_mm",
             fix="set search.ridge_mm: null for a track.",
         )
-    if cfg.motion_noise.sideways_mm is not None and data.geometry != "planar":
+    if cfg.motion_noise.sideways_mm is not None and not data.geometry.has_heading:
         raise ConfigError(
             "motion_noise.sideways_mm is a planar robot's sideways noise, and a track has no sideways.",
             file=data.source,

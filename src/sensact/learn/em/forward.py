@@ -17,10 +17,8 @@ from dataclasses import replace
 import numpy as np
 
 from sensact.core.angles import wrap_angle
-from sensact.learn.em.actions import step_velocity
 from sensact.learn.em.estep import Posteriors
 from sensact.logs.landmark_log import LandmarkLog
-from sensact.models.action_table import ActionTable
 from sensact.models.em_model import EMModel
 
 # robot-frame (v_x, v_y, v_theta): the translation flips, the turn stays
@@ -30,18 +28,15 @@ FLIP = np.array([-1.0, -1.0, 1.0])
 def drives_backward(model: EMModel, data: LandmarkLog) -> bool:
     """Whether a planar model without bearings has the robot drive backward on average over ``data``'s
     steps: the labelling to turn by pi. False whenever the sensor reads bearings."""
-    if model.geometry != "planar" or model.sensor.sigma_bearing_rad is not None:
+    if not model.geometry.has_heading or model.sensor.reads_bearing:
         return False
-    return float(np.mean(step_velocity(model.action, data)[:, 1])) < 0.0
+    return float(np.mean(model.action.step_velocity(data)[:, 1])) < 0.0
 
 
 def turned_model(model: EMModel) -> EMModel:
     """The same model with the robot facing the other way: headings + pi, translations negated."""
     a = model.action
-    if isinstance(a, ActionTable):
-        action = a.with_velocities(a.velocities * FLIP)
-    else:
-        action = a.with_coefficients(a.coefficients * FLIP)
+    action = a.with_parameters(a.parameters * FLIP)
     mean = model.prior_mean.copy()
     mean[2] = float(wrap_angle(mean[2] + np.pi))
     return model.replace(action=action, prior_mean=mean)  # a constant turn leaves the covariances as they are

@@ -25,7 +25,7 @@ def start_moved_mm(start: EMModel, learned: EMModel, data: LandmarkLog, config: 
     """How far (mm) EM moved a range-only log's given start, when that is more than ``moved_start_sds``
     of the prior's position sd; None otherwise, and for a log whose start was searched for or whose
     sensor reads bearings (they fix the heading, and the start search chose the start)."""
-    if data.geometry != "planar" or start.sensor.sigma_bearing_rad is not None or config.search.start_s is not None:
+    if not data.geometry.has_heading or start.sensor.reads_bearing or config.search.start_s is not None:
         return None
     moved = float(np.hypot(*(learned.prior_mean[:2] - start.prior_mean[:2])))
     limit = config.search.moved_start_sds * float(np.sqrt(np.max(np.diag(start.prior_cov)[:2])))

@@ -80,7 +80,7 @@ def _readings(result: EMResult, data: LandmarkLog) -> list[HealthFlag]:
     dist = None
     if post is not None:
         steps = data.obs_step[use]
-        if data.geometry == "planar":
+        if data.geometry.has_heading:
             poses = post.mean_gamma[steps]
             dist = sensor_distance(poses, data.landmarks_xy[data.obs_landmark[use]], model.sensor.mount.as_array())
         else:

@@ -11,7 +11,7 @@ from sensact.errors import ConfigError
 from sensact.learn.em.config import EMConfig
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.action_table import ActionTable
-from sensact.models.em_model import PLANAR_VELOCITY_NAMES, TRACK_VELOCITY_NAMES, EMModel
+from sensact.models.em_model import EMModel
 from sensact.models.landmark_sensor import LandmarkSensor, ReadingChannel, SensorMount
 from sensact.models.linear_action import LinearActionModel
 from sensact.models.polynomial import Polynomial1D
@@ -48,20 +48,21 @@ def starting_sensor(data: LandmarkLog, config: EMConfig) -> LandmarkSensor:
                 (0.0,) * cc.bearing_degree,
             )
         )
-    if data.geometry == "planar" and np.isfinite(data.obs_bearing_rad).any():
+    if data.geometry.has_heading and np.isfinite(data.obs_bearing_rad).any():
         sigma_b, robust = config.thesis.start_sigma_bearing_rad, (config.robust.bearing, config.robust.bearing_param)
     else:  # a track, or a range-only sensor (radio beacons): no bearing to learn a sigma_2 for
         sigma_b, robust = None, ("none", 0.0)
     mount = (
-        SensorMount() if config.sensor_mount is None or data.geometry != "planar" else SensorMount(*config.sensor_mount)
+        SensorMount()
+        if config.sensor_mount is None or not data.geometry.has_heading
+        else SensorMount(*config.sensor_mount)
     )
     return LandmarkSensor(tuple(channels), sigma_b, *robust, config.robust.joint_student_t, mount)
 
 
 def initial_model(data: LandmarkLog, config: EMConfig) -> EMModel:
     """The starting model of sec. 4.4.1: every action has no effect, f is a poor line, wide sigmas."""
-    n = 3 if data.geometry == "planar" else 1
-    names = PLANAR_VELOCITY_NAMES if n == 3 else TRACK_VELOCITY_NAMES
+    n, names = data.geometry.n, data.geometry.velocity_names
     if config.action.basis == "table":
         if data.n_actions == 0:
             raise ConfigError(
@@ -102,7 +103,7 @@ def initial_model(data: LandmarkLog, config: EMConfig) -> EMModel:
     first = sensor.channels[0]
     col = data.reading_names.index(first.name) if first.name in data.reading_names else 0
     slope = first.function.coef[1] / first.function.scale if first.function.degree >= 1 else 0.0
-    if data.geometry == "track" and data.n_observations and np.isfinite(data.obs_readings[0, col]) and slope:
+    if data.geometry.state_is_range and data.n_observations and np.isfinite(data.obs_readings[0, col]) and slope:
         # a track has no landmark map to anchor the start: invert the starting f on the first sighting,
         # with the distance spread that one sighting implies
         f0 = first.function(0.0)
@@ -112,7 +113,7 @@ def initial_model(data: LandmarkLog, config: EMConfig) -> EMModel:
     motion_sd = np.repeat(sd, data.n_actions, axis=0) if config.motion_noise.kind == "per_action" else sd
     turn_var = None
     if config.motion_noise.kind == "turning":
-        if data.geometry != "planar":
+        if not data.geometry.has_heading:
             raise ConfigError(
                 "motion_noise.kind turning scales the heading noise by the turn; a track has no heading.",
                 file=data.source,

@@ -170,7 +170,7 @@ def localize(
     cfg = config or EMConfig()
     refuse_no_sightings(data)  # the start and the path are placed by the sightings
     n = model.prior_mean.size
-    gate = cfg.thesis.prune_rad_per_step if data.geometry == "planar" else 0.0
+    gate = cfg.thesis.prune_rad_per_step if data.geometry.has_heading else 0.0
     given = None if start is None else np.asarray(start, dtype=float).ravel()
     if given is not None and n == 3 and given.size == 2:
         headings, step = start_headings()
@@ -182,7 +182,7 @@ def localize(
         cov = np.diag(np.asarray(cfg.thesis.start_prior_sd[:n], dtype=float) ** 2)
         candidates = [model.replace(prior_mean=mean, prior_cov=cov)]
         how = "given"
-    elif data.geometry == "track":
+    elif data.geometry.state_is_range:
         found = track_start_candidates(model, data)
         if not found:
             raise ConfigError(
@@ -194,7 +194,7 @@ def localize(
             )
         candidates = [model.replace(prior_mean=np.array([x]), prior_cov=np.array([[sd**2]])) for x, sd in found]
         how = "the first readings through the learned f"
-    elif model.sensor.sigma_bearing_rad is None or not np.isfinite(data.obs_bearing_rad).any():
+    elif not model.sensor.reads_bearing or not np.isfinite(data.obs_bearing_rad).any():
         candidates = range_start_candidates(model, data, cfg, progress)
         how = "the ranges' start search"
     else:

@@ -31,9 +31,7 @@ from sensact.learn.em.result import EMResult
 from sensact.learn.em.ridge import search_ridge
 from sensact.learn.em.start import OnTrial, race_starts, start_candidates
 from sensact.logs.landmark_log import LandmarkLog
-from sensact.models.action_table import ActionTable
 from sensact.models.em_model import EMModel
-from sensact.models.linear_action import LinearActionModel
 
 # (iteration, loglik, best loglik, iterations since the best) -> None
 Progress = Callable[[int, float, float, int], None]
@@ -134,7 +132,7 @@ class _Searches:
         cls, data: LandmarkLog, model: EMModel, cfg: EMConfig, freedom: MountFreedom, on: bool = True
     ) -> _Searches:
         max_delay = round((cfg.action.delay_max_s or 0.0) / data.dt_s)
-        delay_on = on and cfg.search.delay and max_delay > 0 and isinstance(model.action, LinearActionModel)
+        delay_on = on and cfg.search.delay and max_delay > 0 and model.action.can_delay
         ridge_on = on and cfg.search.ridge_mm is not None
         return cls(data, cfg, max_delay, ridge_on, delay_on, freedom.free if on else NO_MOUNT)
 
@@ -343,7 +341,7 @@ def run_stages(
 def held_trial(data: LandmarkLog, model: EMModel, iterations: int, cfg: EMConfig) -> EMResult:
     """A start race's trial: ``iterations`` of the held stage alone from ``model``, ungated and without a
     stop, so that every candidate's likelihood is one function (``start.race_starts``)."""
-    freedom = mount_freedom(model, cfg.sensor_mount is not None, model.sensor.sigma_bearing_rad is not None)
+    freedom = mount_freedom(model, cfg.sensor_mount is not None, model.sensor.reads_bearing)
     stage = HELD if holds_anything(cfg, model, freedom) else plan_stages(cfg, model, freedom)[0]
     return run_stages(
         data, model, cfg, (stage,), iterations, freedom=freedom, patience=None, prune=None, searches_on=False
@@ -355,7 +353,7 @@ def searched_start(
 ) -> tuple[EMModel, dict[str, Any] | None, int]:
     """Where the robot starts when nobody says (``start.py``): the model placed there, what the search
     tried, and the held iterations the start race already gave the model (0 without a race)."""
-    if not (cfg.search.start_s is not None and data.geometry == "planar" and not cfg.search.warm_start):
+    if not (cfg.search.start_s is not None and data.geometry.has_heading and not cfg.search.warm_start):
         return model, None, 0
     candidates, info = start_candidates(data, model, cfg)
     model, spent = candidates[0], 0
@@ -382,7 +380,7 @@ def fit_em_once(
     if cfg.motion_noise.kind == "fixed":  # the thesis: Sigma_m is the configured constant, whatever the start says
         model = model.replace(motion_sd=motion_sd_start(cfg, model.prior_mean.size))
     model, start_info, spent = searched_start(data, model, cfg, on_race)
-    freedom = mount_freedom(model, cfg.sensor_mount is not None, model.sensor.sigma_bearing_rad is not None)
+    freedom = mount_freedom(model, cfg.sensor_mount is not None, model.sensor.reads_bearing)
     stages = plan_stages(cfg, model, freedom, spent)
     iterations = max(cfg.thesis.max_iterations - spent, 1)
     return run_stages(
@@ -417,4 +415,4 @@ def stage_loglik(model: EMModel, data: LandmarkLog, obs_use: np.ndarray, robust:
 
 def _action_parameters(model: EMModel) -> np.ndarray:
     a = model.action
-    return a.velocities if isinstance(a, ActionTable) else a.coefficients
+    return a.parameters

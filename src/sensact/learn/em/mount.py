@@ -38,7 +38,6 @@ from sensact.core.angles import wrap_angle
 from sensact.core.pose_models import landmark_bearing, sensor_distance, sensor_poses
 from sensact.models.em_model import EMModel
 from sensact.models.landmark_sensor import LandmarkSensor, SensorMount
-from sensact.models.linear_action import LinearActionModel
 
 MOUNT_COMPONENTS = ("forward_mm", "left_mm", "yaw_rad")
 GAUSS_NEWTON_STEPS = 3  # per M-step; EM's own iterations carry it the rest of the way
@@ -71,12 +70,12 @@ class MountFreedom:
 def mount_freedom(model: EMModel, given: bool, reads_bearing: bool) -> MountFreedom:
     """Which components of the sensor's mount the log pins (module docstring), for ``model``'s action
     model; ``given``: the config gives the mount, which is then held whole."""
-    if model.geometry != "planar":
+    if not model.geometry.has_heading:
         return MountFreedom((False, False, False), "a track's sensor has no pose of its own")
     if given:
         return MountFreedom((False, False, False), "given in the config (sensor_mount)")
     action = model.action
-    if not (isinstance(action, LinearActionModel) and "v_x_mm_s" in action.zero_mean):
+    if "v_x_mm_s" not in action.zero_mean:
         return MountFreedom(
             (False, False, False),
             "every velocity of the action model is free, so any point of the robot describes its motion "
@@ -122,7 +121,7 @@ def _objective_terms(
         total += float(np.sum(w[use] * e**2))
         grad += J.T @ (w[use] * e)
         gn += J.T @ (J * w[use, None])
-    if sensor.sigma_bearing_rad is not None:
+    if sensor.reads_bearing:
         w = np.tile(weights[:, -1], S) / sensor.sigma_bearing_rad**2
         use = (w > 0) & np.isfinite(b_s)
         if use.any():

@@ -10,26 +10,12 @@ import numpy as np
 from sensact.core.angles import wrap_angle
 from sensact.core.polyfit import weighted_lstsq
 from sensact.core.pose_models import apply_displacement, landmark_bearing, sensor_poses
-from sensact.learn.em.actions import (
-    linear_action_update,
-    motion_noise,
-    motion_second_moments,
-    step_motion_var,
-    step_velocity,
-    table_velocities,
-    turning_variance,
-)
+from sensact.learn.em.actions import motion_noise, motion_second_moments, step_motion_var, turning_variance
 from sensact.learn.em.estep import Posteriors, channel_inputs
 from sensact.learn.em.mount import mount_update, sensor_distances
 from sensact.logs.landmark_log import LandmarkLog
-from sensact.models.action_table import ActionTable
 from sensact.models.em_model import EMModel
 from sensact.models.landmark_sensor import LandmarkSensor, reading_features
-
-
-def action_velocities(post: Posteriors, data: LandmarkLog, previous: np.ndarray) -> np.ndarray:
-    """Eq. 4.18 for the action table (see ``actions.table_velocities``)."""
-    return table_velocities(post.disp_mean, data, previous)
 
 
 def sample_gamma(post: Posteriors, steps: np.ndarray, n_samples: int, rng: np.random.Generator) -> np.ndarray:
@@ -121,7 +107,7 @@ def sensor_model(
         fits.append((fitted.function, max(sigma, 1e-9), fitted.bearing_terms))
     sigma_b = previous.sigma_bearing_rad
     wb = weights[rows, -1]
-    if data.geometry == "planar" and sigma_b is not None and (wb > 0).any():
+    if data.geometry.has_heading and sigma_b is not None and (wb > 0).any():
         b = wb > 0
         ob = data.obs_bearing_rad[rows][b]
         m = previous.mount.as_array()
@@ -155,19 +141,16 @@ def m_step(
 ) -> EMModel:
     """Every update of sec. 4.3, plus Sigma_m when ``learn_motion_noise`` (shared or per action, as the
     model's ``motion_sd`` has one row or one per action)."""
-    if isinstance(model.action, ActionTable):
-        action = model.action.with_velocities(action_velocities(post, data, model.action.velocities))
-    else:
-        if model.turn_var is None:
-            var = np.broadcast_to((model.motion_sd**2)[0], post.disp_mean.shape)
-        else:  # the steps' own variances: a turn's heading counts for less
-            var = step_motion_var(model, data)[:-1]
-        action = linear_action_update(model.action, data, post.disp_mean, var, max_delay_steps)
+    if model.turn_var is None:
+        var = np.broadcast_to((model.motion_sd**2)[0], post.disp_mean.shape)
+    else:  # the steps' own variances: a turn's heading counts for less
+        var = step_motion_var(model, data)[:-1]
+    action = model.action.update(data, post.disp_mean, var, max_delay_steps)  # eq. 4.18 or its least squares
     motion_sd, turn_var = model.motion_sd, model.turn_var
     if learn_motion_noise:
         floor = np.zeros(model.prior_mean.size) if motion_floor_sd is None else motion_floor_sd
         groups = data.actions[:-1] if model.per_action_noise else None
-        mean_disp = step_velocity(action, data)[:-1] * data.dt_s
+        mean_disp = action.step_velocity(data)[:-1] * data.dt_s
         second = motion_second_moments(post.disp_mean, post.disp_cov, mean_disp)
         motion_sd = motion_noise(second, groups, motion_sd.shape[0], floor, motion_sd)
         if turn_var is not None:

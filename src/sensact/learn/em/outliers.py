@@ -26,7 +26,7 @@ def bearing_outliers(
     bearing of their landmark at the smoothed mean pose of their own step (sec. 4.4.1's gate, k = 1), seen
     from the sensor at ``mount`` (forward mm, left mm, yaw rad; None: the robot's own point)."""
     out = np.zeros(data.n_observations, dtype=bool)
-    if data.geometry != "planar" or not gate_rad > 0:
+    if not data.geometry.has_heading or not gate_rad > 0:
         return out
     rows = np.flatnonzero(post.obs_used & np.isfinite(data.obs_bearing_rad))
     lm = data.landmarks_xy[data.obs_landmark[rows]]

@@ -19,20 +19,20 @@ import numpy as np
 
 from sensact.core.angles import wrap_angle
 from sensact.core.pose_models import PLANAR, TRACK, landmark_bearing, landmark_distance, sensor_poses
-from sensact.learn.em.actions import step_motion_var, step_velocity
+from sensact.learn.em.actions import step_motion_var
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 
 
 def draw_path(model: EMModel, data: LandmarkLog, rng: np.random.Generator) -> np.ndarray:
     """``(T, n)``: a path of the model's motion under the log's commands, from ``w_0 ~ pi(w_0)``."""
-    velocity = step_velocity(model.action, data)
+    velocity = model.action.step_velocity(data)
     sd = np.sqrt(step_motion_var(model, data, velocity))
     n = velocity.shape[1]
     disp = velocity * data.dt_s + rng.standard_normal(velocity.shape) * sd
     w0 = rng.multivariate_normal(model.prior_mean, model.prior_cov)
     T = data.n_steps
-    if data.geometry == "track":  # a forward velocity shortens the distance to the beacon
+    if data.geometry.state_is_range:  # a forward velocity shortens the distance to the beacon
         return (w0[0] - np.concatenate([[0.0], np.cumsum(disp[: T - 1, 0])])).reshape(T, n)
     theta = w0[2] + np.concatenate([[0.0], np.cumsum(disp[: T - 1, 2])])
     c, s = np.cos(theta[:-1]), np.sin(theta[:-1])
@@ -57,12 +57,12 @@ def draw_readings(
     at = poses[data.obs_step]
     K = data.n_observations
     bearing = np.full(K, np.nan)
-    if data.geometry == "planar":
+    if data.geometry.has_heading:
         where = sensor_poses(at, sensor.mount.as_array())
         landmarks = data.landmarks_xy[data.obs_landmark]
         dist = landmark_distance(where, landmarks, PLANAR)
         seen = np.isfinite(data.obs_bearing_rad)
-        if sensor.sigma_bearing_rad is not None:
+        if sensor.reads_bearing:
             true_bearing = landmark_bearing(where, landmarks)
             noise = _noise(sensor.bearing_robust, sensor.bearing_robust_param, K, rng)
             bearing = np.where(seen, wrap_angle(true_bearing + sensor.sigma_bearing_rad * noise), np.nan)
@@ -87,7 +87,7 @@ def simulate_from_model(model: EMModel, data: LandmarkLog, seed: int) -> tuple[L
     columns = np.array(data.obs_readings, copy=True)
     for i, ch in enumerate(model.sensor.channels):
         columns[:, data.reading_names.index(ch.name)] = readings[:, i]
-    if data.geometry == "track":
+    if data.geometry.state_is_range:
         bearing = data.obs_bearing_rad
     drawn = replace(data, obs_readings=columns, obs_bearing_rad=bearing, source=f"{data.source} (drawn, seed {seed})")
     return drawn, poses

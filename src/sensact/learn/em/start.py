@@ -45,7 +45,7 @@ DISTINCT_CELLS = 2.5  # candidates closer than this many grid cells are one cand
 def start_candidates(data: LandmarkLog, model: EMModel, config: EMConfig) -> tuple[list[EMModel], dict[str, Any]]:
     """Up to ``config.search.start_candidates`` models with distinct ``pi(w_0)``, best window likelihood first."""
     first = np.flatnonzero(np.isfinite(data.obs_bearing_rad))
-    if data.geometry != "planar" or first.size == 0 or len(data.landmarks_xy) == 0:
+    if not data.geometry.has_heading or first.size == 0 or len(data.landmarks_xy) == 0:
         raise ValueError("the start search needs a planar log with bearings to mapped landmarks")
     window = search_window(data, config.search.start_s)
     k0 = first[0]

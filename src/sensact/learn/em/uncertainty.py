@@ -32,7 +32,6 @@ import numpy as np
 
 from sensact.learn.em.config import EMConfig
 from sensact.logs.landmark_log import LandmarkLog
-from sensact.models.action_table import ActionTable
 from sensact.models.em_model import EMModel
 
 LEVEL = 0.90
@@ -44,13 +43,8 @@ F_QUANTILES = (0.1, 0.5, 0.9)  # where f is read: the 10th, 50th and 90th percen
 def f_distances(model: EMModel, data: LandmarkLog, path: np.ndarray) -> np.ndarray:
     """The distances f is read at (``F_QUANTILES`` of the sensor-to-landmark distances of the log's
     sightings, on the smoothed ``path``), rounded to whole millimetres so that they name themselves."""
-    from sensact.core.pose_models import PLANAR, TRACK, landmark_distance, sensor_poses
-
     at = path[data.obs_step]
-    if data.geometry == "planar":
-        d = landmark_distance(sensor_poses(at, model.sensor.mount.as_array()), data.landmarks_xy[data.obs_landmark])
-    else:
-        d = landmark_distance(at, None, TRACK if data.geometry == "track" else PLANAR)
+    d = data.geometry.sensor_distance(at, data.landmarks_xy[data.obs_landmark], model.sensor.mount.as_array())
     return np.round(np.quantile(d, F_QUANTILES))
 
 
@@ -58,23 +52,14 @@ def model_parameters(model: EMModel, f_at: Sequence[float]) -> dict[str, tuple[s
     """Every learned parameter of ``model`` by name: ``{name: (family, value)}``."""
     out: dict[str, tuple[str, float]] = {}
     a = model.action
-    if isinstance(a, ActionTable):
-        for i in range(a.n_actions):
-            for j, v in enumerate(a.velocity_names):
-                out[f"action[{i}].{v}"] = ("action", float(a.velocities[i, j]))
-    else:
-        from sensact.models.linear_action import feature_names
-
-        for i, feature in enumerate(feature_names(a.basis, a.degree, a.command_names)):
-            for j, v in enumerate(a.velocity_names):
-                out[f"action.{v}[{feature}]"] = ("action", float(a.coefficients[i, j]))
+    out.update({name: ("action", value) for name, value in a.named_parameters().items()})
     for ch in model.sensor.channels:
         for d in f_at:
             out[f"f.{ch.name}({d:g} mm)"] = ("f", float(ch.function(np.array([d]))[0]))
         for k, term in enumerate(ch.bearing_terms, start=1):
             out[f"f.{ch.name}.bearing_term{k}"] = ("f", term)
         out[f"sigma.{ch.name}"] = ("sigma", ch.sigma)
-    if model.sensor.sigma_bearing_rad is not None:
+    if model.sensor.reads_bearing:
         out["sigma.bearing_rad"] = ("sigma", float(model.sensor.sigma_bearing_rad))
     names = a.velocity_names
     for g, row in enumerate(model.motion_sd):
@@ -82,7 +67,7 @@ def model_parameters(model: EMModel, f_at: Sequence[float]) -> dict[str, tuple[s
             out[f"Sigma_m[{g}].{names[j]}"] = ("Sigma_m", float(sd))
     if model.turn_var is not None:
         out["Sigma_m.turn_var"] = ("Sigma_m", model.turn_var)
-    if model.geometry == "planar":
+    if model.geometry.has_heading:
         for k, value in model.sensor.mount.to_dict().items():
             out[f"mount.{k}"] = ("mount", value)
     return out

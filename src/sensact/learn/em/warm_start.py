@@ -21,7 +21,6 @@ from sensact.learn.em.config import EMConfig
 from sensact.learn.em.initial import initial_model
 from sensact.learn.em.localize import Localized, Progress, localize
 from sensact.logs.landmark_log import LandmarkLog
-from sensact.models.action_table import ActionTable
 from sensact.models.em_model import EMModel
 
 
@@ -29,16 +28,7 @@ def families(model: EMModel) -> list[tuple[str, Any]]:
     """What the M-step keeps of ``model``, each under the config field that sets it: the geometry, the
     action model's form, each channel's form, the bearing's and Sigma_m's."""
     out: list[tuple[str, Any]] = [("geometry", model.geometry)]
-    a = model.action
-    if isinstance(a, ActionTable):
-        out += [("action.basis", "table"), ("actions", a.n_actions)]
-    else:
-        out += [
-            ("action.basis", a.basis),
-            ("action.degree", a.degree if a.basis == "polynomial" else None),
-            ("action.zero_mean", tuple(a.zero_mean)),
-            ("action.inputs", tuple(a.inputs)),
-        ]
+    out += model.action.form()
     s = model.sensor
     out.append(("channels", tuple(c.name for c in s.channels)))
     for c in s.channels:
@@ -50,7 +40,7 @@ def families(model: EMModel) -> list[tuple[str, Any]]:
             (f"channels: {c.name}: robust_param", c.robust_param if c.robust != "none" else None),
             (f"channels: {c.name}: bearing_degree", len(c.bearing_terms)),
         ]
-    bearing = s.sigma_bearing_rad is not None
+    bearing = s.reads_bearing
     out += [
         ("bearing", "read" if bearing else "none"),
         ("robust.bearing", s.bearing_robust if bearing else None),
