@@ -40,12 +40,13 @@ class Listener(event.Listener):
 
 target = sys.argv[1]
 if target == "estep":
-    from sensact.learn.em import EMConfig, e_step, initial_model, motion_variance
+    from sensact.core.geometry import PLANAR
+    from sensact.learn.em import EMConfig, e_step, initial_model
     from sensact.sim.field2d import Field2DConfig, simulate_field, to_landmark_log
 
     log = to_landmark_log(simulate_field(Field2DConfig.preset("real_robot", seed=0)))
     cfg = EMConfig()
-    var = motion_variance("planar", cfg.thesis.motion_sd_mm, cfg.thesis.motion_sd_rad)
+    var = PLANAR.motion_variance(cfg.thesis.motion_sd_mm, cfg.thesis.motion_sd_rad)
     model = initial_model(log, cfg)
     run = lambda: e_step(model, log, var)
 else:

@@ -6,7 +6,7 @@
 Cuts each robot's MRCLAM Dataset 6 log (about 15 minutes) into ``--parts`` equal spans of steps and
 runs `sensact reproduce real`'s EM on each alone, from the same poor start. Prints, per part, how far
 the smoothed path is from Vicon (median), whether the learned range function turns over or bends within
-its fitted distances or EM did not settle (learn/em/checks.py, the signs a user sees without ground
+its fitted distances or EM did not settle (learn/em/checks/lost_signs.py, the signs a user sees without ground
 truth; ``fall/sighting``: how far the kept fit's likelihood fell on average after its best, per
 sighting used, unsettled over 0.1), how many times EM started again because of them
 (``turn_restarts``, 2 by default) and which run was kept, the log-likelihood and the time; then how
@@ -30,7 +30,7 @@ from sensact.evaluate.landmark_truth import path_offset
 from sensact.experiments.real import mrclam_folder
 from sensact.io.mrclam import read_mrclam
 from sensact.learn.em import fit_em
-from sensact.learn.em.checks import fall_per_sighting, lost_fit_signs
+from sensact.learn.em.checks.lost_signs import fall_per_sighting, lost_fit_signs
 from sensact.presets import mrclam_config
 
 LOST_MM = 500.0  # a path this far from Vicon (median) has lost the robot: a start-search cell

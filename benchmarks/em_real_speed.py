@@ -19,6 +19,7 @@ import numpy as np
 from sensact.experiments.real import mrclam_folder
 from sensact.io.mrclam import read_mrclam
 from sensact.learn.em import e_step, fit_em, initial_model, m_step
+from sensact.learn.em.stage import NO_MOUNT, Stage
 from sensact.presets import mrclam_config
 
 
@@ -39,7 +40,7 @@ def main() -> None:
         n_samples=1,
         floor_var=np.ones(3) * 1e-6,
         rng=rng,
-        learn_motion_noise=True,
+        stage=Stage("free", True, True, NO_MOUNT, True),
         motion_floor_sd=np.array([0.05, 0.05, 5e-4]),
         max_delay_steps=15,
     )

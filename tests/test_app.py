@@ -18,8 +18,9 @@ from sensact.app.settings import resolve_settings
 from sensact.cli import app
 from sensact.errors import ConfigError, LogFormatError
 from sensact.learn.em import EMConfig, fit_em
-from sensact.learn.em.loop import HELD, em_loop, plan_stages
+from sensact.learn.em.loop import em_loop
 from sensact.learn.em.mount import MountFreedom
+from sensact.learn.em.stage import HELD, plan_stages
 from sensact.presets import PRESETS, for_log, load_preset, planar_config, preset_yaml, range_only_config, settings_yaml
 
 runner = CliRunner()

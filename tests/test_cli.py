@@ -866,7 +866,7 @@ def test_track_start_candidates_invert_each_learned_f_inside_its_window():
     """The real roots of ``f(x) = o`` inside the window, with the sd the channel's sigma gives there."""
     import numpy as np
 
-    from sensact.learn.em.localize import TRACK_MIN_SD, track_start_candidates
+    from sensact.learn.em.uses.place import TRACK_MIN_SD, track_start_candidates
     from sensact.logs.landmark_log import LandmarkLog
     from sensact.models.em_model import EMModel
     from sensact.models.landmark_sensor import LandmarkSensor, ReadingChannel

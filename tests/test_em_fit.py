@@ -68,7 +68,7 @@ def test_interrupt_returns_the_best_model_so_far(field_fit):
     res = fit_em(data, initial_model(data, em), em, progress=stop)
     assert res.stop_reason == "interrupted" and res.iterations == 4
     assert res.best_iteration == int(np.argmax(res.loglik_history))
-    from sensact.learn.em.health import em_health
+    from sensact.learn.em.checks.fit_health import em_health
 
     health = em_health(res, data)  # what the model file's health says: never ok, however good so far
     assert not health.ok and "interrupted" in [f.code for f in health.flags]

@@ -1,5 +1,5 @@
 """`learn em --halves`: each half of a log learned on from the whole log's model, and the three compared
-(learn/em/halves.py, evaluate/halves.py): no ground truth, the log against itself."""
+(learn/em/uses/split_halves.py, evaluate/halves.py): no ground truth, the log against itself."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from continuous_robot import TRUE_BETA, continuous_config, simulate_continuous
 from sensact.errors import ConfigError
 from sensact.evaluate.halves import compare_halves
 from sensact.learn.em import fit_em
-from sensact.learn.em.halves import half_steps, learn_halves
+from sensact.learn.em.uses.split_halves import half_steps, learn_halves
 
 FORWARD = (1, 1)  # TRUE_BETA's forward gain: the forward velocity per commanded v
 

@@ -60,11 +60,11 @@ def test_slope_range_is_the_least_and_greatest_slope_over_the_interval():
 
 
 def test_a_length_reading_whose_slope_changes_with_distance_is_flagged(continuous_fit):
-    """learn/em/checks.py: the fit that found the robot has an f of one slope; an f whose slope changes
+    """learn/em/checks/lost_signs.py: the fit that found the robot has an f of one slope; an f whose slope changes
     threefold over the fitted distances without turning is flagged when the channel reads a length in the
     map's unit (``_mm``), not when it is a line off by a scale, not under another unit, and an f that
     turns is ``range_function_turns``'s alone; ``lost_fit_signs`` holds both."""
-    from sensact.learn.em.checks import (
+    from sensact.learn.em.checks.lost_signs import (
         describe_lost_fit,
         lost_fit_signs,
         range_function_bends,
@@ -118,10 +118,10 @@ def test_a_length_reading_whose_slope_changes_with_distance_is_flagged(continuou
 
 
 def test_a_range_function_that_turns_within_its_distances_is_flagged(continuous_fit):
-    """learn/em/checks.py: the fit that found the robot has a rising f; the same fit with an f that turns
+    """learn/em/checks/lost_signs.py: the fit that found the robot has a rising f; the same fit with an f that turns
     inside the fitted distances is flagged there, and not when the turn is outside them or outside the
     channel's window."""
-    from sensact.learn.em.checks import describe_lost_fit, range_function_turns
+    from sensact.learn.em.checks.lost_signs import describe_lost_fit, range_function_turns
 
     data, _poses, res = continuous_fit
     assert range_function_turns(res.model, res.posteriors, data) == []
@@ -149,11 +149,11 @@ def test_a_range_function_that_turns_within_its_distances_is_flagged(continuous_
 
 
 def test_a_fit_whose_likelihood_keeps_falling_far_below_its_best_has_not_settled(continuous_fit):
-    """learn/em/checks.py ``unsettled_fit``: the mean fall below the best over the iterations after it, per
+    """learn/em/checks/lost_signs.py ``unsettled_fit``: the mean fall below the best over the iterations after it, per
     sighting used, against ``SearchSettings.lost_fall_per_sighting`` (exact on built histories); the fit that found the
     robot has not that sign, the same fit with a history that thrashes after its best has, and says so;
     a 1-D log's history is not judged."""
-    from sensact.learn.em.checks import describe_lost_fit, lost_fit_signs, unsettled_fit
+    from sensact.learn.em.checks.lost_signs import describe_lost_fit, lost_fit_signs, unsettled_fit
 
     UNSETTLED_PER_SIGHTING = SearchSettings.lost_fall_per_sighting
 

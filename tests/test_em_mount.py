@@ -1,5 +1,5 @@
 """The sensor's mount on the robot (learn/em/mount.py), the per-frame gate of sec. 4.4.1, and the fit's
-reports of what it pruned and how its residuals correlate (learn/em/checks.py)."""
+reports of what it pruned and how its residuals correlate (learn/em/checks/lost_signs.py)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import pytest
 from sensact.core.pose_models import landmark_bearing, landmark_distance, relative_displacement, sensor_poses
 from sensact.evaluate.landmark_truth import path_offset
 from sensact.learn.em import fit_em
-from sensact.learn.em.checks import describe_correlated, describe_pruned, residual_autocorrelation
+from sensact.learn.em.checks.lost_signs import describe_correlated, describe_pruned, residual_autocorrelation
 from sensact.learn.em.estep import e_step
 from sensact.learn.em.mount import mount_freedom, mount_update, remounted
 from sensact.models.em_model import EMModel

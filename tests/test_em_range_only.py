@@ -1,5 +1,5 @@
 """A robot whose sensor reads ranges alone (UWB anchors, sonar beacons): `simulate diffdrive --set
-sensor=radio`, EM without bearings (learn/em/forward.py), and its scores and figures without a bearing."""
+sensor=radio`, EM without bearings (learn/em/searches/facing.py), and its scores and figures without a bearing."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ from sensact.experiments.real import bar_checks
 from sensact.io.landmark_log import read_landmark_log
 from sensact.learn.em import EMConfig, fit_em, initial_model
 from sensact.learn.em.estep import e_step, log_likelihood
-from sensact.learn.em.forward import drives_backward, turned_model, turned_posteriors
+from sensact.learn.em.searches.facing import drives_backward, turned_model, turned_posteriors
 from sensact.presets import range_only_config
 from sensact.sim.diffdrive import COMMAND_NAMES, DiffDriveConfig, simulate_diffdrive
 
@@ -37,7 +37,7 @@ def true_model(run, config: EMConfig):
 
 
 def test_a_range_only_model_turned_by_pi_reads_the_same_and_a_camera_model_does_not():
-    """Exact invariant (forward.py): without bearings, the robot facing the other way and driving
+    """Exact invariant (searches/facing.py): without bearings, the robot facing the other way and driving
     backward has the same likelihood, and its posteriors are the first's turned; with bearings the
     heading is seen, and the two differ by thousands of log-units."""
     radio = simulate_diffdrive(DiffDriveConfig(seconds=60, seed=2, sensor="radio"))
@@ -90,12 +90,12 @@ def test_em_learns_a_range_only_robot_facing_the_way_it_drives(heading):
 
 
 def test_localize_finds_a_range_only_robot_anywhere_on_the_map_from_its_ranges():
-    """Seeded recovery (localize.range_start_candidates): the simulated radio robot's own model, held, on a
+    """Seeded recovery (uses/place.range_start_candidates): the simulated radio robot's own model, held, on a
     run that starts 2.7 m from the origin facing 2 rad: the ranges' start search puts the chosen start
     within a grid cell and half a heading step of the truth, and the smoothed path within 30 mm of the
     recorded poses. Invariants: the candidates are pairwise a few cells or two headings apart, and the
     chosen one is the most likely over the whole log."""
-    from sensact.learn.em.localize import RANGE_HEADINGS, localize
+    from sensact.learn.em.uses.place import RANGE_HEADINGS, localize
 
     run = simulate_diffdrive(DiffDriveConfig(seconds=120, seed=4, sensor="radio", start_pose=(1000.0, -2500.0, 2.0)))
     cfg = range_only_config(COMMAND_NAMES, (0.0, 0.0, 0.0))
@@ -128,9 +128,9 @@ def test_localize_finds_a_range_only_robot_anywhere_on_the_map_from_its_ranges()
 
 
 def test_only_a_range_only_start_given_and_moved_past_three_sds_counts_as_moved():
-    """Exact reduction (given_start.py): the distance is returned only past three of the prior's position
+    """Exact reduction (searches/given_start.py): the distance is returned only past three of the prior's position
     sd, on a planar log read without bearings whose start was given; a camera's or a searched start never."""
-    from sensact.learn.em.given_start import start_moved_mm
+    from sensact.learn.em.searches.given_start import start_moved_mm
 
     radio = simulate_diffdrive(DiffDriveConfig(seconds=20, seed=2, sensor="radio")).log()
     camera = simulate_diffdrive(DiffDriveConfig(seconds=20, seed=2)).log()
@@ -148,7 +148,7 @@ def test_only_a_range_only_start_given_and_moved_past_three_sds_counts_as_moved(
 
 @pytest.mark.slow
 def test_a_range_only_start_metres_off_runs_again_from_where_em_moved_it():
-    """Seeded recovery (given_start.py): from a start 3.2 m off, EM finds the path with a wrong turn
+    """Seeded recovery (searches/given_start.py): from a start 3.2 m off, EM finds the path with a wrong turn
     model (the heading noise carries the turns; the turn gain -1.12) and moves the start to within
     150 mm of the true one; EM again from there finds the model, which is kept as the more likely."""
     run = simulate_diffdrive(DiffDriveConfig(seconds=300, seed=1, sensor="radio"))
@@ -169,7 +169,7 @@ def test_a_range_only_start_metres_off_runs_again_from_where_em_moved_it():
 
 @pytest.mark.slow
 def test_a_range_only_start_metres_and_radians_off_races_its_heading_where_em_moved_it():
-    """Seeded recovery (given_start.py, fit.headings_at): the given start 3.2 m off and its heading 2 rad
+    """Seeded recovery (searches/given_start.py, fit.headings_at): the given start 3.2 m off and its heading 2 rad
     off (a UWB robot's log, whose start nobody wrote down). EM moves the start near the true position;
     the ranges cannot tell the heading, so EM races eight headings there and goes on from the winner,
     which finds the robot's model, kept as the more likely."""

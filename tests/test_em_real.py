@@ -179,7 +179,7 @@ def test_a_lost_fit_whose_f_bends_without_turning_is_seen_and_started_again():
     from sensact.evaluate.landmark_truth import path_offset
     from sensact.io.mrclam import read_mrclam
     from sensact.learn.em import initial_model
-    from sensact.learn.em.checks import range_function_bends, range_function_turns
+    from sensact.learn.em.checks.lost_signs import range_function_bends, range_function_turns
     from sensact.learn.em.fit import Heard, fit_em_once, restart_while_lost
     from sensact.presets import mrclam_config
 
@@ -230,7 +230,7 @@ def test_a_thinned_map_that_lost_its_robot_finds_it_with_every_sighting(tmp_path
     the poor start finds the robot with no restart and no sign of being lost (measured: 100 mm)."""
     from sensact.evaluate.landmark_truth import path_offset
     from sensact.io.mrclam import read_mrclam
-    from sensact.learn.em.checks import lost_fit_signs
+    from sensact.learn.em.checks.lost_signs import lost_fit_signs
     from sensact.presets import mrclam_config
 
     copy = dataset_with_landmarks(tmp_path, {7, 8, 9, 10, 12, 16, 19, 20})  # the benchmark's map 8:2
@@ -248,11 +248,11 @@ def test_a_robot_lost_from_the_poor_start_is_found_from_another_robots_model(tmp
     """Real data: Dataset 6 with 6 of its 15 landmarks (``benchmarks/em_real_landmarks.py --maps 6:1``),
     where robot 4 stays lost from the poor start (1169 mm off Vicon; docs/em-real.md, "Fewer
     landmarks"). Robot 1's model, learned on the same map from the poor start, places robot 4 on its log,
-    and EM learned on from there (learn/em/warm_start.py) finds it (measured 90 mm; 107 mm before every sighting
-    of a frame counted)."""
+    and EM learned on from there (learn/em/policies/warm_start.py) finds it (measured 90 mm; 107 mm before
+    every sighting of a frame counted)."""
     from sensact.experiments.real import evaluate_mrclam
     from sensact.io.mrclam import read_mrclam
-    from sensact.learn.em.warm_start import start_from_model
+    from sensact.learn.em.policies.warm_start import start_from_model
     from sensact.presets import mrclam_config
 
     copy = dataset_with_landmarks(tmp_path, {6, 8, 10, 11, 15, 18})  # the benchmark's map 6:1
@@ -283,7 +283,7 @@ def test_a_short_real_log_finds_its_robot_and_a_lost_fit_says_so_and_starts_agai
     from sensact.evaluate.landmark_truth import path_offset
     from sensact.io.landmark_log import write_landmark_log
     from sensact.io.mrclam import read_mrclam
-    from sensact.learn.em.checks import range_function_turns
+    from sensact.learn.em.checks.lost_signs import range_function_turns
     from sensact.presets import mrclam_config
 
     ml = read_mrclam(MRCLAM, 1)
@@ -688,7 +688,7 @@ def test_reproduce_real_runs_every_mrclam_dataset_it_finds(tmp_path):
     for r in ("robot2", "robot3"):
         assert fleet["cells"][r][r] == fleet_cell(res["mrclam"][f"MRCLAM_Dataset6/{r}"]["score"])
     # and by the likelihood, each model placed on each log as `localize` places it under the learned settings
-    from sensact.learn.em.localize import localize
+    from sensact.learn.em.uses.place import localize
 
     assert "MRCLAM MRCLAM_Dataset6: each robot's model on every robot's log" in heard
     lk = fleet["likelihood"]["cells"]

@@ -17,11 +17,11 @@ from continuous_robot import LANDMARKS, TruthLog, continuous_config, simulate_co
 from sensact import cli
 from sensact.errors import ConfigError
 from sensact.learn.em import EMConfig, e_step, fit_em, initial_model, log_likelihood
-from sensact.learn.em.delay_search import search_delay, with_delay
 from sensact.learn.em.loop import held_trial
 from sensact.learn.em.mstep import sample_gamma
-from sensact.learn.em.ridge import search_ridge, shifted_forward
-from sensact.learn.em.start import race_starts, race_trials, search_grid, start_candidates
+from sensact.learn.em.searches.delay import search_delay, with_delay
+from sensact.learn.em.searches.ridge import search_ridge, shifted_forward
+from sensact.learn.em.searches.start_race import race_starts, race_trials, search_grid, start_candidates
 
 
 def test_start_race_halves_the_field_on_the_held_gaussian_likelihood():

@@ -1,5 +1,5 @@
-"""`--uncertainty B`: logs drawn from a learned model read as the model says (learn/em/simulate.py), the
-bootstrap's standard errors and intervals (learn/em/uncertainty.py), and the model JSON's ``uncertainty``."""
+"""`--uncertainty B`: logs drawn from a learned model read as the model says (learn/em/uses/draw_log.py), the
+bootstrap's standard errors and intervals (learn/em/uses/error_bars.py), and the model JSON's ``uncertainty``."""
 
 from __future__ import annotations
 
@@ -14,8 +14,8 @@ from sensact.cli import app
 from sensact.core.angles import wrap_angle
 from sensact.core.pose_models import landmark_bearing, landmark_distance, relative_displacement, sensor_poses
 from sensact.learn.em.actions import step_motion_var
-from sensact.learn.em.simulate import simulate_from_model
-from sensact.learn.em.uncertainty import Parameter, Uncertainty, Z, coverage, model_parameters, summarize
+from sensact.learn.em.uses.draw_log import simulate_from_model
+from sensact.learn.em.uses.error_bars import Parameter, Uncertainty, Z, coverage, model_parameters, summarize
 
 runner = CliRunner()
 

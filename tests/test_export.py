@@ -199,7 +199,7 @@ def test_the_report_shows_error_bars_in_the_frame_and_units_of_the_exports(learn
     robot_localization export writes; lengths are metres."""
     from sensact.app.export import action_model_si
     from sensact.app.report import si_parameter
-    from sensact.learn.em.uncertainty import model_parameters
+    from sensact.learn.em.uses.error_bars import model_parameters
 
     _, doc = learned
     model = EMModel.from_dict(doc["model"])

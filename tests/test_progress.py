@@ -10,7 +10,7 @@ import re
 from rich.console import Console
 
 from sensact.cli.base import ProgressRows, progress_bar
-from sensact.learn.em.eta import TOL, ConvergenceEta
+from sensact.learn.em.progress import TOL, ConvergenceEta
 
 
 def test_the_projection_finds_where_a_linearly_converging_fit_stops():

@@ -1,8 +1,8 @@
 """Fit health (issue 74): a result that is degenerate or unfinished is written, flagged in its JSON
 (``health``), and ends the command with exit code 3 (``errors.EXIT_FLAGGED``), never reported as a success.
 
-Each learner names its own checks (``learn/em/health.py``, ``learn/bootstrap.py``, ``learn/car_dynamics.py``);
-a flag is a code a script can test and one line a person can read.
+Each learner names its own checks (``learn/em/checks/fit_health.py``, ``learn/bootstrap.py``,
+``learn/car_dynamics.py``); a flag is a code a script can test and one line a person can read.
 """
 
 from __future__ import annotations

@@ -18,9 +18,9 @@ from sensact.health import Health
 from sensact.learn.em import EMConfig, EMResult, fit_em, initial_model
 from sensact.learn.em.config import refuse_bearing_settings, upgrade_settings
 from sensact.learn.em.fit import OnRestart, OnStartMoved, Progress
-from sensact.learn.em.localize import Localized
-from sensact.learn.em.start import OnTrial
-from sensact.learn.em.uncertainty import Uncertainty
+from sensact.learn.em.searches.start_race import OnTrial
+from sensact.learn.em.uses.error_bars import Uncertainty
+from sensact.learn.em.uses.place import Localized
 from sensact.models.em_model import EMModel
 
 
@@ -49,7 +49,7 @@ class StartFrom:
 
 @dataclass(frozen=True)
 class Diagnostics:
-    """Signs, without ground truth, of how far to trust a fit (``learn/em/checks.py``); ``warnings`` has one
+    """Signs, without ground truth, of how far to trust a fit (``learn/em/checks/lost_signs.py``); ``warnings`` has one
     line for each that calls for the user's attention."""
 
     pruned_fraction: float  # the share of sightings the gates dropped
@@ -119,7 +119,7 @@ class Calibration:
             "log": self.log.data.source,
             "dt_s": self.log.data.dt_s,
             "evaluation": evaluation,
-            # learn/em/checks.py: signs that EM lost the robot
+            # learn/em/checks/lost_signs.py: signs that EM lost the robot
             "range_function_turns": [t for t in signs if t["sign"] == "turns"],
             "range_function_bends": [t for t in signs if t["sign"] == "bends"],
             "em_unsettled": next((t for t in signs if t["sign"] == "unsettled"), None),
@@ -128,7 +128,7 @@ class Calibration:
             "pruned_fraction": diag.pruned_fraction,
             "residual_lag1_autocorrelation": dict(diag.residual_lag1_autocorrelation),
             "differential_drive": as_differential_drive(self.model.action),  # on wheel speeds: gain, axle, ratio
-            # a learned model EM started from, and where it placed the robot (learn/em/warm_start.py)
+            # a learned model EM started from, and where it placed the robot (learn/em/policies/warm_start.py)
             "start_from": None
             if self.start_from is None
             else {
@@ -137,9 +137,9 @@ class Calibration:
                 "loglik_per_sighting": self.start_from.placed.loglik_per_sighting,
             },
             "halves": None,  # `learn em --halves`: each half learned on from this model, and compared
-            # `--uncertainty B`: each learned parameter's standard error and 90 % interval (learn/em/uncertainty.py)
+            # `--uncertainty B`: each learned parameter's standard error and 90 % interval (learn/em/uses/error_bars.py)
             "uncertainty": None if self.uncertainty is None else self.uncertainty.to_dict(),
-            "health": diag.health.to_dict(),  # learn/em/health.py: ok, or the flags of a degenerate fit
+            "health": diag.health.to_dict(),  # learn/em/checks/fit_health.py: ok, or the flags of a degenerate fit
         }
 
 
@@ -163,8 +163,9 @@ def refuse_table_on_continuous_commands(log: OpenedLog, cfg: EMConfig) -> None:
 
 
 def diagnose(result: EMResult, log: OpenedLog, cfg: EMConfig) -> Diagnostics:
-    """The fit's checks without truth (``learn/em/checks.py``), each warning as one line."""
-    from sensact.learn.em.checks import (
+    """The fit's checks without truth (``learn/em/checks/lost_signs.py``), each warning as one line."""
+    from sensact.learn.em.checks.fit_health import em_health
+    from sensact.learn.em.checks.lost_signs import (
         describe_correlated,
         describe_held_sideways,
         describe_lost_fit,
@@ -173,7 +174,6 @@ def diagnose(result: EMResult, log: OpenedLog, cfg: EMConfig) -> Diagnostics:
         lost_fit_signs,
         residual_autocorrelation,
     )
-    from sensact.learn.em.health import em_health
 
     signs: list[dict[str, Any]] = []
     autocorrelation: dict[str, float | None] = {}
@@ -198,11 +198,11 @@ def diagnose(result: EMResult, log: OpenedLog, cfg: EMConfig) -> Diagnostics:
 def _placed_start(
     start_from: Path, doc: dict[str, Any], model: EMModel, log: OpenedLog, settings: Settings, events: FitEvents
 ) -> tuple[EMModel, Settings, StartFrom]:
-    """A learned model placed on the log (``learn/em/warm_start.py``): the model EM starts from, the settings
+    """A learned model placed on the log (``learn/em/policies/warm_start.py``): the model EM starts from, the settings
     EM runs with and the placement."""
     from dataclasses import replace
 
-    from sensact.learn.em.warm_start import start_from_model
+    from sensact.learn.em.policies.warm_start import start_from_model
 
     placed, cfg = start_from_model(model, log.data, settings.config, events.placing, source=str(start_from))
     start = StartFrom(start_from, doc, placed, log)

@@ -47,7 +47,7 @@ from sensact.evaluate.turtlebot_em import (
 from sensact.evaluate.turtlebot_em import scorecard as turtlebot_scorecard
 from sensact.health import Health
 from sensact.learn.em.config import EMConfig
-from sensact.learn.em.localize import Localized, localize
+from sensact.learn.em.uses.place import Localized, localize
 from sensact.reprs import compact_repr
 
 
@@ -77,7 +77,7 @@ class Learned:
     seconds: float  # EM's own time
     warnings: tuple[str, ...]  # the diagnostics' lines (``Diagnostics.warnings``)
     written: tuple[str, ...]
-    health: Health = field(default_factory=Health)  # learn/em/health.py: flagged fits end the fleet with 3
+    health: Health = field(default_factory=Health)  # learn/em/checks/fit_health.py: flagged fits end the fleet with 3
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -199,7 +199,7 @@ def score_fleet(
     and ``truth_poses()``}: an ``MrclamLog``, a log folder or a ``RangeLog``). ``own`` maps a model's name
     to the log it was learned on. Against the truth (``cells``, ``summary``) when every log has recorded
     poses; by the likelihood (``likelihood``) when ``configs`` gives each model the settings ``localize``
-    places the robot with (``localize.learned_config``), and then, on the Turtlebot CSVs whose range is
+    places the robot with (``uses/place.learned_config``), and then, on the Turtlebot CSVs whose range is
     there at every step, against the range (``range``). Cells are keyed ``cells[model][log]``. Here, a log
     after another; ``score_fleet_on`` scores the logs as jobs of an engine."""
     columns = {}
@@ -430,7 +430,7 @@ def fleet_summary(cells: dict[str, dict[str, Any]], own: Mapping[str, str]) -> d
 @dataclass(frozen=True)
 class FleetModel:
     """A model.json of `learn em` in a fleet: its short name, the document, the model and the settings
-    ``localize`` places the robot with (``localize.learned_config``)."""
+    ``localize`` places the robot with (``uses/place.learned_config``)."""
 
     name: str
     path: Path
@@ -454,7 +454,7 @@ def log_name(path: Path) -> str:
 def read_fleet_models(paths: Sequence[Path], names: Sequence[str] | None = None) -> list[FleetModel]:
     """Each model.json, named ``names`` or by its file's stem (its path where two share one)."""
     from sensact.app.logs import read_em_model
-    from sensact.learn.em.localize import learned_config
+    from sensact.learn.em.uses.place import learned_config
 
     out = []
     for path, name in zip(paths, names or fleet_names(paths, lambda p: p.stem), strict=True):

@@ -82,7 +82,7 @@ def _mount_rows(cal: Calibration) -> tuple[tuple[str, ...], ...]:
 
 
 def si_parameter(name: str) -> tuple[str, float]:
-    """An error bar's parameter (``learn/em/uncertainty.model_parameters``'s name, sensact's frame and mm) in
+    """An error bar's parameter (``learn/em/uses/error_bars.model_parameters``'s name, sensact's frame and mm) in
     REP 103 and SI, as the page's other tables, and the factor from its value to the shown one (a standard
     deviation's is taken without its sign)."""
     if m := re.fullmatch(r"action\.(\w+)\[(.*)\]", name):

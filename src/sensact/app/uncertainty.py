@@ -9,7 +9,7 @@ from typing import Any
 from sensact.app.calibrate import Calibration
 from sensact.engine import Engine, Failed, InProcess, Job, OnDone, OnProgress
 from sensact.errors import ConfigError
-from sensact.learn.em.uncertainty import Uncertainty, f_distances, replicate, summarize
+from sensact.learn.em.uses.error_bars import Uncertainty, f_distances, replicate, summarize
 
 
 def bootstrap(

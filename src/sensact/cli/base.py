@@ -339,7 +339,7 @@ def progress_bar(to: Console | None = None) -> Iterator[Callable[[str, int, int 
         BarColumn(bar_width=12),
         MofNCompleteColumn(),
         TimeElapsedColumn(),
-        _remaining_column(),  # EM's total is projected from its convergence rate (learn/em/eta.py)
+        _remaining_column(),  # EM's total is projected from its convergence rate (learn/em/progress.py)
         console=to or err_console,
         transient=False,
         disable=not (to or err_console).is_terminal,

@@ -1,4 +1,4 @@
-"""``sensact localize``: a learned model put to use on another log (learn/em/localize.py)."""
+"""``sensact localize``: a learned model put to use on another log (learn/em/uses/place.py)."""
 
 from __future__ import annotations
 
@@ -102,7 +102,7 @@ def place_robot(
     ``config``/``set_`` over them, with a progress bar; prints the start and the log-likelihood a sighting
     beside the one on the log it was learned from, which it returns with the run."""
     from sensact.learn.em import EMConfig
-    from sensact.learn.em.localize import learned_config, localize
+    from sensact.learn.em.uses.place import learned_config, localize
 
     summary = doc.get("summary") or {}
     cfg = layered_config(EMConfig, config, set_, base=learned_config(summary.get("config"), str(model)))

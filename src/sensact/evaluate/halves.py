@@ -1,4 +1,4 @@
-"""How alike the models learned on a log's two halves are (``learn/em/halves.py``): no ground truth, the
+"""How alike the models learned on a log's two halves are (``learn/em/uses/split_halves.py``): no ground truth, the
 log against itself.
 
 Each half's model is compared with the whole log's and with the other half's, on the whole log's own
@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from sensact.learn.em.checks import fitted_distances
+from sensact.learn.em.checks.lost_signs import fitted_distances
 from sensact.learn.em.estep import Posteriors
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel

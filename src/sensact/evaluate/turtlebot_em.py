@@ -26,7 +26,7 @@ import numpy as np
 from sensact.evaluate.bars import BarCheck, at_most, not_scored
 from sensact.evaluate.measured import ONE_COMMAND_SHARE, dominant_command
 from sensact.learn.em import EMResult
-from sensact.learn.em.localize import Localized
+from sensact.learn.em.uses.place import Localized
 from sensact.logs.landmark_log import LandmarkLog
 
 BIN_MM = 100.0  # the sensor scores' bins of true distance

@@ -20,9 +20,9 @@ from sensact.config import config_to_dict
 from sensact.engine import Engine, InProcess, Job
 from sensact.evaluate.bars import BarCheck
 from sensact.learn.em import EMConfig, fit_em
-from sensact.learn.em.simulate import simulate_from_model
-from sensact.learn.em.uncertainty import FAMILIES, Uncertainty, coverage, f_distances, model_parameters, replicate
-from sensact.learn.em.uncertainty import summarize as summarize_draws
+from sensact.learn.em.uses.draw_log import simulate_from_model
+from sensact.learn.em.uses.error_bars import FAMILIES, Uncertainty, coverage, f_distances, model_parameters, replicate
+from sensact.learn.em.uses.error_bars import summarize as summarize_draws
 from sensact.models.em_model import EMModel
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 

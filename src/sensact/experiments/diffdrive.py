@@ -20,7 +20,7 @@ from sensact.evaluate.bars import BarCheck
 from sensact.evaluate.simulated_robot import score_against_simulated
 from sensact.experiments.real import evaluate_mrclam, robot_checks
 from sensact.learn.em import EMConfig, EMResult, fit_em
-from sensact.learn.em.eta import iteration_progress
+from sensact.learn.em.progress import iteration_progress
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.presets import simulator_settings
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive

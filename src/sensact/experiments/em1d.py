@@ -22,7 +22,7 @@ from sensact.evaluate.bars import BarCheck, at_most
 from sensact.evaluate.em import score_track
 from sensact.evaluate.track1d import DISTANCE_GRID_MM
 from sensact.learn.em import EMConfig, EMResult, fit_em, initial_model
-from sensact.learn.em.eta import iteration_progress
+from sensact.learn.em.progress import iteration_progress
 from sensact.models.em_model import EMModel
 from sensact.sim.track1d import Track1DConfig, TrackRun, simulate_track, to_landmark_log
 

@@ -15,8 +15,8 @@ from sensact.engine import Engine, InProcess, Job, untagged
 from sensact.evaluate.bars import BarCheck, at_most, miss_text
 from sensact.evaluate.em import component_rms, score_planar
 from sensact.learn.em import EMConfig, EMResult, fit_em, initial_model
-from sensact.learn.em.checks import fall_per_sighting
-from sensact.learn.em.eta import iteration_progress
+from sensact.learn.em.checks.lost_signs import fall_per_sighting
+from sensact.learn.em.progress import iteration_progress
 from sensact.sim.field2d import Field2DConfig, Field2DRun, simulate_field, to_landmark_log
 
 ProgressFn = Callable[[str, int, int], None]
@@ -108,7 +108,7 @@ def run_trial(
             "seconds": res.seconds,
             "n_observations": data.n_observations,
             "n_pruned": res.n_pruned,
-            # learn/em/checks.py's unsettled sign judges it (over 0.1)
+            # learn/em/checks/lost_signs.py's unsettled sign judges it (over 0.1)
             "fall_per_sighting": fall_per_sighting(res.loglik_history, res.best_iteration, res.n_used),
             "seed": sim.seed,
         }

@@ -29,7 +29,7 @@ from sensact.engine import Engine, InProcess, Job
 from sensact.evaluate.bars import BarCheck
 from sensact.experiments.em1d import EM1D_TRACK, EM1DExperiment, true_velocities
 from sensact.learn.em import EMConfig, fit_em, initial_model
-from sensact.learn.em.monitor import MonitorConfig, MonitorResult, monitor_placed
+from sensact.learn.em.uses.change_test import MonitorConfig, MonitorResult, monitor_placed
 from sensact.sim.track1d import Track1DConfig, simulate_track, to_landmark_log
 
 WITHIN_S = 30.0  # issue 76: sec. 4.4.3's slowdown flagged within 30 s

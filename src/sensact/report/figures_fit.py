@@ -147,7 +147,7 @@ def _localized_path_panel(ax: Any, posteriors: Any, data: Any, truth: Any) -> No
 
 
 def figure_localized(loc: Any, data: Any, path: Path, title: str, truth: Any = None) -> Path:
-    """`sensact localize`'s figure (``learn/em/localize.Localized``): the path, and each learned f, held,
+    """`sensact localize`'s figure (``learn/em/uses/place.Localized``): the path, and each learned f, held,
     over this log's readings against the smoothed distance, so that a model that does not fit the log
     shows. ``truth``: ``(poses, valid)`` on a planar log, ``(distances (T, 1), None)`` on a track."""
     channels = loc.model.sensor.channels

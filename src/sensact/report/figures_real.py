@@ -263,7 +263,7 @@ def figure_bearing_noise(
 def figure_loglik(results: dict[str, Any], path: Path) -> Path:
     """log P(O | C, lambda) against the iteration, one line per run; a dot where the held stage ends
     (from there the likelihood is the robust one, with Sigma_m and the bearing terms learned) and a
-    triangle at each later ridge or delay search (learn/em/ridge.py, delay_search.py), whose move shows
+    triangle at each later ridge or delay search (learn/em/searches/ridge.py, delay.py), whose move shows
     as the next step up."""
     fig, ax = plt.subplots(figsize=(7, 4))
     for name, res in results.items():

@@ -205,7 +205,7 @@ def restart_runs_cell(runs: list[dict[str, Any]]) -> str:
 
 def _lost_signs(signs: list[dict[str, Any]]) -> str:
     """``f turned``, ``f bent``, ``f turned and bent``, ``EM unsettled`` or one of the first three and it,
-    for a run's ``checks.lost_fit_signs``."""
+    for a run's ``checks/lost_signs.lost_fit_signs``."""
     kinds = {t["sign"] for t in signs}
     f = [word for sign, word in (("turns", "turned"), ("bends", "bent")) if sign in kinds]
     return "; ".join(([f"f {' and '.join(f)}"] if f else []) + (["EM unsettled"] if "unsettled" in kinds else []))
@@ -241,7 +241,7 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
     if restarted:
         tables.append(
             (
-                f"{title}: EM started again because the fit looked lost (learn/em/checks.py)",
+                f"{title}: EM started again because the fit looked lost (learn/em/checks/lost_signs.py)",
                 ["robot", "start sigma: log-likelihood on the sightings all runs kept", "kept"],
                 [[name, restart_runs_cell(runs), kept_run_cell(runs)] for name, runs in restarted],
             )

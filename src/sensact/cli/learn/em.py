@@ -53,12 +53,12 @@ def _still_climbing(loglik: np.ndarray, best: int, max_iterations: int, patience
 def learn_and_compare_halves(
     res: Any, data: Any, cfg: Any, figure: Path | None = None, title: str = ""
 ) -> dict[str, Any]:
-    """`learn em --halves`: each half of ``data`` learned on from ``res``'s model (learn/em/halves.py),
+    """`learn em --halves`: each half of ``data`` learned on from ``res``'s model (learn/em/uses/split_halves.py),
     the three compared (evaluate/halves.py), printed and, given a ``figure`` path, drawn there; what the
     model JSON keeps of it."""
     from sensact.cli.scores import halves_rows
     from sensact.evaluate.halves import compare_halves
-    from sensact.learn.em.halves import learn_halves
+    from sensact.learn.em.uses.split_halves import learn_halves
 
     console.print("--halves: each half of the log learned on from this model, placed on it as `localize` does")
     with progress_bar() as progress:
@@ -325,7 +325,7 @@ def _error_bars(cal: Any, replicates: int, workers: int | None, scheduler: str |
             cal = bootstrap(cal, replicates, engine, on_progress=lambda i, d, k, n: progress(d, k, n), on_done=on_done)
     u = cal.uncertainty
     rows = [[escape(p.name), f"{p.value:.5g}", "held" if p.held else f"{p.se:.3g}", _interval(p)] for p in u.parameters]
-    title = f"error bars: {u.used} of {u.replicates} replicates learned, 90 % intervals (learn/em/uncertainty.py)"
+    title = f"error bars: {u.used} of {u.replicates} replicates learned, 90 % intervals (learn/em/uses/error_bars.py)"
     print_tables([(title, ["parameter", "value", "standard error", "90 % interval"], rows)])
     for line in u.failed:
         console.print(f"[yellow]a replicate failed:[/] {escape(line)}", highlight=False)
@@ -351,8 +351,8 @@ def _warn_of_the_log(opened: Any) -> None:
 def _events(opened: Any, preset: str | None, show: Any) -> Any:
     """What the CLI shows as a calibration goes: the settings, the placement, EM's progress, restarts."""
     from sensact.app import FitEvents
-    from sensact.learn.em.checks import describe_lost_fit
-    from sensact.learn.em.eta import ConvergenceEta
+    from sensact.learn.em.checks.lost_signs import describe_lost_fit
+    from sensact.learn.em.progress import ConvergenceEta
 
     cfg_of: dict[str, Any] = {}  # the settings, once read
 

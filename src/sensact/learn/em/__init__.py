@@ -1,18 +1,17 @@
-"""Chapter 4: EM with an extended Kalman smoother.
+"""Chapter 4: EM with an extended Kalman smoother, in rooms by role.
 
-``estep`` (sec. 4.2) -> ``mstep`` (sec. 4.3, its action and motion-noise updates in ``actions``) ->
-``fit`` (the loop, secs. 4.1 and 4.4.1) from ``initial`` (sec. 4.4.1's poor start), with ``config`` its
-settings. The compiled forward and backward passes live in ``sensact.core.ekf_smoother``. Beyond the
-thesis, for real logs:
+The thesis's core, here: ``estep`` (sec. 4.2) -> ``mstep`` (sec. 4.3; the action models' own updates,
+``models/action_model.py``; Sigma_m's in ``actions``; the sensor mount's in ``mount``) -> ``loop`` (secs.
+4.1 and 4.4.1), run in ``stage``s (what the M-step may move) by ``fit`` from ``initial`` (sec. 4.4.1's
+poor start) or a race of starts, with ``config`` its settings and ``result`` what it returns;
+``progress`` projects when it will end. The compiled passes live in ``sensact.core.ekf_smoother``.
 
-* ``start``: where the robot starts, when nobody says (a grid and a race); ``given_start``: a start the
-  user gave, for a sensor without bearings, and when EM moved it;
-* ``ridge``: a line search along the path's trade-off with the range functions' offset;
-* ``delay_search``: the command delay, chosen by the likelihood;
-* ``outliers``: sec. 4.4.1's gate again when the robust readings take over;
-* ``checks``: signs, without ground truth, that a fit lost its robot;
-* ``forward``: which way is forward for a robot whose sensor reads no bearing;
-* ``localize``: a learned model put to use, the E-step alone on another log, its start searched for.
+Beyond the thesis, for real logs, four rooms:
+
+* ``searches/``: moves along the likelihood's ridges (start, ridge, delay, mount, facing);
+* ``policies/``: how a fit starts and stays clean (warm start, late outliers);
+* ``checks/``: what a finished fit says about itself (lost signs, health);
+* ``uses/``: a learned model put to use (place, change test, halves, error bars).
 """
 
 from sensact.learn.em.config import EMConfig

@@ -160,7 +160,7 @@ class RobustSettings:
     # alone happens to fit (a misread barcode; docs/em-real.md). Every student_t reading needs the same nu
     joint_student_t: bool = False
     # when the robust readings take over from the Gaussian ones, apply prune_rad_per_step's gate again to
-    # every sighting's bearing about the smoothed pose of its own step (k = 1; learn/em/outliers.py); a
+    # every sighting's bearing about the smoothed pose of its own step (k = 1; learn/em/policies/late_outliers.py); a
     # config without robust readings (or without a held stage, unless from a learned model: warm_start)
     # has no such moment, and this does nothing
     prune_when_freed: bool = False
@@ -178,7 +178,7 @@ class SearchSettings:
     # iteration, or until EM has converged without them: learned from a poor start, they let EM settle on a
     # trajectory shifted behind the robot, so the thesis's fixed-Sigma_m model pins the trajectory first
     refine_from: int = 100
-    # the starting model is a learned one (`learn em --start-from`; learn/em/warm_start.py), placed on
+    # the starting model is a learned one (`learn em --start-from`; learn/em/policies/warm_start.py), placed on
     # the log already: nothing is held (it has settled), the start is not searched for, and
     # prune_when_freed's gate runs on the first E-step
     warm_start: bool = False
@@ -192,15 +192,15 @@ class SearchSettings:
     start_trial_iterations: int = 20
     # the searches below run when the held stage ends and every ``every`` iterations after (with nothing held:
     # every ``every`` from the start). Along the ridge where the path and every range function's offset trade
-    # against each other, this far (mm; learn/em/ridge.py; None: no ridge search, the thesis):
+    # against each other, this far (mm; learn/em/searches/ridge.py; None: no ridge search, the thesis):
     ridge_mm: float | None = None
-    # over the command delay 0..action.delay_max_s by the E-step likelihood (learn/em/delay_search.py; only
+    # over the command delay 0..action.delay_max_s by the E-step likelihood (learn/em/searches/delay.py; only
     # when a delay is learned):
     delay: bool = True
     every: int = 50
     # when a channel's learned f turns over, or (a reading in the map's unit) bends, within the distances
     # it was fitted on, or EM's likelihood after its best stays far below it (a planar log;
-    # learn/em/checks.py), the signs that EM lost the robot, EM starts again with that channel's (when EM
+    # learn/em/checks/lost_signs.py), the signs that EM lost the robot, EM starts again with that channel's (when EM
     # did not settle, every channel's) start sigma restart_sigma_factor of the last, up to this many times,
     # and keeps the most likely fit (0 = never, the thesis)
     turn_restarts: int = 0
@@ -217,7 +217,7 @@ class SearchSettings:
     # readings more held the robot's scale (docs/em-real.md, Short logs)
     restart_sigma_factor: float = 1.0 / 3.0
     # a range-only start that EM moved more than this many of the prior's position sd was not where the robot
-    # was given to be: EM runs again from where it put it (learn/em/given_start.py) ...
+    # was given to be: EM runs again from where it put it (learn/em/searches/given_start.py) ...
     moved_start_sds: float = 3.0
     moved_start_headings: int = 8  # ... facing each of this many headings in a race, since ranges cannot tell it
 

@@ -2,7 +2,7 @@
 take and give a fit, composed (DESIGN.md, 10). Beyond the thesis: ``restart_while_lost`` runs EM again
 from a tighter start when a range function turned over or bent or EM did not settle (``turn_restarts``);
 ``rerun_moved_start`` runs it again, on a range-only log, from the start EM learned when the given one
-moved metres (``given_start.py``); ``face_forward`` turns a range-only fit that drives backward by pi.
+moved metres (``searches/given_start.py``); ``face_forward`` turns a range-only fit that drives backward by pi.
 """
 
 from __future__ import annotations
@@ -16,20 +16,20 @@ from typing import Any
 import numpy as np
 
 from sensact.errors import ConfigError, LogFormatError
-from sensact.learn.em.checks import lost_fit_signs
+from sensact.learn.em.checks.lost_signs import lost_fit_signs
 from sensact.learn.em.config import EMConfig, refuse_bearing_settings
-from sensact.learn.em.forward import FLIP, drives_backward, turned_model, turned_posteriors
-from sensact.learn.em.given_start import start_moved_mm
 from sensact.learn.em.initial import initial_model
 from sensact.learn.em.loop import Progress, fit_em_once, held_trial, stage_loglik
 from sensact.learn.em.result import EMResult
-from sensact.learn.em.start import OnTrial, race_starts
+from sensact.learn.em.searches.facing import FLIP, drives_backward, turned_model, turned_posteriors
+from sensact.learn.em.searches.given_start import start_moved_mm
+from sensact.learn.em.searches.start_race import OnTrial, race_starts
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 
 __all__ = ["EMResult", "Progress", "fit_em", "fit_em_once"]
 
-# (restart number from 1, the last fit's signs of being lost (checks.lost_fit_signs), the new start sigmas)
+# (restart number from 1, the last fit's signs of being lost (checks/lost_signs.lost_fit_signs), the new start sigmas)
 OnRestart = Callable[[int, list[dict[str, Any]], dict[str, float]], None]
 # (how far the given start moved, mm; the learned start EM runs again from) -> None
 OnStartMoved = Callable[[float, np.ndarray], None]
@@ -110,7 +110,7 @@ Policy = Callable[[Fit, LandmarkLog, EMConfig, Heard], Fit]
 
 def restart_while_lost(fit: Fit, data: LandmarkLog, cfg: EMConfig, heard: Heard) -> Fit:
     """Beyond the thesis, on a planar log with ``turn_restarts``: while the last fit has a channel whose f
-    turns over or bends within its distances, or has not settled (``checks.lost_fit_signs``), EM again from
+    turns over or bends within its distances, or has not settled (``checks/lost_signs.lost_fit_signs``), EM again from
     the start with that channel's start sigma (every channel's when the fit has not settled) a third of the
     last one's, at most ``turn_restarts`` times, and none after Ctrl-C. EM maximizes the likelihood, so the
     fit kept is the most likely one, each scored with the configured readings model on the sightings that
@@ -179,7 +179,7 @@ def face_forward(fit: Fit, data: LandmarkLog, cfg: EMConfig, heard: Heard) -> Fi
 
 def rerun_moved_start(fit: Fit, data: LandmarkLog, cfg: EMConfig, heard: Heard) -> Fit:
     """A fit whose sensor reads no bearing runs again from its learned start when that moved metres from the
-    given one (``given_start.py``): the given heading was as wrong as the position, and ranges cannot tell
+    given one (``searches/given_start.py``): the given heading was as wrong as the position, and ranges cannot tell
     it, so headings race there first; the more likely of the two runs is kept."""
 
     def rerun(start: EMModel) -> EMResult:
@@ -243,7 +243,7 @@ def most_likely(runs: list[EMResult], data: LandmarkLog) -> tuple[int, list[floa
 
 
 def facing_forward(res: EMResult, data: LandmarkLog) -> EMResult:
-    """``res`` with its robot facing the way it drives, when its sensor cannot tell (``forward.py``):
+    """``res`` with its robot facing the way it drives, when its sensor cannot tell (``searches/facing.py``):
     the model, its posteriors and its action history turned by pi, ``turned_to_face_forward`` set."""
     if not drives_backward(res.model, data):
         return res

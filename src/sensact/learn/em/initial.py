@@ -1,7 +1,7 @@
 """The starting model of sec. 4.4.1: every action has no effect, each sensor function is a poor straight
 line, the sigmas are wide, and Sigma_m is the configured constant (learned from it, beyond the thesis,
 when ``motion_noise`` says so). EM (``fit.py``) starts here unless a learned model is given
-(``warm_start.py``)."""
+(``policies/warm_start.py``)."""
 
 from __future__ import annotations
 

@@ -21,60 +21,22 @@ import numpy as np
 
 from sensact.errors import ConfigError
 from sensact.learn.em.config import EMConfig
-from sensact.learn.em.delay_search import search_delay
 from sensact.learn.em.estep import Posteriors, e_step, log_likelihood
 from sensact.learn.em.initial import initial_model, motion_sd_floor, motion_sd_start
-from sensact.learn.em.mount import MountFreedom, mount_freedom, search_mount
+from sensact.learn.em.mount import MountFreedom, mount_freedom
 from sensact.learn.em.mstep import m_step
-from sensact.learn.em.outliers import bearing_outliers
+from sensact.learn.em.policies.late_outliers import bearing_outliers
 from sensact.learn.em.result import EMResult
-from sensact.learn.em.ridge import search_ridge
-from sensact.learn.em.start import OnTrial, race_starts, start_candidates
+from sensact.learn.em.searches.delay import search_delay
+from sensact.learn.em.searches.mount_search import search_mount
+from sensact.learn.em.searches.ridge import search_ridge
+from sensact.learn.em.searches.start_race import OnTrial, race_starts, start_candidates
+from sensact.learn.em.stage import HELD, NO_MOUNT, Stage, holds_anything, plan_stages
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 
 # (iteration, loglik, best loglik, iterations since the best) -> None
 Progress = Callable[[int, float, float, int], None]
-NO_MOUNT = (False, False, False)
-
-
-@dataclass(frozen=True)
-class Stage:
-    """What the M-step may move in one stage of EM, and how the E-step reads the readings (DESIGN.md, 10).
-    A stage ends when EM has converged in it, or at iteration ``ends_by``; EM ends with its last."""
-
-    name: str
-    motion_noise: bool  # Sigma_m learned (motion_noise is not "fixed")
-    bearing_terms: bool  # the channels' bearing terms fitted
-    mount: tuple[bool, bool, bool]  # the sensor mount's components moved (forward, left, yaw)
-    robust: bool  # the configured robust readings; False: Gaussian ones
-    ends_by: int | None = None  # the iteration it ends at, converged or not (None: when converged)
-
-    def with_end(self, ends_by: int) -> Stage:
-        return dc_replace(self, ends_by=ends_by)
-
-
-# Sigma_m as configured, the bearing terms and the mount held, every reading Gaussian
-HELD = Stage("held", False, False, NO_MOUNT, False)
-
-
-def plan_stages(cfg: EMConfig, model: EMModel, freedom: MountFreedom, spent: int = 0) -> tuple[Stage, ...]:
-    """Sigma_m, the bearing terms, the mount and the robust readings are held while EM first settles from a
-    poor start, until ``refine_from`` or convergence, then freed: learned from a poor start, they let EM
-    settle on a trajectory shifted behind the robot (docs/em-real.md). A start race's ``spent`` held
-    iterations count; nothing to hold, ``refine_from`` 0 without a race, or a learned start (warm_start,
-    settled already): the free stage alone."""
-    free = Stage("free", cfg.motion_noise.kind != "fixed", True, freedom.free, True)
-    nothing_held = cfg.search.refine_from <= 0 and spent == 0
-    if not holds_anything(cfg, model, freedom) or nothing_held or cfg.search.warm_start:
-        return (free,)
-    return (Stage("held", False, False, NO_MOUNT, False, ends_by=cfg.search.refine_from - spent), free)
-
-
-def holds_anything(cfg: EMConfig, model: EMModel, freedom: MountFreedom) -> bool:
-    """Whether a held stage would differ from the free one."""
-    terms = any(c.bearing_terms for c in model.sensor.channels)
-    return cfg.motion_noise.kind != "fixed" or model.sensor.is_robust or terms or freedom.any
 
 
 @dataclass
@@ -113,9 +75,10 @@ class _Trace:
 
 @dataclass
 class _Searches:
-    """The ridge search (``ridge.py``), the delay search (``delay_search.py``) and the mount search
-    (``mount.search_mount``), each as configured: when a stage ends, and every ``search_every`` iterations
-    into the last, since EM keeps crawling back along the ridge between them (docs/em-real.md)."""
+    """The ridge search (``searches/ridge.py``), the delay search (``searches/delay.py``) and the mount
+    search (``searches/mount_search.py``), each as configured: when a stage ends, and every
+    ``search_every`` iterations into the last, since EM keeps crawling back along the ridge between them
+    (docs/em-real.md)."""
 
     data: LandmarkLog
     cfg: EMConfig
@@ -226,7 +189,7 @@ class _Run:
 
     def _robust_take_over(self, post: Posteriors) -> Posteriors:
         """The robust readings take over: their likelihood is another function, with its own best from here;
-        with prune_when_freed, the first iteration's gate again on the smoothed path (``outliers.py``)."""
+        with prune_when_freed, the first iteration's gate again on the smoothed path (``policies/late_outliers.py``)."""
         if not self.model.sensor.is_robust:
             return post
         self.trace.best_ll = -np.inf
@@ -245,11 +208,9 @@ class _Run:
             n_samples=self.cfg.thesis.samples_per_frame,
             floor_var=floor,
             rng=self.rng,
-            learn_motion_noise=s.motion_noise,
+            stage=s,
             motion_floor_sd=motion_sd_floor(self.cfg, n),
             max_delay_steps=self.searches.max_delay,
-            fit_bearing_terms=s.bearing_terms,
-            mount_free=s.mount,
         )
 
 
@@ -340,7 +301,7 @@ def run_stages(
 
 def held_trial(data: LandmarkLog, model: EMModel, iterations: int, cfg: EMConfig) -> EMResult:
     """A start race's trial: ``iterations`` of the held stage alone from ``model``, ungated and without a
-    stop, so that every candidate's likelihood is one function (``start.race_starts``)."""
+    stop, so that every candidate's likelihood is one function (``searches/start_race.race_starts``)."""
     freedom = mount_freedom(model, cfg.sensor_mount is not None, model.sensor.reads_bearing)
     stage = HELD if holds_anything(cfg, model, freedom) else plan_stages(cfg, model, freedom)[0]
     return run_stages(
@@ -351,7 +312,7 @@ def held_trial(data: LandmarkLog, model: EMModel, iterations: int, cfg: EMConfig
 def searched_start(
     data: LandmarkLog, model: EMModel, cfg: EMConfig, on_race: OnTrial | None
 ) -> tuple[EMModel, dict[str, Any] | None, int]:
-    """Where the robot starts when nobody says (``start.py``): the model placed there, what the search
+    """Where the robot starts when nobody says (``searches/start_race.py``): the model placed there, what the search
     tried, and the held iterations the start race already gave the model (0 without a race)."""
     if not (cfg.search.start_s is not None and data.geometry.has_heading and not cfg.search.warm_start):
         return model, None, 0
@@ -392,7 +353,7 @@ def fit_em_once(
 def drop_late_outliers(
     post: Posteriors, data: LandmarkLog, gate_rad_per_step: float, model: EMModel
 ) -> tuple[Posteriors, int]:
-    """``prune_when_freed``: the first iteration's gate again, on the smoothed path (``outliers.py``); the
+    """``prune_when_freed``: the first iteration's gate again, on the smoothed path (``policies/late_outliers.py``); the
     posteriors with those sightings no longer used (so that this M-step leaves them out already), and
     how many."""
     late = bearing_outliers(post, data, gate_rad_per_step, model.sensor.mount.as_array())

@@ -13,6 +13,7 @@ from sensact.core.pose_models import apply_displacement, landmark_bearing, senso
 from sensact.learn.em.actions import motion_noise, motion_second_moments, step_motion_var, turning_variance
 from sensact.learn.em.estep import Posteriors, channel_inputs
 from sensact.learn.em.mount import mount_update, sensor_distances
+from sensact.learn.em.stage import Stage
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 from sensact.models.landmark_sensor import LandmarkSensor, reading_features
@@ -133,21 +134,20 @@ def m_step(
     n_samples: int,
     floor_var: np.ndarray,
     rng: np.random.Generator,
-    learn_motion_noise: bool = False,
+    stage: Stage,
     motion_floor_sd: np.ndarray | None = None,
     max_delay_steps: int = 0,
-    fit_bearing_terms: bool = True,
-    mount_free: tuple[bool, bool, bool] = (False, False, False),
 ) -> EMModel:
-    """Every update of sec. 4.3, plus Sigma_m when ``learn_motion_noise`` (shared or per action, as the
-    model's ``motion_sd`` has one row or one per action)."""
+    """Every update of sec. 4.3 that ``stage`` allows (its contract: Sigma_m, shared or per action as the
+    model's ``motion_sd`` has one row or one per action; the channels' bearing terms; the mount's free
+    components); the action model, f, the sigmas and the prior always."""
     if model.turn_var is None:
         var = np.broadcast_to((model.motion_sd**2)[0], post.disp_mean.shape)
     else:  # the steps' own variances: a turn's heading counts for less
         var = step_motion_var(model, data)[:-1]
     action = model.action.update(data, post.disp_mean, var, max_delay_steps)  # eq. 4.18 or its least squares
     motion_sd, turn_var = model.motion_sd, model.turn_var
-    if learn_motion_noise:
+    if stage.motion_noise:
         floor = np.zeros(model.prior_mean.size) if motion_floor_sd is None else motion_floor_sd
         groups = data.actions[:-1] if model.per_action_noise else None
         mean_disp = action.step_velocity(data)[:-1] * data.dt_s
@@ -158,7 +158,7 @@ def m_step(
             a, turn_var = turning_variance(second[:, 2], turn, floor[2] ** 2, (model.motion_sd[0, 2] ** 2, turn_var))
             motion_sd = motion_sd.copy()
             motion_sd[0, 2] = np.sqrt(a)
-    sensor = sensor_model(post, data, n_samples, rng, model.sensor, fit_bearing_terms, mount_free)
+    sensor = sensor_model(post, data, n_samples, rng, model.sensor, stage.bearing_terms, stage.mount)
     mean0, cov0 = prior(post, floor_var)
     return model.replace(
         action=action, sensor=sensor, prior_mean=mean0, prior_cov=cov0, motion_sd=motion_sd, turn_var=turn_var

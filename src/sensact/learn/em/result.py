@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from sensact.learn.em.checks import fall_per_sighting
+from sensact.learn.em.checks.lost_signs import fall_per_sighting
 from sensact.learn.em.config import EMConfig
 from sensact.learn.em.estep import Posteriors
 from sensact.learn.em.mount import MountFreedom
@@ -33,11 +33,11 @@ class EMResult:
     motion_sd_history: np.ndarray | None = None  # (iterations, G, n) Sigma_m's standard deviations
     start_search: dict[str, Any] | None = None  # what the start search tried and chose
     freed_at: int = -1  # the iteration after which Sigma_m, the terms and robust readings were freed (-1: never held)
-    ridge: list[dict[str, Any]] | None = None  # each ridge search: its iteration, shift, likelihoods (ridge.py)
+    ridge: list[dict[str, Any]] | None = None  # each ridge search: its iteration, shift, likelihoods (searches/ridge)
     delay_search: list[dict[str, Any]] | None = None  # each delay search: its iteration, delays, likelihoods
     restarts: list[dict[str, Any]] | None = None  # each run while the fit looked lost (restart_while_lost)
     n_pruned_when_freed: int = 0  # of n_pruned, those the gate dropped again when the robust readings took over
-    # a range-only fit that ended facing backward, reported turned by pi (forward.py; the same likelihood)
+    # a range-only fit that ended facing backward, reported turned by pi (searches/facing.py; the same likelihood)
     turned_to_face_forward: bool = False
     # a range-only fit whose given start moved metres: the start, where EM put it, both runs' likelihoods
     start_moved: dict[str, Any] | None = None
@@ -80,7 +80,7 @@ class EMResult:
             "pruned_fraction": self.pruned_fraction,
             "sensor_mount": None if self.mount is None else self.mount.to_dict(),
             "mount_search": self.mount_search,
-            # how far the likelihood fell on average after the best, per sighting used (checks.unsettled_fit)
+            # how far the likelihood fell on average after the best, per sighting used (checks/lost_signs.unsettled_fit)
             "fall_per_sighting": fall_per_sighting(self.loglik_history, self.best_iteration, self.n_used),
             "seconds": self.seconds,
             "start_search": self.start_search,

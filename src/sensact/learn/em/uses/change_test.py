@@ -35,7 +35,7 @@ from sensact.core.changepoint import (
 )
 from sensact.learn.em.config import EMConfig
 from sensact.learn.em.estep import innovations
-from sensact.learn.em.localize import localize
+from sensact.learn.em.uses.place import localize
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 

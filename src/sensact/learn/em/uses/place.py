@@ -4,7 +4,7 @@ EM learns a model and the robot's path together; a model learned on one run can 
 the next with no learning at all: the forward EKF and two-filter smoother of ``estep.e_step`` with the
 model held. Only the start is unknown, and it is found the way EM finds it (beyond the thesis):
 
-* a **planar** log with bearings: ``start.start_candidates`` scores the grid of starts on the first
+* a **planar** log with bearings: ``searches/start_race.start_candidates`` scores the grid of starts on the first
   sightings' bearings; each candidate is then scored by the whole log's ``log P(O | C, lambda)`` under
   the learned model (eq. 4.14), which needs no race: the model is no longer a poor guess;
 * a **track**: every distance at which a learned f reads one of the first sightings' readings (the real
@@ -38,7 +38,7 @@ from sensact.errors import ConfigError
 from sensact.learn.em.config import EMConfig, upgrade_settings
 from sensact.learn.em.estep import Posteriors, channel_columns, e_step, log_likelihood
 from sensact.learn.em.fit import refuse_no_sightings
-from sensact.learn.em.start import DISTINCT_CELLS, search_grid, search_window, start_candidates
+from sensact.learn.em.searches.start_race import DISTINCT_CELLS, search_grid, search_window, start_candidates
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 from sensact.reprs import compact_repr
@@ -123,7 +123,7 @@ def range_start_candidates(
     model: EMModel, data: LandmarkLog, config: EMConfig, progress: Progress | None = None
 ) -> list[EMModel]:
     """Up to ``config.search.start_candidates`` starts for a planar log read without bearings: every point of
-    ``start.search_grid`` (``config.search.start_grid_mm`` cells) at each of ``RANGE_HEADINGS`` headings,
+    ``searches/start_race.search_grid`` (``config.search.start_grid_mm`` cells) at each of ``RANGE_HEADINGS`` headings,
     scored by ``log P(O | C, lambda)`` (eq. 4.14) of the first ``config.search.start_s`` seconds under
     the learned model, the best of them that are a few cells or two headings apart from each other.
     Each starts with a prior sd of a grid cell in position and half a heading step in heading, so

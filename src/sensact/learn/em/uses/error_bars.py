@@ -1,7 +1,7 @@
 """Error bars on every learned parameter by a parametric bootstrap (issue 76; beyond the thesis, which
 reports point estimates).
 
-``B`` logs are drawn from the learned model (``simulate.simulate_from_model``: the log's own commands,
+``B`` logs are drawn from the learned model (``uses/draw_log.simulate_from_model``: the log's own commands,
 map and sighting times), and each is learned again as the log was: from the same start (the thesis's
 poor guess, or the learned model `--start-from` placed), with the same settings. The spread of the ``B``
 estimates is each parameter's standard error; the 90 % interval is the basic bootstrap's in its normal
@@ -86,7 +86,7 @@ def replicate(
     """One bootstrap replicate: a log drawn from ``model`` (``seed``), learned again from ``start`` (None:
     the thesis's poor guess) under ``config``, as the log was; its parameters by name (``model_parameters``)."""
     from sensact.learn.em.fit import fit_em
-    from sensact.learn.em.simulate import simulate_from_model
+    from sensact.learn.em.uses.draw_log import simulate_from_model
 
     drawn, _ = simulate_from_model(model, data, seed)
 

@@ -1,7 +1,7 @@
 """A start pose the user gave, for a sensor that cannot search for one (beyond the thesis, whose robots
 started at a known pose).
 
-The start search scores start poses by the bearings (``start.py``), so a range-only log (UWB anchors,
+The start search scores start poses by the bearings (``searches/start_race.py``), so a range-only log (UWB anchors,
 sonar beacons) starts where the user says, ``start_prior_mean`` within ``start_prior_sd``. EM
 re-estimates the prior from gamma_0 (sec. 4.3), and from a start a few metres off it can find the path
 while the turn rate it learns is wrong: the heading noise carries the turns. Measured on 5 minutes of

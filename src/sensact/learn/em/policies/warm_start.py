@@ -3,7 +3,7 @@
 The thesis starts EM from a model that knows nothing: the robot does not move and f is a poor line. A
 robot of a fleet, or the same robot after a change (a new floor, a remounted camera), has a model close
 to its own already: one learned on a sibling, or before the change. Started there, EM needs no start
-race: the model places the robot on the new log by the E-step alone (``localize.localize``, as
+race: the model places the robot on the new log by the E-step alone (``uses/place.localize``, as
 `sensact localize` does), and EM learns on from that start and those parameters, with nothing held
 (``EMConfig.warm_start``).
 
@@ -19,7 +19,7 @@ from typing import Any
 from sensact.errors import ConfigError
 from sensact.learn.em.config import EMConfig
 from sensact.learn.em.initial import initial_model
-from sensact.learn.em.localize import Localized, Progress, localize
+from sensact.learn.em.uses.place import Localized, Progress, localize
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 
