@@ -36,9 +36,9 @@ from sensact.presets import mrclam_config
 LOST_MM = 500.0  # a path this far from Vicon (median) has lost the robot: a start-search cell
 
 
-def _kinds(signs: list[dict]) -> str:
+def _kinds(signs: list) -> str:
     """What the kept fit showed: ``turns``, ``bends``, ``unsettled``, those joined by ``+``, or ``no``."""
-    kinds = {t["sign"] for t in signs}
+    kinds = {t.sign for t in signs}
     return "+".join(k for k in ("turns", "bends", "unsettled") if k in kinds) or "no"
 
 
@@ -80,7 +80,7 @@ def main() -> None:
             per = fall_per_sighting(res.loglik_history, res.best_iteration, res.n_used)
             settle = "-" if per is None else f"{per:.4f}"
             runs = res.restarts or []
-            restarted = f"{len(runs) - 1} ({next(i for i, r in enumerate(runs) if r['kept'])})" if runs else "0"
+            restarted = f"{len(runs) - 1} ({next(i for i, r in enumerate(runs) if r.kept)})" if runs else "0"
             lost += off > LOST_MM
             total += 1
             print(

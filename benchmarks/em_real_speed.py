@@ -60,7 +60,7 @@ def main() -> None:
     print(f"log: {ml.summary_line()}; {platform.machine()}, {platform.python_version()}")
     print(f"one E-step            {1000 * min(e_times):6.1f} ms")
     print(f"one EM iteration      {1000 * min(it_times):6.1f} ms   (with the 16 command delays tried)")
-    race = res.start_search["race"]["winner_iterations"] if res.start_search and "race" in res.start_search else 0
+    race = res.start_search.race.winner_iterations if res.start_search and res.start_search.race else 0
     print(
         f"whole fit             {total:6.1f} s    {res.iterations} iterations ({res.stop_reason}) after the start "
         f"race's {race}; goal <= 30 s"

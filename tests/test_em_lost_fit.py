@@ -94,9 +94,9 @@ def test_a_length_reading_whose_slope_changes_with_distance_is_flagged(continuou
     bent = quadratic(0.6, 1.8)
     assert bent(np.array([lo]))[0] == pytest.approx(lo) and bent.slope(np.array([lo, hi])) == pytest.approx([0.6, 1.8])
     signs = range_function_bends(with_f(bent), res.posteriors, data)
-    assert len(signs) == 1 and signs[0]["channel"] == "range_mm" and signs[0]["sign"] == "bends"
-    np.testing.assert_allclose(signs[0]["slopes"], [0.6, 1.8], rtol=1e-9)
-    np.testing.assert_allclose(signs[0]["distances_mm"], [lo, hi])
+    assert len(signs) == 1 and signs[0].channel == "range_mm" and signs[0].sign == "bends"
+    np.testing.assert_allclose(signs[0].slopes, [0.6, 1.8], rtol=1e-9)
+    np.testing.assert_allclose(signs[0].distances_mm, [lo, hi])
     assert range_function_turns(with_f(bent), res.posteriors, data) == []
     assert lost_fit_signs(with_f(bent), res.posteriors, data) == signs
     said = describe_lost_fit(signs)
@@ -110,11 +110,11 @@ def test_a_length_reading_whose_slope_changes_with_distance_is_flagged(continuou
     assert range_function_bends(with_f(bent, name="height_px"), res.posteriors, data) == []
     # a falling reading bent threefold is flagged too
     falling = Polynomial1D(tuple(-c for c in bent.coef), center=f0.center, scale=f0.scale)
-    assert range_function_bends(with_f(falling), res.posteriors, data)[0]["slopes"] == pytest.approx([-1.8, -0.6])
+    assert range_function_bends(with_f(falling), res.posteriors, data)[0].slopes == pytest.approx([-1.8, -0.6])
     # an f that turns is a turn, not a bend
     turning = _turning_cubic(f0.center, f0.scale, at=0.5 * (lo + hi) - 0.2 * (hi - lo), width=0.1 * (hi - lo))
     signs = lost_fit_signs(with_f(turning), res.posteriors, data)
-    assert len(signs) == 1 and signs[0]["sign"] == "turns" and "does not turn" in describe_lost_fit(signs)
+    assert len(signs) == 1 and signs[0].sign == "turns" and "does not turn" in describe_lost_fit(signs)
 
 
 def test_a_range_function_that_turns_within_its_distances_is_flagged(continuous_fit):
@@ -139,9 +139,9 @@ def test_a_range_function_that_turns_within_its_distances_is_flagged(continuous_
     f0 = res.model.sensor.channels[0].function
     f = _turning_cubic(f0.center, f0.scale, at=mid - 2.0 * a, width=a)
     turned = range_function_turns(with_f(f), res.posteriors, data)
-    assert len(turned) == 1 and turned[0]["channel"] == "range_mm"
-    np.testing.assert_allclose(turned[0]["turns_at_mm"], [mid - a, mid + a], rtol=1e-9)
-    np.testing.assert_allclose(turned[0]["distances_mm"], [lo, hi])
+    assert len(turned) == 1 and turned[0].channel == "range_mm"
+    np.testing.assert_allclose(turned[0].turns_at_mm, [mid - a, mid + a], rtol=1e-9)
+    np.testing.assert_allclose(turned[0].distances_mm, [lo, hi])
     assert "turns over at" in describe_lost_fit(turned) and "start_sigma" in describe_lost_fit(turned)
     far = _turning_cubic(f0.center, f0.scale, at=hi + 2.0 * a, width=a)  # turns at hi + 3a and hi + 5a
     assert range_function_turns(with_f(far), res.posteriors, data) == []
@@ -164,9 +164,9 @@ def test_a_fit_whose_likelihood_keeps_falling_far_below_its_best_has_not_settled
     over = at_limit.copy()
     over[3] -= 1e-6 * limit
     (sign,) = unsettled_fit(over, 1, n)
-    assert sign["sign"] == "unsettled" and sign["best_iteration"] == 1 and sign["iterations_after"] == 2
-    assert sign["mean_fall"] == pytest.approx(limit * (1 + 0.5e-6)) and sign["per_sighting"] == pytest.approx(
-        sign["mean_fall"] / n
+    assert sign.sign == "unsettled" and sign.best_iteration == 1 and sign.iterations_after == 2
+    assert sign.mean_fall == pytest.approx(limit * (1 + 0.5e-6)) and sign.per_sighting == pytest.approx(
+        sign.mean_fall / n
     )
     assert unsettled_fit(over, 3, n) == [] and unsettled_fit(over, 1, 0) == []  # nothing after the best; no sighting
     assert unsettled_fit(over, 1, 2 * n) == []  # the same falls over twice the sightings
@@ -183,8 +183,8 @@ def test_a_fit_whose_likelihood_keeps_falling_far_below_its_best_has_not_settled
     thrashing = h.copy()
     thrashing[b + 1 :] -= 2.0 * UNSETTLED_PER_SIGHTING * used
     signs = lost_fit_signs(res.model, res.posteriors, data, thrashing, b)
-    assert [s["sign"] for s in signs] == ["unsettled"] and "channel" not in signs[0]
-    assert signs[0]["per_sighting"] == pytest.approx(2.0 * UNSETTLED_PER_SIGHTING + np.mean(h[b] - h[b + 1 :]) / used)
+    assert [s.sign for s in signs] == ["unsettled"] and not hasattr(signs[0], "channel")
+    assert signs[0].per_sighting == pytest.approx(2.0 * UNSETTLED_PER_SIGHTING + np.mean(h[b] - h[b + 1 :]) / used)
     said = describe_lost_fit(signs)
     assert f"iterations after its best one ({b}) EM's log-likelihood stayed on average" in said
     assert "moves little from it: EM has probably lost the robot" in said
@@ -199,17 +199,16 @@ def test_em_restarts_from_a_tighter_start_while_f_turns_and_keeps_the_most_likel
     none once f does not turn, and the fit kept is the most likely one, scored on the sightings every run
     used (each run's own likelihood here: nothing is pruned)."""
     import sensact.learn.em.fit as fit_module
+    from sensact.learn.em.checks.lost_signs import FunctionTurns, Unsettled
 
     data, _ = simulate_continuous(3, T=2400)
     calls = {"n": 0, "flagged": 0}
 
     def flags_the_first(model, post, log, *history):
         calls["n"] += 1
-        turn = [{"channel": "range_mm", "sign": "turns", "turns_at_mm": [2000.0], "distances_mm": [1000.0, 3000.0]}]
+        turn = [FunctionTurns("range_mm", turns_at_mm=(2000.0,), distances_mm=(1000.0, 3000.0))]
         if calls.get("unsettled"):  # checks.unsettled_fit's sign names no channel
-            turn = [
-                {"sign": "unsettled", "best_iteration": 5, "iterations_after": 4, "mean_fall": 9e3, "per_sighting": 2}
-            ]
+            turn = [Unsettled(best_iteration=5, iterations_after=4, mean_fall=9e3, per_sighting=2)]
         return turn if calls["n"] <= calls["flagged"] else []
 
     monkeypatch.setattr(fit_module, "lost_fit_signs", flags_the_first)
@@ -225,16 +224,16 @@ def test_em_restarts_from_a_tighter_start_while_f_turns_and_keeps_the_most_likel
             assert res.restarts is None
             continue
         info = res.restarts
-        assert len(info) == runs and [r["start_sigma"]["range_mm"] for r in info] == pytest.approx(
+        assert len(info) == runs and [r.start_sigma["range_mm"] for r in info] == pytest.approx(
             [3000.0 / 3**k for k in range(runs)], rel=1e-12
         )
-        assert [bool(r["f_turns"]) for r in info] == [True] * (runs - 1) + [runs - 1 < flagged]
-        kept = [r for r in info if r["kept"]]
-        assert len(kept) == 1 and kept[0]["loglik"] == max(r["loglik"] for r in info) and not info[0]["kept"]
-        assert res.loglik_best == pytest.approx(kept[0]["loglik"], abs=1e-6 * abs(res.loglik_best))
-        assert all(r["loglik"] == pytest.approx(r["loglik_best"], abs=1e-6 * abs(r["loglik"])) for r in info)
+        assert [bool(r.f_turns) for r in info] == [True] * (runs - 1) + [runs - 1 < flagged]
+        kept = [r for r in info if r.kept]
+        assert len(kept) == 1 and kept[0].loglik == max(r.loglik for r in info) and not info[0].kept
+        assert res.loglik_best == pytest.approx(kept[0].loglik, abs=1e-6 * abs(res.loglik_best))
+        assert all(r.loglik == pytest.approx(r.loglik_best, abs=1e-6 * abs(r.loglik)) for r in info)
         # the kept model, its likelihood computed again from the forward pass alone
-        assert log_likelihood(res.model, data) == pytest.approx(kept[0]["loglik"], abs=1e-6 * abs(res.loglik_best))
+        assert log_likelihood(res.model, data) == pytest.approx(kept[0].loglik, abs=1e-6 * abs(res.loglik_best))
     assert [k for k, _ in heard] == [1, 2, 1] and heard[1][1]["range_mm"] == pytest.approx(3000.0 / 9)
     assert "restarts" in res.summary()
     # a fit that did not settle names no channel: every channel starts a third as vague
@@ -242,7 +241,7 @@ def test_em_restarts_from_a_tighter_start_while_f_turns_and_keeps_the_most_likel
     heard.clear()
     res = fit_em(data, None, cfg.replace(turn_restarts=2), on_restart=lambda k, signs, sigmas: heard.append(sigmas))
     assert heard == [{"range_mm": pytest.approx(1000.0)}] and len(res.restarts) == 2
-    assert [r["f_turns"][0]["sign"] for r in res.restarts[:1]] == ["unsettled"] and not res.restarts[1]["f_turns"]
+    assert [r.f_turns[0].sign for r in res.restarts[:1]] == ["unsettled"] and not res.restarts[1].f_turns
     calls["unsettled"] = False
 
     # Ctrl-C ends the fit: no restart after it, whatever the signs
@@ -255,13 +254,15 @@ def test_em_restarts_from_a_tighter_start_while_f_turns_and_keeps_the_most_likel
     res = fit_em(data, None, cfg, progress=interrupt, on_restart=lambda k, signs, sigmas: heard.append(sigmas))
     assert res.stop_reason == "interrupted" and res.restarts is None and heard == [] and calls["n"] == 1
     # what `learn em` and `reproduce real` show of the last two-run fit
+    from sensact.records import to_json
     from sensact.report.tables_real import kept_run_cell, restart_runs_cell
 
     calls.update(n=0, flagged=1)
     two = fit_em(data, None, cfg.replace(turn_restarts=1))
-    cell = restart_runs_cell(two.restarts)
+    runs = to_json(two.restarts)  # as model.json and real.json hold them
+    cell = restart_runs_cell(runs)
     assert cell.startswith("range_mm 3000: ") and "(f turned); range_mm 1000: " in cell
-    assert kept_run_cell(two.restarts) == ("restart 1" if two.restarts[1]["kept"] else "the first run")
+    assert kept_run_cell(runs) == ("restart 1" if two.restarts[1].kept else "the first run")
     unsettled = {
         "sign": "unsettled",
         "best_iteration": 5,
@@ -269,10 +270,10 @@ def test_em_restarts_from_a_tighter_start_while_f_turns_and_keeps_the_most_likel
         "mean_fall": 900.0,
         "per_sighting": 1.0,
     }
-    cell = restart_runs_cell([dict(two.restarts[0], f_turns=[unsettled]), two.restarts[1]])
+    cell = restart_runs_cell([dict(runs[0], f_turns=[unsettled]), runs[1]])
     assert cell.startswith("range_mm 3000: ") and "(EM unsettled); range_mm 1000: " in cell
     bend = {"channel": "range_mm", "sign": "bends", "slopes": [0.7, 2.1], "distances_mm": [1000.0, 3000.0]}
-    both = [dict(two.restarts[0], f_turns=[bend]), dict(two.restarts[1], f_turns=[bend, *two.restarts[0]["f_turns"]])]
+    both = [dict(runs[0], f_turns=[bend]), dict(runs[1], f_turns=[bend, *runs[0]["f_turns"]])]
     assert "(f bent); range_mm 1000: " in restart_runs_cell(both) and restart_runs_cell(both).endswith(
         "(f turned and bent)"
     )

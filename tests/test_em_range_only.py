@@ -20,6 +20,7 @@ from sensact.learn.em import EMConfig, fit_em, initial_model
 from sensact.learn.em.estep import e_step, log_likelihood
 from sensact.learn.em.searches.facing import drives_backward, turned_model, turned_posteriors
 from sensact.presets import range_only_config
+from sensact.records import to_json
 from sensact.sim.diffdrive import COMMAND_NAMES, DiffDriveConfig, simulate_diffdrive
 
 runner = CliRunner()
@@ -156,10 +157,10 @@ def test_a_range_only_start_metres_off_runs_again_from_where_em_moved_it():
     heard = []
     res = fit_em(run.log(), config=cfg, on_start_moved=lambda mm, mean: heard.append((mm, mean)))
     moved = res.start_moved
-    assert len(heard) == 1 and heard[0][0] == moved["moved_mm"] and moved["moved_mm"] > 3 * 300.0
-    assert np.hypot(*moved["learned"][:2]) < 300.0 and moved["given"] == [-1000.0, 3000.0, 0.0]
-    assert moved["kept"] == "again" and moved["loglik"][1] > moved["loglik"][0] + 100.0
-    assert res.summary()["start_moved"] == moved
+    assert len(heard) == 1 and heard[0][0] == moved.moved_mm and moved.moved_mm > 3 * 300.0
+    assert np.hypot(*moved.learned[:2]) < 300.0 and moved.given == (-1000.0, 3000.0, 0.0)
+    assert moved.kept == "again" and moved.loglik[1] > moved.loglik[0] + 100.0
+    assert res.summary()["start_moved"] == to_json(moved)
     m, truth = res.model, run.config
     assert m.action.coefficients[2, 2] == pytest.approx(truth.turn_gain, rel=0.02)
     assert m.action.coefficients[1, 1] == pytest.approx(truth.forward_gain, rel=0.02)
@@ -177,7 +178,7 @@ def test_a_range_only_start_metres_and_radians_off_races_its_heading_where_em_mo
     cfg = range_only_config(COMMAND_NAMES, (-1000.0, 3000.0, 2.0)).replace(max_iterations=600)
     res = fit_em(run.log(), config=cfg)
     moved = res.start_moved
-    assert moved["kept"] == "again" and len(moved["heading_race"]["headings_rad"]) == 8
+    assert moved.kept == "again" and len(moved.heading_race.headings_rad) == 8
     assert abs(wrap_angle(res.model.prior_mean[2] - run.poses[0, 2])) < 0.2
     m, truth = res.model, run.config
     assert m.action.coefficients[2, 2] == pytest.approx(truth.turn_gain, rel=0.03)

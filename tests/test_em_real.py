@@ -192,18 +192,18 @@ def test_a_lost_fit_whose_f_bends_without_turning_is_seen_and_started_again():
     assert path_offset(lost.posteriors.mean_gamma, poses[a:b], valid[a:b])["median_mm"] > 300.0  # 402 mm
     assert range_function_turns(lost.model, lost.posteriors, part) == []
     bent = range_function_bends(lost.model, lost.posteriors, part)
-    assert [t["channel"] for t in bent] == ["range_mm"] and bent[0]["slopes"][1] > 2.0 * bent[0]["slopes"][0] > 0
+    assert [t.channel for t in bent] == ["range_mm"] and bent[0].slopes[1] > 2.0 * bent[0].slopes[0] > 0
     first = iter([lost])  # the fit that lost the robot, then EM from each tighter start
     res = restart_while_lost(
         lambda s: next(first, None) or fit_em_once(part, s, cfg), part, cfg, Heard(None, None, None)
     )(initial_model(part, cfg))
     runs = res.restarts
-    assert runs[0]["f_turns"] == bent and runs[1]["start_sigma"]["range_mm"] == pytest.approx(100.0 / 3)
+    assert runs[0].f_turns == bent and runs[1].start_sigma["range_mm"] == pytest.approx(100.0 / 3)
     # since every sighting of a frame counts and the mount is learned, the restarts no longer find this
     # quarter's robot (every run bends; the kept one, 65 log-units more likely, is 621 mm off Vicon; it was
     # under 300 mm): the check and the restart run, and the most likely run is kept (issue 73's open findings)
-    kept = next(r for r in runs if r["kept"])
-    assert len(runs) == 3 and kept["loglik"] == max(r["loglik"] for r in runs) > runs[0]["loglik"] + 50.0
+    kept = next(r for r in runs if r.kept)
+    assert len(runs) == 3 and kept.loglik == max(r.loglik for r in runs) > runs[0].loglik + 50.0
 
 
 def dataset_with_landmarks(tmp_path: Path, kept: set[int]) -> Path:
@@ -297,7 +297,7 @@ def test_a_short_real_log_finds_its_robot_and_a_lost_fit_says_so_and_starts_agai
     vague = replace(cfg, channels=(replace(cfg.channels[0], start_sigma=1000.0),))
     lost = fit_em(part, None, vague.replace(turn_restarts=0))
     assert path_offset(lost.posteriors.mean_gamma, poses[:stop], valid[:stop])["median_mm"] > 1000.0
-    assert range_function_turns(lost.model, lost.posteriors, part)[0]["channel"] == "range_mm"
+    assert range_function_turns(lost.model, lost.posteriors, part)[0].channel == "range_mm"
     # the vaguer start with the restarts, through the command a user runs
     gt = {k: v[:stop] for k, v in ml.groundtruth.items()}
     write_landmark_log(tmp_path / "q1", part, groundtruth=gt)
@@ -311,10 +311,10 @@ def test_a_short_real_log_finds_its_robot_and_a_lost_fit_says_so_and_starts_agai
     assert "range_mm's f turns over at" in flat and "EM starts again with range_mm's start sigma 333" in flat, flat
     written = json.loads(out.read_text())
     runs = written["summary"]["restarts"]
-    assert runs[0]["start_sigma"]["range_mm"] == 1000.0 and runs[0]["f_turns"] and not runs[0]["kept"]
-    assert runs[0]["loglik"] == pytest.approx(lost.loglik_best, abs=1e-6)  # the same run, all sightings kept
-    kept = next(r for r in runs if r["kept"])
-    assert kept["loglik"] > runs[0]["loglik"] + 100.0 and not kept["f_turns"]
+    assert runs[0].start_sigma["range_mm"] == 1000.0 and runs[0].f_turns and not runs[0].kept
+    assert runs[0].loglik == pytest.approx(lost.loglik_best, abs=1e-6)  # the same run, all sightings kept
+    kept = next(r for r in runs if r.kept)
+    assert kept.loglik > runs[0].loglik + 100.0 and not kept.f_turns
     assert written["range_function_turns"] == written["range_function_bends"] == [] and written["em_unsettled"] is None
     assert "EM has probably lost the robot (a local" not in flat
     assert "smoothed path off the recorded poses: median" in flat and written["evaluation"]["path"]["median_mm"] < 150.0
@@ -566,7 +566,7 @@ def test_mrclam_robot1_from_an_unknown_start(tmp_path):
         # robot 1's range function and bearing bars miss since every sighting of a frame counts (issue 73)
         held = {k: v for k, v in sc["bars"].items() if k not in ("bearing_sigma", "range_function")}
         assert all(held.values()), held
-    assert len(res.start_search["race"]["rounds"][0]) == 6
+    assert len(res.start_search.race.rounds[0]) == 6
     # the report's heading-noise figure draws the learned Sigma_m the score describes
     from sensact.report.figures_real import figure_heading_noise
 
@@ -587,10 +587,10 @@ def test_mrclam_robot1_from_an_unknown_start(tmp_path):
     # camera's view at a higher likelihood, and EM ends near the basin that the truth restart finds
     # (without the search: 311 mm off, 282 behind, 324 log-units below the restart)
     ridge = res.ridge[0]
-    assert [r["iteration"] - res.freed_at for r in res.ridge] == list(range(0, res.iterations - res.freed_at, 50))
+    assert [r.iteration - res.freed_at for r in res.ridge] == list(range(0, res.iterations - res.freed_at, 50))
     # (about 0.2 m with the 1000-mm range start sigma of before, 1.0 m with 100 mm: the tighter start
     # trusts the poor line's reading of distance longer, and the line reads the landmarks farther away)
-    assert 100.0 < ridge["shift_mm"] < 1500.0 and ridge["loglik_after"] > ridge["loglik_before"] + 20.0
+    assert 100.0 < ridge.shift_mm < 1500.0 and ridge.loglik_after > ridge.loglik_before + 20.0
     path = row["score"]["path"]
     assert path["median_mm"] < 150.0 and path["forward_median_mm"] > -150.0
     t = row["truth_restart"]

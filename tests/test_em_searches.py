@@ -22,6 +22,7 @@ from sensact.learn.em.mstep import sample_gamma
 from sensact.learn.em.searches.delay import search_delay, with_delay
 from sensact.learn.em.searches.ridge import search_ridge, shifted_forward
 from sensact.learn.em.searches.start_race import race_starts, race_trials, search_grid, start_candidates
+from sensact.records import to_json
 
 
 def test_start_race_halves_the_field_on_the_held_gaussian_likelihood():
@@ -45,11 +46,11 @@ def test_start_race_halves_the_field_on_the_held_gaussian_likelihood():
 
     heard = []
     model, info = race_starts(data, cands, cfg, run, on_trial=lambda done, planned: heard.append((done, planned)))
-    assert [len(r) for r in info["rounds"]] == [6, 3, 2] and info["winner"] == 2
+    assert [len(r) for r in info.rounds] == [6, 3, 2] and info.winner == 2
     assert heard == [(k, 11) for k in range(1, 12)]  # every trial heard of once, in order, out of 6 + 3 + 2
-    assert set(info["rounds"][1]) == {"2", "4", "5"} and set(info["rounds"][2]) == {"2", "4"}
+    assert set(info.rounds[1]) == {"2", "4", "5"} and set(info.rounds[2]) == {"2", "4"}
     assert model.prior_mean[0] == 6.0 and model.prior_mean[1] == 3.0  # the winner's model after 3 rounds
-    assert info["winner_iterations"] == 3 * cfg.search.start_trial_iterations
+    assert info.winner_iterations == 3 * cfg.search.start_trial_iterations
     assert seen == [cfg.search.start_trial_iterations] * 11
 
 
@@ -80,11 +81,11 @@ def test_start_race_does_not_rerun_a_trial_that_found_nothing_better():
 
     heard = []
     model, info = race_starts(data, cands, cfg, run, on_trial=lambda done, planned: heard.append((done, planned)))
-    assert [len(r) for r in info["rounds"]] == [4, 2] and info["winner"] == 1
+    assert [len(r) for r in info.rounds] == [4, 2] and info.winner == 1
     assert heard == [(1, 6), (2, 6), (3, 6), (4, 6), (5, 6), (6, 6)]  # the stalled one's second trial: done unrun
     assert runs.count(5.0) == 1 and runs.count(4.0) == 2  # the stalled one ran once, the other twice
-    assert info["rounds"][0]["1"] == info["rounds"][1]["1"] == 500.0
-    assert info["winner_iterations"] == 2 * cfg.search.start_trial_iterations
+    assert info.rounds[0]["1"] == info.rounds[1]["1"] == 500.0
+    assert info.winner_iterations == 2 * cfg.search.start_trial_iterations
     assert model is cands[1]
 
 
@@ -108,7 +109,7 @@ def test_start_race_runs_a_round_in_threads_and_gives_the_serial_race():
     race_starts(data, cands[:2], cfg, meeting, workers=2)
     serial_model, serial = race_starts(data, cands, cfg, trial, workers=1)
     threaded_model, threaded = race_starts(data, cands, cfg, trial, workers=3)
-    assert threaded == serial and len(serial["rounds"]) == 2
+    assert threaded == serial and len(serial.rounds) == 2
     np.testing.assert_array_equal(threaded_model.prior_mean, serial_model.prior_mean)
     np.testing.assert_array_equal(threaded_model.action.coefficients, serial_model.action.coefficients)
 
@@ -143,22 +144,22 @@ def test_ridge_search_finds_a_model_moved_behind_and_never_lowers_the_likelihood
 
     behind = shifted_forward(res.model, -250.0)
     model, post, info = search_ridge(behind, evaluate(behind), score, evaluate, 500.0)
-    assert info["shift_mm"] == pytest.approx(250.0, abs=40.0)
-    assert post.loglik == info["loglik_after"] > info["loglik_before"] + 10.0
+    assert info.shift_mm == pytest.approx(250.0, abs=40.0)
+    assert post.loglik == info.loglik_after > info.loglik_before + 10.0
     assert model.prior_mean == pytest.approx(res.model.prior_mean, abs=45.0)
     _, _, info0 = search_ridge(res.model, evaluate(res.model), score, evaluate, 500.0)
-    assert abs(info0["shift_mm"]) < 40.0 and info0["loglik_after"] >= info0["loglik_before"]
-    assert 0 < info0["forward_passes"] <= 30 and info0["expansions"] == 0
+    assert abs(info0.shift_mm) < 40.0 and info0.loglik_after >= info0.loglik_before
+    assert 0 < info0.forward_passes <= 30 and info0.expansions == 0
     # beyond the bracket: the search starts again from its edge until the peak is inside
     far = shifted_forward(res.model, -900.0)
     model, post, info = search_ridge(far, evaluate(far), score, evaluate, 500.0)
-    assert info["shift_mm"] == pytest.approx(900.0, abs=40.0) and info["expansions"] >= 1
-    assert post.loglik == info["loglik_after"] > info["loglik_before"] + 10.0
+    assert info.shift_mm == pytest.approx(900.0, abs=40.0) and info.expansions >= 1
+    assert post.loglik == info.loglik_after > info.loglik_before + 10.0
     assert model.prior_mean == pytest.approx(res.model.prior_mean, abs=45.0)
     # the shift it found is smoothed once; a smoother that fails there leaves the model where it was
     start = evaluate(behind)
     model, post, info = search_ridge(behind, start, score, lambda m: replace(start, ok=False), 500.0)
-    assert model is behind and post is start and info["shift_mm"] == 0.0
+    assert model is behind and post is start and info.shift_mm == 0.0
 
 
 @pytest.fixture(scope="module")
@@ -183,17 +184,17 @@ def test_delay_search_finds_the_command_delay_and_never_lowers_the_likelihood(de
     for wrong in (0, 15):
         start = with_delay(res.model, wrong)
         model, post, info = search_delay(start, evaluate(start), score, evaluate, 15)
-        assert info["delay_from"] == wrong and abs(info["delay_to"] - 6) <= 1
-        assert model.action.delay_steps == info["delay_to"]
+        assert info.delay_from == wrong and abs(info.delay_to - 6) <= 1
+        assert model.action.delay_steps == info.delay_to
         assert np.array_equal(model.action.coefficients, res.model.action.coefficients)
-        assert post.loglik == info["loglik_after"] > info["loglik_before"] + 10.0
-        assert info["forward_passes"] <= 10  # 0, 3, ..., 15, then the best one's neighbours
+        assert post.loglik == info.loglik_after > info.loglik_before + 10.0
+        assert info.forward_passes <= 10  # 0, 3, ..., 15, then the best one's neighbours
     start = with_delay(res.model, 0)
     first = evaluate(start)
     model, post, info = search_delay(start, first, score, lambda m: replace(first, ok=False), 15)
-    assert model is start and post is first and info["delay_to"] == 0  # its smoother failed: stay
+    assert model is start and post is first and info.delay_to == 0  # its smoother failed: stay
     same, _, info0 = search_delay(res.model, evaluate(res.model), score, evaluate, 15)
-    assert info0["loglik_after"] >= info0["loglik_before"]
+    assert info0.loglik_after >= info0.loglik_before
     assert abs(same.action.delay_steps - res.model.action.delay_steps) <= 1
     # a robot without a delay: searched from the same config, EM learns none
     prompt, _ = simulate_continuous(3, T=3000)
@@ -209,11 +210,11 @@ def test_fit_searches_the_delay_on_the_ridge_schedule_only_when_a_delay_is_learn
     data, poses = simulate_continuous(3, T=1500, delay_steps=6)
     cfg = continuous_config(refine_from=4, max_iterations=12, patience=50, search_every=3, action_delay_max_s=0.5)
     on = fit_em(data, None, cfg)
-    assert [r["iteration"] for r in on.delay_search] == [4, 7, 10]
+    assert [r.iteration for r in on.delay_search] == [4, 7, 10]
     for r in on.delay_search:
-        assert r["loglik_after"] >= r["loglik_before"] and 0 <= r["delay_to"] <= 15
-        assert on.loglik_history[r["iteration"]] == r["loglik_after"]
-    assert on.summary()["delay_search"] == on.delay_search and on.ridge is None
+        assert r.loglik_after >= r.loglik_before and 0 <= r.delay_to <= 15
+        assert on.loglik_history[r.iteration] == r.loglik_after
+    assert on.summary()["delay_search"] == to_json(on.delay_search) and on.ridge is None
     off = fit_em(
         data,
         None,
@@ -228,8 +229,8 @@ def test_fit_searches_the_delay_on_the_ridge_schedule_only_when_a_delay_is_learn
     _, headers, cells = real_tables({"mrclam": {"on": row}})[0]
     cell = cells[0][headers.index("command delay s, learned / From-Truth")]
     assert cell.startswith(f"{on.model.action.delay_steps * data.dt_s:.3f} / ")
-    moved = [r for r in on.delay_search if r["delay_to"] != r["delay_from"]]
-    assert moved and f"{moved[0]['delay_from']}->{moved[0]['delay_to']}" in cell
+    moved = [r for r in on.delay_search if r.delay_to != r.delay_from]
+    assert moved and f"{moved[0].delay_from}->{moved[0].delay_to}" in cell
     from sensact.report.figures_real import figure_loglik
 
     assert figure_loglik({"on": on}, tmp_path / "ll.png").stat().st_size > 0  # delay searches, no ridge
@@ -269,17 +270,17 @@ def test_fit_searches_the_ridge_when_the_held_stage_ends_and_every_so_often_afte
     cfg = continuous_config(refine_from=4, max_iterations=12, patience=50, ridge_search_mm=300.0, search_every=3)
     on = fit_em(data, None, cfg)
     assert off.ridge is None and on.freed_at == 4
-    assert [r["iteration"] for r in on.ridge] == [4, 7, 10]
+    assert [r.iteration for r in on.ridge] == [4, 7, 10]
     # with nothing held (refine_from 0) the searches count from the start
     unheld = fit_em(
         data, None, continuous_config(refine_from=0, max_iterations=8, ridge_search_mm=300.0, search_every=3)
     )
-    assert unheld.freed_at == -1 and [r["iteration"] for r in unheld.ridge] == [3, 6]
+    assert unheld.freed_at == -1 and [r.iteration for r in unheld.ridge] == [3, 6]
     for r in on.ridge:
-        assert r["loglik_after"] >= r["loglik_before"] and abs(r["shift_mm"]) <= 300.0
-        assert on.loglik_history[r["iteration"]] == r["loglik_after"]  # the history holds the moved model
+        assert r.loglik_after >= r.loglik_before and abs(r.shift_mm) <= 300.0
+        assert on.loglik_history[r.iteration] == r.loglik_after  # the history holds the moved model
     assert on.posteriors.loglik == on.loglik_best  # the reported best is the returned model's likelihood
-    assert on.summary()["ridge"] == on.ridge
+    assert on.summary()["ridge"] == to_json(on.ridge)
     with pytest.raises(ValueError, match=r"search\.ridge_mm"):
         continuous_config(ridge_search_mm=-1.0)
     with pytest.raises(ValueError, match=r"search\.every"):
@@ -293,7 +294,7 @@ def test_fit_searches_the_ridge_when_the_held_stage_ends_and_every_so_often_afte
     }
     _, headers, cells = real_tables({"mrclam": rows})[0]
     col = headers.index("ridge moves mm, forward (the first as the held stage ends)")
-    assert [float(m) for m in cells[0][col].split(", ")] == pytest.approx([r["shift_mm"] for r in on.ridge], abs=0.5)
+    assert [float(m) for m in cells[0][col].split(", ")] == pytest.approx([r.shift_mm for r in on.ridge], abs=0.5)
     assert cells[1][col] == "-"
     # the noise table sets the learned Sigma_m's translational walk over 1 s beside the truth's miss
     title, nh, ncells = next(t for t in real_tables({"mrclam": rows}) if "what the truth says" in t[0])
@@ -310,7 +311,7 @@ def test_start_search_candidates_are_distinct_and_one_is_near_the_start():
     cfg = continuous_config(start_search_s=20.0, start_candidates=6)
     cands, info = start_candidates(data, initial_model(data, cfg), cfg)
     means = np.array([c.prior_mean for c in cands])
-    assert len(cands) == 6 == len(info["candidates"])
+    assert len(cands) == 6 == len(info.candidates)
     gaps = np.hypot(*(means[:, None, :2] - means[None, :, :2]).transpose(2, 0, 1))
     assert gaps[~np.eye(6, dtype=bool)].min() >= 2.5 * cfg.search.start_grid_mm
     assert np.hypot(*(means[:, :2] - poses[0, :2]).T).min() <= math.sqrt(2) * cfg.search.start_grid_mm  # a cell
@@ -381,7 +382,7 @@ def test_a_turned_and_moved_map_learns_the_same_model():
     assert here.iterations == there.iterations > 0
     # the start race's progress, every trial of its rounds, before the first iteration's
     race = [h for h in heard if h[0] == "race"]
-    trials = sum(len(r) for r in here.start_search["race"]["rounds"])
+    trials = sum(len(r) for r in here.start_search.race.rounds)
     assert race == [("race", k, 5) for k in range(1, trials + 1)] and heard[: len(race)] == race
     assert heard[len(race)] == ("iteration", 0)
     np.testing.assert_allclose(b.action.coefficients, a.action.coefficients, rtol=1e-6, atol=1e-9)

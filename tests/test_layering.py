@@ -11,10 +11,11 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "sensact"
 # rank of each top-level part; a module may import only parts of lower rank (or its own part)
 RANK = {
     "errors": 0,
-    "health": 0,
+    "health": 1,
     "limits": 0,
     "reprs": 0,
     "outputs": 0,
+    "records": 0,
     "config": 1,
     "engine": 1,
     "core": 1,

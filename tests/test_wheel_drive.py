@@ -22,11 +22,11 @@ def test_a_physical_drive_reads_back_its_wheel_gains_and_axle():
     g_l, g_r, axle = 0.93, 0.97, 250.0
     beta = np.array([[0.0, 2.0, 0.003], [0.0, g_l / 2, -g_l / axle], [0.0, g_r / 2, g_r / axle]])
     drive = as_differential_drive(wheel_model(beta))
-    assert drive["forward_gain"] == pytest.approx(0.95, rel=1e-12)
-    assert drive["axle_mm"] == pytest.approx(axle, rel=1e-12)
-    assert drive["wheel_ratio"] == pytest.approx(g_r / g_l, rel=1e-12)
-    assert drive["curvature_rad_per_unit"] == pytest.approx((g_r - g_l) / axle, rel=1e-12)
-    assert drive["forward_bias_mm_s"] == 2.0 and drive["turn_bias_rad_s"] == 0.003
+    assert drive.forward_gain == pytest.approx(0.95, rel=1e-12)
+    assert drive.axle_mm == pytest.approx(axle, rel=1e-12)
+    assert drive.wheel_ratio == pytest.approx(g_r / g_l, rel=1e-12)
+    assert drive.curvature_rad_per_unit == pytest.approx((g_r - g_l) / axle, rel=1e-12)
+    assert drive.forward_bias_mm_s == 2.0 and drive.turn_bias_rad_s == 0.003
     text = describe_differential_drive(drive)
     assert "axle of 250 mm" in text and f"right wheel {g_r / g_l:.4g} times the left" in text
 
@@ -39,15 +39,15 @@ def test_the_simulated_drive_on_wheel_speeds_turns_as_its_axle_over_the_turn_gai
     beta_vw = sim.action_coefficients()
     beta_w = np.linalg.solve(from_wheel_coefficients(np.eye(3), 235.0), beta_vw)  # T beta_w = beta_vw
     drive = as_differential_drive(wheel_model(beta_w))
-    assert drive["forward_gain"] == pytest.approx(sim.forward_gain, rel=1e-12)
-    assert drive["axle_mm"] == pytest.approx(235.0 * sim.forward_gain / sim.turn_gain, rel=1e-12)
-    assert drive["wheel_ratio"] == pytest.approx(1.0, rel=1e-12) and abs(drive["curvature_rad_per_unit"]) < 1e-15
+    assert drive.forward_gain == pytest.approx(sim.forward_gain, rel=1e-12)
+    assert drive.axle_mm == pytest.approx(235.0 * sim.forward_gain / sim.turn_gain, rel=1e-12)
+    assert drive.wheel_ratio == pytest.approx(1.0, rel=1e-12) and abs(drive.curvature_rad_per_unit) < 1e-15
     held = as_differential_drive(wheel_model(beta_w, ("v_theta_rad_s:(right_mm_s-left_mm_s)",)))
-    assert held["wheel_ratio"] is None and held["axle_mm"] == pytest.approx(drive["axle_mm"], rel=1e-12)
+    assert held.wheel_ratio is None and held.axle_mm == pytest.approx(drive.axle_mm, rel=1e-12)
     assert "right wheel" not in describe_differential_drive(held)
     no_turn = beta_w.copy()
     no_turn[1:, 2] = 0.0
-    assert as_differential_drive(wheel_model(no_turn))["axle_mm"] is None
+    assert as_differential_drive(wheel_model(no_turn)).axle_mm is None
     on_vw = LinearActionModel("affine", 1, beta_vw, ("v_mm_s", "omega_rad_s"), PLANAR_VELOCITY_NAMES)
     assert as_differential_drive(on_vw) is None
 
@@ -67,10 +67,10 @@ def test_em_on_wheel_speeds_reads_back_a_wheel_mismatch():
     drive = as_differential_drive(res.model.action)
     per_difference = sim.turn_gain / 235.0  # rad/s per mm/s of (right - left)
     half = 0.5 * sim.straight_turn_rad_per_mm
-    assert drive["curvature_rad_per_unit"] == pytest.approx(sim.straight_turn_rad_per_mm, rel=0.1)
-    assert drive["wheel_ratio"] == pytest.approx((per_difference + half) / (per_difference - half), abs=0.01)
-    assert drive["axle_mm"] == pytest.approx(235.0 * sim.forward_gain / sim.turn_gain, rel=0.02)
-    assert drive["forward_gain"] == pytest.approx(sim.forward_gain, rel=0.02)
+    assert drive.curvature_rad_per_unit == pytest.approx(sim.straight_turn_rad_per_mm, rel=0.1)
+    assert drive.wheel_ratio == pytest.approx((per_difference + half) / (per_difference - half), abs=0.01)
+    assert drive.axle_mm == pytest.approx(235.0 * sim.forward_gain / sim.turn_gain, rel=0.02)
+    assert drive.forward_gain == pytest.approx(sim.forward_gain, rel=0.02)
 
 
 def test_wheels_in_any_one_unit_are_a_differential_drive():
@@ -116,10 +116,10 @@ def test_wheel_turning_rates_learn_what_wheel_speeds_learn_and_read_as_the_wheel
     ]
     np.testing.assert_allclose(fits[1].loglik_history, fits[0].loglik_history, rtol=1e-9)
     mm, rad = (as_differential_drive(f.model.action) for f in fits)
-    assert rad["unit"] == "rad_s" and mm["unit"] == "mm_s"
-    assert rad["forward_gain"] == pytest.approx(radius * mm["forward_gain"], rel=1e-6)
+    assert rad.unit == "rad_s" and mm.unit == "mm_s"
+    assert rad.forward_gain == pytest.approx(radius * mm.forward_gain, rel=1e-6)
     for key in ("axle_mm", "wheel_ratio", "forward_bias_mm_s", "turn_bias_rad_s"):
-        assert rad[key] == pytest.approx(mm[key], rel=1e-6), key
+        assert getattr(rad, key) == pytest.approx(getattr(mm, key), rel=1e-6), key
     text = [describe_differential_drive(d) for d in (mm, rad)]
     assert "mm/s per rad_s of the wheels' mean (their mean radius, mm)" in text[1]
     assert text[0].split("rad per metre")[0][-8:] == text[1].split("rad per metre")[0][-8:]  # the same curve

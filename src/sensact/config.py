@@ -17,17 +17,18 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from sensact.errors import ConfigError
+from sensact.records import JsonObject
 
 C = TypeVar("C")
 
 
-def config_to_dict(config: Any) -> dict[str, Any]:
+def config_to_dict(config: Any) -> JsonObject:
     """A JSON-ready dict of a config dataclass (tuples become lists)."""
     return json.loads(json.dumps(dataclasses.asdict(config)))
 
 
 def config_to_yaml(
-    config: Any, header: str = "", always: tuple[str, ...] = (), against: Any = None, lead: dict[str, Any] | None = None
+    config: Any, header: str = "", always: tuple[str, ...] = (), against: Any = None, lead: JsonObject | None = None
 ) -> str:
     """The fields of ``config`` (and of the configs nested in it) that differ from their defaults (or at the
     top level from ``against``'s, a config of the same kind: a preset), and the top-level fields named in
@@ -65,7 +66,7 @@ def config_to_yaml(
 
     fields = json.loads(json.dumps((lead or {}) | changed(config, against, always)))
 
-    def block(mapping: dict[str, Any], indent: str = "") -> str:
+    def block(mapping: JsonObject, indent: str = "") -> str:
         """One line per field, a group's fields indented under it, lists in flow (a mapping of scalars alone
         would come out as one flow line)."""
         out = ""
@@ -169,7 +170,7 @@ def _coerce(value: Any, annotation: Any, name: str, source: str) -> Any:
     return value
 
 
-def config_from_dict(cls: type[C], data: Mapping[str, Any], *, source: str = "config") -> C:
+def config_from_dict(cls: type[C], data: JsonObject, *, source: str = "config") -> C:
     """Build ``cls`` from a mapping; unknown keys are an error naming the closest valid fields. A null for a
     float field whose default is infinite is that default: JSON has no infinity, and the JSON writer
     (``io/atomic.write_json``) puts a null there, so a config read back from a model.json is the one written."""
@@ -218,11 +219,11 @@ def refuse_non_finite(value: Any, default: Any, name: str, source: str) -> None:
         )
 
 
-def parse_overrides(pairs: Iterable[str]) -> dict[str, Any]:
+def parse_overrides(pairs: Iterable[str]) -> JsonObject:
     """``["a=1", "b=[1,2]"]`` -> ``{"a": 1, "b": [1, 2]}``; values are parsed as YAML scalars/lists."""
     import yaml
 
-    out: dict[str, Any] = {}
+    out: JsonObject = {}
     for pair in pairs:
         if "=" not in pair:
             raise ConfigError(f"override {pair!r} has no '='.", field="--set", fix="write --set name=value.")
@@ -234,7 +235,7 @@ def parse_overrides(pairs: Iterable[str]) -> dict[str, Any]:
     return out
 
 
-def load_yaml_mapping(path: str | Path) -> dict[str, Any]:
+def load_yaml_mapping(path: str | Path) -> JsonObject:
     """Read a YAML file that must hold a mapping of field names to values."""
     import yaml
 
@@ -266,7 +267,7 @@ def build_config(
     cls: type[C], yaml_path: str | Path | None = None, overrides: Iterable[str] = (), base: Any = None
 ) -> C:
     """``base`` (or the defaults), then the YAML file, then ``--set`` overrides, in rising precedence."""
-    data: dict[str, Any] = config_to_dict(base) if base is not None else {}
+    data: JsonObject = config_to_dict(base) if base is not None else {}
     sources = []
     if yaml_path is not None:
         data = merge_fields(cls, data, load_yaml_mapping(yaml_path))
@@ -278,7 +279,7 @@ def build_config(
     return config_from_dict(cls, data, source=" / ".join(sources) or "defaults")
 
 
-def merge_fields(cls: type, base: Mapping[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
+def merge_fields(cls: type, base: JsonObject, over: JsonObject) -> JsonObject:
     """``over``'s fields on ``base``'s (both mappings of ``cls``'s fields): a group of fields given as a mapping
     changes only the fields it names (a config in groups: ``regroup`` first puts flat and dotted names in
     their group)."""

@@ -8,7 +8,8 @@ Each learner names its own checks (``learn/em/checks/fit_health.py``, ``learn/bo
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+
+from sensact.records import JsonObject
 
 
 @dataclass(frozen=True)
@@ -25,7 +26,7 @@ class Health:
     def ok(self) -> bool:
         return not self.flags
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonObject:
         return {"ok": self.ok, "flags": [{"code": f.code, "message": f.message} for f in self.flags]}
 
     @classmethod
@@ -33,7 +34,7 @@ class Health:
         return cls(tuple(f for f in flags if f is not None))
 
 
-def learned_health(doc: dict[str, Any]) -> Health:
+def learned_health(doc: JsonObject) -> Health:
     """What a model.json says of its own fit (``health``, as the learner wrote it; none in a file that predates
     it), kept as flags: a path placed or a change tested with a flagged model is as doubtful as the model."""
     node = doc.get("health")

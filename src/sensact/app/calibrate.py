@@ -7,8 +7,8 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
-from typing import Any
 
 from sensact.app.logs import OpenedLog, read_model_and_log
 from sensact.app.scores import Scores, Unscored, score_model
@@ -16,12 +16,14 @@ from sensact.app.settings import Settings, resolve_settings
 from sensact.errors import ConfigError
 from sensact.health import Health
 from sensact.learn.em import EMConfig, EMResult, fit_em, initial_model
+from sensact.learn.em.checks.lost_signs import FunctionBends, FunctionTurns, LostSign, Unsettled
 from sensact.learn.em.config import refuse_bearing_settings, upgrade_settings
 from sensact.learn.em.fit import OnRestart, OnStartMoved, Progress
 from sensact.learn.em.searches.start_race import OnTrial
 from sensact.learn.em.uses.error_bars import Uncertainty
 from sensact.learn.em.uses.place import Localized
 from sensact.models.em_model import EMModel
+from sensact.records import JsonObject, to_json
 
 
 @dataclass(frozen=True)
@@ -42,7 +44,7 @@ class StartFrom:
     """The learned model a calibration started from (``start_from``), and where it placed the robot."""
 
     path: Path
-    document: Mapping[str, Any]  # its model.json
+    document: JsonObject  # its model.json
     placed: Localized
     log: OpenedLog  # the log it was placed on (a Turtlebot CSV read onto the model's step)
 
@@ -54,7 +56,7 @@ class Diagnostics:
 
     pruned_fraction: float  # the share of sightings the gates dropped
     residual_lag1_autocorrelation: Mapping[str, float | None]  # each channel's; above 0.5 sigma is a lower bound
-    lost_signs: tuple[Mapping[str, Any], ...]  # a range function that turns over or bends, an unsettled fit
+    lost_signs: tuple[LostSign, ...]  # a range function that turns over or bends, an unsettled fit
     held_sideways: Mapping[str, float] | None  # a robot that side-steps held to no sideways mean
     warnings: tuple[str, ...] = field(default=())
     health: Health = field(default_factory=Health)  # degenerate or unfinished: written, flagged, exit 3
@@ -63,15 +65,22 @@ class Diagnostics:
 @dataclass(frozen=True, eq=False)
 class Calibration:
     """A calibration: the learned model and EM's record of it, the settings it ran with, its diagnostics
-    and, when the log has truth, its scores (``Unscored`` with the reason when they could not be taken)."""
+    and, when the log has truth, its scores (``Unscored`` with the reason when they could not be taken).
+    Learning never reads the truth: the scores are taken when first asked for (``scores``)."""
 
     log: OpenedLog
     settings: Settings
     result: EMResult
     diagnostics: Diagnostics
-    scores: Scores | Unscored | None
     start_from: StartFrom | None = None
     uncertainty: Uncertainty | None = None  # `--uncertainty B`'s error bars (app/uncertainty.py)
+
+    @cached_property
+    def scores(self) -> Scores | Unscored | None:
+        """The learned model against the log's truth (``app/scores.py``); None when the log has none."""
+        post = self.result.posteriors
+        path = None if post is None else post.mean_gamma
+        return score_model(self.log, self.model, learned_here=True, path=path, fit=self.result)
 
     def __repr__(self) -> str:
         """What was calibrated, how good the fit is, and how to write it: a few lines, never the arrays."""
@@ -100,7 +109,7 @@ class Calibration:
     def config(self) -> EMConfig:
         return self.settings.config
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> JsonObject:
         """The model file `learn em --out` writes (its key names are fixed: checks and reports read them)."""
         from sensact import __version__
         from sensact.models.wheel_drive import as_differential_drive
@@ -120,14 +129,15 @@ class Calibration:
             "dt_s": self.log.data.dt_s,
             "evaluation": evaluation,
             # learn/em/checks/lost_signs.py: signs that EM lost the robot
-            "range_function_turns": [t for t in signs if t["sign"] == "turns"],
-            "range_function_bends": [t for t in signs if t["sign"] == "bends"],
-            "em_unsettled": next((t for t in signs if t["sign"] == "unsettled"), None),
+            "range_function_turns": to_json([t for t in signs if isinstance(t, FunctionTurns)]),
+            "range_function_bends": to_json([t for t in signs if isinstance(t, FunctionBends)]),
+            "em_unsettled": to_json(next((t for t in signs if isinstance(t, Unsettled)), None)),
             "held_sideways_noise": diag.held_sideways,  # ... and that a robot that side-steps is held still
             # the share of sightings the gates dropped, and each channel's residuals' lag-1 autocorrelation
             "pruned_fraction": diag.pruned_fraction,
             "residual_lag1_autocorrelation": dict(diag.residual_lag1_autocorrelation),
-            "differential_drive": as_differential_drive(self.model.action),  # on wheel speeds: gain, axle, ratio
+            # on wheel speeds: gain, axle, ratio
+            "differential_drive": to_json(as_differential_drive(self.model.action)),
             # a learned model EM started from, and where it placed the robot (learn/em/policies/warm_start.py)
             "start_from": None
             if self.start_from is None
@@ -175,7 +185,7 @@ def diagnose(result: EMResult, log: OpenedLog, cfg: EMConfig) -> Diagnostics:
         residual_autocorrelation,
     )
 
-    signs: list[dict[str, Any]] = []
+    signs: list[LostSign] = []
     autocorrelation: dict[str, float | None] = {}
     warnings: list[str] = []
     if result.posteriors is not None:
@@ -196,7 +206,7 @@ def diagnose(result: EMResult, log: OpenedLog, cfg: EMConfig) -> Diagnostics:
 
 
 def _placed_start(
-    start_from: Path, doc: dict[str, Any], model: EMModel, log: OpenedLog, settings: Settings, events: FitEvents
+    start_from: Path, doc: JsonObject, model: EMModel, log: OpenedLog, settings: Settings, events: FitEvents
 ) -> tuple[EMModel, Settings, StartFrom]:
     """A learned model placed on the log (``learn/em/policies/warm_start.py``): the model EM starts from, the settings
     EM runs with and the placement."""
@@ -211,7 +221,7 @@ def _placed_start(
     return placed.model, replace(settings, config=cfg), start
 
 
-def learned_settings(doc: Mapping[str, Any], source: str) -> EMConfig | None:
+def learned_settings(doc: JsonObject, source: str) -> EMConfig | None:
     """The settings a learned model was learned with (its model.json's ``summary.config``), if it says."""
     from sensact.config import config_from_dict
 
@@ -267,7 +277,4 @@ def calibrate(
         on_race=events.on_race,
         on_start_moved=events.on_start_moved,
     )
-    diagnostics = diagnose(result, log, settings.config)
-    path = None if result.posteriors is None else result.posteriors.mean_gamma
-    scores = score_model(log, result.model, learned_here=True, path=path, fit=result)
-    return Calibration(log, settings, result, diagnostics, scores, placed)
+    return Calibration(log, settings, result, diagnose(result, log, settings.config), placed)

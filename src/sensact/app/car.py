@@ -5,7 +5,6 @@ simulator's truth. ``experiments/car.py`` runs the thesis's experiment with them
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -23,6 +22,7 @@ from sensact.learn.car_dynamics import (
 )
 from sensact.models.laser_intrinsics import LaserIntrinsics
 from sensact.models.lidar_unit import OUSTER_BEAMS, UNITS
+from sensact.records import JsonObject
 from sensact.sim.car import (
     CarConfig,
     CarRun,
@@ -97,7 +97,7 @@ def learn_angles_from_log(
     return learn_laser_angles(*fields, config, progress, log.delay_s)
 
 
-def evaluate_run(run_truth: dict[str, Any], log_truth: dict[str, np.ndarray], res: CarLearningResult, dt_s: float):
+def evaluate_run(run_truth: JsonObject, log_truth: dict[str, np.ndarray], res: CarLearningResult, dt_s: float):
     scores = laser_angle_error(res.laser_angles_rad, np.asarray(run_truth["laser_angles_rad"]))
     poses = np.column_stack([log_truth["x_m"], log_truth["y_m"], log_truth["theta_rad"]])
     v, w, a = truth_motion(log_truth["t_s"], poses, res.interval_times_s, dt_s)

@@ -20,6 +20,7 @@ import numpy as np
 
 from sensact.errors import LogFormatError, ModelFormatError
 from sensact.models.em_model import EMModel
+from sensact.records import JsonObject
 from sensact.report.frames import MM, REP_ORDER, VELOCITY_REP, si
 from sensact.reprs import compact_repr
 
@@ -37,13 +38,13 @@ class Exported:
     notes: tuple[str, ...] = ()
 
 
-def read_model_doc(path: Path) -> dict[str, Any]:
+def read_model_doc(path: Path) -> JsonObject:
     from sensact.io.jsonfile import read_json_object
 
     return read_json_object(path, ModelFormatError, "give a model.json written by `sensact learn em` or `learn car`.")
 
 
-def read_em_doc(doc: dict[str, Any], source: Path) -> tuple[EMModel, float]:
+def read_em_doc(doc: JsonObject, source: Path) -> tuple[EMModel, float]:
     """A `learn em` model file's model and step (s), each checked."""
     from sensact.models.em_model import EMModel
 
@@ -90,7 +91,7 @@ def twist_covariance(sigma_step: np.ndarray, dt_s: float) -> np.ndarray:
     return np.diag([per[0], per[1], UNMEASURED_VAR, UNMEASURED_VAR, UNMEASURED_VAR, per[2]])
 
 
-def action_model_si(action: Any, dt_s: float) -> dict[str, Any]:
+def action_model_si(action: Any, dt_s: float) -> JsonObject:
     """The action model's coefficients in SI and REP 103 axes: each velocity (vx forward, vy left, vyaw) as a
     sum of coefficient times feature (1, a command, or a product of commands in their SI units)."""
     from sensact.models.linear_action import LinearActionModel, monomials
@@ -114,7 +115,7 @@ def action_model_si(action: Any, dt_s: float) -> dict[str, Any]:
     }
 
 
-def robot_localization_yaml(doc: dict[str, Any], source: Path) -> tuple[str, str]:
+def robot_localization_yaml(doc: JsonObject, source: Path) -> tuple[str, str]:
     """Two files' text: the node's ROS 2 parameter file (only what robot_localization reads, so that
     ``--params-file`` loads it), and sensact's own beside it (what ROS has no parameter for)."""
     import yaml
@@ -191,7 +192,7 @@ def companion_path(out: Path) -> Path:
     return out.with_name(f"{out.stem}.sensact{out.suffix or '.yaml'}")
 
 
-def _log_folder(doc: dict[str, Any], source: Path) -> Path | None:
+def _log_folder(doc: JsonObject, source: Path) -> Path | None:
     log = doc.get("log")
     if not isinstance(log, str):
         return None
@@ -254,7 +255,7 @@ def _read_path(npz: Path) -> tuple[np.ndarray, np.ndarray]:
     return t, mean
 
 
-def export_tum(doc: dict[str, Any], source: Path, out: Path, truth_out: Path | None) -> Exported:
+def export_tum(doc: JsonObject, source: Path, out: Path, truth_out: Path | None) -> Exported:
     from sensact.io.atomic import write_text
 
     read_em_doc(doc, source)  # the path is exported only beside a model that reads as one
@@ -285,7 +286,7 @@ def export_tum(doc: dict[str, Any], source: Path, out: Path, truth_out: Path | N
     return Exported(tuple(written), tuple(notes))
 
 
-def velodyne_yaml(doc: dict[str, Any], source: Path) -> str:
+def velodyne_yaml(doc: JsonObject, source: Path) -> str:
     cal = doc.get("velodyne_calibration")
     if not isinstance(cal, dict):
         raise ModelFormatError(

@@ -48,6 +48,7 @@ from sensact.evaluate.turtlebot_em import scorecard as turtlebot_scorecard
 from sensact.health import Health
 from sensact.learn.em.config import EMConfig
 from sensact.learn.em.uses.place import Localized, localize
+from sensact.records import JsonObject
 from sensact.reprs import compact_repr
 
 
@@ -79,7 +80,7 @@ class Learned:
     written: tuple[str, ...]
     health: Health = field(default_factory=Health)  # learn/em/checks/fit_health.py: flagged fits end the fleet with 3
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonObject:
         return {
             "status": "learned",
             "log": self.log,
@@ -144,7 +145,7 @@ def learn_log(log: Path, out: Path, options: LearnOptions, *, progress: Progress
 ACTION_BARS = ("action_translation_ratio", "action_rotation_ratio", "action_translation_abs")
 
 
-def fleet_cell(sc: dict[str, Any]) -> dict[str, Any]:
+def fleet_cell(sc: JsonObject) -> JsonObject:
     """The numbers of one (model, log) pair that a fleet table shows, from a ``score_against_truth`` result."""
     a, r, b = sc["action"], sc["range"], sc["bearing"]
     return {
@@ -189,12 +190,12 @@ def recorded_truth(log: Any) -> tuple[Any, Any] | None:
 
 
 def score_fleet(
-    models: Mapping[str, Any],
-    logs: Mapping[str, Any],
+    models: JsonObject,
+    logs: JsonObject,
     own: Mapping[str, str] | None = None,
     progress: Callable[[str, int, int | None], None] | None = None,
     configs: Mapping[str, EMConfig] | None = None,
-) -> dict[str, Any]:
+) -> JsonObject:
     """Every model of ``models`` ({name: EMModel}) on every log of ``logs`` ({name: anything with ``data``
     and ``truth_poses()``}: an ``MrclamLog``, a log folder or a ``RangeLog``). ``own`` maps a model's name
     to the log it was learned on. Against the truth (``cells``, ``summary``) when every log has recorded
@@ -214,17 +215,17 @@ def _column_progress(progress: Callable[[str, int, int | None], None], k: int, n
 
 
 def score_column(
-    models: Mapping[str, Any],
+    models: JsonObject,
     log: Any,
     configs: Mapping[str, EMConfig] | None = None,
     progress: Callable[[str, int, int | None], None] | None = None,
-) -> dict[str, Any]:
+) -> JsonObject:
     """Every model on one log: ``truth`` (``fleet_cell`` per model, None when the log has no recorded
     poses) and the log's recorded heading doubt; with ``configs``, ``likelihood`` (``likelihood_cell``) and,
     on a ``RangeLog`` whose range is there at every step, ``range`` (``range_cell``). Plain values: a
     column may be scored on another machine."""
     truth = recorded_truth(log)
-    column: dict[str, Any] = {"truth": None, "truth_heading_doubt": None, "likelihood": None, "range": None}
+    column: JsonObject = {"truth": None, "truth_heading_doubt": None, "likelihood": None, "range": None}
     steps = len(models) * ((truth is not None) + (configs is not None))
     done = 0
     if truth is not None:
@@ -257,11 +258,11 @@ def score_column(
 
 
 def assemble_fleet(
-    columns: Mapping[str, Mapping[str, Any]], models: list[str], own: Mapping[str, str] | None = None
-) -> dict[str, Any]:
+    columns: Mapping[str, JsonObject], models: list[str], own: Mapping[str, str] | None = None
+) -> JsonObject:
     """``score_fleet``'s result from each log's ``score_column``."""
     own = dict(own or {})
-    out: dict[str, Any] = {"bars": dict(BARS), "models": list(models), "logs": list(columns), "own": own}
+    out: JsonObject = {"bars": dict(BARS), "models": list(models), "logs": list(columns), "own": own}
     if all(c["truth"] is not None for c in columns.values()):
         cells = {m: {g: c["truth"][m] for g, c in columns.items()} for m in models}
         out.update(cells=cells, summary=fleet_summary(cells, own))
@@ -283,7 +284,7 @@ def place(model: Any, data: Any, config: EMConfig) -> Localized | str:
         return exc.problem
 
 
-def likelihood_cell(loc: Localized | str) -> dict[str, Any]:
+def likelihood_cell(loc: Localized | str) -> JsonObject:
     """A placed model's log-likelihood, over how many sightings, and per sighting; a model the filter failed
     with (``place`` gave why) is a cell without a likelihood."""
     if isinstance(loc, str):
@@ -297,20 +298,18 @@ def likelihood_cell(loc: Localized | str) -> dict[str, Any]:
     }
 
 
-def likelihood_grid(
-    columns: Mapping[str, Mapping[str, Any]], models: list[str], own: Mapping[str, str]
-) -> dict[str, Any]:
+def likelihood_grid(columns: Mapping[str, JsonObject], models: list[str], own: Mapping[str, str]) -> JsonObject:
     """``{"likelihood": ...}``: each model placed on each log (``likelihood_cell``), and each one's fall per
     sighting below the log's most likely model (``below_best``: 0 for that model); and ``"range"``, each
     placed model scored on each ``RangeLog`` whose range is there at every step (``range_grid``)."""
-    cells: dict[str, dict[str, Any]] = {m: {g: dict(c["likelihood"][m]) for g, c in columns.items()} for m in models}
+    cells: dict[str, JsonObject] = {m: {g: dict(c["likelihood"][m]) for g, c in columns.items()} for m in models}
     for g in columns:
         scored = [cells[m][g]["per_sighting"] for m in models if cells[m][g]["per_sighting"] is not None]
         best = max(scored) if scored else None
         for m in models:
             c = cells[m][g]
             c["below_best"] = None if c["per_sighting"] is None else best - c["per_sighting"]
-    out: dict[str, Any] = {"likelihood": {"cells": cells, "summary": likelihood_summary(cells, list(columns), own)}}
+    out: JsonObject = {"likelihood": {"cells": cells, "summary": likelihood_summary(cells, list(columns), own)}}
     ranged = {g: c for g, c in columns.items() if "range_problem" in c}
     if ranged:
         range_cells = {m: {g: c["range"][m] for g, c in ranged.items() if c["range"] is not None} for m in models}
@@ -318,7 +317,7 @@ def likelihood_grid(
     return out
 
 
-def range_cell(loc: Localized | str, data: Any, range_mm: np.ndarray) -> dict[str, Any]:
+def range_cell(loc: Localized | str, data: Any, range_mm: np.ndarray) -> JsonObject:
     """A placed model scored against a Turtlebot CSV's range as `evaluate log` scores it
     (``score_turtlebot_em``): the action gain's error (None on a log that holds one command) and each
     sensor's error in % of its span, with issue 5's two Turtlebot bars (``gain`` None where not scored)."""
@@ -339,19 +338,17 @@ def range_cell(loc: Localized | str, data: Any, range_mm: np.ndarray) -> dict[st
     }
 
 
-def range_grid(
-    cells: dict[str, dict[str, Any]], problems: Mapping[str, str | None], own: Mapping[str, str]
-) -> dict[str, Any]:
+def range_grid(cells: dict[str, JsonObject], problems: Mapping[str, str | None], own: Mapping[str, str]) -> JsonObject:
     """The pairs scored against the range, the logs they are on (``logs``), the Turtlebot CSVs that could not
     score (``no_range``, with why), and over the robots' own pairs and the others how many clear each bar."""
     scored = [g for g, problem in problems.items() if problem is None]
     no_range = {g: problem for g, problem in problems.items() if problem is not None}
-    groups: dict[str, list[dict[str, Any]]] = {"own": [], "other": []}
+    groups: dict[str, list[JsonObject]] = {"own": [], "other": []}
     for m, row in cells.items():
         for g, c in row.items():
             groups["own" if own.get(m) == g else "other"].append(c)
 
-    def describe(cs: list[dict[str, Any]]) -> dict[str, Any]:
+    def describe(cs: list[JsonObject]) -> JsonObject:
         gains = [c["gain_error_pct"] for c in cs if c["gain_error_pct"] is not None]
         return {
             "pairs": len(cs),
@@ -370,11 +367,11 @@ def range_grid(
     }
 
 
-def likelihood_summary(cells: dict[str, dict[str, Any]], logs: list[str], own: Mapping[str, str]) -> dict[str, Any]:
+def likelihood_summary(cells: dict[str, JsonObject], logs: list[str], own: Mapping[str, str]) -> JsonObject:
     """Per log, the most likely model, and the most likely of the others (a log's own model left out, or
     the runner-up where no model is its own) with its fall; and on how many logs the own model wins."""
     owner = {g: m for m, g in own.items() if m in cells}
-    per_log: dict[str, Any] = {}
+    per_log: JsonObject = {}
     for g in logs:
         ranked = sorted(
             (m for m in cells if cells[m][g]["per_sighting"] is not None), key=lambda m: -cells[m][g]["per_sighting"]
@@ -396,16 +393,16 @@ def likelihood_summary(cells: dict[str, dict[str, Any]], logs: list[str], own: M
     }
 
 
-def fleet_summary(cells: dict[str, dict[str, Any]], own: Mapping[str, str]) -> dict[str, Any]:
+def fleet_summary(cells: dict[str, JsonObject], own: Mapping[str, str]) -> JsonObject:
     """Over the pairs that are a robot's own and those that are not (every pair is "other" when ``own`` is
     empty): how many clear the action bars and the sigma bars, the worst action ratios, and the range
     residual's span."""
-    groups: dict[str, list[dict[str, Any]]] = {"own": [], "other": []}
+    groups: dict[str, list[JsonObject]] = {"own": [], "other": []}
     for model_name, row in cells.items():
         for log_name, c in row.items():
             groups["own" if own.get(model_name) == log_name else "other"].append(c)
 
-    def describe(cs: list[dict[str, Any]]) -> dict[str, Any]:
+    def describe(cs: list[JsonObject]) -> JsonObject:
         if not cs:
             return {"pairs": 0}
         rng = [c["range_residual_rms_mm"] for c in cs]
@@ -434,7 +431,7 @@ class FleetModel:
 
     name: str
     path: Path
-    document: Mapping[str, Any]
+    document: JsonObject
     model: Any
     config: EMConfig
 
@@ -485,7 +482,7 @@ def read_fleet_log(path: Path, models: Sequence[FleetModel]) -> Any:
 
 def score_log_job(
     log: Path, model_paths: tuple[Path, ...], names: tuple[str, ...], *, progress: Any = None
-) -> dict[str, Any]:
+) -> JsonObject:
     """One column of the fleet's grid as an engine's job: the models (named ``names``) and ``log`` read where
     it runs, every model scored on it (``score_column``)."""
     models = read_fleet_models(model_paths, names)
@@ -493,7 +490,7 @@ def score_log_job(
     return score_column({fm.name: fm.model for fm in models}, read, {fm.name: fm.config for fm in models}, progress)
 
 
-def learned_on_log(doc: Mapping[str, Any], log: Path) -> bool:
+def learned_on_log(doc: JsonObject, log: Path) -> bool:
     """Whether model.json says it was learned on ``log``: ``learn em`` records the folder as it was given, so
     a relative one matches the end of the log's full path (it may have been run from another folder)."""
     recorded = doc.get("log")
@@ -513,7 +510,7 @@ def score_fleet_on(
     on_progress: Any = None,
     on_done: Any = None,
     model_names: Sequence[str] | None = None,
-) -> dict[str, Any]:
+) -> JsonObject:
     """``score_fleet`` of the models at ``model_paths`` (named ``model_names``, or by their files) on the logs
     at ``logs``, a job per log on ``engine`` (``sensact.engine``); a model that does not fit a log is refused
     in one line (``JobFailed`` from a cluster)."""
@@ -557,7 +554,7 @@ class FleetRun:
     logs: tuple[Path, ...]
     names: tuple[str, ...]
     outcomes: tuple[Any, ...]
-    cross_scores: dict[str, Any] | None
+    cross_scores: JsonObject | None
     cross_scores_skipped: str | None
     where: str
     workers: int
@@ -569,11 +566,11 @@ class FleetRun:
 
         return sum(isinstance(o, Failed) for o in self.outcomes)
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> JsonObject:
         """fleet.json (its key names are fixed: checks read them)."""
         from sensact.engine import Failed
 
-        def entry(path: Path, o: Any) -> dict[str, Any]:
+        def entry(path: Path, o: Any) -> JsonObject:
             if isinstance(o, Failed):
                 return {"status": "failed", "log": str(path), "error": o.error, "bad_input": o.bad_input}
             return o.to_dict()

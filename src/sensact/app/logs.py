@@ -15,6 +15,7 @@ from sensact.errors import LogFormatError
 from sensact.io.landmark_log import LandmarkLogFile
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
+from sensact.records import JsonObject
 from sensact.reprs import compact_repr
 
 SETTINGS_FILE = "em_config.yaml"  # the EM settings `convert` and `simulate` write into a log folder
@@ -88,7 +89,7 @@ def open_log(
     return OpenedLog(log, lf.data, lf, lf.truth_distance_mm(), bins)
 
 
-def read_em_model(model: Path) -> tuple[dict[str, Any], EMModel]:
+def read_em_model(model: Path) -> tuple[JsonObject, EMModel]:
     """A model.json `sensact learn em` wrote: the whole document (its ``dt_s`` too) and the model."""
     from sensact.errors import ModelFormatError
     from sensact.io.jsonfile import read_json_object
@@ -106,7 +107,7 @@ def read_em_model(model: Path) -> tuple[dict[str, Any], EMModel]:
 
 
 def refuse_model_for_log(
-    doc: dict[str, Any], m: Any, data: Any, model: Path, log: Path | str, learn: str | None = None, use: str = "scored"
+    doc: JsonObject, m: Any, data: Any, model: Path, log: Path | str, learn: str | None = None, use: str = "scored"
 ) -> None:
     """A model scores (or runs, or starts EM: ``use`` "scored", "run" or "start") only on a log it could have
     been learned from: the same geometry, commands (or number of actions), readings and step, since its delay
@@ -163,7 +164,7 @@ def refuse_model_for_log(
         )
 
 
-def read_model_and_log(log: Path, model: Path, bins: int, use: str) -> tuple[dict[str, Any], EMModel, OpenedLog]:
+def read_model_and_log(log: Path, model: Path, bins: int, use: str) -> tuple[JsonObject, EMModel, OpenedLog]:
     """``(model.json, the model, the log)``, the log read onto the model's step; a model that does not fit the
     log is refused in one line (``use``: "run", "scored" or "start")."""
     from sensact.models.action_table import ActionTable

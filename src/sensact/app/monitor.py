@@ -5,7 +5,6 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -15,6 +14,7 @@ from sensact.health import Health, filter_failed, learned_health
 from sensact.learn.em.uses.change_test import MonitorConfig, MonitorResult, monitor_placed
 from sensact.learn.em.uses.place import learned_config
 from sensact.models.em_model import EMModel
+from sensact.records import JsonObject
 from sensact.reprs import compact_repr
 
 
@@ -23,7 +23,7 @@ class Monitored:
     __repr__ = compact_repr  # a line, never the arrays
     log: OpenedLog
     model_path: Path
-    model_doc: dict[str, Any]
+    model_doc: JsonObject
     model: EMModel  # placed on the log (its prior_mean: where the robot started)
     result: MonitorResult
     seconds: float
@@ -33,7 +33,7 @@ class Monitored:
         """The model's own flags when it was learned, and a filter that failed here."""
         return Health.of(*learned_health(self.model_doc).flags, filter_failed(self.result.filter_ok, "the change test"))
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> JsonObject:
         """monitor.json: ``changed``; ``change`` (``stream``, ``model``: "action" or "sensor", ``alarm_s``,
         ``change_s``, ``delay_s``, ``direction``, ``persists_sigma``) or null; every stream's test."""
         res = self.result

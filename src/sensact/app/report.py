@@ -8,12 +8,13 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from sensact.app.calibrate import Calibration
 from sensact.app.scores import Scores, Unscored
+from sensact.records import JsonObject
 from sensact.report.frames import MM, si, velocity_rep
 from sensact.report.page import Section, report_path, write_report
 
@@ -28,7 +29,7 @@ def _num(x: Any, digits: int = 4) -> str:
     return str(x)
 
 
-def _flags(cal: Calibration, doc: Mapping[str, Any]) -> tuple[str, ...]:
+def _flags(cal: Calibration, doc: JsonObject) -> tuple[str, ...]:
     res = cal.result
     flags = list(cal.diagnostics.warnings)
     if res.stop_reason != "converged":
@@ -232,7 +233,7 @@ def simple_report(
     model_path: Path,
     title: str,
     lead: str,
-    numbers: Mapping[str, Any],
+    numbers: JsonObject,
     warnings: Sequence[str],
     figures: Sequence[tuple[Path, str]],
 ) -> Path:

@@ -13,6 +13,7 @@ import numpy as np
 from sensact.app.calibrate import Calibration
 from sensact.app.scores import Scores
 from sensact.io.atomic import write_json, write_npz
+from sensact.records import JsonObject
 
 # the figures drawn against a log's truth (OUT_<kind>.png): recorded poses (report.figures_real.write_robot)
 # or a 1-D robot's recorded distance; one an earlier run at the same OUT drew, and this run does not, is
@@ -60,7 +61,7 @@ def _page_and_figures(cal: Calibration, out: Path, written: list[Path]) -> list[
 
 
 def save_calibration(
-    cal: Calibration, out: str | Path, document: dict[str, Any] | None = None, *, report: bool = True
+    cal: Calibration, out: str | Path, document: JsonObject | None = None, *, report: bool = True
 ) -> Saved:
     """``cal`` at ``out`` (its JSON, or ``document`` in its place), OUT.history.npz, OUT.path.npz, OUT.png,
     the figures against the log's truth and, with ``report``, report.html beside them (``app.report``); an

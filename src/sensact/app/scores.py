@@ -13,6 +13,7 @@ import numpy as np
 from sensact.app.logs import OpenedLog
 from sensact.errors import LogFormatError
 from sensact.models.em_model import EMModel
+from sensact.records import JsonObject
 from sensact.reprs import compact_repr
 
 # what a fit was scored against (``Scores.against``)
@@ -27,7 +28,7 @@ class Scores:
     __repr__ = compact_repr  # a line, never the arrays
 
     against: str  # RECORDED_POSES, SIMULATED_MODEL, or the 1-D log's recorded distance (logs.RANGE_COLUMN, ...)
-    evaluation: dict[str, Any]  # the model JSON's ``evaluation``: its keys are what checks and reports read
+    evaluation: JsonObject  # the model JSON's ``evaluation``: its keys are what checks and reports read
 
     @property
     def bars(self) -> dict[str, bool]:

@@ -8,12 +8,12 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 from sensact.app.logs import OpenedLog
 from sensact.config import config_from_dict, config_to_dict, load_yaml_mapping, merge_fields, parse_overrides
 from sensact.learn.em.config import EMConfig
 from sensact.presets import PRESET_KEY, for_log, preset_of, turtlebot_em_config
+from sensact.records import JsonObject
 
 
 @dataclass(frozen=True)
@@ -23,7 +23,7 @@ class Settings:
     base: str  # where the base came from, for the user: "preset NAME", the settings file's path, ...
 
 
-def _layer(log: OpenedLog, base: EMConfig, preset: str | None, path: Path) -> tuple[dict[str, Any], str | None]:
+def _layer(log: OpenedLog, base: EMConfig, preset: str | None, path: Path) -> tuple[JsonObject, str | None]:
     """``base`` with the settings file at ``path`` on it (rebased on the preset the file names)."""
     mapping = load_yaml_mapping(path)
     named = preset_of(mapping, str(path))

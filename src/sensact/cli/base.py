@@ -20,9 +20,10 @@ from rich.markup import escape
 from rich.table import Table
 
 from sensact.errors import EXIT_BAD_INPUT, EXIT_FLAGGED, EXIT_INTERNAL, EXIT_INTERRUPTED, SensactError
+from sensact.records import JsonObject
 
 # help is plain text: a bracket in it ("sensact[fleet]") is not rich markup, which would drop it
-PLAIN: dict[str, Any] = {"rich_markup_mode": None}
+PLAIN: JsonObject = {"rich_markup_mode": None}
 app = typer.Typer(
     **PLAIN,
     name="sensact",
@@ -276,8 +277,8 @@ class ProgressRows:
 
     def __init__(self, bar: Any) -> None:
         self.bar = bar
-        self.rows: dict[str, Any] = {}
-        self.labels: dict[str, Any] = {}
+        self.rows: JsonObject = {}
+        self.labels: JsonObject = {}
         self.last: tuple[Any, int, int | None] | None = None  # (task, done, total) of the last call
         self.totals: dict[Any, int | None] = {}  # each row's total as last given
 
@@ -364,7 +365,7 @@ def print_tables(tables: list[tuple[str, list[str], list[list[str]]]]) -> None:
         console.print(t)
 
 
-def write_result(path: Path, doc: dict[str, Any], kind: str | None = None) -> Path:
+def write_result(path: Path, doc: JsonObject, kind: str | None = None) -> Path:
     """A model or result JSON, atomically, stamped first with the sensact version that wrote it (what EM
     learns from a log has changed between versions, so a model names the code it came from) and with what
     it is (``kind``: ``check_out_file`` replaces only an output of the same kind)."""
@@ -376,7 +377,7 @@ def write_result(path: Path, doc: dict[str, Any], kind: str | None = None) -> Pa
     return write_json(path, stamp | doc)
 
 
-def write_results(out: Path, name: str, res: dict[str, Any], tables: list[Any]) -> None:
+def write_results(out: Path, name: str, res: JsonObject, tables: list[Any]) -> None:
     """``out/<name>.json`` and ``out/<name>.md``, and the tables on the console. An experiment's
     ``scorecard`` goes to the Markdown as a table and to the console as one line."""
     from sensact.io.atomic import write_text
@@ -446,7 +447,7 @@ def split_fields(set_: list[str] | None, config: Path | None, learner_cls: type)
     return learner, {k: v for k, v in fields.items() if k not in learner}
 
 
-def merged(cls: type, base: Any, fields: dict[str, Any]) -> Any:
+def merged(cls: type, base: Any, fields: JsonObject) -> Any:
     """``base`` with the given fields replaced, validated like any config."""
     from sensact.config import config_from_dict, config_to_dict, merge_fields
 

@@ -10,6 +10,7 @@ from typing import Annotated, Any
 import typer
 
 from sensact.cli.base import console, convert_app, friendly
+from sensact.records import JsonObject
 
 MRCLAM_CONFIG_HEADER = """The EM settings `sensact learn em` reads from this folder: a preset shipped with sensact
 (`sensact learn em --help` lists them; differential_drive_camera is behind docs/em-real.md's
@@ -92,7 +93,7 @@ def convert_mrclam(
     )
 
 
-def _draw_overview(data: Any, groundtruth: dict[str, Any] | None, out: Path, title: str) -> Path:
+def _draw_overview(data: Any, groundtruth: JsonObject | None, out: Path, title: str) -> Path:
     """OUT/overview.png: the commands, the sightings over time and the map with the recorded path, to
     check a conversion by eye (mismatched clocks, a map in the wrong unit) before learning from it."""
     from sensact.report.figures_log import figure_log_overview
@@ -221,13 +222,13 @@ robot has driven both ways.{gate}
 Edit them for your robot and pass this file with --config; --set overrides single fields."""
 
 
-def _chapter3_meta(d: Any, distance_reading: str, has_truth: bool) -> dict[str, Any]:
+def _chapter3_meta(d: Any, distance_reading: str, has_truth: bool) -> JsonObject:
     """meta.json's keys through which `learn bootstrap` reads the folder as a 1-D log (one command, the
     distance reading, the recorded distance); none for several commands, which chapter 3 cannot learn."""
     if len(d.command_names) != 1:
         return {}
     (command,) = d.command_names
-    meta: dict[str, Any] = {
+    meta: JsonObject = {
         "action": {"column": command, "unit": "mm/s" if command.endswith("_mm_s") else ""},
         "sensor": {"column": distance_reading, "unit": "mm"},
         "units": {r: "mm" if r.endswith("_mm") else "" for r in d.reading_names},

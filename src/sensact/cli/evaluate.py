@@ -23,6 +23,7 @@ from sensact.cli.base import (
 )
 from sensact.cli.scores import print_scores, print_truth_score
 from sensact.outputs import EVALUATION, FLEET_EVALUATION
+from sensact.records import JsonObject
 
 
 @evaluate_app.command("mrclam")
@@ -126,7 +127,7 @@ def evaluate_log_cmd(
         console.print("wrote " + ", ".join(str(p) for p in written))
 
 
-def _evaluate_on_range_column(doc: dict[str, Any], m: Any, opened: Any, model: Path, out: Path | None) -> None:
+def _evaluate_on_range_column(doc: JsonObject, m: Any, opened: Any, model: Path, out: Path | None) -> None:
     """`evaluate log` on a Turtlebot CSV: the state has no unit of its own, so the model is scored through the
     optimal map of the path it places onto the recorded range (sec. 4.4.3), fitted on this log."""
 
@@ -240,7 +241,7 @@ def evaluate_fleet_cmd(
         console.print(f"wrote {out} and {figure}")
 
 
-def print_fleet(fleet: dict[str, Any]) -> None:
+def print_fleet(fleet: JsonObject) -> None:
     """The fleet's tables (a missed bar in red, a robot's own pair in bold) and what they say."""
     from sensact.cli.base import print_tables
     from sensact.report.tables_fleet import (

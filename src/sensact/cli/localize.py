@@ -23,6 +23,7 @@ from sensact.cli.base import (
     write_result,
 )
 from sensact.outputs import LOCALIZATION
+from sensact.records import JsonObject
 
 
 def _parse_start(text: str | None, n: int) -> Any:
@@ -50,7 +51,7 @@ def _parse_start(text: str | None, n: int) -> Any:
 
 def _truth_scores(
     loc: Any, poses: Any, truth_mm: Any, learned_map: dict[str, float] | None, dt_s: float
-) -> dict[str, Any] | None:
+) -> JsonObject | None:
     """The path against recorded ``(poses, valid)`` (planar) or the range column (a Turtlebot CSV), for
     evaluation only. ``learned_map``: the scale and offset fitted on the log the model was learned from (its
     JSON's ``evaluation.state_map``), carried over as a user who measured them once would."""
@@ -79,7 +80,7 @@ def _truth_scores(
     x = mean[:, 0]
     mapped = state_map_summary(x, truth_mm)
     a, b = mapped["scale"], mapped["offset_mm"]
-    out: dict[str, Any] = {"rms_mm": float(np.sqrt(np.mean((x - truth_mm) ** 2))), "state_map": mapped}
+    out: JsonObject = {"rms_mm": float(np.sqrt(np.mean((x - truth_mm) ** 2))), "state_map": mapped}
     line = (
         f"smoothed distance against the range column: RMS {out['rms_mm']:.1f} (the state read as mm); "
         f"{out['state_map']['rms_mm']:.1f} mm after the optimal scale {a:.3f} and offset {b:.0f} mm"
@@ -96,7 +97,7 @@ def _truth_scores(
 
 
 def place_robot(
-    doc: dict[str, Any], m: Any, data: Any, model: Path, config: Path | None, set_: list[str] | None, start: Any
+    doc: JsonObject, m: Any, data: Any, model: Path, config: Path | None, set_: list[str] | None, start: Any
 ) -> tuple[Any, float | None]:
     """The E-step with the model held (``learn.em.localize``), under the settings it was learned with and
     ``config``/``set_`` over them, with a progress bar; prints the start and the log-likelihood a sighting
@@ -114,7 +115,7 @@ def place_robot(
     return loc, describe_placement(loc, summary, data)
 
 
-def describe_placement(loc: Any, summary: dict[str, Any], data: Any) -> float | None:
+def describe_placement(loc: Any, summary: JsonObject, data: Any) -> float | None:
     """Where ``localize`` put the robot and how well the model fits the log: its log-likelihood a sighting
     beside the one on the log it was learned from (``summary``, its model.json's), which it returns."""
     import numpy as np

@@ -7,6 +7,7 @@ import math
 from typing import TYPE_CHECKING, Any
 
 from sensact.cli.base import console, titled_table
+from sensact.records import JsonObject
 
 if TYPE_CHECKING:
     import numpy as np
@@ -61,31 +62,31 @@ def describe_track_velocity(a: Any) -> str:
     return f"{head}: a negative v_mm_s takes the robot away from it"
 
 
-def describe_differential_drive(drive: dict[str, Any]) -> str:
+def describe_differential_drive(drive: Any) -> str:
     """``models.wheel_drive.as_differential_drive`` in a sentence."""
-    axle, ratio, unit = drive["axle_mm"], drive["wheel_ratio"], drive["unit"]
+    axle, ratio, unit = drive.axle_mm, drive.wheel_ratio, drive.unit
     # turn rate over forward speed, both per unit of the wheels' mean: the heading lost per metre driven straight
-    per_metre = 1000.0 * drive["curvature_rad_per_unit"] / drive["forward_gain"] if drive["forward_gain"] else math.nan
+    per_metre = 1000.0 * drive.curvature_rad_per_unit / drive.forward_gain if drive.forward_gain else math.nan
     forward = (
-        f"forward speed {drive['forward_gain']:.4g} times the wheels' mean"
+        f"forward speed {drive.forward_gain:.4g} times the wheels' mean"
         if unit == "mm_s"
-        else f"forward speed {drive['forward_gain']:.4g} mm/s per {unit} of the wheels' mean"
+        else f"forward speed {drive.forward_gain:.4g} mm/s per {unit} of the wheels' mean"
         + (" (their mean radius, mm)" if unit == "rad_s" else "")
     )
     return (
-        f"as a differential drive: {forward} ({drive['forward_bias_mm_s']:+.3g} mm/s), "
+        f"as a differential drive: {forward} ({drive.forward_bias_mm_s:+.3g} mm/s), "
         + (
             "a turn rate that does not follow the wheels' difference"
             if axle is None
             else f"turning as on an axle of {axle:.4g} mm"
         )
-        + f" ({drive['turn_bias_rad_s']:+.3g} rad/s), "
+        + f" ({drive.turn_bias_rad_s:+.3g} rad/s), "
         + ("" if ratio is None else f"the right wheel {ratio:.4g} times the left, ")
         + f"driving straight turning {per_metre:+.3g} rad per metre"
     )
 
 
-def print_simulated_score(s: dict[str, Any]) -> None:
+def print_simulated_score(s: JsonObject) -> None:
     """Learned against the model a simulated robot really used (`sensact simulate diffdrive`;
     ``evaluate.simulated_robot.score_against_simulated``)."""
     sd, sd_true = s["motion_sd_per_step"]
@@ -111,7 +112,7 @@ def print_simulated_score(s: dict[str, Any]) -> None:
     )
 
 
-def truth_heading_clause(n: dict[str, Any]) -> str:
+def truth_heading_clause(n: JsonObject) -> str:
     """'; driving straight, the truth's own heading is off by ...': the truth's own heading error
     (``truth_heading_error``) for the truth's-noise line; empty where it could not be measured."""
     from sensact.report.tables_real import truth_heading_cell
@@ -126,7 +127,7 @@ def truth_heading_clause(n: dict[str, Any]) -> str:
     )
 
 
-def truth_noise_line(sc: dict[str, Any], *, reads_bearing: bool) -> str:
+def truth_noise_line(sc: JsonObject, *, reads_bearing: bool) -> str:
     """What the truth says about the noise (``score["truth_noise"]``) beside Sigma_m, and for a sensor that
     reads bearings how its residuals share error across a frame and across frames."""
     from sensact.report.tables_real import shared_by_motion
@@ -160,7 +161,7 @@ def truth_noise_line(sc: dict[str, Any], *, reads_bearing: bool) -> str:
     )
 
 
-def print_truth_score(sc: dict[str, Any]) -> None:
+def print_truth_score(sc: JsonObject) -> None:
     import numpy as np
 
     from sensact.evaluate.bars import BARS, bar_checks
@@ -294,7 +295,7 @@ def range_column_scoreable(truth_mm: Any, absent: str | None) -> bool:
     return problem is None
 
 
-def print_range_score(sc: dict[str, Any], against: str) -> None:
+def print_range_score(sc: JsonObject, against: str) -> None:
     """A 1-D fit's scaled gain and sensor errors against a recorded distance (``against`` names it)."""
     from sensact.report.tables import gain_cell, one_command_reason, sensor_span_cell
 
@@ -306,7 +307,7 @@ def print_range_score(sc: dict[str, Any], against: str) -> None:
         console.print(f"  {name}: {sensor_span_cell(s)}")
 
 
-def evaluate_log(data: Any, res: Any, cfg: Any) -> dict[str, Any] | None:
+def evaluate_log(data: Any, res: Any, cfg: Any) -> JsonObject | None:
     """Scaled errors against the log's ground truth, if it has any (never used for learning)."""
     if "truth" in data.meta:
         from sensact.evaluate.track1d import score_track_models
@@ -346,7 +347,7 @@ def evaluate_log(data: Any, res: Any, cfg: Any) -> dict[str, Any] | None:
     return None
 
 
-def halves_rows(cmp: dict[str, Any], fits: list[Any], data: Any) -> list[list[str]]:
+def halves_rows(cmp: JsonObject, fits: list[Any], data: Any) -> list[list[str]]:
     """The rows of `learn em --halves`'s table (``evaluate/halves.compare_halves``) on the whole log
     ``data``: each half's difference from the whole log's model and the halves' from each other."""
 

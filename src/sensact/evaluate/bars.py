@@ -8,7 +8,8 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Iterable, Sequence
-from typing import Any
+
+from sensact.records import JsonObject
 
 
 @dataclasses.dataclass(frozen=True)
@@ -21,11 +22,11 @@ class BarCheck:
     ours: str  # "35.7 mm"
     cleared: bool | None
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonObject:
         return dataclasses.asdict(self)
 
     @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> BarCheck:
+    def from_dict(cls, d: JsonObject) -> BarCheck:
         return cls(**{f.name: d[f.name] for f in dataclasses.fields(cls)})
 
 
@@ -59,7 +60,7 @@ def not_scored(key: str, quantity: str, bar: str, why: str) -> BarCheck:
     return BarCheck(key, quantity, bar, f"not scored: {why}", None)
 
 
-def checks_from_json(rows: Iterable[dict[str, Any]]) -> list[BarCheck]:
+def checks_from_json(rows: Iterable[JsonObject]) -> list[BarCheck]:
     return [BarCheck.from_dict(r) for r in rows]
 
 
@@ -97,7 +98,7 @@ BARS = {
 }
 
 
-def robot_checks(sc: dict[str, Any], who: str = "") -> list[BarCheck]:
+def robot_checks(sc: JsonObject, who: str = "") -> list[BarCheck]:
     """The real-data bars (issue 5, docs/em-real.md) on a ``score_against_truth`` result: each learned action
     RMS at most 1.5 times From-Truth's (translation at most 50 mm/s), each sigma within a factor of 1.5
     of the truth's (no bearing bar for a sensor that reads none). ``who`` ("robot1") prefixes each key and
@@ -158,6 +159,6 @@ def robot_checks(sc: dict[str, Any], who: str = "") -> list[BarCheck]:
     return checks
 
 
-def bar_checks(sc: dict[str, Any]) -> dict[str, bool]:
+def bar_checks(sc: JsonObject) -> dict[str, bool]:
     """``robot_checks`` as {bar: cleared}."""
     return {c.key: bool(c.cleared) for c in robot_checks(sc)}

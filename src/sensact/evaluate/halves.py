@@ -9,14 +9,13 @@ sightings were seen at (from the whole fit's smoothed path), and the noise param
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from sensact.learn.em.checks.lost_signs import fitted_distances
 from sensact.learn.em.estep import Posteriors
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
+from sensact.records import JsonObject
 
 GRID = 50  # distances at which two f are compared, spread evenly over a channel's span
 
@@ -55,9 +54,7 @@ def noise(model: EMModel) -> dict[str, float]:
     return out
 
 
-def compare_halves(
-    whole: EMModel, first: EMModel, second: EMModel, post: Posteriors, data: LandmarkLog
-) -> dict[str, Any]:
+def compare_halves(whole: EMModel, first: EMModel, second: EMModel, post: Posteriors, data: LandmarkLog) -> JsonObject:
     """The halves' models against each other and against ``whole`` (learned on ``data``, ``post`` its
     smoothed posteriors): velocity and f differences, and the noise parameters with the halves' ratio
     (the larger over the smaller, so 1 is alike)."""

@@ -62,6 +62,7 @@ from sensact.models.em_model import EMModel
 from sensact.models.landmark_sensor import reading_features
 from sensact.models.linear_action import LinearActionModel, delayed
 from sensact.models.linear_action_fit import linear_coefficients
+from sensact.records import JsonObject
 
 
 def valid_throughout(valid: np.ndarray, first: np.ndarray, last: np.ndarray) -> np.ndarray:
@@ -113,7 +114,7 @@ def at_sensor(poses: np.ndarray, mount: np.ndarray) -> np.ndarray:
     return apply_displacement(poses, np.broadcast_to(np.asarray(mount, dtype=float), poses.shape))
 
 
-def path_offset(path: np.ndarray, truth_poses: np.ndarray, truth_valid: np.ndarray) -> dict[str, Any]:
+def path_offset(path: np.ndarray, truth_poses: np.ndarray, truth_valid: np.ndarray) -> JsonObject:
     """How far a learned ``path`` (one pose per step) is from the truth, at the steps with valid truth.
 
     The point EM tracks (the one the action model describes: a differential drive's axle) need not be
@@ -240,7 +241,7 @@ def truth_heading_error(
     window: int,
     *,
     seed: int = 0,
-) -> dict[str, Any]:
+) -> JsonObject:
     """How much of the bearing residual is the truth's own heading error, from the truth's positions.
 
     An error ``e`` in the truth's heading enters a frame's mean bearing residual as ``+e`` and the gap
@@ -310,7 +311,7 @@ def truth_noise_structure(
     frames: np.ndarray,
     window: int,
     motion: np.ndarray | None = None,
-) -> dict[str, Any]:
+) -> JsonObject:
     """What the truth says about the noise that a constant Sigma_m and eq. 4.28 assume away.
 
     * The sideways and forward miss of the same windows' dead reckoning (``translation_drift``), RMS:
@@ -404,7 +405,7 @@ def _score_action(
     truth_valid: np.ndarray,
     window: int,
     max_delay_steps: int,
-) -> tuple[dict[str, Any], np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[JsonObject, np.ndarray, np.ndarray, np.ndarray]:
     """The action model against the truth windows, next to From-Truth: the same family, its command
     delay included, fitted to them. Returns the score, the windows' starts, their true displacements
     and From-Truth's velocity in each window's steps."""
@@ -442,7 +443,7 @@ def _score_action(
     return score, starts, D_true, Phi_ft @ beta_ft
 
 
-def _score_range(chan: Any, reading: np.ndarray, d: np.ndarray, bearing: np.ndarray, trim: float) -> dict[str, Any]:
+def _score_range(chan: Any, reading: np.ndarray, d: np.ndarray, bearing: np.ndarray, trim: float) -> JsonObject:
     """The range channel against From-Truth: its family fitted to (true distance, bearing, reading),
     trimmed about its own fit until nothing changes."""
     deg, m = chan.function.degree, len(chan.bearing_terms)
@@ -477,7 +478,7 @@ def _score_range(chan: Any, reading: np.ndarray, d: np.ndarray, bearing: np.ndar
 
 def _score_bearing(
     sigma: float, bearing: np.ndarray, poses: np.ndarray, at_origin: np.ndarray, lm: np.ndarray, trim: float
-) -> tuple[dict[str, Any], np.ndarray, np.ndarray]:
+) -> tuple[JsonObject, np.ndarray, np.ndarray]:
     """The bearing sigma against the trimmed truth residuals at the sensor's pose (and, beside them, at
     the truth's origin); returns the score, the residuals and which were kept."""
     b_res = wrap_angle(bearing - landmark_bearing(poses, lm))
@@ -500,7 +501,7 @@ def _score_bearing(
     return score, b_res, b_keep
 
 
-def _learned_drift(model: EMModel, window: int, turning_rad_s: float) -> dict[str, Any]:
+def _learned_drift(model: EMModel, window: int, turning_rad_s: float) -> JsonObject:
     """The learned Sigma_m's drift over the truth windows, to set beside the truth's own:
     ``window * (a + b |turn|)`` in heading variance."""
     a_step = float(np.mean(model.motion_sd[:, 2] ** 2))
@@ -516,7 +517,7 @@ def _learned_drift(model: EMModel, window: int, turning_rad_s: float) -> dict[st
     }
 
 
-def heading_removed_ratio(sigma_learned: float, sigma_truth: float, heading_error: dict[str, Any] | None) -> float:
+def heading_removed_ratio(sigma_learned: float, sigma_truth: float, heading_error: JsonObject | None) -> float:
     """The learned bearing sigma over the truth's bearing residual sd with the truth's own heading error
     (``truth_heading_error``'s variance) taken out: that error is noise in the reference, not in the
     camera, and no learner can put it in a sigma (docs/em-real.md, Known limits). The plain ratio
@@ -530,7 +531,7 @@ def heading_removed_ratio(sigma_learned: float, sigma_truth: float, heading_erro
 
 def score_against_positions(
     model: EMModel, data: LandmarkLog, truth_poses: np.ndarray, truth_valid: np.ndarray, *, window: int, trim: float
-) -> dict[str, Any]:
+) -> JsonObject:
     """``score_against_truth`` for a truth of positions alone (a UWB or GNSS track, no heading): what
     needs the truth's heading is not scored and says so (``no_heading``): the rotation, the bearing, the
     sensor's pose fitted to the truth and the truth's noise structure. The translation is scored free of
@@ -605,7 +606,7 @@ def score_against_truth(
     trim: float = 3.0,
     max_delay_steps: int = 15,
     fit_mount: bool = True,
-) -> dict[str, Any]:
+) -> JsonObject:
     """Learned and From-Truth errors of ``model`` on ``data`` (see the module docstring). Without
     ``fit_mount`` the sensor is taken to sit at the truth's origin."""
     if not isinstance(model.action, LinearActionModel) or data.step_commands is None:

@@ -8,12 +8,12 @@ Consistent models share the unit: ``|k / b| = 1`` (the "consistency" figure ``| 
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
-from typing import Any
 
 import numpy as np
 
 from sensact.core.polyfit import best_fit_rms
 from sensact.models.polynomial import Polynomial1D
+from sensact.records import JsonObject
 
 
 @dataclass(frozen=True)
@@ -65,7 +65,7 @@ class ModelPairScore:
     action_scale_k: float
     consistency: float
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonObject:
         return asdict(self)
 
 

@@ -5,16 +5,15 @@ what a real log's bars compare with, the simulated sigma is what a perfect learn
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from sensact.models.em_model import EMModel
 from sensact.models.linear_action import LinearActionModel
+from sensact.records import JsonObject
 from sensact.sim.diffdrive import COMMAND_NAMES, from_wheel_coefficients
 
 
-def score_against_simulated(model: EMModel, truth: dict[str, Any], dt_s: float) -> dict[str, Any]:
+def score_against_simulated(model: EMModel, truth: JsonObject, dt_s: float) -> JsonObject:
     """Learned against true: the affine action's gains and biases (and the sideways gain of a robot that
     side-steps), the command delay (which the lag lengthens: a first-order lag of time constant tau
     delays a step by tau), Sigma_m's per-step sds, the range channel's sigma and bearing terms, the

@@ -28,6 +28,7 @@ from sensact.evaluate.measured import ONE_COMMAND_SHARE, dominant_command
 from sensact.learn.em import EMResult
 from sensact.learn.em.uses.place import Localized
 from sensact.logs.landmark_log import LandmarkLog
+from sensact.records import JsonObject
 
 BIN_MM = 100.0  # the sensor scores' bins of true distance
 
@@ -99,7 +100,7 @@ def sensor_bins(
     return np.array(centers), np.array(medians), np.array(errs)
 
 
-def score_turtlebot_em(res: EMResult | Localized, data: LandmarkLog, truth_mm: np.ndarray) -> dict[str, Any]:
+def score_turtlebot_em(res: EMResult | Localized, data: LandmarkLog, truth_mm: np.ndarray) -> JsonObject:
     """Gain and sensor errors after the optimal affine map of the learned state onto the true range; ``res``
     is a fit, or a model held and placed on another log (`evaluate log`)."""
     post = res.posteriors
@@ -113,7 +114,7 @@ def score_turtlebot_em(res: EMResult | Localized, data: LandmarkLog, truth_mm: n
     gain_true = float(np.polyfit(c, v_true, 1)[0]) if c.size >= 2 and np.ptp(c) > 0 else float("nan")
     _, one_share = dominant_command(data.step_commands[:, 0])
     scored = one_share < ONE_COMMAND_SHARE
-    out: dict[str, Any] = {
+    out: JsonObject = {
         "state_map": mapped,
         "one_command_share": one_share,
         "gain_learned": float(gain_learned),
@@ -162,7 +163,7 @@ GAIN_BAR_PCT = 5.0
 SENSOR_BAR_PCT = 3.0
 
 
-def scorecard(summary: dict[str, Any], name: str | None = None) -> list[BarCheck]:
+def scorecard(summary: JsonObject, name: str | None = None) -> list[BarCheck]:
     """The Turtlebot's bars on ``run_turtlebot_em``'s summary: the gain, and the best-scored sensor. With
     ``name`` (a log beside the issue's ``training1.csv``) the keys and questions carry it."""
     sc = summary["score"]
@@ -179,7 +180,7 @@ def scorecard(summary: dict[str, Any], name: str | None = None) -> list[BarCheck
     return [gain, sensor]
 
 
-def best_sensor(score: dict[str, Any]) -> tuple[str | None, float | None]:
+def best_sensor(score: JsonObject) -> tuple[str | None, float | None]:
     """The sensor of a ``score_turtlebot_em`` result whose error is the least % of its span, and that error;
     (None, None) when no sensor could be scored."""
     pcts = {k: v["rms_pct_of_span"] for k, v in score["sensors"].items() if np.isfinite(v["rms_pct_of_span"])}

@@ -7,7 +7,6 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -18,6 +17,7 @@ from sensact.io.car_log import read_car_log
 from sensact.learn.car_dynamics import (
     CarLearningConfig,
 )
+from sensact.records import JsonObject
 from sensact.sim.car import (
     CarConfig,
 )
@@ -50,7 +50,7 @@ DYNAMICS = (
 )
 
 
-def scorecard(summary: dict[str, Any]) -> list[BarCheck]:
+def scorecard(summary: JsonObject) -> list[BarCheck]:
     """Sec. 5.4's bars on ``car.json``: the laser angles' RMS at most the thesis's 0.544°, and each of Table
     5.1's errors at most the thesis's and at most 1.6 times From-Truth's (the same model fitted to the truth)."""
     th = summary["thesis"]
@@ -87,7 +87,7 @@ class CarExperiment:
 
 def run_car(
     exp: CarExperiment | None = None, log_dir: str | Path = "car_log", progress: ProgressFn | None = None
-) -> tuple[dict[str, Any], dict[str, Any]]:
+) -> tuple[JsonObject, JsonObject]:
     """Returns (``car.json`` content, artifacts for figures). The simulated log is written to ``log_dir``."""
     exp = exp or CarExperiment()
     stages: dict[str, float] = {}

@@ -24,6 +24,7 @@ from sensact.learn.em.uses.draw_log import simulate_from_model
 from sensact.learn.em.uses.error_bars import FAMILIES, Uncertainty, coverage, f_distances, model_parameters, replicate
 from sensact.learn.em.uses.error_bars import summarize as summarize_draws
 from sensact.models.em_model import EMModel
+from sensact.records import JsonObject
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
 COVERAGE_BAR = (0.80, 0.97)  # issue 76: each family's 90 % intervals hold the truth 80-97 % of the time
@@ -68,7 +69,7 @@ def coverage_trial(
     return summarize_draws(res.model, draws, f_at, 10_000 * seed), truth_values
 
 
-def scorecard(out: dict[str, Any]) -> list[BarCheck]:
+def scorecard(out: JsonObject) -> list[BarCheck]:
     low, high = COVERAGE_BAR
     checks = []
     for family in FAMILIES:
@@ -92,7 +93,7 @@ def run_coverage(
     exp: CoverageExperiment | None = None,
     progress: Callable[[str, int, int | None], None] | None = None,
     engine: Engine | None = None,
-) -> dict[str, Any]:
+) -> JsonObject:
     """``uncertainty.json``: coverage per family over ``exp.sims`` logs, each log's intervals and truths."""
     exp = exp or CoverageExperiment()
     t0 = time.perf_counter()
@@ -107,7 +108,7 @@ def run_coverage(
             progress("coverage: logs learned and bootstrapped", done_count[0], exp.sims)
 
     fits = (engine or InProcess()).run(jobs, on_done=on_done)
-    out: dict[str, Any] = {
+    out: JsonObject = {
         "experiment": "uncertainty",
         "coverage": coverage(fits),
         "bar": list(COVERAGE_BAR),

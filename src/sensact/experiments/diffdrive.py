@@ -10,7 +10,6 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Any
 
 import numpy as np
 
@@ -23,6 +22,7 @@ from sensact.learn.em import EMConfig, EMResult, fit_em
 from sensact.learn.em.progress import iteration_progress
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.presets import simulator_settings
+from sensact.records import JsonObject
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
 ProgressFn = Callable[[str, int, int | None], None]
@@ -54,14 +54,14 @@ class SimulatedRobot:
         return self.poses, np.ones(len(self.poses), dtype=bool)
 
 
-def scorecard(summary: dict[str, Any]) -> list[BarCheck]:
+def scorecard(summary: JsonObject) -> list[BarCheck]:
     """Issue 5's MRCLAM bars on every seed (``experiments.real.robot_checks``)."""
     return [c for key, row in summary["seeds"].items() for c in robot_checks(row["score"], key)]
 
 
 def run_diffdrive(
     exp: DiffDriveExperiment | None = None, progress: ProgressFn | None = None, engine: Engine | None = None
-) -> tuple[dict[str, Any], dict[str, Any]]:
+) -> tuple[JsonObject, JsonObject]:
     """Returns (``diffdrive.json`` content, artifacts for figures: ``robots`` {key: (SimulatedRobot, EMResult)}).
     Each seed is a job of ``engine`` (``sensact.engine``; here, one after another, by default)."""
     exp = exp or DiffDriveExperiment()
@@ -71,7 +71,7 @@ def run_diffdrive(
     done = (engine or InProcess()).run(jobs, on_progress=untagged(progress))
     seeds = {f"seed{sim.seed}": row for sim, (row, _, _) in zip(sims, done, strict=True)}
     robots = {f"seed{sim.seed}": (robot, res) for sim, (_, robot, res) in zip(sims, done, strict=True)}
-    out: dict[str, Any] = {
+    out: JsonObject = {
         "experiment": "diffdrive",
         "seeds": seeds,
         "config": {"simulator": config_to_dict(exp.simulator), "learner": config_to_dict(exp.learner_config)},
@@ -83,7 +83,7 @@ def run_diffdrive(
 
 def run_seed(
     sim: DiffDriveConfig, learner: EMConfig, *, progress: ProgressFn | None = None
-) -> tuple[dict[str, Any], SimulatedRobot, EMResult]:
+) -> tuple[JsonObject, SimulatedRobot, EMResult]:
     """One seed of ``run_diffdrive``: the robot simulated, learned by EM and scored (its row of
     diffdrive.json), the robot and EM's result."""
     key = f"seed{sim.seed}"

@@ -12,7 +12,6 @@ import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -24,6 +23,7 @@ from sensact.evaluate.track1d import DISTANCE_GRID_MM
 from sensact.learn.em import EMConfig, EMResult, fit_em, initial_model
 from sensact.learn.em.progress import iteration_progress
 from sensact.models.em_model import EMModel
+from sensact.records import JsonObject
 from sensact.sim.track1d import Track1DConfig, TrackRun, simulate_track, to_landmark_log
 
 ProgressFn = Callable[[str, int, int], None]
@@ -74,7 +74,7 @@ EM1D_TRACK = Track1DConfig(
 SCALE_RATIO_BAR = 0.09
 
 
-def scorecard(summary: dict[str, Any]) -> list[BarCheck]:
+def scorecard(summary: JsonObject) -> list[BarCheck]:
     """Sec. 4.4.3's bars on ``em1d.json``: the first half's sensor and action errors at most the thesis's,
     its scale ratio within 0.09 of 1, and after the change the relearned models beat the stale ones."""
     o, th = summary["ours"], summary["thesis"]
@@ -126,9 +126,7 @@ def _score(model: EMModel, sim: Track1DConfig, after_change: bool) -> dict[str, 
     return score_track(model, true_velocities(sim, after_change), sim.truth().height_px, DISTANCE_GRID_MM)
 
 
-def run_em1d(
-    exp: EM1DExperiment | None = None, progress: ProgressFn | None = None
-) -> tuple[dict[str, Any], dict[str, Any]]:
+def run_em1d(exp: EM1DExperiment | None = None, progress: ProgressFn | None = None) -> tuple[JsonObject, JsonObject]:
     """Returns (``em1d.json`` content, artifacts for figures)."""
     exp = exp or EM1DExperiment()
     sim = dataclasses.replace(exp.simulator, seed=exp.seed)
@@ -157,7 +155,7 @@ def run_em1d(
         halves[name] = Half(name, res, true_velocities(sim, name == "after"))
     before, after = halves["before"].result, halves["after"].result
     main = _score(before.model, sim, False)
-    out: dict[str, Any] = {
+    out: JsonObject = {
         "experiment": "em1d",
         "ours": {
             **main,

@@ -6,7 +6,6 @@ import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -17,6 +16,7 @@ from sensact.evaluate.em import component_rms, score_planar
 from sensact.learn.em import EMConfig, EMResult, fit_em, initial_model
 from sensact.learn.em.checks.lost_signs import fall_per_sighting
 from sensact.learn.em.progress import iteration_progress
+from sensact.records import JsonObject
 from sensact.sim.field2d import Field2DConfig, Field2DRun, simulate_field, to_landmark_log
 
 ProgressFn = Callable[[str, int, int], None]
@@ -83,7 +83,7 @@ class Field2DExperiment:
 class Field2DTrial:
     run: Field2DRun
     result: EMResult
-    score: dict[str, Any]
+    score: JsonObject
 
 
 def run_trial(
@@ -137,7 +137,7 @@ VELOCITY_BARS = (
 SIGMA_BARS = (("sigma1_error_pct", "sigma_1"), ("sigma2_error_pct", "sigma_2"))
 
 
-def score_checks(score: dict[str, Any], who: str) -> list[BarCheck]:
+def score_checks(score: JsonObject, who: str) -> list[BarCheck]:
     """Sec. 4.4.2's five bars on one score (a trial's, or the mean of the seeds'), keyed by the score's keys;
     ``who`` names the score in each quantity ("seed 2: v_x RMS")."""
     bars = THESIS["simulation"]
@@ -149,14 +149,14 @@ def score_checks(score: dict[str, Any], who: str) -> list[BarCheck]:
     return checks
 
 
-def bar_misses(score: dict[str, Any]) -> list[str]:
+def bar_misses(score: JsonObject) -> list[str]:
     """Which bars ``score`` (one trial's, or the mean's) misses, one line each ("seed 2: v_x RMS 23.48 mm/s
     (bar ≤ 23.06 mm/s)"); empty when it clears them all."""
     who = f"seed {score['seed']}" if "seed" in score else "mean"
     return [miss_text(c) for c in score_checks(score, who) if not c.cleared]
 
 
-def scorecard(summary: dict[str, Any]) -> list[BarCheck]:
+def scorecard(summary: JsonObject) -> list[BarCheck]:
     """Sec. 4.4.2's bars on ``field2d.json``: on the mean of the seeds, and on every seed (its worst, named)."""
     o, per_trial = summary["ours"], summary["per_trial"]
     n = f"{o['trials']} seed{'s' if o['trials'] != 1 else ''}"
@@ -176,7 +176,7 @@ def _trial_job(
 
 def run_field2d(
     exp: Field2DExperiment | None = None, progress: ProgressFn | None = None, engine: Engine | None = None
-) -> tuple[dict[str, Any], dict[str, Any]]:
+) -> tuple[JsonObject, JsonObject]:
     """Returns (``field2d.json`` content, artifacts for figures). The trials (each seed's, the real-robot
     setting's) are jobs of ``engine`` (``sensact.engine``; here, one after another, by default)."""
     exp = exp or Field2DExperiment()
@@ -205,14 +205,14 @@ def run_field2d(
     ours["clears_bars_every_trial"] = not misses
     ours["clears_bars_mean"] = not bar_misses(ours)
     ours["misses"] = misses
-    out: dict[str, Any] = {
+    out: JsonObject = {
         "experiment": "field2d",
         "ours": ours,
         "thesis": THESIS["simulation"],
         "per_trial": scores,
         "config": {"simulator": config_to_dict(exp.simulator), "learner": config_to_dict(exp.learner)},
     }
-    artifacts: dict[str, Any] = {"trials": trials}
+    artifacts: JsonObject = {"trials": trials}
     if exp.real_robot:
         real = done[-1]
         out["real_robot"] = {"ours": real.score, "thesis": THESIS["real_robot"]}

@@ -30,6 +30,7 @@ from sensact.evaluate.bars import BarCheck
 from sensact.experiments.em1d import EM1D_TRACK, EM1DExperiment, true_velocities
 from sensact.learn.em import EMConfig, fit_em, initial_model
 from sensact.learn.em.uses.change_test import MonitorConfig, MonitorResult, monitor_placed
+from sensact.records import JsonObject
 from sensact.sim.track1d import Track1DConfig, simulate_track, to_landmark_log
 
 WITHIN_S = 30.0  # issue 76: sec. 4.4.3's slowdown flagged within 30 s
@@ -47,7 +48,7 @@ class MonitorExperiment:
     planar_change_at_s: float = 450.0
 
 
-def track_job(exp: MonitorExperiment, seed: int, *, progress: Any = None) -> tuple[dict[str, Any], MonitorResult]:
+def track_job(exp: MonitorExperiment, seed: int, *, progress: Any = None) -> tuple[JsonObject, MonitorResult]:
     """One seed of sec. 4.4.3: learn before the change, monitor the run with and without it, relearn."""
     from sensact.evaluate.em import score_track
     from sensact.evaluate.track1d import DISTANCE_GRID_MM
@@ -71,7 +72,7 @@ def track_job(exp: MonitorExperiment, seed: int, *, progress: Any = None) -> tup
     _, on_changed = monitor_placed(model, changed, exp.learner, exp.monitor)
     _, on_steady = monitor_placed(model, steady, exp.learner, exp.monitor)
     found = on_changed.change_dict()
-    row: dict[str, Any] = {
+    row: JsonObject = {
         "seed": seed,
         "true_change_s": change_at,
         "change": found,
@@ -89,7 +90,7 @@ def track_job(exp: MonitorExperiment, seed: int, *, progress: Any = None) -> tup
     return row, on_changed
 
 
-def planar_job(exp: MonitorExperiment, seed: int, *, progress: Any = None) -> dict[str, Any]:
+def planar_job(exp: MonitorExperiment, seed: int, *, progress: Any = None) -> JsonObject:
     """A simulated differential drive learned on run ``seed``, monitored over run ``seed + 1000`` with and
     without its motors slowing to 3/4 at ``exp.planar_change_at_s``."""
     from sensact.presets import simulator_settings
@@ -118,7 +119,7 @@ def planar_job(exp: MonitorExperiment, seed: int, *, progress: Any = None) -> di
     }
 
 
-def robot_job(folder: Path, robot: int, cfg: MonitorConfig, key: str, *, progress: Any = None) -> dict[str, Any]:
+def robot_job(folder: Path, robot: int, cfg: MonitorConfig, key: str, *, progress: Any = None) -> JsonObject:
     """One MRCLAM robot's own model (EM under ``mrclam_config``, as `convert mrclam` + `learn em`) over its log."""
     from sensact.io.mrclam import read_mrclam
     from sensact.presets import mrclam_config
@@ -139,7 +140,7 @@ def robot_job(folder: Path, robot: int, cfg: MonitorConfig, key: str, *, progres
     }
 
 
-def scorecard(out: dict[str, Any]) -> list[BarCheck]:
+def scorecard(out: JsonObject) -> list[BarCheck]:
     seeds = out["track"]
     delays = [r["delay_s"] for r in seeds]
     flagged = [
@@ -183,7 +184,7 @@ def run_monitor_experiment(
     mrclam: Path | None = None,
     progress: Callable[[str, int, int | None], None] | None = None,
     engine: Engine | None = None,
-) -> tuple[dict[str, Any], dict[str, Any]]:
+) -> tuple[JsonObject, JsonObject]:
     """``monitor.json`` and, for the figure, the first seed's ``MonitorResult``. ``mrclam``: a dataset folder
     (its robots are monitored when it holds them)."""
     from sensact.experiments.real import ROBOTS
@@ -206,7 +207,7 @@ def run_monitor_experiment(
     done = (engine or InProcess()).run(jobs, on_progress=on_progress)
     track = [row for row, _ in done[: len(seeds)]]
     n = len(seeds) + len(planar)
-    out: dict[str, Any] = {
+    out: JsonObject = {
         "experiment": "monitor",
         "track": track,
         "planar": done[len(seeds) : n],

@@ -37,6 +37,7 @@ from sensact.learn.em import EMConfig, EMResult, fit_em
 from sensact.models.em_model import EMModel
 from sensact.models.polynomial import Polynomial1D
 from sensact.presets import mrclam_config
+from sensact.records import JsonObject
 
 ROBOTS = (1, 2, 3, 4, 5)
 
@@ -59,7 +60,7 @@ def mrclam_row_key(dataset: Path, robot: int, several: bool) -> str:
     return f"{dataset.name}/robot{robot}" if several else f"robot{robot}"
 
 
-def evaluate_mrclam(ml: MrclamLog | Any, res: EMResult) -> dict[str, Any]:
+def evaluate_mrclam(ml: MrclamLog | Any, res: EMResult) -> JsonObject:
     """``score_against_truth`` with the smoothed path's offset and the bars, for any log with ``data`` and
     ``truth_poses()``: an MRCLAM robot against Vicon, or a simulated one (experiments/diffdrive.py)."""
     poses, valid = ml.truth_poses()
@@ -69,7 +70,7 @@ def evaluate_mrclam(ml: MrclamLog | Any, res: EMResult) -> dict[str, Any]:
     return sc
 
 
-def scorecard(summary: dict[str, Any]) -> list[BarCheck]:
+def scorecard(summary: JsonObject) -> list[BarCheck]:
     """Issue 5's bars on ``real.json``: every MRCLAM robot's, then each Turtlebot log's."""
     from sensact.evaluate.turtlebot_em import scorecard as turtlebot_scorecard
 
@@ -86,7 +87,7 @@ RESTART_PRIOR_SD = (50.0, 50.0, 0.05)
 
 
 def truth_informed_start(
-    model: EMModel, range_from_truth: dict[str, Any], start_pose: np.ndarray, prior_sd: tuple = RESTART_PRIOR_SD
+    model: EMModel, range_from_truth: JsonObject, start_pose: np.ndarray, prior_sd: tuple = RESTART_PRIOR_SD
 ) -> EMModel:
     """``model`` with its range function and bearing terms replaced by From-Truth's and its prior on the
     truth's start pose: EM's own answer moved into the truth's basin, where it only differs in what a
@@ -102,7 +103,7 @@ def truth_informed_start(
     )
 
 
-def restart_from_truth(ml: MrclamLog, res: EMResult, score: dict[str, Any], config: EMConfig) -> dict[str, Any]:
+def restart_from_truth(ml: MrclamLog, res: EMResult, score: JsonObject, config: EMConfig) -> JsonObject:
     """A diagnostic that needs the truth: EM again from ``truth_informed_start``, nothing held. If it
     ends at a higher likelihood than the run from the poor start, that run stopped in a local optimum,
     and its scores are those of the wrong basin. The prior (on step 0) is Vicon's first valid pose,
@@ -131,7 +132,7 @@ def run_mrclam_robot(
     progress: Callable | None = None,
     truth_restart: bool = False,
     on_race: Callable[[int, int], None] | None = None,
-) -> tuple[dict[str, Any], MrclamLog, EMResult]:
+) -> tuple[JsonObject, MrclamLog, EMResult]:
     """EM on one robot from the poor start, scored against Vicon; with ``truth_restart`` also
     ``restart_from_truth`` (row ``truth_restart``). ``progress`` and ``on_race`` are ``fit_em``'s."""
     cfg = config or mrclam_config()
@@ -155,7 +156,7 @@ def run_mrclam_robot(
     return row, ml, res
 
 
-def fleet_of_dataset(folder: Path, runs: dict[str, Any], several: bool, config: EMConfig) -> dict[str, Any] | None:
+def fleet_of_dataset(folder: Path, runs: JsonObject, several: bool, config: EMConfig) -> JsonObject | None:
     """Each robot's learned model of one dataset scored on every robot's log of it, against Vicon and by
     the likelihood with each model placed by the E-step alone under ``config``, the settings it was learned
     with (``fleet.score_fleet``; docs/em-real.md, "One robot's model on another robot"), or None
@@ -176,7 +177,7 @@ def fleet_of_dataset(folder: Path, runs: dict[str, Any], several: bool, config: 
 
 def robot_job(
     folder: Path, robot: int, config: EMConfig, truth_restart: bool, key: str, *, progress: Any = None
-) -> tuple[dict[str, Any] | str, MrclamLog | None, EMResult | None]:
+) -> tuple[JsonObject | str, MrclamLog | None, EMResult | None]:
     """``run_mrclam_robot`` as a job of an engine, saying where it is as it goes (a robot's fit takes 20-40 s
     on Dataset 6: the race, then each iteration); a log that cannot be learned is its line, ``(why, None,
     None)``."""
@@ -205,7 +206,7 @@ def run_real(
     config: EMConfig | None = None,
     truth_restart: bool = False,
     engine: Engine | None = None,
-) -> tuple[dict[str, Any], dict[str, Any]]:
+) -> tuple[JsonObject, JsonObject]:
     """Every robot of every MRCLAM dataset under ``root/mrclam`` (Dataset 6 here; with ``config``,
     default ``mrclam_config()``) and every Turtlebot training log (``turtlebot_logs``); skips what is
     missing. ``truth_restart`` adds ``restart_from_truth`` per robot. Rows are keyed ``robotN``, or
@@ -215,8 +216,8 @@ def run_real(
 
     t0 = time.perf_counter()
     root = root or data_root()
-    out: dict[str, Any] = {"experiment": "real", "data": str(root), "bars": BARS, "mrclam": {}, "skipped": []}
-    artifacts: dict[str, Any] = {"mrclam": {}}
+    out: JsonObject = {"experiment": "real", "data": str(root), "bars": BARS, "mrclam": {}, "skipped": []}
+    artifacts: JsonObject = {"mrclam": {}}
     datasets = mrclam_datasets(root)
     if datasets:
         cfg = config or mrclam_config()

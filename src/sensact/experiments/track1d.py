@@ -26,6 +26,7 @@ from sensact.evaluate.track1d import (
 )
 from sensact.learn.bootstrap import BootstrapConfig, BootstrapResult, learn_bootstrap, learn_sensor_from_action
 from sensact.models.polynomial import Polynomial1D
+from sensact.records import JsonObject
 from sensact.sim.track1d import Track1DConfig, TrackRun, TrackTruth, simulate_track
 
 ProgressFn = Callable[[str, int, int], None]
@@ -80,7 +81,7 @@ ROW_SECONDS = {"linear": 150.0, "sign": 150.0, "constant": 300.0}
 CONSISTENCY_BAR = THESIS["rows"]["linear"]["consistency"]
 
 
-def scorecard(summary: dict[str, Any]) -> list[BarCheck]:
+def scorecard(summary: JsonObject) -> list[BarCheck]:
     """Table 3.1 as bars, on ``track1d.json``: each row's mean sensor and action RMS at most the thesis's
     mean, its mean consistency at most 0.08, and at least the thesis's share of its trials converged."""
     checks = []
@@ -162,7 +163,7 @@ def _finite_mean(rows: list[np.ndarray]) -> np.ndarray:
     return np.where(n > 0, np.where(ok, a, 0.0).sum(axis=0) / np.maximum(n, 1), np.nan)
 
 
-def summarize_row(trials: list[Trial], seconds: float) -> dict[str, Any]:
+def summarize_row(trials: list[Trial], seconds: float) -> JsonObject:
     ok = [t for t in trials if t.converged]
     s_mean, s_std = _mean_std([t.score.sensor_rms for t in ok])
     a_mean, a_std = _mean_std([t.score.action_rms for t in ok])
@@ -227,13 +228,13 @@ def run_degree_trial(sim: Track1DConfig, learner: BootstrapConfig) -> DegreeTria
 
 def run_track1d(
     exp: Track1DExperiment | None = None, progress: ProgressFn | None = None, engine: Engine | None = None
-) -> tuple[dict[str, Any], dict[str, Any]]:
+) -> tuple[JsonObject, JsonObject]:
     """Run every row and the degree experiment. Returns (``track1d.json`` content, artifacts for figures).
     Each trial is a job of ``engine`` (``sensact.engine``; here, one after another, by default)."""
     exp = exp or Track1DExperiment()
     t0 = time.perf_counter()
-    rows: dict[str, Any] = {}
-    artifacts: dict[str, Any] = {"trials": {}, "curves": {}}
+    rows: JsonObject = {}
+    artifacts: JsonObject = {"trials": {}, "curves": {}}
     jobs, groups = [], []  # every trial of every row, then the degree trials: each a job of the engine
     for row in exp.rows:
         learner = dataclasses.replace(exp.learner, a0=row)

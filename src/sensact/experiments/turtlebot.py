@@ -15,7 +15,6 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -26,15 +25,16 @@ from sensact.io.logfolder import read_track_log
 from sensact.io.turtlebot import turtlebot_sensors
 from sensact.learn.bootstrap import BootstrapConfig, learn_bootstrap
 from sensact.presets import TURTLEBOT_LEARNER, learner_for
+from sensact.records import JsonObject
 
 DEFAULT_SENSORS = ("sonar1", "sonar2", "raw_ir4", "raw_ir3")
 
 
 def run_turtlebot(
     csv_path: str | Path, sensors: tuple[str, ...] = DEFAULT_SENSORS, base: BootstrapConfig = TURTLEBOT_LEARNER
-) -> tuple[dict[str, Any], dict[str, RealRun]]:
+) -> tuple[JsonObject, dict[str, RealRun]]:
     t0 = time.perf_counter()
-    rows: dict[str, Any] = {}
+    rows: JsonObject = {}
     runs: dict[str, RealRun] = {}
     # a log without some of the default sensors runs the others; with none of them the reader says which
     present = turtlebot_sensors(csv_path)
@@ -84,14 +84,14 @@ def run_turtlebot(
 
 def run_turtlebot_logs(
     csv_paths: list[Path], progress: Callable[[str], None] | None = None
-) -> tuple[dict[str, Any], dict[str, dict[str, RealRun]]]:
+) -> tuple[JsonObject, dict[str, dict[str, RealRun]]]:
     """``run_turtlebot`` on each training log (``shared_data.turtlebot_logs``). The first log that can be
     scored is the result itself (turtlebot.json as for ``training1.csv`` alone); the others go under
     ``more_logs`` by file stem, and a log that cannot be scored (a ``LogFormatError``: no range, none of
     the sensors) under ``skipped_logs`` while the others run. The runs are keyed by stem. When no log
     can be scored, the first log's error is raised."""
     t0 = time.perf_counter()
-    out: dict[str, Any] | None = None
+    out: JsonObject | None = None
     runs: dict[str, dict[str, RealRun]] = {}
     skipped: list[str] = []
     first_error: LogFormatError | None = None

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -23,9 +22,10 @@ from sensact.evaluate.turtlebot_em import TurtlebotEMRun, score_turtlebot_em, sc
 from sensact.io.turtlebot import read_turtlebot_landmark_log
 from sensact.learn.em import EMConfig, fit_em
 from sensact.presets import turtlebot_em_config
+from sensact.records import JsonObject
 
 
-def run_turtlebot_em(csv_path: str | Path, config: EMConfig | None = None) -> tuple[dict[str, Any], TurtlebotEMRun]:
+def run_turtlebot_em(csv_path: str | Path, config: EMConfig | None = None) -> tuple[JsonObject, TurtlebotEMRun]:
     t0 = time.perf_counter()
     data, truth = read_turtlebot_landmark_log(csv_path)
     if not np.isfinite(truth).any():  # checked before the fit: without it nothing can be scored
@@ -38,7 +38,7 @@ def run_turtlebot_em(csv_path: str | Path, config: EMConfig | None = None) -> tu
     cfg = config or turtlebot_em_config(data.reading_names)
     res = fit_em(data, None, cfg)
     score = score_turtlebot_em(res, data, truth)
-    summary: dict[str, Any] = {
+    summary: JsonObject = {
         "file": str(csv_path),
         "steps": data.n_steps,
         "dt_s": data.dt_s,

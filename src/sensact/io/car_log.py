@@ -56,11 +56,12 @@ from sensact.models.lidar_unit import (
     ouster_payload_bytes,
     ouster_unit,
 )
+from sensact.records import JsonObject
 
 
 def write_car_log(
     folder: str | Path,
-    tables: dict[str, Any],
+    tables: JsonObject,
     scans: Iterable[tuple[np.ndarray, np.ndarray, np.ndarray]],
     true_intrinsics: LaserIntrinsics | None = None,
 ) -> Path:
@@ -109,7 +110,7 @@ class CarLog:
     omega_rad_s: float  # d theta_r / dt, counterclockwise: negative for a Velodyne, which turns clockwise
     action_times_s: np.ndarray | None  # (M,) on the lidar's clock, from the first firing; None: no actions.csv
     actions: np.ndarray | None  # (M, 3) throttle, brake, steering
-    meta: dict[str, Any]
+    meta: JsonObject
     groundtruth: dict[str, np.ndarray] | None
     notes: tuple[str, ...] = ()  # what the reader measured, for the user to see
     warnings: tuple[str, ...] = ()  # what in the folder contradicts itself
@@ -118,7 +119,7 @@ class CarLog:
     delay_s: np.ndarray | None = None  # (lasers,) when each laser fires after its firing's start; None: at once
 
 
-def _lidar_number(lidar: dict[str, Any], name: str, meta_file: Path) -> float | None:
+def _lidar_number(lidar: JsonObject, name: str, meta_file: Path) -> float | None:
     if name not in lidar:
         return None
     try:
@@ -342,7 +343,7 @@ def _refuse_backwards(pcap: Path, times: np.ndarray) -> None:
 
 
 def _vertical_angles(
-    lidar: dict[str, Any], meta_file: Path, calibration: str | Path | None, unit: LidarUnit
+    lidar: JsonObject, meta_file: Path, calibration: str | Path | None, unit: LidarUnit
 ) -> tuple[np.ndarray, LaserIntrinsics | None, Path, str]:
     """Each laser's factory vertical angle (rad): from the calibration file when given (a ROS velodyne YAML
     or an OS-1's metadata JSON; ``lidar.calibration`` names one in the folder), else meta.json's
@@ -377,7 +378,7 @@ def _vertical_angles(
     return vertical_rad, None, meta_file, "lidar.vertical_deg"
 
 
-def _refuse_another_learners_folder(meta: dict[str, Any], folder: Path) -> None:
+def _refuse_another_learners_folder(meta: JsonObject, folder: Path) -> None:
     """A log folder written for EM or for chapter 3 named as such, with the command that learns it."""
     if "action" in meta and "sensor" in meta:
         what, how = "a 1-D log folder", f"`sensact learn bootstrap {folder}` (chapter 3) or `sensact learn em {folder}`"

@@ -37,6 +37,7 @@ from sensact.io.logfolder import read_meta, read_track_log, refuse_a_car_log, wr
 from sensact.io.unit_checks import refuse_degrees_as_radians
 from sensact.limits import steps_problem
 from sensact.logs.landmark_log import LandmarkLog
+from sensact.records import JsonObject
 
 MAX_DISTINCT_COMMANDS = 64
 
@@ -44,7 +45,7 @@ MAX_DISTINCT_COMMANDS = 64
 @dataclass(frozen=True, eq=False)
 class LandmarkLogFile:
     data: LandmarkLog
-    meta: dict[str, Any]
+    meta: JsonObject
     groundtruth: dict[str, np.ndarray] | None  # columns on the log's step grid
     note: str = ""  # how the commands were turned into actions, for the user
 
@@ -98,7 +99,7 @@ def _steps(t: np.ndarray, t0: float, dt: float, path: Path, what: str) -> np.nda
 
 
 def _commands_on_grid(
-    path: Path, act: dict[str, Any], dt: float, n_table: int
+    path: Path, act: JsonObject, dt: float, n_table: int
 ) -> tuple[np.ndarray, np.ndarray | None, float, int]:
     """Action indices (discrete) or command rows (continuous) on the step grid, held until the next row."""
     continuous = "columns" in act
@@ -161,16 +162,16 @@ class _MetaParts(NamedTuple):
     """What a landmark log's meta.json says: the step, the actions, the map and the observation columns."""
 
     dt: float
-    actions: dict[str, Any]
+    actions: JsonObject
     table: np.ndarray  # discrete actions' velocities; zero rows for command columns
     names: tuple[str, ...]  # the command (or action table) columns
-    marks: list[dict[str, Any]]
+    marks: list[JsonObject]
     raw_ids: list[str]
     xy: np.ndarray
-    columns: dict[str, Any]  # meta.json's "observations"
+    columns: JsonObject  # meta.json's "observations"
 
 
-def _meta_parts(mpath: Path, meta: dict[str, Any], geometry: Geometry) -> _MetaParts:
+def _meta_parts(mpath: Path, meta: JsonObject, geometry: Geometry) -> _MetaParts:
     """meta.json's parts, each missing or malformed one named in one line."""
     part = "dt_s"  # the part of meta.json being read, for the error
     try:
@@ -235,7 +236,7 @@ class _Sightings(NamedTuple):
 
 
 def _sightings(
-    path: Path, geometry: Geometry, cols: dict[str, Any], ids: list[str], t0: float, dt: float, T: int
+    path: Path, geometry: Geometry, cols: JsonObject, ids: list[str], t0: float, dt: float, T: int
 ) -> _Sightings:
     """observations.csv on the step grid: rows outside the commands' ``T`` steps dropped, every landmark id
     in the map (``ids``), bearings in radians."""
@@ -279,7 +280,7 @@ def _sightings(
     )
 
 
-def _planar(path: Path, meta: dict[str, Any]) -> LandmarkLogFile:
+def _planar(path: Path, meta: JsonObject) -> LandmarkLogFile:
     """A landmark log folder (planar, or a track declared with ``"geometry": "track"``)."""
     mpath = path / "meta.json"
     try:
@@ -406,7 +407,7 @@ def write_landmark_log(
     *,
     t0_s: float = 0.0,
     groundtruth: dict[str, np.ndarray] | None = None,
-    meta_extra: dict[str, Any] | None = None,
+    meta_extra: JsonObject | None = None,
 ) -> Path:
     """Write ``data`` as a landmark log folder that ``read_landmark_log`` reads back exactly.
 
@@ -414,7 +415,7 @@ def write_landmark_log(
     """
     times = t0_s + np.arange(data.n_steps) * data.dt_s
     if data.is_continuous:
-        act_meta: dict[str, Any] = {
+        act_meta: JsonObject = {
             "columns": list(data.command_names),
             "meaning": "continuous commands, in force until the next row",
         }
@@ -424,7 +425,7 @@ def write_landmark_log(
         actions = {"t_s": times, "action_id": data.actions.astype(float)}
     obs: dict[str, np.ndarray] = {"t_s": times[data.obs_step], "landmark_id": data.obs_landmark.astype(float)}
     obs.update({r: data.obs_readings[:, j] for j, r in enumerate(data.reading_names)})
-    cols: dict[str, Any] = {"landmark": "landmark_id", "readings": list(data.reading_names)}
+    cols: JsonObject = {"landmark": "landmark_id", "readings": list(data.reading_names)}
     if data.geometry.has_heading and np.isfinite(data.obs_bearing_rad).any():  # a range-only sensor's log has none
         obs["bearing_rad"] = data.obs_bearing_rad
         cols["bearing"] = "bearing_rad"

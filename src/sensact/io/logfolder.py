@@ -14,7 +14,6 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -24,6 +23,7 @@ from sensact.io.csvtable import read_numeric_csv
 from sensact.io.jsonfile import read_json_object
 from sensact.io.resample import step_count
 from sensact.io.track_log import TrackLog
+from sensact.records import JsonObject
 
 LOG_FORMAT = "sensact-log"
 LOG_VERSION = 1
@@ -43,7 +43,7 @@ def _write_csv(path: Path, columns: dict[str, np.ndarray]) -> None:
 def write_log_folder(
     folder: str | Path,
     *,
-    meta: dict[str, Any],
+    meta: JsonObject,
     actions: dict[str, np.ndarray],
     observations: dict[str, np.ndarray],
     groundtruth: dict[str, np.ndarray] | None = None,
@@ -68,7 +68,7 @@ def write_log_folder(
     return folder
 
 
-def read_meta(folder: str | Path, example: str = "`sensact simulate track1d --out DIR`") -> dict[str, Any]:
+def read_meta(folder: str | Path, example: str = "`sensact simulate track1d --out DIR`") -> JsonObject:
     """``example``: what writes a folder of the kind the caller reads, for the fix."""
     path = Path(folder) / "meta.json"
     missing = f"a log folder needs meta.json; {example} writes an example."
@@ -90,7 +90,7 @@ def read_meta(folder: str | Path, example: str = "`sensact simulate track1d --ou
     return meta
 
 
-def refuse_a_car_log(meta: dict[str, Any], folder: Path) -> None:
+def refuse_a_car_log(meta: JsonObject, folder: Path) -> None:
     """A car log folder (its meta.json has a lidar section) given to EM or chapter 3's learner."""
     if isinstance(meta.get("lidar"), dict) and "geometry" not in meta and "action" not in meta:
         raise LogFormatError(
@@ -101,7 +101,7 @@ def refuse_a_car_log(meta: dict[str, Any], folder: Path) -> None:
         )
 
 
-def _column(meta: dict[str, Any], key: str, path: Path) -> tuple[str, str]:
+def _column(meta: JsonObject, key: str, path: Path) -> tuple[str, str]:
     try:
         spec = meta[key]
         return str(spec["column"]), str(spec.get("unit", ""))

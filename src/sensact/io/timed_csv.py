@@ -33,7 +33,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -43,6 +42,7 @@ from sensact.io.resample import HEADING_OFFSET_RAD, held_on_grid, nearest_steps,
 from sensact.io.unit_checks import refuse_degrees_as_radians, truth_heading_doubt
 from sensact.limits import MAX_STEPS
 from sensact.logs.landmark_log import LandmarkLog
+from sensact.records import JsonObject
 
 # a column name's unit suffix -> sensact's suffix and factor, the longer suffixes first
 UNIT_SUFFIXES = (
@@ -157,7 +157,7 @@ class TimedLog:
     data: LandmarkLog
     t0_s: float  # the files' clock at step 0
     groundtruth: dict[str, np.ndarray] | None  # x_mm, y_mm, theta_rad (sensact frame), valid, on the step grid
-    summary: dict[str, Any]  # rows kept and dropped, by reason
+    summary: JsonObject  # rows kept and dropped, by reason
     truth_doubt: str | None = None  # the truth's heading read against the way it moves (unit_checks)
 
     def summary_line(self) -> str:
@@ -339,7 +339,7 @@ def read_timed_csv(
         held,
     )
     gt, truth_doubt = (None, None) if truth is None else _truth_on_grid(Path(truth), t0 + np.arange(T) * dt_s)
-    summary: dict[str, Any] = {
+    summary: JsonObject = {
         "command_rows": len(t_cmd),
         "longest_command_gap_s": float(np.max(np.diff(t_cmd), initial=0.0)),
         "sighting_rows": len(keep),

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -30,6 +29,7 @@ from sensact.io.resample import held_on_grid, nearest_steps
 from sensact.io.timed_csv import MAX_DEFAULT_STEP_S, table_and_sources
 from sensact.limits import MAX_STEPS
 from sensact.logs.landmark_log import LandmarkLog
+from sensact.records import JsonObject
 
 DISTANCE_COLUMN = "distance_mm"  # the recorded distance by default, as a track folder's groundtruth.csv names it
 
@@ -41,7 +41,7 @@ class TrackCsv:
     distance_reading: str  # the reading in mm, whose unit the state takes
     t0_s: float  # the file's clock at step 0
     sources: dict[str, str]  # sensact's column name -> the file's
-    summary: dict[str, Any]
+    summary: JsonObject
 
     def summary_line(self) -> str:
         s = self.summary

@@ -4,9 +4,10 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
+
+from sensact.records import JsonObject
 
 
 @dataclass(frozen=True)
@@ -20,7 +21,7 @@ class TrackLog:
     observation_name: str
     observation_unit: str
     source: str
-    meta: dict[str, Any] = field(default_factory=dict)
+    meta: JsonObject = field(default_factory=dict)
     true_position: np.ndarray | None = None  # (T,) only for evaluation
     position_unit: str = ""
 

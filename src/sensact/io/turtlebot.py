@@ -7,7 +7,6 @@ true distance to the wall (evaluation only) and is absent from ``test.csv``.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -17,6 +16,7 @@ from sensact.io.resample import step_count
 from sensact.io.timed_csv import MAX_DEFAULT_STEP_S
 from sensact.io.track_log import TrackLog
 from sensact.logs.landmark_log import LandmarkLog
+from sensact.records import JsonObject
 
 UNITS = {"sonar1": "m", "sonar2": "m", "raw_ir1": "V", "raw_ir2": "V", "raw_ir3": "V", "raw_ir4": "V"}
 
@@ -33,7 +33,7 @@ SPEC_RANGE_M = {
 # Learner settings a user would pick per sensor: the readings where it can be inverted (read off the
 # raw signal's shape, as from a datasheet curve; both sonars report about 4.5-8 m when too close or
 # lost), and the outlier gate for the HC-SR04, whose readings are wrong 14 % of the time.
-LEARNER_SETTINGS: dict[str, dict[str, Any]] = {
+LEARNER_SETTINGS: dict[str, JsonObject] = {
     "sonar1": {"observation_min": 0.05, "observation_max": 4.0, "outlier_gate": 3.0},
     "sonar2": {"observation_min": 0.3, "observation_max": 4.0},
     "raw_ir3": {"observation_min": 0.55, "observation_max": 2.5},

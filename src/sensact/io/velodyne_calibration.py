@@ -14,6 +14,7 @@ import yaml
 from sensact.errors import LogFormatError
 from sensact.io.atomic import write_text
 from sensact.models.laser_intrinsics import LaserIntrinsics
+from sensact.records import JsonObject
 
 
 def read_calibration(path: str | Path) -> LaserIntrinsics:
@@ -37,7 +38,7 @@ def read_calibration(path: str | Path) -> LaserIntrinsics:
     return calibration_from_dict(data, path)
 
 
-def _ouster_intrinsics(data: dict[str, Any], path: Path) -> LaserIntrinsics:
+def _ouster_intrinsics(data: JsonObject, path: Path) -> LaserIntrinsics:
     """An OS-1 puts beam i at ``theta_encoder - 2 pi beam_azimuth_angles[i] / 360`` (counterclockwise) and
     elevation ``beam_altitude_angles[i]``, degrees (its user manual): theta_l is minus the azimuth."""
     try:
@@ -55,7 +56,7 @@ def _ouster_intrinsics(data: dict[str, Any], path: Path) -> LaserIntrinsics:
     return LaserIntrinsics(np.radians(alt), -np.radians(az), 0.001)
 
 
-def ouster_metadata(intrinsics: LaserIntrinsics) -> dict[str, Any]:
+def ouster_metadata(intrinsics: LaserIntrinsics) -> JsonObject:
     """The angles as an OS-1's metadata JSON holds them (degrees; see ``_ouster_intrinsics``)."""
     return {
         "beam_altitude_angles": np.degrees(intrinsics.vertical_rad).tolist(),
@@ -71,7 +72,7 @@ def calibration_from_dict(data: Any, path: str | Path) -> LaserIntrinsics:
         raise LogFormatError(
             "no 'lasers' list.", file=path, field="lasers", fix="give a ROS velodyne calibration file."
         )
-    rows: dict[int, dict[str, Any]] = {}
+    rows: dict[int, JsonObject] = {}
     for i, entry in enumerate(lasers):
         try:
             lid = int(entry["laser_id"])

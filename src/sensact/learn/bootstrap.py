@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Literal
 
 import numpy as np
 
@@ -74,6 +74,7 @@ from sensact.learn.bootstrap_kernel import (
     step_kernel,
 )
 from sensact.models.polynomial import Polynomial1D
+from sensact.records import JsonObject
 
 A0Kind = Literal["linear", "sign", "constant"]
 ProgressFn = Callable[[int, int], None]
@@ -249,7 +250,7 @@ class BootstrapResult:
             self.action.output_unit,
         )
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonObject:
         from sensact.config import config_to_dict
 
         return {

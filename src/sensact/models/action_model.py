@@ -9,6 +9,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from sensact.records import JsonObject
+
 
 class CommandLog(Protocol):
     """The part of a log an action model reads: which action or command is in force at each step."""
@@ -55,4 +57,4 @@ class ActionModel(Protocol):
     def table(self) -> tuple[str, list[str], list[list[str]]]:
         """A title, column names and rows to print the learned model."""
 
-    def to_dict(self) -> dict[str, Any]: ...
+    def to_dict(self) -> JsonObject: ...

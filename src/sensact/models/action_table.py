@@ -9,6 +9,7 @@ import numpy as np
 
 from sensact.errors import ModelFormatError
 from sensact.models.action_model import CommandLog
+from sensact.records import JsonObject
 
 
 @dataclass(frozen=True, eq=False)
@@ -85,7 +86,7 @@ class ActionTable:
         ]
         return "learned velocity of each action", [*self.command_names, *self.velocity_names], rows
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonObject:
         return {
             "kind": "action_table",
             "command_names": list(self.command_names),
@@ -95,7 +96,7 @@ class ActionTable:
         }
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any], *, source: str = "model") -> ActionTable:
+    def from_dict(cls, data: JsonObject, *, source: str = "model") -> ActionTable:
         if not isinstance(data, dict) or data.get("kind") != "action_table":
             raise ModelFormatError(
                 "not an action table.", file=source, field="kind", fix="give a model written by `sensact learn em`."

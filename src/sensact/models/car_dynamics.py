@@ -4,11 +4,11 @@
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
-from typing import Any
 
 import numpy as np
 
 from sensact.errors import ModelFormatError
+from sensact.records import JsonObject
 
 
 @dataclass(frozen=True)
@@ -41,11 +41,11 @@ class CarDynamics:
                 v[k + 1] = v[k] + a[k] * dt_s
         return v, a, self.omega(v, actions[:, 2])
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonObject:
         return {"kind": "car_dynamics", **asdict(self)}
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any], *, source: str = "model") -> CarDynamics:
+    def from_dict(cls, data: JsonObject, *, source: str = "model") -> CarDynamics:
         try:
             if data.get("kind") != "car_dynamics":
                 raise KeyError("kind")

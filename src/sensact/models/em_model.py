@@ -21,6 +21,7 @@ from sensact.models.action_model import ActionModel
 from sensact.models.action_table import ActionTable
 from sensact.models.landmark_sensor import LandmarkSensor
 from sensact.models.linear_action import LinearActionModel
+from sensact.records import JsonObject
 
 # the robot-frame velocities a planar model moves by (sideways, forward, turn; theta = 0 faces +y) and a track's
 PLANAR_VELOCITY_NAMES = PLANAR.velocity_names
@@ -28,10 +29,10 @@ TRACK_VELOCITY_NAMES = TRACK.velocity_names
 
 
 # the action models a model.json may hold, by the "kind" each writes
-ACTION_KINDS: dict[str, Any] = {"linear_action_model": LinearActionModel, "action_table": ActionTable}
+ACTION_KINDS: dict[str, type[ActionModel]] = {"linear_action_model": LinearActionModel, "action_table": ActionTable}
 
 
-def action_from_dict(data: dict[str, Any], *, source: str) -> ActionModel:
+def action_from_dict(data: JsonObject, *, source: str) -> ActionModel:
     kind = data.get("kind") if isinstance(data, dict) else None
     return ACTION_KINDS.get(kind, ActionTable).from_dict(data, source=source)
 
@@ -81,7 +82,7 @@ class EMModel:
         fields.update(changes)
         return EMModel(**fields)
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonObject:
         return {
             "kind": "em_model",
             "geometry": self.geometry.name,
@@ -94,7 +95,7 @@ class EMModel:
         }
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any], *, source: str = "model") -> EMModel:
+    def from_dict(cls, data: JsonObject, *, source: str = "model") -> EMModel:
         if not isinstance(data, dict) or data.get("kind") != "em_model":
             raise ModelFormatError(
                 "not an EM model.", file=source, field="kind", fix="give a model.json written by `sensact learn em`."

@@ -30,6 +30,7 @@ import numpy as np
 from sensact.core.polyfit import vander
 from sensact.errors import ModelFormatError
 from sensact.models.polynomial import Polynomial1D
+from sensact.records import JsonObject
 
 ROBUST_KINDS = ("none", "student_t", "gate")
 
@@ -102,7 +103,7 @@ class ReadingChannel:
         f = Polynomial1D(tuple(sol[: deg + 1]), center, scale, f.input_name, f.input_unit, f.output_unit)
         return replace(self, function=f, bearing_terms=tuple(sol[deg + 1 :]) if n_terms else self.bearing_terms)
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonObject:
         return {
             "name": self.name,
             "function": self.function.to_dict(),
@@ -115,7 +116,7 @@ class ReadingChannel:
         }
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any], *, source: str = "model") -> ReadingChannel:
+    def from_dict(cls, data: JsonObject, *, source: str = "model") -> ReadingChannel:
         lo, hi = data.get("valid_min"), data.get("valid_max")
         return cls(
             str(data["name"]),
@@ -231,7 +232,7 @@ class LandmarkSensor:
         chans = tuple(replace(c, robust="none", robust_param=0.0) for c in self.channels)
         return replace(self, channels=chans, bearing_robust="none", bearing_robust_param=0.0, joint_student_t=False)
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonObject:
         return {
             "kind": "landmark_sensor",
             "channels": [c.to_dict() for c in self.channels],
@@ -243,7 +244,7 @@ class LandmarkSensor:
         }
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any], *, source: str = "model") -> LandmarkSensor:
+    def from_dict(cls, data: JsonObject, *, source: str = "model") -> LandmarkSensor:
         if not isinstance(data, dict) or data.get("kind") != "landmark_sensor":
             raise ModelFormatError(
                 "not a landmark sensor model.", file=source, field="kind", fix="give a model written by sensact."

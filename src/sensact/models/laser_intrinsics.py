@@ -9,9 +9,10 @@ every other per-laser field of a calibration file so that it can be written back
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
+
+from sensact.records import JsonObject
 
 
 @dataclass(frozen=True, eq=False)
@@ -19,7 +20,7 @@ class LaserIntrinsics:
     vertical_rad: np.ndarray  # (n,) phi_l
     horizontal_rad: np.ndarray  # (n,) theta_l (ROS: rot_correction)
     distance_resolution_m: float = 0.002
-    extra: tuple[dict[str, Any], ...] = field(default=())
+    extra: tuple[JsonObject, ...] = field(default=())
 
     def __post_init__(self) -> None:
         v = np.asarray(self.vertical_rad, dtype=float).reshape(-1)
@@ -42,7 +43,7 @@ class LaserIntrinsics:
     def with_horizontal(self, horizontal_rad: np.ndarray) -> LaserIntrinsics:
         return LaserIntrinsics(self.vertical_rad, horizontal_rad, self.distance_resolution_m, self.extra)
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonObject:
         return {
             "kind": "laser_intrinsics",
             "vertical_rad": self.vertical_rad.tolist(),

@@ -42,6 +42,7 @@ from sensact.errors import ModelFormatError
 from sensact.limits import MAX_STEPS
 from sensact.models.action_model import CommandLog
 from sensact.models.linear_action_fit import delayed, fits_by_delay
+from sensact.records import JsonObject
 
 BASES = ("affine", "cross", "polynomial")
 
@@ -271,7 +272,7 @@ class LinearActionModel:
         title = f"learned A(c) = Phi(c) beta ({self.basis}; delay {self.delay_steps} steps)"
         return title, ["feature", *self.velocity_names], rows
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonObject:
         return {
             "kind": "linear_action_model",
             "basis": self.basis,
@@ -286,7 +287,7 @@ class LinearActionModel:
         }
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any], *, source: str = "model") -> LinearActionModel:
+    def from_dict(cls, data: JsonObject, *, source: str = "model") -> LinearActionModel:
         try:
             return cls(
                 str(data["basis"]),

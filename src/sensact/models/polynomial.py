@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from sensact.core.polyfit import affine_basis_matrix, polyval
 from sensact.errors import ModelFormatError
+from sensact.records import JsonObject
 
 
 @dataclass(frozen=True)
@@ -88,7 +88,7 @@ class Polynomial1D:
             terms.append(v if i == 0 else f"{v}·{self.input_name}" + (f"^{i}" if i > 1 else ""))
         return f"{name}({self.input_name}) = " + " + ".join(terms).replace("+ -", "- ")
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonObject:
         return {
             "kind": "polynomial1d",
             "coef": list(self.coef),
@@ -101,7 +101,7 @@ class Polynomial1D:
         }
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any], *, source: str = "model") -> Polynomial1D:
+    def from_dict(cls, data: JsonObject, *, source: str = "model") -> Polynomial1D:
         if not isinstance(data, dict) or data.get("kind") != "polynomial1d":
             raise ModelFormatError(
                 "not a polynomial1d model.",

@@ -18,6 +18,7 @@ drives straight: ``(b_left + b_right)`` rad/s per unit of the wheels' mean. On w
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 from sensact.models.em_model import PLANAR_VELOCITY_NAMES
@@ -37,7 +38,20 @@ def wheel_pair(command_names: tuple[str, ...]) -> tuple[str, str] | None:
     return None
 
 
-def as_differential_drive(action: Any) -> dict[str, Any] | None:
+@dataclass(frozen=True)
+class DifferentialDrive:
+    """An affine action model on a wheel pair read as a differential drive (``as_differential_drive``)."""
+
+    unit: str  # the wheel commands' unit: mm_s, rad_s, ...
+    forward_gain: float  # mm/s per unit of the wheels' mean
+    forward_bias_mm_s: float
+    axle_mm: float | None  # None: the turn does not follow the wheels' difference
+    wheel_ratio: float | None  # right over left; None where inputs held the turn to the difference
+    curvature_rad_per_unit: float  # turn rate per unit of the wheels' mean
+    turn_bias_rad_s: float
+
+
+def as_differential_drive(action: Any) -> DifferentialDrive | None:
     """The drive's numbers of an affine model on a ``wheel_pair`` (None for any other model):
     ``forward_gain`` (mm/s per ``unit`` of the wheels' mean), ``axle_mm``, ``wheel_ratio`` (right over
     left), ``curvature_rad_per_unit`` (turn rate per ``unit`` of the wheels' mean), the constants
@@ -56,13 +70,13 @@ def as_differential_drive(action: Any) -> dict[str, Any] | None:
     beta = action.coefficients  # columns sideways, forward, turn
     gain = float(beta[i_left, 1] + beta[i_right, 1])
     b_left, b_right = float(beta[i_left, 2]), float(beta[i_right, 2])
-    return {
-        "unit": pair[0][5:],
-        "forward_gain": gain,
-        "forward_bias_mm_s": float(beta[0, 1]),
-        "axle_mm": 2.0 * gain / (b_right - b_left) if b_right != b_left else None,
+    return DifferentialDrive(
+        unit=pair[0][5:],
+        forward_gain=gain,
+        forward_bias_mm_s=float(beta[0, 1]),
+        axle_mm=2.0 * gain / (b_right - b_left) if b_right != b_left else None,
         # a turn held to the wheels' difference (a range-only robot's action_inputs) has them alike by fiat
-        "wheel_ratio": -b_right / b_left if b_left != 0 and 2 not in action.combined_inputs else None,
-        "curvature_rad_per_unit": b_left + b_right,
-        "turn_bias_rad_s": float(beta[0, 2]),
-    }
+        wheel_ratio=-b_right / b_left if b_left != 0 and 2 not in action.combined_inputs else None,
+        curvature_rad_per_unit=b_left + b_right,
+        turn_bias_rad_s=float(beta[0, 2]),
+    )

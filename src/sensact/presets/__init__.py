@@ -14,7 +14,7 @@ import math
 from dataclasses import replace
 from functools import cache
 from importlib import resources
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -25,6 +25,7 @@ from sensact.learn.bootstrap import BootstrapConfig
 from sensact.learn.em.config import ChannelConfig, EMConfig
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.wheel_drive import wheel_pair
+from sensact.records import JsonObject
 
 if TYPE_CHECKING:
     from sensact.sim.diffdrive import DiffDriveConfig
@@ -182,7 +183,7 @@ def for_log(name: str, data: LandmarkLog) -> EMConfig:
     return cfg
 
 
-def preset_of(settings: dict[str, Any], source: str) -> str | None:
+def preset_of(settings: JsonObject, source: str) -> str | None:
     """The preset a settings mapping names (its ``preset`` field), checked; None when it names none."""
     name = settings.get(PRESET_KEY)
     if name is None:

@@ -13,6 +13,7 @@ import numpy as np
 
 from sensact.evaluate.track1d import measured_models
 from sensact.io.atomic import write_bytes
+from sensact.records import JsonObject
 
 
 def _save(fig: Any, path: Path) -> Path:
@@ -102,7 +103,7 @@ def figure_degree(degree_trials: list[Any], path: Path) -> Path:
     return _save(fig, path)
 
 
-def figure_real(runs: dict[str, Any], path: Path) -> Path:
+def figure_real(runs: JsonObject, path: Path) -> Path:
     """Real robot: each sensor's learned model (after a + b·S) over the measured one, and the action."""
     n = len(runs)
     fig, axes = plt.subplots(1, n + 1, figsize=(4 * (n + 1), 3.6))

@@ -29,7 +29,7 @@ def _loglik_panel(ax: Any, res: Any) -> None:
     ax.plot(res.best_iteration, ll[res.best_iteration], "*", ms=9, color="C3", label="best (the model written)")
     if 0 <= res.freed_at < ll.size:
         ax.plot(res.freed_at, ll[res.freed_at], "o", ms=5, color="k", label="held stage ends")
-    searched = sorted({r["iteration"] for r in (res.ridge or []) + (res.delay_search or [])} & set(range(ll.size)))
+    searched = sorted({r.iteration for r in (res.ridge or []) + (res.delay_search or [])} & set(range(ll.size)))
     if searched:
         ax.plot(searched, ll[searched], "^", ms=5, color="C2", label="ridge / delay search")
     # the first iterations from a poor start are far below; show the climb that matters

@@ -19,6 +19,7 @@ from matplotlib.colors import LogNorm, Normalize
 from matplotlib.patches import Rectangle
 from matplotlib.ticker import FuncFormatter
 
+from sensact.records import JsonObject
 from sensact.report.figures1d import _save
 from sensact.report.tables_fleet import FLEET_BARS
 
@@ -48,7 +49,7 @@ LIKELIHOOD_PANEL = (
 )
 
 
-def figure_fleet(fleet: dict[str, Any], path: Path, title: str = "models on logs") -> Path:
+def figure_fleet(fleet: JsonObject, path: Path, title: str = "models on logs") -> Path:
     models, logs = fleet["models"], fleet["logs"]
     n_m, n_l = len(models), len(logs)
     panels = list(PANELS) if "cells" in fleet else []
@@ -72,7 +73,7 @@ def figure_fleet(fleet: dict[str, Any], path: Path, title: str = "models on logs
     return _save(fig, path)
 
 
-def _panel(fig: Any, ax: Any, fleet: dict[str, Any], key: str, name: str, fmt: str, part: str | None) -> None:
+def _panel(fig: Any, ax: Any, fleet: JsonObject, key: str, name: str, fmt: str, part: str | None) -> None:
     models, logs, own = fleet["models"], fleet["logs"], fleet.get("own", {})
     on_range = key in RANGE_BAR_KEY
     if key == "below_best":

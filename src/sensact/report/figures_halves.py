@@ -20,6 +20,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from sensact.evaluate.halves import GRID
+from sensact.records import JsonObject
 from sensact.report.figures1d import _save
 
 _VELOCITY_WORDS = {
@@ -79,7 +80,7 @@ def _noise_panel(ax: Any, noises: dict[str, dict[str, float]]) -> None:
 
 
 def figure_halves(
-    whole: Any, halves: list[tuple[str, Any]], data: Any, comparison: dict[str, Any], path: Path, title: str
+    whole: Any, halves: list[tuple[str, Any]], data: Any, comparison: JsonObject, path: Path, title: str
 ) -> Path:
     """``halves``' models (``(name, model)``, "first half" and "second half") against ``whole``, learned
     on ``data``; ``comparison`` is ``compare_halves``' (its channels' spans and noise parameters)."""

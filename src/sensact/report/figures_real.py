@@ -16,12 +16,13 @@ import numpy as np
 
 from sensact.core.pose_models import landmark_distance
 from sensact.models.polynomial import Polynomial1D
+from sensact.records import JsonObject
 from sensact.report.figures1d import _save
 from sensact.report.figures_turtlebot_em import figure_turtlebot_em
 from sensact.report.frames import MM, si, velocity_rep
 
 
-def _truth_at_sensor(ml: Any, score: dict[str, Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _truth_at_sensor(ml: Any, score: JsonObject) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The sightings with valid truth (a mask), Vicon's pose moved to the sensor mount the score fitted
     at each, and each one's landmark: what the sensor bars score against."""
     from sensact.evaluate.landmark_truth import at_sensor
@@ -55,9 +56,7 @@ def action_panels(names: tuple[str, ...], beta_learned: np.ndarray, beta_truth: 
     return [j for j in order if moving[j]]
 
 
-def figure_action_curves(
-    ml: Any, model: Any, score: dict[str, Any], path: Path, title: str, truth: str = "Vicon"
-) -> Path:
+def figure_action_curves(ml: Any, model: Any, score: JsonObject, path: Path, title: str, truth: str = "Vicon") -> Path:
     """Each velocity against each command, learned and From-Truth, over the range of that command the
     robot used, every other command held at its median over the log (a differential drive's turn
     command is then 0 and its forward one its cruising speed; a wheel the other wheel's usual speed).
@@ -98,9 +97,7 @@ def figure_action_curves(
     return _save(fig, path)
 
 
-def figure_range_function(
-    ml: Any, model: Any, score: dict[str, Any], path: Path, title: str, truth: str = "Vicon"
-) -> Path:
+def figure_range_function(ml: Any, model: Any, score: JsonObject, path: Path, title: str, truth: str = "Vicon") -> Path:
     """Readings against the ground truth's distance (Vicon's on MRCLAM), with the learned and From-Truth
     range functions. With bearing terms the readings are shown with the learned terms taken out,
     ``reading - d g(b)``, so that they scatter about f(d)."""
@@ -139,9 +136,7 @@ def binned_rms(x: np.ndarray, y: np.ndarray, n_bins: int = 10) -> tuple[np.ndarr
     return mid, rms
 
 
-def figure_heading_noise(
-    ml: Any, model: Any, score: dict[str, Any], path: Path, title: str, truth: str = "Vicon"
-) -> Path:
+def figure_heading_noise(ml: Any, model: Any, score: JsonObject, path: Path, title: str, truth: str = "Vicon") -> Path:
     """The truth's heading drift over each 1-s window against the window's turn rate, its RMS in bins,
     the truth's ``a + b |turn|`` fit, and the drift the learned Sigma_m allows over the same window."""
     from sensact.evaluate.landmark_truth import from_truth_windows, heading_drift
@@ -175,7 +170,7 @@ def figure_heading_noise(
     return _save(fig, path)
 
 
-def bearing_residuals(ml: Any, score: dict[str, Any], posteriors: Any = None) -> tuple[np.ndarray, np.ndarray | None]:
+def bearing_residuals(ml: Any, score: JsonObject, posteriors: Any = None) -> tuple[np.ndarray, np.ndarray | None]:
     """The bearing residuals about the ground truth's pose moved to the fitted sensor pose, at the
     sightings with valid truth (the ones the bar's sigma is the trimmed RMS of), and, given EM's
     posteriors, about its smoothed path at the sightings whose bearing the E-step used (else None)."""
@@ -196,7 +191,7 @@ def bearing_residuals(ml: Any, score: dict[str, Any], posteriors: Any = None) ->
 def figure_bearing_noise(
     ml: Any,
     model: Any,
-    score: dict[str, Any],
+    score: JsonObject,
     path: Path,
     title: str,
     posteriors: Any = None,
@@ -260,7 +255,7 @@ def figure_bearing_noise(
     return _save(fig, path)
 
 
-def figure_loglik(results: dict[str, Any], path: Path) -> Path:
+def figure_loglik(results: JsonObject, path: Path) -> Path:
     """log P(O | C, lambda) against the iteration, one line per run; a dot where the held stage ends
     (from there the likelihood is the robust one, with Sigma_m and the bearing terms learned) and a
     triangle at each later ridge or delay search (learn/em/searches/ridge.py, delay.py), whose move shows
@@ -271,7 +266,7 @@ def figure_loglik(results: dict[str, Any], path: Path) -> Path:
         (line,) = ax.plot(np.arange(ll.size), ll - ll.max(), lw=1, label=name)
         if 0 <= res.freed_at < ll.size:
             ax.plot(res.freed_at, ll[res.freed_at] - ll.max(), "o", ms=4, color=line.get_color())
-        searched = {r["iteration"] for r in (res.ridge or []) + (res.delay_search or [])}
+        searched = {r.iteration for r in (res.ridge or []) + (res.delay_search or [])}
         later = sorted(i for i in searched if res.freed_at < i < ll.size)
         if later:
             ax.plot(later, ll[later] - ll.max(), "^", ms=4, color=line.get_color())
@@ -290,7 +285,7 @@ def figure_loglik(results: dict[str, Any], path: Path) -> Path:
 def write_robot(
     ml: Any,
     model: Any,
-    score: dict[str, Any],
+    score: JsonObject,
     stem: Path,
     name: str,
     posteriors: Any = None,
@@ -312,7 +307,7 @@ def write_robot(
     return paths
 
 
-def write_all(art: dict[str, Any], res: dict[str, Any], out: Path) -> list[Path]:
+def write_all(art: JsonObject, res: JsonObject, out: Path) -> list[Path]:
     paths = []
     runs = {}
     for key, (ml, r) in art.get("mrclam", {}).items():

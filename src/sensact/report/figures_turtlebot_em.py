@@ -20,10 +20,11 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from sensact.evaluate.turtlebot_em import learned_velocity_mm_s, sensor_bins, windowed_velocities
+from sensact.records import JsonObject
 from sensact.report.figures1d import _save
 
 
-def _action_panel(ax: Any, run: Any, score: dict[str, Any], a: float) -> None:
+def _action_panel(ax: Any, run: Any, score: JsonObject, a: float) -> None:
     c, v_true = windowed_velocities(run.data, run.truth_mm)
     ax.plot(c, v_true, ".", ms=3, alpha=0.4, color="0.5", label="recorded range, 1-s windows")
     grid = np.linspace(c.min(), c.max(), 100) if c.size else np.zeros(1)
@@ -51,7 +52,7 @@ def _action_panel(ax: Any, run: Any, score: dict[str, Any], a: float) -> None:
     ax.grid(alpha=0.3)
 
 
-def _sensor_panel(ax: Any, run: Any, channel: Any, s: dict[str, Any], a: float, b: float) -> None:
+def _sensor_panel(ax: Any, run: Any, channel: Any, s: JsonObject, a: float, b: float) -> None:
     data = run.data
     readings = data.obs_readings[:, data.reading_names.index(channel.name)]
     d_obs = run.truth_mm[data.obs_step]
@@ -86,7 +87,7 @@ def _sensor_panel(ax: Any, run: Any, channel: Any, s: dict[str, Any], a: float, 
     ax.grid(alpha=0.3)
 
 
-def figure_turtlebot_em(run: Any, score: dict[str, Any], path: Path, title: str) -> Path:
+def figure_turtlebot_em(run: Any, score: JsonObject, path: Path, title: str) -> Path:
     """The action panel and one panel per reading channel, against the recorded range. ``run`` has the
     fit's ``data``, ``truth_mm`` and ``result`` (``experiments.turtlebot_em.TurtlebotEMRun``); ``score``
     is ``score_turtlebot_em``'s for it."""

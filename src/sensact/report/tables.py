@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from sensact.evaluate.bars import checks_from_json, counts
+from sensact.records import JsonObject
 
 Table = tuple[str, list[str], list[list[str]]]  # title, headers, rows
 
@@ -19,7 +20,7 @@ def _pm(mean: float | None, std: float | None, digits: int = 1) -> str:
     return f"{mean:.{digits}f} ± {std:.{digits}f}" if std is not None and std == std else f"{mean:.{digits}f}"
 
 
-def track1d_tables(res: dict[str, Any]) -> list[Table]:
+def track1d_tables(res: JsonObject) -> list[Table]:
     thesis = res["thesis"]["rows"]
     rows = []
     for name, ours in res["rows"].items():
@@ -95,7 +96,7 @@ def track1d_tables(res: dict[str, Any]) -> list[Table]:
 NOT_TIMED = "not scored: no command held for 2 s"
 
 
-def sensor_span_cell(s: dict[str, Any]) -> str:
+def sensor_span_cell(s: JsonObject) -> str:
     """A Turtlebot sensor's score (``evaluate.turtlebot_em.score_turtlebot_em``): its error in % of its span, and
     in how many bins f is so flat that the error exceeds the span."""
     pct = s["rms_pct_of_span"]
@@ -123,12 +124,12 @@ def one_command_reason(share: float) -> str:
     return f"not scored: {100 * share:.0f} % of the steps at one command"
 
 
-def turtlebot_tables(res: dict[str, Any]) -> list[Table]:
+def turtlebot_tables(res: JsonObject) -> list[Table]:
     """One table per training log: the first log's, then each of ``more_logs``."""
     return [_turtlebot_table(r) for r in (res, *res.get("more_logs", {}).values())]
 
 
-def _turtlebot_table(res: dict[str, Any]) -> Table:
+def _turtlebot_table(res: JsonObject) -> Table:
     rows = []
     for name, r in res["rows"].items():
         rows.append(
@@ -155,7 +156,7 @@ def _f(x: Any, digits: int = 2) -> str:
     return f"{x:.{digits}f}" if isinstance(x, float) else str(x)
 
 
-def field2d_tables(res: dict[str, Any]) -> list[Table]:
+def field2d_tables(res: JsonObject) -> list[Table]:
     o, th = res["ours"], res["thesis"]
     w = o["worst"]
     rows = [
@@ -217,7 +218,7 @@ def field2d_tables(res: dict[str, Any]) -> list[Table]:
     return tables
 
 
-def em1d_tables(res: dict[str, Any]) -> list[Table]:
+def em1d_tables(res: JsonObject) -> list[Table]:
     o, th = res["ours"], res["thesis"]
     main = [
         [
@@ -255,7 +256,7 @@ def em1d_tables(res: dict[str, Any]) -> list[Table]:
     ]
 
 
-def car_tables(res: dict[str, Any]) -> list[Table]:
+def car_tables(res: JsonObject) -> list[Table]:
     th = res["thesis"]
     rows = [
         [
@@ -287,7 +288,7 @@ def car_tables(res: dict[str, Any]) -> list[Table]:
 VERDICT = {True: "cleared", False: "missed", None: "not scored"}
 
 
-def scorecard_table(rows: list[dict[str, Any]]) -> Table:
+def scorecard_table(rows: list[JsonObject]) -> Table:
     """An experiment's ``scorecard`` (``evaluate.bars.BarCheck`` dicts) as a table titled with its count."""
     checks = checks_from_json(rows)
     done, scored = counts(checks)

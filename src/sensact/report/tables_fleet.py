@@ -5,8 +5,8 @@ lines that say what each table shows."""
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
 
+from sensact.records import JsonObject
 from sensact.report.tables import Table, bars_sentence, one_command_reason
 
 FLEET_TITLE = "translation / rotation RMS over From-Truth's, range residual about the truth, bearing sigma ratio"
@@ -18,7 +18,7 @@ FLEET_BARS = {  # a fleet cell's part and the bars it answers to (experiments.re
 
 
 def fleet_table(
-    fleet: dict[str, Any],
+    fleet: JsonObject,
     title: str = FLEET_TITLE,
     miss: Callable[[str], str] = lambda s: f"{s} (miss)",
     own: Callable[[str], str] = lambda s: f"**{s}**",
@@ -48,7 +48,7 @@ def fleet_table(
     return title, ["model \\ log", *fleet["logs"]], rows
 
 
-def fleet_lines(fleet: dict[str, Any]) -> list[str]:
+def fleet_lines(fleet: JsonObject) -> list[str]:
     """What the fleet table says over the robots' own pairs and over the others."""
     lines = [
         f"bars: {bars_sentence(fleet['bars'])}; the range residual has no bar (From-Truth's, the last row, is its "
@@ -81,7 +81,7 @@ FLEET_LIKELIHOOD_TITLE = (
 
 
 def fleet_likelihood_table(
-    fleet: dict[str, Any], title: str = FLEET_LIKELIHOOD_TITLE, own: Callable[[str], str] = lambda s: f"**{s}**"
+    fleet: JsonObject, title: str = FLEET_LIKELIHOOD_TITLE, own: Callable[[str], str] = lambda s: f"**{s}**"
 ) -> Table:
     """``app.fleet.likelihood_grid``'s pairs, a row per model and a column per log, and the
     sightings each log's likelihood is over; ``own`` marks a robot's own pair."""
@@ -109,7 +109,7 @@ def fleet_likelihood_table(
     return title, ["model \\ log", *fleet["logs"]], rows
 
 
-def fleet_likelihood_lines(fleet: dict[str, Any]) -> list[str]:
+def fleet_likelihood_lines(fleet: JsonObject) -> list[str]:
     """What the likelihood table says: whether each log's own model is its most likely, and how close the
     best of the others comes on each log."""
     lk = fleet["likelihood"]
@@ -123,7 +123,7 @@ def fleet_likelihood_lines(fleet: dict[str, Any]) -> list[str]:
     owner = {g: m for m, g in fleet["own"].items()}
     found = [(g, p) for g, p in s["per_log"].items() if p["closest_other"] is not None]
 
-    def closest_cell(g: str, p: dict[str, Any], first: bool) -> str:
+    def closest_cell(g: str, p: JsonObject, first: bool) -> str:
         own_below = lk["cells"][owner[g]][g]["below_best"] if g in owner else None
         if p["closest_other_below"] == 0 and own_below:  # another model explains the run better than its own
             return f"{p['closest_other']} on {g} (the most likely: {owner[g]}, its own, {own_below:.3f} below)"
@@ -162,7 +162,7 @@ FLEET_RANGE_TITLE = (
 
 
 def fleet_range_table(
-    fleet: dict[str, Any],
+    fleet: JsonObject,
     title: str = FLEET_RANGE_TITLE,
     miss: Callable[[str], str] = lambda s: f"{s} (miss)",
     own: Callable[[str], str] = lambda s: f"**{s}**",
@@ -192,7 +192,7 @@ def fleet_range_table(
     return title, ["model \\ log", *rng["logs"]], rows
 
 
-def fleet_range_lines(fleet: dict[str, Any]) -> list[str]:
+def fleet_range_lines(fleet: JsonObject) -> list[str]:
     """What the range table says over the robots' own pairs and over the others, and which Turtlebot CSVs
     could not be scored against their range."""
     rng = fleet.get("range")

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
 
+from sensact.records import JsonObject
 from sensact.report.tables import Table, gain_cell, one_command_reason, sensor_span_cell
 from sensact.report.tables_fleet import (
     FLEET_LIKELIHOOD_TITLE,
@@ -16,13 +16,13 @@ from sensact.report.tables_fleet import (
 )
 
 
-def _drift_cell(n: dict[str, Any], when: str) -> str:
+def _drift_cell(n: JsonObject, when: str) -> str:
     learned = n.get(f"learned_heading_drift_{when}_rad")
     truth = f"{n[f'heading_drift_rms_{when}_rad']:.4f}"
     return truth if learned is None else f"{truth} / {learned:.4f}"
 
 
-def _mount_cell(score: dict[str, Any]) -> str:
+def _mount_cell(score: JsonObject) -> str:
     m, b = (score.get("sensor_mount") or {}).get("fitted_to_truth"), score["bearing"]
     if m is None or b is None:  # results written before the sensor's pose was fitted, or no bearings to fit it by
         return "-"
@@ -32,7 +32,7 @@ def _mount_cell(score: dict[str, Any]) -> str:
     )
 
 
-def shared_by_motion(n: dict[str, Any]) -> str:
+def shared_by_motion(n: JsonObject) -> str:
     """' (still 0%, straight 49%, turning 75%)': the truth's frame-shared bearing variance by the
     robot's motion, '-' where no frame could be split; empty for results written before it."""
     split = n.get("bearing_frame_shared_by_motion")
@@ -45,7 +45,7 @@ def shared_by_motion(n: dict[str, Any]) -> str:
     return " (" + ", ".join(parts) + ")"
 
 
-def translation_drift_cell(n: dict[str, Any]) -> str:
+def translation_drift_cell(n: JsonObject) -> str:
     """'7.1 / 7.6; 16.5 / 15.7': the truth's sideways / forward miss per window, RMS mm, then the
     learned Sigma_m's; '-' for results written before they were measured."""
     truth, learned = n.get("translation_drift_rms_mm"), n.get("learned_translation_drift_mm")
@@ -54,7 +54,7 @@ def translation_drift_cell(n: dict[str, Any]) -> str:
     return f"{truth[0]:.1f} / {truth[1]:.1f}; {learned[0]:.1f} / {learned[1]:.1f}"
 
 
-def truth_heading_cell(n: dict[str, Any]) -> str:
+def truth_heading_cell(n: JsonObject) -> str:
     """'0.0063 (51%)': the truth's own heading error on straight stretches, sd rad, and its share of the
     frame means' bearing residual variance; '-' where too few frames or for results written before it."""
     e = n.get("truth_heading_error") or {}
@@ -64,27 +64,27 @@ def truth_heading_cell(n: dict[str, Any]) -> str:
     return f"{math.sqrt(max(var, 0.0)):.4f} ({e['share']:.0%})"
 
 
-def _shared_cell(n: dict[str, Any]) -> str:
+def _shared_cell(n: JsonObject) -> str:
     if "bearing_within_frame_sd_rad" not in n:
         return "-"
     return f"{n['bearing_within_frame_sd_rad']:.4f}; {n['bearing_frame_shared_fraction']:.0%}{shared_by_motion(n)}"
 
 
-def _failed_bars(score: dict[str, Any]) -> str:
+def _failed_bars(score: JsonObject) -> str:
     return ", ".join(k for k, v in score["bars"].items() if not v) or "all pass"
 
 
-def _path_cell(score: dict[str, Any]) -> str:
+def _path_cell(score: JsonObject) -> str:
     p = score.get("path")
     return "-" if not p else f"{p['median_mm']:.0f} ({p['forward_median_mm']:+.0f})"
 
 
-def _ridge_cell(em: dict[str, Any]) -> str:
+def _ridge_cell(em: JsonObject) -> str:
     # the moves only: the first search's likelihood is the held stage's, the others the freed one's
     return ", ".join(f"{r['shift_mm']:+.0f}" for r in em.get("ridge") or []) or "-"
 
 
-def _delay_cell(action: dict[str, Any], em: dict[str, Any]) -> str:
+def _delay_cell(action: JsonObject, em: JsonObject) -> str:
     cell = f"{action['learned_delay_s']:.3f} / {action['from_truth_delay_s']:.3f}"
     moves = [
         f"{s['delay_from']}->{s['delay_to']}" for s in em.get("delay_search") or [] if s["delay_to"] != s["delay_from"]
@@ -92,7 +92,7 @@ def _delay_cell(action: dict[str, Any], em: dict[str, Any]) -> str:
     return f"{cell} (searches moved it {', '.join(moves)} steps)" if moves else cell
 
 
-def _mrclam_title(res: dict[str, Any]) -> str:
+def _mrclam_title(res: JsonObject) -> str:
     """'MRCLAM Dataset 6', or the names of the datasets the run found."""
     names = [Path(d).name.replace("MRCLAM_", "").replace("Dataset", "Dataset ") for d in res.get("mrclam_datasets", [])]
     return "MRCLAM " + (", ".join(names) if names else "Dataset 6")
@@ -115,7 +115,7 @@ def truth_score_headers(who: str, truth: str) -> list[str]:
     ]
 
 
-def _truth_score_row(name: str, score: dict[str, Any], em: dict[str, Any]) -> list[str]:
+def _truth_score_row(name: str, score: JsonObject, em: JsonObject) -> list[str]:
     """One robot's ``score_against_truth``, learned / From-Truth (ratio), with the bars it failed."""
     a, rg, b = score["action"], score["range"], score["bearing"]
     la, fa = a["learned"], a["from_truth"]
@@ -134,7 +134,7 @@ def _truth_score_row(name: str, score: dict[str, Any], em: dict[str, Any]) -> li
     ]
 
 
-def _sim_bearing_cell(s: dict[str, Any]) -> str:
+def _sim_bearing_cell(s: JsonObject) -> str:
     """The learned bearing sigma / the simulated one (ratio); "-" for a range-only sensor."""
     if "bearing_sigma_rad" not in s:
         return "-"
@@ -142,7 +142,7 @@ def _sim_bearing_cell(s: dict[str, Any]) -> str:
     return f"{learned:.4f} / {true:.4f} ({s['bearing_sigma_ratio']:.2f})"
 
 
-def diffdrive_tables(res: dict[str, Any]) -> list[Table]:
+def diffdrive_tables(res: JsonObject) -> list[Table]:
     """Simulated differential drives (or side-stepping robots): the MRCLAM table against their true poses,
     then the learned model against the one the simulator used."""
     seeds = res["seeds"]
@@ -193,7 +193,7 @@ def diffdrive_tables(res: dict[str, Any]) -> list[Table]:
     ]
 
 
-def restart_runs_cell(runs: list[dict[str, Any]]) -> str:
+def restart_runs_cell(runs: list[JsonObject]) -> str:
     """Each run of ``fit.restart_while_lost``: its channels' start sigmas and its likelihood."""
     return "; ".join(
         ", ".join(f"{name} {s:.4g}" for name, s in r["start_sigma"].items())
@@ -203,7 +203,7 @@ def restart_runs_cell(runs: list[dict[str, Any]]) -> str:
     )
 
 
-def _lost_signs(signs: list[dict[str, Any]]) -> str:
+def _lost_signs(signs: list[JsonObject]) -> str:
     """``f turned``, ``f bent``, ``f turned and bent``, ``EM unsettled`` or one of the first three and it,
     for a run's ``checks/lost_signs.lost_fit_signs``."""
     kinds = {t["sign"] for t in signs}
@@ -211,13 +211,13 @@ def _lost_signs(signs: list[dict[str, Any]]) -> str:
     return "; ".join(([f"f {' and '.join(f)}"] if f else []) + (["EM unsettled"] if "unsettled" in kinds else []))
 
 
-def kept_run_cell(runs: list[dict[str, Any]]) -> str:
+def kept_run_cell(runs: list[JsonObject]) -> str:
     """Which run ``fit.restart_while_lost`` kept."""
     k = next(i for i, r in enumerate(runs) if r["kept"])
     return "the first run" if k == 0 else f"restart {k}"
 
 
-def real_tables(res: dict[str, Any]) -> list[Table]:
+def real_tables(res: JsonObject) -> list[Table]:
     """MRCLAM robots (learned against From-Truth) and the Turtlebot (EM beside chapter 3)."""
     tables: list[Table] = []
     title = _mrclam_title(res)
@@ -252,7 +252,7 @@ def real_tables(res: dict[str, Any]) -> list[Table]:
     return tables
 
 
-def _truth_restart_table(title: str, restarts: list[tuple[str, dict[str, Any], dict[str, Any]]]) -> Table:
+def _truth_restart_table(title: str, restarts: list[tuple[str, JsonObject, JsonObject]]) -> Table:
     """Each robot from the poor start beside EM run again from the truth's range function and start pose."""
     return (
         f"{title}: poor start / EM again from the truth's range function and start pose "
@@ -281,7 +281,7 @@ def _truth_restart_table(title: str, restarts: list[tuple[str, dict[str, Any], d
     )
 
 
-def _truth_noise_table(title: str, noise: list[tuple[str, dict[str, Any], dict[str, Any]]]) -> Table:
+def _truth_noise_table(title: str, noise: list[tuple[str, JsonObject, JsonObject]]) -> Table:
     """What the truth says about each robot's noise: (robot, its truth_noise, its score)."""
     return (
         f"{title}: what the truth says about the noise (see docs/em-real.md, Known limits)",
@@ -314,7 +314,7 @@ def _truth_noise_table(title: str, noise: list[tuple[str, dict[str, Any], dict[s
     )
 
 
-def _turtlebot_table(tb: dict[str, Any]) -> Table:
+def _turtlebot_table(tb: JsonObject) -> Table:
     """One Turtlebot training log: EM in 1-D beside chapter 3's learner on sonar1."""
     sc, ch3 = tb["score"], tb.get("chapter3_sonar1", {})
     share = sc.get("one_command_share", 0.0)  # absent from results written before it was measured

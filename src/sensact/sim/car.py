@@ -20,7 +20,6 @@
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
-from typing import Any
 
 import numpy as np
 
@@ -28,6 +27,7 @@ from sensact.core.raycast import BOX, CYLINDER, build_grid, cast_firings
 from sensact.limits import steps_problem
 from sensact.models.laser_intrinsics import LaserIntrinsics
 from sensact.models.lidar_unit import UNITS, LidarUnit
+from sensact.records import JsonObject
 
 TWO_PI = 2.0 * np.pi
 TIME_ORIGIN_S = 1.6e9  # the capture clock of the written pcap at the start of the drive
@@ -372,7 +372,7 @@ def scan_chunks(run: CarRun, progress=None):
         yield t, rot, out
 
 
-def log_tables(run: CarRun) -> dict[str, Any]:
+def log_tables(run: CarRun) -> JsonObject:
     """The log folder's tables (meta, actions, ground truth); ``sensact.io.car_log.write_car_log`` writes
     them with the scans."""
     cfg = run.config
@@ -411,7 +411,7 @@ def log_tables(run: CarRun) -> dict[str, Any]:
     }
 
 
-def log_summary(run: CarRun) -> dict[str, Any]:
+def log_summary(run: CarRun) -> JsonObject:
     d = run.drive
     turned = np.degrees(d.poses[-1, 2] - d.poses[0, 2])
     return {

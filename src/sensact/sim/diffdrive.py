@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
-from typing import Any
 
 import numpy as np
 from scipy.signal import lfilter
@@ -42,6 +41,7 @@ from sensact.core.pose_models import landmark_bearing, landmark_distance, sensor
 from sensact.limits import steps_problem
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.wheel_drive import WHEEL_COMMAND_NAMES
+from sensact.records import JsonObject
 
 COMMAND_NAMES = ("v_mm_s", "omega_rad_s")
 SIDESTEP_COMMAND_NAMES = ("v_mm_s", "v_left_mm_s", "omega_rad_s")  # v_left: to the robot's left (ROS REP 103)
@@ -228,7 +228,7 @@ class DiffDriveConfig:
         a1, a2 = self.range_bearing_terms if self.reads_bearing else (0.0, 0.0)
         return self.range_gain * d + self.range_offset_mm + d * (a1 * b + a2 * b * b)
 
-    def truth(self) -> dict[str, Any]:
+    def truth(self) -> JsonObject:
         """What the simulated robot really is, for meta.json (scoring only, never learned from)."""
         return {
             "kind": "diffdrive",

@@ -25,6 +25,7 @@ import numpy as np
 from sensact.core.pose_models import apply_displacement, landmark_bearing, landmark_distance
 from sensact.limits import steps_problem
 from sensact.logs.landmark_log import LandmarkLog
+from sensact.records import JsonObject
 
 OMEGAS = (-0.5, -1.0 / 6.0, 0.0, 1.0 / 6.0, 0.5)  # sec. 4.4.1
 PSIS = tuple(k * np.pi / 4 for k in range(-3, 5))  # 0, ±pi/4, ±pi/2, ±3pi/4, pi
@@ -217,7 +218,7 @@ def simulate_field(config: Field2DConfig | None = None) -> Field2DRun:
 COMMAND_NAMES = ("a_x", "a_y", "a_theta")
 
 
-def log_tables(run: Field2DRun) -> dict[str, Any]:
+def log_tables(run: Field2DRun) -> JsonObject:
     """The log-folder tables of a run (DESIGN.md layout), ready for ``sensact.io.write_log_folder``."""
     cfg = run.config
     lm = np.asarray(cfg.landmarks_xy_mm, dtype=float)

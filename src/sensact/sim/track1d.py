@@ -15,7 +15,6 @@ The truth is deliberately not what a naive model assumes:
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from scipy.interpolate import PchipInterpolator
@@ -23,6 +22,7 @@ from scipy.signal import lfilter
 
 from sensact.limits import steps_problem
 from sensact.logs.landmark_log import LandmarkLog
+from sensact.records import JsonObject
 
 # A curve with the shape of Figure 3.8a: a small dead band (|c| <= 25 mm/s), near-unit gain at low speed,
 # and saturation near 175 mm/s, slightly faster forward than backward. Chosen so that the measured-model
@@ -69,7 +69,7 @@ class TrackTruth:
         h = np.asarray(height_px, dtype=float)
         return self.sensor_k_px_mm / (h - self.sensor_h0_px) - self.sensor_d0_mm
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonObject:
         return {
             "action": {
                 "kind": "pchip_knots",
@@ -85,7 +85,7 @@ class TrackTruth:
         }
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> TrackTruth:
+    def from_dict(cls, data: JsonObject) -> TrackTruth:
         a, s = data["action"], data["sensor"]
         return cls(tuple(a["c_mm_s"]), tuple(a["v_mm_s"]), float(s["k_px_mm"]), float(s["d0_mm"]), float(s["h0_px"]))
 
@@ -250,7 +250,7 @@ def simulate_track(config: Track1DConfig | None = None) -> TrackRun:
     return TrackRun(cfg, times, commands, heights, dist, vel)
 
 
-def log_tables(run: TrackRun) -> dict[str, Any]:
+def log_tables(run: TrackRun) -> JsonObject:
     """The log-folder tables of a run (DESIGN.md layout), ready for ``sensact.io.write_log_folder``."""
     from dataclasses import asdict
 

@@ -23,6 +23,7 @@ from sensact.cli.base import (
 )
 from sensact.cli.scores import evaluate_log, warn_if_one_command
 from sensact.outputs import BOOTSTRAP_MODEL
+from sensact.records import JsonObject
 
 
 @learn_app.command("bootstrap")
@@ -175,11 +176,11 @@ def _warn_if_one_way_at_takeover(data: Any, cfg: Any, start: float) -> str | Non
     return line
 
 
-def _flat(doc: Any, prefix: str = "") -> dict[str, Any]:
+def _flat(doc: Any, prefix: str = "") -> JsonObject:
     """A nested evaluation as one row per number (``sensor.rms_mm``)."""
     if not isinstance(doc, dict):
         return {prefix: doc} if prefix and not isinstance(doc, list) else {}
-    out: dict[str, Any] = {}
+    out: JsonObject = {}
     for k, v in doc.items():
         out |= _flat(v, f"{prefix}.{k}" if prefix else str(k))
     return out

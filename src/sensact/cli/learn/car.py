@@ -21,9 +21,10 @@ from sensact.cli.base import (
     write_result,
 )
 from sensact.outputs import CAR_MODEL
+from sensact.records import JsonObject
 
 
-def _learn(data: Any, cfg: Any, simulated: bool) -> tuple[Any, dict | None, list, dict[str, Any] | None]:
+def _learn(data: Any, cfg: Any, simulated: bool) -> tuple[Any, dict | None, list, JsonObject | None]:
     """Algorithm 3 on the log, or only its laser angles when it has no actions; what was learned is
     printed, and scored when the log is ``simulated``: ``(result, car dynamics or None, history,
     evaluation)``."""
@@ -66,7 +67,7 @@ def _learn(data: Any, cfg: Any, simulated: bool) -> tuple[Any, dict | None, list
     return res, model, history, evaluation
 
 
-def _angle_reference(data: Any, res: Any, simulated: bool) -> tuple[tuple[Any, str] | None, dict[str, Any] | None]:
+def _angle_reference(data: Any, res: Any, simulated: bool) -> tuple[tuple[Any, str] | None, JsonObject | None]:
     """What the figure draws the learned angles against (the factory's, turned by the mount, or a
     ``simulated`` log's truth), and the comparison with the factory calibration, printed."""
     import numpy as np
@@ -104,7 +105,7 @@ def _ros_calibration(data: Any, res: Any) -> Any:
     )
 
 
-def _calibration_doc(data: Any, res: Any) -> tuple[str, dict[str, Any]]:
+def _calibration_doc(data: Any, res: Any) -> tuple[str, JsonObject]:
     """The learned angles as the unit's own calibration format: a ROS velodyne calibration, or an OS-1's
     metadata fields (``beam_azimuth_angles`` = 90° - learned angle, the same mount convention)."""
     import yaml

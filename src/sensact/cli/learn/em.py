@@ -27,6 +27,7 @@ from sensact.cli.base import (
 )
 from sensact.cli.scores import print_em_model, print_scores, warn_if_one_command
 from sensact.outputs import EM_MODEL
+from sensact.records import JsonObject
 
 if TYPE_CHECKING:  # numpy is imported where a command needs it, so that --help stays quick
     import numpy as np
@@ -50,9 +51,7 @@ def _still_climbing(loglik: np.ndarray, best: int, max_iterations: int, patience
     )
 
 
-def learn_and_compare_halves(
-    res: Any, data: Any, cfg: Any, figure: Path | None = None, title: str = ""
-) -> dict[str, Any]:
+def learn_and_compare_halves(res: Any, data: Any, cfg: Any, figure: Path | None = None, title: str = "") -> JsonObject:
     """`learn em --halves`: each half of ``data`` learned on from ``res``'s model (learn/em/uses/split_halves.py),
     the three compared (evaluate/halves.py), printed and, given a ``figure`` path, drawn there; what the
     model JSON keeps of it."""
@@ -108,6 +107,7 @@ def learn_and_compare_halves(
 
 def _describe_fit(res: Any, cfg: Any) -> None:
     """How EM stopped and what its searches, gates and restarts did on the way."""
+    from sensact.records import to_json
     from sensact.report.tables_real import kept_run_cell, restart_runs_cell
 
     console.print(
@@ -124,10 +124,10 @@ def _describe_fit(res: Any, cfg: Any) -> None:
     if res.mount is not None and res.model.geometry.has_heading:
         console.print(f"sensor mount: {res.mount.describe()}", highlight=False)
     if res.start_moved:
-        first, again = res.start_moved["loglik"]
+        first, again = res.start_moved.loglik
         console.print(
             f"runs from the given start and from where EM moved it: log-likelihood {first:.1f} and {again:.1f}; "
-            f"kept the {'second' if res.start_moved['kept'] == 'again' else 'first'}"
+            f"kept the {'second' if res.start_moved.kept == 'again' else 'first'}"
         )
     if res.turned_to_face_forward:
         console.print(
@@ -142,32 +142,33 @@ def _describe_fit(res: Any, cfg: Any) -> None:
             "still counts in bearing. If there are many, --set joint_student_t=true lets its range discount the "
             "whole sighting (docs/em-real.md, section 2)."
         )
-    race = (res.start_search or {}).get("race")
+    race = res.start_search.race if res.start_search else None
     if res.stop_reason == "max_iterations":
-        raced = race["winner_iterations"] if race else 0
+        raced = race.winner_iterations if race else 0
         console.print(
             _still_climbing(
                 res.loglik_history, res.best_iteration, cfg.thesis.max_iterations, cfg.thesis.patience, raced
             )
         )
     if res.start_search:
-        x, y, th = res.start_search["prior_mean"]
-        which = f" (candidate {race['winner']} of {len(race['rounds'][0])} won the race)" if race else ""
+        x, y, th = res.start_search.prior_mean
+        which = f" (candidate {race.winner} of {len(race.rounds[0])} won the race)" if race else ""
         console.print(f"start pose chosen: x {x:.0f} mm, y {y:.0f} mm, heading {th:.3f} rad{which}")
     for r in res.ridge or []:
         console.print(
-            f"ridge search at iteration {r['iteration']}: path and f moved {r['shift_mm']:+.0f} mm forward, "
-            f"log-likelihood {r['loglik_before']:.1f} -> {r['loglik_after']:.1f} ({r['forward_passes']} forward passes)"
+            f"ridge search at iteration {r.iteration}: path and f moved {r.shift_mm:+.0f} mm forward, "
+            f"log-likelihood {r.loglik_before:.1f} -> {r.loglik_after:.1f} ({r.forward_passes} forward passes)"
         )
     for r in res.delay_search or []:
         console.print(
-            f"delay search at iteration {r['iteration']}: command delay {r['delay_from']} -> {r['delay_to']} steps, "
-            f"log-likelihood {r['loglik_before']:.1f} -> {r['loglik_after']:.1f} ({r['forward_passes']} forward passes)"
+            f"delay search at iteration {r.iteration}: command delay {r.delay_from} -> {r.delay_to} steps, "
+            f"log-likelihood {r.loglik_before:.1f} -> {r.loglik_after:.1f} ({r.forward_passes} forward passes)"
         )
     if res.restarts:
+        runs = to_json(res.restarts)
         console.print(
-            f"runs by start sigma, log-likelihood on the sightings all kept: {restart_runs_cell(res.restarts)}; "
-            f"kept the most likely, {kept_run_cell(res.restarts)}"
+            f"runs by start sigma, log-likelihood on the sightings all kept: {restart_runs_cell(runs)}; "
+            f"kept the most likely, {kept_run_cell(runs)}"
         )
 
 
@@ -354,7 +355,7 @@ def _events(opened: Any, preset: str | None, show: Any) -> Any:
     from sensact.learn.em.checks.lost_signs import describe_lost_fit
     from sensact.learn.em.progress import ConvergenceEta
 
-    cfg_of: dict[str, Any] = {}  # the settings, once read
+    cfg_of: JsonObject = {}  # the settings, once read
 
     def on_settings(settings: Any) -> None:
         cfg = cfg_of["cfg"] = settings.config

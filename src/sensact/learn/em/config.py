@@ -15,6 +15,7 @@ import numpy as np
 from sensact.errors import ConfigError
 from sensact.models.landmark_sensor import check_robust, student_t_params
 from sensact.models.linear_action import BASES
+from sensact.records import JsonObject
 
 ACTION_BASES = ("table", *BASES)
 MOTION_NOISE = ("fixed", "shared", "per_action", "turning")
@@ -318,12 +319,12 @@ class EMConfig:
         _check(problems)
 
     @staticmethod
-    def regroup(fields: Mapping[str, Any]) -> dict[str, Any]:
+    def regroup(fields: JsonObject) -> JsonObject:
         """``fields`` as the groups hold them: a flat name (``action_basis``) or a dotted one
         (``action.basis``) put under its group, a ``motion_noise`` given as a word read as its kind; a
         group given whole (a mapping or a settings value) kept, and merged with its single fields. Other
         names are left for ``config_from_dict`` to refuse, naming the nearest."""
-        out: dict[str, Any] = {}
+        out: JsonObject = {}
         singles: list[tuple[str, str, Any]] = []
         for key, value in fields.items():
             path = FLAT.get(key, key)
@@ -385,7 +386,7 @@ class EMConfig:
         return self.channels
 
 
-def upgrade_settings(fields: Mapping[str, Any]) -> dict[str, Any]:
+def upgrade_settings(fields: JsonObject) -> JsonObject:
     """Settings a model file keeps (``summary.config``), read as today's: a file written before the groups
     has flat names (``regroup`` reads them), and where one of ``ZERO_WAS_OFF`` was off it held 0, which is
     None now."""

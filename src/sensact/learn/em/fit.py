@@ -11,16 +11,15 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from dataclasses import replace as dc_replace
 from functools import partial
-from typing import Any
 
 import numpy as np
 
 from sensact.errors import ConfigError, LogFormatError
-from sensact.learn.em.checks.lost_signs import lost_fit_signs
+from sensact.learn.em.checks.lost_signs import LostSign, Unsettled, lost_fit_signs
 from sensact.learn.em.config import EMConfig, refuse_bearing_settings
 from sensact.learn.em.initial import initial_model
 from sensact.learn.em.loop import Progress, fit_em_once, held_trial, stage_loglik
-from sensact.learn.em.result import EMResult
+from sensact.learn.em.result import EMResult, HeadingRace, RestartRun, StartMoved
 from sensact.learn.em.searches.facing import FLIP, drives_backward, turned_model, turned_posteriors
 from sensact.learn.em.searches.given_start import start_moved_mm
 from sensact.learn.em.searches.start_race import OnTrial, race_starts
@@ -30,7 +29,7 @@ from sensact.models.em_model import EMModel
 __all__ = ["EMResult", "Progress", "fit_em", "fit_em_once"]
 
 # (restart number from 1, the last fit's signs of being lost (checks/lost_signs.lost_fit_signs), the new start sigmas)
-OnRestart = Callable[[int, list[dict[str, Any]], dict[str, float]], None]
+OnRestart = Callable[[int, list[LostSign], dict[str, float]], None]
 # (how far the given start moved, mm; the learned start EM runs again from) -> None
 OnStartMoved = Callable[[float, np.ndarray], None]
 # EM from a start, on a log and settings bound in: what every policy takes and gives
@@ -143,11 +142,11 @@ def restart_while_lost(fit: Fit, data: LandmarkLog, cfg: EMConfig, heard: Heard)
     return restarting
 
 
-def tighter_start(start: EMModel, signs: list[dict[str, Any]], factor: float) -> tuple[EMModel, set[str]]:
+def tighter_start(start: EMModel, signs: list[LostSign], factor: float) -> tuple[EMModel, set[str]]:
     """``start`` with the start sigma of each channel the signs name (every channel's when one names none,
     an unsettled fit) ``factor`` of its last (``restart_sigma_factor``), and those channels."""
-    turned = {t["channel"] for t in signs if "channel" in t}
-    if any("channel" not in t for t in signs):  # an unsettled fit names no channel: every one
+    turned = {t.channel for t in signs if not isinstance(t, Unsettled)}
+    if any(isinstance(t, Unsettled) for t in signs):  # an unsettled fit names no channel: every one
         turned = {ch.name for ch in start.sensor.channels}
     channels = tuple(
         dc_replace(ch, sigma=ch.sigma * factor) if ch.name in turned else ch for ch in start.sensor.channels
@@ -155,18 +154,12 @@ def tighter_start(start: EMModel, signs: list[dict[str, Any]], factor: float) ->
     return start.replace(sensor=dc_replace(start.sensor, channels=channels)), turned
 
 
-def _kept_run(runs: list[EMResult], turns: list[Any], sigmas: list[Any], data: LandmarkLog) -> EMResult:
+def _kept_run(
+    runs: list[EMResult], turns: list[list[LostSign]], sigmas: list[dict[str, float]], data: LandmarkLog
+) -> EMResult:
     best, scores = most_likely(runs, data)
     info = [
-        {
-            "start_sigma": sigmas[i],
-            "loglik": float(scores[i]),
-            "loglik_best": r.loglik_best,
-            "iterations": r.iterations,
-            "stop_reason": r.stop_reason,
-            "f_turns": turns[i],
-            "kept": i == best,
-        }
+        RestartRun(sigmas[i], float(scores[i]), r.loglik_best, r.iterations, r.stop_reason, tuple(turns[i]), i == best)
         for i, r in enumerate(runs)
     ]
     return dc_replace(runs[best], restarts=info, seconds=sum(r.seconds for r in runs))
@@ -194,17 +187,15 @@ def rerun_moved_start(fit: Fit, data: LandmarkLog, cfg: EMConfig, heard: Heard) 
         winner, race = race_starts(data, candidates, cfg, trial, on_trial=heard.on_race)
         again = fit(winner)
         best, scores = most_likely([res, again], data)
-        info = {
-            "given": start.prior_mean.tolist(),
-            "learned": res.model.prior_mean.tolist(),
-            "moved_mm": moved,
-            "heading_race": {
-                "winner": race["winner"],
-                "headings_rad": [float(h) for h in race_headings(start, len(candidates))],
-            },
-            "loglik": [float(s) for s in scores],
-            "kept": ["first", "again"][best],
-        }
+        headings = tuple(float(h) for h in race_headings(start, len(candidates)))
+        info = StartMoved(
+            tuple(start.prior_mean.tolist()),
+            tuple(res.model.prior_mean.tolist()),
+            moved,
+            HeadingRace(race.winner, headings),
+            tuple(float(s) for s in scores),
+            ("first", "again")[best],
+        )
         return dc_replace([res, again][best], start_moved=info, seconds=res.seconds + again.seconds)
 
     return rerun

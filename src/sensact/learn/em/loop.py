@@ -15,7 +15,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from dataclasses import replace as dc_replace
 from functools import partial
-from typing import Any
 
 import numpy as np
 
@@ -27,10 +26,10 @@ from sensact.learn.em.mount import MountFreedom, mount_freedom
 from sensact.learn.em.mstep import m_step
 from sensact.learn.em.policies.late_outliers import bearing_outliers
 from sensact.learn.em.result import EMResult
-from sensact.learn.em.searches.delay import search_delay
-from sensact.learn.em.searches.mount_search import search_mount
-from sensact.learn.em.searches.ridge import search_ridge
-from sensact.learn.em.searches.start_race import OnTrial, race_starts, start_candidates
+from sensact.learn.em.searches.delay import DelaySearch, search_delay
+from sensact.learn.em.searches.mount_search import MountSearch, search_mount
+from sensact.learn.em.searches.ridge import RidgeSearch, search_ridge
+from sensact.learn.em.searches.start_race import OnTrial, StartSearch, race_starts, start_candidates
 from sensact.learn.em.stage import HELD, NO_MOUNT, Stage, holds_anything, plan_stages
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
@@ -86,9 +85,9 @@ class _Searches:
     ridge_on: bool
     delay_on: bool
     mount_free: tuple[bool, bool, bool]
-    ridge: list[dict[str, Any]] = field(default_factory=list)
-    delay: list[dict[str, Any]] = field(default_factory=list)
-    mount: list[dict[str, Any]] = field(default_factory=list)
+    ridge: list[RidgeSearch] = field(default_factory=list)
+    delay: list[DelaySearch] = field(default_factory=list)
+    mount: list[MountSearch] = field(default_factory=list)
 
     @classmethod
     def for_fit(
@@ -111,13 +110,13 @@ class _Searches:
         score = partial(stage_loglik, data=self.data, obs_use=obs_use, robust=robust)
         if self.ridge_on:
             model, post, info = search_ridge(model, post, score, evaluate, self.cfg.search.ridge_mm)
-            self.ridge.append({"iteration": it, **info})
+            self.ridge.append(dc_replace(info, iteration=it))
         if self.delay_on:
             model, post, info = search_delay(model, post, score, evaluate, self.max_delay)
-            self.delay.append({"iteration": it, **info})
+            self.delay.append(dc_replace(info, iteration=it))
         if any(self.mount_free):  # due when the held stage ends and after: the mount is held before
             model, post, info = search_mount(model, post, score, evaluate, self.mount_free)
-            self.mount.append({"iteration": it, **info})
+            self.mount.append(dc_replace(info, iteration=it))
         return model, post
 
 
@@ -255,7 +254,7 @@ def run_stages(
     patience: int | None,
     prune: float | None,
     progress: Progress | None = None,
-    start_search: dict[str, Any] | None = None,
+    start_search: StartSearch | None = None,
     searches_on: bool = True,
 ) -> EMResult:
     """``em_loop`` from ``model`` through ``stages``, as an ``EMResult`` (``searches_on``: the searches as
@@ -311,7 +310,7 @@ def held_trial(data: LandmarkLog, model: EMModel, iterations: int, cfg: EMConfig
 
 def searched_start(
     data: LandmarkLog, model: EMModel, cfg: EMConfig, on_race: OnTrial | None
-) -> tuple[EMModel, dict[str, Any] | None, int]:
+) -> tuple[EMModel, StartSearch | None, int]:
     """Where the robot starts when nobody says (``searches/start_race.py``): the model placed there, what the search
     tried, and the held iterations the start race already gave the model (0 without a race)."""
     if not (cfg.search.start_s is not None and data.geometry.has_heading and not cfg.search.warm_start):
@@ -320,10 +319,9 @@ def searched_start(
     model, spent = candidates[0], 0
     if len(candidates) > 1:
         trial = partial(held_trial, cfg=cfg)
-        model, info["race"] = race_starts(data, candidates, cfg, trial, on_trial=on_race)
-        spent = info["race"]["winner_iterations"]  # before this fit's history begins
-    info["prior_mean"] = model.prior_mean.tolist()
-    return model, info, spent
+        model, race = race_starts(data, candidates, cfg, trial, on_trial=on_race)
+        info, spent = dc_replace(info, race=race), race.winner_iterations  # before this fit's history begins
+    return model, dc_replace(info, prior_mean=tuple(model.prior_mean.tolist())), spent
 
 
 def fit_em_once(

@@ -4,16 +4,53 @@ its searches, gates and restarts did."""
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
-from typing import Any
 
 import numpy as np
 
-from sensact.learn.em.checks.lost_signs import fall_per_sighting
+from sensact.learn.em.checks.lost_signs import LostSign, fall_per_sighting
 from sensact.learn.em.config import EMConfig
 from sensact.learn.em.estep import Posteriors
 from sensact.learn.em.mount import MountFreedom
+from sensact.learn.em.searches.delay import DelaySearch
+from sensact.learn.em.searches.mount_search import MountSearch
+from sensact.learn.em.searches.ridge import RidgeSearch
+from sensact.learn.em.searches.start_race import StartSearch
 from sensact.models.em_model import EMModel
+from sensact.records import JsonObject, to_json
 from sensact.reprs import compact_repr
+
+
+@dataclass(frozen=True)
+class RestartRun:
+    """One run of ``restart_while_lost``: its channels' start sigmas, its likelihood on the sightings every
+    run kept, its own best, how it ended, the signs that it lost the robot, and whether it was kept."""
+
+    start_sigma: dict[str, float]
+    loglik: float
+    loglik_best: float
+    iterations: int
+    stop_reason: str
+    f_turns: tuple[LostSign, ...]
+    kept: bool
+
+
+@dataclass(frozen=True)
+class HeadingRace:
+    winner: int
+    headings_rad: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class StartMoved:
+    """A range-only fit whose given start moved metres: the start, where EM put it, how far, the race of
+    headings there, both runs' likelihoods and which was kept (``"first"`` or ``"again"``)."""
+
+    given: tuple[float, ...]
+    learned: tuple[float, ...]
+    moved_mm: float
+    heading_race: HeadingRace
+    loglik: tuple[float, ...]
+    kept: str
 
 
 @dataclass(frozen=True, eq=False)
@@ -31,19 +68,19 @@ class EMResult:
     config: EMConfig
     posteriors: Posteriors | None = field(default=None, repr=False)  # of the best model
     motion_sd_history: np.ndarray | None = None  # (iterations, G, n) Sigma_m's standard deviations
-    start_search: dict[str, Any] | None = None  # what the start search tried and chose
+    start_search: StartSearch | None = None  # what the start search tried and chose
     freed_at: int = -1  # the iteration after which Sigma_m, the terms and robust readings were freed (-1: never held)
-    ridge: list[dict[str, Any]] | None = None  # each ridge search: its iteration, shift, likelihoods (searches/ridge)
-    delay_search: list[dict[str, Any]] | None = None  # each delay search: its iteration, delays, likelihoods
-    restarts: list[dict[str, Any]] | None = None  # each run while the fit looked lost (restart_while_lost)
+    ridge: list[RidgeSearch] | None = None  # each ridge search: its iteration, shift, likelihoods (searches/ridge)
+    delay_search: list[DelaySearch] | None = None  # each delay search: its iteration, delays, likelihoods
+    restarts: list[RestartRun] | None = None  # each run while the fit looked lost (restart_while_lost)
     n_pruned_when_freed: int = 0  # of n_pruned, those the gate dropped again when the robust readings took over
     # a range-only fit that ended facing backward, reported turned by pi (searches/facing.py; the same likelihood)
     turned_to_face_forward: bool = False
     # a range-only fit whose given start moved metres: the start, where EM put it, both runs' likelihoods
-    start_moved: dict[str, Any] | None = None
+    start_moved: StartMoved | None = None
     # which of the sensor mount's components the M-step learned, and why the rest were held (mount.py)
     mount: MountFreedom | None = None
-    mount_search: list[dict[str, Any]] | None = None  # each mount search (mount.search_mount)
+    mount_search: list[MountSearch] | None = None  # each mount search (mount.search_mount)
     stages: tuple[tuple[str, int], ...] = ()  # each stage EM ran (loop.Stage) and the iteration it began at
 
     @property
@@ -66,7 +103,7 @@ class EMResult:
         """The share of the log's sightings that the gates dropped (sec. 4.4.1's, and prune_when_freed's)."""
         return (self.n_observations - self.n_used) / self.n_observations if self.n_observations else 0.0
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> JsonObject:
         return {
             "iterations": self.iterations,
             "best_iteration": self.best_iteration,
@@ -79,17 +116,17 @@ class EMResult:
             "n_pruned_when_freed": self.n_pruned_when_freed,
             "pruned_fraction": self.pruned_fraction,
             "sensor_mount": None if self.mount is None else self.mount.to_dict(),
-            "mount_search": self.mount_search,
+            "mount_search": to_json(self.mount_search),
             # how far the likelihood fell on average after the best, per sighting used (checks/lost_signs.unsettled_fit)
             "fall_per_sighting": fall_per_sighting(self.loglik_history, self.best_iteration, self.n_used),
             "seconds": self.seconds,
-            "start_search": self.start_search,
+            "start_search": to_json(self.start_search),
             "freed_at": self.freed_at,
             "stages": [{"stage": name, "from_iteration": it} for name, it in self.stages],
-            "ridge": self.ridge,
-            "delay_search": self.delay_search,
-            "restarts": self.restarts,
+            "ridge": to_json(self.ridge),
+            "delay_search": to_json(self.delay_search),
+            "restarts": to_json(self.restarts),
             **({"turned_to_face_forward": True} if self.turned_to_face_forward else {}),
-            **({"start_moved": self.start_moved} if self.start_moved else {}),
+            **({"start_moved": to_json(self.start_moved)} if self.start_moved else {}),
             "config": asdict(self.config),
         }

@@ -15,7 +15,8 @@ has not settled anywhere (``unsettled_fit``).
 
 from __future__ import annotations
 
-from typing import Any
+from dataclasses import dataclass, field
+from typing import Any, Literal
 
 import numpy as np
 
@@ -32,6 +33,40 @@ LENGTH_SUFFIX = "_mm"  # a reading in the map's unit, as sensact names one (io/t
 # five robots and 1.1 on simulated ones; 3.2 on a simulated side-stepper held to no sideways mean
 # (docs/em-real.md, "A robot that can side-step")
 SIDEWAYS_NOISE_RATIO = 2.0
+
+
+@dataclass(frozen=True)
+class FunctionTurns:
+    """A channel's f turns over at ``turns_at_mm`` inside the ``distances_mm`` it was fitted on."""
+
+    channel: str
+    sign: Literal["turns"] = field(default="turns", init=False)
+    turns_at_mm: tuple[float, ...] = ()
+    distances_mm: tuple[float, float] = (0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class FunctionBends:
+    """A length-reading channel's f whose slope goes from ``slopes[0]`` to ``slopes[1]`` without turning."""
+
+    channel: str
+    sign: Literal["bends"] = field(default="bends", init=False)
+    slopes: tuple[float, float] = (0.0, 0.0)
+    distances_mm: tuple[float, float] = (0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class Unsettled:
+    """The iterations after the best fell far below it: EM did not settle (it names no channel)."""
+
+    sign: Literal["unsettled"] = field(default="unsettled", init=False)
+    best_iteration: int = 0
+    iterations_after: int = 0
+    mean_fall: float = 0.0
+    per_sighting: float = 0.0
+
+
+LostSign = FunctionTurns | FunctionBends | Unsettled
 
 
 def _fitted_distances(model: EMModel, post: Posteriors, data: LandmarkLog) -> list[tuple[Any, tuple[float, float]]]:
@@ -61,19 +96,17 @@ def fitted_distances(model: EMModel, post: Posteriors, data: LandmarkLog) -> lis
     return out
 
 
-def _turns(fitted: list[tuple[Any, tuple[float, float]]]) -> list[dict[str, Any]]:
-    turned = []
+def _turns(fitted: list[tuple[Any, tuple[float, float]]]) -> list[LostSign]:
+    turned: list[LostSign] = []
     for ch, (lo, hi) in fitted:
         turns = ch.function.turning_points(lo, hi)
         if turns.size:
-            turned.append(
-                {"channel": ch.name, "sign": "turns", "turns_at_mm": turns.tolist(), "distances_mm": [lo, hi]}
-            )
+            turned.append(FunctionTurns(ch.name, turns_at_mm=tuple(turns.tolist()), distances_mm=(lo, hi)))
     return turned
 
 
-def _bends(fitted: list[tuple[Any, tuple[float, float]]], bend_ratio: float) -> list[dict[str, Any]]:
-    bent = []
+def _bends(fitted: list[tuple[Any, tuple[float, float]]], bend_ratio: float) -> list[LostSign]:
+    bent: list[LostSign] = []
     for ch, (lo, hi) in fitted:
         if not ch.name.endswith(LENGTH_SUFFIX):
             continue
@@ -81,11 +114,11 @@ def _bends(fitted: list[tuple[Any, tuple[float, float]]], bend_ratio: float) -> 
         if least * greatest <= 0:  # it turns or goes flat: not a bend
             continue
         if max(abs(least), abs(greatest)) > bend_ratio * min(abs(least), abs(greatest)):
-            bent.append({"channel": ch.name, "sign": "bends", "slopes": [least, greatest], "distances_mm": [lo, hi]})
+            bent.append(FunctionBends(ch.name, slopes=(least, greatest), distances_mm=(lo, hi)))
     return bent
 
 
-def range_function_turns(model: EMModel, post: Posteriors, data: LandmarkLog) -> list[dict[str, Any]]:
+def range_function_turns(model: EMModel, post: Posteriors, data: LandmarkLog) -> list[LostSign]:
     """Each channel of a planar log whose learned f turns over inside the distances of the sightings it
     used (from the smoothed path): its name, the distances where it turns and the distances' span."""
     return _turns(_fitted_distances(model, post, data))
@@ -93,7 +126,7 @@ def range_function_turns(model: EMModel, post: Posteriors, data: LandmarkLog) ->
 
 def range_function_bends(
     model: EMModel, post: Posteriors, data: LandmarkLog, bend_ratio: float = SearchSettings.lost_bend_ratio
-) -> list[dict[str, Any]]:
+) -> list[LostSign]:
     """Each channel of a planar log that reads a length in the map's unit (its name ends in ``_mm``)
     whose learned f's slope over the distances of the sightings it used (from the smoothed path) changes
     by more than ``bend_ratio`` times (``SearchSettings.lost_bend_ratio``) without turning over: its name, the
@@ -119,22 +152,17 @@ def fall_per_sighting(loglik_history: np.ndarray, best_iteration: int, n_used: i
 
 def unsettled_fit(
     loglik_history: np.ndarray, best_iteration: int, n_used: int, limit: float = SearchSettings.lost_fall_per_sighting
-) -> list[dict[str, Any]]:
-    """``[{"sign": "unsettled", ...}]`` when the iterations after the best fell on average more than
+) -> list[LostSign]:
+    """``[Unsettled(...)]`` when the iterations after the best fell on average more than
     ``limit`` log-units per sighting used below the best's likelihood
     (``fall_per_sighting``; the sign holds the best iteration, how many followed it, the mean fall and the
     fall per sighting); else ``[]``, also when no iteration followed the best."""
     per = fall_per_sighting(loglik_history, best_iteration, n_used)
     if per is None or per <= limit:
         return []
+    after = int(np.size(loglik_history) - best_iteration - 1)
     return [
-        {
-            "sign": "unsettled",
-            "best_iteration": int(best_iteration),
-            "iterations_after": int(np.size(loglik_history) - best_iteration - 1),
-            "mean_fall": per * n_used,
-            "per_sighting": per,
-        }
+        Unsettled(best_iteration=int(best_iteration), iterations_after=after, mean_fall=per * n_used, per_sighting=per)
     ]
 
 
@@ -145,7 +173,7 @@ def lost_fit_signs(
     loglik_history: np.ndarray | None = None,
     best_iteration: int = 0,
     config: EMConfig | None = None,
-) -> list[dict[str, Any]]:
+) -> list[LostSign]:
     """Every channel whose f turns over (``sign`` "turns") or bends ("bends") within its fitted
     distances, and with the fit's ``loglik_history`` on a planar log, ``unsettled_fit``'s sign (it names
     no channel): the signs, without ground truth, that EM lost the robot, by ``config``'s thresholds
@@ -159,16 +187,16 @@ def lost_fit_signs(
     return signs
 
 
-def describe_lost_fit(signs: list[dict[str, Any]], advice: bool = True) -> str:
+def describe_lost_fit(signs: list[LostSign], advice: bool = True) -> str:
     """One line for the user: which f turned over or bent where, what it likely means and (``advice``)
     what to try."""
     parts = [_describe_sign(t) for t in signs]
     why = []
-    if any(t["sign"] == "turns" for t in signs):
+    if any(isinstance(t, FunctionTurns) for t in signs):
         why.append("A range sensor's f does not turn")
-    if any(t["sign"] == "bends" for t in signs):
+    if any(isinstance(t, FunctionBends) for t in signs):
         why.append("A reading in the map's unit may be off by a scale, but not by one that changes with distance")
-    if any(t["sign"] == "unsettled" for t in signs):
+    if any(isinstance(t, Unsettled) for t in signs):
         why.append("EM at a model that fits the log moves little from it")
     line = "warning: " + "; ".join(parts) + ". " + "; ".join(why) + ": EM has probably lost the robot"
     if not advice:
@@ -180,17 +208,17 @@ def describe_lost_fit(signs: list[dict[str, Any]], advice: bool = True) -> str:
     )
 
 
-def _describe_sign(t: dict[str, Any]) -> str:
-    if t["sign"] == "unsettled":
+def _describe_sign(t: LostSign) -> str:
+    if isinstance(t, Unsettled):
         return (
-            f"in the {t['iterations_after']} iterations after its best one ({t['best_iteration']}) EM's "
-            f"log-likelihood stayed on average {t['mean_fall']:.0f} below the best ({t['per_sighting']:.2f} a sighting)"
+            f"in the {t.iterations_after} iterations after its best one ({t.best_iteration}) EM's "
+            f"log-likelihood stayed on average {t.mean_fall:.0f} below the best ({t.per_sighting:.2f} a sighting)"
         )
-    if t["sign"] == "turns":
-        shape = f"{t['channel']}'s f turns over at {', '.join(f'{x:.0f}' for x in t['turns_at_mm'])} mm"
+    if isinstance(t, FunctionTurns):
+        shape = f"{t.channel}'s f turns over at {', '.join(f'{x:.0f}' for x in t.turns_at_mm)} mm"
     else:
-        shape = f"{t['channel']}'s f has slopes from {t['slopes'][0]:.2f} to {t['slopes'][1]:.2f} mm per mm"
-    return shape + f", inside the {t['distances_mm'][0]:.0f}-{t['distances_mm'][1]:.0f} mm it was fitted on"
+        shape = f"{t.channel}'s f has slopes from {t.slopes[0]:.2f} to {t.slopes[1]:.2f} mm per mm"
+    return shape + f", inside the {t.distances_mm[0]:.0f}-{t.distances_mm[1]:.0f} mm it was fitted on"
 
 
 def held_sideways_noise(model: EMModel, motion_noise: str) -> dict[str, float] | None:

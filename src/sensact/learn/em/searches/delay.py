@@ -16,7 +16,7 @@ keeps the most likely delay, whose E-step it then runs whole. It never lowers th
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -32,6 +32,18 @@ def with_delay(model: EMModel, delay_steps: int) -> EMModel:
     return model.replace(action=action.with_coefficients(action.coefficients, int(delay_steps)))
 
 
+@dataclass(frozen=True)
+class DelaySearch:
+    """One delay search: the delay before and after (steps), the likelihood before and after, its cost."""
+
+    iteration: int = field(default=-1, kw_only=True)  # the EM iteration it ran after (-1: on its own)
+    delay_from: int
+    delay_to: int
+    loglik_before: float
+    loglik_after: float
+    forward_passes: int
+
+
 def search_delay(
     model: EMModel,
     post: Posteriors,
@@ -39,7 +51,7 @@ def search_delay(
     evaluate: Callable[[EMModel], Posteriors],
     max_delay: int,
     stride: int = COARSE_STRIDE,
-) -> tuple[EMModel, Posteriors, dict[str, Any]]:
+) -> tuple[EMModel, Posteriors, DelaySearch]:
     """The delay in ``0..max_delay`` whose likelihood (``loglik``, the forward pass) is the highest, with
     the model and its E-step (``evaluate``); ``model`` and ``post`` themselves when no other delay is
     more likely."""
@@ -59,18 +71,12 @@ def search_delay(
     best = max(tried, key=score)
     if score(best) <= score(current):
         best = current
-    info = {
-        "delay_from": current,
-        "delay_to": best,
-        "loglik_before": float(post.loglik),
-        "loglik_after": float(tried[best]),
-        "forward_passes": len(tried) - 1,  # the kept delay is then smoothed once
-    }
+    passes = len(tried) - 1  # the kept delay is then smoothed once
+    info = DelaySearch(current, best, float(post.loglik), float(tried[best]), passes)
     if best == current:
         return model, post, info
     moved = with_delay(model, best)
     kept = evaluate(moved)
     if not kept.ok:  # its forward pass ran, its smoother did not: stay
-        info["delay_to"], info["loglik_after"] = current, float(post.loglik)
-        return model, post, info
+        return model, post, DelaySearch(current, current, float(post.loglik), float(post.loglik), passes)
     return moved, kept, info

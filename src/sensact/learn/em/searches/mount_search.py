@@ -4,12 +4,14 @@ update of the mount is ``learn/em/mount.py``)."""
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from sensact.learn.em.mount import remounted
 from sensact.models.em_model import EMModel
+from sensact.models.landmark_sensor import SensorMount
 
 # the mount search (``search_mount``): each component's bracket about its current value, and how closely
 # the search pins it; a forward pass is about a quarter of an E-step
@@ -22,13 +24,25 @@ SEARCH_TOLERANCE = (2.0, 2.0, 5e-4)
 SEARCH_ROUNDS = 2  # over the free components, since they trade against each other a little
 
 
+@dataclass(frozen=True)
+class MountSearch:
+    """One mount search: the mount and the likelihood before and after, its cost."""
+
+    iteration: int = field(default=-1, kw_only=True)  # the EM iteration it ran after (-1: on its own)
+    mount_before: SensorMount
+    loglik_before: float
+    mount_after: SensorMount
+    loglik_after: float
+    forward_passes: int
+
+
 def search_mount(
     model: EMModel,
     post: Any,
     loglik: Callable[[EMModel], float],
     evaluate: Callable[[EMModel], Any],
     free: tuple[bool, bool, bool],
-) -> tuple[EMModel, Any, dict[str, Any]]:
+) -> tuple[EMModel, Any, MountSearch]:
     """The free components of the mount moved, one at a time, to where the E-step's own
     ``log P(O | C, lambda)`` (its forward pass, ``loglik``) is highest, by scipy's bounded scalar search
     within ``SEARCH_HALF_WIDTH`` of their value; a move is kept only if the likelihood rises.
@@ -43,7 +57,7 @@ def search_mount(
 
     start = model
     best_ll = post.loglik if post.ok and np.isfinite(post.loglik) else -np.inf
-    info: dict[str, Any] = {"mount_before": model.sensor.mount.to_dict(), "loglik_before": float(post.loglik)}
+    before, loglik_before = model.sensor.mount, float(post.loglik)
     passes = 0
     for _ in range(SEARCH_ROUNDS):
         moved_any = False
@@ -76,7 +90,4 @@ def search_mount(
             post = kept
         else:
             model = start
-    info.update(
-        {"mount_after": model.sensor.mount.to_dict(), "loglik_after": float(post.loglik), "forward_passes": passes}
-    )
-    return model, post, info
+    return model, post, MountSearch(before, loglik_before, model.sensor.mount, float(post.loglik), passes)

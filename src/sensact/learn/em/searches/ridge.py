@@ -20,8 +20,7 @@ when nothing is held), because EM keeps sliding back along the ridge between sea
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import replace
-from typing import Any
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import minimize_scalar
@@ -49,27 +48,39 @@ def shifted_forward(model: EMModel, delta_mm: float) -> EMModel:
     return model.replace(sensor=model.sensor.with_fits(fits, model.sensor.sigma_bearing_rad), prior_mean=prior)
 
 
+@dataclass(frozen=True)
+class RidgeSearch:
+    """One ridge search: how far it moved the path forward, the likelihood before and after, its cost."""
+
+    iteration: int = field(default=-1, kw_only=True)  # the EM iteration it ran after (-1: on its own)
+    shift_mm: float
+    loglik_before: float
+    forward_passes: int
+    expansions: int  # how many times the bracket was moved on from its edge
+    loglik_after: float
+
+
 def search_ridge(
     model: EMModel,
     post: Posteriors,
     loglik: Callable[[EMModel], float],
     evaluate: Callable[[EMModel], Posteriors],
     half_width_mm: float,
-) -> tuple[EMModel, Posteriors, dict[str, Any]]:
+) -> tuple[EMModel, Posteriors, RidgeSearch]:
     """The model along the ridge through ``model`` (whose E-step gave ``post``) with the highest
     likelihood found, and its E-step; ``model`` and ``post`` themselves when no shift raises the
     likelihood. Each bracket is ``+-half_width_mm`` about the last move. ``loglik`` scores a shifted model
     (the forward pass of the loop's current stage); ``evaluate`` runs the whole E-step on the one kept."""
-    info = {"shift_mm": 0.0, "loglik_before": float(post.loglik), "forward_passes": 0, "expansions": 0}
+    shift, passes, expansions, before = 0.0, 0, 0, float(post.loglik)
     start_model, best_ll = model, post.loglik if post.ok and np.isfinite(post.loglik) else -np.inf
     for expansion in range(MAX_EXPANSIONS + 1):
-        best, best_ll, passes = _bracket_search(model, best_ll, loglik, half_width_mm)
-        info["forward_passes"] += passes
+        best, best_ll, n = _bracket_search(model, best_ll, loglik, half_width_mm)
+        passes += n
         if best == 0.0:
             break
         model = shifted_forward(model, best)
-        info["shift_mm"] += best
-        info["expansions"] = expansion
+        shift += best
+        expansions = expansion
         if abs(best) < half_width_mm - 2 * RIDGE_TOLERANCE_MM:  # inside the bracket: the peak
             break
     if model is not start_model:
@@ -77,9 +88,8 @@ def search_ridge(
         if kept.ok:
             post = kept
         else:  # its forward pass ran, its smoother did not: stay
-            model, info["shift_mm"] = start_model, 0.0
-    info["loglik_after"] = float(post.loglik)
-    return model, post, info
+            model, shift = start_model, 0.0
+    return model, post, RidgeSearch(shift, before, passes, expansions, float(post.loglik))
 
 
 def _bracket_search(

@@ -27,6 +27,7 @@ import math
 import os
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -37,12 +38,42 @@ from sensact.learn.em.config import EMConfig
 from sensact.learn.em.estep import log_likelihood
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
+from sensact.records import omit_when
 
 MIN_OBSERVATIONS = 10  # the window grows until it holds this many sightings
 DISTINCT_CELLS = 2.5  # candidates closer than this many grid cells are one candidate
 
 
-def start_candidates(data: LandmarkLog, model: EMModel, config: EMConfig) -> tuple[list[EMModel], dict[str, Any]]:
+@dataclass(frozen=True)
+class StartCandidate:
+    prior_mean: tuple[float, ...]  # x mm, y mm, heading rad
+    window_loglik: float  # the forward likelihood of the first seconds from it
+
+
+@dataclass(frozen=True)
+class Race:
+    """A race of starts: each round's likelihood by candidate (its index as a string), the winner, and the
+    held iterations it ran."""
+
+    rounds: tuple[dict[str, float], ...]
+    winner: int
+    winner_iterations: int
+
+
+@dataclass(frozen=True)
+class StartSearch:
+    """What the start search tried and chose: the grid, its window, the distinct best candidates, their race
+    (with more than one) and the start EM took."""
+
+    grid_points: int
+    window_steps: int
+    first_sighting_step: int
+    candidates: tuple[StartCandidate, ...]
+    race: Race | None = omit_when(None, default=None)
+    prior_mean: tuple[float, ...] = ()
+
+
+def start_candidates(data: LandmarkLog, model: EMModel, config: EMConfig) -> tuple[list[EMModel], StartSearch]:
     """Up to ``config.search.start_candidates`` models with distinct ``pi(w_0)``, best window likelihood first."""
     first = np.flatnonzero(np.isfinite(data.obs_bearing_rad))
     if not data.geometry.has_heading or first.size == 0 or len(data.landmarks_xy) == 0:
@@ -88,12 +119,12 @@ def start_candidates(data: LandmarkLog, model: EMModel, config: EMConfig) -> tup
             chosen.append((ll, mean))
         if len(chosen) == config.search.start_candidates:
             break
-    info = {
-        "grid_points": len(scored),
-        "window_steps": window.n_steps,
-        "first_sighting_step": int(data.obs_step[k0]),
-        "candidates": [{"prior_mean": m.tolist(), "window_loglik": float(ll)} for ll, m in chosen],
-    }
+    info = StartSearch(
+        len(scored),
+        window.n_steps,
+        int(data.obs_step[k0]),
+        tuple(StartCandidate(tuple(m.tolist()), float(ll)) for ll, m in chosen),
+    )
     return [model.replace(prior_mean=m, prior_cov=cov) for _, m in chosen], info
 
 
@@ -153,7 +184,7 @@ def race_starts(
     run: RunTrial,
     workers: int | None = None,
     on_trial: OnTrial | None = None,
-) -> tuple[EMModel, dict[str, Any]]:
+) -> tuple[EMModel, Race]:
     """The candidate whose held EM reaches the highest whole-log likelihood, as its model after the
     race, and the race: each round's scores, the winner and its iterations. The field is halved every
     ``start_trial_iterations`` until two are left, and the better of those wins. ``workers`` threads
@@ -198,4 +229,4 @@ def race_starts(
                 break
             alive = ranked[: math.ceil(len(ranked) / 2)]
     winner = ranked[0]
-    return models[winner], {"rounds": rounds, "winner": winner, "winner_iterations": spent[winner]}
+    return models[winner], Race(tuple(rounds), winner, spent[winner])

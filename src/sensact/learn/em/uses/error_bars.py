@@ -33,6 +33,7 @@ import numpy as np
 from sensact.learn.em.config import EMConfig
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
+from sensact.records import JsonObject
 
 LEVEL = 0.90
 Z = 1.6448536269514722  # the standard normal's 95th percentile: a two-sided 90 % interval
@@ -119,7 +120,7 @@ class Parameter:
         """Whether the interval holds ``truth`` (None for a held parameter)."""
         return None if self.interval is None else bool(self.interval[0] <= truth <= self.interval[1])
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonObject:
         return {
             "family": self.family,
             "value": self.value,
@@ -145,7 +146,7 @@ class Uncertainty:
     def by_name(self) -> dict[str, Parameter]:
         return {p.name: p for p in self.parameters}
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonObject:
         """The model JSON's ``uncertainty`` (its key names are fixed: checks read them)."""
         return {
             "method": "parametric bootstrap",
@@ -182,10 +183,10 @@ def summarize(
     return Uncertainty(len(draws), len(used), seed, tuple(float(d) for d in f_at), tuple(params), failed)
 
 
-def coverage(fits: Sequence[tuple[Uncertainty, Mapping[str, float]]]) -> dict[str, dict[str, Any]]:
+def coverage(fits: Sequence[tuple[Uncertainty, Mapping[str, float]]]) -> dict[str, JsonObject]:
     """Per family, over fits each with the true parameters: how many intervals hold the truth, of how many
     (held parameters left out), and the share."""
-    out: dict[str, dict[str, Any]] = {}
+    out: dict[str, JsonObject] = {}
     for family in FAMILIES:
         held = total = 0
         for unc, truth in fits:

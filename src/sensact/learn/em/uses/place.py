@@ -28,7 +28,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -41,6 +40,7 @@ from sensact.learn.em.fit import refuse_no_sightings
 from sensact.learn.em.searches.start_race import DISTINCT_CELLS, search_grid, search_window, start_candidates
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
+from sensact.records import JsonObject
 from sensact.reprs import compact_repr
 
 SEARCH_WINDOW_S = 30.0  # the planar start search's window when the config sets none (MRCLAM's setting)
@@ -65,14 +65,14 @@ class Localized:
     __repr__ = compact_repr  # a line, never the arrays
     model: EMModel  # the learned model, with the start it was run from as its prior
     posteriors: Posteriors
-    start: dict[str, Any]  # how the start was found, and every candidate's log-likelihood
+    start: JsonObject  # how the start was found, and every candidate's log-likelihood
 
     @property
     def loglik_per_sighting(self) -> float:
         return self.posteriors.loglik / max(self.posteriors.n_used, 1)
 
 
-def learned_config(learned: Mapping[str, Any] | None, source: str = "model") -> EMConfig:
+def learned_config(learned: JsonObject | None, source: str = "model") -> EMConfig:
     """The settings to place the robot with: ``LEARNED_SETTINGS`` from the config the model was learned
     with (``learned``, a model.json's ``summary.config``; None for a model written without one), the
     defaults for the rest: the E-step takes everything else (the channels, their windows, the robust
