@@ -1,5 +1,5 @@
 """`sensact monitor`: the change test (core/changepoint.py) and the filter's scores it reads
-(learn/em/uses/change_test.py), by the ladder: exact reductions, Monte Carlo references, seeded recovery of sec.
+(learn/em/uses/change_detect.py), by the ladder: exact reductions, Monte Carlo references, seeded recovery of sec.
 4.4.3's slowdown, and a real robot with its own model."""
 
 from __future__ import annotations
@@ -143,7 +143,7 @@ def slowdown():
 
 
 def test_monitor_flags_sec_4_4_3s_slowdown_within_30_s_and_nothing_without_it(slowdown):
-    from sensact.learn.em.uses.change_test import monitor_placed
+    from sensact.learn.em.uses.change_detect import monitor_placed
 
     sim, changed, steady, model, learner = slowdown
     _, res = monitor_placed(model, changed, learner)
@@ -218,7 +218,7 @@ def test_a_planar_robot_learned_on_one_run_is_flagged_when_its_motors_wear_on_an
     run; on another run its motors give 3/4 of every velocity from 150 s (``change_at_s``): the action
     model is named within 30 s; the same run without the change raises no alarm."""
     from sensact.learn.em import fit_em
-    from sensact.learn.em.uses.change_test import monitor_placed
+    from sensact.learn.em.uses.change_detect import monitor_placed
     from sensact.presets import simulator_settings
     from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 

@@ -11,7 +11,7 @@ import numpy as np
 from sensact.app.calibrate import Calibration, FitEvents, calibrate, learned_settings
 from sensact.app.logs import OpenedLog, read_model_and_log
 from sensact.health import Health, filter_failed, learned_health
-from sensact.learn.em.uses.change_test import MonitorConfig, MonitorResult, monitor_placed
+from sensact.learn.em.uses.change_detect import MonitorConfig, MonitorResult, monitor_placed
 from sensact.learn.em.uses.place import learned_config
 from sensact.models.em_model import EMModel
 from sensact.records import JsonObject

@@ -1,4 +1,4 @@
-"""``sensact monitor``: has the robot changed since its model was learned? (learn/em/uses/change_test.py)"""
+"""``sensact monitor``: has the robot changed since its model was learned? (learn/em/uses/change_detect.py)"""
 
 from __future__ import annotations
 
@@ -66,7 +66,7 @@ def monitor_cmd(
     check_out_file(relearn, "--relearn", others={"--out": out, "--model": model}, kind=EM_MODEL, force=force)
     from sensact.app.monitor import monitor_log
     from sensact.health import Health
-    from sensact.learn.em.uses.change_test import MonitorConfig
+    from sensact.learn.em.uses.change_detect import MonitorConfig
 
     cfg = layered_config(MonitorConfig, config, set_, false_alarm=false_alarm, bin_s=bin_s)
     mon = monitor_log(log, model, cfg, bins=bins)

@@ -306,7 +306,7 @@ def _reproduce_monitor(
     --config give the monitor's fields (docs/monitor.md)."""
     from sensact.experiments.monitor import MonitorExperiment, run_monitor_experiment
     from sensact.experiments.real import mrclam_folder
-    from sensact.learn.em.uses.change_test import MonitorConfig
+    from sensact.learn.em.uses.change_detect import MonitorConfig
     from sensact.report.figures_monitor import figure_monitor
 
     fields, _ = split_fields(set_, config, MonitorConfig)

@@ -29,7 +29,7 @@ from sensact.engine import Engine, InProcess, Job
 from sensact.evaluate.bars import BarCheck
 from sensact.experiments.em1d import EM1D_TRACK, EM1DExperiment, true_velocities
 from sensact.learn.em import EMConfig, fit_em, initial_model
-from sensact.learn.em.uses.change_test import MonitorConfig, MonitorResult, monitor_placed
+from sensact.learn.em.uses.change_detect import MonitorConfig, MonitorResult, monitor_placed
 from sensact.records import JsonObject
 from sensact.sim.track1d import Track1DConfig, simulate_track, to_landmark_log
 

@@ -14,6 +14,7 @@ from typing import IO, Any
 import numpy as np
 
 from sensact.core.geometry import Geometry
+from sensact.records import to_json
 
 
 def _process_umask() -> int:
@@ -96,14 +97,13 @@ def write_bytes(path: str | Path, data: bytes) -> Path:
 
 
 def _jsonable(obj: Any) -> Any:
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, Path):
-        return str(obj)
+    """What ``json`` cannot write itself: numpy values, paths and records (``records.to_json``), a geometry
+    by its name."""
     if isinstance(obj, Geometry):
         return obj.name
+    out = to_json(obj)
+    if out is not obj:
+        return out
     raise TypeError(f"not JSON serializable: {type(obj).__name__}")
 
 

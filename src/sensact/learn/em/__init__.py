@@ -11,7 +11,7 @@ Beyond the thesis, for real logs, four rooms:
 * ``searches/``: moves along the likelihood's ridges (start, ridge, delay, mount, facing);
 * ``policies/``: how a fit starts and stays clean (warm start, late outliers);
 * ``checks/``: what a finished fit says about itself (lost signs, health);
-* ``uses/``: a learned model put to use (place, change test, halves, error bars).
+* ``uses/``: a learned model put to use (place, change detection, halves, error bars).
 """
 
 from sensact.learn.em.config import EMConfig

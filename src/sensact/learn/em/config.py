@@ -173,7 +173,16 @@ class RobustSettings:
 @dataclass(frozen=True)
 class SearchSettings:
     """The held stage, the searches and the restarts: directions EM climbs too slowly itself, and the signs
-    that it lost the robot (docs/em-real.md; each measured in docs/em-real.md)."""
+    that it lost the robot (docs/em-real.md; each measured in docs/em-real.md). By the part of the loop
+    each steers (the fields keep their order and flat names: they are the keys of every settings file
+    and of each model.json's ``config``):
+
+    * the stages (``stage.py``): ``refine_from``, ``warm_start``;
+    * the start (``searches/start_race.py``, ``searches/given_start.py``): ``start_s``, ``start_grid_mm``,
+      ``start_candidates``, ``start_trial_iterations``, ``moved_start_sds``, ``moved_start_headings``;
+    * the ridge, delay and mount searches (``searches/``): ``ridge_mm``, ``delay``, ``every``;
+    * the signs of a lost fit (``checks/lost_signs.py``): ``lost_bend_ratio``, ``lost_fall_per_sighting``;
+    * the restarts they start (``fit.py``): ``turn_restarts``, ``restart_sigma_factor``."""
 
     # a learned Sigma_m, the channels' bearing terms, the mount and the robust readings are held before this
     # iteration, or until EM has converged without them: learned from a poor start, they let EM settle on a
