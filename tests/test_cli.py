@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
 
 import pytest
 import typer
@@ -838,14 +839,20 @@ def test_learn_em_starts_from_a_model_learned_on_another_robot_of_its_kind(tmp_p
     # (log-likelihood -2188.3); from a's model 0.39 % and 0.77 % (-1903.7, 52 iterations against 198)
     assert b["evaluation"]["gain_error_pct"] < 1.0, b["evaluation"]
     assert b["evaluation"]["sensors"]["sonar1"]["rms_pct_of_span"] < 1.5
-    # from a's own model on a's own run EM starts where it ended: the same fit (written over a's, without
-    # --halves, so that the earlier run's halves figure goes: it would pass for this fit's)
+    # from a's own model on a's own run EM starts where it ended: the same fit (never written over the model
+    # it starts from; without --halves, over an earlier run's files whose halves figure goes: it would pass
+    # for this fit's)
+    again, again_png = tmp_path / "again.json", tmp_path / "again_halves.png"
+    shutil.copy(ma, again)
+    shutil.copy(halves_png, again_png)
     res = runner.invoke(app, ["learn", "em", str(tmp_path / "a.csv"), "--start-from", str(ma), "--out", str(ma)])
+    assert res.exit_code == 2 and "--out and --start-from are both" in " ".join(res.output.split())
+    res = runner.invoke(app, ["learn", "em", str(tmp_path / "a.csv"), "--start-from", str(ma), "--out", str(again)])
     assert_written(res)
-    assert not halves_png.exists() and f"removed {halves_png}, an earlier run's --halves figure" in " ".join(
+    assert not again_png.exists() and f"removed {again_png}, an earlier run's --halves figure" in " ".join(
         res.output.split()
     )
-    c = json.loads(ma.read_text())
+    c = json.loads(again.read_text())
     assert c["summary"]["loglik_best"] == pytest.approx(a["summary"]["loglik_best"], abs=2.0)
     assert c["evaluation"]["gain_learned"] == pytest.approx(a["evaluation"]["gain_learned"], rel=2e-3)
     assert np.allclose(c["model"]["prior_mean"], a["model"]["prior_mean"], atol=5.0)

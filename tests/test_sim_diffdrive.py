@@ -324,6 +324,7 @@ def test_simulate_diffdrive_then_learn_em_scores_against_the_simulation(tmp_path
         assert float(np.median(off)) == pytest.approx(ev["path"]["median_raw_mm"], rel=1e-9)
     scored = json.loads((tmp_path / "e.json").read_text())
     assert scored.pop("sensact_version") == doc["sensact_version"] == sensact.__version__  # each file names its code
+    assert scored.pop("sensact_output") == "evaluation"  # and what it is
     assert next(iter(doc)) == "sensact_version"
     # learn em also scores its path (a bar) and its pruning, which `evaluate log` has no fit for
     unscored = {k: v for k, v in ev.items() if k not in ("path", "pruned_fraction")}
