@@ -1,8 +1,8 @@
 """Robot families by state space: what a pose is, how it moves, how far a landmark is from it.
 
 A ``Geometry`` owns its state size and names, the robot-frame velocities its action models give, the
-thesis's fixed motion noise for it, how a displacement moves a pose (eq. 2.28) and the distance to a
-landmark. ``has_heading`` answers every question a heading raises: bearings, a sensor's mount, turns,
+thesis's fixed motion noise for it, how a displacement moves a pose (eq. 2.28) and the distance from its
+sensor to a landmark. ``has_heading`` answers every question a heading raises: bearings, a sensor's mount, turns,
 sideways slip; ``state_is_range`` says the state is the distance itself. Adding a family is one subclass
 here (or in a module of its own) and ``register``; the compiled E-step kernels switch on ``mode``.
 
@@ -26,7 +26,6 @@ class Geometry:
     thesis_motion_sd: ClassVar[tuple[float, ...]]  # Sigma_m per step (sec. 4.4.1)
     has_heading: ClassVar[bool]  # bearings, a mount, turns and sideways slip exist
     state_is_range: ClassVar[bool]  # the state is the distance the sensor reads (no map to place it on)
-    description: ClassVar[str]
 
     @property
     def n(self) -> int:
@@ -41,9 +40,6 @@ class Geometry:
 
     def relative_displacement(self, w1: np.ndarray, w2: np.ndarray) -> np.ndarray:
         return pm.relative_displacement(w1, w2, self.mode)
-
-    def landmark_distance(self, poses: np.ndarray, landmark_xy: np.ndarray) -> np.ndarray:
-        return pm.landmark_distance(poses, landmark_xy, self.mode)
 
     def sensor_distance(self, poses: np.ndarray, landmark_xy: np.ndarray, mount: np.ndarray) -> np.ndarray:
         return pm.sensor_distance(poses, landmark_xy, mount, self.mode)
@@ -74,7 +70,6 @@ class Planar(Geometry):
     thesis_motion_sd = (10.0, 10.0, 0.1)
     has_heading = True
     state_is_range = False
-    description = "planar"
 
 
 class Track(Geometry):
@@ -87,7 +82,6 @@ class Track(Geometry):
     thesis_motion_sd = (10.0,)
     has_heading = False
     state_is_range = True
-    description = "1-D"
 
 
 PLANAR = Planar()
