@@ -9,7 +9,7 @@ it from a log folder; simulators and experiments build it directly.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -150,6 +150,15 @@ class LandmarkLog:
     @property
     def mode(self) -> int:
         return self.geometry.mode
+
+    @property
+    def map_given(self) -> np.ndarray:
+        """(L,) bool: landmarks whose position the log gives (a surveyed map); the rest EM learns."""
+        return np.isfinite(self.landmarks_xy).all(axis=1)
+
+    def with_landmarks(self, landmarks_xy: np.ndarray) -> LandmarkLog:
+        """The same log on another map (EM's learned one)."""
+        return replace(self, landmarks_xy=landmarks_xy)
 
     @property
     def obs_height_px(self) -> np.ndarray:

@@ -19,6 +19,7 @@ from sensact.core.geometry import PLANAR, TRACK, Geometry, geometry_named
 from sensact.errors import ModelFormatError
 from sensact.models.action_model import ActionModel
 from sensact.models.action_table import ActionTable
+from sensact.models.landmark_map import LandmarkMap
 from sensact.models.landmark_sensor import LandmarkSensor
 from sensact.models.linear_action import LinearActionModel
 from sensact.records import JsonObject
@@ -48,6 +49,8 @@ class EMModel:
     # heading variance per step added per rad/s of the model's own turn rate |A(c_t)_theta|, on top of
     # motion_sd's (planar, shared Sigma_m); None = Sigma_m does not depend on turning (the thesis)
     turn_var: float | None = None
+    # the landmarks' positions EM learns with the models (issue 92); None = the log's surveyed map
+    landmarks: LandmarkMap | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "geometry", geometry_named(self.geometry))
@@ -77,7 +80,7 @@ class EMModel:
         return self.motion_sd.shape[0] > 1
 
     def replace(self, **changes: Any) -> EMModel:
-        names = ("geometry", "action", "sensor", "prior_mean", "prior_cov", "motion_sd", "turn_var")
+        names = ("geometry", "action", "sensor", "prior_mean", "prior_cov", "motion_sd", "turn_var", "landmarks")
         fields = {k: getattr(self, k) for k in names}
         fields.update(changes)
         return EMModel(**fields)
@@ -92,6 +95,7 @@ class EMModel:
             "prior_cov": self.prior_cov.tolist(),
             "motion_sd": self.motion_sd.tolist(),
             "turn_var": self.turn_var,
+            **({} if self.landmarks is None else {"landmarks": self.landmarks.to_arrays()}),
         }
 
     @classmethod
@@ -113,6 +117,7 @@ class EMModel:
                 prior_cov,
                 None if data.get("motion_sd") is None else np.asarray(data["motion_sd"], dtype=float),
                 None if data.get("turn_var") is None else float(data["turn_var"]),
+                None if data.get("landmarks") is None else LandmarkMap.from_arrays(data["landmarks"]),
             )
         except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
             raise ModelFormatError(

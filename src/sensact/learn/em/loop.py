@@ -95,7 +95,8 @@ class _Searches:
     ) -> _Searches:
         max_delay = round((cfg.action.delay_max_s or 0.0) / data.dt_s)
         delay_on = on and cfg.search.delay and max_delay > 0 and model.action.can_delay
-        ridge_on = on and cfg.search.ridge_mm is not None
+        # the ridge trades the path against f's offset with the map held; a learned map moves itself
+        ridge_on = on and cfg.search.ridge_mm is not None and model.landmarks is None
         return cls(data, cfg, max_delay, ridge_on, delay_on, freedom.free if on else NO_MOUNT)
 
     def due(self, it: int, stage_ends: bool, since: int | None) -> bool:
@@ -200,7 +201,7 @@ class _Run:
     def m_step(self, post: Posteriors, floor: np.ndarray) -> EMModel:
         """Sec. 4.3's M-step, moving what this stage frees."""
         s, n = self.current, self.model.prior_mean.size
-        return m_step(
+        model = m_step(
             post,
             self.data,
             self.model,
@@ -211,6 +212,9 @@ class _Run:
             motion_floor_sd=motion_sd_floor(self.cfg, n),
             max_delay_steps=self.searches.max_delay,
         )
+        if model.landmarks is not None:  # the next E-step reads the map just learned
+            self.data = self.searches.data = self.data.with_landmarks(model.landmarks.xy)
+        return model
 
 
 def em_loop(run: _Run, iterations: int, progress: Progress | None = None) -> str:
@@ -259,6 +263,8 @@ def run_stages(
 ) -> EMResult:
     """``em_loop`` from ``model`` through ``stages``, as an ``EMResult`` (``searches_on``: the searches as
     configured; off, none)."""
+    if model.landmarks is not None:  # EM learns the map: every E-step reads the model's
+        data = data.with_landmarks(model.landmarks.xy)
     trace = _Trace(model)
     searches = _Searches.for_fit(data, model, cfg, freedom, searches_on)
     warm = cfg.search.warm_start and holds_anything(
@@ -313,7 +319,10 @@ def searched_start(
 ) -> tuple[EMModel, StartSearch | None, int]:
     """Where the robot starts when nobody says (``searches/start_race.py``): the model placed there, what the search
     tried, and the held iterations the start race already gave the model (0 without a race)."""
-    if not (cfg.search.start_s is not None and data.geometry.has_heading and not cfg.search.warm_start):
+    frame_from_start = model.landmarks is not None and model.landmarks.held.sum() < 2  # the start is the frame
+    if not (cfg.search.start_s is not None and data.geometry.has_heading and not cfg.search.warm_start) or (
+        frame_from_start
+    ):
         return model, None, 0
     candidates, info = start_candidates(data, model, cfg)
     model, spent = candidates[0], 0

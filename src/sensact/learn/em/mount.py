@@ -181,6 +181,8 @@ def remounted(model: EMModel, mount: np.ndarray) -> EMModel:
     where it was: the same first sightings, read from a robot placed behind its sensor anew."""
     old = model.sensor.mount.as_array()
     new = np.asarray(mount, dtype=float)
+    if model.landmarks is not None and model.landmarks.held.sum() < 2:  # the start is the map's frame: it stays
+        return model.replace(sensor=replace(model.sensor, mount=SensorMount.from_array(new)))
     s0 = sensor_poses(model.prior_mean, old)[0]
     theta = s0[2] - new[2]
     c, s = np.cos(theta), np.sin(theta)

@@ -12,10 +12,12 @@ from sensact.core.polyfit import weighted_lstsq
 from sensact.core.pose_models import apply_displacement, landmark_bearing, sensor_poses
 from sensact.learn.em.actions import motion_noise, motion_second_moments, step_motion_var, turning_variance
 from sensact.learn.em.estep import Posteriors, channel_inputs
+from sensact.learn.em.landmarks import landmark_update
 from sensact.learn.em.mount import mount_update, sensor_distances
 from sensact.learn.em.stage import Stage
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
+from sensact.models.landmark_map import LandmarkMap
 from sensact.models.landmark_sensor import LandmarkSensor, reading_features
 
 
@@ -65,6 +67,20 @@ def sensor_model(
     fit_bearing_terms: bool = True,
     mount_free: tuple[bool, bool, bool] = (False, False, False),
 ) -> LandmarkSensor:
+    """``sensor_and_map`` on the log's own map: the sensor alone."""
+    return sensor_and_map(post, data, n_samples, rng, previous, fit_bearing_terms, mount_free)[0]
+
+
+def sensor_and_map(
+    post: Posteriors,
+    data: LandmarkLog,
+    n_samples: int,
+    rng: np.random.Generator,
+    previous: LandmarkSensor,
+    fit_bearing_terms: bool = True,
+    mount_free: tuple[bool, bool, bool] = (False, False, False),
+    landmarks: LandmarkMap | None = None,
+) -> tuple[LandmarkSensor, LandmarkMap | None]:
     """Eq. 4.25 (each f_i by regression on sampled distances), eq. 4.27 (each sigma_i) and eq. 4.28
     (sigma_2), over the readings the E-step used.
 
@@ -74,24 +90,38 @@ def sensor_model(
     model sets it: a cubic in the thesis). Without ``fit_bearing_terms`` the bearing terms are held.
     The ``mount_free`` components of the sensor's mount are updated first, on the same samples
     (``mount.py``); every distance and bearing is then measured from the sensor at its mount.
+
+    With a learned map (``landmarks``), its free positions are updated next on the same samples
+    (``landmarks.py``), then f on the distances to them; a map whose scale comes from the range readings
+    holds the first length-reading channel's slope at 1 in the middle of its distances.
     """
     weights = post.weights * post.obs_used[:, None]
     rows = np.flatnonzero(weights.any(axis=1))
     if rows.size == 0:
-        return previous
+        return previous, landmarks
     poses = sample_gamma(post, data.obs_step[rows], n_samples, rng)  # (S, R, n)
-    lm = data.landmarks_xy[data.obs_landmark[rows]]
     readings = channel_inputs(previous, data)[0][rows]
     bearings = data.obs_bearing_rad[rows]
     if any(mount_free):
+        lm = data.landmarks_xy[data.obs_landmark[rows]]
         mount = mount_update(poses, lm, readings, weights[rows], bearings, previous, mount_free)
         previous = replace(previous, mount=mount)
+    metric = -1
+    if landmarks is not None:
+        xy, sd = landmark_update(
+            poses, data.obs_landmark[rows], readings, weights[rows], bearings, previous, landmarks.xy, landmarks.learned
+        )
+        landmarks = replace(landmarks, xy=xy, sd=np.where(landmarks.learned[:, None], sd, np.nan))
+        if landmarks.scale == "range":
+            metric = next((c for c, ch in enumerate(previous.channels) if ch.name.endswith("_mm")), -1)
+    lm = (data.landmarks_xy if landmarks is None else landmarks.xy)[data.obs_landmark[rows]]
     dist = sensor_distances(poses, lm, previous.mount, data.mode)  # (S, R)
     fits = []
     for c, ch in enumerate(previous.channels):
         w = weights[rows, c]
         use = w > 0
-        deg, m = ch.function.degree, len(ch.bearing_terms) if fit_bearing_terms else 0
+        # the map's scale channel keeps its bearing terms: d sum_k a_k b^k would rescale a learned map
+        deg, m = ch.function.degree, len(ch.bearing_terms) if fit_bearing_terms and c != metric else 0
         if use.sum() <= deg + m + 1:
             fits.append((ch.function, ch.sigma, ch.bearing_terms))
             continue
@@ -102,7 +132,15 @@ def sensor_model(
         held = 0.0 if m else d * ch.bearing_gain(b)  # held terms: f is fitted to what they leave
         center, scale = float(d.mean()), float(d.std()) or 1.0
         # eq. 4.25, with the bearing terms' columns d b^k beside f's (they enter linearly too)
-        sol = weighted_lstsq(reading_features(d, b, deg, m, center, scale), y - held, ww)
+        X = reading_features(d, b, deg, m, center, scale)
+        if c == metric and deg >= 1:  # the map's scale: f = d + offset (and the bearing terms)
+            rest = np.r_[[0], deg + 1 : X.shape[1]].astype(int)
+            sol = np.zeros(X.shape[1])
+            sol[1] = scale
+            if rest.size:
+                sol[rest] = weighted_lstsq(X[:, rest], y - held - X[:, :2] @ sol[:2], ww)
+        else:
+            sol = weighted_lstsq(X, y - held, ww)
         fitted = ch.with_solution(sol, center, scale, m)
         sigma = float(np.sqrt(np.sum(ww * (fitted.predict(d, b) - y) ** 2) / d.size))  # eq. 4.27
         fits.append((fitted.function, max(sigma, 1e-9), fitted.bearing_terms))
@@ -116,7 +154,7 @@ def sensor_model(
             [wrap_angle(landmark_bearing(sensor_poses(poses[s][b], m), lm[b]) - ob) for s in range(n_samples)]
         )
         sigma_b = max(float(np.sqrt(np.sum(np.tile(wb[b], n_samples) * err**2) / err.size)), 1e-9)
-    return previous.with_fits(fits, sigma_b)
+    return previous.with_fits(fits, sigma_b), landmarks
 
 
 def prior(post: Posteriors, floor_var: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -158,8 +196,21 @@ def m_step(
             a, turn_var = turning_variance(second[:, 2], turn, floor[2] ** 2, (model.motion_sd[0, 2] ** 2, turn_var))
             motion_sd = motion_sd.copy()
             motion_sd[0, 2] = np.sqrt(a)
-    sensor = sensor_model(post, data, n_samples, rng, model.sensor, stage.bearing_terms, stage.mount)
+    learned = model.landmarks if stage.landmarks else None
+    sensor, landmarks = sensor_and_map(
+        post, data, n_samples, rng, model.sensor, stage.bearing_terms, stage.mount, learned
+    )
     mean0, cov0 = prior(post, floor_var)
+    if model.landmarks is not None:
+        landmarks = landmarks or model.landmarks
+        if model.landmarks.held.sum() < 2:  # the start fixes the map's frame: pi stays where it is
+            mean0, cov0 = model.prior_mean, model.prior_cov
     return model.replace(
-        action=action, sensor=sensor, prior_mean=mean0, prior_cov=cov0, motion_sd=motion_sd, turn_var=turn_var
+        action=action,
+        sensor=sensor,
+        prior_mean=mean0,
+        prior_cov=cov0,
+        motion_sd=motion_sd,
+        turn_var=turn_var,
+        landmarks=model.landmarks if model.landmarks is None else landmarks,
     )

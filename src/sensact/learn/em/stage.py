@@ -24,6 +24,7 @@ class Stage:
     mount: tuple[bool, bool, bool]  # the sensor mount's components moved (forward, left, yaw)
     robust: bool  # the configured robust readings; False: Gaussian ones
     ends_by: int | None = None  # the iteration it ends at, converged or not (None: when converged)
+    landmarks: bool = True  # a learned map's free positions moved (issue 92; the log's own map never is)
 
     def with_end(self, ends_by: int) -> Stage:
         return dc_replace(self, ends_by=ends_by)

@@ -1,0 +1,94 @@
+"""The landmark map as a parameter of the model (issue 92): where each landmark is, which positions were
+given (held) and which EM learned, how sure it is of each, and what fixes the map's frame and scale.
+
+A log with no surveyed map learns one: the path and the map share one rigid frame, fixed by the robot's
+start (at the origin, facing forward: REP 103's +x, sensact's heading 0), unless given positions fix it;
+and one scale, which bearings cannot fix, taken from what is metric (``scale``)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from sensact.records import JsonObject
+
+SCALES = ("range", "odometry", "map")  # what is metric: a range channel's unit, the forward command's, given positions
+
+
+@dataclass(frozen=True, eq=False)
+class LandmarkMap:
+    xy: np.ndarray  # (L, 2) mm, in the log's frame; NaN where not placed
+    held: np.ndarray  # (L,) bool: given positions, held
+    sd: np.ndarray  # (L, 2) mm: each learned position's sd; NaN where held or not placed
+    scale: str  # SCALES: what fixes the map's scale
+
+    def __post_init__(self) -> None:
+        xy = np.asarray(self.xy, dtype=float).reshape(-1, 2)
+        held = np.asarray(self.held, dtype=bool).reshape(len(xy))
+        sd = np.asarray(self.sd, dtype=float).reshape(len(xy), 2)
+        if self.scale not in SCALES:
+            raise ValueError(f"map scale must be one of {', '.join(SCALES)}, not {self.scale!r}")
+        if not np.isfinite(xy[held]).all():
+            raise ValueError("a held landmark needs a finite position")
+        for name, v in (("xy", xy), ("held", held), ("sd", sd)):
+            object.__setattr__(self, name, v)
+
+    @property
+    def learned(self) -> np.ndarray:
+        return ~self.held
+
+    @property
+    def placed(self) -> np.ndarray:
+        """Landmarks with a position: held ones, and learned ones EM could place."""
+        return np.isfinite(self.xy).all(axis=1)
+
+    @property
+    def frame(self) -> str:
+        """What fixes the map's frame and scale, in words (``map.frame`` of model.json)."""
+        held = int(self.held.sum())
+        where = (
+            f"{held} given landmark positions (held)"
+            if held >= 2
+            else "the robot's start (the origin, facing +x in REP 103; sensact's heading 0)"
+            + (", and 1 given landmark position (held)" if held else "")
+        )
+        scale = {
+            "range": "the range readings (in mm, their function's slope held at 1 at the middle of its distances)",
+            "odometry": "the forward command (its gain held at 1)",
+            "map": "the given positions",
+        }[self.scale]
+        return f"frame: {where}; scale: {scale}"
+
+    def to_arrays(self) -> JsonObject:
+        """As the model JSON keeps it (``from_arrays`` reads it back); NaN as null."""
+        return {
+            "xy": [[None if not np.isfinite(v) else float(v) for v in row] for row in self.xy],
+            "held": self.held.tolist(),
+            "sd": [[None if not np.isfinite(v) else float(v) for v in row] for row in self.sd],
+            "scale": self.scale,
+        }
+
+    @classmethod
+    def from_arrays(cls, data: JsonObject) -> LandmarkMap:
+        def arr(rows: list) -> np.ndarray:
+            return np.array([[np.nan if v is None else float(v) for v in row] for row in rows], dtype=float)
+
+        return cls(arr(data["xy"]), np.asarray(data["held"], dtype=bool), arr(data["sd"]), str(data["scale"]))
+
+    def to_dict(self, ids: tuple[str, ...]) -> JsonObject:
+        marks = []
+        for i, name in enumerate(ids):
+            x, y = self.xy[i]
+            sx, sy = self.sd[i]
+            marks.append(
+                {
+                    "id": name,
+                    "x_mm": float(x) if np.isfinite(x) else None,
+                    "y_mm": float(y) if np.isfinite(y) else None,
+                    "sd_x_mm": float(sx) if np.isfinite(sx) else None,
+                    "sd_y_mm": float(sy) if np.isfinite(sy) else None,
+                    "held": bool(self.held[i]),
+                }
+            )
+        return {"landmarks": marks, "frame": self.frame}
