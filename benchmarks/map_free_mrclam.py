@@ -13,8 +13,11 @@ data = ml.data
 poses, valid = ml.truth_poses()
 truth_map = data.landmarks_xy.copy()
 cfg = mrclam_config()
-if len(sys.argv) > 2:
-    cfg = cfg.replace(sensor_mount=(0.0, 0.0, 0.0))
+if len(sys.argv) > 2 and sys.argv[2] != "-":  # a mount to hold: forward,left,yaw
+    cfg = cfg.replace(sensor_mount=tuple(float(v) for v in sys.argv[2].split(",")))
+for kv in sys.argv[3:]:  # config fields, name=value
+    k, v = kv.split("=")
+    cfg = cfg.replace(**{k: float(v)})
 t0 = time.time()
 res = fit_em(data.with_landmarks(np.full_like(truth_map, np.nan)), None, cfg)
 t1 = time.time()
