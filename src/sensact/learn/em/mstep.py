@@ -120,8 +120,7 @@ def sensor_and_map(
     for c, ch in enumerate(previous.channels):
         w = weights[rows, c]
         use = w > 0
-        # the map's scale channel keeps its bearing terms: d sum_k a_k b^k would rescale a learned map
-        deg, m = ch.function.degree, len(ch.bearing_terms) if fit_bearing_terms and c != metric else 0
+        deg, m = ch.function.degree, len(ch.bearing_terms) if fit_bearing_terms else 0
         if use.sum() <= deg + m + 1:
             fits.append((ch.function, ch.sigma, ch.bearing_terms))
             continue

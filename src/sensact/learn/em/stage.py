@@ -44,7 +44,7 @@ def plan_stages(cfg: EMConfig, model: EMModel, freedom: MountFreedom, spent: int
     nothing_held = cfg.search.refine_from <= 0 and spent == 0
     if not holds_anything(cfg, model, freedom) or nothing_held or cfg.search.warm_start:
         return (free,)
-    return (Stage("held", False, False, NO_MOUNT, False, ends_by=cfg.search.refine_from - spent), free)
+    return (Stage("held", False, False, NO_MOUNT, False, ends_by=cfg.search.refine_from - spent, landmarks=False), free)
 
 
 def holds_anything(cfg: EMConfig, model: EMModel, freedom: MountFreedom) -> bool:
