@@ -1,5 +1,8 @@
-import json, sys
+import json
+import sys
+
 import numpy as np
+
 from sensact.io.mrclam import read_mrclam
 from sensact.learn.em import fit_em, log_likelihood
 from sensact.models.em_model import EMModel
