@@ -19,6 +19,7 @@ from sensact.learn.em.checks.lost_signs import LostSign, Unsettled, lost_fit_sig
 from sensact.learn.em.config import EMConfig, refuse_bearing_settings
 from sensact.learn.em.initial import initial_model
 from sensact.learn.em.loop import Progress, fit_em_once, held_trial, stage_loglik
+from sensact.learn.em.map_filter import filtered_map
 from sensact.learn.em.result import EMResult, HeadingRace, RestartRun, StartMoved
 from sensact.learn.em.searches.facing import FLIP, drives_backward, turned_model, turned_posteriors
 from sensact.learn.em.searches.given_start import start_moved_mm
@@ -87,11 +88,50 @@ def fit_em(
     refuse_settings_for_log(cfg, data, initial)
     start = initial or initial_model(data, cfg)
     refuse_too_few_readings(start, data)
-    fit: Fit = partial(fit_em_once, data, config=cfg, progress=progress, on_race=on_race)
     heard = Heard(on_restart, on_race, on_start_moved)
-    for policy in POLICIES:
-        fit = policy(fit, data, cfg, heard)
-    return fit(start)
+
+    def composed(log: LandmarkLog, settings: EMConfig) -> Fit:
+        fit: Fit = partial(fit_em_once, log, config=settings, progress=progress, on_race=on_race)
+        for policy in POLICIES:
+            fit = policy(fit, log, settings, heard)
+        return fit
+
+    if start.landmarks is not None:
+        return map_rounds(composed, data, start, cfg)
+    return composed(data, cfg)(start)
+
+
+MAX_MAP_ROUNDS = 8
+
+
+def map_rounds(
+    composed: Callable[[LandmarkLog, EMConfig], Fit], data: LandmarkLog, start: EMModel, cfg: EMConfig
+) -> EMResult:
+    """A log whose map nobody surveyed (``map_filter.py``): rounds of the filter's map, then EM on it as on a
+    survey, from the last round's models (nothing held after the first), until a round is less likely than
+    the best; the best round's models and map. The EKF-SLAM start map fixes the frame (the robot's start)."""
+    learned, settings = start.landmarks, cfg
+    xy, sd = learned.xy, np.full_like(learned.xy, np.nan)
+    model = initial_model(data.with_landmarks(xy), cfg)  # the first round: as on a survey, from the poor start
+    best: tuple[float, EMResult, np.ndarray, np.ndarray] | None = None
+    for k in range(MAX_MAP_ROUNDS):
+        res = composed(data.with_landmarks(xy), settings)(model)
+        if best is not None and not res.loglik_best > best[0]:
+            break
+        best = (res.loglik_best, res, xy, sd)
+        if res.stop_reason == "interrupted":
+            break
+        model = res.model
+        # from a learned model nothing is held, and the map fixes the frame: no start search
+        settings = settings.replace(refine_from=0, start_search_s=None) if k == 0 else settings
+        xy, sd = filtered_map(model, data, xy, learned.held)
+    ll, res, xy, sd = best
+    res = dc_replace(res, model=res.model.replace(landmarks=dc_replace(learned, xy=xy, sd=sd)))
+    if res.stop_reason == "interrupted":
+        return res
+    # near the top the ridge is short: the M-step's own map update finishes the climb (landmarks.py)
+    final = composed(data.with_landmarks(xy), settings)(res.model)
+    return final if final.loglik_best > ll else res
 
 
 @dataclass(frozen=True)
