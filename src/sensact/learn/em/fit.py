@@ -114,11 +114,15 @@ def map_rounds(
     xy, sd = learned.xy, np.full_like(learned.xy, np.nan)
     model = initial_model(data.with_landmarks(xy), cfg)  # the first round: as on a survey, from the poor start
     best: tuple[float, EMResult, np.ndarray, np.ndarray] | None = None
+    worse = 0
     for k in range(MAX_MAP_ROUNDS):
         res = composed(data.with_landmarks(xy), settings)(model)
         if best is not None and not res.loglik_best > best[0]:
-            break
-        best = (res.loglik_best, res, xy, sd)
+            worse += 1
+            if worse == 2:  # two rounds in a row less likely than the best: it has stopped climbing
+                break
+        else:
+            best, worse = (res.loglik_best, res, xy, sd), 0
         if res.stop_reason == "interrupted":
             break
         model = res.model
