@@ -96,8 +96,10 @@ def fit_em(
             fit = policy(fit, log, settings, heard)
         return fit
 
-    if start.landmarks is not None:
-        return map_rounds(composed, data, start, cfg)
+    if start.landmarks is not None:  # two routes to an unsurveyed map; the more likely on every sighting wins
+        in_mstep = composed(data.with_landmarks(start.landmarks.xy), cfg)(start)
+        rounds = map_rounds(composed, data, start, cfg)
+        return rounds if map_likelihood(rounds.model, data) > map_likelihood(in_mstep.model, data) else in_mstep
     return composed(data, cfg)(start)
 
 
@@ -108,34 +110,44 @@ def map_rounds(
     composed: Callable[[LandmarkLog, EMConfig], Fit], data: LandmarkLog, start: EMModel, cfg: EMConfig
 ) -> EMResult:
     """A log whose map nobody surveyed (``map_filter.py``): rounds of the filter's map, then EM on it as on a
-    survey, from the last round's models (nothing held after the first), until a round is less likely than
-    the best; the best round's models and map. The EKF-SLAM start map fixes the frame (the robot's start)."""
+    survey, from the last round's models (nothing held after the first), until two rounds in a row are
+    less likely than the best; then EM from the best round with the map moved by its M-step
+    (``landmarks.py``). Each is scored on every sighting (``map_likelihood``), since each run prunes its
+    own. The EKF-SLAM start map fixes the frame (the robot's start)."""
     learned, settings = start.landmarks, cfg
     xy, sd = learned.xy, np.full_like(learned.xy, np.nan)
     model = initial_model(data.with_landmarks(xy), cfg)  # the first round: as on a survey, from the poor start
-    best: tuple[float, EMResult, np.ndarray, np.ndarray] | None = None
+    best: tuple[float, EMResult] | None = None
     worse = 0
     for k in range(MAX_MAP_ROUNDS):
         res = composed(data.with_landmarks(xy), settings)(model)
-        if best is not None and not res.loglik_best > best[0]:
+        res = dc_replace(res, model=res.model.replace(landmarks=dc_replace(learned, xy=xy, sd=sd)))
+        score = map_likelihood(res.model, data)
+        if best is not None and not score > best[0]:
             worse += 1
             if worse == 2:  # two rounds in a row less likely than the best: it has stopped climbing
                 break
         else:
-            best, worse = (res.loglik_best, res, xy, sd), 0
+            best, worse = (score, res), 0
         if res.stop_reason == "interrupted":
             break
-        model = res.model
+        model = res.model.replace(landmarks=None)
         # from a learned model nothing is held, and the map fixes the frame: no start search
         settings = settings.replace(refine_from=0, start_search_s=None) if k == 0 else settings
         xy, sd = filtered_map(model, data, xy, learned.held)
-    ll, res, xy, sd = best
-    res = dc_replace(res, model=res.model.replace(landmarks=dc_replace(learned, xy=xy, sd=sd)))
+    score, res = best
     if res.stop_reason == "interrupted":
         return res
     # near the top the ridge is short: the M-step's own map update finishes the climb (landmarks.py)
-    final = composed(data.with_landmarks(xy), settings)(res.model)
-    return final if final.loglik_best > ll else res
+    final = composed(data.with_landmarks(res.model.landmarks.xy), settings)(res.model)
+    return final if map_likelihood(final.model, data) > score else res
+
+
+def map_likelihood(model: EMModel, data: LandmarkLog) -> float:
+    """``log P(O | C, lambda)`` of a model with its learned map on every sighting, robust readings as
+    configured: one number that runs which pruned different sightings can be compared by."""
+    mapped = data.with_landmarks(model.landmarks.xy)
+    return stage_loglik(model, mapped, np.ones(data.n_observations, dtype=bool), robust=True)
 
 
 @dataclass(frozen=True)
