@@ -99,7 +99,7 @@ def fit_em(
     if start.landmarks is not None:  # two routes to an unsurveyed map; the more likely on every sighting wins
         in_mstep = composed(data.with_landmarks(start.landmarks.xy), cfg)(start)
         rounds = map_rounds(composed, data, start, cfg)
-        return rounds if map_likelihood(rounds.model, data) > map_likelihood(in_mstep.model, data) else in_mstep
+        return rounds if more_likely(rounds, in_mstep, data) else in_mstep
     return composed(data, cfg)(start)
 
 
@@ -122,32 +122,38 @@ def map_rounds(
     for k in range(MAX_MAP_ROUNDS):
         res = composed(data.with_landmarks(xy), settings)(model)
         res = dc_replace(res, model=res.model.replace(landmarks=dc_replace(learned, xy=xy, sd=sd)))
-        score = map_likelihood(res.model, data)
-        if best is not None and not score > best[0]:
+        if best is not None and not more_likely(res, best[1], data):
             worse += 1
             if worse == 2:  # two rounds in a row less likely than the best: it has stopped climbing
                 break
         else:
-            best, worse = (score, res), 0
+            best, worse = (0.0, res), 0
         if res.stop_reason == "interrupted":
             break
         model = res.model.replace(landmarks=None)
         # from a learned model nothing is held, and the map fixes the frame: no start search
         settings = settings.replace(refine_from=0, start_search_s=None) if k == 0 else settings
         xy, sd = filtered_map(model, data, xy, learned.held)
-    score, res = best
+    res = best[1]
     if res.stop_reason == "interrupted":
         return res
     # near the top the ridge is short: the M-step's own map update finishes the climb (landmarks.py)
     final = composed(data.with_landmarks(res.model.landmarks.xy), settings)(res.model)
-    return final if map_likelihood(final.model, data) > score else res
+    return final if more_likely(final, res, data) else res
 
 
-def map_likelihood(model: EMModel, data: LandmarkLog) -> float:
-    """``log P(O | C, lambda)`` of a model with its learned map on every sighting, robust readings as
-    configured: one number that runs which pruned different sightings can be compared by."""
-    mapped = data.with_landmarks(model.landmarks.xy)
-    return stage_loglik(model, mapped, np.ones(data.n_observations, dtype=bool), robust=True)
+def more_likely(a: EMResult, b: EMResult, data: LandmarkLog) -> bool:
+    """Whether fit ``a`` (with its learned map) is more likely than ``b``, each scored on the sightings both
+    kept (each run prunes its own), robust readings as configured."""
+    common = np.ones(data.n_observations, dtype=bool)
+    for r in (a, b):
+        if r.posteriors is not None:
+            common &= r.posteriors.obs_used
+
+    def score(r: EMResult) -> float:
+        return stage_loglik(r.model, data.with_landmarks(r.model.landmarks.xy), common, robust=True)
+
+    return score(a) > score(b)
 
 
 @dataclass(frozen=True)
