@@ -97,7 +97,8 @@ def fit_em(
         return fit
 
     if start.landmarks is not None:  # two routes to an unsurveyed map; the more likely on every sighting wins
-        in_mstep = composed(data.with_landmarks(start.landmarks.xy), cfg)(start)
+        on_start_map = data.with_landmarks(start.landmarks.xy)  # from the poor start, as on a survey, the map free
+        in_mstep = composed(on_start_map, cfg)(initial_model(on_start_map, cfg).replace(landmarks=start.landmarks))
         rounds = map_rounds(composed, data, start, cfg)
         return rounds if more_likely(rounds, in_mstep, data) else in_mstep
     return composed(data, cfg)(start)
