@@ -6,18 +6,20 @@ without truth (``learn.em.checks``) and, when the log has truth, scores it (``sc
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 
 from sensact.app.logs import OpenedLog, read_model_and_log
-from sensact.app.scores import Scores, Unscored, score_model
+from sensact.app.scores import Scores, Unscored, in_truth_frame, score_model
 from sensact.app.settings import Settings, resolve_settings
 from sensact.errors import ConfigError
 from sensact.health import Health
+from sensact.io.landmark_log import LandmarkLogFile
 from sensact.learn.em import EMConfig, EMResult, fit_em, initial_model
 from sensact.learn.em.checks.lost_signs import FunctionBends, FunctionTurns, LostSign, Unsettled
 from sensact.learn.em.config import refuse_bearing_settings, upgrade_settings
+from sensact.learn.em.estep import Posteriors
 from sensact.learn.em.fit import OnRestart, OnStartMoved, Progress
 from sensact.learn.em.searches.start_race import OnTrial
 from sensact.learn.em.uses.error_bars import Uncertainty
@@ -105,6 +107,32 @@ class Calibration:
     def model(self) -> EMModel:
         return self.result.model
 
+    @cached_property
+    def in_truth_frame(self) -> tuple[LandmarkLogFile | None, Posteriors | None]:
+        """The log folder and EM's posteriors as figures against the truth read them: on a learned map, the
+        folder on its survey and the smoothed path aligned to it (``app/scores.in_truth_frame``)."""
+        post, folder = self.result.posteriors, self.log.folder
+        if self.model.landmarks is None or folder is None:
+            return folder, post
+        view = in_truth_frame(folder, self.model, None if post is None else post.mean_gamma, self.result)
+        folder = replace(folder, data=view.data)
+        if post is not None and view.path is not None:
+            post = replace(post, mean_gamma=view.path)
+        return folder, post
+
+    @property
+    def landmark_map(self) -> JsonObject | None:
+        """model.json's ``map`` when EM learned the landmarks' positions (issue 92): ``landmarks`` (id, x_mm,
+        y_mm, sd_x_mm, sd_y_mm, held, placed, sightings) in the log's frame and ``frame``; None on a surveyed map."""
+        from sensact.learn.em.landmarks import sightings_per_landmark
+
+        learned, data = self.model.landmarks, self.log.data
+        if learned is None:
+            return None
+        used = None if self.result.posteriors is None else self.result.posteriors.obs_used
+        names = data.landmark_names or tuple(str(j) for j in range(len(learned.xy)))
+        return learned.to_dict(names, sightings_per_landmark(data, used))
+
     @property
     def config(self) -> EMConfig:
         return self.settings.config
@@ -128,6 +156,7 @@ class Calibration:
             "log": self.log.data.source,
             "dt_s": self.log.data.dt_s,
             "evaluation": evaluation,
+            **({} if self.landmark_map is None else {"map": self.landmark_map}),
             # learn/em/checks/lost_signs.py: signs that EM lost the robot
             "range_function_turns": to_json([t for t in signs if isinstance(t, FunctionTurns)]),
             "range_function_bends": to_json([t for t in signs if isinstance(t, FunctionBends)]),
@@ -210,8 +239,6 @@ def _placed_start(
 ) -> tuple[EMModel, Settings, StartFrom]:
     """A learned model placed on the log (``learn/em/policies/warm_start.py``): the model EM starts from, the settings
     EM runs with and the placement."""
-    from dataclasses import replace
-
     from sensact.learn.em.policies.warm_start import start_from_model
 
     placed, cfg = start_from_model(model, log.data, settings.config, events.placing, source=str(start_from))
@@ -277,4 +304,6 @@ def calibrate(
         on_race=events.on_race,
         on_start_moved=events.on_start_moved,
     )
+    if result.model.landmarks is not None:  # what reads the log from here on reads it on the learned map
+        log = replace(log, data=log.data.with_landmarks(result.model.landmarks.xy))
     return Calibration(log, settings, result, diagnose(result, log, settings.config), placed)

@@ -24,7 +24,8 @@ from sensact.records import JsonObject
 from sensact.report.frames import MM, REP_ORDER, VELOCITY_REP, si
 from sensact.reprs import compact_repr
 
-FORMATS = ("robot-localization", "tum", "velodyne")
+FORMATS = ("robot-localization", "tum", "velodyne", "landmarks")
+LANDMARKS_HEADER = "id,x_m,y_m"  # the map file `convert csv --landmarks` reads
 RL_STATES = ("x", "y", "z", "roll", "pitch", "yaw", "vx", "vy", "vz", "vroll", "vpitch", "vyaw", "ax", "ay", "az")
 # robot_localization's own defaults (its ekf.yaml template) for the states a planar EM model says nothing of
 RL_DEFAULT_DIAG = (0.05, 0.05, 0.06, 0.03, 0.03, 0.06, 0.025, 0.025, 0.04, 0.01, 0.01, 0.02, 0.01, 0.01, 0.015)
@@ -300,9 +301,35 @@ def velodyne_yaml(doc: JsonObject, source: Path) -> str:
     return calibration_yaml(calibration_from_dict(cal, source))  # checked as a calibration file is
 
 
+def landmarks_csv(doc: JsonObject, source: Path) -> tuple[str, int]:
+    """A learned map (model.json's ``map``) as the file ``--landmarks`` reads: ``id,x_m,y_m`` in the map's
+    frame (REP 103 axes), one row per placed landmark; and how many were left out (not placed)."""
+    marks = (doc.get("map") or {}).get("landmarks") if isinstance(doc.get("map"), dict) else None
+    if not isinstance(marks, list):
+        raise ModelFormatError(
+            "no learned landmark map in this model.",
+            file=source,
+            field="map.landmarks",
+            fix="export a model `sensact learn em` learned on a log without (or with a partial) --landmarks map.",
+        )
+    rows, left = [LANDMARKS_HEADER], 0
+    for m in marks:
+        x, y = m.get("x_mm"), m.get("y_mm")
+        if x is None or y is None:
+            left += 1
+            continue
+        rows.append(f"{m['id']},{float(x) * MM:.6f},{float(y) * MM:.6f}")
+    return "\n".join(rows) + "\n", left
+
+
 def default_out(model: Path, fmt: str) -> Path:
     """Where an export goes without --out: beside the model, named by it and the format."""
-    suffix = {"tum": ".tum", "robot-localization": ".robot_localization.yaml", "velodyne": ".velodyne.yaml"}
+    suffix = {
+        "tum": ".tum",
+        "robot-localization": ".robot_localization.yaml",
+        "velodyne": ".velodyne.yaml",
+        "landmarks": ".landmarks.csv",
+    }
     return model.with_suffix(suffix.get(fmt, f".{fmt}"))
 
 
@@ -315,6 +342,8 @@ def is_export(path: Path) -> bool:
         return False
     first = text.split("\n", 1)[0]
     if first.startswith("#") and "sensact" in first:
+        return True
+    if first.strip() == LANDMARKS_HEADER and path.name.endswith(".landmarks.csv"):  # a map export, by its own name
         return True
     rows = [ln.split() for ln in text.splitlines() if ln.strip()]
     try:
@@ -362,6 +391,11 @@ def export_model(model: Path, fmt: str, out: Path, truth_out: Path | None = None
     if fmt == "velodyne":
         write_text(out, velodyne_yaml(doc, model))
         return Exported((out,))
+    if fmt == "landmarks":
+        text, left = landmarks_csv(doc, model)
+        write_text(out, text)
+        note = f"{left} landmarks were not placed (seen too rarely or from too narrow a baseline) and are left out"
+        return Exported((out,), (note,) if left else ())
     node, extra = robot_localization_yaml(doc, model)
     write_text(out, node)
     write_text(companion_path(out), extra)

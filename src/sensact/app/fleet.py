@@ -99,8 +99,22 @@ class Learned:
 def learn_log(log: Path, out: Path, options: LearnOptions, *, progress: Progress | None = None) -> Learned:
     """``log`` calibrated and written at ``out`` exactly as `sensact learn em LOG --out OUT` writes it (with
     ``options.uncertainty``, as `learn em --uncertainty B` does: its replicates one after another here)."""
-    from sensact.app.calibrate import FitEvents, calibrate
     from sensact.app.logs import open_log
+
+    return calibrate_and_save(open_log(log), out, options, progress=progress)[1]
+
+
+def calibrate_and_save(
+    opened: Any,
+    out: Path,
+    options: LearnOptions,
+    *,
+    progress: Progress | None = None,
+    finish: Callable[[Any], Any] | None = None,
+) -> tuple[Any, Learned]:
+    """``learn_log`` on a log already open; ``finish`` turns the calibration into the one written (the
+    shared map's fleet attaches its map). Returns the calibration too."""
+    from sensact.app.calibrate import FitEvents, calibrate
     from sensact.app.save import save_calibration
 
     events = FitEvents()
@@ -111,7 +125,9 @@ def learn_log(log: Path, out: Path, options: LearnOptions, *, progress: Progress
             on_race=lambda done, planned: show("start race: EM from each start", done, planned),
             placing=show,
         )
-    cal = calibrate(open_log(log), options.preset, options.config, sets=options.sets, events=events)
+    cal = calibrate(opened, options.preset, options.config, sets=options.sets, events=events)
+    if finish is not None:
+        cal = finish(cal)
     out.parent.mkdir(parents=True, exist_ok=True)
     saved = save_calibration(cal, out, report=options.report)
     if options.uncertainty is not None:  # after the model is written, as `learn em --uncertainty` does
@@ -127,8 +143,8 @@ def learn_log(log: Path, out: Path, options: LearnOptions, *, progress: Progress
         cal = bootstrap(cal, options.uncertainty, on_done=replicated)
         saved = save_calibration(cal, out, report=options.report)
     res = cal.result
-    return Learned(
-        log=str(log),
+    return cal, Learned(
+        log=str(opened.path),
         model=str(out),
         stop_reason=res.stop_reason,
         iterations=res.iterations,

@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -133,6 +134,18 @@ def _error_bars(u: Any) -> Section:
     )
 
 
+def _learned_map(cal: Calibration, out: Path) -> Path:
+    from sensact.evaluate.map_truth import rigid_alignment
+    from sensact.report.figures_calibration import figure_landmark_map
+
+    learned, data, post = cal.model.landmarks, cal.log.data, cal.result.posteriors
+    survey = cal.log.folder.survey_xy if cal.log.folder is not None else None
+    alignment = None if survey is None else rigid_alignment(learned.placed_xy(), survey)
+    names = data.landmark_names or tuple(str(j) for j in range(len(learned.xy)))
+    path = None if post is None else post.mean_gamma[:, :2]
+    return figure_landmark_map(learned, names, path, survey, alignment, out, f"the landmark map of {cal.log.name}")
+
+
 def write_em_report(cal: Calibration, model_path: Path, figures: Sequence[Path]) -> tuple[Path, list[Path]]:
     """The calibration's page beside ``model_path``, and the figures of its own it drew there (OUT_residuals,
     OUT_commands and, against a truth, OUT_path); ``figures`` are those already written (OUT.png and the
@@ -196,15 +209,26 @@ def write_em_report(cal: Calibration, model_path: Path, figures: Sequence[Path])
             )
         )
     sections.append(Section("Sensor mount", table=(("", "x forward (m)", "y left (m)", "yaw (rad)"), _mount_rows(cal))))
+    if cal.model.landmarks is not None:
+        drawn.append(_learned_map(cal, Path(f"{stem}_map.png")))
+        sections.append(
+            Section(
+                "Landmark map (learned)",
+                paragraphs=(str(doc["map"]["frame"]),),
+                figures=((drawn[-1], "the learned map with 2-sd ellipses, over the survey when the log has one"),),
+            )
+        )
     if cal.uncertainty is not None:
         sections.append(_error_bars(cal.uncertainty))
     if isinstance(cal.scores, Scores):
         ev = cal.scores.evaluation
         rows = tuple((k, "pass" if ok else "MISSED") for k, ok in cal.scores.bars.items())
         figs = []
-        truth = cal.log.folder.truth_poses() if cal.log.folder is not None else None
-        if res.posteriors is not None and truth is not None:
-            drawn.append(figure_path_over_truth(res, data, *truth, Path(f"{stem}_path.png"), "path"))
+        folder, posteriors = cal.in_truth_frame  # on a learned map: its survey, the path aligned to it
+        truth = folder.truth_poses() if folder is not None else None
+        if posteriors is not None and truth is not None:
+            on_truth = replace(res, posteriors=posteriors)
+            drawn.append(figure_path_over_truth(on_truth, folder.data, *truth, Path(f"{stem}_path.png"), "path"))
             figs.append((drawn[-1], "EM's path over the truth's"))
         figs += [
             (by_kind[k], k.replace("_", " "))

@@ -95,9 +95,10 @@ def save_calibration(
     if scores is not None and scores.get("truth_noise") and log.folder is not None:  # against recorded poses
         from sensact.report.figures_real import write_robot
 
+        folder, posteriors = cal.in_truth_frame  # on a learned map: its survey, and the path aligned to it
         written += drawn(
             lambda: write_robot(
-                log.folder, cal.model, scores, out.with_suffix(""), log.name, res.posteriors, truth="ground truth"
+                folder, cal.model, scores, out.with_suffix(""), log.name, posteriors, truth="ground truth"
             )
         )
     elif scores is not None and log.recorded_distance_mm is not None:  # against a recorded distance

@@ -12,6 +12,8 @@ import numpy as np
 
 from sensact.app.logs import OpenedLog
 from sensact.errors import LogFormatError
+from sensact.io.landmark_log import LandmarkLogFile
+from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 from sensact.records import JsonObject
 from sensact.reprs import compact_repr
@@ -55,16 +57,22 @@ def score_model(
         return _on_distance(log, fit)
     lf = log.folder
     recorded = lf.truth_poses()
-    if recorded is not None and lf.data.is_continuous:
+    data, mapped = lf.data, None
+    if model.landmarks is not None:  # a learned map: scored against the survey, the path in its frame
+        view = in_truth_frame(lf, model, path, fit)
+        data, mapped, path = view.data, view.mapped, view.path
+    if recorded is not None and data.is_continuous and data.map_given.all():
         from sensact.evaluate.bars import bar_checks
         from sensact.evaluate.landmark_truth import path_offset, score_against_truth
 
         try:
-            sc = score_against_truth(model, lf.data, *recorded)
+            sc = score_against_truth(model, data, *recorded)
         except LogFormatError as exc:
             if not learned_here:
                 raise
             return Unscored(f"not scored against the recorded poses: {exc}")
+        if mapped is not None:
+            sc["map"] = mapped
         if path is not None:
             sc["path"] = path_offset(np.asarray(path), *recorded)
         sc["bars"] = bar_checks(sc)
@@ -96,6 +104,45 @@ def score_model(
         sc = score_track(model, tt.velocity_mm_s(lf.data.action_commands[:, 0]), tt.height_px, DISTANCE_GRID_MM)
         return Scores(SIMULATED_MODEL, sc)
     return None
+
+
+@dataclass(frozen=True, eq=False)
+class TruthFrame:
+    """A fit on a learned map, seen in its log's truth's frame (``in_truth_frame``)."""
+
+    data: LandmarkLog  # the log on the surveyed map (the learned map, aligned, where the survey lacks one)
+    mapped: JsonObject | None  # evaluation.map; None without a survey
+    path: np.ndarray | None  # EM's smoothed path, aligned; None when nothing aligns the frames
+
+
+def in_truth_frame(lf: LandmarkLogFile, model: EMModel, path: np.ndarray | None, fit: Any = None) -> TruthFrame:
+    """A learned map against the log's survey (``evaluate/map_truth.py``): the log on the survey (each
+    landmark the survey lacks where the learned map, aligned, puts it), ``evaluation.map``, and the path
+    in the survey's frame. Without a survey the frames are aligned by the path against the recorded poses
+    instead, and the map is not scored."""
+    return TruthFrame(*_on_survey(lf, model, path, fit))
+
+
+def _on_survey(lf: LandmarkLogFile, model: EMModel, path: np.ndarray | None, fit: Any) -> tuple[Any, Any, Any]:
+    from sensact.evaluate.map_truth import map_scores, rigid_alignment
+
+    learned, survey, mapped = model.landmarks, lf.survey_xy, None
+    if survey is None:
+        recorded = lf.truth_poses()
+        alignment = None
+        if recorded is not None and path is not None:
+            poses, valid = recorded
+            alignment = rigid_alignment(np.asarray(path)[valid, :2], poses[valid, :2])
+        survey = np.full_like(learned.xy, np.nan)
+    else:
+        from sensact.learn.em.landmarks import sightings_per_landmark
+
+        used = getattr(getattr(fit, "posteriors", None), "obs_used", None)
+        mapped, alignment = map_scores(learned.placed_xy(), survey, sightings_per_landmark(lf.data, used))
+    if alignment is None:
+        return lf.data.with_landmarks(learned.xy), mapped, None
+    filled = np.where(np.isfinite(survey), survey, alignment.points(learned.xy))
+    return lf.data.with_landmarks(filled), mapped, None if path is None else alignment.poses(np.asarray(path))
 
 
 def _on_distance(log: OpenedLog, fit: Any) -> Scores | Unscored | None:

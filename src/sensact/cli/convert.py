@@ -59,12 +59,21 @@ def convert_mrclam(
     dt: Annotated[
         float, typer.Option(help="Step (s), 1/30 by default; commands are held between their rows.", show_default=False)
     ] = (1.0 / 30.0),
+    no_map: Annotated[
+        bool,
+        typer.Option(
+            "--no-map", help="Leave the surveyed map out: EM learns the landmarks' positions (kept for scoring only)."
+        ),
+    ] = False,
 ) -> None:
     """Write one MRCLAM robot as an EM log folder, with its EM settings in em_config.yaml.
 
     Commands are resampled with a zero-order hold; only landmark sightings are kept (range in mm and
     bearing); the landmark map goes into meta.json and Vicon into groundtruth.csv (for `sensact learn
-    em` to score against; it is never learned from)."""
+    em` to score against; it is never learned from). With --no-map the map's positions are left out
+    (null) and `learn em` learns them; the survey is kept in meta.json's ``survey`` for scoring only."""
+    import numpy as np
+
     from sensact.io.atomic import write_text
     from sensact.io.landmark_log import write_landmark_log
     from sensact.io.mrclam import read_mrclam
@@ -77,12 +86,16 @@ def convert_mrclam(
             f"[yellow]warning: robot {robot} sees no landmark, so `sensact learn em` has nothing to learn from "
             "this log; its odometry and Vicon are written all the same.[/]"
         )
+    data, survey = ml.data, None
+    if no_map:
+        survey, data = data.landmarks_xy, data.with_landmarks(np.full_like(data.landmarks_xy, np.nan))
     write_landmark_log(
         out,
-        ml.data,
+        data,
         t0_s=0.0,
         groundtruth=ml.groundtruth,
         meta_extra={"source": {"dataset": str(dataset), "robot": robot, "t0_s": ml.t0_s, "rows": ml.summary}},
+        survey_xy=survey,
     )
     cfg = out / "em_config.yaml"
     write_text(cfg, settings_yaml("differential_drive_camera", mrclam_config(), ml.data, MRCLAM_CONFIG_HEADER))
@@ -91,6 +104,18 @@ def convert_mrclam(
         f"wrote {out}, its EM settings {cfg} (preset differential_drive_camera) and {overview}; learn with "
         f"`sensact learn em {out}`"
     )
+
+
+def _survey_on(data: Any, survey: Path) -> Any:
+    """The surveyed positions (mm) of ``data``'s landmarks, NaN where the survey does not list one."""
+    import numpy as np
+
+    from sensact.io.timed_csv import read_landmarks
+
+    xy, ids = read_landmarks(survey)
+    row = {str(v): j for j, v in enumerate(ids)}
+    names = data.landmark_names
+    return np.array([xy[row[n]] if n in row else (np.nan, np.nan) for n in names], dtype=float).reshape(-1, 2)
 
 
 def _draw_overview(data: Any, groundtruth: JsonObject | None, out: Path, title: str) -> Path:
@@ -106,10 +131,22 @@ def _draw_overview(data: Any, groundtruth: JsonObject | None, out: Path, title: 
 def convert_csv(
     commands: Annotated[Path, typer.Option(help="t_s and one column per command, a row whenever one was sent.")],
     sightings: Annotated[Path, typer.Option(help="t_s, landmark_id, one column per reading, optional bearing_rad.")],
-    landmarks: Annotated[Path, typer.Option(help="The map: id (a number or a name), x_m, y_m (or x_mm, y_mm).")],
+    landmarks: Annotated[
+        Path | None,
+        typer.Option(
+            help="The map: id (a number or a name), x_m, y_m (or x_mm, y_mm). Optional: EM learns the positions "
+            "it does not give."
+        ),
+    ] = None,
     truth: Annotated[
         Path | None,
         typer.Option(help="Optional, for scoring only: t_s, x_m, y_m, theta_rad (0 facing +x, counterclockwise)."),
+    ] = None,
+    survey: Annotated[
+        Path | None,
+        typer.Option(
+            help="Optional, for scoring a learned map only: id, x_m, y_m, as --landmarks (never learned from)."
+        ),
     ] = None,
     out: Annotated[Path, typer.Option("--out", help="The log folder to write.")] = Path("robot_log"),
     dt: Annotated[
@@ -129,7 +166,10 @@ def convert_csv(
     and _m_s (or _cm and _cm_s) become mm and mm/s, _deg and _deg_s radians; a column whose numbers show
     another unit (bearings in degrees, times in ms) is refused, and a range or speed off the map's size, a
     turn rate over a turn a second, or a truth heading that points off the way the truth moves warned about.
-    Sightings of landmarks the map does not list are dropped and counted. A robot with a range_m and
+    Without --landmarks, `learn em` learns every landmark's position with the models (the robot's start
+    fixes the map's frame: the origin, facing +x); with a map that lists only some, it holds those and
+    learns the others seen 20 times or more. Sightings of landmarks seen fewer times that the map does not
+    list are dropped and counted. A robot with a range_m and
     bearing camera also gets em_config.yaml (MRCLAM's settings) to start from: a differential drive's
     when the commands are v_m_s, omega_rad_s or the wheel speeds left_m_s, right_m_s; on any other
     commands, as a legged robot's (v, v_left, omega), every velocity, sideways too, affine in every
@@ -147,12 +187,14 @@ def convert_csv(
         console.print(f"[yellow]warning:[/] {doubt}")
     if tl.truth_doubt:  # scoring only, so the log is written; the scores against it would be off
         console.print(f"[yellow]warning:[/] {truth}: {tl.truth_doubt}", highlight=False)
-    files = {"commands": str(commands), "sightings": str(sightings), "landmarks": str(landmarks)}
+    files = {"commands": str(commands), "sightings": str(sightings)}
+    files |= {k: str(v) for k, v in (("landmarks", landmarks), ("survey", survey)) if v is not None}
     write_landmark_log(
         out,
         tl.data,
         t0_s=0.0,
         groundtruth=tl.groundtruth,
+        survey_xy=None if survey is None else _survey_on(tl.data, survey),
         meta_extra={
             "source": {"files": files | ({"truth": str(truth)} if truth else {}), "t0_s": tl.t0_s, "rows": tl.summary}
         },

@@ -47,7 +47,14 @@ def convert_bag(
     bag: Annotated[Path, typer.Argument(help="A ROS 1 .bag, or a ROS 2 bag folder (sqlite3 or MCAP) or its file.")],
     out: Annotated[Path, typer.Option("--out", help="The log folder to write.")] = Path("robot_log"),
     landmarks: Annotated[
-        Path | None, typer.Option(help="The map, id,x_m,y_m (a tag's id is its number), for tag sightings.")
+        Path | None,
+        typer.Option(
+            help="The map, id,x_m,y_m (a tag's id is its number), for tag sightings; optional: EM learns the "
+            "positions it does not give."
+        ),
+    ] = None,
+    survey: Annotated[
+        Path | None, typer.Option(help="For scoring a learned map only: id,x_m,y_m, as --landmarks.")
     ] = None,
     commands: Annotated[
         str | None, typer.Option(metavar="TOPIC", help="Twist, TwistStamped or Odometry (its twist).")
@@ -74,7 +81,8 @@ def convert_bag(
     With no topics named, the bag's types choose them: a Twist (/cmd_vel) is the commands, or an Odometry
     where there is no Twist (wheel odometry used as the command); sensor_msgs/Range topics are a 1-D
     robot's readings; AprilTag transforms on /tf (camera optical frame to tag36h11:ID) or ROS 1's
-    apriltag_ros detections are range-and-bearing sightings of the map's landmarks; a PoseStamped is the
+    apriltag_ros detections are range-and-bearing sightings of the map's landmarks (without --landmarks,
+    `learn em` learns where the tags are); a PoseStamped is the
     truth, for scoring only. When a role is ambiguous the topics are listed with a proposal and nothing is
     written: name them with the options or --mapping. Header stamps time the messages (a Twist has none:
     when it was recorded), or --receive-times. Units become sensact's (mm) and the robot's axes REP 103's;
@@ -137,10 +145,6 @@ def convert_bag(
             fix="name them: --commands TOPIC, --readings TOPIC or --sightings TOPIC, --truth TOPIC (or --mapping).",
         )
     check_roles(bag, roles, topics)
-    if roles.sightings and landmarks is None:
-        raise LogFormatError(
-            "tag sightings need the map.", file=bag, fix="--landmarks map.csv (id,x_m,y_m; a tag's id is its number)"
-        )
     from sensact.cli.base import progress_bar
 
     with progress_bar() as progress:
@@ -150,7 +154,7 @@ def convert_bag(
     src = out / TABLES
     src.mkdir(parents=True, exist_ok=True)
     cmd_csv = src / "commands.csv"
-    if tables.sightings is not None and landmarks is not None:
+    if tables.sightings is not None:  # without --landmarks (or with some), EM learns the tags' positions
         write_table(cmd_csv, tables.commands)
         write_table(src / "sightings.csv", tables.sightings, ints=("landmark_id",))
         truth_csv = None
@@ -158,7 +162,13 @@ def convert_bag(
             truth_csv = src / "truth.csv"
             write_table(truth_csv, tables.truth)
         convert_csv(
-            commands=cmd_csv, sightings=src / "sightings.csv", landmarks=landmarks, truth=truth_csv, out=out, dt=dt
+            commands=cmd_csv,
+            sightings=src / "sightings.csv",
+            landmarks=landmarks,
+            truth=truth_csv,
+            out=out,
+            dt=dt,
+            survey=survey,
         )
     else:
         track = dict(t_s=tables.commands["t_s"], v_m_s=tables.commands["v_m_s"])

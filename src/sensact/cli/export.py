@@ -15,14 +15,17 @@ from sensact.cli.base import ForceOpt, app, console, friendly
 def export_cmd(
     model: Annotated[Path, typer.Argument(help="A model.json from `sensact learn em` or `learn car`.")],
     format_: Annotated[
-        str, typer.Option("--format", help="robot-localization (YAML), tum (trajectory for evo) or velodyne (YAML).")
+        str,
+        typer.Option(
+            "--format", help="robot-localization (YAML), tum (trajectory for evo), velodyne (YAML) or landmarks (CSV)."
+        ),
     ],
     out: Annotated[
         Path | None,
         typer.Option(
             "--out",
-            help="The file to write; by default beside the model: MODEL.tum, MODEL.robot_localization.yaml or "
-            "MODEL.velodyne.yaml.",
+            help="The file to write; by default beside the model: MODEL.tum, MODEL.robot_localization.yaml, "
+            "MODEL.velodyne.yaml or MODEL.landmarks.csv.",
             show_default=False,
         ),
     ] = None,
@@ -39,7 +42,9 @@ def export_cmd(
     OUT.sensact.yaml with a command's twist covariance, the action model's gains and offsets and the
     sensor's mount. tum: EM's smoothed path (timestamp x y z qx qy qz qw, on
     the log's own clock) and the truth's beside it, so that `evo_ape tum OUT_truth.tum OUT` compares them.
-    velodyne: a car model's learned laser angles as a ROS velodyne calibration."""
+    velodyne: a car model's learned laser angles as a ROS velodyne calibration. landmarks: a map EM learned
+    (id,x_m,y_m in the map's frame, placed landmarks only), the file `convert csv --landmarks` reads, so
+    that one robot's learned map serves the next robot's calibration."""
     from sensact.app.export import default_out, export_model
 
     done = export_model(model, format_, out or default_out(model, format_), truth_out, force=force)

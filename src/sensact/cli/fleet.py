@@ -75,12 +75,24 @@ def fleet_learn_cmd(
             help="Then score every model on every log, as `evaluate fleet` does, on the same cluster.",
         ),
     ] = True,
+    shared_map: Annotated[
+        bool,
+        typer.Option(
+            "--shared-map",
+            help="Robots in one room whose logs give no map: learn one map from every log together, with each "
+            "robot's own models; written as OUT/map.json.",
+        ),
+    ] = False,
 ) -> None:
     """Calibrate every log as `learn em LOG --out OUT/NAME/model.json` would, a job per log on Dask.
 
     Each log's model is the one `learn em` learns on it alone (the same file, its timing aside). A log that
     fails is reported, in the table and in fleet.json, and the others go on; the exit code is then 3 (2 when
-    every log failed on bad input). Needs the fleet extra (pip install 'sensact[fleet]') unless --workers 1."""
+    every log failed on bad input). Needs the fleet extra (pip install 'sensact[fleet]') unless --workers 1.
+
+    --shared-map: each log is learned alone first (OUT/alone/NAME/model.json), the learned maps are laid on
+    the first log's and merged, each robot learns its models again on that map (OUT/NAME/model.json), and
+    their sightings together move the map once more (OUT/map.json; docs/em-real.md, "No surveyed map")."""
     from rich.markup import escape
 
     from sensact.app.fleet import FleetEvents, LearnOptions, fleet_names, learn_fleet, log_name
@@ -119,14 +131,13 @@ def fleet_learn_cmd(
                     scoring[i] = bar.add_task("", total=total)
                 bar.update(scoring[i], description=f"cross-scores on {desc}", completed=done, total=total)
 
-            run = learn_fleet(
-                engine,
-                logs,
-                out,
-                options,
-                cross_scores=cross_scores,
-                events=FleetEvents(learning=learning, learned=learned, scoring=scored),
-            )
+            fleet_events = FleetEvents(learning=learning, learned=learned, scoring=scored)
+            if shared_map:
+                from sensact.app.shared_map import learn_fleet_shared_map
+
+                run = learn_fleet_shared_map(engine, logs, out, options, fleet_events)
+            else:
+                run = learn_fleet(engine, logs, out, options, cross_scores=cross_scores, events=fleet_events)
     summary = out / "fleet.json"
     write_result(summary, run.to_json())
     _print_run(run)
@@ -139,6 +150,8 @@ def fleet_learn_cmd(
         written.append(figure_fleet(run.cross_scores, out / "fleet.png"))
     elif run.cross_scores_skipped:
         console.print(f"[yellow]cross-scores not taken:[/] {run.cross_scores_skipped}", highlight=False)
+    if (out / "map.json").is_file() and shared_map:
+        written.append(out / "map.json")
     console.print("wrote " + ", ".join(str(p) for p in written) + f" and each log's model under {out}")
 
     flagged = [o for o in run.outcomes if getattr(o, "health", None) is not None and not o.health.ok]

@@ -103,6 +103,10 @@ def simulate_diffdrive_cmd(
         ),
     ] = None,
     bag_format: Annotated[str, typer.Option(help="A ROS 2 bag's storage: mcap or sqlite3.")] = "mcap",
+    no_map: Annotated[
+        bool,
+        typer.Option("--no-map", help="Leave the landmarks' positions out of the log: EM learns them (scored only)."),
+    ] = False,
 ) -> None:
     """Simulate a differential drive on continuous commands among landmarks, as in the MRCLAM logs.
 
@@ -113,7 +117,8 @@ def simulate_diffdrive_cmd(
     robot that can side-step, as a legged one, logged as (v_mm_s, v_left_mm_s, omega_rad_s), with
     settings in which every velocity, sideways too, is affine in every command. `--set sensor=radio`
     reads ranges alone, in every direction (UWB anchors, sonar beacons): no bearings in the log, and
-    settings without them that start EM where the robot was put (start_pose)."""
+    settings without them that start EM where the robot was put (start_pose). `--no-map` leaves the
+    landmarks' positions out (EM learns them; the true ones stay in meta.json's survey, for scoring)."""
     from sensact.cli.convert import config_header
     from sensact.io.atomic import write_text
     from sensact.io.landmark_log import write_landmark_log
@@ -123,8 +128,12 @@ def simulate_diffdrive_cmd(
     cfg = layered_config(DiffDriveConfig, config, set_, seconds=seconds, seed=seed)
     fmt = _bag_format(bag, bag_format) if bag is not None else None
     run = simulate_diffdrive(cfg)
-    log = run.log()
-    write_landmark_log(out, log, groundtruth=run.groundtruth(), meta_extra={"truth": cfg.truth()})
+    log, survey = run.log(), None
+    if no_map:  # the landmarks unknown to the learner; their true positions kept to score the learned map
+        import numpy as np
+
+        survey, log = log.landmarks_xy, log.with_landmarks(np.full_like(log.landmarks_xy, np.nan))
+    write_landmark_log(out, log, groundtruth=run.groundtruth(), meta_extra={"truth": cfg.truth()}, survey_xy=survey)
     em_cfg = out / "em_config.yaml"
     start = (
         () if cfg.reads_bearing else ("thesis.start_prior_mean", "thesis.start_prior_sd")

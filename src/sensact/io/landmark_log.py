@@ -61,6 +61,21 @@ class LandmarkLogFile:
     def truth_poses(self) -> tuple[np.ndarray, np.ndarray] | None:
         return truth_poses_of(self.groundtruth)
 
+    @property
+    def survey_xy(self) -> np.ndarray | None:
+        """(L, 2) mm: the surveyed positions of a log whose map EM learns (meta.json's ``survey``, for
+        scoring only, as groundtruth.csv), NaN where not surveyed; the given map where every position is
+        given; None when neither."""
+        if self.data.map_given.all():
+            return self.data.landmarks_xy
+        rows = self.meta.get("survey")
+        if not rows:
+            return None
+        xy = np.full_like(self.data.landmarks_xy, np.nan)
+        for row in rows:
+            xy[int(row["id"])] = float(row["x_mm"]), float(row["y_mm"])
+        return xy
+
     def truth_distance_mm(self) -> np.ndarray | None:
         """A 1-D robot's recorded distance on the step grid (``groundtruth.csv``'s ``distance_mm`` in a
         track folder of continuous commands), scored as a Turtlebot CSV's ``range`` column; else None."""
@@ -189,7 +204,8 @@ def _meta_parts(mpath: Path, meta: JsonObject, geometry: Geometry) -> _MetaParts
         beacon = [{"id": 0, "x_mm": 0, "y_mm": 0}]
         marks = meta.get("landmarks", beacon) if geometry.state_is_range else meta["landmarks"]
         raw_ids = [str(m["id"]).strip() if m["id"] is not None else "" for m in marks]
-        xy = np.array([[float(m["x_mm"]), float(m["y_mm"])] for m in marks])
+        # a position nobody surveyed is null: EM learns it (issue 92)
+        xy = np.array([[_mm_or_nan(m["x_mm"]), _mm_or_nan(m["y_mm"])] for m in marks])
         cols = meta.get("observations", {})
     except (KeyError, TypeError, ValueError, IndexError) as exc:
         what = f"{exc} is missing" if isinstance(exc, KeyError) else f"malformed ({exc})"
@@ -207,13 +223,15 @@ def _meta_parts(mpath: Path, meta: JsonObject, geometry: Geometry) -> _MetaParts
             field="actions.columns",
             fix='name the command columns of actions.csv, e.g. ["v_mm_s", "omega_rad_s"].',
         )
-    if xy.size and not np.all(np.isfinite(xy)):
-        bad = int(np.flatnonzero(~np.all(np.isfinite(xy), axis=1))[0])
+    half = np.isfinite(xy).any(axis=1) & ~np.isfinite(xy).all(axis=1) if xy.size else np.zeros(0, dtype=bool)
+    odd = [j for j, m in enumerate(marks) if any(_not_a_number(m[k]) for k in ("x_mm", "y_mm"))]
+    if half.any() or odd:
+        bad = int(np.flatnonzero(half)[0]) if half.any() else odd[0]
         raise LogFormatError(
             f"landmark {raw_ids[bad] or bad + 1}'s position is not finite.",
             file=mpath,
             field="landmarks.x_mm / y_mm",
-            fix="give every landmark a finite x_mm and y_mm.",
+            fix="give a landmark a finite x_mm and y_mm, or null for both when nobody surveyed it (EM learns it).",
         )
     if not (np.isfinite(dt) and dt > 0):
         raise LogFormatError(
@@ -223,6 +241,15 @@ def _meta_parts(mpath: Path, meta: JsonObject, geometry: Geometry) -> _MetaParts
             fix="set dt_s to the step the CSVs' t_s are on (e.g. 0.0333 for 30 Hz).",
         )
     return _MetaParts(dt, act, table, names, marks, raw_ids, xy, cols)
+
+
+def _mm_or_nan(v: Any) -> float:
+    """A landmark coordinate: null is a position nobody surveyed (NaN; EM learns it)."""
+    return np.nan if v is None else float(v)
+
+
+def _not_a_number(v: Any) -> bool:
+    return v is not None and not np.isfinite(float(v))
 
 
 class _Sightings(NamedTuple):
@@ -408,10 +435,13 @@ def write_landmark_log(
     t0_s: float = 0.0,
     groundtruth: dict[str, np.ndarray] | None = None,
     meta_extra: JsonObject | None = None,
+    survey_xy: np.ndarray | None = None,
 ) -> Path:
     """Write ``data`` as a landmark log folder that ``read_landmark_log`` reads back exactly.
 
-    ``groundtruth`` columns (on the step grid) go to groundtruth.csv, for evaluation only.
+    ``groundtruth`` columns (on the step grid) go to groundtruth.csv, for evaluation only; so does
+    ``survey_xy`` ((L, 2) mm, NaN where not surveyed), the surveyed map of a log whose map EM learns
+    (meta.json's ``survey``).
     """
     times = t0_s + np.arange(data.n_steps) * data.dt_s
     if data.is_continuous:
@@ -435,14 +465,27 @@ def write_landmark_log(
         "dt_s": data.dt_s,
         "actions": act_meta,
         "landmarks": [
-            {"id": j, "name": name, "x_mm": float(x), "y_mm": float(y)}
+            {"id": j, "name": name, "x_mm": _mm_or_null(x), "y_mm": _mm_or_null(y)}
             for j, (name, (x, y)) in enumerate(zip(names, data.landmarks_xy, strict=True))
         ],
+        **({} if survey_xy is None else {"survey": _survey_rows(survey_xy)}),
         "observations": cols,
         **(meta_extra or {}),
     }
     gt = None if groundtruth is None else {"t_s": times, **groundtruth}
     return write_log_folder(folder, meta=meta, actions=actions, observations=obs, groundtruth=gt)
+
+
+def _mm_or_null(v: float) -> float | None:
+    return float(v) if np.isfinite(v) else None
+
+
+def _survey_rows(xy: np.ndarray) -> list[JsonObject]:
+    return [
+        {"id": j, "x_mm": float(x), "y_mm": float(y)}
+        for j, (x, y) in enumerate(np.asarray(xy))
+        if np.isfinite([x, y]).all()
+    ]
 
 
 def refuse_bad_truth(path: Path, g: dict[str, np.ndarray], t0: float, t1: float) -> None:

@@ -165,7 +165,9 @@ class TimedLog:
         line = (
             f"{s['command_rows']} command rows -> {self.data.n_steps} steps of {self.data.dt_s:.4g} s (the longest "
             f"gap between rows, held: {s['longest_command_gap_s']:.3g} s); kept {s['kept']} of "
-            f"{s['sighting_rows']} sightings; dropped {s['dropped_unknown_landmark']} naming landmarks not on "
+            f"{s['sighting_rows']} sightings"
+            + (f"; {s['learned_landmarks']} landmarks' positions to learn" if s["learned_landmarks"] else "")
+            + f"; dropped {s['dropped_unknown_landmark']} naming landmarks not on "
             f"the map{_ids(s['unknown_landmark_ids'])}, {s['dropped_outside_time']} outside the commands' "
             f"span, {s['dropped_nothing_read']} with nothing read"
         )
@@ -264,6 +266,23 @@ def read_landmarks(path: Path) -> tuple[np.ndarray, np.ndarray]:
     return np.column_stack([lm["x_mm"], lm["y_mm"]]), ids
 
 
+MIN_SIGHTINGS_TO_LEARN = 20  # an unlisted landmark seen this often is one EM places (issue 92's bar: 20)
+
+
+def _map_with_unlisted(
+    given: tuple[np.ndarray, np.ndarray] | None, seen_id: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The map's positions and ids, with a NaN row for each landmark EM learns: every one seen without a
+    map; with one, those it does not list but the sightings name ``MIN_SIGHTINGS_TO_LEARN`` times or more."""
+    xy, ids = given if given is not None else (np.zeros((0, 2)), np.array([], dtype=str))
+    labels, counts = np.unique(seen_id[~np.isin(seen_id, ids)], return_counts=True)
+    learned = [v for v, n in zip(labels, counts, strict=True) if given is None or n >= MIN_SIGHTINGS_TO_LEARN]
+    learned = sorted(learned, key=lambda v: _id_order(str(v)))
+    if not learned:
+        return xy, ids
+    return np.vstack([xy, np.full((len(learned), 2), np.nan)]), np.concatenate([ids.astype(str), np.array(learned)])
+
+
 def _read_sightings(path: Path) -> tuple[np.ndarray, np.ndarray, tuple[str, ...], np.ndarray, np.ndarray | None]:
     """sightings.csv: each row's time, landmark id, reading names, readings and bearing (None: no bearing
     column)."""
@@ -293,20 +312,26 @@ def _read_sightings(path: Path) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]
 def read_timed_csv(
     commands: str | Path,
     sightings: str | Path,
-    landmarks: str | Path,
+    landmarks: str | Path | None,
     truth: str | Path | None = None,
     *,
     dt_s: float | None = None,
 ) -> TimedLog:
     """The four files (see the module docstring) as a planar, continuous-command ``LandmarkLog`` on a step
-    of ``dt_s`` (None: the commands' median interval, the rate the robot's controller ran at)."""
-    commands, sightings, landmarks = Path(commands), Path(sightings), Path(landmarks)
+    of ``dt_s`` (None: the commands' median interval, the rate the robot's controller ran at).
+
+    Without ``landmarks`` every landmark seen is one whose position EM learns (issue 92); with a map that
+    lists only some, an unlisted landmark seen ``MIN_SIGHTINGS_TO_LEARN`` times or more is learned too, and
+    one seen fewer times (a false detection) dropped and counted, as without the partial map."""
+    commands, sightings = Path(commands), Path(sightings)
     if dt_s is not None and not (np.isfinite(dt_s) and dt_s > 0):
         raise LogFormatError(f"dt = {dt_s} is not a step.", field="dt", fix="give a step in seconds, e.g. 0.0333.")
     t_cmd, names, t0, held, dt_s = _read_commands(commands, dt_s)
     T = len(held)
-    landmarks_mm, ids = read_landmarks(landmarks)
+    given = read_landmarks(Path(landmarks)) if landmarks is not None else None
     t_obs, seen_id, readings, values, bearing = _read_sightings(sightings)
+    landmarks_mm, ids = _map_with_unlisted(given, seen_id)
+    landmarks = Path(landmarks) if landmarks is not None else sightings
     step, inside = nearest_steps(t_obs, t0, dt_s, T)
     known = np.isin(seen_id, ids)
     read = np.any(np.isfinite(values), axis=1) | (np.isfinite(bearing) if bearing is not None else False)
@@ -349,6 +374,7 @@ def read_timed_csv(
         "dropped_outside_time": int((known & ~inside).sum()),
         "dropped_after_commands": int((known & ~inside & (step > 0)).sum()),
         "dropped_nothing_read": int((known & inside & ~read).sum()),
+        "learned_landmarks": int((~np.isfinite(landmarks_mm).all(axis=1)).sum()),
     }
     return TimedLog(data, t0, gt, summary, truth_doubt)
 

@@ -164,3 +164,45 @@ def figure_path_over_truth(res: Any, data: Any, truth: np.ndarray, valid: np.nda
     ax.set_title(title)
     fig.tight_layout()
     return _save(fig, path)
+
+
+def figure_landmark_map(
+    learned: Any,
+    names: tuple[str, ...],
+    path_xy: np.ndarray | None,
+    survey: np.ndarray | None,
+    alignment: Any,
+    out: Path,
+    title: str,
+) -> Path:
+    """The map EM learned (issue 92): each placed landmark with its 2-sd ellipse and name, EM's path, and
+    the survey when the log has one, the learned map laid on it by the best rigid alignment (no scale)."""
+    from matplotlib.patches import Ellipse
+
+    xy, angle = learned.xy, 0.0
+    if alignment is not None:
+        xy, angle = alignment.points(xy), alignment.rotation_rad
+        path_xy = None if path_xy is None else alignment.points(path_xy)
+    fig, ax = plt.subplots(figsize=(6.5, 5.5))
+    if path_xy is not None:
+        ax.plot(*(path_xy * MM).T, color="0.6", lw=0.6, label="EM's smoothed path")
+    if survey is not None:
+        ax.scatter(*(survey * MM).T, marker="x", color="k", s=40, label="surveyed (never learned from)")
+    placed = learned.placed & np.isfinite(xy).all(axis=1)
+    ax.scatter(*(xy[placed] * MM).T, marker="s", color="C2", s=18, label="learned (2-sd ellipses)")
+    for j in np.flatnonzero(placed):
+        sx, sy = np.nan_to_num(learned.sd[j], nan=0.0)
+        ax.add_patch(
+            Ellipse(xy[j] * MM, 4 * sx * MM, 4 * sy * MM, angle=np.degrees(angle), fill=False, color="C2", lw=0.8)
+        )
+        ax.annotate(names[j], xy[j] * MM, fontsize=6, xytext=(3, 3), textcoords="offset points")
+    if (~placed).any():
+        ax.set_title(f"{title}\nnot placed: {', '.join(names[j] for j in np.flatnonzero(~placed))}", fontsize=9)
+    else:
+        ax.set_title(title)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set(xlabel="map x (m)", ylabel="map y (m)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return _save(fig, out)

@@ -18,6 +18,7 @@ from sensact.errors import ConfigError, LogFormatError
 from sensact.learn.em.checks.lost_signs import LostSign, Unsettled, lost_fit_signs
 from sensact.learn.em.config import EMConfig, refuse_bearing_settings
 from sensact.learn.em.initial import initial_model
+from sensact.learn.em.landmarks import placed_landmarks
 from sensact.learn.em.loop import Progress, fit_em_once, held_trial, stage_loglik
 from sensact.learn.em.map_filter import filtered_map
 from sensact.learn.em.result import EMResult, HeadingRace, RestartRun, StartMoved
@@ -96,11 +97,8 @@ def fit_em(
             fit = policy(fit, log, settings, heard)
         return fit
 
-    if start.landmarks is not None:  # two routes to an unsurveyed map; the more likely on every sighting wins
-        on_start_map = data.with_landmarks(start.landmarks.xy)  # from the poor start, as on a survey, the map free
-        in_mstep = composed(on_start_map, cfg)(initial_model(on_start_map, cfg).replace(landmarks=start.landmarks))
-        rounds = map_rounds(composed, data, start, cfg)
-        return rounds if more_likely(rounds, in_mstep, data) else in_mstep
+    if start.landmarks is not None:  # a map nobody surveyed: learned in rounds (map_filter.py)
+        return map_rounds(composed, data, start, cfg)
     return composed(data, cfg)(start)
 
 
@@ -136,11 +134,12 @@ def map_rounds(
         settings = settings.replace(refine_from=0, start_search_s=None) if k == 0 else settings
         xy, sd = filtered_map(model, data, xy, learned.held)
     res = best[1]
-    if res.stop_reason == "interrupted":
-        return res
-    # near the top the ridge is short: the M-step's own map update finishes the climb (landmarks.py)
-    final = composed(data.with_landmarks(res.model.landmarks.xy), settings)(res.model)
-    return final if more_likely(final, res, data) else res
+    if res.stop_reason != "interrupted":
+        # near the top the ridge is short: the M-step's own map update finishes the climb (landmarks.py)
+        final = composed(data.with_landmarks(res.model.landmarks.xy), settings)(res.model)
+        res = final if more_likely(final, res, data) else res
+    used = None if res.posteriors is None else res.posteriors.obs_used
+    return dc_replace(res, model=res.model.replace(landmarks=placed_landmarks(res.model.landmarks, data, used)))
 
 
 def more_likely(a: EMResult, b: EMResult, data: LandmarkLog) -> bool:

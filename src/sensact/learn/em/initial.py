@@ -139,11 +139,17 @@ def starting_map(
     from EKF-SLAM on the commands at face value (``map_start.py``); its scale comes from the range
     readings in mm, or from the given positions."""
     if not (data.geometry.has_heading and sensor.reads_bearing):
+        unknown = int((~data.map_given).sum())
         raise ConfigError(
-            "learning the landmarks' positions needs a planar log whose sensor reads bearings.",
+            f"{unknown} of {len(data.map_given)} landmarks have no position, and the sensor reads "
+            + (
+                "no bearing: ranges alone (radio anchors) cannot place them from a start nobody knows."
+                if data.geometry.has_heading
+                else "a track's one distance: no map to learn."
+            ),
             file=data.source,
             field="landmarks",
-            fix="give every landmark's position (convert ... --landmarks map.csv).",
+            fix="give every anchor's position (convert ... --landmarks map.csv, id,x_m,y_m).",
         )
     held = data.map_given
     first = sensor.channels[0]

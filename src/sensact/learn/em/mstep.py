@@ -12,7 +12,7 @@ from sensact.core.polyfit import weighted_lstsq
 from sensact.core.pose_models import apply_displacement, landmark_bearing, sensor_poses
 from sensact.learn.em.actions import motion_noise, motion_second_moments, step_motion_var, turning_variance
 from sensact.learn.em.estep import Posteriors, channel_inputs
-from sensact.learn.em.landmarks import landmark_update
+from sensact.learn.em.landmarks import landmark_update, normal_equations
 from sensact.learn.em.mount import mount_update, sensor_distances
 from sensact.learn.em.stage import Stage
 from sensact.logs.landmark_log import LandmarkLog
@@ -154,6 +154,23 @@ def sensor_and_map(
         )
         sigma_b = max(float(np.sqrt(np.sum(np.tile(wb[b], n_samples) * err**2) / err.size)), 1e-9)
     return previous.with_fits(fits, sigma_b), landmarks
+
+
+def map_normal_equations(
+    post: Posteriors, data: LandmarkLog, sensor: LandmarkSensor, n_samples: int, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
+    """The landmark M-step's information and gradient at ``data``'s map from one fit's posteriors, over the
+    sightings its E-step used (``landmarks.normal_equations``); a fleet sums them over its logs."""
+    weights = post.weights * post.obs_used[:, None]
+    rows = np.flatnonzero(weights.any(axis=1))
+    L = len(data.landmarks_xy)
+    if rows.size == 0:
+        return np.zeros((L, 2, 2)), np.zeros((L, 2))
+    poses = sample_gamma(post, data.obs_step[rows], n_samples, rng)
+    readings = channel_inputs(sensor, data)[0][rows]
+    return normal_equations(
+        poses, data.obs_landmark[rows], readings, weights[rows], data.obs_bearing_rad[rows], sensor, data.landmarks_xy
+    )
 
 
 def prior(post: Posteriors, floor_var: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
