@@ -23,7 +23,7 @@ from sensact.errors import ConfigError, LogFormatError
 from sensact.evaluate.map_truth import map_scores, rigid_alignment
 from sensact.io.landmark_log import read_landmark_log, write_landmark_log
 from sensact.io.timed_csv import MIN_SIGHTINGS_TO_LEARN, read_landmarks, read_timed_csv
-from sensact.learn.em import fit_em, initial_model
+from sensact.learn.em import initial_model
 from sensact.learn.em.landmarks import landmark_update, normal_equations
 from sensact.models.em_model import EMModel
 from sensact.models.landmark_map import LandmarkMap
@@ -129,6 +129,7 @@ def test_range_only_anchors_with_unknown_positions_are_refused_in_one_line():
 
 
 def test_convert_csv_without_a_map_learns_every_landmark_and_a_partial_map_holds_its_own(tmp_path):
+    """A full map drops unlisted ids as before (other robots); --learn-unlisted learns those seen often."""
     write_csv(tmp_path / "c.csv", {"t_s": [0.0, 1.0, 2.0, 3.0], "v_m_s": [0.1] * 4, "omega_rad_s": [0.0] * 4})
     n = MIN_SIGHTINGS_TO_LEARN
     rows = ["t_s,landmark_id,range_m,bearing_rad"]
@@ -139,7 +140,9 @@ def test_convert_csv_without_a_map_learns_every_landmark_and_a_partial_map_holds
     free = read_timed_csv(tmp_path / "c.csv", tmp_path / "s.csv", None)
     assert free.data.landmark_names == ("7", "99", "tagA") and not free.data.map_given.any()
     (tmp_path / "l.csv").write_text("id,x_m,y_m\ntagA,1,2\n")
-    partial = read_timed_csv(tmp_path / "c.csv", tmp_path / "s.csv", tmp_path / "l.csv")
+    listed = read_timed_csv(tmp_path / "c.csv", tmp_path / "s.csv", tmp_path / "l.csv")
+    assert listed.data.landmark_names == ("tagA",) and listed.summary["dropped_unknown_landmark"] == n + 1
+    partial = read_timed_csv(tmp_path / "c.csv", tmp_path / "s.csv", tmp_path / "l.csv", learn_unlisted=True)
     assert partial.data.landmark_names == ("tagA", "7")  # 99 seen once: dropped and counted
     np.testing.assert_array_equal(partial.data.map_given, [True, False])
     np.testing.assert_allclose(partial.data.landmarks_xy[0], [1000.0, 2000.0])
@@ -201,19 +204,32 @@ def test_a_learned_map_reads_back_through_landmarks_and_export(tmp_path):
     assert res.exit_code == 2 and "map.landmarks" in res.output
 
 
-def test_em_learns_an_unsurveyed_map_with_the_models_on_a_simulated_robot():
-    """Seeded recovery: the map within 100 mm after the rigid alignment (a metric range sensor), every
-    landmark seen 20 times placed, the path and the models as with the survey."""
-    run = simulate_diffdrive(DiffDriveConfig(seconds=300, seed=1, range_gain=1.0))
-    data = run.log()
-    cfg = planar_config(data.command_names)
-    res = fit_em(data.with_landmarks(np.full_like(data.landmarks_xy, np.nan)), None, cfg)
-    learned = res.model.landmarks
-    seen = np.bincount(data.obs_landmark[res.posteriors.obs_used], minlength=len(data.landmarks_xy))
-    scores, fit = map_scores(learned.placed_xy(), data.landmarks_xy, seen)
-    assert scores["rms_mm"] < 100.0 and scores["seen_enough_not_placed"] == 0
-    path = fit.poses(res.posteriors.mean_gamma)
-    assert np.median(np.hypot(*(path[:, :2] - run.poses[:, :2]).T)) < 150.0
-    gain = res.model.action.named_parameters()
-    assert gain  # the action model learned, not left at the start
-    assert 0.5 < res.model.sensor.channels[0].sigma / 40.0 < 1.5
+def test_em_learns_an_unsurveyed_map_with_the_models_on_a_simulated_robot(tmp_path):
+    """Seeded recovery through the route a user takes (`simulate diffdrive --no-map`, `learn em`): the map
+    within 100 mm after the rigid alignment (a metric range sensor), every landmark seen 20 times placed,
+    the path and the models scored as with a survey; the map exported and read back as --landmarks."""
+    sim = tmp_path / "sim"
+    args = ["simulate", "diffdrive", "--no-map", "--seconds", "300", "--seed", "1", "--set", "range_gain=1.0"]
+    res = runner.invoke(app, [*args, "--out", str(sim)])
+    assert res.exit_code == 0, res.output
+    assert json.loads((sim / "meta.json").read_text())["landmarks"][0]["x_mm"] is None
+    res = runner.invoke(app, ["learn", "em", str(sim), "--out", str(sim / "model.json")])
+    assert res.exit_code == 0, res.output
+    doc = json.loads((sim / "model.json").read_text())
+    marks, ev = doc["map"]["landmarks"], doc["evaluation"]
+    assert len(marks) == 14 and "the robot's start" in doc["map"]["frame"]
+    assert all(set(m) >= {"id", "x_mm", "y_mm", "sd_x_mm", "sd_y_mm"} for m in marks)
+    assert ev["map"]["rms_mm"] < 100.0 and ev["map"]["seen_enough_not_placed"] == 0
+    assert ev["map"]["landmarks_total"] == 14 and ev["map"]["landmarks_placed"] >= 13
+    assert ev["path"]["median_mm"] < 150.0
+    assert ev["action"]["ratio_translation"] < 1.5 and ev["action"]["ratio_rotation"] < 1.5
+    assert 1 / 1.5 < ev["range"]["sigma_ratio"] < 1.5
+    assert (sim / "model_map.png").is_file()
+    res = runner.invoke(
+        app, ["export", str(sim / "model.json"), "--format", "landmarks", "--out", str(tmp_path / "m.csv")]
+    )
+    assert res.exit_code == 0, res.output
+    xy, ids = read_landmarks(tmp_path / "m.csv")
+    placed = [m for m in marks if m["placed"]]
+    assert list(ids) == [m["id"] for m in placed]
+    np.testing.assert_allclose(xy, [[m["x_mm"], m["y_mm"]] for m in placed], atol=1e-3)

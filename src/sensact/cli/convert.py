@@ -148,6 +148,14 @@ def convert_csv(
             help="Optional, for scoring a learned map only: id, x_m, y_m, as --landmarks (never learned from)."
         ),
     ] = None,
+    learn_unlisted: Annotated[
+        bool,
+        typer.Option(
+            "--learn-unlisted",
+            help="A partial --landmarks map: learn the positions of the landmarks it does not list (seen 20 times "
+            "or more) instead of dropping their sightings.",
+        ),
+    ] = False,
     out: Annotated[Path, typer.Option("--out", help="The log folder to write.")] = Path("robot_log"),
     dt: Annotated[
         float | None,
@@ -167,9 +175,10 @@ def convert_csv(
     another unit (bearings in degrees, times in ms) is refused, and a range or speed off the map's size, a
     turn rate over a turn a second, or a truth heading that points off the way the truth moves warned about.
     Without --landmarks, `learn em` learns every landmark's position with the models (the robot's start
-    fixes the map's frame: the origin, facing +x); with a map that lists only some, it holds those and
-    learns the others seen 20 times or more. Sightings of landmarks seen fewer times that the map does not
-    list are dropped and counted. A robot with a range_m and
+    fixes the map's frame: the origin, facing +x), so every id in the sightings must be a landmark that
+    stays put (drop other robots' ids). Sightings of landmarks the map does not list are dropped and
+    counted; with --learn-unlisted (a partial map) those seen 20 times or more are learned instead, the
+    listed ones held. A robot with a range_m and
     bearing camera also gets em_config.yaml (MRCLAM's settings) to start from: a differential drive's
     when the commands are v_m_s, omega_rad_s or the wheel speeds left_m_s, right_m_s; on any other
     commands, as a legged robot's (v, v_left, omega), every velocity, sideways too, affine in every
@@ -181,7 +190,7 @@ def convert_csv(
     from sensact.io.timed_csv import read_timed_csv
     from sensact.io.unit_checks import unit_doubts
 
-    tl = read_timed_csv(commands, sightings, landmarks, truth, dt_s=dt)
+    tl = read_timed_csv(commands, sightings, landmarks, truth, dt_s=dt, learn_unlisted=learn_unlisted)
     console.print(tl.summary_line())
     for doubt in unit_doubts(tl.data, truth_poses_of(tl.groundtruth)):
         console.print(f"[yellow]warning:[/] {doubt}")

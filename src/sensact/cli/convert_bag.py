@@ -56,6 +56,10 @@ def convert_bag(
     survey: Annotated[
         Path | None, typer.Option(help="For scoring a learned map only: id,x_m,y_m, as --landmarks.")
     ] = None,
+    learn_unlisted: Annotated[
+        bool,
+        typer.Option("--learn-unlisted", help="A partial --landmarks map: learn the tags it does not list."),
+    ] = False,
     commands: Annotated[
         str | None, typer.Option(metavar="TOPIC", help="Twist, TwistStamped or Odometry (its twist).")
     ] = None,
@@ -169,6 +173,7 @@ def convert_bag(
             out=out,
             dt=dt,
             survey=survey,
+            learn_unlisted=learn_unlisted,
         )
     else:
         track = dict(t_s=tables.commands["t_s"], v_m_s=tables.commands["v_m_s"])

@@ -92,7 +92,7 @@ def fleet_learn_cmd(
 
     --shared-map: each log is learned alone first (OUT/alone/NAME/model.json), the learned maps are laid on
     the first log's and merged, each robot learns its models again on that map (OUT/NAME/model.json), and
-    their sightings together move the map once more (OUT/map.json; docs/em-real.md, "No surveyed map")."""
+    their sightings together move the map once more (OUT/map.json; docs/map.md, "Several robots in one room")."""
     from rich.markup import escape
 
     from sensact.app.fleet import FleetEvents, LearnOptions, fleet_names, learn_fleet, log_name

@@ -316,13 +316,15 @@ def read_timed_csv(
     truth: str | Path | None = None,
     *,
     dt_s: float | None = None,
+    learn_unlisted: bool = False,
 ) -> TimedLog:
     """The four files (see the module docstring) as a planar, continuous-command ``LandmarkLog`` on a step
     of ``dt_s`` (None: the commands' median interval, the rate the robot's controller ran at).
 
-    Without ``landmarks`` every landmark seen is one whose position EM learns (issue 92); with a map that
-    lists only some, an unlisted landmark seen ``MIN_SIGHTINGS_TO_LEARN`` times or more is learned too, and
-    one seen fewer times (a false detection) dropped and counted, as without the partial map."""
+    Without ``landmarks`` every landmark seen is one whose position EM learns (issue 92). With a map,
+    sightings of landmarks it does not list (another robot, a false detection) are dropped and counted;
+    with ``learn_unlisted`` (a partial map) an unlisted landmark seen ``MIN_SIGHTINGS_TO_LEARN`` times or
+    more is learned instead, one seen fewer times still dropped."""
     commands, sightings = Path(commands), Path(sightings)
     if dt_s is not None and not (np.isfinite(dt_s) and dt_s > 0):
         raise LogFormatError(f"dt = {dt_s} is not a step.", field="dt", fix="give a step in seconds, e.g. 0.0333.")
@@ -330,7 +332,7 @@ def read_timed_csv(
     T = len(held)
     given = read_landmarks(Path(landmarks)) if landmarks is not None else None
     t_obs, seen_id, readings, values, bearing = _read_sightings(sightings)
-    landmarks_mm, ids = _map_with_unlisted(given, seen_id)
+    landmarks_mm, ids = given if given is not None and not learn_unlisted else _map_with_unlisted(given, seen_id)
     landmarks = Path(landmarks) if landmarks is not None else sightings
     step, inside = nearest_steps(t_obs, t0, dt_s, T)
     known = np.isin(seen_id, ids)

@@ -31,7 +31,7 @@ class Stage:
 
 
 # Sigma_m as configured, the bearing terms and the mount held, every reading Gaussian
-HELD = Stage("held", False, False, NO_MOUNT, False)
+HELD = Stage("held", False, False, NO_MOUNT, False, landmarks=False)
 
 
 def plan_stages(cfg: EMConfig, model: EMModel, freedom: MountFreedom, spent: int = 0) -> tuple[Stage, ...]:
@@ -44,7 +44,7 @@ def plan_stages(cfg: EMConfig, model: EMModel, freedom: MountFreedom, spent: int
     nothing_held = cfg.search.refine_from <= 0 and spent == 0
     if not holds_anything(cfg, model, freedom) or nothing_held or cfg.search.warm_start:
         return (free,)
-    return (Stage("held", False, False, NO_MOUNT, False, ends_by=cfg.search.refine_from - spent, landmarks=False), free)
+    return (HELD.with_end(cfg.search.refine_from - spent), free)
 
 
 def holds_anything(cfg: EMConfig, model: EMModel, freedom: MountFreedom) -> bool:
