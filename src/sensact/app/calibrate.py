@@ -124,7 +124,7 @@ class Calibration:
     def landmark_map(self) -> JsonObject | None:
         """model.json's ``map`` when EM learned the landmarks' positions (issue 92): ``landmarks`` (id, x_mm,
         y_mm, sd_x_mm, sd_y_mm, held, placed, sightings) in the log's frame and ``frame``; None on a surveyed map."""
-        from sensact.learn.em.landmarks import sightings_per_landmark
+        from sensact.learn.em.unsurveyed.landmark_step import sightings_per_landmark
 
         learned, data = self.model.landmarks, self.log.data
         if learned is None:

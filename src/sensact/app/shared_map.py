@@ -29,7 +29,7 @@ import numpy as np
 
 from sensact.app.fleet import Learned, LearnOptions, calibrate_and_save
 from sensact.evaluate.map_truth import RigidAlignment, rigid_alignment
-from sensact.learn.em.landmarks import gauss_newton_step, position_sd
+from sensact.learn.em.unsurveyed.landmark_step import gauss_newton_step, position_sd
 from sensact.models.landmark_map import LandmarkMap
 from sensact.records import JsonObject
 

@@ -18,13 +18,12 @@ from sensact.errors import ConfigError, LogFormatError
 from sensact.learn.em.checks.lost_signs import LostSign, Unsettled, lost_fit_signs
 from sensact.learn.em.config import EMConfig, refuse_bearing_settings
 from sensact.learn.em.initial import initial_model
-from sensact.learn.em.landmarks import placed_landmarks
 from sensact.learn.em.loop import Progress, fit_em_once, held_trial, stage_loglik
-from sensact.learn.em.map_filter import filtered_map
 from sensact.learn.em.result import EMResult, HeadingRace, RestartRun, StartMoved
 from sensact.learn.em.searches.facing import FLIP, drives_backward, turned_model, turned_posteriors
 from sensact.learn.em.searches.given_start import start_moved_mm
 from sensact.learn.em.searches.start_race import OnTrial, race_starts
+from sensact.learn.em.unsurveyed.rounds import Fit, map_rounds
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 
@@ -34,8 +33,6 @@ __all__ = ["EMResult", "Progress", "fit_em", "fit_em_once"]
 OnRestart = Callable[[int, list[LostSign], dict[str, float]], None]
 # (how far the given start moved, mm; the learned start EM runs again from) -> None
 OnStartMoved = Callable[[float, np.ndarray], None]
-# EM from a start, on a log and settings bound in: what every policy takes and gives
-Fit = Callable[[EMModel], EMResult]
 
 
 def refuse_no_sightings(data: LandmarkLog) -> None:
@@ -97,63 +94,9 @@ def fit_em(
             fit = policy(fit, log, settings, heard)
         return fit
 
-    if start.landmarks is not None:  # a map nobody surveyed: learned in rounds (map_filter.py)
+    if start.landmarks is not None:  # a map nobody surveyed: learned in rounds (unsurveyed/rounds.py)
         return map_rounds(composed, data, start, cfg)
     return composed(data, cfg)(start)
-
-
-MAX_MAP_ROUNDS = 8
-
-
-def map_rounds(
-    composed: Callable[[LandmarkLog, EMConfig], Fit], data: LandmarkLog, start: EMModel, cfg: EMConfig
-) -> EMResult:
-    """A log whose map nobody surveyed (``map_filter.py``): rounds of the filter's map, then EM on it as on a
-    survey, from the last round's models (nothing held after the first), until two rounds in a row are
-    less likely than the best; then EM from the best round with the map moved by its M-step
-    (``landmarks.py``). Each is scored on every sighting (``map_likelihood``), since each run prunes its
-    own. The EKF-SLAM start map fixes the frame (the robot's start)."""
-    learned, settings = start.landmarks, cfg
-    xy, sd = learned.xy, np.full_like(learned.xy, np.nan)
-    model = initial_model(data.with_landmarks(xy), cfg)  # the first round: as on a survey, from the poor start
-    best: tuple[float, EMResult] | None = None
-    worse = 0
-    for k in range(MAX_MAP_ROUNDS):
-        res = composed(data.with_landmarks(xy), settings)(model)
-        res = dc_replace(res, model=res.model.replace(landmarks=dc_replace(learned, xy=xy, sd=sd)))
-        if best is not None and not more_likely(res, best[1], data):
-            worse += 1
-            if worse == 2:  # two rounds in a row less likely than the best: it has stopped climbing
-                break
-        else:
-            best, worse = (0.0, res), 0
-        if res.stop_reason == "interrupted":
-            break
-        model = res.model.replace(landmarks=None)
-        # from a learned model nothing is held, and the map fixes the frame: no start search
-        settings = settings.replace(refine_from=0, start_search_s=None) if k == 0 else settings
-        xy, sd = filtered_map(model, data, xy, learned.held)
-    res = best[1]
-    if res.stop_reason != "interrupted":
-        # near the top the ridge is short: the M-step's own map update finishes the climb (landmarks.py)
-        final = composed(data.with_landmarks(res.model.landmarks.xy), settings)(res.model)
-        res = final if more_likely(final, res, data) else res
-    used = None if res.posteriors is None else res.posteriors.obs_used
-    return dc_replace(res, model=res.model.replace(landmarks=placed_landmarks(res.model.landmarks, data, used)))
-
-
-def more_likely(a: EMResult, b: EMResult, data: LandmarkLog) -> bool:
-    """Whether fit ``a`` (with its learned map) is more likely than ``b``, each scored on the sightings both
-    kept (each run prunes its own), robust readings as configured."""
-    common = np.ones(data.n_observations, dtype=bool)
-    for r in (a, b):
-        if r.posteriors is not None:
-            common &= r.posteriors.obs_used
-
-    def score(r: EMResult) -> float:
-        return stage_loglik(r.model, data.with_landmarks(r.model.landmarks.xy), common, robust=True)
-
-    return score(a) > score(b)
 
 
 @dataclass(frozen=True)

@@ -5,17 +5,14 @@ when ``motion_noise`` says so). EM (``fit.py``) starts here unless a learned mod
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 
 from sensact.errors import ConfigError
 from sensact.learn.em.config import EMConfig
-from sensact.learn.em.map_start import FRAME_START, FRAME_START_SD, face_value_velocity, slam_map
+from sensact.learn.em.unsurveyed.slam_start import starting_map
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.action_table import ActionTable
 from sensact.models.em_model import EMModel
-from sensact.models.landmark_map import LandmarkMap
 from sensact.models.landmark_sensor import LandmarkSensor, ReadingChannel, SensorMount
 from sensact.models.linear_action import LinearActionModel
 from sensact.models.polynomial import Polynomial1D
@@ -129,61 +126,6 @@ def initial_model(data: LandmarkLog, config: EMConfig) -> EMModel:
     if not data.map_given.all():
         mean, cov, landmarks, sensor = starting_map(data, sensor, motion_sd[0], config)
     return EMModel(data.geometry, action, sensor, mean, cov, motion_sd, turn_var, landmarks)
-
-
-def starting_map(
-    data: LandmarkLog, sensor: LandmarkSensor, motion_sd: np.ndarray, config: EMConfig
-) -> tuple[np.ndarray, np.ndarray, LandmarkMap]:
-    """The start pose, its covariance and the map EM learns from when the log gives no (or a partial) map
-    (issue 92): the robot's start fixes the frame unless two or more positions are given; the map starts
-    from EKF-SLAM on the commands at face value (``map_start.py``); its scale comes from the range
-    readings in mm, or from the given positions."""
-    if not (data.geometry.has_heading and sensor.reads_bearing):
-        unknown = int((~data.map_given).sum())
-        raise ConfigError(
-            f"{unknown} of {len(data.map_given)} landmarks have no position, and the sensor reads "
-            + (
-                "no bearing: ranges alone (radio anchors) cannot place them from a start nobody knows."
-                if data.geometry.has_heading
-                else "a track's one distance: no map to learn."
-            ),
-            file=data.source,
-            field="landmarks",
-            fix="give every anchor's position (convert ... --landmarks map.csv, id,x_m,y_m).",
-        )
-    held = data.map_given
-    first = sensor.channels[0]
-    col = data.reading_names.index(first.name) if first.name in data.reading_names else 0
-    o = data.obs_readings[:, col]
-    if first.name.endswith("_mm"):
-        distance = o
-    else:  # the starting line, inverted
-        slope = first.function.slope(np.array([1000.0]))[0] or 1.0
-        distance = (o - first.function(0.0)) / slope
-    scale = "map" if held.sum() >= 2 else "range" if any(c.name.endswith("_mm") for c in sensor.channels) else None
-    if scale is None:
-        raise ConfigError(
-            "nothing fixes the learned map's scale: no reading is a length in mm and fewer than two landmark "
-            "positions are given.",
-            file=data.source,
-            field="landmarks",
-            fix="give two landmarks' positions (a partial --landmarks map.csv), or a range reading in mm.",
-        )
-    if held.sum() >= 2:
-        mean = np.asarray(config.thesis.start_prior_mean[:3], dtype=float)
-        cov = np.diag(np.asarray(config.thesis.start_prior_sd[:3], dtype=float) ** 2)
-    else:
-        mean, cov = FRAME_START.copy(), np.diag(FRAME_START_SD**2)
-    if scale == "range":  # the length reading is the map's unit: f starts as the identity, and keeps its slope
-        c = next(i for i, ch in enumerate(sensor.channels) if ch.name.endswith("_mm"))
-        ch = sensor.channels[c]
-        f = replace(ch.function, coef=(0.0, 1.0) + (0.0,) * (ch.function.degree - 1), center=0.0, scale=1.0)
-        sensor = replace(
-            sensor, channels=tuple(replace(ch, function=f) if i == c else k for i, k in enumerate(sensor.channels))
-        )
-    sd_b = sensor.sigma_bearing_rad
-    xy = slam_map(data, face_value_velocity(data), motion_sd, mean, distance, first.sigma, sd_b)
-    return mean, cov, LandmarkMap(xy, held, np.full((len(xy), 2), np.nan), scale), sensor
 
 
 def motion_sd_start(config: EMConfig, n: int) -> np.ndarray:

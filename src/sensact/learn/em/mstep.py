@@ -12,9 +12,9 @@ from sensact.core.polyfit import weighted_lstsq
 from sensact.core.pose_models import apply_displacement, landmark_bearing, sensor_poses
 from sensact.learn.em.actions import motion_noise, motion_second_moments, step_motion_var, turning_variance
 from sensact.learn.em.estep import Posteriors, channel_inputs
-from sensact.learn.em.landmarks import landmark_update, normal_equations
 from sensact.learn.em.mount import mount_update, sensor_distances
 from sensact.learn.em.stage import Stage
+from sensact.learn.em.unsurveyed.landmark_step import landmark_update, normal_equations
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 from sensact.models.landmark_map import LandmarkMap

@@ -1,14 +1,21 @@
 """Where EM's map starts when nobody surveyed it (issue 92): one pass of EKF-SLAM (sec. 2.4's filter with
 the landmarks in its state, as the SLAM literature the thesis cites runs it) under the starting model,
-each landmark placed where it is first seen and moved by every later sighting. EM then learns the models
+each landmark placed where it is first seen and moved by every later sighting; and ``starting_map``, what
+``initial.py``'s starting model takes from it (the frame, the scale, the map). EM then learns the models
 and the map together from there."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from sensact.core.angles import wrap_angle
+from sensact.errors import ConfigError
+from sensact.learn.em.config import EMConfig
 from sensact.logs.landmark_log import LandmarkLog
+from sensact.models.landmark_map import LandmarkMap
+from sensact.models.landmark_sensor import LandmarkSensor
 
 HALF_PI = 0.5 * np.pi
 GATE = 25.0  # chi-square, 2 dof: a sighting this far off is not used
@@ -125,3 +132,58 @@ def face_value_velocity(data: LandmarkLog) -> np.ndarray:
     if turn is not None:
         out[:, 2] = data.step_commands[:, turn]
     return out
+
+
+def starting_map(
+    data: LandmarkLog, sensor: LandmarkSensor, motion_sd: np.ndarray, config: EMConfig
+) -> tuple[np.ndarray, np.ndarray, LandmarkMap]:
+    """The start pose, its covariance and the map EM learns from when the log gives no (or a partial) map
+    (issue 92): the robot's start fixes the frame unless two or more positions are given; the map starts
+    from EKF-SLAM on the commands at face value (``map_start.py``); its scale comes from the range
+    readings in mm, or from the given positions."""
+    if not (data.geometry.has_heading and sensor.reads_bearing):
+        unknown = int((~data.map_given).sum())
+        raise ConfigError(
+            f"{unknown} of {len(data.map_given)} landmarks have no position, and the sensor reads "
+            + (
+                "no bearing: ranges alone (radio anchors) cannot place them from a start nobody knows."
+                if data.geometry.has_heading
+                else "a track's one distance: no map to learn."
+            ),
+            file=data.source,
+            field="landmarks",
+            fix="give every anchor's position (convert ... --landmarks map.csv, id,x_m,y_m).",
+        )
+    held = data.map_given
+    first = sensor.channels[0]
+    col = data.reading_names.index(first.name) if first.name in data.reading_names else 0
+    o = data.obs_readings[:, col]
+    if first.name.endswith("_mm"):
+        distance = o
+    else:  # the starting line, inverted
+        slope = first.function.slope(np.array([1000.0]))[0] or 1.0
+        distance = (o - first.function(0.0)) / slope
+    scale = "map" if held.sum() >= 2 else "range" if any(c.name.endswith("_mm") for c in sensor.channels) else None
+    if scale is None:
+        raise ConfigError(
+            "nothing fixes the learned map's scale: no reading is a length in mm and fewer than two landmark "
+            "positions are given.",
+            file=data.source,
+            field="landmarks",
+            fix="give two landmarks' positions (a partial --landmarks map.csv), or a range reading in mm.",
+        )
+    if held.sum() >= 2:
+        mean = np.asarray(config.thesis.start_prior_mean[:3], dtype=float)
+        cov = np.diag(np.asarray(config.thesis.start_prior_sd[:3], dtype=float) ** 2)
+    else:
+        mean, cov = FRAME_START.copy(), np.diag(FRAME_START_SD**2)
+    if scale == "range":  # the length reading is the map's unit: f starts as the identity, and keeps its slope
+        c = next(i for i, ch in enumerate(sensor.channels) if ch.name.endswith("_mm"))
+        ch = sensor.channels[c]
+        f = replace(ch.function, coef=(0.0, 1.0) + (0.0,) * (ch.function.degree - 1), center=0.0, scale=1.0)
+        sensor = replace(
+            sensor, channels=tuple(replace(ch, function=f) if i == c else k for i, k in enumerate(sensor.channels))
+        )
+    sd_b = sensor.sigma_bearing_rad
+    xy = slam_map(data, face_value_velocity(data), motion_sd, mean, distance, first.sigma, sd_b)
+    return mean, cov, LandmarkMap(xy, held, np.full((len(xy), 2), np.nan), scale), sensor
