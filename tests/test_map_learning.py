@@ -24,7 +24,7 @@ from sensact.evaluate.map_truth import map_scores, rigid_alignment
 from sensact.io.landmark_log import read_landmark_log, write_landmark_log
 from sensact.io.timed_csv import MIN_SIGHTINGS_TO_LEARN, read_landmarks, read_timed_csv
 from sensact.learn.em import initial_model
-from sensact.learn.em.unsurveyed.landmark_step import landmark_update, normal_equations
+from sensact.learn.em.unsurveyed.landmark_step import SampledSightings, landmark_update, normal_equations
 from sensact.models.em_model import EMModel
 from sensact.models.landmark_map import LandmarkMap
 from sensact.presets import planar_config
@@ -75,14 +75,11 @@ def test_the_landmark_m_step_on_the_true_poses_finds_the_true_positions():
     weights = np.ones((data.n_observations, 2))
     start = data.landmarks_xy + 250.0
     seen = np.bincount(data.obs_landmark, minlength=len(start)) >= 5
-    xy, sd = landmark_update(
-        poses, data.obs_landmark, data.obs_readings, weights, data.obs_bearing_rad, sensor, start, seen
-    )
+    sightings = SampledSightings(poses, data.obs_landmark, data.obs_readings, weights, data.obs_bearing_rad)
+    xy, sd = landmark_update(sightings, sensor, start, seen)
     err = np.hypot(*(xy[seen] - data.landmarks_xy[seen]).T)
     assert np.all(err < 5 * np.nanmax(sd[seen], axis=1) + 10.0) and np.median(err) < 40.0
-    info, grad = normal_equations(
-        poses, data.obs_landmark, data.obs_readings, weights, data.obs_bearing_rad, sensor, xy
-    )
+    info, grad = normal_equations(sightings, sensor, xy)
     step = np.linalg.solve(info[seen], grad[seen][:, :, None])[:, :, 0]
     assert np.abs(step).max() < 1.0  # mm: the update's fixed point is where Q's gradient vanishes
 

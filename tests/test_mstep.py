@@ -7,7 +7,7 @@ import pytest
 
 from sensact.core.pose_models import landmark_bearing, landmark_distance
 from sensact.learn.em.estep import Posteriors
-from sensact.learn.em.mstep import prior, sample_gamma, sensor_model
+from sensact.learn.em.mstep import prior, sample_gamma, sensor_and_map
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.action_table import ActionTable
 from sensact.models.landmark_sensor import LandmarkSensor
@@ -54,13 +54,13 @@ def test_sensor_model_recovers_f_and_sigmas_from_certain_poses():
     )
     post = _post(poses, np.tile(np.eye(3) * 1e-10, (T, 1, 1)), used=np.ones(T, bool))
     prev = LandmarkSensor.single(Polynomial1D((0.0, 0.0, 0.0, 0.0)), 10.0, 0.2)  # a cubic
-    s = sensor_model(post, data, 1, np.random.default_rng(2), prev)
+    s = sensor_and_map(post, data, 1, np.random.default_rng(2), prev)[0]
     np.testing.assert_allclose(s.height(d), np.polyval(np.polyfit(d, h, 3), d), atol=1e-6)
     assert s.sigma_height_px == pytest.approx(np.sqrt(np.mean((s.height(d) - h) ** 2)), rel=1e-6)
     assert 0.6 < s.sigma_height_px < 0.8 and 0.17 < s.sigma_bearing_rad < 0.23
     # pruned observations take no part
     post2 = _post(poses, post.cov_gamma, used=np.arange(T) < 200)
-    s2 = sensor_model(post2, data, 1, np.random.default_rng(2), prev)
+    s2 = sensor_and_map(post2, data, 1, np.random.default_rng(2), prev)[0]
     np.testing.assert_allclose(s2.height(d[:200]), np.polyval(np.polyfit(d[:200], h[:200], 3), d[:200]), atol=1e-6)
 
 

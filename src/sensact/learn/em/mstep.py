@@ -14,7 +14,7 @@ from sensact.learn.em.actions import motion_noise, motion_second_moments, step_m
 from sensact.learn.em.estep import Posteriors, channel_inputs
 from sensact.learn.em.mount import mount_update, sensor_distances
 from sensact.learn.em.stage import Stage
-from sensact.learn.em.unsurveyed.landmark_step import landmark_update, normal_equations
+from sensact.learn.em.unsurveyed.landmark_step import SampledSightings, landmark_update, normal_equations
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 from sensact.models.landmark_map import LandmarkMap
@@ -58,19 +58,6 @@ def _into_robot_frame(cov: np.ndarray, c: np.ndarray, s: np.ndarray) -> np.ndarr
     return out
 
 
-def sensor_model(
-    post: Posteriors,
-    data: LandmarkLog,
-    n_samples: int,
-    rng: np.random.Generator,
-    previous: LandmarkSensor,
-    fit_bearing_terms: bool = True,
-    mount_free: tuple[bool, bool, bool] = (False, False, False),
-) -> LandmarkSensor:
-    """``sensor_and_map`` on the log's own map: the sensor alone."""
-    return sensor_and_map(post, data, n_samples, rng, previous, fit_bearing_terms, mount_free)[0]
-
-
 def sensor_and_map(
     post: Posteriors,
     data: LandmarkLog,
@@ -92,7 +79,7 @@ def sensor_and_map(
     (``mount.py``); every distance and bearing is then measured from the sensor at its mount.
 
     With a learned map (``landmarks``), its free positions are updated next on the same samples
-    (``landmarks.py``), then f on the distances to them; a map whose scale comes from the range readings
+    (``unsurveyed/landmark_step.py``), then f on the distances to them; a map whose scale comes from the range readings
     holds the first length-reading channel's slope at 1 in the middle of its distances.
     """
     weights = post.weights * post.obs_used[:, None]
@@ -108,9 +95,8 @@ def sensor_and_map(
         previous = replace(previous, mount=mount)
     metric = -1
     if landmarks is not None:
-        xy, sd = landmark_update(
-            poses, data.obs_landmark[rows], readings, weights[rows], bearings, previous, landmarks.xy, landmarks.learned
-        )
+        seen = SampledSightings(poses, data.obs_landmark[rows], readings, weights[rows], bearings)
+        xy, sd = landmark_update(seen, previous, landmarks.xy, landmarks.learned)
         landmarks = replace(landmarks, xy=xy, sd=np.where(landmarks.learned[:, None], sd, np.nan))
         if landmarks.scale == "range":
             metric = next((c for c, ch in enumerate(previous.channels) if ch.name.endswith("_mm")), -1)
@@ -160,7 +146,7 @@ def map_normal_equations(
     post: Posteriors, data: LandmarkLog, sensor: LandmarkSensor, n_samples: int, rng: np.random.Generator
 ) -> tuple[np.ndarray, np.ndarray]:
     """The landmark M-step's information and gradient at ``data``'s map from one fit's posteriors, over the
-    sightings its E-step used (``landmarks.normal_equations``); a fleet sums them over its logs."""
+    sightings its E-step used (``landmark_step.normal_equations``); a fleet sums them over its logs."""
     weights = post.weights * post.obs_used[:, None]
     rows = np.flatnonzero(weights.any(axis=1))
     L = len(data.landmarks_xy)
@@ -168,9 +154,8 @@ def map_normal_equations(
         return np.zeros((L, 2, 2)), np.zeros((L, 2))
     poses = sample_gamma(post, data.obs_step[rows], n_samples, rng)
     readings = channel_inputs(sensor, data)[0][rows]
-    return normal_equations(
-        poses, data.obs_landmark[rows], readings, weights[rows], data.obs_bearing_rad[rows], sensor, data.landmarks_xy
-    )
+    seen = SampledSightings(poses, data.obs_landmark[rows], readings, weights[rows], data.obs_bearing_rad[rows])
+    return normal_equations(seen, sensor, data.landmarks_xy)
 
 
 def prior(post: Posteriors, floor_var: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -15,7 +15,7 @@ position is the Gauss-Newton curvature's: how far the sightings alone, on the sm
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -48,23 +48,27 @@ def placed_landmarks(learned: LandmarkMap, data: LandmarkLog, used: np.ndarray |
     )
 
 
+@dataclass(frozen=True, eq=False)
+class SampledSightings:
+    """The sightings an M-step reads (those the E-step used), with the robot's sampled poses at each."""
+
+    poses: np.ndarray  # (S, R, 3): the E-step's pose samples at the R sightings (eq. 4.25's expectation)
+    landmark: np.ndarray  # (R,) which landmark each sighting saw
+    readings: np.ndarray  # (R, C) each reading channel's input
+    weights: np.ndarray  # (R, C + 1) each channel's E-step weight, then the bearing's; 0 = not used
+    bearings: np.ndarray  # (R,) rad
+
+
 def landmark_update(
-    poses: np.ndarray,
-    landmark: np.ndarray,
-    readings: np.ndarray,
-    weights: np.ndarray,
-    bearings: np.ndarray,
-    sensor: LandmarkSensor,
-    xy: np.ndarray,
-    free: np.ndarray,
+    seen: SampledSightings, sensor: LandmarkSensor, xy: np.ndarray, free: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The free landmarks' positions maximizing ``Q`` on ``poses`` ((S, R, 3) samples of the robot at the
-    R sightings, whose landmarks are ``landmark``), and each position's sd (NaN where held or unplaced)."""
+    """The ``free`` landmarks' positions maximizing ``Q`` on ``seen``, from ``xy``, and each position's sd
+    (NaN where held or unplaced)."""
     L = len(xy)
     out = np.array(xy, dtype=float, copy=True)
     info = np.zeros((L, 2, 2))
     for _ in range(GAUSS_NEWTON_STEPS):
-        info, grad = normal_equations(poses, landmark, readings, weights, bearings, sensor, out)
+        info, grad = normal_equations(seen, sensor, out)
         step, ok = gauss_newton_step(info, grad, free)
         if not ok.any():
             break
@@ -93,17 +97,10 @@ def position_sd(info: np.ndarray, free: np.ndarray) -> np.ndarray:
     return sd
 
 
-def normal_equations(
-    poses: np.ndarray,
-    landmark: np.ndarray,
-    readings: np.ndarray,
-    weights: np.ndarray,
-    bearings: np.ndarray,
-    sensor: LandmarkSensor,
-    xy: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
+def normal_equations(seen: SampledSightings, sensor: LandmarkSensor, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``Q``'s Gauss-Newton information (L, 2, 2) and gradient (L, 2) in each landmark's position at ``xy``:
     sums over sightings, so that logs seeing the same landmarks add theirs (``fleet --shared-map``)."""
+    poses, landmark, readings, weights, bearings = seen.poses, seen.landmark, seen.readings, seen.weights, seen.bearings
     S = poses.shape[0]
     L = len(xy)
     at = sensor_poses(poses.reshape(-1, 3), sensor.mount.as_array())
