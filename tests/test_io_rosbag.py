@@ -644,3 +644,20 @@ def test_a_bag_whose_definitions_do_not_parse_is_read_with_the_standard_ones(dif
             read_numeric_csv(tmp_path / "std" / "bag_tables" / f"{name}.csv"),
             read_numeric_csv(tmp_path / "good" / "bag_tables" / f"{name}.csv"),
         )
+
+
+def test_a_bag_without_a_map_converts_with_its_tags_positions_to_learn(diffdrive_source, tmp_path):
+    """Issue 92: tag sightings need no map. Without --landmarks every tag is a landmark EM learns (null
+    positions), the same sightings kept; --survey keeps the map for scoring only."""
+    csv, rec = diffdrive_source
+    bag = write_robot_bag(tmp_path / "run", "ros1", rec)
+    out = tmp_path / "log"
+    _ok(["convert", "bag", bag, "--survey", csv["landmarks"], "--out", out])
+    meta = json.loads((out / "meta.json").read_text())
+    assert meta["landmarks"] and all(m["x_mm"] is None and m["y_mm"] is None for m in meta["landmarks"])
+    seen = {str(int(i)) for i in np.unique(rec.tag_id)}
+    assert {m["name"] for m in meta["landmarks"]} == seen
+    survey = {meta["landmarks"][s["id"]]["name"]: (s["x_mm"], s["y_mm"]) for s in meta["survey"]}
+    for j, (x, y) in enumerate(rec.map_xy_m):
+        if str(j) in survey:
+            assert survey[str(j)] == pytest.approx((1000.0 * x, 1000.0 * y))

@@ -230,3 +230,17 @@ def test_em_learns_an_unsurveyed_map_with_the_models_on_a_simulated_robot(tmp_pa
     placed = [m for m in marks if m["placed"]]
     assert list(ids) == [m["id"] for m in placed]
     np.testing.assert_allclose(xy, [[m["x_mm"], m["y_mm"]] for m in placed], atol=1e-3)
+
+
+def test_convert_mrclam_no_map_keeps_the_survey_for_scoring_only(tmp_path):
+    from conftest import DATA, require
+
+    folder = require(DATA / "mrclam" / "MRCLAM_Dataset6")
+    out = tmp_path / "mr1"
+    res = runner.invoke(app, ["convert", "mrclam", str(folder), "--robot", "1", "--no-map", "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    lf = read_landmark_log(out)
+    assert not lf.data.map_given.any() and len(lf.data.landmarks_xy) == 15
+    from sensact.io.mrclam import read_mrclam
+
+    np.testing.assert_allclose(lf.survey_xy, read_mrclam(folder, 1).data.landmarks_xy)
