@@ -9,7 +9,7 @@ with its map hidden, as MRCLAM (range in mm, 30 Hz, 15 landmarks, a camera on th
 held-out robot the issue names (camera 22 cm ahead of the axle, 10 Hz, 18 landmarks, ~5 a frame), each
 with a metric range sensor (gain 1). Prints, per log: map RMS and placed, path median with and without
 the map and their ratio, the action ratios and the range sigma ratio, and the time ratio; writes
-``benchmarks/results/map_free_<what>.json``.
+``results/map_free_<what>.json``.
 """
 
 from __future__ import annotations
@@ -120,7 +120,7 @@ def main() -> None:
     a = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         rows = mrclam(a.dataset, a.robots, Path(tmp)) if a.what == "mrclam" else sim(a.seconds, a.seeds, Path(tmp))
-    out = Path(__file__).parent / "results" / f"map_free_{a.what}.json"
+    out = Path("results") / f"map_free_{a.what}.json"  # as `sensact reproduce` writes results/
     out.parent.mkdir(exist_ok=True)
     out.write_text(json.dumps(rows, indent=1) + "\n")
     keys = (

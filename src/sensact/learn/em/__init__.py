@@ -6,12 +6,13 @@ The thesis's core, here: ``estep`` (sec. 4.2) -> ``mstep`` (sec. 4.3; the action
 poor start) or a race of starts, with ``config`` its settings and ``result`` what it returns;
 ``progress`` projects when it will end. The compiled passes live in ``sensact.core.ekf_smoother``.
 
-Beyond the thesis, for real logs, four rooms:
+Beyond the thesis, for real logs, five rooms:
 
 * ``searches/``: moves along the likelihood's ridges (start, ridge, delay, mount, facing);
 * ``policies/``: how a fit starts and stays clean (warm start, late outliers);
 * ``checks/``: what a finished fit says about itself (lost signs, health);
-* ``uses/``: a learned model put to use (place, change detection, halves, error bars).
+* ``uses/``: a learned model put to use (place, change detection, halves, error bars);
+* ``unsurveyed/``: a map nobody surveyed, learned with the models (issue 92).
 """
 
 from sensact.learn.em.config import EMConfig
