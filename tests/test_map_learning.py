@@ -23,7 +23,7 @@ from sensact.errors import ConfigError, LogFormatError
 from sensact.evaluate.map_truth import map_scores, rigid_alignment
 from sensact.io.landmark_log import read_landmark_log, write_landmark_log
 from sensact.io.timed_csv import MIN_SIGHTINGS_TO_LEARN, read_landmarks, read_timed_csv
-from sensact.learn.em import initial_model
+from sensact.learn.em import fit_em, initial_model
 from sensact.learn.em.unsurveyed.landmark_step import SampledSightings, landmark_update, normal_equations
 from sensact.models.em_model import EMModel
 from sensact.models.landmark_map import LandmarkMap
@@ -244,3 +244,19 @@ def test_convert_mrclam_no_map_keeps_the_survey_for_scoring_only(tmp_path):
     from sensact.io.mrclam import read_mrclam
 
     np.testing.assert_allclose(lf.survey_xy, read_mrclam(folder, 1).data.landmarks_xy)
+
+
+def test_range_only_anchors_are_learned_when_three_or_more_are_given():
+    """Seeded recovery: four of fourteen radio anchors hidden; the others fix the path, which places them."""
+    from sensact.presets import range_only_config
+
+    run = simulate_diffdrive(DiffDriveConfig(seconds=150, seed=1, sensor="radio"))
+    data = run.log()
+    hide = np.isin(np.arange(len(data.landmarks_xy)), [1, 5, 8, 12])
+    log = data.with_landmarks(np.where(hide[:, None], np.nan, data.landmarks_xy))
+    res = fit_em(log, None, range_only_config(data.command_names, (0.0, 0.0, 0.0)))
+    learned = res.model.landmarks
+    assert learned.scale == "map" and learned.held.sum() == 10 and learned.placed[hide].all()
+    assert np.hypot(*(learned.xy[hide] - data.landmarks_xy[hide]).T).max() < 100.0
+    np.testing.assert_array_equal(learned.xy[~hide], data.landmarks_xy[~hide])  # held
+    assert np.median(np.hypot(*(res.posteriors.mean_gamma[:, :2] - run.poses[:, :2]).T)) < 50.0

@@ -185,6 +185,16 @@ class LandmarkLog:
     def duration_s(self) -> float:
         return (self.n_steps - 1) * self.dt_s
 
+    def keep_sightings(self, keep: np.ndarray) -> LandmarkLog:
+        """The same log with only the sightings ``keep`` ((K,) bool) selects."""
+        return replace(
+            self,
+            obs_step=self.obs_step[keep],
+            obs_landmark=self.obs_landmark[keep],
+            obs_readings=self.obs_readings[keep],
+            obs_bearing_rad=self.obs_bearing_rad[keep],
+        )
+
     def slice_steps(self, start: int, stop: int) -> LandmarkLog:
         """The steps ``start:stop`` as a log of their own (for learning each half of a run)."""
         keep = (self.obs_step >= start) & (self.obs_step < stop)

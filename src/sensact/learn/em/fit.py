@@ -23,6 +23,7 @@ from sensact.learn.em.result import EMResult, HeadingRace, RestartRun, StartMove
 from sensact.learn.em.searches.facing import FLIP, drives_backward, turned_model, turned_posteriors
 from sensact.learn.em.searches.given_start import start_moved_mm
 from sensact.learn.em.searches.start_race import OnTrial, race_starts
+from sensact.learn.em.unsurveyed.anchors import anchor_fit
 from sensact.learn.em.unsurveyed.rounds import Fit, map_rounds
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
@@ -95,6 +96,8 @@ def fit_em(
         return fit
 
     if start.landmarks is not None:  # a map nobody surveyed: learned in rounds (unsurveyed/rounds.py)
+        if not start.sensor.reads_bearing:  # range-only anchors, placed on a path the given ones fix
+            return anchor_fit(composed, data, start, cfg)
         return map_rounds(composed, data, start, cfg)
     return composed(data, cfg)(start)
 

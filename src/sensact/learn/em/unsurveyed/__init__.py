@@ -4,5 +4,6 @@
   face value), for ``initial.py``'s starting model;
 * ``slam_filter``: the map carried by a filter over (pose, landmarks) under the current models;
 * ``landmark_step``: the landmarks' M-step (Gauss-Newton on Q), their sds, and which are placed;
-* ``rounds``: the filter's map and EM on it, in rounds, as ``fit.py`` runs a log without a map.
+* ``rounds``: the filter's map and EM on it, in rounds, as ``fit.py`` runs a log without a map;
+* ``anchors``: range-only anchors, placed on the path the given ones fix, then moved by the M-step.
 """

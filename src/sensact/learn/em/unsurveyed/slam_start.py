@@ -20,6 +20,7 @@ from sensact.models.landmark_sensor import LandmarkSensor
 HALF_PI = 0.5 * np.pi
 GATE = 25.0  # chi-square, 2 dof: a sighting this far off is not used
 PLACE_AFTER = 5  # a landmark is placed at the median of this many first sightings
+MIN_ANCHORS_GIVEN = 3  # range-only anchors: given positions that fix the path (and so the frame) in 2-D
 
 
 def slam_map(
@@ -139,22 +140,31 @@ def starting_map(
 ) -> tuple[np.ndarray, np.ndarray, LandmarkMap]:
     """The start pose, its covariance and the map EM learns from when the log gives no (or a partial) map
     (issue 92): the robot's start fixes the frame unless two or more positions are given; the map starts
-    from EKF-SLAM on the commands at face value (``map_start.py``); its scale comes from the range
+    from EKF-SLAM on the commands at face value (``slam_map``); its scale comes from the range
     readings in mm, or from the given positions."""
-    if not (data.geometry.has_heading and sensor.reads_bearing):
-        unknown = int((~data.map_given).sum())
+    held = data.map_given
+    if not data.geometry.has_heading:
         raise ConfigError(
-            f"{unknown} of {len(data.map_given)} landmarks have no position, and the sensor reads "
-            + (
-                "no bearing: ranges alone (radio anchors) cannot place them from a start nobody knows."
-                if data.geometry.has_heading
-                else "a track's one distance: no map to learn."
-            ),
+            f"{int((~held).sum())} of {len(held)} landmarks have no position, and a track reads one distance: "
+            "no map to learn.",
             file=data.source,
             field="landmarks",
-            fix="give every anchor's position (convert ... --landmarks map.csv, id,x_m,y_m).",
+            fix="give the landmark's position in meta.json.",
         )
-    held = data.map_given
+    if not sensor.reads_bearing:  # anchors read by range alone: placed on a path the given ones fix (anchors.py)
+        if held.sum() < MIN_ANCHORS_GIVEN:
+            raise ConfigError(
+                f"{int((~held).sum())} of {len(held)} anchors have no position and the sensor reads ranges alone: "
+                f"with {int(held.sum())} given, nothing fixes the robot's path to place them from.",
+                file=data.source,
+                field="landmarks",
+                fix=f"give {MIN_ANCHORS_GIVEN} or more anchors' positions (convert ... --landmarks map.csv, "
+                "id,x_m,y_m, with --learn-unlisted), or every one.",
+            )
+        mean = np.asarray(config.thesis.start_prior_mean[:3], dtype=float)
+        cov = np.diag(np.asarray(config.thesis.start_prior_sd[:3], dtype=float) ** 2)
+        xy = np.where(held[:, None], data.landmarks_xy, np.nan)
+        return mean, cov, LandmarkMap(xy, held, np.full((len(xy), 2), np.nan), "map"), sensor
     first = sensor.channels[0]
     col = data.reading_names.index(first.name) if first.name in data.reading_names else 0
     o = data.obs_readings[:, col]
