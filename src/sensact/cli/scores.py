@@ -263,6 +263,18 @@ def print_scores(scores: Any, log: Any) -> None:
                 f"placed {o['forward_mm']:+.0f} mm forward and {o['left_mm']:+.0f} mm left of EM's (median "
                 f"{p['median_raw_mm']:.0f} mm before; metres off means EM lost the robot)"
             )
+        if sc.get("map"):
+            m = sc["map"]
+            console.print(
+                f"learned map against the survey: {m['rms_mm']:.0f} mm RMS after the best rigid alignment (no scale); "
+                f"{m['landmarks_placed']} of {m['landmarks_total']} landmarks placed"
+                + (
+                    f", {m['seen_enough_not_placed']} seen 20 times or more not placed"
+                    if m["seen_enough_not_placed"]
+                    else ""
+                )
+                + "; the path above is scored in the survey's frame"
+            )
         if "simulated" in sc:
             print_simulated_score(sc["simulated"])
     elif scores.against == SIMULATED_MODEL and "vx_rms_mm_s" in sc:

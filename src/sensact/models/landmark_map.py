@@ -2,8 +2,8 @@
 given (held) and which EM learned, how sure it is of each, and what fixes the map's frame and scale.
 
 A log with no surveyed map learns one: the path and the map share one rigid frame, fixed by the robot's
-start (at the origin, facing forward: REP 103's +x, sensact's heading 0), unless given positions fix it;
-and one scale, which bearings cannot fix, taken from what is metric (``scale``)."""
+start (at the origin, facing REP 103's +x: sensact's heading -pi/2, as its 0 faces +y), unless given
+positions fix it; and one scale, which bearings cannot fix, taken from what is metric (``scale``)."""
 
 from __future__ import annotations
 
@@ -49,7 +49,7 @@ class LandmarkMap:
         where = (
             f"{held} given landmark positions (held)"
             if held >= 2
-            else "the robot's start (the origin, facing +x in REP 103; sensact's heading 0)"
+            else "the robot's start (the origin, facing +x in REP 103)"
             + (", and 1 given landmark position (held)" if held else "")
         )
         scale = {

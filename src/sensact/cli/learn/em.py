@@ -123,6 +123,15 @@ def _describe_fit(res: Any, cfg: Any) -> None:
     )
     if res.mount is not None and res.model.geometry.has_heading:
         console.print(f"sensor mount: {res.mount.describe()}", highlight=False)
+    learned = res.model.landmarks
+    if learned is not None:
+        held, placed = int(learned.held.sum()), int((learned.placed & ~learned.held).sum())
+        console.print(
+            f"landmark map: {placed} of {int((~learned.held).sum())} positions learned and placed"
+            + (f", {held} given and held" if held else "")
+            + f"; {learned.frame} (model.json's map; export --format landmarks)",
+            highlight=False,
+        )
     if res.start_moved:
         first, again = res.start_moved.loglik
         console.print(
