@@ -260,3 +260,29 @@ def test_range_only_anchors_are_learned_when_three_or_more_are_given():
     assert np.hypot(*(learned.xy[hide] - data.landmarks_xy[hide]).T).max() < 100.0
     np.testing.assert_array_equal(learned.xy[~hide], data.landmarks_xy[~hide])  # held
     assert np.median(np.hypot(*(res.posteriors.mean_gamma[:, :2] - run.poses[:, :2]).T)) < 50.0
+
+
+@pytest.mark.slow
+def test_fleet_learns_one_shared_map_from_two_robots_in_one_room(tmp_path):
+    """Two simulated robots among the same unsurveyed landmarks: OUT/map.json holds one map (scored against
+    the survey), each robot's model carries it, and the models learned alone stay beside them."""
+    logs = []
+    for seed in (1, 2):
+        out = tmp_path / f"r{seed}"
+        args = ["simulate", "diffdrive", "--no-map", "--seconds", "200", "--seed", str(seed), "--set", "range_gain=1.0"]
+        res = runner.invoke(app, [*args, "--out", str(out)])
+        assert res.exit_code == 0, res.output
+        logs.append(str(out))
+    fleet = tmp_path / "fleet"
+    res = runner.invoke(
+        app, ["fleet", "learn", *logs, "--workers", "1", "--shared-map", "--no-report", "--out", str(fleet)]
+    )
+    assert res.exit_code in (0, 3), res.output
+    doc = json.loads((fleet / "map.json").read_text())
+    assert len(doc["map"]["landmarks"]) == 14 and "r1" in doc["map"]["frame"]
+    assert doc["evaluation"]["map"]["rms_mm"] < 100.0
+    for name in ("r1", "r2"):
+        shared = json.loads((fleet / name / "model.json").read_text())
+        alone = json.loads((fleet / "alone" / name / "model.json").read_text())
+        assert shared["map"]["landmarks"] and alone["map"]["landmarks"]
+        assert shared["evaluation"]["path"]["median_mm"] < 1.5 * alone["evaluation"]["path"]["median_mm"] + 20.0
