@@ -286,3 +286,17 @@ def test_fleet_learns_one_shared_map_from_two_robots_in_one_room(tmp_path):
         alone = json.loads((fleet / "alone" / name / "model.json").read_text())
         assert shared["map"]["landmarks"] and alone["map"]["landmarks"]
         assert shared["evaluation"]["path"]["median_mm"] < 1.5 * alone["evaluation"]["path"]["median_mm"] + 20.0
+
+
+def test_a_malformed_survey_or_learned_map_is_one_line(tmp_path):
+    data = simulate_diffdrive(DiffDriveConfig(seconds=20, seed=1)).log()
+    write_landmark_log(tmp_path / "log", data.with_landmarks(np.full_like(data.landmarks_xy, np.nan)))
+    meta = json.loads((tmp_path / "log" / "meta.json").read_text())
+    meta["survey"] = [{"id": 99, "x_mm": 0.0, "y_mm": 0.0}]
+    (tmp_path / "log" / "meta.json").write_text(json.dumps(meta))
+    with pytest.raises(LogFormatError, match="survey is malformed") as err:
+        read_landmark_log(tmp_path / "log")
+    assert err.value.field == "survey"
+    (tmp_path / "m.json").write_text(json.dumps({"map": {"landmarks": [{"id": "a", "x_mm": "far", "y_mm": 1.0}]}}))
+    res = runner.invoke(app, ["export", str(tmp_path / "m.json"), "--format", "landmarks"])
+    assert res.exit_code == 2 and "map.landmarks" in res.output

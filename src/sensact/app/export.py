@@ -313,12 +313,23 @@ def landmarks_csv(doc: JsonObject, source: Path) -> tuple[str, int]:
             fix="export a model `sensact learn em` learned on a log without (or with a partial) --landmarks map.",
         )
     rows, left = [LANDMARKS_HEADER], 0
-    for m in marks:
-        x, y = m.get("x_mm"), m.get("y_mm")
+    for i, m in enumerate(marks):
+        x, y = (m.get("x_mm"), m.get("y_mm")) if isinstance(m, dict) else (None, None)
         if x is None or y is None:
             left += 1
             continue
-        rows.append(f"{m['id']},{float(x) * MM:.6f},{float(y) * MM:.6f}")
+        try:
+            xm, ym = float(x) * MM, float(y) * MM
+        except (TypeError, ValueError):
+            xm = ym = math.nan
+        if not (math.isfinite(xm) and math.isfinite(ym) and m.get("id") is not None):
+            raise ModelFormatError(
+                f"landmark {i + 1} of the map has no id or no finite position.",
+                file=source,
+                field="map.landmarks",
+                fix="learn the model again with `sensact learn em`.",
+            )
+        rows.append(f"{m['id']},{xm:.6f},{ym:.6f}")
     return "\n".join(rows) + "\n", left
 
 

@@ -72,8 +72,20 @@ class LandmarkLogFile:
         if not rows:
             return None
         xy = np.full_like(self.data.landmarks_xy, np.nan)
-        for row in rows:
-            xy[int(row["id"])] = float(row["x_mm"]), float(row["y_mm"])
+        try:
+            for row in rows:
+                j = int(row["id"])
+                if not 0 <= j < len(xy):
+                    raise IndexError(f"id {j} is not a landmark of the map")
+                xy[j] = float(row["x_mm"]), float(row["y_mm"])
+        except (KeyError, TypeError, ValueError, IndexError) as exc:
+            raise LogFormatError(
+                f"meta.json's survey is malformed ({exc}).",
+                file=self.data.source,
+                field="survey",
+                fix='give "survey": [{"id": <the landmark\'s index in landmarks>, "x_mm": ..., "y_mm": ...}, ...], '
+                "or drop it (it is only used to score).",
+            ) from None
         return xy
 
     def truth_distance_mm(self) -> np.ndarray | None:
@@ -341,7 +353,9 @@ def _planar(path: Path, meta: JsonObject) -> LandmarkLogFile:
         g = read_numeric_csv(path / "groundtruth.csv", ["t_s"], what="groundtruth.csv")
         refuse_bad_truth(path / "groundtruth.csv", g, t0, t0 + (T - 1) * mp.dt)
         gt = {k: np.interp(np.arange(T) * mp.dt + t0, g["t_s"], v) for k, v in g.items() if k != "t_s"}
-    return LandmarkLogFile(data, meta, gt)
+    folder = LandmarkLogFile(data, meta, gt)
+    _ = folder.survey_xy  # a malformed survey is refused with the rest of the folder, before any learning
+    return folder
 
 
 def _track(path: Path, command_bins: int, command_levels: np.ndarray | None = None) -> LandmarkLogFile:
