@@ -661,3 +661,23 @@ def test_a_bag_without_a_map_converts_with_its_tags_positions_to_learn(diffdrive
     for j, (x, y) in enumerate(rec.map_xy_m):
         if str(j) in survey:
             assert survey[str(j)] == pytest.approx((1000.0 * x, 1000.0 * y))
+
+
+def test_a_conversion_that_fails_after_reading_leaves_nothing_behind(diffdrive_source, tmp_path):
+    """Issue 95: the bag's tables are written, then the conversion refuses them (every command stamped
+    alike): nothing it wrote is left, and a folder that was there keeps what it had."""
+    import dataclasses
+
+    _, rec = diffdrive_source
+    bad = dataclasses.replace(rec, cmd_ns=np.full_like(rec.cmd_ns, rec.cmd_ns[0]))
+    bag = write_robot_bag(tmp_path / "run", "ros1", bad)
+    res = runner.invoke(app, ["convert", "bag", str(bag), "--out", str(tmp_path / "new")])
+    assert res.exit_code == 2 and "same time" in res.output
+    assert not (tmp_path / "new").exists()
+    kept = tmp_path / "kept"
+    kept.mkdir()
+    (kept / "em_config.yaml").write_text("preset: differential_drive_camera\n")
+    res = runner.invoke(app, ["convert", "bag", str(bag), "--out", str(kept)])
+    assert res.exit_code == 2
+    assert sorted(p.name for p in kept.rglob("*")) == ["em_config.yaml"]
+    assert (kept / "em_config.yaml").read_text() == "preset: differential_drive_camera\n"

@@ -91,7 +91,8 @@ def convert_bag(
     written: name them with the options or --mapping. Header stamps time the messages (a Twist has none:
     when it was recorded), or --receive-times. Units become sensact's (mm) and the robot's axes REP 103's;
     the camera's position on the robot is left for EM to learn, and what /tf_static says of it is kept in
-    meta.json to compare. The tables read from the bag stay in OUT/bag_tables/."""
+    meta.json to compare. The tables read from the bag stay in OUT/bag_tables/; a conversion that fails
+    leaves nothing it wrote behind."""
     from sensact.errors import LogFormatError
     from sensact.io.rosbag import (
         Roles,
@@ -155,47 +156,50 @@ def convert_bag(
         tables = read_bag_tables(bag, roles, receive_times=receive_times, progress=progress)
     for note in tables.notes:
         console.print(f"[yellow]note:[/] {note}", highlight=False)
-    src = out / TABLES
-    src.mkdir(parents=True, exist_ok=True)
-    cmd_csv = src / "commands.csv"
-    if tables.sightings is not None:  # without --landmarks (or with some), EM learns the tags' positions
-        write_table(cmd_csv, tables.commands)
-        write_table(src / "sightings.csv", tables.sightings, ints=("landmark_id",))
-        truth_csv = None
-        if tables.truth is not None:
-            truth_csv = src / "truth.csv"
-            write_table(truth_csv, tables.truth)
-        convert_csv(
-            commands=cmd_csv,
-            sightings=src / "sightings.csv",
-            landmarks=landmarks,
-            truth=truth_csv,
-            out=out,
-            dt=dt,
-            survey=survey,
-            learn_unlisted=learn_unlisted,
-        )
-    else:
-        track = dict(t_s=tables.commands["t_s"], v_m_s=tables.commands["v_m_s"])
-        table = _stacked([track, tables.readings] + ([_distance(tables.truth, landmarks)] if tables.truth else []))
-        if tables.truth is not None and "distance_m" not in table:
-            console.print(
-                "[yellow]note:[/] a 1-D robot's truth is scored as the distance to the map's one landmark: "
-                "give --landmarks with one row to score against it."
+    from sensact.io.atomic import nothing_half_written
+
+    with nothing_half_written(out):  # a conversion that fails after reading leaves no tables behind
+        src = out / TABLES
+        src.mkdir(parents=True, exist_ok=True)
+        cmd_csv = src / "commands.csv"
+        if tables.sightings is not None:  # without --landmarks (or with some), EM learns the tags' positions
+            write_table(cmd_csv, tables.commands)
+            write_table(src / "sightings.csv", tables.sightings, ints=("landmark_id",))
+            truth_csv = None
+            if tables.truth is not None:
+                truth_csv = src / "truth.csv"
+                write_table(truth_csv, tables.truth)
+            convert_csv(
+                commands=cmd_csv,
+                sightings=src / "sightings.csv",
+                landmarks=landmarks,
+                truth=truth_csv,
+                out=out,
+                dt=dt,
+                survey=survey,
+                learn_unlisted=learn_unlisted,
             )
-        write_table(src / "track.csv", table)
-        names = [c for c in table if c.endswith("_m") and c != "distance_m"]
-        convert_track(
-            src / "track.csv",
-            out=out,
-            command=["v_m_s"],
-            reading=names,
-            distance="distance_m" if "distance_m" in table else None,
-            window=None,
-            robust=None,
-            dt=dt,
-        )
-    _record_source(out, bag, roles, tables, receive_times)
+        else:
+            track = dict(t_s=tables.commands["t_s"], v_m_s=tables.commands["v_m_s"])
+            table = _stacked([track, tables.readings] + ([_distance(tables.truth, landmarks)] if tables.truth else []))
+            if tables.truth is not None and "distance_m" not in table:
+                console.print(
+                    "[yellow]note:[/] a 1-D robot's truth is scored as the distance to the map's one landmark: "
+                    "give --landmarks with one row to score against it."
+                )
+            write_table(src / "track.csv", table)
+            names = [c for c in table if c.endswith("_m") and c != "distance_m"]
+            convert_track(
+                src / "track.csv",
+                out=out,
+                command=["v_m_s"],
+                reading=names,
+                distance="distance_m" if "distance_m" in table else None,
+                window=None,
+                robust=None,
+                dt=dt,
+            )
+        _record_source(out, bag, roles, tables, receive_times)
 
 
 def _distance(truth, landmarks: Path | None) -> dict:

@@ -131,3 +131,28 @@ def write_npz(path: str | Path, **arrays: np.ndarray) -> Path:
         if np.asarray(arr).dtype == object:
             raise TypeError(f"array {name!r} has dtype object; only numeric arrays are written")
     return _atomic(path, "wb", lambda h: np.savez_compressed(h, **arrays), "npz")
+
+
+@contextmanager
+def nothing_half_written(folder: str | Path) -> Iterator[Path]:
+    """A block that writes several files into ``folder``: if it fails (or is interrupted), what it added is
+    removed (the folder itself when it made it), and what was there before is left as it was (each file is
+    replaced atomically, so it is either the old one or the new)."""
+    folder = Path(folder)
+    before = {p for p in folder.rglob("*")} if folder.exists() else None
+    try:
+        yield folder
+    except BaseException:
+        if before is None:
+            import shutil
+
+            shutil.rmtree(folder, ignore_errors=True)
+        elif folder.is_dir():
+            for p in sorted(folder.rglob("*"), key=lambda q: len(q.parts), reverse=True):  # the deepest first
+                if p in before:
+                    continue
+                if p.is_dir() and not p.is_symlink():
+                    p.rmdir()
+                else:
+                    p.unlink(missing_ok=True)
+        raise
