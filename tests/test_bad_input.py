@@ -292,3 +292,24 @@ def test_a_scan_match_further_than_the_lidar_sees_is_flagged():
     assert [f.code for f in flags] == ["scan_matching_failed"] and "1 of 10" in flags[0].message
     motion[5, 1] = np.nan
     assert "2 of 10" in car_health(None, angles, motion, 120.0).flags[0].message
+
+
+@pytest.mark.parametrize(
+    "args,field",
+    [
+        (["learn", "em", "{log}", "--uncertainty", "1000000000", "--out", "{tmp}/u.json"], "--uncertainty"),
+        (["fleet", "learn", "{log}", "--uncertainty", "1000000000", "--out", "{tmp}/f"], "--uncertainty"),
+        (["fleet", "learn", "{log}", "--scheduler", "not an address", "--out", "{tmp}/f"], "--scheduler"),
+        (["monitor", "{log}", "--model", "{model}", "--bin-s", "1e-9"], "bin_s"),
+    ],
+)
+def test_a_count_or_an_address_that_cannot_run_is_one_line_before_any_work(
+    planar_log, healthy_model, tmp_path, args, field
+):
+    """Issue 95: --uncertainty beyond the limit (before EM runs), a scheduler that is no address, and
+    monitor bins a billion to the second end in one line, exit 2, nothing written."""
+    argv = [a.format(log=planar_log, tmp=tmp_path, model=healthy_model) for a in args]
+    res = runner.invoke(app, argv)
+    assert res.exit_code == EXIT_BAD_INPUT, res.output
+    assert f"error: {field}:" in res.output and "internal error" not in res.output
+    assert not (tmp_path / "u.json").exists() and not (tmp_path / "f" / "fleet.json").exists()

@@ -230,6 +230,12 @@ def open_engine(workers: int | None = None, scheduler: str | None = None) -> Ite
     if scheduler is not None:
         try:
             client = Client(scheduler, timeout="10s")
+        except ValueError as exc:  # not an address at all: no port, an unknown protocol
+            raise SensactError(
+                f"--scheduler {scheduler!r} is not a scheduler's address ({exc}).",
+                field="--scheduler",
+                fix="give it as tcp://HOST:PORT (`dask scheduler` prints it, 8786 by default), or leave it out.",
+            ) from None
         except (OSError, TimeoutError) as exc:
             raise SensactError(
                 f"no Dask scheduler answered at {scheduler} ({exc}).",

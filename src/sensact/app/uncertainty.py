@@ -12,6 +12,25 @@ from sensact.errors import ConfigError
 from sensact.learn.em.uses.error_bars import Uncertainty, f_distances, replicate, summarize
 
 
+def refuse_replicates(replicates: int) -> None:
+    """``--uncertainty B`` checked before any work: at least 2 replicates, at most ``limits.MAX_TRIALS``."""
+    from sensact.limits import MAX_TRIALS
+
+    if replicates < 2:
+        raise ConfigError(
+            f"--uncertainty {replicates}: a standard error needs at least 2 replicates.",
+            field="--uncertainty",
+            fix="give 20 or more (each replicate is a fit as long as the first).",
+        )
+    if replicates > MAX_TRIALS:
+        raise ConfigError(
+            f"--uncertainty {replicates:,} is over the limit of {MAX_TRIALS:,} replicates, each a fit as long as the "
+            "first.",
+            field="--uncertainty",
+            fix="give 20 to 200 (SENSACT_MAX_TRIALS raises the limit).",
+        )
+
+
 def bootstrap(
     cal: Calibration,
     replicates: int,
@@ -23,12 +42,7 @@ def bootstrap(
 ) -> Calibration:
     """``cal`` with its ``uncertainty``: ``replicates`` logs drawn from its model (replicate b with seed
     ``seed + b``), each learned again as the log was, on ``engine`` (here, one after another, by default)."""
-    if replicates < 2:
-        raise ConfigError(
-            f"--uncertainty {replicates}: a standard error needs at least 2 replicates.",
-            field="--uncertainty",
-            fix="give 20 or more (each replicate is a fit as long as the first).",
-        )
+    refuse_replicates(replicates)
     res, data = cal.result, cal.log.data
     if res.posteriors is None:
         raise ConfigError(

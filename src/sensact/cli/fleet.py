@@ -100,14 +100,10 @@ def fleet_learn_cmd(
 
     logs = list(dict.fromkeys(logs))  # a log given twice is learned once
     _refuse_out(out)
-    if uncertainty is not None and uncertainty < 2:
-        from sensact.errors import ConfigError
+    if uncertainty is not None:
+        from sensact.app.uncertainty import refuse_replicates
 
-        raise ConfigError(
-            f"--uncertainty {uncertainty}: a standard error needs at least 2 replicates.",
-            field="--uncertainty",
-            fix="give 20 or more (each replicate is a fit as long as the first).",
-        )
+        refuse_replicates(uncertainty)
     names = fleet_names(logs, log_name)
     options = LearnOptions(preset, config, tuple(set_ or ()), report, uncertainty)
     with open_engine(workers, scheduler) as engine:

@@ -260,6 +260,10 @@ def learn_em_cmd(
     which names its preset), or a Turtlebot's for a CSV, or the thesis's; --config and --set override
     them. Ctrl-C stops early and still writes the most likely model so far."""
     check_out_file(out, others={"--start-from": start_from}, kind=EM_MODEL, force=force)
+    if uncertainty is not None:  # before EM: a count that cannot run is refused before the work it follows
+        from sensact.app.uncertainty import refuse_replicates
+
+        refuse_replicates(uncertainty)
     from sensact.app import calibrate, open_log
 
     opened = open_log(log, bins=bins)

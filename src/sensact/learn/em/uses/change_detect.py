@@ -33,9 +33,11 @@ from sensact.core.changepoint import (
     cusum_threshold,
     long_run_scale,
 )
+from sensact.errors import ConfigError
 from sensact.learn.em.config import EMConfig
 from sensact.learn.em.estep import innovations
 from sensact.learn.em.uses.place import localize
+from sensact.limits import steps_problem
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 
@@ -169,6 +171,9 @@ def _events(
 def monitor(model: EMModel, data: LandmarkLog, config: MonitorConfig | None = None) -> MonitorResult:
     """Run ``model``'s filter over ``data`` and test every stream for a change (module docstring)."""
     cfg = config or MonitorConfig()
+    too_many = steps_problem(data.n_steps * data.dt_s / cfg.bin_s, f"bins of {cfg.bin_s:g} s over the log")
+    if too_many is not None:  # checked before the filter runs and before any bin is allocated
+        raise ConfigError(f"{too_many}.", field="bin_s", fix="give --bin-s in seconds, e.g. 1 (the default).")
     inn = innovations(model, data)
     sensor = model.sensor
     C = len(sensor.channels)
