@@ -213,3 +213,24 @@ def test_the_report_shows_error_bars_in_the_frame_and_units_of_the_exports(learn
             assert shown[label] == pytest.approx(exported[velocity][feature], rel=1e-12, abs=1e-15)
     assert shown["mount.forward_m"] == pytest.approx(doc["model"]["sensor"]["mount"]["forward_mm"] / 1000)
     assert "f.range_m(1 m)" in shown or "f.height_px(1 m)" in shown
+
+
+@pytest.mark.parametrize(
+    "change,field",
+    [
+        (lambda m: m.pop("motion_sd"), "model.motion_sd"),
+        (lambda m: m["sensor"].pop("mount"), "model.sensor.mount"),
+        (lambda m: m["sensor"]["mount"].__setitem__("yaw_rad", 1e9), "model.sensor.mount.yaw_rad"),
+        (lambda m: m["sensor"]["mount"].__setitem__("forward_mm", "ahead"), "model.sensor.mount.forward_mm"),
+    ],
+)
+def test_an_export_refuses_a_model_missing_or_wild_in_what_it_writes(learned, tmp_path, change, field):
+    """Issue 95: a model with no Sigma_m, no mount, or a mount's yaw of 1e9 rad is one line (exit 2), not an
+    export of a default or of nonsense."""
+    doc = json.loads(json.dumps(learned[1]))
+    change(doc["model"])
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(doc))
+    res = runner.invoke(app, ["export", str(bad), "--format", "robot-localization", "--out", str(tmp_path / "rl.yaml")])
+    assert res.exit_code == 2 and f"error: {bad}: {field}:" in res.output.replace("\n", ""), res.output
+    assert not (tmp_path / "rl.yaml").exists()

@@ -49,6 +49,7 @@ def read_em_doc(doc: JsonObject, source: Path) -> tuple[EMModel, float]:
     """A `learn em` model file's model and step (s), each checked."""
     from sensact.models.em_model import EMModel
 
+    _refuse_missing_or_wild(doc.get("model"), source)
     model = EMModel.from_dict(doc.get("model"), source=str(source))
     dt = doc.get("dt_s")
     if not isinstance(dt, int | float) or not (math.isfinite(dt) and dt > 0):
@@ -56,6 +57,39 @@ def read_em_doc(doc: JsonObject, source: Path) -> tuple[EMModel, float]:
             f"dt_s {dt!r} is not a step.", file=source, field="dt_s", fix="learn it again with `sensact learn em`."
         )
     return model, float(dt)
+
+
+MAX_MOUNT_MM = 100_000.0  # a sensor 100 m from the robot's point is no mount
+
+
+def _refuse_missing_or_wild(model: Any, source: Path) -> None:
+    """What an export reads of a `learn em` model must be there and in range: ``motion_sd`` (its Sigma_m;
+    a default would pass for a learned one) and the sensor's ``mount`` (within ``MAX_MOUNT_MM``, its yaw
+    within a turn either way)."""
+    if not isinstance(model, dict):
+        return  # EMModel.from_dict says what is wrong with it
+    fix = "learn it again with `sensact learn em`."
+    if model.get("motion_sd") is None:
+        raise ModelFormatError(
+            "has no motion_sd, the Sigma_m an export writes.", file=source, field="model.motion_sd", fix=fix
+        )
+    sensor = model.get("sensor")
+    mount = sensor.get("mount") if isinstance(sensor, dict) else None
+    if not isinstance(mount, dict):
+        raise ModelFormatError("has no sensor mount.", file=source, field="model.sensor.mount", fix=fix)
+    limits = {"forward_mm": MAX_MOUNT_MM, "left_mm": MAX_MOUNT_MM, "yaw_rad": 2.0 * math.pi}
+    for key, limit in limits.items():
+        try:
+            value = float(mount[key])
+        except (KeyError, TypeError, ValueError):
+            value = math.nan
+        if not (math.isfinite(value) and abs(value) <= limit):
+            raise ModelFormatError(
+                f"sensor mount {key} is {mount.get(key)!r}, not a number within {limit:g}.",
+                file=source,
+                field=f"model.sensor.mount.{key}",
+                fix=fix,
+            )
 
 
 def body_sigma_m(model: EMModel, source: Path) -> np.ndarray:
