@@ -837,8 +837,11 @@ def test_a_model_is_matched_to_the_log_it_names(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path / "fleet" / "r1")
     assert learned_on_log({"log": "."}, tmp_path / "fleet" / "r1")
     assert not learned_on_log({}, tmp_path / "fleet" / "r1")
-    # two logs of one name are told apart by their paths
-    assert fleet_names([Path("a/r1"), Path("b/r1"), Path("c/r2")], lambda p: p.name) == ["a/r1", "b/r1", "r2"]
+    # two logs of one name are told apart by their folders, each name one folder under --out (issue 95)
+    assert fleet_names([Path("a/r1"), Path("b/r1"), Path("c/r2")], lambda p: p.name) == ["a_r1", "b_r1", "r2"]
+    deep = [tmp_path / "x" / "a" / "log", tmp_path / "y" / "a" / "log"]
+    assert fleet_names(deep, lambda p: p.name) == ["x_a_log", "y_a_log"]
+    assert all("/" not in n for n in fleet_names([tmp_path / "log", tmp_path / "b" / "log"], lambda p: p.name))
 
 
 def test_learn_em_warns_when_a_hand_written_folders_range_is_in_another_unit(tmp_path):

@@ -453,10 +453,25 @@ class FleetModel:
 
 
 def fleet_names(paths: Sequence[Path], name: Callable[[Path], str]) -> list[str]:
-    """Short, distinct names for the table: ``name(path)`` (a folder's or a file's own name), or the path as
-    given where two would share one."""
+    """Short, distinct names, each one folder's name under a fleet's ``--out``: ``name(path)`` (a folder's or
+    a file's own name); where two would share one, the path's last folders joined by ``_`` (``a/r1`` and
+    ``b/r1`` are ``a_r1`` and ``b_r1``), as many as tell them apart, never a path that leaves ``--out``."""
     short = [name(p) for p in paths]
-    return [str(p) if short.count(s) > 1 else s for p, s in zip(paths, short, strict=True)]
+    out = []
+    for p, s in zip(paths, short, strict=True):
+        if short.count(s) == 1:
+            out.append(s)
+            continue
+        parts = [q for q in Path(p).resolve().parts[1:-1] if q not in ("", "..")]
+        others = [Path(q).resolve().parts[1:-1] for q, t in zip(paths, short, strict=True) if t == s and q != p]
+        k = 1
+        while k < len(parts) and any(tuple(parts[-k:]) == tuple(o[-k:]) for o in others):
+            k += 1
+        out.append("_".join([*parts[-k:], s]) if parts else s)
+    for i, s in enumerate(out):  # the same folder twice, or tails that still agree: numbered
+        if out.count(s) > 1:
+            out[i] = f"{s}-{out[: i + 1].count(s)}"
+    return out
 
 
 def log_name(path: Path) -> str:
