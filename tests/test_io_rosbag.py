@@ -681,3 +681,13 @@ def test_a_conversion_that_fails_after_reading_leaves_nothing_behind(diffdrive_s
     assert res.exit_code == 2
     assert sorted(p.name for p in kept.rglob("*")) == ["em_config.yaml"]
     assert (kept / "em_config.yaml").read_text() == "preset: differential_drive_camera\n"
+
+
+@pytest.mark.parametrize(
+    "text", ["commands: [[/cmd_vel]]\n", "readings: [[/a, /b]]\n", "truth: {a: 1}\n", "commands: ''\n"]
+)
+def test_a_mapping_whose_role_is_not_a_topic_name_is_one_line(tmp_path, text):
+    """Issue 95: a nested list or a map for a role was a TypeError (exit 70)."""
+    (tmp_path / "map.yaml").write_text(text)
+    res = runner.invoke(app, ["convert", "bag", str(tmp_path / "none.bag"), "--mapping", str(tmp_path / "map.yaml")])
+    assert res.exit_code == 2 and "is not a topic's name" in res.output, res.output

@@ -38,6 +38,15 @@ def _mapping(path: Path | None):
     out = {k: v for k, v in doc.items() if v is not None}
     if "readings" in out:
         out["readings"] = tuple([out["readings"]] if isinstance(out["readings"], str) else out["readings"])
+    for role, topic in out.items():  # a topic is a name: a nested list or a map is not one
+        topics = topic if role == "readings" and isinstance(topic, tuple) else (topic,)
+        if not topics or not all(isinstance(t, str) and t for t in topics):
+            raise LogFormatError(
+                f"{topic!r} is not a topic's name" + (" or a list of them." if role == "readings" else "."),
+                file=path,
+                field=role,
+                fix=f"write `{role}: /topic_name`" + (" or `readings: [/sonar, /ir]`." if role == "readings" else "."),
+            )
     return out
 
 
