@@ -313,3 +313,17 @@ def test_a_count_or_an_address_that_cannot_run_is_one_line_before_any_work(
     assert res.exit_code == EXIT_BAD_INPUT, res.output
     assert f"error: {field}:" in res.output and "internal error" not in res.output
     assert not (tmp_path / "u.json").exists() and not (tmp_path / "f" / "fleet.json").exists()
+
+
+def test_a_map_in_the_wrong_unit_is_refused_before_the_start_grid_is_allocated(planar_log, tmp_path):
+    """Issue 95: landmarks in mm read as metres (a room 9 km across) asked the start search for a grid of
+    hundreds of millions of cells (4 GiB): one line instead, naming the unit."""
+    log = tmp_path / "log"
+    shutil.copytree(planar_log, log)
+    meta = json.loads((log / "meta.json").read_text())
+    for m in meta["landmarks"]:
+        m["x_mm"], m["y_mm"] = m["x_mm"] * 1000.0, m["y_mm"] * 1000.0
+    (log / "meta.json").write_text(json.dumps(meta))
+    res = runner.invoke(app, ["learn", "em", str(log), "--out", str(tmp_path / "m.json")])
+    assert res.exit_code == EXIT_BAD_INPUT and "search.start_grid_mm" in res.output and "unit" in res.output
+    assert not (tmp_path / "m.json").exists()

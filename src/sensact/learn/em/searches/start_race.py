@@ -42,6 +42,7 @@ from sensact.records import omit_when
 
 MIN_OBSERVATIONS = 10  # the window grows until it holds this many sightings
 DISTINCT_CELLS = 2.5  # candidates closer than this many grid cells are one candidate
+MAX_GRID_CELLS = 1_000_000  # a 500 mm grid over a 500 m room; more is a map in the wrong unit
 
 
 @dataclass(frozen=True)
@@ -154,6 +155,15 @@ def search_grid(landmarks_xy: np.ndarray, target_xy: np.ndarray, cell_mm: float)
     local = rel @ axes.T
     lo = np.floor(local.min(axis=0) / cell_mm - 4.5)
     hi = np.ceil(local.max(axis=0) / cell_mm + 4.5)
+    cells = float(np.prod(hi - lo))
+    if cells > MAX_GRID_CELLS:  # before allocating: a map in mm read as metres asks for billions
+        extent = float(np.max(local.max(axis=0) - local.min(axis=0))) / 1000.0
+        raise ConfigError(
+            f"the start search's grid would be {cells:.3g} cells of {cell_mm:g} mm over a map {extent:.4g} m across, "
+            f"over the limit of {MAX_GRID_CELLS:,}: is the map's unit right?",
+            field="search.start_grid_mm",
+            fix="give the landmarks in metres (x_m, y_m) or mm (x_mm, y_mm) as named, or a coarser start_grid_mm.",
+        )
     i, j = np.meshgrid(np.arange(lo[0], hi[0]) + 0.5, np.arange(lo[1], hi[1]) + 0.5, indexing="ij")
     cells = np.column_stack([i.ravel(), j.ravel()])
     cells = cells[np.hypot(cells[:, 0], cells[:, 1]) >= 1.0]
