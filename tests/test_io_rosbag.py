@@ -691,3 +691,24 @@ def test_a_mapping_whose_role_is_not_a_topic_name_is_one_line(tmp_path, text):
     (tmp_path / "map.yaml").write_text(text)
     res = runner.invoke(app, ["convert", "bag", str(tmp_path / "none.bag"), "--mapping", str(tmp_path / "map.yaml")])
     assert res.exit_code == 2 and "is not a topic's name" in res.output, res.output
+
+
+def test_tags_at_or_behind_the_camera_are_dropped_or_the_frame_refused(diffdrive_source, tmp_path):
+    """Issue 95: a camera sees nothing behind it. A few such detections are dropped and said; most of them
+    mean the positions are not in an optical frame, refused in one line."""
+    import dataclasses
+
+    _, rec = diffdrive_source
+    few = rec.tag_xyz_optical_m.copy()
+    few[:3, 2] = -few[:3, 2]
+    bag = write_robot_bag(tmp_path / "few", "ros1", dataclasses.replace(rec, tag_xyz_optical_m=few))
+    res = runner.invoke(app, ["convert", "bag", str(bag), "--out", str(tmp_path / "few_log")])
+    assert res.exit_code == 0, res.output
+    assert "3 tag detections at or behind the camera" in res.output.replace("\n", " ")
+    from sensact.io.csvtable import read_numeric_csv
+
+    assert len(read_numeric_csv(tmp_path / "few_log" / "bag_tables" / "sightings.csv")["t_s"]) == len(few) - 3
+    most = rec.tag_xyz_optical_m * np.array([1.0, 1.0, -1.0])
+    bag = write_robot_bag(tmp_path / "most", "ros1", dataclasses.replace(rec, tag_xyz_optical_m=most))
+    res = runner.invoke(app, ["convert", "bag", str(bag), "--out", str(tmp_path / "most_log")])
+    assert res.exit_code == 2 and "behind the camera" in res.output and not (tmp_path / "most_log").exists()

@@ -589,22 +589,35 @@ def _sightings(
             file=path,
             fix="record one camera's detections, or split the bag by camera.",
         )
+    raw = np.array([r[3:] for r in rows], dtype=float)
+    _refuse_non_finite(path, topic, "tag position", raw)
+    behind = raw[:, 2] <= 0.0  # an optical frame looks along +z: a camera sees nothing at or behind its plane
+    if behind.mean() > 0.5:
+        raise LogFormatError(
+            f"{topic}: {int(behind.sum())} of {len(rows)} tag detections are at or behind the camera (z <= 0 in "
+            f"{frames[0]}): not an optical frame's positions (z forward, x right, y down).",
+            file=path,
+            fix="give the detections in the camera's optical frame, as apriltag_ros and the /tf tag frames are.",
+        )
+    kept_note = []
+    if behind.any():
+        kept_note.append(f"{int(behind.sum())} tag detections at or behind the camera (z <= 0) are dropped")
+        rows = [r for r, b in zip(rows, behind, strict=True) if not b]
+        recvs = [v for v, b in zip(recvs, behind, strict=True) if not b]
     ns = np.array([r[0] for r in rows], dtype=np.int64)
     # a detector may publish a frame's tags after the next frame's: only a second back is another clock
     _refuse_going_back(path, topic, ns, "detection", int(CLOCK_GAP_S * 1e9))
     clocks[topic] = (ns, np.array(recvs, dtype=np.int64))
     tree = _static_tree(path, reader, topics)
     rot, pos, found = _camera_pose(path, tree, frames[0])
-    notes = []
+    notes = kept_note
     if not found:
         rot = OPTICAL_TO_BODY
         notes.append(
             f"/tf_static does not place {frames[0]}: read as an optical frame (z forward, x right, y down) facing "
             "the robot's forward"
         )
-    xyz = np.array([r[3:] for r in rows])
-    _refuse_non_finite(path, topic, "tag position", xyz)
-    xyz = xyz @ rot.T  # the tag in the robot's axes, from the camera
+    xyz = np.array([r[3:] for r in rows]) @ rot.T  # the tag in the robot's axes, from the camera
     table = {
         "t_s": _seconds(ns),
         "landmark_id": np.array([r[1] for r in rows], dtype=np.float64),
