@@ -327,3 +327,16 @@ def test_a_map_in_the_wrong_unit_is_refused_before_the_start_grid_is_allocated(p
     res = runner.invoke(app, ["learn", "em", str(log), "--out", str(tmp_path / "m.json")])
     assert res.exit_code == EXIT_BAD_INPUT and "search.start_grid_mm" in res.output and "unit" in res.output
     assert not (tmp_path / "m.json").exists()
+
+
+def test_a_track_robot_that_never_moves_is_flagged_not_an_internal_error(tmp_path):
+    """Issue 95: every command zero divided the action score by the true velocities' spread (exit 70).
+    Now the fit is written, flagged (command_constant, exit 3), and its share of that spread is NaN."""
+    log = tmp_path / "trk"
+    assert runner.invoke(app, ["simulate", "track1d", "--out", str(log)]).exit_code == 0
+    rows = (log / "actions.csv").read_text().splitlines()
+    (log / "actions.csv").write_text("\n".join([rows[0]] + [f"{r.split(',')[0]},0.0" for r in rows[1:]]) + "\n")
+    res = runner.invoke(app, ["learn", "em", str(log), "--out", str(tmp_path / "m.json")])
+    assert res.exit_code == EXIT_FLAGGED, res.output
+    doc = json.loads((tmp_path / "m.json").read_text())
+    assert [f["code"] for f in doc["health"]["flags"]] == ["command_constant"]

@@ -99,7 +99,8 @@ def score_track(
         "sensor_rms_px": dmap.rms_px,
         "sensor_rms_pct": 100 * dmap.rms_px / h_range,
         "action_rms_mm_s": act.rms,
-        "action_rms_pct": 100 * act.rms / float(np.ptp(tv)),
+        # a robot whose true velocities are all one (it never moved) has no range to take a share of
+        "action_rms_pct": 100 * act.rms / float(np.ptp(tv)) if np.ptp(tv) > 0 else float("nan"),
         "scale_ratio": float(k_action / dmap.scale),
         "action_scale": float(k_action),
         "sensor_scale": dmap.scale,
