@@ -340,3 +340,10 @@ def test_a_track_robot_that_never_moves_is_flagged_not_an_internal_error(tmp_pat
     assert res.exit_code == EXIT_FLAGGED, res.output
     doc = json.loads((tmp_path / "m.json").read_text())
     assert [f["code"] for f in doc["health"]["flags"]] == ["command_constant"]
+
+
+@pytest.mark.parametrize("start", ["1e9,0", "0,-2e8,1.0"])
+def test_localize_refuses_a_start_kilometres_from_the_map(planar_log, healthy_model, tmp_path, start):
+    """Issue 95: `localize --start 1e9` was run with exit 0; a start over 100 m from every landmark is one line."""
+    res = runner.invoke(app, ["localize", str(planar_log), "--model", str(healthy_model), "--start", start])
+    assert res.exit_code == EXIT_BAD_INPUT and "error: --start:" in res.output and "in mm" in res.output

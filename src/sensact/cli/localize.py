@@ -49,6 +49,30 @@ def _parse_start(text: str | None, n: int) -> Any:
     return np.array(values)
 
 
+FAR_START_MM = 100_000.0  # a start this far from every landmark (100 m) is a number in the wrong unit
+
+
+def _refuse_far_start(start: Any, data: Any) -> None:
+    """A given start within ``FAR_START_MM`` of the map's nearest landmark (a track's: of its beacon, at 0)."""
+    if start is None:
+        return
+    import numpy as np
+
+    from sensact.errors import ConfigError
+
+    if data.geometry.has_heading:
+        lm = data.landmarks_xy[np.isfinite(data.landmarks_xy).all(axis=1)]
+        far = float(np.min(np.hypot(*(lm - start[:2]).T))) if len(lm) else 0.0
+    else:
+        far = abs(float(start[0]))
+    if far > FAR_START_MM:
+        raise ConfigError(
+            f"--start is {far / 1000:.4g} m from the nearest landmark, over {FAR_START_MM / 1000:g} m: is it in mm?",
+            field="--start",
+            fix="give the start in mm (and rad), in the map's frame.",
+        )
+
+
 def _truth_scores(
     loc: Any, poses: Any, truth_mm: Any, learned_map: dict[str, float] | None, dt_s: float
 ) -> JsonObject | None:
@@ -182,7 +206,9 @@ def localize_cmd(
     doc, m, opened = read_model_and_log(log, model, bins, use="run")
     data, lf, truth_mm = opened.data, opened.folder, opened.recorded_distance_mm
     poses = lf.truth_poses() if lf is not None else None
-    loc, per_learned = place_robot(doc, m, data, model, config, set_, _parse_start(start, m.prior_mean.size))
+    given = _parse_start(start, m.prior_mean.size)
+    _refuse_far_start(given, data)
+    loc, per_learned = place_robot(doc, m, data, model, config, set_, given)
     post = loc.posteriors
     scores = _truth_scores(loc, poses, truth_mm, (doc.get("evaluation") or {}).get("state_map"), data.dt_s)
     health = Health.of(*learned_health(doc).flags, filter_failed(post.ok, "the path"))
