@@ -347,3 +347,14 @@ def test_localize_refuses_a_start_kilometres_from_the_map(planar_log, healthy_mo
     """Issue 95: `localize --start 1e9` was run with exit 0; a start over 100 m from every landmark is one line."""
     res = runner.invoke(app, ["localize", str(planar_log), "--model", str(healthy_model), "--start", start])
     assert res.exit_code == EXIT_BAD_INPUT and "error: --start:" in res.output and "in mm" in res.output
+
+
+@pytest.mark.parametrize("sigma", [1e-300, 1e300])
+def test_a_model_with_a_sigma_no_fit_gives_is_refused_where_it_is_read(planar_log, healthy_model, tmp_path, sigma):
+    """Issue 95: a sigma of 1e-300 was monitored with exit 0 (every reading infinitely sure)."""
+    doc = json.loads(healthy_model.read_text())
+    doc["model"]["sensor"]["channels"][0]["sigma"] = sigma
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(doc))
+    res = runner.invoke(app, ["monitor", str(planar_log), "--model", str(bad)])
+    assert res.exit_code == EXIT_BAD_INPUT and "channels[0].sigma" in res.output

@@ -164,6 +164,10 @@ class SensorMount:
         return cls(float(data["forward_mm"]), float(data["left_mm"]), float(data["yaw_rad"]))
 
 
+MIN_SIGMA = 1e-9  # the M-step's floor on every sigma (learn/em/mstep.py)
+MAX_SIGMA = 1e9  # limits.MAX_VALUE: beyond it in any unit
+
+
 @dataclass(frozen=True)
 class LandmarkSensor:
     channels: tuple[ReadingChannel, ...]
@@ -256,7 +260,7 @@ class LandmarkSensor:
                 return cls.single(
                     Polynomial1D.from_dict(data["height"], source=source), float(data["sigma_height_px"]), sb
                 )
-            return cls(
+            sensor = cls(
                 tuple(ReadingChannel.from_dict(c, source=source) for c in data["channels"]),
                 sb,
                 str(data.get("bearing_robust", "none")),
@@ -271,3 +275,15 @@ class LandmarkSensor:
                 field="channels",
                 fix="rewrite it with `sensact learn em`.",
             ) from None
+        sigmas = [(f"channels[{i}].sigma", ch.sigma) for i, ch in enumerate(sensor.channels)]
+        sigmas += [("sigma_bearing_rad", sb)] if sb is not None else []
+        for field, sigma in sigmas:  # the M-step never learns one below its floor: a smaller one was written by hand
+            if not (MIN_SIGMA <= sigma <= MAX_SIGMA):
+                raise ModelFormatError(
+                    f"a sigma of {sigma:g} is outside {MIN_SIGMA:g} to {MAX_SIGMA:g}: every reading would be "
+                    "infinitely sure or say nothing.",
+                    file=source,
+                    field=field,
+                    fix="rewrite it with `sensact learn em`.",
+                )
+        return sensor

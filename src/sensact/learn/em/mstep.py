@@ -18,7 +18,7 @@ from sensact.learn.em.unsurveyed.landmark_step import SampledSightings, landmark
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 from sensact.models.landmark_map import LandmarkMap
-from sensact.models.landmark_sensor import LandmarkSensor, reading_features
+from sensact.models.landmark_sensor import MIN_SIGMA, LandmarkSensor, reading_features
 
 
 def sample_gamma(post: Posteriors, steps: np.ndarray, n_samples: int, rng: np.random.Generator) -> np.ndarray:
@@ -128,7 +128,7 @@ def sensor_and_map(
             sol = weighted_lstsq(X, y - held, ww)
         fitted = ch.with_solution(sol, center, scale, m)
         sigma = float(np.sqrt(np.sum(ww * (fitted.predict(d, b) - y) ** 2) / d.size))  # eq. 4.27
-        fits.append((fitted.function, max(sigma, 1e-9), fitted.bearing_terms))
+        fits.append((fitted.function, max(sigma, MIN_SIGMA), fitted.bearing_terms))
     sigma_b = previous.sigma_bearing_rad
     wb = weights[rows, -1]
     if data.geometry.has_heading and sigma_b is not None and (wb > 0).any():
@@ -138,7 +138,7 @@ def sensor_and_map(
         err = np.concatenate(
             [wrap_angle(landmark_bearing(sensor_poses(poses[s][b], m), lm[b]) - ob) for s in range(n_samples)]
         )
-        sigma_b = max(float(np.sqrt(np.sum(np.tile(wb[b], n_samples) * err**2) / err.size)), 1e-9)
+        sigma_b = max(float(np.sqrt(np.sum(np.tile(wb[b], n_samples) * err**2) / err.size)), MIN_SIGMA)
     return previous.with_fits(fits, sigma_b), landmarks
 
 
