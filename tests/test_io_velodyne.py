@@ -256,3 +256,26 @@ def test_calibration_yaml_round_trip(tmp_path):
     (tmp_path / "bad.yaml").write_text("lasers:\n- {laser_id: 0}\n")
     with pytest.raises(LogFormatError, match=r"lasers\[0\]"):
         read_calibration(tmp_path / "bad.yaml")
+
+
+def test_calibration_angles_in_the_wrong_unit_are_refused(tmp_path):
+    """Issue 95: a ROS calibration whose angles are degrees (read as radians), or Ouster metadata whose
+    azimuths are 1e6 degrees, was learned from with exit 0."""
+    import json
+
+    vlp = (
+        "lasers:\n"
+        + "".join(
+            f"- {{laser_id: {i}, rot_correction: 0.0, vert_correction: {v}}}\n" for i, v in enumerate(range(-15, 17, 2))
+        )
+        + "num_lasers: 16\n"
+    )
+    (tmp_path / "vlp16_deg.yaml").write_text(vlp)
+    with pytest.raises(LogFormatError, match="another unit") as err:
+        read_calibration(tmp_path / "vlp16_deg.yaml")
+    assert err.value.field == "vert_correction"
+    meta = {"beam_altitude_angles": [0.0] * 16, "beam_azimuth_angles": [1e6] * 16}
+    (tmp_path / "os1.json").write_text(json.dumps(meta))
+    with pytest.raises(LogFormatError, match="another unit") as err:
+        read_calibration(tmp_path / "os1.json")
+    assert err.value.field == "beam_azimuth_angles"

@@ -53,7 +53,24 @@ def _ouster_intrinsics(data: JsonObject, path: Path) -> LaserIntrinsics:
             field="beam_altitude_angles",
             fix="give the metadata JSON the OS-1 itself wrote (one altitude and one azimuth per beam, degrees).",
         ) from None
+    _refuse_angles_out_of_range(path, np.radians(alt), -np.radians(az), "beam_altitude_angles", "beam_azimuth_angles")
     return LaserIntrinsics(np.radians(alt), -np.radians(az), 0.001)
+
+
+def _refuse_angles_out_of_range(
+    path: Path, vertical: np.ndarray, horizontal: np.ndarray, v_field: str, h_field: str
+) -> None:
+    """A laser points within a quarter turn of the horizon and its azimuth offset within a half turn: a
+    file outside that is in another unit (degrees where radians are read, or the reverse)."""
+    for field, values, limit in ((v_field, vertical, math.pi / 2), (h_field, horizontal, math.pi)):
+        worst = float(np.max(np.abs(values))) if values.size else 0.0
+        if worst > limit:
+            raise LogFormatError(
+                f"a laser's {field} is {worst:.4g} rad, beyond {limit:.4g} rad: the angles are in another unit.",
+                file=path,
+                field=field,
+                fix="a ROS velodyne calibration gives radians, an Ouster's metadata degrees: check which this is.",
+            )
 
 
 def ouster_metadata(intrinsics: LaserIntrinsics) -> JsonObject:
@@ -107,9 +124,12 @@ def calibration_from_dict(data: Any, path: str | Path) -> LaserIntrinsics:
             field="distance_resolution",
             fix="give the unit's range step in metres (0.002 for an HDL-64E).",
         )
+    vertical = np.array([float(r["vert_correction"]) for r in ordered])
+    horizontal = np.array([float(r["rot_correction"]) for r in ordered])
+    _refuse_angles_out_of_range(path, vertical, horizontal, "vert_correction", "rot_correction")
     return LaserIntrinsics(
-        np.array([float(r["vert_correction"]) for r in ordered]),
-        np.array([float(r["rot_correction"]) for r in ordered]),
+        vertical,
+        horizontal,
         float(data.get("distance_resolution", 0.002)),
         tuple({k: v for k, v in r.items() if k not in ("rot_correction", "vert_correction")} for r in ordered),
     )
