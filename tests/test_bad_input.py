@@ -358,3 +358,41 @@ def test_a_model_with_a_sigma_no_fit_gives_is_refused_where_it_is_read(planar_lo
     bad.write_text(json.dumps(doc))
     res = runner.invoke(app, ["monitor", str(planar_log), "--model", str(bad)])
     assert res.exit_code == EXIT_BAD_INPUT and "channels[0].sigma" in res.output
+
+
+@pytest.mark.parametrize(
+    "args,field",
+    [
+        (["simulate", "track1d", "--set", "dt_s=0"], "--set"),
+        (["simulate", "track1d", "--set", "motion_noise_mm_s=-1"], "--set"),
+        (["simulate", "field2d", "--set", "false_positive_rate=2"], "--set"),
+    ],
+)
+def test_a_simulator_setting_out_of_range_is_one_line(tmp_path, args, field):
+    """Issue 95: dt_s 0 divided by zero (exit 70); a negative noise or a false-positive share of 2 ran."""
+    res = runner.invoke(app, [*args, "--out", str(tmp_path / "sim")])
+    assert res.exit_code == EXIT_BAD_INPUT and f"error: {field}:" in res.output, res.output
+    assert not (tmp_path / "sim").exists()
+
+
+@pytest.mark.parametrize("key,value", [("observations", ["x"]), ("truth", "x")])
+def test_a_meta_json_part_of_the_wrong_type_is_one_line(planar_log, tmp_path, key, value):
+    """Issue 95: meta.json's observations as a list, or its truth as a string, were AttributeErrors."""
+    log = tmp_path / "log"
+    shutil.copytree(planar_log, log)
+    meta = json.loads((log / "meta.json").read_text())
+    meta[key] = value
+    (log / "meta.json").write_text(json.dumps(meta))
+    res = runner.invoke(app, ["learn", "em", str(log), "--out", str(tmp_path / "m.json")])
+    assert res.exit_code == EXIT_BAD_INPUT and f"meta.json: {key}:" in res.output.replace("\n", ""), res.output
+
+
+def test_a_start_model_whose_summary_config_is_not_an_object_is_one_line(planar_log, healthy_model, tmp_path):
+    doc = json.loads(healthy_model.read_text())
+    doc["summary"]["config"] = "a string"
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(doc))
+    res = runner.invoke(
+        app, ["learn", "em", str(planar_log), "--start-from", str(bad), "--out", str(tmp_path / "m.json")]
+    )
+    assert res.exit_code == EXIT_BAD_INPUT and "summary.config" in res.output

@@ -252,9 +252,19 @@ def learned_settings(doc: JsonObject, source: str) -> EMConfig | None:
     """The settings a learned model was learned with (its model.json's ``summary.config``), if it says."""
     from sensact.config import config_from_dict
 
-    learned = (doc.get("summary") or {}).get("config")
+    summary = doc.get("summary") or {}
+    learned = summary.get("config") if isinstance(summary, dict) else None
     if learned is None:
         return None
+    if not isinstance(learned, dict):
+        from sensact.errors import ModelFormatError
+
+        raise ModelFormatError(
+            f"summary.config is {type(learned).__name__}, not the settings' object.",
+            file=source,
+            field="summary.config",
+            fix="give a model.json written by `sensact learn em` (or drop summary.config to start from the preset).",
+        )
     return config_from_dict(EMConfig, upgrade_settings(learned), source=f"{source}: summary.config")
 
 

@@ -218,7 +218,13 @@ def _meta_parts(mpath: Path, meta: JsonObject, geometry: Geometry) -> _MetaParts
         raw_ids = [str(m["id"]).strip() if m["id"] is not None else "" for m in marks]
         # a position nobody surveyed is null: EM learns it (issue 92)
         xy = np.array([[_mm_or_nan(m["x_mm"]), _mm_or_nan(m["y_mm"])] for m in marks])
+        part = "observations"
         cols = meta.get("observations", {})
+        if not isinstance(cols, dict):
+            raise TypeError(f"an object naming the columns, not {type(cols).__name__}")
+        part = "truth"
+        if not isinstance(meta.get("truth", {}) or {}, dict):
+            raise TypeError(f"the simulated truth is an object, not {type(meta['truth']).__name__}")
     except (KeyError, TypeError, ValueError, IndexError) as exc:
         what = f"{exc} is missing" if isinstance(exc, KeyError) else f"malformed ({exc})"
         raise LogFormatError(

@@ -94,6 +94,8 @@ class Field2DConfig:
             problems.append("need 0 < min_range_mm < max_range_mm")
         if self.sigma_height_px <= 0 or self.sigma_bearing_rad <= 0:
             problems.append("observation sigmas must be > 0")
+        if not 0.0 <= self.false_positive_rate <= 1.0:
+            problems.append("false_positive_rate must be in [0, 1], a share of the observations")
         if problems:
             raise ValueError("; ".join(problems))
 

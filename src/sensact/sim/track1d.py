@@ -132,8 +132,10 @@ class Track1DConfig:
             and (too_long := steps_problem(self.seconds / self.dt_s, "seconds / dt_s")) is not None
         ):
             problems.append(too_long)
-        if self.observation_rate_hz <= 0 or self.observation_rate_hz > 1.0 / self.dt_s + 1e-9:
+        if self.observation_rate_hz <= 0 or (self.dt_s > 0 and self.observation_rate_hz > 1.0 / self.dt_s + 1e-9):
             problems.append("observation_rate_hz must be in (0, 1/dt_s]")
+        noise = {k: getattr(self, k) for k in ("motion_noise_mm_s", "observation_noise_px", "speed_jitter_frac")}
+        problems += [f"{k} must be >= 0, a noise's size" for k, v in noise.items() if not v >= 0]
         if self.command_hold_s <= 0:
             problems.append("command_hold_s must be > 0")
         if not 0.0 <= self.observation_noise_ar1 < 1.0:
