@@ -13,7 +13,7 @@ import numpy as np
 
 from sensact.records import JsonObject
 
-SCALES = ("range", "odometry", "map")  # what is metric: a range channel's unit, the forward command's, given positions
+SCALES = ("range", "map")  # what is metric: a range channel's unit, or given positions
 
 
 @dataclass(frozen=True, eq=False)
@@ -54,7 +54,6 @@ class LandmarkMap:
         )
         scale = {
             "range": "the range readings (in mm, their function's slope held at 1 at the middle of its distances)",
-            "odometry": "the forward command (its gain held at 1)",
             "map": "the given positions",
         }[self.scale]
         return f"frame: {where}; scale: {scale}"
