@@ -101,8 +101,9 @@ def merge_maps(docs: Sequence[JsonObject]) -> tuple[SharedMap, list[RigidAlignme
         merged = new
         if moved < 0.01:  # mm
             break
-    sd = np.where(den[:, None] > 0, np.sqrt(1.0 / np.maximum(den, 1e-300) / 2.0)[:, None], np.nan)
-    return SharedMap(tuple(names), merged, np.repeat(sd, 2, axis=1)[:, :2]), fits
+    # each weight is 1 / (sd_x^2 + sd_y^2): one coordinate's variance is half the merged one's inverse
+    sd = np.where(den > 0, np.sqrt(0.5 / np.maximum(den, 1e-300)), np.nan)
+    return SharedMap(tuple(names), merged, np.column_stack([sd, sd])), fits
 
 
 @dataclass(frozen=True)
@@ -226,5 +227,6 @@ def _against_survey(shared: SharedMap, opened: Any) -> JsonObject | None:
         return None
     names = opened.data.landmark_names or tuple(str(j) for j in range(len(survey)))
     xy, _ = shared.on_log(names)
+    # the shared map's sightings are every log's: each surveyed landmark it did not place counts as seen enough
     scores, _ = map_scores(xy, survey, np.full(len(names), np.iinfo(np.int64).max))
     return {"map": scores}

@@ -38,24 +38,24 @@ def map_rounds(
     learned, settings = start.landmarks, cfg
     xy, sd = learned.xy, np.full_like(learned.xy, np.nan)
     model = initial_model(data.with_landmarks(xy), cfg)  # the first round: as on a survey, from the poor start
-    best: tuple[float, EMResult] | None = None
+    best: EMResult | None = None
     worse = 0
     for k in range(MAX_MAP_ROUNDS):
         res = composed(data.with_landmarks(xy), settings)(model)
         res = dc_replace(res, model=res.model.replace(landmarks=dc_replace(learned, xy=xy, sd=sd)))
-        if best is not None and not more_likely(res, best[1], data):
+        if best is not None and not more_likely(res, best, data):
             worse += 1
             if worse == 2:  # two rounds in a row less likely than the best: it has stopped climbing
                 break
         else:
-            best, worse = (0.0, res), 0
+            best, worse = res, 0
         if res.stop_reason == "interrupted":
             break
         model = res.model.replace(landmarks=None)
         # from a learned model nothing is held, and the map fixes the frame: no start search
         settings = settings.replace(refine_from=0, start_search_s=None) if k == 0 else settings
         xy, sd = filtered_map(model, data, xy, learned.held)
-    res = best[1]
+    res = best
     if res.stop_reason != "interrupted":
         # near the top the ridge is short: the M-step's own map update finishes the climb (landmark_step.py)
         final = composed(data.with_landmarks(res.model.landmarks.xy), settings)(res.model)
