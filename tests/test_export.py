@@ -139,8 +139,10 @@ def test_tum_trajectories_read_by_evo_score_as_sensact_scores_the_path(learned, 
 
 def test_export_refuses_a_format_it_does_not_know_and_a_model_without_its_parts(learned, tmp_path):
     root, _ = learned
+    res = runner.invoke(app, ["export", str(root / "model.json"), "--format", "xml", "--out", str(tmp_path / "x")])
+    assert res.exit_code == 2 and "no export format 'xml'" in res.output
     res = runner.invoke(app, ["export", str(root / "model.json"), "--format", "urdf", "--out", str(tmp_path / "x")])
-    assert res.exit_code == 2 and "no export format 'urdf'" in res.output
+    assert res.exit_code == 2 and "--format urdf does not apply to this model" in res.output
     res = runner.invoke(app, ["export", str(root / "model.json"), "--format", "velodyne", "--out", str(tmp_path / "x")])
     assert res.exit_code == 2 and "not a car model with learned laser angles" in " ".join(res.output.split())
 

@@ -589,7 +589,7 @@ IMAGE = ("/camera/image_raw", "sensor_msgs/msg/Image")
     [
         ([ODOM, IMU], "readings or sightings", False),
         ([ODOM, IMU, GPS], "readings or sightings", False),
-        ([CMD, SCAN, JOINTS, ODOM], "readings or sightings", True),
+        ([CMD, JOINTS, ODOM], "readings or sightings", True),
         ([CMD, FIDS, TF], "readings or sightings", False),
         ([CMD, IMAGE], "readings or sightings", False),
         ([IMU, GPS], "commands or the readings or sightings", False),
@@ -607,8 +607,16 @@ def test_a_bag_with_no_type_sensact_reads_names_what_it_found_and_what_it_reads(
     for _, kind in topics:
         assert kind.replace("/msg/", "/") in text
     assert "commands from geometry_msgs/Twist" in text and "readings from sensor_msgs/Range" in text
-    assert ("planned, issue 93" in text) == planned
+    assert ("read with a 2-D lidar's sensor_msgs/LaserScan" in text) == planned
     assert lines[0].startswith("error:") and "Fix:" in text and "cannot tell" not in text
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_bag_with_a_laser_scan_goes_the_lidar_route_and_an_empty_scan_is_one_line(tmp_path):
+    bag = _robot_bag(tmp_path / "robot", [CMD, SCAN, JOINTS, ODOM])
+    res = runner.invoke(app, ["convert", "bag", str(bag), "--out", str(tmp_path / "o")])
+    text = " ".join(res.output.split())
+    assert res.exit_code == 2 and "/scan: 0 beams" in text and "is not a 2-D lidar's scan" in text, text
     assert not (tmp_path / "o").exists()
 
 

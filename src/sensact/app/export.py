@@ -5,7 +5,8 @@ forward, heading 0 facing +y, millimetres).
 * ``robot-localization``: the process noise covariance from the learned Sigma_m, per second, in the 15-state
   order robot_localization uses, a command's twist covariance, and the action model's gains and offsets;
 * ``tum``: the smoothed path (``timestamp x y z qx qy qz qw``) and the truth's, for evo;
-* ``velodyne``: a car model's learned laser angles as a ROS velodyne calibration.
+* ``velodyne``: a car model's learned laser angles as a ROS velodyne calibration;
+* ``urdf`` (and ``robot-localization``) of a wheels-and-lidar model: ``app/export_lidar2d.py``.
 """
 
 from __future__ import annotations
@@ -18,17 +19,15 @@ from typing import Any
 
 import numpy as np
 
+from sensact.app.ros_params import RL_STATES, process_noise, refuse_non_finite
 from sensact.errors import LogFormatError, ModelFormatError
 from sensact.models.em_model import EMModel
 from sensact.records import JsonObject
 from sensact.report.frames import MM, REP_ORDER, VELOCITY_REP, si
 from sensact.reprs import compact_repr
 
-FORMATS = ("robot-localization", "tum", "velodyne", "landmarks")
+FORMATS = ("robot-localization", "tum", "velodyne", "landmarks", "urdf")
 LANDMARKS_HEADER = "id,x_m,y_m"  # the map file `convert csv --landmarks` reads
-RL_STATES = ("x", "y", "z", "roll", "pitch", "yaw", "vx", "vy", "vz", "vroll", "vpitch", "vyaw", "ax", "ay", "az")
-# robot_localization's own defaults (its ekf.yaml template) for the states a planar EM model says nothing of
-RL_DEFAULT_DIAG = (0.05, 0.05, 0.06, 0.03, 0.03, 0.06, 0.025, 0.025, 0.04, 0.01, 0.01, 0.02, 0.01, 0.01, 0.015)
 UNMEASURED_VAR = 1e6  # a twist's dimensions a planar robot does not measure (z, roll, pitch), as ROS drivers set
 
 
@@ -106,19 +105,6 @@ def body_sigma_m(model: EMModel, source: Path) -> np.ndarray:
     return np.diag([(forward * MM) ** 2, (sideways * MM) ** 2, heading**2])
 
 
-def process_noise(sigma_step: np.ndarray, dt_s: float) -> np.ndarray:
-    """robot_localization's 15x15 process_noise_covariance, which it scales by the time step (per second).
-    Its x and y are the world's: Sigma_m's body-frame forward and sideways variances averaged over headings
-    (the mean of a covariance rotated through every heading is its trace over 2 on both axes); yaw is
-    Sigma_m's own. The states a planar model does not learn keep robot_localization's defaults."""
-    q = np.diag(np.array(RL_DEFAULT_DIAG, dtype=float))
-    per_s = sigma_step / dt_s  # eq. 4.1's per-step noise as a rate: a random walk's variance grows with time
-    horizontal = 0.5 * (per_s[0, 0] + per_s[1, 1])
-    q[0, 0] = q[1, 1] = horizontal
-    q[5, 5] = per_s[2, 2]
-    return q
-
-
 def twist_covariance(sigma_step: np.ndarray, dt_s: float) -> np.ndarray:
     """The 6x6 covariance (vx, vy, vz, vroll, vpitch, vyaw) of a command (or wheel odometry) read as the
     robot's twist over one step: Sigma_m / dt^2, the velocity error that moves the pose as Sigma_m says."""
@@ -172,7 +158,7 @@ def robot_localization_yaml(doc: JsonObject, source: Path) -> tuple[str, str]:
             "yaw_rad": mount["yaw_rad"],
         },
     }
-    _refuse_non_finite(sensact | {"process_noise_covariance": q.ravel().tolist()}, source)
+    refuse_non_finite(sensact | {"process_noise_covariance": q.ravel().tolist()}, source)
     rows = ",\n".join("      " + ", ".join(repr(v) for v in row) for row in q.tolist())
     node = f"ekf_filter_node:\n  ros__parameters:\n    two_d_mode: true\n    process_noise_covariance: [\n{rows}]\n"
     header = (
@@ -203,23 +189,6 @@ def _ros_values(value: Any) -> Any:
     if isinstance(value, list | tuple) and any(isinstance(v, list | tuple) for v in value):
         return [x for v in value for x in (_ros_values(v) if isinstance(v, list | tuple) else [v])]
     return value
-
-
-def _refuse_non_finite(values: Any, source: Path, where: str = "") -> None:
-    """An export never holds NaN or inf: a model whose numbers make one is refused, naming the field."""
-    if isinstance(values, dict):
-        for k, v in values.items():
-            _refuse_non_finite(v, source, f"{where}.{k}" if where else str(k))
-    elif isinstance(values, list | tuple):
-        for v in values:
-            _refuse_non_finite(v, source, where)
-    elif isinstance(values, float) and not math.isfinite(values):
-        raise ModelFormatError(
-            f"its export's {where} would be {values} (a model field out of range).",
-            file=source,
-            field="model",
-            fix="learn it again with `sensact learn em`.",
-        )
 
 
 def companion_path(out: Path) -> Path:
@@ -374,6 +343,7 @@ def default_out(model: Path, fmt: str) -> Path:
         "robot-localization": ".robot_localization.yaml",
         "velodyne": ".velodyne.yaml",
         "landmarks": ".landmarks.csv",
+        "urdf": ".urdf.xacro",
     }
     return model.with_suffix(suffix.get(fmt, f".{fmt}"))
 
@@ -386,7 +356,7 @@ def is_export(path: Path) -> bool:
     except (OSError, UnicodeDecodeError):
         return False
     first = text.split("\n", 1)[0]
-    if first.startswith("#") and "sensact" in first:
+    if first.startswith(("#", "<!--")) and "sensact" in first:
         return True
     if first.strip() == LANDMARKS_HEADER and path.name.endswith(".landmarks.csv"):  # a map export, by its own name
         return True
@@ -431,6 +401,24 @@ def export_model(model: Path, fmt: str, out: Path, truth_out: Path | None = None
     }
     refuse_to_replace([out, beside.get(fmt)], model, force)
     doc = read_model_doc(model)
+    from sensact.app.export_lidar2d import is_lidar2d_model, robot_localization, urdf_snippet
+
+    if is_lidar2d_model(doc) != (fmt == "urdf") and fmt != "robot-localization":
+        what = "a wheels-and-2-D-lidar model" if is_lidar2d_model(doc) else "this model"
+        raise ConfigError(
+            f"--format {fmt} does not apply to {what}.",
+            field="--format",
+            fix="urdf or robot-localization for a wheels-and-lidar model; "
+            "robot-localization, tum, velodyne or landmarks for the others.",
+        )
+    if fmt == "urdf":
+        write_text(out, urdf_snippet(doc, model))
+        return Exported((out,))
+    if is_lidar2d_model(doc):
+        node, extra = robot_localization(doc, model)
+        write_text(out, node)
+        write_text(companion_path(out), extra)
+        return Exported((out, companion_path(out)))
     if fmt == "tum":
         return export_tum(doc, model, out, truth_out)
     if fmt == "velodyne":

@@ -73,7 +73,10 @@ SchedulerOpt = Annotated[
     ),
 ]
 EMModelOpt = Annotated[Path, typer.Option("--model", help="A model.json written by `sensact learn em`.")]
-EMLogArg = Annotated[Path, typer.Argument(help="A log folder (planar or a 1-D track), or a Turtlebot CSV file.")]
+EMLogArg = Annotated[
+    Path,
+    typer.Argument(help="A log folder (planar, a 1-D track, or wheels and a 2-D lidar), or a Turtlebot CSV file."),
+]
 
 
 def friendly(fn: F) -> F:

@@ -88,6 +88,16 @@ def convert_bag(
         bool, typer.Option("--receive-times", help="Time every message by when it was recorded, not its stamp.")
     ] = False,
     dt: Annotated[float | None, typer.Option(help="Step (s); by default the commands' median interval.")] = None,
+    scan: Annotated[
+        str | None, typer.Option(metavar="TOPIC", help="A 2-D lidar's sensor_msgs/LaserScan (docs/lidar2d.md).")
+    ] = None,
+    wheels: Annotated[
+        str | None, typer.Option(metavar="TOPIC", help="With --scan: the wheels' sensor_msgs/JointState.")
+    ] = None,
+    wheel_joints: Annotated[
+        str | None,
+        typer.Option(metavar="LEFT,RIGHT", help="The wheels' joint names in the JointState, when not told by name."),
+    ] = None,
 ) -> None:
     """Write a ROS bag as a log folder for `sensact learn em` (and `learn bootstrap` for a 1-D robot).
 
@@ -101,7 +111,12 @@ def convert_bag(
     when it was recorded), or --receive-times. Units become sensact's (mm) and the robot's axes REP 103's;
     the camera's position on the robot is left for EM to learn, and what /tf_static says of it is kept in
     meta.json to compare. The tables read from the bag stay in OUT/bag_tables/; a conversion that fails
-    leaves nothing it wrote behind."""
+    leaves nothing it wrote behind.
+
+    A bag with a sensor_msgs/LaserScan (/scan) is a robot with wheel encoders and a 2-D lidar: its
+    /joint_states (the wheels' positions), /odom, /cmd_vel and /tf_static's lidar mount become a lidar2d log
+    folder, and `sensact learn em OUT` learns the wheels' radii, the axle and the lidar's mount
+    (docs/lidar2d.md)."""
     from sensact.errors import LogFormatError
     from sensact.io.rosbag import (
         Roles,
@@ -134,6 +149,11 @@ def convert_bag(
         if not topics:
             raise LogFormatError("the bag holds no topic.", file=bag, fix="record the robot's topics into it.")
         check_roles(bag, Roles(**named), topics)  # a named topic of the wrong type first: naming both types
+        from sensact.io.rosbag_lidar2d import has_laser_scan
+
+        if (scan or has_laser_scan(topics)) and not (readings or sightings):
+            _convert_lidar(bag, out, reader, topics, scan, wheels, wheel_joints, commands, truth, receive_times)
+            return
         proposal, open_roles, unfilled = propose_roles(reader, topics)
     finally:
         reader.close()
@@ -209,6 +229,49 @@ def convert_bag(
                 dt=dt,
             )
         _record_source(out, bag, roles, tables, receive_times)
+
+
+def _convert_lidar(
+    bag: Path,
+    out: Path,
+    reader,
+    topics,
+    scan: str | None,
+    wheels: str | None,
+    wheel_joints: str | None,
+    commands: str | None,
+    truth: str | None,
+    receive_times: bool,
+) -> None:
+    """The wheels-and-2-D-lidar route (docs/lidar2d.md): a lidar2d log folder at ``out``."""
+    from sensact.app.lidar2d import convert_lidar_bag
+    from sensact.cli.base import progress_bar
+    from sensact.errors import ConfigError
+    from sensact.io.rosbag import topic_lines
+    from sensact.io.rosbag_lidar2d import lidar_roles
+
+    pair = None
+    if wheel_joints is not None:
+        pair = tuple(j.strip() for j in wheel_joints.split(","))
+        if len(pair) != 2 or not all(pair):
+            raise ConfigError(
+                f"--wheel-joints {wheel_joints!r} is not two names.", field="--wheel-joints", fix="give LEFT,RIGHT."
+            )
+    roles = lidar_roles(bag, topics, {"scan": scan, "joints": wheels, "commands": commands, "truth": truth})
+    console.print(f"{bag}:\n  " + "\n  ".join(topic_lines(topics)), highlight=False, soft_wrap=True)
+    console.print("roles:\n  " + "\n  ".join(roles.lines()), highlight=False, soft_wrap=True)
+    with progress_bar() as progress:
+        lb = convert_lidar_bag(
+            bag, out, reader, topics, roles, wheel_joints=pair, receive_times=receive_times, progress=progress
+        )
+    for note in lb.notes:
+        console.print(f"[yellow]note:[/] {note}", highlight=False)
+    log = lb.log
+    console.print(
+        f"wrote {out}: {log.scan_t.size} scans of {log.beams} beams, the robot's motion from {log.drive}"
+        + ("" if lb.wheel_joints is None else f" ({', '.join(lb.wheel_joints)})")
+        + f"; learn with `sensact learn em {out}`"
+    )
 
 
 def _distance(truth, landmarks: Path | None) -> dict:

@@ -17,7 +17,9 @@ def export_cmd(
     format_: Annotated[
         str,
         typer.Option(
-            "--format", help="robot-localization (YAML), tum (trajectory for evo), velodyne (YAML) or landmarks (CSV)."
+            "--format",
+            help="robot-localization (YAML), tum (trajectory for evo), velodyne (YAML), landmarks (CSV) or urdf "
+            "(a URDF/xacro snippet of a wheels-and-lidar model).",
         ),
     ],
     out: Annotated[
@@ -25,7 +27,7 @@ def export_cmd(
         typer.Option(
             "--out",
             help="The file to write; by default beside the model: MODEL.tum, MODEL.robot_localization.yaml, "
-            "MODEL.velodyne.yaml or MODEL.landmarks.csv.",
+            "MODEL.velodyne.yaml, MODEL.landmarks.csv or MODEL.urdf.xacro.",
             show_default=False,
         ),
     ] = None,
@@ -44,7 +46,9 @@ def export_cmd(
     the log's own clock) and the truth's beside it, so that `evo_ape tum OUT_truth.tum OUT` compares them.
     velodyne: a car model's learned laser angles as a ROS velodyne calibration. landmarks: a map EM learned
     (id,x_m,y_m in the map's frame, placed landmarks only), the file `convert csv --landmarks` reads, so
-    that one robot's learned map serves the next robot's calibration."""
+    that one robot's learned map serves the next robot's calibration. urdf: a wheels-and-2-D-lidar model's
+    lidar joint (<origin xyz rpy>) and wheel radii and separation as xacro properties, in metres and radians;
+    its robot-localization is the process noise from the drive's learned noise (docs/lidar2d.md)."""
     from sensact.app.export import default_out, export_model
 
     done = export_model(model, format_, out or default_out(model, format_), truth_out, force=force)

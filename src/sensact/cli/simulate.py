@@ -118,7 +118,18 @@ def simulate_diffdrive_cmd(
     settings in which every velocity, sideways too, is affine in every command. `--set sensor=radio`
     reads ranges alone, in every direction (UWB anchors, sonar beacons): no bearings in the log, and
     settings without them that start EM where the robot was put (start_pose). `--no-map` leaves the
-    landmarks' positions out (EM learns them; the true ones stay in meta.json's survey, for scoring)."""
+    landmarks' positions out (EM learns them; the true ones stay in meta.json's survey, for scoring).
+    `--set sensor=lidar2d` is another robot: wheel encoders and a 2-D lidar in a furnished room, a TurtleBot's
+    /joint_states, /odom, /cmd_vel and /scan with its URDF a few centimetres and degrees off (docs/lidar2d.md)."""
+    if _wants_lidar2d(set_, config):
+        if no_map:
+            from sensact.errors import ConfigError
+
+            raise ConfigError(
+                "--no-map is for a robot among landmarks; a 2-D lidar needs no map.", field="--no-map", fix="drop it."
+            )
+        _simulate_lidar2d(out, seconds, seed, set_, config, bag, bag_format)
+        return
     from sensact.cli.convert import config_header
     from sensact.io.atomic import write_text
     from sensact.io.landmark_log import write_landmark_log
@@ -151,6 +162,42 @@ def simulate_diffdrive_cmd(
     )
     if bag is not None:
         _write_bag(run, bag, fmt)
+
+
+def _wants_lidar2d(set_: list[str] | None, config: Path | None) -> bool:
+    from sensact.config import load_yaml_mapping, parse_overrides
+
+    given = parse_overrides(set_ or [])
+    if "sensor" in given:
+        return given["sensor"] == "lidar2d"
+    return config is not None and load_yaml_mapping(config).get("sensor") == "lidar2d"
+
+
+def _simulate_lidar2d(
+    out: Path,
+    seconds: float | None,
+    seed: int | None,
+    set_: list[str] | None,
+    config: Path | None,
+    bag: Path | None,
+    bag_format: str,
+) -> None:
+    from sensact.io.lidar2d_log import write_lidar2d_log
+    from sensact.sim.lidar2d import Lidar2DConfig, simulate_lidar2d
+
+    cfg = layered_config(Lidar2DConfig, config, set_, seconds=seconds, seed=seed)
+    fmt = _bag_format(bag, bag_format) if bag is not None else None
+    run = simulate_lidar2d(cfg)
+    write_lidar2d_log(out, run.log(str(out)), run.tables())
+    console.print(
+        f"wrote {out}: {run.scan_t.size} scans of {cfg.beams} beams, wheels at {cfg.joint_hz:g} Hz, /odom and /cmd_vel "
+        f"(seed {cfg.seed}); learn with `sensact learn em {out}`"
+    )
+    if bag is not None:
+        from sensact.io.rosbag_write import write_lidar_bag
+
+        path = write_lidar_bag(bag, fmt, run)
+        console.print(f"wrote {path} ({fmt}); convert with `sensact convert bag {path}`")
 
 
 def _bag_format(bag: Path, bag_format: str) -> str:

@@ -290,10 +290,9 @@ def propose_roles(reader, topics: list[Topic]) -> tuple[Roles, list[tuple[frozen
     return roles, open_roles, unfilled
 
 
-# types a robot's bag often holds that sensact does not read, and what would add them
+# types a landmark robot's bag often holds that its route does not read, and what reads them
 NOT_READ = {
-    "sensor_msgs/LaserScan": "a 2-D lidar: planned, issue 93 (wheel encoders and a 2-D lidar)",
-    "sensor_msgs/JointState": "wheel encoders: planned, issue 93 (wheel encoders and a 2-D lidar)",
+    "sensor_msgs/JointState": "wheel encoders: read with a 2-D lidar's sensor_msgs/LaserScan (docs/lidar2d.md)",
 }
 
 

@@ -259,3 +259,90 @@ def recording_of(run, camera_height_m: float = 0.3):  # -> io.rosbag_write.Robot
         camera_xyz_m=(fwd / 1000.0, left / 1000.0, camera_height_m),
         map_xy_m=d.landmarks_xy / 1000.0,
     )
+
+
+def _laser_scan(m: Msgs, t_ns: int, frame: str, run, ranges_m: np.ndarray):
+    cfg = run.config
+    return m.T["sensor_msgs/msg/LaserScan"](
+        header=m.header(t_ns, frame),
+        angle_min=float(run.angle_min_rad),
+        angle_max=float(run.angle_min_rad + run.angle_increment_rad * (ranges_m.size - 1)),
+        angle_increment=float(run.angle_increment_rad),
+        time_increment=float(run.time_increment_s),
+        scan_time=float(1 / cfg.scan_hz),
+        range_min=float(cfg.range_min_mm / 1000),
+        range_max=float(cfg.range_max_mm / 1000),
+        ranges=np.asarray(ranges_m, dtype=np.float32),
+        intensities=np.zeros(0, dtype=np.float32),
+    )
+
+
+def _joint_state(m: Msgs, t_ns: int, names: list[str], positions: np.ndarray):
+    return m.T["sensor_msgs/msg/JointState"](
+        header=m.header(t_ns, ""),
+        name=list(names),
+        position=np.asarray(positions, dtype=np.float64),
+        velocity=np.zeros(0),
+        effort=np.zeros(0),
+    )
+
+
+def _odom_pose(m: Msgs, t_ns: int, pose: np.ndarray, twist: np.ndarray, child: str):
+    Tw = m.T["geometry_msgs/msg/TwistWithCovariance"]
+    Pw = m.T["geometry_msgs/msg/PoseWithCovariance"]
+    return m.T["nav_msgs/msg/Odometry"](
+        header=m.header(t_ns, "odom"),
+        child_frame_id=child,
+        pose=Pw(pose=m.pose(*pose), covariance=np.zeros(36)),
+        twist=Tw(twist=m.twist(*twist), covariance=np.zeros(36)),
+    )
+
+
+LIDAR_FRAME, BASE_FRAME = "base_scan", "base_footprint"
+WHEEL_JOINTS = ("wheel_left_joint", "wheel_right_joint")
+
+
+def write_lidar_bag(path: Path, fmt: str, run) -> Path:
+    """A simulated wheels-and-lidar robot (``sim.lidar2d``) as a TurtleBot records it: /scan (LaserScan, its
+    stamp the first beam's), /joint_states (the wheels' encoder angles), /odom (from them and the nominal
+    wheels), /cmd_vel, /tf_static (base_footprint -> base_link -> base_scan where the URDF says) and the true
+    pose on /ground_truth/pose (PoseStamped, for scoring only)."""
+    m = Msgs(fmt)
+    ns = lambda t: BAG_EPOCH_NS + round(float(t) * 1e9)  # noqa: E731
+    msgs: list[tuple[str, str, int, object]] = []
+    for t, r in zip(run.scan_t, run.ranges_m, strict=True):
+        msgs.append(
+            ("/scan", "sensor_msgs/msg/LaserScan", ns(t) + 5_000_000, _laser_scan(m, ns(t), LIDAR_FRAME, run, r))
+        )
+    for t, phi in zip(run.joint_t, run.wheel_rad, strict=True):
+        msgs.append(
+            (
+                "/joint_states",
+                "sensor_msgs/msg/JointState",
+                ns(t) + 1_000_000,
+                _joint_state(m, ns(t), list(WHEEL_JOINTS), phi),
+            )
+        )
+    for t, pose, tw in zip(run.odom_t, run.odom_pose, run.odom_twist, strict=True):
+        msgs.append(("/odom", "nav_msgs/msg/Odometry", ns(t) + 1_000_000, _odom_pose(m, ns(t), pose, tw, BASE_FRAME)))
+    for t, v, w in zip(run.cmd_t, run.cmd_v_m_s, run.cmd_omega_rad_s, strict=True):
+        msgs.append(("/cmd_vel", "geometry_msgs/msg/Twist", ns(t), m.twist(v, w)))
+    for t, pose in zip(run.truth_t, run.truth_pose, strict=True):
+        msgs.append(
+            ("/ground_truth/pose", "geometry_msgs/msg/PoseStamped", ns(t) + 500_000, m.pose_stamped(ns(t), *pose))
+        )
+    f, left, yaw = run.config.urdf_mount
+    static = m.tf(
+        [
+            m.transform(ns(0), BASE_FRAME, "base_link", (0.0, 0.0, 0.01), (0.0, 0.0, 0.0, 1.0)),
+            m.transform(
+                ns(0),
+                "base_link",
+                LIDAR_FRAME,
+                (f / 1000, left / 1000, 0.19),
+                (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)),
+            ),
+        ]
+    )
+    msgs.append(("/tf_static", "tf2_msgs/msg/TFMessage", ns(0), static))
+    return write_bag(path, fmt, msgs, m)

@@ -258,8 +258,19 @@ def learn_em_cmd(
 
     The settings: --preset, or else the settings file `convert` wrote into the log folder (em_config.yaml,
     which names its preset), or a Turtlebot's for a CSV, or the thesis's; --config and --set override
-    them. Ctrl-C stops early and still writes the most likely model so far."""
+    them. Ctrl-C stops early and still writes the most likely model so far.
+
+    On a wheels-and-2-D-lidar folder (`convert bag` of a bag with /scan, or `simulate diffdrive --set
+    sensor=lidar2d`) it learns the wheels' radii, the axle, the lidar's mount and the noise instead, with error
+    bars, and takes none of the EM options (docs/lidar2d.md)."""
     check_out_file(out, others={"--start-from": start_from}, kind=EM_MODEL, force=force)
+    from sensact.io.lidar2d_log import is_lidar2d_folder
+
+    if is_lidar2d_folder(log):  # wheels and a 2-D lidar: their own learner, no EM settings
+        given = {"--start-from": start_from, "--halves": halves, "--preset": preset, "--set": set_, "--config": config,
+                 "--uncertainty": uncertainty}  # fmt: skip
+        _learn_lidar2d(log, out, report, [k for k, v in given.items() if v])
+        return
     if uncertainty is not None:  # before EM: a count that cannot run is refused before the work it follows
         from sensact.app.uncertainty import refuse_replicates
 
@@ -318,6 +329,66 @@ def learn_em_cmd(
             write_result(out, doc | {"halves": halves_doc}, EM_MODEL)
             console.print(f"wrote {out} again, with the halves")
     finish(cal.diagnostics.health)
+
+
+def _learn_lidar2d(log: Path, out: Path | None, report: bool, refused: list[str]) -> None:
+    """`learn em` on a wheels-and-2-D-lidar folder (docs/lidar2d.md): the wheels, the mount and the noise, with
+    error bars; flagged (exit 3) where the log cannot pin them down."""
+    from sensact.errors import ConfigError
+
+    if refused:
+        raise ConfigError(
+            f"{refused[0]} is for EM's landmark logs; {log} is a wheels-and-2-D-lidar log, learned with no settings.",
+            field=refused[0],
+            fix=f"run `sensact learn em {log}` without it.",
+        )
+    from sensact.app.lidar2d import calibrate_lidar2d, save_lidar2d
+    from sensact.io.lidar2d_log import read_lidar2d_log
+
+    data = read_lidar2d_log(log)
+    console.print(
+        f"{log}: {data.scan_t.size} scans of {data.beams} beams over {data.scan_t[-1] - data.scan_t[0]:.1f} s, the "
+        f"robot's motion from {data.drive} ({data.drive_t.size} rows)"
+    )
+    with progress_bar() as progress:
+        cal = calibrate_lidar2d(data, progress)
+    doc = cal.to_json()
+    print_tables([lidar2d_table(doc)])
+    for note in doc["fit"]["notes"]:
+        console.print(f"[yellow]note:[/] {note}", highlight=False)
+    ev = doc.get("evaluation")
+    if ev:
+        console.print(
+            "against the simulator's truth: "
+            + ", ".join(f"{k} {v['error']:+.3g} ({v['error_sd']:+.2f} sd)" for k, v in ev.items() if "error" in v),
+            highlight=False,
+        )
+    if out is not None:
+        from sensact.app.lidar2d import save_lidar2d
+
+        written, not_drawn = save_lidar2d(cal, out, report=report)
+        console.print("wrote " + ", ".join(str(p) for p in written))
+        for line in not_drawn:
+            console.print(f"[yellow]warning: a figure was not drawn:[/] {escape(line)}", highlight=False)
+    finish(cal.health)
+
+
+def lidar2d_table(doc: JsonObject) -> tuple[str, list[str], list[list[str]]]:
+    d, li, u = doc["drive"], doc["lidar"], doc["urdf"]
+    um = u.get("lidar_mount") or {}
+    rows = []
+    for label, node, key, guess in (
+        ("left wheel radius (mm)", d, "wheel_radius_left_mm", u.get("wheel_radius_mm")),
+        ("right wheel radius (mm)", d, "wheel_radius_right_mm", u.get("wheel_radius_mm")),
+        ("axle (mm)", d, "axle_mm", u.get("axle_mm")),
+        ("lidar forward (mm)", li["mount"], "forward_mm", um.get("forward_mm")),
+        ("lidar left (mm)", li["mount"], "left_mm", um.get("left_mm")),
+        ("lidar yaw (rad)", li["mount"], "yaw_rad", um.get("yaw_rad")),
+        ("wheels' delay (s)", d, "delay_s", None),
+        ("range noise sd (mm)", li, "range_sigma_mm", None),
+    ):
+        rows.append([label, f"{node[key]:.6g}", f"{node[key + '_sd']:.2g}", "" if guess is None else f"{guess:.6g}"])
+    return ("the wheels and the lidar (docs/lidar2d.md)", ["", "learned", "sd", "URDF"], rows)
 
 
 def _error_bars(cal: Any, replicates: int, workers: int | None, scheduler: str | None) -> Any:

@@ -1,0 +1,120 @@
+"""A wheels-and-2-D-lidar model (``learn em`` on a lidar2d log) handed to ROS (issue 93): ``urdf`` prints the
+lidar joint's ``<origin>`` and the wheels as xacro properties, ``robot-localization`` the drive's noise as
+robot_localization's process noise; metres, radians, REP 103 axes."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from sensact.app.ros_params import RL_STATES, process_noise, refuse_non_finite
+from sensact.errors import ModelFormatError
+from sensact.records import JsonObject
+
+MM = 1e-3
+
+
+def is_lidar2d_model(doc: JsonObject) -> bool:
+    return doc.get("kind") == "lidar2d"
+
+
+def _number(doc: JsonObject, source: Path, *keys: str) -> float:
+    node: object = doc
+    for k in keys:
+        node = node.get(k) if isinstance(node, dict) else None
+    if isinstance(node, bool) or not isinstance(node, int | float) or not math.isfinite(node):
+        raise ModelFormatError(
+            f"{'.'.join(keys)} is {node!r}, not a number.",
+            file=source,
+            field=".".join(keys),
+            fix="learn it again with `sensact learn em` on the lidar2d log.",
+        )
+    return float(node)
+
+
+def urdf_snippet(doc: JsonObject, source: Path) -> str:
+    """The lidar's fixed joint and the wheels' radii and separation, as a URDF/xacro snippet to paste."""
+    f = _number(doc, source, "lidar", "mount", "forward_mm") * MM
+    y = _number(doc, source, "lidar", "mount", "left_mm") * MM
+    yaw = _number(doc, source, "lidar", "mount", "yaw_rad")
+    rl = _number(doc, source, "drive", "wheel_radius_left_mm") * MM
+    rr = _number(doc, source, "drive", "wheel_radius_right_mm") * MM
+    b = _number(doc, source, "drive", "axle_mm") * MM
+    urdf = doc.get("urdf") if isinstance(doc.get("urdf"), dict) else {}
+    mount = urdf.get("lidar_mount") if isinstance(urdf.get("lidar_mount"), dict) else {}
+    z = mount.get("up_mm")
+    z = float(z) * MM if isinstance(z, int | float) and math.isfinite(z) else 0.0
+    lidar = urdf.get("lidar_frame") or "base_scan"
+    base = urdf.get("base_frame") or "base_link"
+    unit = (
+        ""
+        if doc.get("drive", {}).get("source") == "wheels"
+        else " (per nominal wheel: read as gains on /odom or /cmd_vel)"
+    )
+    note = "" if z else " z is 0: /tf_static gave no height; put the lidar's own."
+    return (
+        f"<!-- sensact: learned from {doc.get('log', source.name)} (metres, radians; REP 103: x forward, y left)."
+        f"{note} -->\n"
+        f'<xacro:property name="wheel_radius_left" value="{rl:.6f}"/>{unit and "  <!--" + unit + " -->"}\n'
+        f'<xacro:property name="wheel_radius_right" value="{rr:.6f}"/>\n'
+        f'<xacro:property name="wheel_radius" value="{(rl + rr) / 2:.6f}"/>\n'
+        f'<xacro:property name="wheel_separation" value="{b:.6f}"/>\n'
+        f'<joint name="{lidar}_joint" type="fixed">\n'
+        f'  <parent link="{base}"/>\n'
+        f'  <child link="{lidar}"/>\n'
+        f'  <origin xyz="{f:.6f} {y:.6f} {z:.6f}" rpy="0 0 {yaw:.6f}"/>\n'
+        "</joint>\n"
+    )
+
+
+def robot_localization(doc: JsonObject, source: Path) -> tuple[str, str]:
+    """robot_localization's process noise from the drive's learned noise at the log's mean speed and turn rate
+    (per second, x and y averaged over headings), and sensact's own numbers beside it."""
+    import yaml
+
+    per_mm = np.asarray(doc.get("drive", {}).get("noise", {}).get("variance_per_mm", []), dtype=float)
+    per_rad = np.asarray(doc.get("drive", {}).get("noise", {}).get("variance_per_rad", []), dtype=float)
+    if per_mm.shape != (3,) or per_rad.shape != (3,) or not (np.isfinite(per_mm).all() and np.isfinite(per_rad).all()):
+        raise ModelFormatError(
+            "drive.noise is not three variances per mm and three per rad.",
+            file=source,
+            field="drive.noise",
+            fix="learn it again with `sensact learn em` on the lidar2d log.",
+        )
+    v = _number(doc, source, "fit", "speed_mm_s")
+    w = _number(doc, source, "fit", "turn_rate_rad_s")
+    rate = per_mm * v + per_rad * w  # mm^2/s (x, y) and rad^2/s (yaw)
+    per_s = np.diag([rate[0] * MM**2, rate[1] * MM**2, rate[2]])
+    q = process_noise(per_s, 1.0)
+    extra = {
+        "source": str(source),
+        "wheel_radius_left_m": _number(doc, source, "drive", "wheel_radius_left_mm") * MM,
+        "wheel_radius_right_m": _number(doc, source, "drive", "wheel_radius_right_mm") * MM,
+        "wheel_separation_m": _number(doc, source, "drive", "axle_mm") * MM,
+        "delay_s": _number(doc, source, "drive", "delay_s"),
+        # m^2, m^2, rad^2 per metre travelled, and per radian turned
+        "drive_variance_per_m": [float(per_mm[0] * MM), float(per_mm[1] * MM), float(per_mm[2] / MM)],
+        "drive_variance_per_rad": [float(per_rad[0] * MM**2), float(per_rad[1] * MM**2), float(per_rad[2])],
+        "lidar_mount": {
+            "x_m": _number(doc, source, "lidar", "mount", "forward_mm") * MM,
+            "y_m": _number(doc, source, "lidar", "mount", "left_mm") * MM,
+            "yaw_rad": _number(doc, source, "lidar", "mount", "yaw_rad"),
+        },
+        "lidar_range_sigma_m": _number(doc, source, "lidar", "range_sigma_mm") * MM,
+    }
+    refuse_non_finite(extra | {"process_noise_covariance": q.ravel().tolist()}, source)
+    rows = ",\n".join("      " + ", ".join(repr(float(x)) for x in row) for row in q.tolist())
+    node = f"ekf_filter_node:\n  ros__parameters:\n    two_d_mode: true\n    process_noise_covariance: [\n{rows}]\n"
+    header = (
+        f"# robot_localization parameters from {source.name}, learned by sensact from wheels and a 2-D lidar (SI,\n"
+        "# REP 103). process_noise_covariance: 15x15 per second, states " + ", ".join(RL_STATES) + ";\n"
+        f"# x, y and yaw from the drive's learned noise at the log's mean speed ({v * MM:.3g} m/s) and turn rate\n"
+        f"# ({w:.3g} rad/s), the rest robot_localization's defaults. The wheels, mount and noise per metre and per\n"
+        "# radian are in the .sensact.yaml file beside this one.\n"
+    )
+    text = "# sensact's wheels-and-lidar calibration beyond robot_localization's parameters (SI, REP 103).\n"
+    return header + node, text + yaml.safe_dump(
+        {"sensact_calibration": {"ros__parameters": extra}}, sort_keys=False, default_flow_style=None, width=120
+    )
