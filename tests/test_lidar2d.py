@@ -282,6 +282,8 @@ def test_cmd_vel_alone_gives_the_commands_gains_and_delay(short_log, tmp_path):
     r = (truth["wheel_radius_left_mm"] + truth["wheel_radius_right_mm"]) / 2
     assert d["gain_forward"] == pytest.approx(r / 33.0, rel=3e-3)
     assert d["gain_turn"] == pytest.approx(r / 33.0 * 160.0 / truth["axle_mm"], rel=5e-3)
+    for key, want in (("gain_forward", r / 33.0), ("gain_turn", r / 33.0 * 160.0 / truth["axle_mm"])):
+        assert 0 < d[f"{key}_sd"] and abs(d[key] - want) <= 3 * d[f"{key}_sd"], (key, d[key], want)
 
 
 def test_a_log_that_never_turns_is_flagged_not_answered(tmp_path):

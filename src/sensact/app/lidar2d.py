@@ -69,8 +69,15 @@ class Lidar2DCalibration:
         if self.result.track.virtual:
             r0, b0 = log.urdf.wheel_radius_mm or 1.0, log.urdf.axle_mm or 1.0
             mean_r = (p["wheel_radius_left_mm"] + p["wheel_radius_right_mm"]) / 2
-            drive["gain_forward"] = mean_r / r0
-            drive["gain_turn"] = mean_r / r0 * b0 / p["axle_mm"]
+            b = p["axle_mm"]
+            cov = fit.cov[:3, :3]
+            grads = {  # each gain's gradient in (r_left, r_right, axle): its sd by the delta method
+                "gain_forward": (mean_r / r0, np.array([0.5, 0.5, 0.0]) / r0),
+                "gain_turn": (mean_r / r0 * b0 / b, np.array([0.5 * b0 / b, 0.5 * b0 / b, -mean_r * b0 / b**2]) / r0),
+            }
+            for key, (value, g) in grads.items():
+                drive[key] = value
+                drive[f"{key}_sd"] = float(np.sqrt(max(g @ cov @ g, 0.0)))
             drive["nominal"] = {"wheel_radius_mm": r0, "axle_mm": b0}
         censi = dict(zip(PARAMETERS[:6], map(float, self.result.closed_form[:6]), strict=True))
         doc: JsonObject = {
