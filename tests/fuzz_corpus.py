@@ -163,6 +163,8 @@ def pcap_mutation(kind: str) -> Mutation:
         elif kind == "dropped_packets":  # twenty packets lost on the wire, at random
             lost = set(np.random.default_rng(0).choice(len(records), 20, replace=False).tolist())
             records = [r for i, r in enumerate(records) if i not in lost]
+        elif kind == "zero_incl_len":  # every record captured with no bytes (a snap length of 0)
+            records = [r[:8] + bytes(4) + r[12:16] for r in records]
         elif kind == "zero_time":  # every packet stamped at the epoch's zero
             records = [bytes(8) + r[8:] for r in records]
         elif kind in ("rotation_damaged", "block_id_damaged", "sensor_stamp_damaged", "capture_time_damaged"):
@@ -430,9 +432,22 @@ def base_inputs(base: Path) -> Path:
     (base / "car_model.json").write_text(json.dumps({"velodyne_calibration": cal}))
     _timed(base / "log", base / "timed")
     _bags(base, t, cmd, pos, rng)
+    _lidar(base)
     (base / "settings.yaml").write_text("max_iterations: 20\n")
     (base / "done").write_text("")
     return base
+
+
+def _lidar(base: Path) -> None:
+    """A wheels-and-2-D-lidar robot (issue 93): lidar/ (its log folder, 40 s), lidarbag/robot.bag (ROS 1) and
+    lidarbag2/robot (MCAP) of it, and lidar_model.json learned on it."""
+    for folder, bag in (("lidar", "lidarbag/robot.bag"), ("lidar_mcap", "lidarbag2/robot")):
+        argv = ("simulate", "diffdrive", "--out", str(base / folder), "--set", "sensor=lidar2d", "--seconds", "40")
+        subprocess.run(sensact_argv(*argv, "--bag", str(base / bag)), check=True)
+    shutil.rmtree(base / "lidar_mcap")
+    subprocess.run(
+        sensact_argv("learn", "em", str(base / "lidar"), "--out", str(base / "lidar_model.json")), check=True
+    )
 
 
 def _timed(log: Path, folder: Path) -> None:
@@ -644,7 +659,15 @@ def cases() -> list[Case]:
     out.append(Case("car/actions.csv:clock_shifted", "car/actions.csv", map_column(0, offset=1e5), car, True))
     out.append(Case("car/groundtruth.csv:reverse", "car/groundtruth.csv", reorder("reverse"), car, True))
     damaged = ("rotation_damaged", "block_id_damaged", "sensor_stamp_damaged", "capture_time_damaged")
-    for k in ("duplicate_packets", "reverse_packets", "few_packets", "bad_length", "zero_time", *damaged):
+    for k in (
+        "duplicate_packets",
+        "reverse_packets",
+        "few_packets",
+        "bad_length",
+        "zero_time",
+        "zero_incl_len",
+        *damaged,
+    ):
         # a packet captured twice is read once: the same capture, the same result
         out.append(Case(f"car/velodyne.pcap:{k}", "car/velodyne.pcap", pcap_mutation(k), car, k != "duplicate_packets"))
     # a capture with dropped packets is well formed: learned (exit 0), or flagged (exit 3) where the scan
@@ -673,6 +696,8 @@ def cases() -> list[Case]:
         )
     out.append(Case("car/meta.json:deep", "car/meta.json", deep_json, car, True))
     out += _bag_cases()
+    out += _lidar_cases()
+    out += _issue95_cases()
     for sub in ("diffdrive", "track1d", "field2d"):
         for arg, v in (("--seconds", "nan"), ("--seconds", "inf"), ("--seconds", "-1"), ("--seconds", "1e12")):
             out.append(Case(f"simulate {sub} {arg} {v}", "", None, ("simulate", sub, "--out", "{out}/s", arg, v), True))
@@ -952,6 +977,259 @@ def set_all(column: int, value: str) -> Mutation:
 
 
 # ---- running one ----------------------------------------------------------------------------------------------
+
+
+def _lidar_cases() -> list[Case]:
+    """Issue 93's surfaces: the wheels-and-lidar folder's files, its bags (ROS 1 and MCAP) and its model's
+    exports."""
+    learn = ("learn", "em", "{work}/lidar", "--out", "{out}/m.json", "--no-report")
+    out: list[Case] = []
+    out += _csv_cases("lidar/wheels.csv", learn, 3)
+    # scans: a cut file is a shorter log; the beams' cells (a range beyond range_max is no return, but not 1e308)
+    out += _csv_cases("lidar/scans.csv", learn, 3, fine=("drop_column",))  # a scan of one beam fewer is a scan
+    for v in ("-5", "2e6"):
+        out.append(Case(f"lidar/scans.csv:col1={v}", "lidar/scans.csv", set_cell(1, v), learn, True))
+    out.append(Case("lidar/scans.csv:every range empty", "lidar/scans.csv", _blank_ranges, learn, True))
+    meta = "lidar/meta.json"
+    for path, values in {
+        ("scan", "angle_increment_rad"): [0, -0.0, 1.5, "abc", None, float("nan"), 1e9],
+        ("scan", "angle_min_rad"): [1e9, None, "x"],
+        ("scan", "time_increment_s"): [-1, 1.0, float("inf")],
+        ("scan", "range_min_mm"): [-1, 1e9, None],
+        ("scan", "range_max_mm"): [0, 100, 1e12],
+        ("urdf", "wheel_radius_mm"): [-33, 0, "33", 1e300],
+        ("urdf", "axle_mm"): [-160, float("nan")],
+        ("urdf", "lidar_mount", "yaw_rad"): [1e9, "x"],
+        ("urdf",): ["a string", [1, 2]],
+        ("truth",): ["a string", {"drive": [1, 2]}],
+        ("kind",): ["planar", None],
+    }.items():
+        out += [Case(f"{meta}:{'.'.join(path)}={v!r}", meta, json_set(path, v), learn, True) for v in values]
+    out.append(Case(f"{meta}:no scan", meta, json_drop(("scan",)), learn, True))
+    out += [Case(f"{meta}:{k}", meta, bytes_mutation(k), learn, True) for k in ("truncate", "empty", "binary")]
+    # the bags
+    bag = ("convert", "bag", "{work}/lidarbag/robot.bag", "--out", "{out}/b")
+    mcap = ("convert", "bag", "{work}/lidarbag2/robot", "--out", "{out}/b")
+    nan, inf = float("nan"), float("inf")
+    edits: dict[str, tuple[Mutation, bool]] = {
+        "scan angle_increment=0": (on("/scan", _set("angle_increment", 0.0), every), True),
+        "scan angle_increment=nan": (on("/scan", _set("angle_increment", nan), every), True),
+        "scan angle_increment=1": (on("/scan", _set("angle_increment", 1.0), every), True),
+        "scan angle_min=inf": (on("/scan", _set("angle_min", inf), every), True),
+        "scan time_increment=nan": (on("/scan", _set("time_increment", nan), every), True),
+        "scan time_increment=1": (on("/scan", _set("time_increment", 1.0), every), True),
+        "scan range_max=nan": (on("/scan", _set("range_max", nan), every), True),
+        "scan range_max below range_min": (on("/scan", _set("range_max", 0.01), every), True),
+        "scan ranges all nan": (on("/scan", _set_ranges(nan), every), True),
+        "scan ranges all inf": (on("/scan", _set_ranges(inf), every), True),
+        "scan ranges negative": (on("/scan", _set_ranges(-1.0), every), True),
+        "scan ranges nan in one": (on("/scan", _set_ranges(nan)), False),
+        "scan with fewer beams": (on("/scan", _drop_beams), True),
+        "scan stamped 10 s back": (on("/scan", _shift_stamp(-10.0)), True),
+        "scan stamped 1e8 s on": (on("/scan", _shift_stamp(1e8)), True),
+        "scans stamped zero": (on("/scan", _shift_stamp(-1.7e9), every), True),
+        "scan recorded twice": (bag_twice("/scan"), True),
+        "scan one message": (bag_keep("/scan", lambda k: k == 0), True),
+        "no scans": (bag_keep("/scan", lambda k: False), True),
+        "wheel position nan in one": (on("/joint_states", _set_positions(nan)), False),
+        "wheel position 1e308": (on("/joint_states", _set_positions(1e308)), True),
+        "wheel positions nan everywhere": (on("/joint_states", _set_positions(nan), every), False),
+        "wheel joints unnamed": (on("/joint_states", _set("name", ["a", "b"]), every), True),
+        "wheel joints stamped 1e8 s on": (on("/joint_states", _shift_stamp(1e8)), True),
+        "no joint states": (bag_keep("/joint_states", lambda k: False), False),
+        "no joint states nor odom": (_keep_only(("/scan", "/cmd_vel", "/tf_static")), False),
+        "only scans": (_keep_only(("/scan",)), True),
+        "odom x=nan": (on("/odom", _set("pose.pose.position.x", nan)), True),
+        "odom x=1e308": (on("/odom", _set("pose.pose.position.x", 1e308)), True),
+        "cmd v=nan": (on("/cmd_vel", _set("linear.x", nan)), True),
+        "static lidar x=inf": (on("/tf_static", _set("transforms.1.transform.translation.x", inf), every), True),
+        "static quaternion zero": (on("/tf_static", _set("transforms.1.transform.rotation.w", 0.0), every), True),
+        "static upside down": (on("/tf_static", _flip_lidar, every), False),
+        "truth x=nan": (on("/ground_truth/pose", _set("pose.position.x", nan)), False),
+    }  # fmt: skip
+    out += [Case(f"lidarbag/robot.bag:{k}", "lidarbag/robot.bag", m, bag, r) for k, (m, r) in edits.items()]
+    for k in ("truncate", "empty", "binary"):
+        out.append(Case(f"lidarbag/robot.bag:{k}", "lidarbag/robot.bag", bytes_mutation(k), bag, True, k == "truncate"))
+        out.append(
+            Case(
+                f"lidarbag2/robot/robot.mcap:{k}",
+                "lidarbag2/robot/robot.mcap",
+                bytes_mutation(k),
+                mcap,
+                True,
+                k == "truncate",
+            )
+        )
+    for seed in range(3):
+        out.append(Case(f"lidarbag/robot.bag:damaged inside ({seed})", "lidarbag/robot.bag", damage(seed), bag, False))
+    for args, refuse in (
+        (("--scan", "/odom"), True),
+        (("--scan", "/nothing"), True),
+        (("--wheels", "/scan"), True),
+        (("--wheel-joints", "left"), True),
+        (("--wheel-joints", "a,b"), True),
+        (("--wheel-joints", "wheel_right_joint,wheel_left_joint"), False),  # read the other way round, with a note
+        (("--receive-times",), False),
+    ):
+        out.append(Case(f"convert bag lidar {' '.join(args)}", "", None, (*bag, *args), refuse))
+    # the model's exports
+    model = "lidar_model.json"
+    for fmt in ("urdf", "robot-localization"):
+        export = ("export", "{work}/" + model, "--format", fmt, "--out", "{out}/e")
+        for path, v in (
+            (("lidar", "mount", "forward_mm"), float("nan")),
+            (("lidar", "mount", "forward_mm"), 1e300),
+            (("lidar", "mount", "yaw_rad"), 1e9),
+            (("lidar", "mount", "left_mm"), "x"),
+            (("drive", "axle_mm"), 0),
+            (("drive", "wheel_radius_left_mm"), -33.0),
+            (("drive", "noise", "variance_per_mm"), [1, 2]),
+            (("drive", "noise", "variance_per_mm"), [-1, 0, 0]),
+            (("drive", "noise"), "x"),
+            (("fit", "speed_mm_s"), float("inf")),
+            (("lidar",), None),
+            (("drive",), [1]),
+        ):
+            garbage = fmt == "robot-localization" or "noise" not in path  # the URDF holds no noise
+            out.append(Case(f"{model}:{fmt}:{'.'.join(path)}={v!r}", model, json_set(path, v), export, garbage))
+        out += [Case(f"{model}:{fmt}:{k}", model, bytes_mutation(k), export, True) for k in ("truncate", "empty")]
+    for fmt in ("tum", "velodyne", "landmarks"):
+        out.append(
+            Case(
+                f"{model}:as {fmt}", "", None, ("export", "{work}/" + model, "--format", fmt, "--out", "{out}/e"), True
+            )
+        )
+    for cmd in (
+        ("localize", "{work}/lidar", "--model", "{work}/" + model),
+        ("monitor", "{work}/lidar", "--model", "{work}/" + model),
+    ):
+        out.append(Case(f"{cmd[0]} with a lidar model", "", None, cmd, True))
+    out.append(
+        Case(
+            "learn em lidar --out its own scans",
+            "",
+            None,
+            ("learn", "em", "{work}/lidar", "--out", "{work}/lidar/scans.csv"),
+            True,
+        )
+    )
+    out.append(Case("learn em lidar --halves", "", None, (*learn, "--halves"), True))
+    return out
+
+
+def _issue95_cases() -> list[Case]:
+    """Issue 95's held-out list for the older readers, each as a case: units a column does not say, steps no
+    sensor logs at, settings out of range, models a newer sensact wrote, a map of one point, an alias bomb."""
+    tb = ("learn", "em", "{work}/tb.csv", "--out", "{out}/m.json", *FIT)
+    boot = ("learn", "bootstrap", "{work}/tb.csv", "--out", "{out}/b.json", "--no-report")
+    track = ("convert", "track", "{work}/track.csv", "--out", "{out}/trk")
+    mrclam = ("convert", "mrclam", "{work}/mrclam", "--robot", "1", "--out", "{out}/m")
+    car = ("learn", "car", "{work}/car", "--out", "{out}/car.json", "--no-report")
+    evaluate = ("evaluate", "log", "{work}/log", "--model", "{work}/model.json", "--out", "{out}/e.json")
+    em = ("learn", "em", "{work}/log", "--out", "{out}/m.json", *FIT)
+    out: list[Case] = []
+    for argv, what in ((tb, "learn em"), (boot, "learn bootstrap")):
+        for name, m in (
+            ("sonar in mm", map_column(3, scale=1000.0)),
+            ("sonar negative", map_column(3, scale=-1.0)),
+            ("time in microseconds as seconds", map_column(0, scale=1e-6)),
+            ("command in mm/s", map_column(2, scale=1000.0)),
+        ):
+            out.append(Case(f"tb.csv:{name} ({what})", "tb.csv", m, argv, True))
+    for setting in ("sensor_degree=50", "action_degree=-1", "t_start_s=1e9", "degree_max=99"):
+        out.append(Case(f"learn bootstrap --set {setting}", "", None, (*boot, "--set", setting), True))
+    out.append(Case("track.csv:sonar in um", "track.csv", map_column(3, scale=1000.0), track, True))
+    out.append(Case("track.csv:sonar empty", "track.csv", set_all(3, ""), track, True))
+    out.append(Case("mrclam/odometry:one line", "mrclam/Robot1_Odometry.dat", _first_rows(1), mrclam, True))
+    for dt in ("inf", "1e9", "1e-12"):
+        out.append(Case(f"convert mrclam --dt {dt}", "", None, (*mrclam, "--dt", dt), True))
+    for setting in ("max_iterations=-1", "max_iterations=0", "dt_s=0", "dt_s=-1", "voxel_m=0", "voxel_m=-1",
+                    "min_pairs=0", "outlier_m=-1", "tolerance=0"):  # fmt: skip
+        out.append(Case(f"learn car --set {setting}", "", None, (*car, "--set", setting), True))
+    for path, v in (
+        (("model", "action", "delay_steps"), 2.5),
+        (("sensact_version",), "99.0.0"),
+        (("sensact_version",), "not a version"),
+        (("summary", "config", "bogus_field"), 1),
+        (("summary", "config"), "a string"),
+    ):
+        out.append(
+            Case(f"model.json:{'.'.join(path)}={v!r} (evaluate log)", "model.json", json_set(path, v), evaluate, True)
+        )
+    out.append(Case("log/meta.json:all landmarks at one point", "log/meta.json", _one_point_map, em, True))
+    out.append(
+        Case(
+            "settings.yaml:billion laughs",
+            "settings.yaml",
+            lambda d: LAUGHS,
+            (*em, "--config", "{work}/settings.yaml"),
+            True,
+        )
+    )
+    out.append(
+        Case(
+            "settings.yaml:nested list",
+            "settings.yaml",
+            lambda d: b"max_iterations: [[1, 2], [3]]\n",
+            (*em, "--config", "{work}/settings.yaml"),
+            True,
+        )
+    )
+    return out
+
+
+LAUGHS = (
+    b"a: &a [x, x, x, x, x, x, x, x, x]\n"
+    + b"".join(f"{n}: &{n} [{', '.join([f'*{p}'] * 9)}]\n".encode() for p, n in zip("abcdefg", "bcdefgh", strict=True))
+    + b"max_iterations: *h\n"
+)
+
+
+def _first_rows(n: int) -> Mutation:
+    def m(data: bytes) -> bytes:
+        lines = data.decode().splitlines()
+        head = [ln for ln in lines if ln.startswith("#")]
+        return ("\n".join(head + [ln for ln in lines if not ln.startswith("#")][:n]) + "\n").encode()
+
+    return m
+
+
+def _one_point_map(data: bytes) -> bytes:
+    meta = json.loads(data)
+    for mark in meta["landmarks"]:
+        mark["x_mm"], mark["y_mm"] = 100.0, 200.0
+    return json.dumps(meta).encode()
+
+
+def _blank_ranges(data: bytes) -> bytes:
+    rows = _rows(data)
+    return _join(rows[:1] + [[r[0], *([""] * (len(r) - 1))] for r in rows[1:]])
+
+
+def _set_ranges(value: float) -> Callable[[object], None]:
+    def change(msg: object) -> None:
+        msg.ranges = np.full(len(msg.ranges), value, dtype=np.float32)
+
+    return change
+
+
+def _drop_beams(msg: object) -> None:
+    msg.ranges = msg.ranges[:-10]
+
+
+def _set_positions(value: float) -> Callable[[object], None]:
+    def change(msg: object) -> None:
+        msg.position = np.full(len(msg.position), value)
+
+    return change
+
+
+def _flip_lidar(msg: object) -> None:
+    msg.transforms[1].transform.rotation.x, msg.transforms[1].transform.rotation.w = 1.0, 0.0
+
+
+def _keep_only(topics: tuple[str, ...]) -> Mutation:
+    return bag_rewrite(lambda tp, t, msg, k: [(t, msg)] if tp in topics else [])
 
 
 def run_case(case: Case, base: Path, scratch: Path) -> Ended:

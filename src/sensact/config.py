@@ -97,7 +97,7 @@ def _coerce(value: Any, annotation: Any, name: str, source: str) -> Any:
             return value
         if not isinstance(value, Mapping):
             raise ConfigError(
-                f"expected a mapping of {annotation.__name__} fields, got {value!r}.",
+                f"expected a mapping of {annotation.__name__} fields, got {_short(value)}.",
                 file=source,
                 field=name,
                 fix="give a mapping such as {name: x, degree: 3}.",
@@ -134,7 +134,7 @@ def _coerce(value: Any, annotation: Any, name: str, source: str) -> Any:
             value = [v for v in value.replace("[", "").replace("]", "").split(",") if v.strip()]
         if not isinstance(value, list | tuple):
             raise ConfigError(
-                f"expected a list, got {value!r}.",
+                f"expected a list, got {_short(value)}.",
                 file=source,
                 field=name,
                 fix="give a list such as [1, 2, 3] or 1,2,3.",
@@ -154,7 +154,9 @@ def _coerce(value: Any, annotation: Any, name: str, source: str) -> Any:
             return value
         if isinstance(value, str) and value.lower() in ("true", "yes", "1", "on", "false", "no", "0", "off"):
             return value.lower() in ("true", "yes", "1", "on")
-        raise ConfigError(f"expected true or false, got {value!r}.", file=source, field=name, fix="use true or false.")
+        raise ConfigError(
+            f"expected true or false, got {_short(value)}.", file=source, field=name, fix="use true or false."
+        )
     if annotation in (int, float, str):
         try:
             if annotation is int and isinstance(value, float) and not value.is_integer():
@@ -162,7 +164,7 @@ def _coerce(value: Any, annotation: Any, name: str, source: str) -> Any:
             return annotation(value)
         except (TypeError, ValueError):
             raise ConfigError(
-                f"expected {annotation.__name__}, got {value!r}.",
+                f"expected {annotation.__name__}, got {_short(value)}.",
                 file=source,
                 field=name,
                 fix=f"give a {annotation.__name__}.",
@@ -235,6 +237,52 @@ def parse_overrides(pairs: Iterable[str]) -> JsonObject:
     return out
 
 
+def _short(value: Any) -> str:
+    """A value as an error line shows it: at most 80 characters (a YAML alias bomb's repr is gigabytes)."""
+    import reprlib
+
+    r = reprlib.Repr()
+    r.maxlevel, r.maxlist, r.maxdict, r.maxstring, r.maxother = 3, 4, 4, 60, 60
+    return r.repr(value)[:80]
+
+
+MAX_YAML_NODES = 100_000  # a settings file is a few dozen values: more, expanded, is an alias bomb
+
+
+def _expanded_size(node: Any, seen: dict[int, int]) -> int:
+    """How many nodes ``node`` holds with every alias expanded, each shared node counted once per use."""
+    key = id(node)
+    if key in seen:
+        return seen[key]
+    seen[key] = 1  # a node that holds itself: counted once
+    value = getattr(node, "value", None)
+    size = 1
+    if isinstance(value, list):
+        for item in value:
+            size += (
+                sum(_expanded_size(n, seen) for n in item) if isinstance(item, tuple) else _expanded_size(item, seen)
+            )
+            if size > MAX_YAML_NODES:
+                break
+    seen[key] = size
+    return size
+
+
+def safe_yaml(text: str, path: Path, error: type[Exception] = ConfigError) -> Any:
+    """``text`` read as YAML (safe_load), refused in one line (``error``) where its aliases expand beyond any
+    settings or calibration file (a "billion laughs"). YAML's own errors are the caller's to word."""
+    import yaml
+
+    root = yaml.compose(text, Loader=yaml.SafeLoader)
+    if root is not None and _expanded_size(root, {}) > MAX_YAML_NODES:
+        raise error(
+            f"over {MAX_YAML_NODES:,} values once its aliases are expanded: not a file sensact reads.",
+            file=path,
+            fix="write it without anchors and aliases.",
+        )
+    return yaml.safe_load(text)
+
+
 def load_yaml_mapping(path: str | Path) -> JsonObject:
     """Read a YAML file that must hold a mapping of field names to values."""
     import yaml
@@ -243,7 +291,7 @@ def load_yaml_mapping(path: str | Path) -> JsonObject:
     if not path.is_file():
         raise ConfigError("file not found.", file=path, fix="give the path of an existing YAML file.")
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        data = safe_yaml(path.read_text(encoding="utf-8"), path)
     except yaml.YAMLError as exc:
         raise ConfigError(
             f"not valid YAML ({exc.__class__.__name__}).", file=path, fix="check the indentation and quoting."

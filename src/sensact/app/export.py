@@ -401,6 +401,9 @@ def export_model(model: Path, fmt: str, out: Path, truth_out: Path | None = None
     }
     refuse_to_replace([out, beside.get(fmt)], model, force)
     doc = read_model_doc(model)
+    from sensact.app.logs import refuse_newer
+
+    refuse_newer(doc, model)
     from sensact.app.export_lidar2d import is_lidar2d_model, robot_localization, urdf_snippet
 
     if is_lidar2d_model(doc) != (fmt == "urdf") and fmt != "robot-localization":

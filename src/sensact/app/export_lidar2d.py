@@ -20,13 +20,28 @@ def is_lidar2d_model(doc: JsonObject) -> bool:
     return doc.get("kind") == "lidar2d"
 
 
+BOUNDS = {  # what a differential drive and a lidar on it can be, in the model's units
+    "wheel_radius_left_mm": (1e-9, 1e5),
+    "wheel_radius_right_mm": (1e-9, 1e5),
+    "axle_mm": (1e-6, 1e5),
+    "forward_mm": (-1e5, 1e5),
+    "left_mm": (-1e5, 1e5),
+    "yaw_rad": (-2 * math.pi, 2 * math.pi),
+    "delay_s": (-60.0, 60.0),
+    "range_sigma_mm": (0.0, 1e5),
+    "speed_mm_s": (0.0, 1e5),
+    "turn_rate_rad_s": (0.0, 1e3),
+}
+
+
 def _number(doc: JsonObject, source: Path, *keys: str) -> float:
     node: object = doc
     for k in keys:
         node = node.get(k) if isinstance(node, dict) else None
-    if isinstance(node, bool) or not isinstance(node, int | float) or not math.isfinite(node):
+    lo, hi = BOUNDS.get(keys[-1], (-math.inf, math.inf))
+    if isinstance(node, bool) or not isinstance(node, int | float) or not (math.isfinite(node) and lo <= node <= hi):
         raise ModelFormatError(
-            f"{'.'.join(keys)} is {node!r}, not a number.",
+            f"{'.'.join(keys)} is {node!r}, not a number in [{lo:g}, {hi:g}].",
             file=source,
             field=".".join(keys),
             fix="learn it again with `sensact learn em` on the lidar2d log.",
@@ -74,11 +89,15 @@ def robot_localization(doc: JsonObject, source: Path) -> tuple[str, str]:
     (per second, x and y averaged over headings), and sensact's own numbers beside it."""
     import yaml
 
-    per_mm = np.asarray(doc.get("drive", {}).get("noise", {}).get("variance_per_mm", []), dtype=float)
-    per_rad = np.asarray(doc.get("drive", {}).get("noise", {}).get("variance_per_rad", []), dtype=float)
-    if per_mm.shape != (3,) or per_rad.shape != (3,) or not (np.isfinite(per_mm).all() and np.isfinite(per_rad).all()):
+    noise = doc.get("drive", {}).get("noise", {}) if isinstance(doc.get("drive"), dict) else {}
+    try:
+        per_mm, per_rad = (np.asarray(noise.get(k, []), dtype=float) for k in ("variance_per_mm", "variance_per_rad"))
+    except (TypeError, ValueError, AttributeError):
+        per_mm = per_rad = np.zeros(0)
+    ok = per_mm.shape == (3,) and per_rad.shape == (3,)
+    if not (ok and np.all((per_mm >= 0) & (per_mm < 1e6)) and np.all((per_rad >= 0) & (per_rad < 1e6))):
         raise ModelFormatError(
-            "drive.noise is not three variances per mm and three per rad.",
+            "drive.noise is not three variances per mm and three per rad, each >= 0 and below 1e6.",
             file=source,
             field="drive.noise",
             fix="learn it again with `sensact learn em` on the lidar2d log.",

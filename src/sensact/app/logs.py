@@ -103,7 +103,47 @@ def read_em_model(model: Path) -> tuple[JsonObject, EMModel]:
             field="dt_s",
             fix="rewrite it with `sensact learn em`.",
         )
+    refuse_newer(doc, model)
+    summary = doc.get("summary")
+    if isinstance(summary, dict) and summary.get("config") is not None:  # its settings, every field checked
+        from sensact.config import config_from_dict
+        from sensact.errors import ModelFormatError
+        from sensact.learn.em.config import EMConfig, upgrade_settings
+
+        learned = summary["config"]
+        if not isinstance(learned, dict):
+            raise ModelFormatError(
+                f"summary.config is {type(learned).__name__}, not the settings' object.",
+                file=model,
+                field="summary.config",
+                fix="give a model.json written by `sensact learn em`.",
+            )
+        config_from_dict(EMConfig, upgrade_settings(learned), source=f"{model}: summary.config")
     return doc, EMModel.from_dict(doc.get("model", doc), source=str(model))
+
+
+def _version(text: str) -> tuple[int, ...] | None:
+    parts = text.split("+")[0].split(".")
+    return tuple(int(p) for p in parts) if all(p.isdigit() for p in parts) else None
+
+
+def refuse_newer(doc: JsonObject, path: Path) -> None:
+    """A model written by a newer sensact may mean what this one cannot read: refused, naming both versions."""
+    from sensact import __version__
+    from sensact.errors import ModelFormatError
+
+    written = doc.get("sensact_version")
+    if written is None:
+        return
+    theirs, ours = (_version(written) if isinstance(written, str) else None), _version(__version__)
+    if theirs is None or (ours is not None and theirs > ours):
+        raise ModelFormatError(
+            f"written by sensact {written!r}, {'not a version' if theirs is None else 'newer than this one'} "
+            f"({__version__}).",
+            file=path,
+            field="sensact_version",
+            fix="read it with the sensact that wrote it, or learn the model again with this one.",
+        )
 
 
 def refuse_model_for_log(

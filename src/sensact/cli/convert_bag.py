@@ -17,6 +17,7 @@ TABLES = "bag_tables"  # the CSVs read from the bag, kept in the log folder to c
 
 def _mapping(path: Path | None):
     """The roles a YAML mapping file names (``commands``, ``readings``, ``sightings``, ``truth``)."""
+    from sensact.config import safe_yaml
     from sensact.errors import LogFormatError
     from sensact.io.rosbag import Roles
 
@@ -25,7 +26,7 @@ def _mapping(path: Path | None):
     import yaml
 
     try:
-        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+        doc = safe_yaml(path.read_text(encoding="utf-8"), path, LogFormatError)
     except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
         raise LogFormatError(f"not a readable YAML mapping ({type(exc).__name__}).", file=path, fix="--help") from None
     known = set(Roles.__dataclass_fields__)

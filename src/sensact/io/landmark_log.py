@@ -251,6 +251,14 @@ def _meta_parts(mpath: Path, meta: JsonObject, geometry: Geometry) -> _MetaParts
             field="landmarks.x_mm / y_mm",
             fix="give a landmark a finite x_mm and y_mm, or null for both when nobody surveyed it (EM learns it).",
         )
+    given = xy[np.isfinite(xy).all(axis=1)] if xy.size else xy
+    if len(given) >= 3 and np.ptp(given, axis=0).max() == 0:  # a map of one point: a copy gone wrong, not a survey
+        raise LogFormatError(
+            f"all {len(given)} landmarks given are at one point ({given[0, 0]:g}, {given[0, 1]:g}) mm.",
+            file=mpath,
+            field="landmarks.x_mm / y_mm",
+            fix="give each landmark its own surveyed position, or null for those nobody surveyed (EM learns them).",
+        )
     if not (np.isfinite(dt) and dt > 0):
         raise LogFormatError(
             f"dt_s is {meta['dt_s']!r}; the fixed step must be a positive number of seconds.",

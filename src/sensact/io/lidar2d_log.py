@@ -39,7 +39,7 @@ def is_lidar2d_folder(path: Path) -> bool:
         import json
 
         return json.loads(meta.read_text(encoding="utf-8")).get("kind") == KIND
-    except (OSError, ValueError, AttributeError):
+    except (OSError, ValueError, AttributeError, RecursionError):  # the folder's own reader says why
         return False
 
 
@@ -138,6 +138,91 @@ def _table(path: Path, name: str, columns: list[str]) -> tuple[np.ndarray, np.nd
     return t, values
 
 
+MAX_WHEEL_RATE = 1e7  # units of a wheel's position per second: beyond any encoder (20 turns a second of 100k ticks)
+MAX_RANGE_MM = 1e6  # a range beyond a kilometre is no 2-D lidar's
+MAX_GAP_S = 3600.0  # rows further apart than an hour are two recordings, or a clock that jumped
+
+
+def check_drive(path: Path, drive: str, t: np.ndarray, values: np.ndarray, row: str = "row", first: int = 2) -> None:
+    """What drives the robot, checked: two rows at least, no gap of an hour, no wheel turning (or /odom or
+    /cmd_vel moving) faster than any robot does."""
+    if t.size < 2:
+        raise LogFormatError(
+            f"{t.size} {row}: the robot's motion needs at least two.", file=path, fix="record the whole run."
+        )
+    gaps = np.diff(t)
+    if gaps.max() > MAX_GAP_S:
+        k = int(np.argmax(gaps))
+        raise LogFormatError(
+            f"{row}s {k + first} and {k + first + 1} are {gaps[k]:.3g} s apart: two recordings, or a clock that "
+            "jumped.",
+            file=path,
+            field="t_s",
+            fix="keep one recording, on one clock, in seconds.",
+        )
+    with np.errstate(over="ignore", invalid="ignore"):
+        # wheels and odom: how fast their positions change; cmd_vel: the speeds it asks for
+        rate = np.abs(values[:-1]) if drive == "cmd_vel" else np.abs(np.diff(values, axis=0)) / gaps[:, None]
+        bad = ~(rate <= (MAX_WHEEL_RATE if drive == "wheels" else 1e5))  # mm/s and rad/s beyond any robot's
+    if bad.any():
+        k = int(np.flatnonzero(bad.any(axis=1))[0])
+        raise LogFormatError(
+            f"{row} {k + first + (drive != 'cmd_vel')} moves the robot at {float(np.max(rate[k])):.3g} per second, "
+            "faster than any robot.",
+            file=path,
+            fix="give positions in rad (or ticks), mm and mm/s, as docs/lidar2d.md says.",
+        )
+
+
+def check_scans(
+    path: Path, scan_t: np.ndarray, ranges_mm: np.ndarray, drive_t: np.ndarray, row: str = "row", first: int = 2
+) -> None:
+    """Scans (NaN: no return) checked: two at least, some returns, no gap of an hour, on the same clock as the
+    robot's motion."""
+    if scan_t.size < 2:
+        raise LogFormatError(f"{scan_t.size} scan: a calibration needs many.", file=path, fix="record the whole run.")
+    seen = np.isfinite(ranges_mm) & (ranges_mm > 0)
+    if seen.sum() < 0.01 * ranges_mm.size:
+        raise LogFormatError(
+            f"{int(seen.sum())} of {ranges_mm.size} ranges are returns: the lidar saw nothing.",
+            file=path,
+            fix="record the lidar in a room, its driver's range_min and range_max as published.",
+        )
+    gaps = np.diff(scan_t)
+    if gaps.size and gaps.max() > MAX_GAP_S:
+        k = int(np.argmax(gaps))
+        raise LogFormatError(
+            f"{row}s {k + first} and {k + first + 1} are {gaps[k]:.3g} s apart: two recordings, or a clock that "
+            "jumped.",
+            file=path,
+            field="t_s",
+            fix="keep one recording, on one clock, in seconds.",
+        )
+    inside = (scan_t >= drive_t[0]) & (scan_t <= drive_t[-1])
+    if inside.mean() < 0.5:
+        raise LogFormatError(
+            f"{int(np.count_nonzero(~inside))} of {scan_t.size} scans fall outside the robot's motion's span "
+            f"({drive_t[0]:g} to {drive_t[-1]:g} s; the scans run {scan_t[0]:g} to {scan_t[-1]:g} s).",
+            file=path,
+            field="t_s",
+            fix="write both on one clock, in seconds (convert bag --receive-times where the stamps are on another).",
+        )
+
+
+def _refuse_absurd_ranges(path: Path, ranges_mm: np.ndarray) -> None:
+    """A range below zero or beyond a kilometre is not a reading beyond range_max (no return): garbage."""
+    with np.errstate(invalid="ignore"):
+        bad = (ranges_mm < 0) | (ranges_mm > MAX_RANGE_MM)
+    if bad.any():
+        k, beam = (int(v[0]) for v in np.nonzero(bad))
+        raise LogFormatError(
+            f"row {k + 2}: a range of {ranges_mm[k, beam]:.6g} mm (beam {beam}).",
+            file=path,
+            field=f"r{beam}_mm",
+            fix="write ranges in mm, an empty cell for no return.",
+        )
+
+
 def read_lidar2d_log(folder: Path) -> Lidar2DLog:
     """A lidar2d log folder, checked: the scan's geometry in meta.json, ordered times, ranges in mm."""
     path = Path(folder)
@@ -152,6 +237,13 @@ def read_lidar2d_log(folder: Path) -> Lidar2DLog:
         _number(node.get("range_min_mm"), path, "scan.range_min_mm", 0.0, 1e6),
         _number(node.get("range_max_mm"), path, "scan.range_max_mm", 1.0, 1e6),
     )
+    if not geom.range_min_mm < geom.range_max_mm:
+        raise LogFormatError(
+            f"scan.range_min_mm {geom.range_min_mm:g} is not below range_max_mm {geom.range_max_mm:g}.",
+            file=path / "meta.json",
+            field="scan.range_max_mm",
+            fix="give the LaserScan's range_min and range_max, in mm.",
+        )
     header = []
     if (path / SCANS).is_file():
         with (path / SCANS).open(encoding="utf-8", errors="replace") as f:
@@ -169,6 +261,7 @@ def read_lidar2d_log(folder: Path) -> Lidar2DLog:
             field="scan.angle_increment_rad",
             fix="give the LaserScan's angle_increment, in radians.",
         )
+    _refuse_absurd_ranges(path / SCANS, ranges)
     ranges = np.where((ranges >= geom.range_min_mm) & (ranges <= geom.range_max_mm), ranges, np.nan)
     sources = [
         (drive, name, columns)
@@ -187,10 +280,16 @@ def read_lidar2d_log(folder: Path) -> Lidar2DLog:
         )
     drive, name, columns = sources[0]
     drive_t, values = _table(path, name, columns)
+    check_drive(path / name, drive, drive_t, values)
+    check_scans(path / SCANS, scan_t, ranges, drive_t)
     truth_t = truth_pose = None
     if (path / TRUTH).is_file():
         truth_t, truth_pose = _table(path, TRUTH, ["x_mm", "y_mm", "yaw_rad"])
     truth = meta.get("truth")
+    if truth is not None and not (isinstance(truth, dict) and all(isinstance(v, dict) for v in truth.values())):
+        raise LogFormatError(
+            "truth is not an object of objects.", file=path / "meta.json", field="truth", fix="drop it (scoring only)."
+        )
     return Lidar2DLog(
         source=str(path),
         scan_t=scan_t,

@@ -40,6 +40,13 @@ def held_on_grid(
     t0 = float(times[0])
     tol = clock_tolerance_s(times)
     T = step_count(times[-1] - t0 + tol, dt_s, source)
+    if T < 2:  # one command, or a step as long as the log: nothing to learn a motion from
+        raise LogFormatError(
+            f"the commands span {times[-1] - t0:.4g} s in {times.size} row(s): fewer than two steps of {dt_s:.4g} s.",
+            file=source,
+            field="dt_s",
+            fix="give a log with commands over many steps, and a step (--dt) far shorter than it.",
+        )
     grid = t0 + np.arange(T) * dt_s
     held = np.searchsorted(times, grid + tol, side="right") - 1
     return t0, values[held]

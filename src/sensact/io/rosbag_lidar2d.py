@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from sensact.errors import LogFormatError
+from sensact.io.lidar2d_log import check_drive, check_scans
 from sensact.io.rosbag import (
     MOCAP_NAME,
     TF_TYPES,
@@ -140,6 +141,13 @@ def _scans(path: Path, reader, topic: str, receive_times: bool, progress: Progre
             fix="give the LaserScan of a scanning lidar (at least 16 beams, within one turn).",
         )
     lo, hi = float(first.range_min), float(first.range_max)
+    if not (np.isfinite([lo, hi]).all() and 0 <= lo < hi <= 1e3) or not 0 <= geom[2] * n <= 1.0:
+        raise LogFormatError(
+            f"{topic}: range_min {lo:g} m, range_max {hi:g} m and time_increment {geom[2]:g} s are not a 2-D lidar's.",
+            file=path,
+            field=topic,
+            fix="record the lidar driver's LaserScan as it publishes it (metres, seconds).",
+        )
     ranges = np.full((len(msgs), n), np.nan)
     for k, (_, m) in enumerate(msgs):
         if len(m.ranges) != n:
@@ -239,6 +247,11 @@ def _cmd_vel(path: Path, reader, topic: str, receive_times: bool, progress: Prog
     )
     tw = [m.twist if hasattr(m, "twist") else m for _, m in msgs]
     values = np.array([[t.linear.x * 1000, t.angular.z] for t in tw])
+    if not np.isfinite(values).all():
+        k = int(np.flatnonzero(~np.isfinite(values).all(axis=1))[0])
+        raise LogFormatError(
+            f"{topic}: message {k + 1}'s twist is not finite.", file=path, field=topic, fix="cut the bag before it."
+        )
     order = np.argsort(ns, kind="stable")
     return ns[order], values[order]
 
@@ -310,6 +323,11 @@ def read_lidar2d_bag(
         ns, values = _cmd_vel(path, reader, roles.cmd_vel, receive_times, progress)
         tables["cmd_vel"] = (ns, values)
         all_ns.append(ns)
+    drive_name = {"wheels": roles.joints, "odom": roles.odom, "cmd_vel": roles.cmd_vel}
+    for name, (ns, values) in tables.items():
+        check_drive(path, name, ns / 1e9, values, f"{drive_name[name]} message", 1)
+    first_drive = next(iter(tables.values()))[0]
+    check_scans(path, scan_ns / 1e9, ranges, first_drive / 1e9, f"{roles.scan} message", 1)
     truth = None
     if roles.truth:
         msgs = _read(reader, roles.truth, progress)

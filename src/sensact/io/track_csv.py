@@ -141,6 +141,9 @@ def _distance_reading(path: Path, reads: tuple[str, ...], sources: dict[str, str
     )
 
 
+MAX_RANGE_MM = 100_000.0  # a range in mm beyond 100 m is no 1-D robot's: another unit (micrometres, a scaled column)
+
+
 def read_track_csv(
     path: str | Path,
     *,
@@ -167,6 +170,23 @@ def read_track_csv(
     t = t_all[order]
     values = np.column_stack([table[r][order] for r in reads])
     read = np.any(np.isfinite(values), axis=1)
+    for j, r in enumerate(reads):
+        col = values[:, j][np.isfinite(values[:, j])]
+        if col.size == 0:
+            raise LogFormatError(
+                f"the {sources[r]} column holds no reading.",
+                file=path,
+                field=sources[r],
+                fix="fill it where the sensor read, or leave it out (--reading).",
+            )
+        if r.endswith("_mm") and not 0 <= float(np.median(col)) <= MAX_RANGE_MM:  # a length, converted to mm
+            raise LogFormatError(
+                f"{sources[r]}'s readings have a median of {float(np.median(col)):.4g} mm: a 1-D robot's range "
+                f"finder reads 0 to {MAX_RANGE_MM / 1000:g} m.",
+                file=path,
+                field=sources[r],
+                fix="write the column in the unit its name says (mm), or name it for its own unit.",
+            )
     if dt_s is None:
         spacing = np.diff(t[read])
         spacing = spacing[spacing > 0]

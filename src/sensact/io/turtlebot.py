@@ -18,6 +18,10 @@ from sensact.io.track_log import TrackLog
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.records import JsonObject
 
+MIN_STEP_S = 1e-3  # rows closer than a millisecond are a clock in another unit, not a Turtlebot's ten a second
+MAX_COMMAND_M_S = 5.0  # a Turtlebot drives at well under a metre a second: beyond this, mm/s
+MAX_SONAR_M = 20.0  # an ultrasonic range finder reads a few metres: beyond this, mm
+
 UNITS = {"sonar1": "m", "sonar2": "m", "raw_ir1": "V", "raw_ir2": "V", "raw_ir3": "V", "raw_ir4": "V"}
 
 # The datasheet ranges of assignment-brief.md. Used only to pick where a measured model is compared.
@@ -83,11 +87,37 @@ def _read_checked(path: str | Path, readings: tuple[str, ...]) -> dict[str, np.n
             field="time",
             fix="write time in seconds (a time in milliseconds divided by 1000).",
         )
+    if step < MIN_STEP_S:
+        raise LogFormatError(
+            f"the rows are {step:.4g} s apart (the median): a Turtlebot logs about ten rows a second.",
+            file=path,
+            field="time",
+            fix="write time in seconds (a time in microseconds times 1e-6).",
+        )
     step_count(t[-1] - t[0], step, str(path))  # bounded before anything steps at this rate (sensact.limits)
     if np.any(~np.isfinite(cols["velocity_command"])):
         raise LogFormatError(
             "a velocity_command cell is empty.", file=path, field="velocity_command", fix="fill every command cell."
         )
+    fastest = float(np.max(np.abs(cols["velocity_command"])))
+    if fastest > MAX_COMMAND_M_S:
+        raise LogFormatError(
+            f"velocity_command reaches {fastest:.4g}: a Turtlebot's is in m/s, under {MAX_COMMAND_M_S:g}.",
+            file=path,
+            field="velocity_command",
+            fix="write it in m/s (mm/s divided by 1000).",
+        )
+    for sonar in ("sonar1", "sonar2"):
+        r = cols.get(sonar, np.zeros(0))
+        r = r[np.isfinite(r)]
+        if r.size and not (0 <= float(np.median(r)) <= MAX_SONAR_M and np.mean(r < 0) < 0.05):
+            raise LogFormatError(
+                f"{sonar}'s readings run {float(np.min(r)):.4g} to {float(np.max(r)):.4g} (median "
+                f"{float(np.median(r)):.4g}): a sonar's range in m is 0 to {MAX_SONAR_M:g}.",
+                file=path,
+                field=sonar,
+                fix="write the sonar's range in metres (mm divided by 1000), an empty cell where it read nothing.",
+            )
     return cols
 
 

@@ -165,7 +165,8 @@ def _udp_fields(path: Path, link: int, f: _Frames) -> tuple[np.ndarray, np.ndarr
     link_header = _LINK_HEADER_BYTES.get(link)
     if link_header is None:
         raise LogFormatError(f"unsupported link type {link}.", file=path, fix="capture on Ethernet (link type 1).")
-    buf, offs, lens = (f.buf if f.buf.size else np.zeros(1, np.uint8)), f.start, f.length
+    # a chunk of records captured with (almost) no bytes: a buffer every header index below can read (lens rule)
+    buf, offs, lens = (f.buf if f.buf.size >= 64 else np.zeros(64, np.uint8)), f.start, f.length
     last = buf.size - 1
     ip = offs + link_header
     ok = lens >= link_header + 28

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from sensact.config import safe_yaml
 from sensact.errors import LogFormatError
 from sensact.io.atomic import write_text
 from sensact.models.laser_intrinsics import LaserIntrinsics
@@ -29,7 +30,7 @@ def read_calibration(path: str | Path) -> LaserIntrinsics:
     kind = "JSON" if text.lstrip().startswith("{") else "YAML"
     try:
         # an OS-1 writes its metadata as JSON indented with tabs, which YAML does not allow
-        data = json.loads(text) if kind == "JSON" else yaml.safe_load(text)
+        data = json.loads(text) if kind == "JSON" else safe_yaml(text, path, LogFormatError)
     except (yaml.YAMLError, ValueError, RecursionError) as exc:
         problem = f"not valid {kind} ({exc.__class__.__name__})."
         raise LogFormatError(problem, file=path, fix="repair the file.") from None

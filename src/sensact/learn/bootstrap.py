@@ -120,8 +120,10 @@ class BootstrapConfig:
             "gamma must be in (0, 1]": 0.0 < self.gamma <= 1.0,
             "alpha must be in [0, 1]": 0.0 <= self.alpha <= 1.0,
             "t_start_s must be >= 0": self.t_start_s >= 0.0,
-            "sensor_degree and action_degree must be >= 0": min(self.sensor_degree, self.action_degree) >= 0,
-            "need 0 <= degree_start <= degree_max": 0 <= self.degree_start <= self.degree_max,
+            "sensor_degree and action_degree must be in [0, 10]": 0 <= min(self.sensor_degree, self.action_degree)
+            and max(self.sensor_degree, self.action_degree) <= 10,
+            "need 0 <= degree_start <= degree_max <= 10": 0 <= self.degree_start <= self.degree_max <= 10,
+            "t_start_s must be at most a day": self.t_start_s <= 86_400,
             "time_scale_s must be > 0": self.time_scale_s > 0,
             "observation_window must be >= 1": self.observation_window >= 1,
             "history_interval_s must be > 0": self.history_interval_s > 0,
@@ -622,13 +624,24 @@ def learn_action_from_sensor(
     return _run_engine(engine, t, c, np.zeros_like(c), o, progress)
 
 
-def bootstrap_health(res: BootstrapResult, commands: np.ndarray, observations: np.ndarray) -> Health:
-    """Algorithm 1's result as issue 74 flags it: diverged, or learned from a command or a reading that
-    never varies (A's slope or S's shape is then whatever the start said)."""
+def bootstrap_health(
+    res: BootstrapResult, commands: np.ndarray, observations: np.ndarray, t: np.ndarray | None = None
+) -> Health:
+    """Algorithm 1's result as issue 74 flags it: diverged, learned from a command or a reading that never
+    varies (A's slope or S's shape is then whatever the start said), or (given ``t``) a first ramp-up as
+    long as the log, in which A never left A0 (sec. 3.3.2)."""
     c = np.asarray(commands, dtype=float)
     o = np.asarray(observations, dtype=float)
+    span = float(t[-1] - t[0]) if t is not None and len(t) else float("inf")
     o = o[np.isfinite(o)]
     return Health.of(
+        HealthFlag(
+            "ramp_up_too_long",
+            f"t_start_s ({res.config.t_start_s:g} s) is as long as the {span:.4g}-s log: the action model never "
+            "left its start (sec. 3.3.2); record longer, or shorten t_start_s.",
+        )
+        if res.config.t_start_s >= span
+        else None,
         HealthFlag("diverged", "Algorithm 1 diverged; the models are those before it did.")
         if res.status == "diverged"
         else None,

@@ -40,8 +40,32 @@ class CarLearningConfig:
     icp_max_iterations: int = 50
     icp_tolerance: float = 1e-5
     min_speed_m_s: float = 2.0
-    voxel_m: float = 0.2  # thin D1 to one point per 0.2 m cell: 4x faster ICP, same accuracy (docs/car.md)
+    voxel_m: float | None = 0.2  # thin D1 to one point per 0.2 m cell: 4x faster ICP, same accuracy (docs/car.md);
+    # None: every point, as the thesis
     matcher: Literal["algorithm2", "kiss_icp"] = "algorithm2"  # OdometryConfig.matcher
+
+    def __post_init__(self) -> None:
+        """Each setting in the range Algorithm 3 can run with; ``max_difference_deg`` and ``voxel_m`` are off as
+        None, never as 0 or a negative number."""
+        checks = {
+            "max_iterations": 1 <= self.max_iterations <= 10_000,
+            "tolerance": 0 < self.tolerance < 1,
+            "max_difference_deg": self.max_difference_deg is None or 0 < self.max_difference_deg <= 180,
+            "min_pairs": 10 <= self.min_pairs <= 10**9,
+            "dt_s": 0.01 <= self.dt_s <= 60,
+            "drop_below_m": 0 <= self.drop_below_m < 1000,
+            "outlier_m": 0 < self.outlier_m <= 1000,
+            "icp_max_iterations": 1 <= self.icp_max_iterations <= 10_000,
+            "icp_tolerance": 0 < self.icp_tolerance < 1,
+            "min_speed_m_s": 0 <= self.min_speed_m_s <= 100,
+            "voxel_m": self.voxel_m is None or 0.001 <= self.voxel_m <= 100,
+        }
+        bad = [name for name, ok in checks.items() if not ok]
+        if bad:  # config_from_dict words it as the setting's error, with where it came from
+            raise ValueError(
+                f"{bad[0]} is {getattr(self, bad[0])!r}, outside what Algorithm 3 can run with (docs/car.md; an "
+                "optional setting is off as null, not 0)."
+            )
 
     @property
     def intrinsics(self) -> IntrinsicsConfig:
@@ -56,7 +80,7 @@ class CarLearningConfig:
             self.icp_max_iterations,
             self.icp_tolerance,
             self.min_speed_m_s,
-            self.voxel_m,
+            self.voxel_m or 0.0,  # OdometryConfig's "every point"
             self.matcher,
         )
 

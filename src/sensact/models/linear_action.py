@@ -288,6 +288,15 @@ class LinearActionModel:
 
     @classmethod
     def from_dict(cls, data: JsonObject, *, source: str = "model") -> LinearActionModel:
+        for key in ("degree", "delay_steps"):  # counts: a fraction is no model's (2.5 steps of delay)
+            v = data.get(key, 0)
+            if isinstance(v, bool) or not (isinstance(v, int) or (isinstance(v, float) and v.is_integer())):
+                raise ModelFormatError(
+                    f"{key} is {v!r}, not a whole number.",
+                    file=source,
+                    field=f"action.{key}",
+                    fix="rewrite it with `sensact learn em`.",
+                )
         try:
             return cls(
                 str(data["basis"]),

@@ -17,7 +17,6 @@ import numpy as np
 from numba import njit, prange
 
 from sensact.core import raycast
-from sensact.errors import ConfigError
 from sensact.logs.lidar2d_log import Lidar2DLog, Pose2, ScanGeometry, UrdfGuess
 from sensact.records import JsonObject
 
@@ -90,7 +89,7 @@ class Lidar2DConfig:
         if self.encoder_positions == "ticks" and not self.ticks_per_rev:
             problems.append("encoder_positions=ticks needs ticks_per_rev > 0")
         if problems:
-            raise ConfigError("; ".join(problems) + ".", field="--set", fix="see docs/lidar2d.md for each setting.")
+            raise ValueError("; ".join(problems) + " (docs/lidar2d.md).")
 
     @property
     def per_position(self) -> float:

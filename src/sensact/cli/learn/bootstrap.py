@@ -95,7 +95,7 @@ def learn_bootstrap_cmd(
     console.print("  " + res.sensor.describe("S"))
     console.print("  " + res.action.describe("A"))
     evaluation = evaluate_log(data, res, cfg)
-    health = bootstrap_health(res, data.commands, data.observations)
+    health = bootstrap_health(res, data.commands, data.observations, data.times_s)
     if out is not None:
         payload = {**res.to_dict(), "log": data.source, "evaluation": evaluation, "health": health.to_dict()}
         write_result(out, payload, BOOTSTRAP_MODEL)
