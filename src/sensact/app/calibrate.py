@@ -10,7 +10,7 @@ from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 
-from sensact.app.logs import OpenedLog, read_model_and_log
+from sensact.app.logs import OpenedLog, learned_settings, read_model_and_log
 from sensact.app.scores import Scores, Unscored, in_truth_frame, score_model
 from sensact.app.settings import Settings, resolve_settings
 from sensact.errors import ConfigError
@@ -18,7 +18,7 @@ from sensact.health import Health
 from sensact.io.landmark_log import LandmarkLogFile
 from sensact.learn.em import EMConfig, EMResult, fit_em, initial_model
 from sensact.learn.em.checks.lost_signs import FunctionBends, FunctionTurns, LostSign, Unsettled
-from sensact.learn.em.config import refuse_bearing_settings, upgrade_settings
+from sensact.learn.em.config import refuse_bearing_settings
 from sensact.learn.em.estep import Posteriors
 from sensact.learn.em.fit import OnRestart, OnStartMoved, Progress
 from sensact.learn.em.searches.start_race import OnTrial
@@ -246,26 +246,6 @@ def _placed_start(
     if events.on_placed is not None:
         events.on_placed(start)
     return placed.model, replace(settings, config=cfg), start
-
-
-def learned_settings(doc: JsonObject, source: str) -> EMConfig | None:
-    """The settings a learned model was learned with (its model.json's ``summary.config``), if it says."""
-    from sensact.config import config_from_dict
-
-    summary = doc.get("summary") or {}
-    learned = summary.get("config") if isinstance(summary, dict) else None
-    if learned is None:
-        return None
-    if not isinstance(learned, dict):
-        from sensact.errors import ModelFormatError
-
-        raise ModelFormatError(
-            f"summary.config is {type(learned).__name__}, not the settings' object.",
-            file=source,
-            field="summary.config",
-            fix="give a model.json written by `sensact learn em` (or drop summary.config to start from the preset).",
-        )
-    return config_from_dict(EMConfig, upgrade_settings(learned), source=f"{source}: summary.config")
 
 
 def calibrate(

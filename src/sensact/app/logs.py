@@ -104,22 +104,29 @@ def read_em_model(model: Path) -> tuple[JsonObject, EMModel]:
             fix="rewrite it with `sensact learn em`.",
         )
     refuse_newer(doc, model)
-    summary = doc.get("summary")
-    if isinstance(summary, dict) and summary.get("config") is not None:  # its settings, every field checked
-        from sensact.config import config_from_dict
-        from sensact.errors import ModelFormatError
-        from sensact.learn.em.config import EMConfig, upgrade_settings
-
-        learned = summary["config"]
-        if not isinstance(learned, dict):
-            raise ModelFormatError(
-                f"summary.config is {type(learned).__name__}, not the settings' object.",
-                file=model,
-                field="summary.config",
-                fix="give a model.json written by `sensact learn em`.",
-            )
-        config_from_dict(EMConfig, upgrade_settings(learned), source=f"{model}: summary.config")
+    learned_settings(doc, str(model))  # its settings, every field checked as it is read
     return doc, EMModel.from_dict(doc.get("model", doc), source=str(model))
+
+
+def learned_settings(doc: JsonObject, source: str) -> Any:  # -> EMConfig | None
+    """The settings a learned model was learned with (its model.json's ``summary.config``), if it says."""
+    from sensact.config import config_from_dict
+    from sensact.learn.em.config import EMConfig, upgrade_settings
+
+    summary = doc.get("summary") or {}
+    learned = summary.get("config") if isinstance(summary, dict) else None
+    if learned is None:
+        return None
+    if not isinstance(learned, dict):
+        from sensact.errors import ModelFormatError
+
+        raise ModelFormatError(
+            f"summary.config is {type(learned).__name__}, not the settings' object.",
+            file=source,
+            field="summary.config",
+            fix="give a model.json written by `sensact learn em` (or drop summary.config to start from the preset).",
+        )
+    return config_from_dict(EMConfig, upgrade_settings(learned), source=f"{source}: summary.config")
 
 
 def _version(text: str) -> tuple[int, ...] | None:

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sensact.app.calibrate import Calibration, FitEvents, calibrate, learned_settings
-from sensact.app.logs import OpenedLog, read_model_and_log
+from sensact.app.calibrate import Calibration, FitEvents, calibrate
+from sensact.app.logs import OpenedLog, learned_settings, read_model_and_log
 from sensact.health import Health, filter_failed, learned_health
 from sensact.learn.em.uses.change_detect import MonitorConfig, MonitorResult, monitor_placed
 from sensact.learn.em.uses.place import learned_config

@@ -143,15 +143,11 @@ MAX_RANGE_MM = 1e6  # a range beyond a kilometre is no 2-D lidar's
 MAX_GAP_S = 3600.0  # rows further apart than an hour are two recordings, or a clock that jumped
 
 
-def check_drive(path: Path, drive: str, t: np.ndarray, values: np.ndarray, row: str = "row", first: int = 2) -> None:
-    """What drives the robot, checked: two rows at least, no gap of an hour, no wheel turning (or /odom or
-    /cmd_vel moving) faster than any robot does."""
-    if t.size < 2:
-        raise LogFormatError(
-            f"{t.size} {row}: the robot's motion needs at least two.", file=path, fix="record the whole run."
-        )
+def _refuse_gap(path: Path, t: np.ndarray, row: str, first: int) -> np.ndarray:
+    """``t``'s steps, refused where two rows are further apart than an hour (two recordings, a clock that
+    jumped)."""
     gaps = np.diff(t)
-    if gaps.max() > MAX_GAP_S:
+    if gaps.size and gaps.max() > MAX_GAP_S:
         k = int(np.argmax(gaps))
         raise LogFormatError(
             f"{row}s {k + first} and {k + first + 1} are {gaps[k]:.3g} s apart: two recordings, or a clock that "
@@ -160,6 +156,17 @@ def check_drive(path: Path, drive: str, t: np.ndarray, values: np.ndarray, row: 
             field="t_s",
             fix="keep one recording, on one clock, in seconds.",
         )
+    return gaps
+
+
+def check_drive(path: Path, drive: str, t: np.ndarray, values: np.ndarray, row: str = "row", first: int = 2) -> None:
+    """What drives the robot, checked: two rows at least, no gap of an hour, no wheel turning (or /odom or
+    /cmd_vel moving) faster than any robot does."""
+    if t.size < 2:
+        raise LogFormatError(
+            f"{t.size} {row}: the robot's motion needs at least two.", file=path, fix="record the whole run."
+        )
+    gaps = _refuse_gap(path, t, row, first)
     with np.errstate(over="ignore", invalid="ignore"):
         # wheels and odom: how fast their positions change; cmd_vel: the speeds it asks for
         rate = np.abs(values[:-1]) if drive == "cmd_vel" else np.abs(np.diff(values, axis=0)) / gaps[:, None]
@@ -188,16 +195,7 @@ def check_scans(
             file=path,
             fix="record the lidar in a room, its driver's range_min and range_max as published.",
         )
-    gaps = np.diff(scan_t)
-    if gaps.size and gaps.max() > MAX_GAP_S:
-        k = int(np.argmax(gaps))
-        raise LogFormatError(
-            f"{row}s {k + first} and {k + first + 1} are {gaps[k]:.3g} s apart: two recordings, or a clock that "
-            "jumped.",
-            file=path,
-            field="t_s",
-            fix="keep one recording, on one clock, in seconds.",
-        )
+    _refuse_gap(path, scan_t, row, first)
     inside = (scan_t >= drive_t[0]) & (scan_t <= drive_t[-1])
     if inside.mean() < 0.5:
         raise LogFormatError(
