@@ -54,7 +54,7 @@ def test_odometry_of_constant_wheel_speeds_is_an_arc():
     (2 (r_r w_r - r_l w_l)) about a centre to the robot's left: the pose after t is exactly on it."""
     rl, rr, b, wl, wr = 33.0, 34.0, 160.0, 2.0, 3.0
     t = np.linspace(0, 5, 301)
-    track = WheelTrack(t, np.column_stack([wl * t, wr * t]), "rad", False)
+    track = WheelTrack(t, np.column_stack([wl * t, wr * t]), False)
     pose = odometry(track, rl, rr, b)[-1]
     v, w = (rl * wl + rr * wr) / 2, (rr * wr - rl * wl) / b
     th = w * 5
@@ -65,7 +65,7 @@ def _track(seed=0, n=3000):
     rng = np.random.default_rng(seed)
     rates = np.repeat(rng.uniform(-4, 8, size=(n // 100, 2)), 100, axis=0)  # rad/s per wheel, piecewise
     t = np.arange(n) * 0.02
-    return WheelTrack(t, np.vstack([[0, 0], np.cumsum(rates[:-1] * 0.02, axis=0)]), "rad", False)
+    return WheelTrack(t, np.vstack([[0, 0], np.cumsum(rates[:-1] * 0.02, axis=0)]), False)
 
 
 def test_closed_form_recovers_the_parameters_from_noise_free_displacements():
@@ -74,7 +74,7 @@ def test_closed_form_recovers_the_parameters_from_noise_free_displacements():
     scan_t = np.arange(0.1, 59.0, 0.2)
     i, j = np.arange(scan_t.size - 1), np.arange(1, scan_t.size)
     s = predicted(truth, track, scan_t, i, j)
-    got = closed_form(track, scan_t, Matches(i, j, s, np.zeros(len(i)), len(i)))
+    got = closed_form(track, scan_t, Matches(i, j, s, len(i)))
     np.testing.assert_allclose(got, truth, atol=1e-6)
 
 

@@ -291,8 +291,6 @@ class LidarBag:
     log: Lidar2DLog
     tables: dict[str, tuple[np.ndarray, np.ndarray]]  # wheels, odom, cmd_vel: times (s) and values
     notes: tuple[str, ...]
-    lidar_frame: str
-    base_frame: str | None
     wheel_joints: tuple[str, str] | None
 
 
@@ -363,4 +361,4 @@ def read_lidar2d_bag(
         truth_t=None if truth is None else sec(truth[0]),
         truth_pose=None if truth is None else truth[1],
     )
-    return LidarBag(log, {k: (sec(ns), v) for k, (ns, v) in tables.items()}, tuple(notes), frame, base, joints)
+    return LidarBag(log, {k: (sec(ns), v) for k, (ns, v) in tables.items()}, tuple(notes), joints)

@@ -27,7 +27,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares, minimize_scalar, nnls
@@ -75,7 +75,6 @@ class WheelTrack:
 
     t: np.ndarray
     phi: np.ndarray
-    unit: str  # of phi: "rad" for a wheel joint's position
     virtual: bool  # the turns are /odom's or /cmd_vel's motion on the nominal wheels, not an encoder's
 
 
@@ -102,7 +101,7 @@ def wheel_track(log: Lidar2DLog) -> WheelTrack:
     (a radius and axle of 1 mm where it gives none: the learned ones are then the gains)."""
     t, v = log.drive_t, log.drive_values
     if log.drive == "wheels":
-        return WheelTrack(t, v.copy(), "rad", False)
+        return WheelTrack(t, v.copy(), False)
     r0 = log.urdf.wheel_radius_mm or 1.0
     b0 = log.urdf.axle_mm or 1.0
     if log.drive == "odom":
@@ -115,7 +114,7 @@ def wheel_track(log: Lidar2DLog) -> WheelTrack:
         ds, dth = v[:-1, 0] * dt, v[:-1, 1] * dt
     dl, dr = (ds - dth * b0 / 2) / r0, (ds + dth * b0 / 2) / r0
     phi = np.vstack([[0.0, 0.0], np.column_stack([np.cumsum(dl), np.cumsum(dr)])])
-    return WheelTrack(t, phi, "rad", True)
+    return WheelTrack(t, phi, True)
 
 
 def drive_of_odometry(
@@ -174,7 +173,6 @@ class Matches:
     i: np.ndarray
     j: np.ndarray
     s: np.ndarray
-    rms_mm: np.ndarray
     tried: int
 
 
@@ -198,7 +196,7 @@ def match_pairs(
     """ICP of scan ``j[k]`` onto scan ``i[k]`` from ``guess[k]`` (None: each from the last match, a constant
     velocity, as for consecutive scans with nothing else to go on)."""
     refs: dict[int, object] = {}
-    keep, s, rms = [], [], []
+    keep, s = [], []
     last = np.zeros(3)
     for k, (a, c) in enumerate(zip(i.tolist(), j.tolist(), strict=True)):
         if a not in refs:
@@ -210,12 +208,11 @@ def match_pairs(
             if m.ok:
                 keep.append(k)
                 s.append(m.pose)
-                rms.append(m.rms_mm)
                 last = m.pose
         if progress is not None and (k % 50 == 0 or k == len(i) - 1):
             progress(what, k + 1, len(i))
     keep_ = np.array(keep, dtype=int)
-    return Matches(i[keep_], j[keep_], np.array(s).reshape(-1, 3), np.array(rms), len(i))
+    return Matches(i[keep_], j[keep_], np.array(s).reshape(-1, 3), len(i))
 
 
 # --- Censi et al.'s closed form ---
@@ -384,8 +381,6 @@ def keyframes(
 class RangeNoise:
     sigma_mm: float
     sd_mm: float
-    used: int
-    by_subset: tuple[float, ...] = field(default=())
 
 
 def range_noise(ranges_mm: np.ndarray, angles: np.ndarray, window: int = 5) -> RangeNoise:
@@ -411,14 +406,14 @@ def range_noise(ranges_mm: np.ndarray, angles: np.ndarray, window: int = 5) -> R
     rows = np.broadcast_to(np.arange(ranges_mm.shape[0])[:, None], z.shape)[ok]
     zz, rr, tt = z[ok], r[ok], tan_a[ok]
     if zz.size < 200:
-        return RangeNoise(float("nan"), float("nan"), int(zz.size))
+        return RangeNoise(float("nan"), float("nan"))
     whole = _mixture_sd(zz)
     subsets = [rr < np.median(rr), rr >= np.median(rr), tt < np.median(tt), tt >= np.median(tt)]
     by = tuple(_mixture_sd(zz[m_]) for m_ in subsets)
     blocks = [_mixture_sd(zz[(rows * 10 // ranges_mm.shape[0]) == b]) for b in range(10)]
     chance = float(np.nanstd(blocks, ddof=1) / np.sqrt(10))
     systematic = float(np.nanstd(by, ddof=1))
-    return RangeNoise(whole, float(np.hypot(chance, systematic)), int(zz.size), by)
+    return RangeNoise(whole, float(np.hypot(chance, systematic)))
 
 
 def _mixture_sd(z: np.ndarray, iterations: int = 60) -> float:
@@ -467,7 +462,7 @@ def _oriented(track: WheelTrack, params: np.ndarray) -> tuple[WheelTrack, np.nda
             "read with its sign turned"
         )
         rl, rr = abs(rl), abs(rr)
-    return WheelTrack(track.t, phi, track.unit, track.virtual), np.array([rl, rr, *params[2:]]), notes
+    return WheelTrack(track.t, phi, track.virtual), np.array([rl, rr, *params[2:]]), notes
 
 
 def learn_wheel_lidar(log: Lidar2DLog, progress: Progress | None = None, rounds: int = 2) -> WheelLidarResult:
