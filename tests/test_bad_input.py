@@ -216,7 +216,11 @@ def test_a_late_row_is_refused_by_chapter_3_before_allocating(tmp_path):
     rows = ["time,range,velocity_command,sonar1"] + [f"{0.1 * k:.1f},1.0,0.1,1.0" for k in range(50)]
     (tmp_path / "tb.csv").write_text("\n".join([*rows, "1e9,1.0,0.1,1.0"]) + "\n")
     res = runner.invoke(app, ["learn", "bootstrap", str(tmp_path / "tb.csv"), "--no-report"])
-    assert res.exit_code == EXIT_BAD_INPUT and "SENSACT_MAX_STEPS" in res.output, res.output
+    # the gap before it is named (issue 95), before the steps it would take are counted
+    assert res.exit_code == EXIT_BAD_INPUT and "before row 51" in res.output, res.output
+    (tmp_path / "tb.csv").write_text("\n".join([rows[0], *(f"{1e3 * k:.1f},1.0,0.1,1.0" for k in range(60))]) + "\n")
+    res = runner.invoke(app, ["learn", "bootstrap", str(tmp_path / "tb.csv"), "--no-report"])
+    assert res.exit_code == EXIT_BAD_INPUT and "a Turtlebot logs about ten rows a second" in res.output, res.output
 
 
 def test_reproduce_bounds_its_trials():
@@ -396,3 +400,75 @@ def test_a_start_model_whose_summary_config_is_not_an_object_is_one_line(planar_
         app, ["learn", "em", str(planar_log), "--start-from", str(bad), "--out", str(tmp_path / "m.json")]
     )
     assert res.exit_code == EXIT_BAD_INPUT and "summary.config" in res.output
+
+
+def _turtlebot_csv(path: Path, sonar: str = "clean", truth: str = "sorted") -> Path:
+    """Two minutes of a Turtlebot-style 1-D log (back and forth at 0.15 m/s in front of a wall)."""
+    rng = np.random.default_rng(5)
+    t = np.arange(0.0, 120.0, 0.1)
+    cmd = np.where((t // 6) % 2 == 0, 0.15, -0.15)
+    pos = 1.0 + np.cumsum(cmd) * 0.1
+    reading = pos + rng.normal(0, 0.02, t.size) if sonar == "clean" else rng.uniform(0.2, 3.0, t.size)
+    recorded = rng.permutation(pos) if truth == "shuffled" else pos
+    rows = [f"{a:.2f},{x:.4f},{c:.3f},{s:.4f}" for a, x, c, s in zip(t, recorded, cmd, reading, strict=True)]
+    path.write_text("\n".join(["time,range,velocity_command,sonar1", *rows]) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("sonar, codes", [("clean", []), ("noise", ["reading_explains_nothing"])])
+def test_chapter_3_flags_a_sonar_that_reads_noise_as_em_does(tmp_path, sonar, codes):
+    """Issue 95: Algorithm 1 on a sonar of pure noise returned models with exit 0. Its own two estimates
+    (w_a from A, w_s from S) must explain each other, as EM's f must explain the readings."""
+    csv = _turtlebot_csv(tmp_path / "tb.csv", sonar=sonar)
+    out = tmp_path / "b.json"
+    res = runner.invoke(
+        app, ["learn", "bootstrap", str(csv), "--out", str(out), "--no-report", "--set", "t_start_s=10"]
+    )
+    assert res.exit_code == (EXIT_FLAGGED if codes else 0), res.output
+    assert [f["code"] for f in json.loads(out.read_text())["health"]["flags"]] == codes
+
+
+def test_a_recorded_distance_out_of_order_is_refused_by_name(tmp_path):
+    """Issue 95: a shuffled truth column was scored against as if it were the robot's path."""
+    csv = _turtlebot_csv(tmp_path / "tb.csv", truth="shuffled")
+    res = runner.invoke(app, ["learn", "bootstrap", str(csv), "--out", str(tmp_path / "b.json"), "--no-report"])
+    assert res.exit_code == EXIT_BAD_INPUT
+    assert "range" in res.output and "autocorrelation" in res.output
+    assert not (tmp_path / "b.json").exists()
+
+
+def test_a_fleet_never_writes_into_an_input_log(planar_log, tmp_path):
+    """Issue 95: --out naming a log (or the folder that holds one of the name the results take) wrote the
+    fleet's models among the log's own files."""
+    other = tmp_path / "other" / "log"
+    shutil.copytree(planar_log, other)
+    for logs, out in (([planar_log, other], other), ([planar_log, other], other / "inside"), ([other], other.parent)):
+        argv = ["fleet", "learn", *map(str, logs), "--out", str(out), "--workers", "1"]
+        res = runner.invoke(app, argv)
+        assert res.exit_code == EXIT_BAD_INPUT and "one of its inputs" in res.output, res.output
+    assert sorted(p.name for p in other.iterdir()) == sorted(p.name for p in planar_log.iterdir())
+
+
+@pytest.mark.parametrize("bins", ["0", "1", "1000000000"])
+def test_bins_out_of_range_are_one_line_before_the_log_is_binned(planar_log, healthy_model, tmp_path, bins):
+    argv = ["monitor", str(planar_log), "--model", str(healthy_model), "--out", str(tmp_path / "m.json")]
+    res = runner.invoke(app, [*argv, "--bins", bins])
+    assert res.exit_code == EXIT_BAD_INPUT and "--bins" in res.output, res.output
+
+
+@pytest.mark.parametrize("scale, says", [(-1.0, "below zero"), (1e-3, "times the map's extent")])
+def test_a_log_whose_ranges_are_signed_or_in_metres_is_not_scored(planar_log, healthy_model, tmp_path, scale, says):
+    """Issue 95: `evaluate log` scored a model learned in mm on ranges in metres, or negative, with exit 0."""
+    log = tmp_path / "log"
+    shutil.copytree(planar_log, log)
+    rows = (log / "observations.csv").read_text().splitlines()
+    col = rows[0].split(",").index("range_mm")
+    cells = [r.split(",") for r in rows[1:]]
+    for c in cells:
+        c[col] = repr(float(c[col]) * scale)
+    (log / "observations.csv").write_text("\n".join([rows[0], *(",".join(c) for c in cells)]) + "\n")
+    res = runner.invoke(
+        app, ["evaluate", "log", str(log), "--model", str(healthy_model), "--out", str(tmp_path / "e.json")]
+    )
+    assert res.exit_code == EXIT_BAD_INPUT and says in res.output and "range_mm" in res.output, res.output
+    assert not (tmp_path / "e.json").exists()

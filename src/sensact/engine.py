@@ -213,6 +213,29 @@ def missing_dask() -> SensactError:
     )
 
 
+def check_engine(workers: int | None = None, scheduler: str | None = None) -> None:
+    """What ``open_engine`` would refuse, refused before the work a command does first (a model written, then
+    its error bars on a cluster that is not there): a count under one, a scheduler that does not answer."""
+    _refuse_workers(workers)
+    if scheduler is not None:
+        with open_engine(workers, scheduler):
+            pass
+
+
+def _refuse_workers(workers: int | None) -> None:
+    from sensact.limits import MAX_WORKERS
+
+    if workers is not None and workers < 1:
+        raise SensactError(f"--workers {workers}: at least one is needed.", field="--workers", fix="give 1 or more.")
+    if workers is not None and workers > MAX_WORKERS:
+        raise SensactError(
+            f"--workers {workers:,} is over the limit of {MAX_WORKERS} processes on this machine.",
+            field="--workers",
+            fix=f"give at most one per core ({os.cpu_count()} here); a larger cluster is a --scheduler's "
+            "(SENSACT_MAX_WORKERS raises the limit).",
+        )
+
+
 @contextmanager
 def open_engine(workers: int | None = None, scheduler: str | None = None) -> Iterator[Engine]:
     """The engine a command runs its jobs on: the cluster at ``scheduler`` (an address such as
@@ -246,8 +269,7 @@ def open_engine(workers: int | None = None, scheduler: str | None = None) -> Ite
         with client:
             yield OnDask(client, f"the cluster at {scheduler}")
         return
-    if workers is not None and workers < 1:
-        raise SensactError(f"--workers {workers}: at least one is needed.", field="--workers", fix="give 1 or more.")
+    _refuse_workers(workers)
     n = workers or os.cpu_count() or 1
     import dask
 

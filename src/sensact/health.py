@@ -11,6 +11,10 @@ from dataclasses import dataclass
 
 from sensact.records import JsonObject
 
+# shared by every learner whose models explain readings (EM's fit_health, Algorithm 1's bootstrap_health)
+MIN_EXPLAINED = 0.05  # 1 - residual variance / readings' variance below this: the model explains (almost) nothing
+MIN_READINGS = 20  # a channel with fewer readings is not judged
+
 
 @dataclass(frozen=True)
 class HealthFlag:

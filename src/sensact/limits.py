@@ -52,3 +52,9 @@ def value_problem(values: object, what: str) -> str | None:
 
 # trials of one experiment (`reproduce --trials`): a mistyped count is refused, not run for days
 MAX_TRIALS = _env_int("SENSACT_MAX_TRIALS", 10_000)
+
+# worker processes started on this machine (`--workers`): each is a Python with numpy, about 150 MB
+MAX_WORKERS = _env_int("SENSACT_MAX_WORKERS", 256)
+
+# actions a continuous 1-D command is binned into (`--bins`): each has its own velocity and noise to learn
+MAX_BINS = _env_int("SENSACT_MAX_BINS", 1_000)

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from sensact.app.logs import model_step
 from sensact.app.ros_params import RL_STATES, process_noise, refuse_non_finite
 from sensact.errors import LogFormatError, ModelFormatError
 from sensact.models.em_model import EMModel
@@ -50,12 +51,7 @@ def read_em_doc(doc: JsonObject, source: Path) -> tuple[EMModel, float]:
 
     _refuse_missing_or_wild(doc.get("model"), source)
     model = EMModel.from_dict(doc.get("model"), source=str(source))
-    dt = doc.get("dt_s")
-    if not isinstance(dt, int | float) or not (math.isfinite(dt) and dt > 0):
-        raise ModelFormatError(
-            f"dt_s {dt!r} is not a step.", file=source, field="dt_s", fix="learn it again with `sensact learn em`."
-        )
-    return model, float(dt)
+    return model, model_step(doc, source)
 
 
 MAX_MOUNT_MM = 100_000.0  # a sensor 100 m from the robot's point is no mount

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from sensact.errors import LogFormatError
+from sensact.errors import ConfigError, LogFormatError
 from sensact.io.landmark_log import LandmarkLogFile
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
@@ -70,6 +70,14 @@ def open_log(
     into ``bins`` actions; a track folder's recorded distance from groundtruth.csv's ``distance_mm``), or a
     Turtlebot CSV (on ``dt_s``, or its median step; its range column kept to score against). Anything else
     is one line."""
+    from sensact.limits import MAX_BINS
+
+    if not 2 <= bins <= MAX_BINS:
+        raise ConfigError(
+            f"--bins {bins:,}: continuous commands are binned into 2 to {MAX_BINS:,} actions.",
+            field="--bins",
+            fix="give 21 (the default) or another count in that range.",
+        )
     log = Path(path)
     if is_turtlebot_csv(log):
         from sensact.io.turtlebot import read_turtlebot_landmark_log
@@ -89,20 +97,33 @@ def open_log(
     return OpenedLog(log, lf.data, lf, lf.truth_distance_mm(), bins)
 
 
+MODEL_STEP_S = (1e-6, 1e6)  # a log's step: beyond these, not seconds (or a number written by hand)
+
+
+def model_step(doc: JsonObject, source: Path) -> float:
+    """A model.json's ``dt_s``, checked: the step its commands' delay and its noise per step are counted in."""
+    from sensact.errors import ModelFormatError
+
+    dt = doc.get("dt_s")
+    lo, hi = MODEL_STEP_S
+    if not (isinstance(dt, int | float) and not isinstance(dt, bool) and lo <= dt <= hi):
+        raise ModelFormatError(
+            f"dt_s is {dt!r}, not a step in seconds ({lo:g} to {hi:g}).",
+            file=source,
+            field="dt_s",
+            fix="rewrite it with `sensact learn em`.",
+        )
+    return float(dt)
+
+
 def read_em_model(model: Path) -> tuple[JsonObject, EMModel]:
     """A model.json `sensact learn em` wrote: the whole document (its ``dt_s`` too) and the model."""
     from sensact.errors import ModelFormatError
     from sensact.io.jsonfile import read_json_object
 
     doc = read_json_object(model, ModelFormatError, "give the model.json `sensact learn em` wrote.")
-    dt = doc.get("dt_s")
-    if dt is not None and not (isinstance(dt, int | float) and not isinstance(dt, bool) and 0 < dt < 1e6):
-        raise ModelFormatError(
-            f"dt_s is {dt!r}, not a step in seconds.",
-            file=model,
-            field="dt_s",
-            fix="rewrite it with `sensact learn em`.",
-        )
+    if doc.get("dt_s") is not None:
+        model_step(doc, model)
     refuse_newer(doc, model)
     learned_settings(doc, str(model))  # its settings, every field checked as it is read
     return doc, EMModel.from_dict(doc.get("model", doc), source=str(model))
@@ -222,6 +243,16 @@ def read_model_and_log(log: Path, model: Path, bins: int, use: str) -> tuple[Jso
     levels = m.action.commands[:, 0] if m.geometry.state_is_range and isinstance(m.action, ActionTable) else None
     opened = open_log(log, bins=bins, dt_s=None if dt is None else float(dt), command_levels=levels)
     refuse_model_for_log(doc, m, opened.data, model, log, use=use)
+    from sensact.io.unit_checks import range_unit_doubt
+
+    doubt = range_unit_doubt(opened.data)
+    if doubt is not None:  # `learn em` learns an f in any unit; a model learned in mm cannot read this log
+        raise LogFormatError(
+            f"{doubt}.",
+            file=log,
+            field="range_mm",
+            fix="write the ranges in millimetres (a range in metres as range_m, which is read x1000).",
+        )
     return doc, m, opened
 
 

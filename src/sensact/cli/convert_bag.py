@@ -38,12 +38,13 @@ def _mapping(path: Path | None):
         )
     out = {k: v for k, v in doc.items() if v is not None}
     if "readings" in out:
-        out["readings"] = tuple([out["readings"]] if isinstance(out["readings"], str) else out["readings"])
+        r = out["readings"]
+        out["readings"] = tuple(r) if isinstance(r, list) else (r,)
     for role, topic in out.items():  # a topic is a name: a nested list or a map is not one
         topics = topic if role == "readings" and isinstance(topic, tuple) else (topic,)
         if not topics or not all(isinstance(t, str) and t for t in topics):
             raise LogFormatError(
-                f"{topic!r} is not a topic's name" + (" or a list of them." if role == "readings" else "."),
+                f"{doc[role]!r} is not a topic's name" + (" or a list of them." if role == "readings" else "."),
                 file=path,
                 field=role,
                 fix=f"write `{role}: /topic_name`" + (" or `readings: [/sonar, /ir]`." if role == "readings" else "."),
@@ -193,6 +194,11 @@ def convert_bag(
         src.mkdir(parents=True, exist_ok=True)
         cmd_csv = src / "commands.csv"
         if tables.sightings is not None:  # without --landmarks (or with some), EM learns the tags' positions
+            if landmarks is not None:
+                from sensact.io.timed_csv import read_landmarks
+                from sensact.io.unit_checks import refuse_map_off_the_ranges_scale
+
+                refuse_map_off_the_ranges_scale(landmarks, read_landmarks(landmarks)[0], tables.sightings["range_m"])
             write_table(cmd_csv, tables.commands)
             write_table(src / "sightings.csv", tables.sightings, ints=("landmark_id",))
             truth_csv = None

@@ -100,11 +100,13 @@ def fleet_learn_cmd(
 
     logs = list(dict.fromkeys(logs))  # a log given twice is learned once
     _refuse_out(out)
+    existed = out.exists()
+    names = fleet_names(logs, log_name)
+    _refuse_out_over_logs(out, logs, names)
     if uncertainty is not None:
         from sensact.app.uncertainty import refuse_replicates
 
         refuse_replicates(uncertainty)
-    names = fleet_names(logs, log_name)
     options = LearnOptions(preset, config, tuple(set_ or ()), report, uncertainty)
     with open_engine(workers, scheduler) as engine:
         console.print(f"{len(logs)} log{'s' * (len(logs) > 1)} ({', '.join(names)}) on {engine.where}")
@@ -134,9 +136,13 @@ def fleet_learn_cmd(
                 run = learn_fleet_shared_map(engine, logs, out, options, fleet_events)
             else:
                 run = learn_fleet(engine, logs, out, options, cross_scores=cross_scores, events=fleet_events)
+    _print_run(run)
+    if run.n_failed == len(run.outcomes):  # nothing learned: nothing written (the table above says why)
+        if not existed and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()
+        _fail(run)
     summary = out / "fleet.json"
     write_result(summary, run.to_json())
-    _print_run(run)
     written = [summary]
     if run.cross_scores is not None:
         from sensact.cli.evaluate import print_fleet
@@ -156,19 +162,27 @@ def fleet_learn_cmd(
             f"[yellow]flagged:[/] {escape(o.log)}: " + "; ".join(f.code for f in o.health.flags), highlight=False
         )
     if run.n_failed:
-        from sensact.engine import Failed
-
-        code = _exit_code(run)
-        name, first = next((g, o) for g, o in zip(run.names, run.outcomes, strict=True) if isinstance(o, Failed))
-        err_console.print(
-            f"{'error' if code == 2 else 'failed'}: {run.n_failed} of {len(run.outcomes)} logs could not be learned "
-            f"(fleet.json says why); the first, {escape(name)}: {escape(first.error)}",
-            highlight=False,
-            soft_wrap=True,
-        )
-        raise typer.Exit(code)
+        _fail(run)
     if flagged:  # every model written, some not to be trusted (docs/errors.md)
         raise typer.Exit(EXIT_SOME_FAILED)
+
+
+def _fail(run: Any) -> None:
+    """The one line a fleet with failed logs ends on, and its exit code (``_exit_code``)."""
+    from rich.markup import escape
+
+    from sensact.engine import Failed
+
+    code = _exit_code(run)
+    name, first = next((g, o) for g, o in zip(run.names, run.outcomes, strict=True) if isinstance(o, Failed))
+    said = "" if run.n_failed == len(run.outcomes) else " (fleet.json says why)"
+    err_console.print(
+        f"{'error' if code == 2 else 'failed'}: {run.n_failed} of {len(run.outcomes)} logs could not be learned"
+        f"{said}; the first, {escape(name)}: {escape(first.error)}",
+        highlight=False,
+        soft_wrap=True,
+    )
+    raise typer.Exit(code)
 
 
 def _refuse_out(out: Path) -> None:
@@ -180,6 +194,22 @@ def _refuse_out(out: Path) -> None:
             field="--out",
             fix="give a folder (new or existing).",
         )
+
+
+def _refuse_out_over_logs(out: Path, logs: list[Path], names: list[str]) -> None:
+    """Each log's outputs go to OUT/NAME/: never into a log folder (the input's own files beside them, or
+    written over), so --out is neither a log, nor inside one, nor the folder that holds a log of that name."""
+    from sensact.errors import ConfigError
+
+    root = out.resolve()
+    for log, name in zip(logs, names, strict=True):
+        src = log.resolve()
+        if root == src or src in root.parents or (root / name).resolve() == src:
+            raise ConfigError(
+                f"--out {out} would put the fleet's results in the log {log}, one of its inputs.",
+                field="--out",
+                fix="give a folder outside the logs (e.g. a new one beside them).",
+            )
 
 
 def _outcome_cell(outcome: Any) -> str:

@@ -34,7 +34,7 @@ from sensact.io.csvtable import (
     refuse_unordered,
 )
 from sensact.io.logfolder import read_meta, read_track_log, refuse_a_car_log, write_log_folder
-from sensact.io.unit_checks import refuse_degrees_as_radians
+from sensact.io.unit_checks import refuse_degrees_as_radians, refuse_negative_ranges
 from sensact.limits import steps_problem
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.records import JsonObject
@@ -319,6 +319,9 @@ def _sightings(
             field=lm_col,
             fix="add the landmark's position to meta.json or drop its rows.",
         )
+    for r in readings:
+        if r.startswith("range"):
+            refuse_negative_ranges(path / "observations.csv", obs[r][keep], r)
     if b_col:
         refuse_degrees_as_radians(
             path / "observations.csv", obs[b_col], b_col, f"write {b_col} in radians (counterclockwise from forward)."

@@ -228,6 +228,15 @@ def _messages(reader, topic: str) -> Iterator[tuple[int, object]]:
             k += 1
     except Exception as err:  # rosbags raises its own per format, and struct's, numpy's or an assertion
         what = str(err).splitlines()[0] if str(err) else type(err).__name__
+        unknown = [c.msgtype for c in conns if isinstance(err, KeyError) and c.msgtype in str(err)]
+        if unknown:  # no definition in the bag, and none of ROS's standard types by that name
+            raise LogFormatError(
+                f"{topic}: its type {unknown[0]} is not one rosbags can resolve (the bag holds no definition of it, "
+                "and ROS's standard types have none by that name).",
+                file=(getattr(reader, "paths", None) or [None])[0],
+                fix="record the topic as a standard type (a ROS 2 type is named pkg/msg/Type), or name another "
+                "topic for this role.",
+            ) from None
         raise LogFormatError(
             f"{topic}: message {k + 1} cannot be read ({type(err).__name__}: {what}): the bag is damaged.",
             file=(getattr(reader, "paths", None) or [None])[0],
@@ -378,6 +387,12 @@ def _read(reader, topic: str, progress: Progress | None = None) -> list[tuple[in
             progress(f"reading {topic}", len(out), total)
     if progress is not None:
         progress(f"reading {topic}", len(out), total)
+    if not out:  # the index (a ROS 2 bag's metadata.yaml) counts messages the storage does not hold
+        raise LogFormatError(
+            f"{topic}: no message could be read, though the bag's index lists {total}.",
+            file=(getattr(reader, "paths", None) or [None])[0],
+            fix="record the topic again, or name another one for its role.",
+        )
     return out
 
 

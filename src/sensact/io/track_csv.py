@@ -27,6 +27,7 @@ import numpy as np
 from sensact.errors import LogFormatError
 from sensact.io.resample import held_on_grid, nearest_steps
 from sensact.io.timed_csv import MAX_DEFAULT_STEP_S, table_and_sources
+from sensact.io.unit_checks import refuse_scrambled_path
 from sensact.limits import MAX_STEPS
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.records import JsonObject
@@ -245,6 +246,7 @@ def read_track_csv(
             )
         grid = t0 + np.arange(T) * dt_s
         tr, vr = t[recorded], table[truth_col][order][recorded]
+        refuse_scrambled_path(path, vr, sources[truth_col])
         # a step within half a step of the recorded span takes its end value, as its readings are on it
         near = (grid >= tr[0] - 0.5 * dt_s) & (grid <= tr[-1] + 0.5 * dt_s)
         truth_mm = np.where(near, np.interp(grid, tr, vr), np.nan)

@@ -15,9 +15,13 @@ from sensact.io.csvtable import read_csv_rows, read_numeric_csv
 from sensact.io.resample import step_count
 from sensact.io.timed_csv import MAX_DEFAULT_STEP_S
 from sensact.io.track_log import TrackLog
+from sensact.io.unit_checks import refuse_scrambled_path
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.records import JsonObject
 
+# a gap this many median steps long (and over a second) is a recording paused: the command held across it
+# would move the robot by Algorithm 1's clock (eq. 3.2's dt) for as long as nobody logged what it did
+MAX_GAP_STEPS = 100
 MIN_STEP_S = 1e-3  # rows closer than a millisecond are a clock in another unit, not a Turtlebot's ten a second
 MAX_COMMAND_M_S = 5.0  # a Turtlebot drives at well under a metre a second: beyond this, mm/s
 MAX_SONAR_M = 20.0  # an ultrasonic range finder reads a few metres: beyond this, mm
@@ -94,6 +98,16 @@ def _read_checked(path: str | Path, readings: tuple[str, ...]) -> dict[str, np.n
             field="time",
             fix="write time in seconds (a time in microseconds times 1e-6).",
         )
+    gaps = np.diff(t)
+    if gaps.max() > max(MAX_GAP_STEPS * step, 1.0):
+        row = int(np.argmax(gaps)) + 2  # the row after the gap, counting the header as row 1
+        raise LogFormatError(
+            f"no row for {gaps.max():.4g} s before row {row} (rows are {step:.4g} s apart): the recording paused, "
+            "and the command in force would be held across the gap.",
+            file=path,
+            field="time",
+            fix="split the log at the gap and learn from each part.",
+        )
     step_count(t[-1] - t[0], step, str(path))  # bounded before anything steps at this rate (sensact.limits)
     if np.any(~np.isfinite(cols["velocity_command"])):
         raise LogFormatError(
@@ -118,6 +132,8 @@ def _read_checked(path: str | Path, readings: tuple[str, ...]) -> dict[str, np.n
                 field=sonar,
                 fix="write the sonar's range in metres (mm divided by 1000), an empty cell where it read nothing.",
             )
+    if "range" in cols:  # the recorded distance, scored against
+        refuse_scrambled_path(Path(path), cols["range"], "range")
     return cols
 
 

@@ -25,6 +25,10 @@ SPEED_TO_MAP_PER_S = (1e-4, 3.0)  # the median commanded speed over that extent 
 # a commanded turn rate's 90th percentile beyond a whole turn a second is degrees per second; MRCLAM's is
 # 0.40-0.41 rad/s on robots 1-5 (23 deg/s), the simulated drive's 0.4
 TURN_RATE_MAX_RAD_S = 2.0 * np.pi
+# a recorded 1-D path's lag-1 autocorrelation below this is not a path: a column shuffled, or another
+# column's numbers (a path sampled four times per back-and-forth is at 0; shuffled values at 0 +- 1/sqrt(n))
+MIN_PATH_AUTOCORRELATION = 0.3
+MIN_PATH_ROWS = 20
 PATH_TO_MAP = (1e-2, 1e2)  # the recorded path's extent over the map's (MRCLAM's 0.69-1.08; the simulated 0.56-0.72)
 
 
@@ -41,6 +45,43 @@ def refuse_degrees_as_radians(path: Path, bearing: np.ndarray, column: str, fix:
         )
 
 
+NEGATIVE_SHARE = 0.05  # a range finder's readings this often below zero are not distances (a sign, an offset)
+
+
+def refuse_negative_ranges(path: Path, values: np.ndarray, column: str) -> None:
+    """A column named as a range is a distance: a few readings below zero are noise about a near surface,
+    more (or a median below zero) are another quantity, or a sign flipped."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    if v.size and (np.median(v) < 0.0 or np.mean(v < 0.0) > NEGATIVE_SHARE):
+        raise LogFormatError(
+            f"{np.mean(v < 0.0):.0%} of its readings are below zero (median {np.median(v):.4g}): a range is a "
+            "distance.",
+            file=path,
+            field=column,
+            fix="write the range as the distance read (no sign), an empty cell where it read nothing.",
+        )
+
+
+def refuse_scrambled_path(path: Path, x: np.ndarray, column: str) -> None:
+    """A recorded distance (the truth a 1-D log is scored against) must move as a robot does, one row to the
+    next; one whose rows are no nearer their neighbours than any other row would score the fit on noise."""
+    x = np.asarray(x, dtype=float)
+    x = x[np.isfinite(x)]
+    if x.size < MIN_PATH_ROWS or np.ptp(x) == 0.0:
+        return
+    d = x - x.mean()
+    rho = float(np.dot(d[:-1], d[1:]) / np.dot(d, d))
+    if rho < MIN_PATH_AUTOCORRELATION:
+        raise LogFormatError(
+            f"the recorded distance jumps from row to row (lag-1 autocorrelation {rho:.2f}, a path's is near 1): "
+            "its rows are out of order, or it is another column.",
+            file=path,
+            field=column,
+            fix="sort the recorded distance with its rows' times, or drop the column (it is only scored against).",
+        )
+
+
 def unit_doubts(data: LandmarkLog, truth_poses: tuple[np.ndarray, np.ndarray] | None = None) -> list[str]:
     """A sentence for each of the log's range and speed columns whose size disagrees with the map's by
     orders of magnitude, a turn rate in degrees per second, and recorded poses ``(poses, valid)`` whose
@@ -53,6 +94,28 @@ def unit_doubts(data: LandmarkLog, truth_poses: tuple[np.ndarray, np.ndarray] | 
         truth_unit_doubt(data, truth_poses),
     )
     return [d for d in doubts if d]
+
+
+def refuse_map_off_the_ranges_scale(path: Path, xy_mm: np.ndarray, ranges_m: np.ndarray) -> None:
+    """A map given beside readings whose unit is certain (a bag's, in metres by REP 103): a median range
+    orders of magnitude off the map's extent makes the map's unit wrong, which ``range_unit_doubt`` can
+    only doubt where the range's column name might be the wrong one."""
+    xy = np.asarray(xy_mm, dtype=float).reshape(-1, 2)
+    r = np.abs(np.asarray(ranges_m, dtype=float))
+    r = r[np.isfinite(r)]
+    span_m = float(np.hypot(*np.ptp(xy, axis=0))) / 1000.0 if len(xy) >= 2 else 0.0
+    if span_m <= 0.0 or not r.size:
+        return
+    median_m = float(np.median(r))  # robust to the odd absurd range, which the table's own checks refuse
+    ratio = median_m / span_m
+    if not RANGE_TO_MAP[0] <= ratio <= RANGE_TO_MAP[1]:
+        raise LogFormatError(
+            f"the map spans {span_m:.4g} m, {1.0 / ratio:.3g} times the sightings' median range "
+            f"({median_m:.3g} m, in metres as ROS gives it): the map is in another unit.",
+            file=path,
+            field="x_m, y_m",
+            fix="write the map in metres (id,x_m,y_m), or name its columns x_mm,y_mm if they are millimetres.",
+        )
 
 
 def _map_span(data: LandmarkLog) -> float:

@@ -28,7 +28,7 @@ import numpy as np
 
 from sensact.core.degree import N_STATS
 from sensact.core.polyfit import renormalize
-from sensact.health import Health, HealthFlag
+from sensact.health import MIN_EXPLAINED, MIN_READINGS, Health, HealthFlag
 from sensact.learn.bootstrap_kernel import (
     A_READY,
     DEG_S,
@@ -627,14 +627,14 @@ def learn_action_from_sensor(
 def bootstrap_health(
     res: BootstrapResult, commands: np.ndarray, observations: np.ndarray, t: np.ndarray | None = None
 ) -> Health:
-    """Algorithm 1's result as issue 74 flags it: diverged, learned from a command or a reading that never
-    varies (A's slope or S's shape is then whatever the start said), or (given ``t``) a first ramp-up as
-    long as the log, in which A never left A0 (sec. 3.3.2)."""
+    """Algorithm 1's result as EM's are flagged (issues 74, 95): diverged, learned from a command or a reading
+    that never varies (A's slope or S's shape is then whatever the start said); given ``t``, a first ramp-up as
+    long as the log, in which A never left A0 (sec. 3.3.2); and S and A that do not explain each other."""
     c = np.asarray(commands, dtype=float)
     o = np.asarray(observations, dtype=float)
     span = float(t[-1] - t[0]) if t is not None and len(t) else float("inf")
     o = o[np.isfinite(o)]
-    return Health.of(
+    flags = [
         HealthFlag(
             "ramp_up_too_long",
             f"t_start_s ({res.config.t_start_s:g} s) is as long as the {span:.4g}-s log: the action model never "
@@ -651,4 +651,42 @@ def bootstrap_health(
         HealthFlag("reading_constant", f"the reading never varies (always {o[0]:g}).")
         if o.size and np.ptp(o) == 0
         else None,
-    )
+    ]
+    if res.status == "ok" and o.size and np.ptp(o) > 0:
+        flags += _agreement(res)
+    return Health.of(*flags)
+
+
+def _agreement(res: BootstrapResult) -> list[HealthFlag]:
+    """EM's ``reading_explains_nothing`` and ``gain_sign_flips`` for Algorithm 1, with no truth: once A_t is in
+    use (t > 2 t_start, line 6), its location estimate w_a and the sensor's w_s = S_t(o) must agree (eq. 3.2).
+    A sonar that reads noise gives an S fitted to noise and an A that hardly moves; neither explains the other."""
+    h = res.history
+    if h is None:
+        return []
+    ok = np.isfinite(h.w_s) & np.isfinite(h.w_a) & (h.times_s - h.times_s[0] > 2.0 * res.config.t_start_s)
+    ws, wa = h.w_s[ok], h.w_a[ok]
+    if ws.size < MIN_READINGS or np.var(ws) == 0.0:
+        return []
+    explained = 1.0 - float(np.var(ws - wa)) / float(np.var(ws))
+    if explained < MIN_EXPLAINED:
+        return [
+            HealthFlag(
+                "reading_explains_nothing",
+                f"S(o) and A's path explain {max(explained, 0.0):.0%} of each other's variance: the reading is "
+                "noise, or the log never moved the robot enough to tell.",
+            )
+        ]
+    half = ws.size // 2
+    halves = ((wa[:half], ws[:half]), (wa[half:], ws[half:]))
+    if all(np.ptp(x) > 0 for x, _ in halves):
+        slopes = [float(np.polyfit(x, y, 1)[0]) for x, y in halves]
+        if slopes[0] * slopes[1] < 0:
+            return [
+                HealthFlag(
+                    "gain_sign_flips",
+                    f"S(o) rises with A's path in one half of the log and falls in the other (slopes "
+                    f"{slopes[0]:.3g} and {slopes[1]:.3g}): the models are fitted to noise.",
+                )
+            ]
+    return []

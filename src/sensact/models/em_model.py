@@ -20,7 +20,7 @@ from sensact.errors import ModelFormatError
 from sensact.models.action_model import ActionModel
 from sensact.models.action_table import ActionTable
 from sensact.models.landmark_map import LandmarkMap
-from sensact.models.landmark_sensor import LandmarkSensor
+from sensact.models.landmark_sensor import MAX_SIGMA, LandmarkSensor
 from sensact.models.linear_action import LinearActionModel
 from sensact.records import JsonObject
 
@@ -63,8 +63,8 @@ class EMModel:
             raise ValueError(f"a {self.geometry} model needs {n} velocity components per action")
         sd = self.geometry.thesis_motion_sd if self.motion_sd is None else self.motion_sd
         sd = np.atleast_2d(np.asarray(sd, dtype=float))
-        if sd.shape[1] != n or not np.all(sd > 0):
-            raise ValueError(f"motion_sd needs rows of {n} positive standard deviations")
+        if sd.shape[1] != n or not np.all((sd > 0) & (sd <= MAX_SIGMA)):  # NaN fails both
+            raise ValueError(f"motion_sd needs rows of {n} positive standard deviations, each at most {MAX_SIGMA:g}")
         if sd.shape[0] not in (1, self.action.noise_groups):
             raise ValueError("motion_sd needs one row (shared) or one row per action of the table")
         object.__setattr__(self, "motion_sd", sd)

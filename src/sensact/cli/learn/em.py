@@ -275,6 +275,9 @@ def learn_em_cmd(
         from sensact.app.uncertainty import refuse_replicates
 
         refuse_replicates(uncertainty)
+        from sensact.engine import check_engine
+
+        check_engine(workers, scheduler)
     from sensact.app import calibrate, open_log
 
     opened = open_log(log, bins=bins)

@@ -16,15 +16,13 @@ from __future__ import annotations
 import numpy as np
 
 from sensact.core.pose_models import sensor_distance
-from sensact.health import Health, HealthFlag
+from sensact.health import MIN_EXPLAINED, MIN_READINGS, Health, HealthFlag
 from sensact.learn.em.estep import channel_columns
 from sensact.learn.em.result import EMResult
 from sensact.logs.landmark_log import LandmarkLog
 
 SIGMA_COLLAPSED = 1e-6  # a reading's sigma this small, relative to its readings' size, has collapsed
-MIN_EXPLAINED = 0.05  # 1 - sigma^2 / var(readings) below this: f explains (almost) nothing of the readings
 MIN_HALF_SIGHTINGS = 10  # sightings in each half before their gains' signs are compared
-MIN_READINGS = 20  # a channel with fewer readings in its window is not judged
 
 
 def em_health(result: EMResult, data: LandmarkLog) -> Health:
