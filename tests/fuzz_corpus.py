@@ -5,7 +5,8 @@ it, a Turtlebot-style CSV, a track CSV and a settings file. ``cases()`` lists ea
 with the command that reads it; ``run_case`` runs it as a user would (a fresh process, under a timeout) and
 ``problems`` says what was wrong with how it ended: a traceback, an internal error, an exit code other than
 0, 2 or 3 (2 where the input must be refused), more than one line for an error, a temporary file left
-behind, over 1 GB of memory, a hang. ``tests/test_fuzz.py`` runs a sample in CI and every case with
+behind, an input written over, a file left by a run that failed or written among the inputs (issue 95), over
+1 GB of memory, a hang. ``tests/test_fuzz.py`` runs a sample in CI and every case with
 ``SENSACT_FUZZ=all``.
 """
 
@@ -50,6 +51,9 @@ class Ended:
     seconds: float
     peak_rss_bytes: int
     leftovers: tuple[str, ...]  # temporary files left in the work folder
+    overwritten: tuple[str, ...] = ()  # inputs changed or removed (issue 95: a command never writes over one)
+    left_on_failure: tuple[str, ...] = ()  # files a run that failed (exit 2, 70, ...) wrote and left
+    beside_inputs: tuple[str, ...] = ()  # files written among the inputs, not where --out said
 
 
 # ---- mutations of a CSV ------------------------------------------------------------------------------------
@@ -398,6 +402,7 @@ def base_inputs(base: Path) -> Path:
     """Write the well-formed inputs under ``base`` (once): log/ (a 40-s simulated planar log), model.json
     (learned on it), tb.csv (a Turtlebot-style 1-D log) and track.csv (a 1-D track log for `convert track`)."""
     if (base / "done").exists():
+        _surfaces(base)  # a base written before issue 95's surfaces gains them
         return base
     base.mkdir(parents=True, exist_ok=True)
     subprocess.run(sensact_argv("simulate", "diffdrive", "--out", str(base / "log"), "--seconds", "40"), check=True)
@@ -433,6 +438,7 @@ def base_inputs(base: Path) -> Path:
     _timed(base / "log", base / "timed")
     _bags(base, t, cmd, pos, rng)
     _lidar(base)
+    _surfaces(base)
     (base / "settings.yaml").write_text("max_iterations: 20\n")
     (base / "done").write_text("")
     return base
@@ -448,6 +454,27 @@ def _lidar(base: Path) -> None:
     subprocess.run(
         sensact_argv("learn", "em", str(base / "lidar"), "--out", str(base / "lidar_model.json")), check=True
     )
+
+
+def _surfaces(base: Path) -> None:
+    """Issue 95's surfaces: bag3/robot and lidarbag3/robot (ROS 2 sqlite3), other/log (a second log named
+    log, for a fleet) and tb_model.json (a model of the Turtlebot-style log, to localize and monitor)."""
+    if (base / "surfaces").exists():
+        return
+    for folder, extra in (("bag3", ()), ("lidarbag3", ("--set", "sensor=lidar2d"))):
+        sim = base / f"{folder}_sim"
+        shutil.rmtree(sim, ignore_errors=True)
+        shutil.rmtree(base / folder, ignore_errors=True)
+        argv = ("simulate", "diffdrive", "--out", str(sim), "--seconds", "40", *extra)
+        subprocess.run(
+            sensact_argv(*argv, "--bag", str(base / folder / "robot"), "--bag-format", "sqlite3"), check=True
+        )
+        shutil.rmtree(sim)
+    shutil.rmtree(base / "other", ignore_errors=True)
+    shutil.copytree(base / "log", base / "other" / "log")
+    tb = ("learn", "em", str(base / "tb.csv"), "--out", str(base / "tb_model.json"), *FIT)
+    subprocess.run(sensact_argv(*tb), check=False)  # 3: flagged (max_iterations) is a model all the same
+    (base / "surfaces").write_text("")
 
 
 def _timed(log: Path, folder: Path) -> None:
@@ -698,6 +725,7 @@ def cases() -> list[Case]:
     out += _bag_cases()
     out += _lidar_cases()
     out += _issue95_cases()
+    out += _surface_cases()
     for sub in ("diffdrive", "track1d", "field2d"):
         for arg, v in (("--seconds", "nan"), ("--seconds", "inf"), ("--seconds", "-1"), ("--seconds", "1e12")):
             out.append(Case(f"simulate {sub} {arg} {v}", "", None, ("simulate", sub, "--out", "{out}/s", arg, v), True))
@@ -1178,6 +1206,285 @@ def _issue95_cases() -> list[Case]:
     return out
 
 
+def _surface_cases() -> list[Case]:
+    """Issue 95's new surfaces: ROS 2 sqlite3 bags, `--uncertainty`, `fleet learn`, `monitor`, `localize`, every
+    export format, and the other lidars' calibrations, each with what must never happen: an input written
+    over, two outputs on one path, a fleet's outputs outside its --out, an option unbounded before allocating."""
+    nan, inf = float("nan"), float("inf")
+    out: list[Case] = []
+    bag3 = ("convert", "bag", "{work}/bag3/robot", "--landmarks", "{work}/bag3/map.csv", "--out", "{out}/b")
+    db3 = "bag3/robot/robot.db3"
+    out.append(Case("bag3/robot: as recorded (sqlite3)", "", None, bag3, False))
+    out += [
+        Case(f"{db3}:{k}", db3, bytes_mutation(k), bag3, True, k == "truncate") for k in ("truncate", "empty", "binary")
+    ]
+    out.append(Case(f"{db3}:bytes flipped", db3, flip_bytes, bag3, True, True))
+    out += [Case(f"{db3}:damaged inside ({seed})", db3, damage(seed), bag3, False) for seed in range(3)]
+    for k, sql, refuse in (
+        ("cmd typed as ROS 1's name", "UPDATE topics SET type='geometry_msgs/Twist' WHERE name='/cmd_vel'", True),
+        ("cmd typed as a custom type", "UPDATE topics SET type='my_msgs/msg/Drive' WHERE name='/cmd_vel'", True),
+        ("no cmd messages", "DELETE FROM messages WHERE topic_id=(SELECT id FROM topics WHERE name='/cmd_vel')", True),
+        ("every stamp equal", "UPDATE messages SET timestamp=1700000000000000000", True),
+        ("cmd payloads cut", "UPDATE messages SET data=substr(data, 1, 8) WHERE topic_id="
+         "(SELECT id FROM topics WHERE name='/cmd_vel')", True),
+    ):  # fmt: skip
+        out.append(Case(f"{db3}:{k}", db3, sqlite_edit(sql), bag3, refuse))
+    meta3 = "bag3/robot/metadata.yaml"
+    out += [Case(f"{meta3}:{k}", meta3, bytes_mutation(k), bag3, True) for k in ("truncate", "empty", "non_utf8")]
+    out.append(Case(f"{meta3}:deep", meta3, deep_yaml, bag3, True))
+    out.append(Case(f"{meta3}:billion laughs", meta3, lambda d: LAUGHS, bag3, True))
+    # a map in millimetres (the issue's 1.22 GiB grid): refused by its unit, before any allocation
+    for col in (1, 2):
+        out.append(Case(f"bag3/map.csv:col{col} in mm", "bag3/map.csv", map_column(col, scale=1000.0), bag3, True))
+    mapping = ("--mapping", "{work}/settings.yaml")
+    for k, text in (("nested list", b"commands: [[/cmd_vel]]\n"), ("a number", b"readings: 7\n"),
+                    ("unknown role", b"sonar: /cmd_vel\n"), ("no such topic", b"commands: /nope\n")):  # fmt: skip
+        out.append(
+            Case(f"settings.yaml:bag mapping {k}", "settings.yaml", lambda d, t=text: t, (*bag3, *mapping), True)
+        )
+    lidar3 = ("convert", "bag", "{work}/lidarbag3/robot", "--out", "{out}/l")
+    ldb3 = "lidarbag3/robot/robot.db3"
+    out.append(Case("lidarbag3/robot: as recorded (sqlite3)", "", None, lidar3, False))
+    out += [Case(f"{ldb3}:{k}", ldb3, bytes_mutation(k), lidar3, True, k == "truncate") for k in ("truncate", "empty")]
+    for k, sql in (
+        ("no scans", "DELETE FROM messages WHERE topic_id=(SELECT id FROM topics WHERE name='/scan')"),
+        ("no wheels", "DELETE FROM messages WHERE topic_id=(SELECT id FROM topics WHERE name='/joint_states')"),
+        ("scan typed as a custom type", "UPDATE topics SET type='my_msgs/msg/Scan' WHERE name='/scan'"),
+    ):
+        out.append(Case(f"{ldb3}:{k}", ldb3, sqlite_edit(sql), lidar3, True))
+    # --uncertainty: bounded before allocating, a scheduler that is no address refused before any work
+    um = ("learn", "em", "{work}/log", "--out", "{out}/m.json", *FIT, "--uncertainty")
+    for v in ("0", "-1", "1000000000", "99999999999999999999", "abc", "nan", "2.5"):
+        out.append(Case(f"learn em --uncertainty {v}", "", None, (*um, v), True))
+    out.append(
+        Case("learn em --uncertainty 2 --scheduler bogus", "", None, (*um, "2", "--scheduler", "not an address"), True)
+    )
+    out.append(Case("learn em --uncertainty 2 --workers 0", "", None, (*um, "2", "--workers", "0"), True))
+    still = ("log/actions.csv", set_all(1, "0"))
+    # a robot that never moves: flagged (exit 3, command_constant) or refused, never a division by zero
+    out.append(Case("log/actions.csv:never moves (--uncertainty 2)", still[0], still[1], (*um, "2"), True, True))
+    # fleets: every output under --out, one folder per log though two logs share a name
+    fleet = ("fleet", "learn", "--workers", "1", *FIT, "--no-cross-scores")
+    out.append(
+        Case(
+            "fleet learn: two logs named log",
+            "",
+            None,
+            (*fleet, "{work}/log", "{work}/other/log", "--out", "{out}/fl"),
+            False,
+        )
+    )
+    out.append(
+        Case(
+            "fleet learn --out an input log",
+            "",
+            None,
+            (*fleet, "{work}/log", "{work}/other/log", "--out", "{work}/log"),
+            True,
+        )
+    )
+    out.append(
+        Case(
+            "fleet learn --scheduler bogus",
+            "",
+            None,
+            ("fleet", "learn", "{work}/log", "--out", "{out}/fl", "--scheduler", "not an address"),
+            True,
+        )
+    )
+    for v in ("-1", "1000000000", "abc"):
+        out.append(
+            Case(
+                f"fleet learn --workers {v}",
+                "",
+                None,
+                ("fleet", "learn", "{work}/log", "--out", "{out}/fl", "--workers", v),
+                True,
+            )
+        )
+    out.append(
+        Case(
+            "fleet learn --uncertainty 1e9",
+            "",
+            None,
+            (*fleet, "{work}/log", "--out", "{out}/fl", "--uncertainty", "1000000000"),
+            True,
+        )
+    )
+    out.append(
+        Case(
+            "fleet learn: a lidar folder among logs",
+            "",
+            None,
+            (*fleet, "{work}/log", "{work}/lidar", "--out", "{out}/fl"),
+            True,
+            True,
+        )
+    )
+    # monitor: bins bounded, probabilities in (0, 1), never an output over its inputs
+    mon = ("monitor", "{work}/log", "--model", "{work}/model.json")
+    for opt, v in (("--bin-s", "1e-9"), ("--bin-s", "0"), ("--bin-s", "-1"), ("--bin-s", "nan"), ("--bin-s", "inf"),
+                   ("--bin-s", "1e12"), ("--false-alarm", "0"), ("--false-alarm", "1"), ("--false-alarm", "2"),
+                   ("--false-alarm", "nan"), ("--bins", "0"), ("--bins", "1000000000")):  # fmt: skip
+        out.append(Case(f"monitor {opt} {v}", "", None, (*mon, "--out", "{out}/mon.json", opt, v), True))
+    for name, path in (("the model", "{work}/model.json"), ("a log file", "{work}/log/actions.csv"),
+                       ("the log folder", "{work}/log"), ("a device", "/dev/full")):  # fmt: skip
+        out.append(Case(f"monitor --out {name}", "", None, (*mon, "--out", path), True))
+        out.append(
+            Case(f"monitor --relearn {name}", "", None, (*mon, "--out", "{out}/mon.json", "--relearn", path), True)
+        )
+    for k, m in (("sigma 1e-300", json_set(("model", "sensor", "channels", 0, "sigma"), 1e-300)),
+                 ("sigma 1e300", json_set(("model", "sensor", "channels", 0, "sigma"), 1e300)),
+                 ("motion_sd 1e300", json_set(("model", "motion_sd"), [[1e300, 1, 0.01]])),
+                 ("no sensor", json_drop(("model", "sensor")))):  # fmt: skip
+        out.append(Case(f"model.json:{k} (monitor)", "model.json", m, (*mon, "--out", "{out}/mon.json"), True))
+    out.append(
+        Case(
+            "monitor a lidar folder",
+            "",
+            None,
+            ("monitor", "{work}/lidar", "--model", "{work}/lidar_model.json", "--out", "{out}/mon.json"),
+            True,
+        )
+    )
+    # localize: its --out never over an input; a start no map or track holds is refused
+    loc = ("localize", "{work}/log", "--model", "{work}/model.json")
+    for name, path in (("the model", "{work}/model.json"), ("the log's meta.json", "{work}/log/meta.json"),
+                       ("a device", "/dev/full"), ("the log folder", "{work}/log")):  # fmt: skip
+        out.append(Case(f"localize --out {name}", "", None, (*loc, "--out", path), True))
+    tbloc = ("localize", "{work}/tb.csv", "--model", "{work}/tb_model.json", "--out", "{out}/p.json")
+    out.append(Case("localize tb.csv: as written", "", None, tbloc, False))
+    for v in ("1e9", "-1e9", "nan", "inf"):
+        out.append(Case(f"localize tb.csv --start {v}", "", None, (*tbloc, "--start", v), True))
+    out.append(
+        Case(
+            "localize tb.csv with the planar model",
+            "",
+            None,
+            ("localize", "{work}/tb.csv", "--model", "{work}/model.json", "--out", "{out}/p.json"),
+            True,
+        )
+    )
+    out.append(
+        Case(
+            "localize a lidar folder",
+            "",
+            None,
+            ("localize", "{work}/lidar", "--model", "{work}/lidar_model.json", "--out", "{out}/p.json"),
+            True,
+        )
+    )
+    # a model run on a log whose ranges are in another unit, or signed (issue 95: scored with exit 0)
+    obs = "log/observations.csv"
+    scored = ("evaluate", "log", "{work}/log", "--model", "{work}/model.json", "--out", "{out}/e.json")
+    for cname, argv in (("evaluate log", scored), ("localize", (*loc, "--out", "{out}/p.json"))):
+        out.append(Case(f"{obs}:ranges in metres ({cname})", obs, map_column(2, scale=1e-3), argv, True))
+        out.append(Case(f"{obs}:ranges negative ({cname})", obs, map_column(2, scale=-1.0), argv, True))
+    # exports: every format bounded and finite, never over the model, never two outputs on one path
+    rl = ("export", "{work}/model.json", "--format", "robot-localization", "--out", "{out}/rl.yaml")
+    for k, m in (("motion_sd missing", json_drop(("model", "motion_sd"))),
+                 ("motion_sd 1e300", json_set(("model", "motion_sd"), [[1e300, 1, 0.01]])),
+                 ("mount missing", json_drop(("model", "sensor", "mount"))),
+                 ("mount yaw 1e9", json_set(("model", "sensor", "mount", "yaw_rad"), 1e9)),
+                 ("dt_s 1e-300", json_set(("dt_s",), 1e-300)),
+                 ("dt_s 1e300", json_set(("dt_s",), 1e300)),
+                 ("motion_sd inf", json_set(("model", "motion_sd", 0, 0), inf))):  # fmt: skip
+        out.append(Case(f"model.json:{k} (export robot-localization)", "model.json", m, rl, True))
+    for fmt in ("robot-localization", "tum", "landmarks"):
+        argv = ("export", "{work}/model.json", "--format", fmt)
+        out.append(Case(f"export {fmt} --out the model", "", None, (*argv, "--out", "{work}/model.json"), True))
+        out.append(Case(f"export {fmt} --out a device", "", None, (*argv, "--out", "/dev/full"), True))
+        out.append(Case(f"export {fmt} --out a folder", "", None, (*argv, "--out", "{out}"), True))
+    tum = ("export", "{work}/model.json", "--format", "tum", "--out", "{out}/m.tum")
+    out.append(Case("export tum --truth-out its --out", "", None, (*tum, "--truth-out", "{out}/m.tum"), True))
+    out.append(Case("export tum --truth-out the model", "", None, (*tum, "--truth-out", "{work}/model.json"), True))
+    out.append(Case("export tum --truth-out the path", "", None, (*tum, "--truth-out", "{work}/model.path.npz"), True))
+    urdf = ("export", "{work}/lidar_model.json", "--format", "urdf")
+    out.append(Case("export urdf --out the model", "", None, (*urdf, "--out", "{work}/lidar_model.json"), True))
+    out.append(
+        Case(
+            "export urdf of a landmark model",
+            "",
+            None,
+            ("export", "{work}/model.json", "--format", "urdf", "--out", "{out}/u.xacro"),
+            True,
+        )
+    )
+    out.append(
+        Case(
+            "export landmarks of a lidar model",
+            "",
+            None,
+            ("export", "{work}/lidar_model.json", "--format", "landmarks", "--out", "{out}/l.csv"),
+            True,
+        )
+    )
+    vel = ("export", "{work}/car_model.json", "--format", "velodyne")
+    out.append(Case("export velodyne --out the model", "", None, (*vel, "--out", "{work}/car_model.json"), True))
+    out.append(Case("export velodyne --out a device", "", None, (*vel, "--out", "/dev/full"), True))
+    # the other lidars' factory calibrations in the wrong unit
+    c16 = ("learn", "car", "{work}/car16", "--out", "{out}/car.json", "--no-report", "--factory-calibration")
+    cal16 = "car16/calibration_true.yaml"
+    out.append(Case("car16: VLP-16 calibration as written", "", None, (*c16, "{work}/" + cal16), False))
+    vert_deg = yaml_scale("vert_correction", 180.0 / np.pi)
+    out.append(Case(f"{cal16}:vert_correction in degrees", cal16, vert_deg, (*c16, "{work}/" + cal16), True))
+    # a VLP-16's rot_correction is zero (its lasers fire in one column): a 64-laser unit's, in degrees
+    calib = ("learn", "car", "{work}/car", "--factory-calibration", "{work}/calib.yaml", "--out", "{out}/c.json")
+    rot_deg = yaml_scale("rot_correction", 180.0 / np.pi)
+    out.append(Case("calib.yaml:rot_correction in degrees", "calib.yaml", rot_deg, (*calib, "--no-report"), True))
+    os1 = ("learn", "car", "{work}/os1", "--out", "{out}/car.json", "--no-report", "--factory-calibration")
+    md = "os1/metadata_true.json"
+    for k, m in (("azimuth 1e6", json_set(("beam_azimuth_angles", 0), 1e6)),
+                 ("altitude 1e3", json_set(("beam_altitude_angles", 0), 1e3)),
+                 ("azimuths in radians x 1e3", json_map(("beam_azimuth_angles",), lambda v: [x * 1e3 for x in v])),
+                 ("one altitude short", json_map(("beam_altitude_angles",), lambda v: v[:-1])),
+                 ("altitude nan", json_set(("beam_altitude_angles", 3), nan))):  # fmt: skip
+        out.append(Case(f"{md}:{k}", md, m, (*os1, "{work}/" + md), True))
+    out.append(Case(f"{md}: as written", "", None, (*os1, "{work}/" + md), False))
+    return out
+
+
+def sqlite_edit(sql: str) -> Mutation:
+    """A ROS 2 sqlite3 bag's database with ``sql`` run on it (what a broken recorder or a hand edit leaves)."""
+
+    def m(data: bytes) -> bytes:
+        import sqlite3
+        import tempfile
+
+        with tempfile.TemporaryDirectory() as d:
+            db = Path(d) / "bag.db3"
+            db.write_bytes(data)
+            con = sqlite3.connect(db)
+            con.executescript(sql + ";")
+            con.commit()
+            con.close()
+            return db.read_bytes()
+
+    return m
+
+
+def yaml_scale(field: str, scale: float) -> Mutation:
+    """Every ``field: value`` of a YAML file times ``scale``."""
+
+    def m(data: bytes) -> bytes:
+        pattern = re.compile(rb"(" + field.encode() + rb": )([-0-9.e]+)")
+        return pattern.sub(lambda g: g.group(1) + repr(float(g.group(2)) * scale).encode(), data)
+
+    return m
+
+
+def json_map(path: tuple[str | int, ...], f: Callable[[object], object]) -> Mutation:
+    def m(data: bytes) -> bytes:
+        doc = json.loads(data)
+        node = doc
+        for key in path[:-1]:
+            node = node[key]
+        node[path[-1]] = f(node[path[-1]])
+        return json.dumps(doc).encode()
+
+    return m
+
+
 LAUGHS = (
     b"a: &a [x, x, x, x, x, x, x, x, x]\n"
     + b"".join(f"{n}: &{n} [{', '.join([f'*{p}'] * 9)}]\n".encode() for p, n in zip("abcdefg", "bcdefgh", strict=True))
@@ -1244,6 +1551,7 @@ def run_case(case: Case, base: Path, scratch: Path) -> Ended:
         assert case.mutate is not None
         target.write_bytes(case.mutate(target.read_bytes()))
     argv = [a.replace("{work}", str(work)).replace("{out}", str(out)) for a in case.argv]
+    before = _fingerprints(work)
     rss_file = scratch / "rss"
     env = os.environ | {"COLUMNS": "200", "SENSACT_FUZZ_RSS": str(rss_file)}
     t0 = time.perf_counter()
@@ -1259,7 +1567,31 @@ def run_case(case: Case, base: Path, scratch: Path) -> Ended:
     seconds = time.perf_counter() - t0
     rss = int(rss_file.read_text() or 0) if rss_file.exists() else 0
     leftovers = tuple(str(p) for p in scratch.rglob("*.tmp"))
-    return Ended(code, stderr.decode("utf-8", "replace"), seconds, rss, leftovers)
+    after = _fingerprints(work)
+    overwritten = tuple(sorted(k for k, v in before.items() if after.get(k) != v))
+    written = [*(k for k in after if k not in before), *(str(p.relative_to(scratch)) for p in out.rglob("*"))]
+    failed = code not in (0, 3)
+    return Ended(
+        code,
+        stderr.decode("utf-8", "replace"),
+        seconds,
+        rss,
+        leftovers,
+        overwritten,
+        tuple(sorted(written)) if failed else (),
+        tuple(sorted(k for k in after if k not in before)),
+    )
+
+
+def _fingerprints(folder: Path) -> dict[str, tuple[int, str]]:
+    """Each file under ``folder`` (its path there) by its size and content hash."""
+    import hashlib
+
+    out = {}
+    for p in folder.rglob("*"):
+        if p.is_file() and not p.is_symlink():
+            out[str(p.relative_to(folder.parent))] = (p.stat().st_size, hashlib.sha1(p.read_bytes()).hexdigest())
+    return out
 
 
 def problems(case: Case, ended: Ended) -> list[str]:
@@ -1283,6 +1615,12 @@ def problems(case: Case, ended: Ended) -> list[str]:
             out.append(f"not one error line: {lines[:3]}")
     if ended.leftovers:
         out.append(f"temporary files left: {ended.leftovers}")
+    if ended.overwritten:
+        out.append(f"inputs overwritten: {ended.overwritten[:3]}")
+    if ended.left_on_failure:
+        out.append(f"a failing run left files: {ended.left_on_failure[:3]}")
+    if ended.beside_inputs:
+        out.append(f"wrote among its inputs: {ended.beside_inputs[:3]}")
     if ended.peak_rss_bytes > MEMORY_CAP_BYTES:
         out.append(f"peak memory {ended.peak_rss_bytes / 2**20:.0f} MiB")
     return out

@@ -19,7 +19,7 @@ from fuzz_corpus import Case, base_inputs, cases, problems, run_case
 from sensact.errors import SensactError
 
 ALL = os.environ.get("SENSACT_FUZZ") == "all"
-SAMPLE_EVERY = 32  # CI runs every 32nd case of the corpus (31 of 965): about a minute and a quarter
+SAMPLE_EVERY = 32  # CI runs every 32nd case of the corpus (34 of 1,086): about a minute and a half
 
 
 def _chosen() -> list[Case]:
@@ -36,6 +36,9 @@ def test_the_corpus_holds_at_least_300_cases_over_every_kind_of_input_and_comman
     expected |= {"log/em_config.yaml", "model.json", "tb.csv", "track.csv", ""}
     expected |= {"bag/robot.bag", "bag/map.csv", "bag2/robot/robot.mcap", "bag2/robot/metadata.yaml", "bag1d.bag"}
     expected |= {"model.path.npz", "car_model.json", "car/velodyne.pcap", "calib.yaml", "mrclam/Robot1_Odometry.dat"}
+    # issue 95's surfaces: ROS 2 sqlite3 bags, the other lidars' calibrations
+    expected |= {"bag3/robot/robot.db3", "bag3/robot/metadata.yaml", "lidarbag3/robot/robot.db3"}
+    expected |= {"os1/metadata_true.json", "car16/calibration_true.yaml"}
     assert expected <= targets
     # every command a user runs on a file, by its first two words
     commands = {" ".join(a for a in c.argv[:2] if not a.startswith(("{", "-"))) for c in every}
