@@ -1236,6 +1236,10 @@ def _surface_cases() -> list[Case]:
     # a map in millimetres (the 1.22 GiB grid): refused by its unit, before any allocation
     for col in (1, 2):
         out.append(Case(f"bag3/map.csv:col{col} in mm", "bag3/map.csv", map_column(col, scale=1000.0), bag3, True))
+    # a camera sees nothing behind it: detections there are dropped, a bag of mostly such refused
+    bag = ("convert", "bag", "{work}/bag/robot.bag", "--landmarks", "{work}/bag/map.csv", "--out", "{out}/b")
+    behind = on("/tf", _set("transforms.0.transform.translation.z", -1.0), every)
+    out.append(Case("bag/robot.bag:every tag behind the camera", "bag/robot.bag", behind, bag, True))
     mapping = ("--mapping", "{work}/settings.yaml")
     for k, text in (("nested list", b"commands: [[/cmd_vel]]\n"), ("a number", b"readings: 7\n"),
                     ("unknown role", b"sonar: /cmd_vel\n"), ("no such topic", b"commands: /nope\n")):  # fmt: skip
