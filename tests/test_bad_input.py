@@ -472,3 +472,31 @@ def test_a_log_whose_ranges_are_signed_or_in_metres_is_not_scored(planar_log, he
     )
     assert res.exit_code == EXIT_BAD_INPUT and says in res.output and "range_mm" in res.output, res.output
     assert not (tmp_path / "e.json").exists()
+
+
+@pytest.mark.parametrize("seed, code", [(3, "mount_not_identified"), (4, "turn_sign_flipped")])
+def test_a_short_range_only_log_that_em_mirrors_is_flagged(tmp_path, seed, code):
+    """Issue 94, item 4: 30 s of a range-only robot on wheel speeds, its start unknown. Seed 3 comes out with
+    the sensor 1.24 m from the axle on a path of 0.39 m, seed 4 with an axle of -1.69 m; both ended exit 0."""
+    log = tmp_path / "log"
+    argv = ["simulate", "diffdrive", "--out", str(log), "--seconds", "30", "--seed", str(seed)]
+    assert runner.invoke(app, [*argv, "--set", "sensor=radio", "--set", "wheel_axle_mm=230"]).exit_code == 0
+    res = runner.invoke(app, ["learn", "em", str(log), "--out", str(tmp_path / "m.json"), "--no-report"])
+    assert res.exit_code == EXIT_FLAGGED, res.output
+    assert code in [f["code"] for f in json.loads((tmp_path / "m.json").read_text())["health"]["flags"]]
+
+
+def test_correlated_residuals_are_flagged_beyond_half(planar_log, healthy_model):
+    """Issue 94, item 4: a channel's residuals with lag-1 autocorrelation beyond +-0.5 (a 1-D log whose range
+    errors alternate gave a sigma ten times too small, flagged only as not converged)."""
+    from sensact.app import calibrate, open_log
+    from sensact.learn.em.checks.fit_health import em_health
+
+    cal = calibrate(open_log(planar_log), sets=["max_iterations=3"])
+    result, data = cal.result, cal.log.data
+
+    def codes(r: float | None) -> list[str]:
+        return [f.code for f in em_health(result, data, {"range_mm": r}).flags if f.code == "residuals_correlated"]
+
+    assert codes(-0.53) == codes(0.6) == ["residuals_correlated"]
+    assert codes(0.45) == codes(-0.3) == codes(None) == []

@@ -22,6 +22,7 @@ from sensact.learn.em.config import refuse_bearing_settings
 from sensact.learn.em.estep import Posteriors
 from sensact.learn.em.fit import OnRestart, OnStartMoved, Progress
 from sensact.learn.em.searches.start_race import OnTrial
+from sensact.learn.em.uses.consistency import Consistency, consistency
 from sensact.learn.em.uses.error_bars import Uncertainty
 from sensact.learn.em.uses.place import Localized
 from sensact.models.em_model import EMModel
@@ -108,6 +109,12 @@ class Calibration:
         return self.result.model
 
     @cached_property
+    def consistency(self) -> Consistency:
+        """The model's one-step-ahead innovations on its own log, against its predictive law (issue 94: on
+        another run, `evaluate log` and `localize` give the same numbers, which decide whether a sigma holds)."""
+        return consistency(self.model, self.log.data)
+
+    @cached_property
     def in_truth_frame(self) -> tuple[LandmarkLogFile | None, Posteriors | None]:
         """The log folder and EM's posteriors as figures against the truth read them: on a learned map, the
         folder on its survey and the smoothed path aligned to it (``app/scores.in_truth_frame``)."""
@@ -165,6 +172,8 @@ class Calibration:
             # the share of sightings the gates dropped, and each channel's residuals' lag-1 autocorrelation
             "pruned_fraction": diag.pruned_fraction,
             "residual_lag1_autocorrelation": dict(diag.residual_lag1_autocorrelation),
+            # per reading type, the filter's innovations in the model's 90 % interval, and their mean square
+            "consistency": self.consistency.to_dict(),
             # on wheel speeds: gain, axle, ratio
             "differential_drive": to_json(as_differential_drive(self.model.action)),
             # a learned model EM started from, and where it placed the robot (learn/em/policies/warm_start.py)
@@ -230,7 +239,7 @@ def diagnose(result: EMResult, log: OpenedLog, cfg: EMConfig) -> Diagnostics:
     held = held_sideways_noise(result.model, cfg.motion_noise.kind)
     if held:
         warnings.append(describe_held_sideways(held))
-    health = em_health(result, log.data)
+    health = em_health(result, log.data, autocorrelation)
     return Diagnostics(result.pruned_fraction, autocorrelation, tuple(signs), held, tuple(warnings), health)
 
 

@@ -169,10 +169,23 @@ def write_em_report(cal: Calibration, model_path: Path, figures: Sequence[Path])
             ", ".join(f"{si(k)[0]} {_num(v, 2)}" for k, v in cal.diagnostics.residual_lag1_autocorrelation.items()),
         ),
     )
+    consistency = tuple(
+        (name, f"{100 * r.coverage90:.1f} %", _num(r.nis_mean, 3), str(r.n))
+        for name, r in cal.consistency.readings.items()
+    )
     drawn: list[Path] = []
     sections = [
         Section("Summary", table=(("quantity", "value"), overview)),
         Section("Flags and warnings", flags=_flags(cal, doc), flag_list=True),
+        Section(
+            "Consistency: are the sigmas honest?",
+            paragraphs=(
+                "The filter's one-step-ahead innovations, each in the model's predictive law: an honest sigma "
+                "holds 90 % of the readings in its 90 % interval, with a mean normalized innovation squared of 1. "
+                "On this log the model was learned on; `sensact evaluate log` and `localize` give them on the next.",
+            ),
+            table=(("reading", "inside the 90 % interval", "NIS mean", "readings"), consistency),
+        ),
     ]
     if res.posteriors is not None:
         sections.append(

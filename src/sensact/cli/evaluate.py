@@ -93,7 +93,11 @@ def evaluate_log_cmd(
     next. The same table, bars and figures as `learn em` prints for a log with ground truth, with
     From-Truth fitted on this log; the model must share the log's commands, readings and step. On a
     Turtlebot CSV the robot is first placed by the E-step with the model held (as `sensact localize`),
-    and the model is scored against the range column as `learn em` scores it."""
+    and the model is scored against the range column as `learn em` scores it. On a log folder too the robot
+    is placed first, and its path scored (evaluation.path.median_mm). Whatever the truth, the model's
+    consistency: per reading type, the share of the filter's one-step-ahead innovations inside the model's
+    90 % interval (consistency.range.coverage90, .bearing; 0.90 when its sigma is honest) and their mean
+    normalized square (nis_mean, 1 when honest)."""
     check_out_file(out, others={"--model": model}, kind=EVALUATION, force=force)
     from sensact.app.logs import read_model_and_log
     from sensact.errors import LogFormatError
@@ -107,8 +111,12 @@ def evaluate_log_cmd(
         return
     console.print(f"{model} on {lf.title(log)}: {lf.data.n_steps} steps, {lf.data.n_observations} observations")
     from sensact.app.scores import Scores, score_model
+    from sensact.cli.localize import consistency_on, place_robot
 
-    scores = score_model(opened, m)
+    # another run starts elsewhere: the robot is placed first (as `localize`), and its path scored too
+    loc, per_learned = place_robot(doc, m, opened.data, model, None, None, None)
+    held = consistency_on(loc.model, opened.data)
+    scores = score_model(opened, m, path=loc.posteriors.mean_gamma, fit=loc)
     print_scores(scores, opened)
     if not isinstance(scores, Scores):
         raise LogFormatError(
@@ -118,7 +126,10 @@ def evaluate_log_cmd(
         )
     sc = scores.evaluation
     if out is not None:
-        write_result(out, sc, EVALUATION)
+        placed = {"start": loc.start, "loglik_per_sighting": loc.loglik_per_sighting}
+        placed |= {"loglik_per_sighting_learned": per_learned}
+        # the path as a model.json's evaluation.path names it, the consistency as localize's
+        write_result(out, sc | placed | {"evaluation": {"path": sc.get("path")}, "consistency": held}, EVALUATION)
         written = [out]
         if sc.get("truth_noise"):  # scored against recorded poses (with their heading): the figures too
             from sensact.report.figures_real import write_robot
@@ -134,7 +145,7 @@ def _evaluate_on_range_column(doc: JsonObject, m: Any, opened: Any, model: Path,
     import numpy as np
 
     from sensact.app.scores import Scores, score_model
-    from sensact.cli.localize import place_robot
+    from sensact.cli.localize import consistency_on, place_robot
     from sensact.errors import LogFormatError
     from sensact.evaluate.turtlebot_em import range_column_problem
 
@@ -157,6 +168,7 @@ def _evaluate_on_range_column(doc: JsonObject, m: Any, opened: Any, model: Path,
             "runs the model on one without it.",
         )
     loc, per_learned = place_robot(doc, m, data, model, None, None, None)
+    held = consistency_on(loc.model, data)
     scores = score_model(opened, m, fit=loc)
     print_scores(scores, opened)
     if out is None or not isinstance(scores, Scores):
@@ -172,6 +184,7 @@ def _evaluate_on_range_column(doc: JsonObject, m: Any, opened: Any, model: Path,
         "loglik_per_sighting_learned": per_learned,
         "start": loc.start,
         "evaluation": sc,
+        "consistency": held,
     }
     path = out.with_name(f"{out.stem}_against_range.png")
     run = TurtlebotEMRun(data, truth_mm, loc)

@@ -139,6 +139,20 @@ def place_robot(
     return loc, describe_placement(loc, summary, data)
 
 
+def consistency_on(placed: Any, data: Any) -> JsonObject:
+    """The placed model's innovations on ``data`` against its predictive law (issue 94), printed a line per
+    reading type, as the JSON's ``consistency``."""
+    from sensact.learn.em.uses.consistency import INTERVAL, consistency
+
+    held = consistency(placed, data)
+    for name, r in held.readings.items():
+        console.print(
+            f"consistency, {name}: {100 * r.coverage90:.1f} % of {r.n} readings inside the model's "
+            f"{100 * INTERVAL:.0f} % interval, NIS mean {r.nis_mean:.3f} (honest: {100 * INTERVAL:.0f} % and 1)"
+        )
+    return held.to_dict()
+
+
 def describe_placement(loc: Any, summary: JsonObject, data: Any) -> float | None:
     """Where ``localize`` put the robot and how well the model fits the log: its log-likelihood a sighting
     beside the one on the log it was learned from (``summary``, its model.json's), which it returns."""
@@ -176,7 +190,8 @@ def localize_cmd(
         Path | None,
         typer.Option(
             "--out",
-            help="Write the run here (JSON: the start, the log-likelihood, the scores against any ground truth), "
+            help="Write the run here (JSON: the start, the log-likelihood, the consistency of the model's innovations "
+            "as `evaluate log` gives it, the scores against any ground truth), "
             "the smoothed path beside it (.path.npz) and a figure (.png).",
         ),
     ] = None,
@@ -211,6 +226,7 @@ def localize_cmd(
     loc, per_learned = place_robot(doc, m, data, model, config, set_, given)
     post = loc.posteriors
     scores = _truth_scores(loc, poses, truth_mm, (doc.get("evaluation") or {}).get("state_map"), data.dt_s)
+    held = consistency_on(loc.model, data)
     health = Health.of(*learned_health(doc).flags, filter_failed(post.ok, "the path"))
     if out is not None:
         write_result(
@@ -227,6 +243,7 @@ def localize_cmd(
                 "loglik_per_sighting_learned": per_learned,
                 "filter_ok": post.ok,
                 "truth": scores,
+                "consistency": held,
             },
             LOCALIZATION,
         )

@@ -13,6 +13,8 @@ Each check looks at what the fit cannot recover from by itself, on the log it wa
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 
 from sensact.core.pose_models import sensor_distance
@@ -20,13 +22,20 @@ from sensact.health import MIN_EXPLAINED, MIN_READINGS, Health, HealthFlag
 from sensact.learn.em.estep import channel_columns
 from sensact.learn.em.result import EMResult
 from sensact.logs.landmark_log import LandmarkLog
+from sensact.models.em_model import EMModel
+from sensact.models.linear_action import LinearActionModel
+from sensact.models.wheel_drive import as_differential_drive
 
 SIGMA_COLLAPSED = 1e-6  # a reading's sigma this small, relative to its readings' size, has collapsed
+MAX_LAG1 = 0.5  # issue 94: residuals' lag-1 autocorrelation beyond this and sigma is not the sensor's noise
+TURN = "v_theta_rad_s"  # the planar state's turn rate (core.geometry's velocity names)
+TURN_COMMANDS = ("omega_rad_s",)  # commanded turn rates, counterclockwise positive (REP 103)
 MIN_HALF_SIGHTINGS = 10  # sightings in each half before their gains' signs are compared
 
 
-def em_health(result: EMResult, data: LandmarkLog) -> Health:
-    """The flags of one fit on ``data`` (none: a result to report as one)."""
+def em_health(result: EMResult, data: LandmarkLog, autocorrelation: Mapping[str, float | None] | None = None) -> Health:
+    """The flags of one fit on ``data`` (none: a result to report as one); ``autocorrelation``: each channel's
+    residuals' lag-1 autocorrelation about the smoothed path (``lost_signs.residual_autocorrelation``)."""
     flags: list[HealthFlag] = []
     if result.stop_reason == "max_iterations":
         flags.append(
@@ -49,7 +58,71 @@ def em_health(result: EMResult, data: LandmarkLog) -> Health:
         flags.append(HealthFlag("loglik_not_finite", "the log-likelihood is not finite."))
     flags += _commands(data)
     flags += _readings(result, data)
+    flags += _implausible(result, data, autocorrelation or {})
     return Health(tuple(flags))
+
+
+def _implausible(result: EMResult, data: LandmarkLog, autocorrelation: Mapping[str, float | None]) -> list[HealthFlag]:
+    """Issue 94's fits that converge to the wrong robot: turning against its commands, a mount the path
+    cannot tell apart from the path itself, or residuals so correlated that sigma is not what it says."""
+    model, post = result.model, result.posteriors
+    flags = []
+    turn = _turn_gain(model, data)
+    if turn is not None and turn[1] < 0.0:
+        flags.append(
+            HealthFlag(
+                "turn_sign_flipped",
+                f"the learned {turn[0]} is {turn[1]:.4g}: the robot turns against its commands' convention "
+                "(counterclockwise positive, REP 103), so the fit mirrored the path; learn from a log that "
+                "turns both ways, or give the start (thesis.start_prior_mean).",
+            )
+        )
+    if post is not None and data.geometry.has_heading and data.n_steps > 1:
+        xy = post.mean_gamma[:, :2]
+        radius = float(np.sqrt(np.mean(np.sum((xy - xy.mean(axis=0)) ** 2, axis=1))))
+        mount = model.sensor.mount
+        offset = float(np.hypot(mount.forward_mm, mount.left_mm))
+        if offset > radius:
+            flags.append(
+                HealthFlag(
+                    "mount_not_identified",
+                    f"the sensor is placed {offset:.0f} mm from the robot's point, farther than the path's own "
+                    f"extent ({radius:.0f} mm RMS): the log cannot tell the mount from the path; hold it where it "
+                    "is (sensor_mount: [forward_mm, left_mm, yaw_rad] in the settings) or record a log that turns "
+                    "more.",
+                )
+            )
+    for name, r in autocorrelation.items():
+        if r is not None and abs(r) > MAX_LAG1:
+            flags.append(
+                HealthFlag(
+                    "residuals_correlated",
+                    f"{name}'s residuals have a lag-1 autocorrelation of {r:.2f} (beyond +-{MAX_LAG1}): the path "
+                    "follows the readings or their errors persist, so its sigma is not the sensor's noise.",
+                )
+            )
+    return flags
+
+
+def _turn_gain(model: EMModel, data: LandmarkLog) -> tuple[str, float] | None:
+    """What says which way the learned robot turns: a differential drive's axle (on wheel speeds), or the
+    learned turn rate's gain on a commanded one that varies; None where the model says neither."""
+    action = model.action
+    drive = as_differential_drive(action)
+    if drive is not None:
+        return None if drive.axle_mm is None else ("axle", drive.axle_mm)
+    if not isinstance(action, LinearActionModel) or TURN not in action.velocity_names:
+        return None
+    names = [n for n in action.command_names if n in TURN_COMMANDS]
+    if not names or data.step_commands is None:
+        return None
+    j = action.command_names.index(names[0])
+    if np.ptp(np.asarray(data.step_commands)[:, j]) == 0.0:
+        return None  # command_constant says it
+    row = 1 + j if action.basis == "affine" else None
+    if row is None or row >= action.coefficients.shape[0]:
+        return None
+    return f"turn rate's gain on {names[0]}", float(action.coefficients[row, action.velocity_names.index(TURN)])
 
 
 def _commands(data: LandmarkLog) -> list[HealthFlag]:

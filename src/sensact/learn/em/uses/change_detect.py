@@ -22,8 +22,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.stats import norm
-from scipy.stats import t as student_t
 
 from sensact.core.changepoint import (
     binned,
@@ -36,6 +34,7 @@ from sensact.core.changepoint import (
 from sensact.errors import ConfigError
 from sensact.learn.em.config import EMConfig
 from sensact.learn.em.estep import innovations
+from sensact.learn.em.uses.consistency import normal_scores
 from sensact.learn.em.uses.place import localize
 from sensact.limits import steps_problem
 from sensact.logs.landmark_log import LandmarkLog
@@ -151,11 +150,7 @@ class MonitorResult:
 
 def _scores(z: np.ndarray, kind: str, param: float, clip: float) -> np.ndarray:
     """Standardized innovations through the channel's predictive distribution to N(0, 1), clipped."""
-    if kind == "student_t":
-        u = norm.ppf(np.clip(student_t.cdf(z, param), 1e-15, 1.0 - 1e-15))
-    else:
-        u = np.array(z, dtype=float)
-    return np.clip(u, -clip, clip)
+    return np.clip(normal_scores(z, kind, param), -clip, clip)
 
 
 def _events(
