@@ -1,7 +1,10 @@
 """`sensact fleet learn` on a 2-worker LocalCluster against `sensact learn em` one log after another
-(issue 76's bar): MRCLAM Dataset 6's five robots, both in this process, one after the other.
+(issues 76 and 94): MRCLAM Dataset 6's robots, both in this process, one after the other, at the same
+threads (issue 94's bar: 4 logs, 2 workers of one thread each, against the 4 one after another on one
+thread: SENSACT_THREADS=1 here, --threads-per-worker 1 there).
 
-    python benchmarks/fleet_speedup.py [--data ../shared/data] [--workers 2] [--out fleet_speedup.json]
+    python benchmarks/fleet_speedup.py [--data ../shared/data] [--workers 2] [--threads 1] [--robots 1 2 3 4]
+        [--out fleet_speedup.json]
 
 Converts each robot (`sensact convert mrclam`), then runs `sensact learn em rK --out serial/rK/model.json`
 for each robot in turn, and `sensact fleet learn r1 ... r5 --out fleet --workers N --no-cross-scores`.
@@ -14,16 +17,23 @@ in the fleet, two at once, than alone (its `summary.seconds`, fleet over serial)
 
 from __future__ import annotations
 
-import argparse
-import json
 import os
-import tempfile
-import time
-from pathlib import Path
+import sys
 
-from typer.testing import CliRunner
+# the serial runs at the workers' threads: numpy's BLAS reads its count when it is first imported, below
+_THREADS = sys.argv[sys.argv.index("--threads") + 1] if "--threads" in sys.argv else "1"
+for _name in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS", "SENSACT_THREADS"):
+    os.environ[_name] = _THREADS
 
-from sensact.cli import app
+import argparse  # noqa: E402
+import json  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+from typer.testing import CliRunner  # noqa: E402
+
+from sensact.cli import app  # noqa: E402
 
 
 def _run(args: list) -> tuple[float, float]:
@@ -49,7 +59,8 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "data")
     p.add_argument("--workers", type=int, default=2)
-    p.add_argument("--robots", type=int, nargs="+", default=[1, 2, 3, 4, 5])
+    p.add_argument("--robots", type=int, nargs="+", default=[1, 2, 3, 4])
+    p.add_argument("--threads", type=int, default=1, help="threads of each worker, and of the serial runs")
     p.add_argument("--out", type=Path, default=None, help="write the numbers as JSON here")
     args = p.parse_args()
     dataset = args.data / "mrclam" / "MRCLAM_Dataset6"
@@ -67,9 +78,9 @@ def main() -> None:
             wall, cpu = _run(["learn", "em", log, "--out", root / "serial" / log.name / "model.json"])
             per_log[log.name] = {"wall_s": wall, "cores_busy": cpu / wall}
             serial_wall, serial_cpu = serial_wall + wall, serial_cpu + cpu
-        fleet_wall, _ = _run(
-            ["fleet", "learn", *logs, "--out", root / "fleet", "--workers", args.workers, "--no-cross-scores"]
-        )
+        fleet_args = ["--workers", args.workers, "--threads-per-worker", args.threads, "--no-cross-scores"]
+        fleet_wall, _ = _run(["fleet", "learn", *logs, "--out", root / "fleet", *fleet_args])
+        printed = json.loads((root / "fleet" / "fleet.json").read_text())
         slower = {
             g: _em_seconds(root / "fleet" / g / "model.json") / _em_seconds(root / "serial" / g / "model.json")
             for g in names
@@ -81,6 +92,7 @@ def main() -> None:
     result = {
         "robots": [f"r{k}" for k in args.robots],
         "workers": args.workers,
+        "threads_per_worker": args.threads,
         "cpu_count": os.cpu_count(),
         "serial_wall_s": serial_wall,
         "fleet_wall_s": fleet_wall,
@@ -90,10 +102,14 @@ def main() -> None:
         "serial_cores_busy": cores,
         "em_seconds_fleet_over_alone": slower,
         "per_log": per_log,
+        "fleet_printed": {k: printed[k] for k in ("seconds", "jobs_seconds", "cpu_seconds", "speedup")},
     }
     print(f"learn em one after another: {serial_wall:.1f} s, {cores:.2f} cores busy on average")
     print(f"fleet learn on {args.workers} workers: {fleet_wall:.1f} s")
     print(f"speedup {result['speedup']:.2f}x (bar 1.7x)")
+    fp = result["fleet_printed"]
+    print(f"fleet learn's own line: wall {fp['seconds']:.1f} s, jobs {fp['jobs_seconds']:.1f} s, ", end="")
+    print(f"speedup {fp['speedup']:.2f}")
     print(
         "each log's EM in the fleet took "
         + ", ".join(f"{g} {v:.2f}" for g, v in slower.items())

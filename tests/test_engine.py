@@ -108,3 +108,26 @@ def test_an_address_no_scheduler_answers_at_is_one_line():
         open_engine(scheduler="tcp://127.0.0.1:9"),
     ):
         pass
+
+
+def budget(x: float, *, progress=None) -> int:
+    from sensact.limits import thread_budget
+
+    return thread_budget()
+
+
+def test_a_worker_sizes_its_threads_from_its_allocation(cluster, monkeypatch):
+    """Issue 94: the start race's threads follow SENSACT_THREADS, which the engine sets to each worker's
+    threads (1 on a LocalCluster by default), and to --threads-per-worker in this process while it runs."""
+    import os
+
+    from sensact.errors import SensactError
+
+    assert cluster.run([Job(budget, (0.0,), "a"), Job(budget, (1.0,), "b")]) == [1, 1]
+    monkeypatch.delenv("SENSACT_THREADS", raising=False)
+    with open_engine(1, None, threads_per_worker=1) as here:
+        assert here.run([Job(budget, (0.0,), "a")]) == [1]
+    assert "SENSACT_THREADS" not in os.environ and budget(0.0) == (os.cpu_count() or 1)
+    for bad in (0, 10_000):
+        with pytest.raises(SensactError, match="--threads-per-worker"), open_engine(1, None, threads_per_worker=bad):
+            pass

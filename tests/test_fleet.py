@@ -45,6 +45,11 @@ def test_each_model_is_learn_ems_and_a_bad_log_stops_no_other(fleet):
     summary = json.loads((root / "F" / "fleet.json").read_text())
     assert (summary["learned"], summary["failed"]) == (2, 1)
     assert summary["engine"] == {"where": "a LocalCluster of 2 workers", "workers": 2}
+    # issue 94: what the cluster bought, from the jobs' own times (the learned logs', not the failed one's)
+    jobs = [e for e in summary["logs"].values() if e["status"] == "learned"]
+    assert summary["jobs_seconds"] == pytest.approx(sum(e["job_seconds"] for e in jobs))
+    assert summary["speedup"] == pytest.approx(summary["jobs_seconds"] / summary["seconds"])
+    assert all(0 < e["cpu_seconds"] and e["seconds"] <= e["job_seconds"] for e in jobs)
     broken = summary["logs"]["broken"]
     assert broken["status"] == "failed" and broken["bad_input"] is True
     assert "actions.csv" in broken["error"] and "\n" not in broken["error"]

@@ -58,3 +58,10 @@ MAX_WORKERS = _env_int("SENSACT_MAX_WORKERS", 256)
 
 # actions a continuous 1-D command is binned into (`--bins`): each has its own velocity and noise to learn
 MAX_BINS = _env_int("SENSACT_MAX_BINS", 1_000)
+
+
+def thread_budget() -> int:
+    """Threads one process keeps busy (a start race's trials): ``SENSACT_THREADS``, which the engine sets to
+    a Dask worker's allocation (issue 94: two one-thread workers on two cores must not run four threads), else
+    this machine's cores."""
+    return max(_env_int("SENSACT_THREADS", os.cpu_count() or 1), 1)

@@ -79,6 +79,8 @@ class Learned:
     warnings: tuple[str, ...]  # the diagnostics' lines (``Diagnostics.warnings``)
     written: tuple[str, ...]
     health: Health = field(default_factory=Health)  # learn/em/checks/fit_health.py: flagged fits end the fleet with 3
+    job_seconds: float = 0.0  # the whole job's wall time: read, learn, write
+    cpu_seconds: float = 0.0  # its process's CPU time meanwhile (the job's own, on a worker of one thread)
 
     def to_dict(self) -> JsonObject:
         return {
@@ -93,15 +95,22 @@ class Learned:
             "warnings": list(self.warnings),
             "written": list(self.written),
             "health": self.health.to_dict(),
+            "job_seconds": self.job_seconds,
+            "cpu_seconds": self.cpu_seconds,
         }
 
 
 def learn_log(log: Path, out: Path, options: LearnOptions, *, progress: Progress | None = None) -> Learned:
     """``log`` calibrated and written at ``out`` exactly as `sensact learn em LOG --out OUT` writes it (with
     ``options.uncertainty``, as `learn em --uncertainty B` does: its replicates one after another here)."""
+    import time
+    from dataclasses import replace
+
     from sensact.app.logs import open_log
 
-    return calibrate_and_save(open_log(log), out, options, progress=progress)[1]
+    t0, c0 = time.perf_counter(), time.process_time()
+    learned = calibrate_and_save(open_log(log), out, options, progress=progress)[1]
+    return replace(learned, job_seconds=time.perf_counter() - t0, cpu_seconds=time.process_time() - c0)
 
 
 def calibrate_and_save(
@@ -592,6 +601,21 @@ class FleetRun:
     seconds: float
 
     @property
+    def jobs_seconds(self) -> float:
+        """The learned logs' own wall times summed: the fleet's work one after another, at the same threads
+        (an upper bound: two jobs at once on shared cores and memory each run a little slower than alone)."""
+        return float(sum(getattr(o, "job_seconds", 0.0) for o in self.outcomes))
+
+    @property
+    def cpu_seconds(self) -> float:
+        return float(sum(getattr(o, "cpu_seconds", 0.0) for o in self.outcomes))
+
+    @property
+    def speedup(self) -> float | None:
+        """The logs' own times summed over the fleet's wall time (None when nothing was learned)."""
+        return self.jobs_seconds / self.seconds if self.jobs_seconds > 0 and self.seconds > 0 else None
+
+    @property
     def n_failed(self) -> int:
         from sensact.engine import Failed
 
@@ -612,6 +636,9 @@ class FleetRun:
             "failed": self.n_failed,
             "engine": {"where": self.where, "workers": self.workers},
             "seconds": self.seconds,
+            "jobs_seconds": self.jobs_seconds,
+            "cpu_seconds": self.cpu_seconds,
+            "speedup": self.speedup,
             "cross_scores": self.cross_scores,
             "cross_scores_skipped": self.cross_scores_skipped,
         }

@@ -56,6 +56,15 @@ def fleet_learn_cmd(
         ),
     ] = None,
     scheduler: SchedulerOpt = None,
+    threads_per_worker: Annotated[
+        int | None,
+        typer.Option(
+            "--threads-per-worker",
+            help="Threads of each LocalCluster worker (default 1), or of this process with --workers 1 (default: "
+            "its cores); numpy's, numba's and the start race's threads are sized to it. On a --scheduler's "
+            "cluster, each worker's own (dask worker --nthreads).",
+        ),
+    ] = None,
     preset: Annotated[str | None, typer.Option("--preset", help="As `learn em --preset`, for every log.")] = None,
     set_: SetOpt = None,
     config: ConfigOpt = None,
@@ -108,7 +117,7 @@ def fleet_learn_cmd(
 
         refuse_replicates(uncertainty)
     options = LearnOptions(preset, config, tuple(set_ or ()), report, uncertainty)
-    with open_engine(workers, scheduler) as engine:
+    with open_engine(workers, scheduler, threads_per_worker) as engine:
         console.print(f"{len(logs)} log{'s' * (len(logs) > 1)} ({', '.join(names)}) on {engine.where}")
         with progress_bar() as rows:
             bar = rows.bar
@@ -155,6 +164,11 @@ def fleet_learn_cmd(
     if (out / "map.json").is_file() and shared_map:
         written.append(out / "map.json")
     console.print("wrote " + ", ".join(str(p) for p in written) + f" and each log's model under {out}")
+    if run.speedup is not None:  # issue 94: what the cluster bought, measured in this run
+        console.print(
+            f"wall {run.seconds:.1f} s, CPU {run.cpu_seconds:.1f} s in the jobs; the same logs one after another "
+            f"at the same threads take {run.jobs_seconds:.1f} s (each job's own time): speedup {run.speedup:.2f}"
+        )
 
     flagged = [o for o in run.outcomes if getattr(o, "health", None) is not None and not o.health.ok]
     for o in flagged:

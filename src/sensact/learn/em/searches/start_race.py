@@ -24,7 +24,6 @@ only lock on from a start near the truth, so the start is chosen in two rounds:
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -36,6 +35,7 @@ from sensact.core.angles import wrap_angle
 from sensact.errors import ConfigError
 from sensact.learn.em.config import EMConfig
 from sensact.learn.em.estep import log_likelihood
+from sensact.limits import thread_budget
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 from sensact.records import omit_when
@@ -198,8 +198,8 @@ def race_starts(
     """The candidate whose held EM reaches the highest whole-log likelihood, as its model after the
     race, and the race: each round's scores, the winner and its iterations. The field is halved every
     ``start_trial_iterations`` until two are left, and the better of those wins. ``workers`` threads
-    run a round's trials (one per core by default); ``on_trial`` hears of each trial as it is done,
-    in the order of the field."""
+    run a round's trials (by default ``limits.thread_budget()``: the cores, or a Dask worker's allocation);
+    ``on_trial`` hears of each trial as it is done, in the order of the field."""
     trial = config.search.start_trial_iterations  # of the held, Gaussian, ungated stage: one likelihood for every start
     alive = list(range(len(candidates)))
     models = list(candidates)
@@ -207,7 +207,7 @@ def race_starts(
     rounds: list[dict[str, float]] = []
     stalled: dict[int, float] = {}  # candidates whose last trial found nothing better than its start
     planned, done = race_trials(len(candidates)), 0
-    with ThreadPoolExecutor(max_workers=max(min(len(candidates), workers or os.cpu_count() or 1), 1)) as pool:
+    with ThreadPoolExecutor(max_workers=max(min(len(candidates), workers or thread_budget()), 1)) as pool:
         while True:
             to_run = [i for i in alive if i not in stalled]
             # the trial is deterministic (seeded), so a stalled one would repeat itself from the same model
