@@ -660,9 +660,10 @@ def _passes_for(n_state: int):
                 w2[i] = mu_g[t + 1, i]
                 for j in range(n):
                     Pa[i, j] = P_a[t, i, j]
-            if not cholesky(Pa, Lp, n):
+            # sizes read off the arrays, not this closure's n: a literal n compiled each helper once per size
+            if not cholesky(Pa, Lp, Lp.shape[0]):
                 return NOT_POSITIVE_DEFINITE
-            cholesky_inverse(Lp, Pinv, colp, n)
+            cholesky_inverse(Lp, Pinv, colp, Lp.shape[0])
             # Lam = diag(P_alpha^-1, Yd) + G' Sigma_m^-1 G. The Cholesky factorization reads only the lower
             # triangle, so only that is formed; G's zeros add nothing and are skipped (the sums unchanged)
             for i in range(n):
@@ -692,9 +693,9 @@ def _passes_for(n_state: int):
                         if G[k, i] != 0.0 and G[k, j] != 0.0:
                             s += G[k, i] * G[k, j] / var[k]
                     Lam[i, j] += s
-            if not cholesky(Lam, L2, n2):
+            if not cholesky(Lam, L2, L2.shape[0]):
                 return NOT_POSITIVE_DEFINITE
-            cholesky_solve_vec(L2, eta, eta, n2)
+            cholesky_solve_vec(L2, eta, eta, L2.shape[0])
             for i in range(n):
                 mx1[i] = mu_a[t, i] + eta[i]
                 mx2[i] = mu_a[t + 1, i] + eta[n + i]
