@@ -124,6 +124,13 @@ def test_a_worker_sizes_its_threads_from_its_allocation(cluster, monkeypatch):
     from sensact.errors import SensactError
 
     assert cluster.run([Job(budget, (0.0,), "a"), Job(budget, (1.0,), "b")]) == [1, 1]
+    # the nanny writes the workers' thread counts into this process's environment too: put back on closing
+    # (numba refused to run here after a fleet: its pool had started with another count)
+    names = ("SENSACT_THREADS", "NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+    before = {k: os.environ.get(k) for k in names}
+    with open_engine(2, None, threads_per_worker=1) as two:
+        assert two.run([Job(budget, (0.0,), "a")]) == [1]
+    assert {k: os.environ.get(k) for k in names} == before
     monkeypatch.delenv("SENSACT_THREADS", raising=False)
     with open_engine(1, None, threads_per_worker=1) as here:
         assert here.run([Job(budget, (0.0,), "a")]) == [1]

@@ -278,11 +278,28 @@ def _thread_budget(threads: int | None) -> Iterator[None]:
 
 
 def _size_threads(dask_worker: Any = None) -> int:
-    """Run on each worker of a cluster started elsewhere (``Client.run``): sensact's threads sized from the
-    worker's own allocation (``dask worker --nthreads N``), not from the machine's cores it shares."""
-    threads = getattr(getattr(dask_worker, "state", dask_worker), "nthreads", None) or 1
+    """Run on each worker (``Client.run``): sensact's and numba's threads sized from the worker's own
+    allocation (``dask worker --nthreads N``, a LocalCluster's threads_per_worker), not from the machine's
+    cores it shares."""
+    import numba
+
+    threads = int(getattr(getattr(dask_worker, "state", dask_worker), "nthreads", None) or 1)
     os.environ[THREADS_ENV] = str(threads)
-    return int(threads)
+    numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
+    return threads
+
+
+@contextmanager
+def _restored(saved: dict[str, str | None]) -> Iterator[None]:
+    """This process's environment variables ``saved`` put back as they were when the context ends."""
+    try:
+        yield
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
 
 
 @contextmanager
@@ -332,9 +349,13 @@ def open_engine(
     # off glibc's adaptive mmap threshold, and EM's large temporaries are then mapped and faulted in afresh
     # each time (EM ran 1.5 times slower on a worker, its time in the kernel)
     t = threads_per_worker or 1
-    names = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS", THREADS_ENV)
-    threads = dict.fromkeys(names, t)  # numpy's, numba's and sensact's own threads: the worker's allocation
+    names = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", THREADS_ENV)
+    threads = dict.fromkeys(names, t)  # numpy's and sensact's own threads: the worker's allocation (numba's below)
+    # the nanny writes these into this process's environment too, and leaves them: put back when the cluster
+    # closes (numba refuses a thread count other than the one its pool started with; sensact's own would stay 1)
+    saved = {k: os.environ.get(k) for k in names}
     with (
+        _restored(saved),
         dask.config.set({"distributed.nanny.pre-spawn-environ": threads}),
         LocalCluster(
             n_workers=n,
@@ -345,4 +366,5 @@ def open_engine(
         ) as cluster,
         Client(cluster) as client,
     ):
+        client.run(_size_threads)
         yield OnDask(client, f"a LocalCluster of {n} worker{'s' * (n > 1)}" + (f" of {t} threads" if t > 1 else ""))
