@@ -164,10 +164,11 @@ def fleet_learn_cmd(
     if (out / "map.json").is_file() and shared_map:
         written.append(out / "map.json")
     console.print("wrote " + ", ".join(str(p) for p in written) + f" and each log's model under {out}")
-    if run.speedup is not None:  # issue 94: what the cluster bought, measured in this run
+    if run.speedup_at_most is not None:  # issue 94: what the cluster bought, measured in this run
         console.print(
-            f"wall {run.seconds:.1f} s, CPU {run.cpu_seconds:.1f} s in the jobs; the same logs one after another "
-            f"at the same threads take {run.jobs_seconds:.1f} s (each job's own time): speedup {run.speedup:.2f}"
+            f"wall {run.seconds:.1f} s, CPU {run.cpu_seconds:.1f} s in the jobs, whose own times sum to "
+            f"{run.jobs_seconds:.1f} s: at most {run.speedup_at_most:.2f} times the same logs one after another at "
+            "the same threads (a job beside another runs slower than alone; benchmarks/fleet_speedup.py measures it)"
         )
 
     flagged = [o for o in run.outcomes if getattr(o, "health", None) is not None and not o.health.ok]
