@@ -500,3 +500,22 @@ def test_correlated_residuals_are_flagged_beyond_half(planar_log, healthy_model)
 
     assert codes(-0.53) == codes(0.6) == ["residuals_correlated"]
     assert codes(0.45) == codes(-0.3) == codes(None) == []
+
+
+def test_a_model_turning_against_omega_is_flagged(planar_log):
+    """Issue 94, item 4, on (v, omega) commands: the model's own turn rate over the log falls as omega rises."""
+    from dataclasses import replace
+
+    from sensact.app import calibrate, open_log
+    from sensact.learn.em.checks.fit_health import em_health
+
+    cal = calibrate(open_log(planar_log), sets=["max_iterations=3"])
+    result, data, action = cal.result, cal.log.data, cal.model.action
+    beta = action.coefficients.copy()
+    beta[1 + action.command_names.index("omega_rad_s"), action.velocity_names.index("v_theta_rad_s")] *= -1.0
+    flipped = replace(result, model=result.model.replace(action=action.with_coefficients(beta)))
+
+    def codes(r) -> list[str]:
+        return [f.code for f in em_health(r, data).flags if f.code == "turn_sign_flipped"]
+
+    assert codes(result) == [] and codes(flipped) == ["turn_sign_flipped"]

@@ -23,7 +23,6 @@ from sensact.learn.em.estep import channel_columns
 from sensact.learn.em.result import EMResult
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
-from sensact.models.linear_action import LinearActionModel
 from sensact.models.wheel_drive import as_differential_drive
 
 SIGMA_COLLAPSED = 1e-6  # a reading's sigma this small, relative to its readings' size, has collapsed
@@ -105,24 +104,21 @@ def _implausible(result: EMResult, data: LandmarkLog, autocorrelation: Mapping[s
 
 
 def _turn_gain(model: EMModel, data: LandmarkLog) -> tuple[str, float] | None:
-    """What says which way the learned robot turns: a differential drive's axle (on wheel speeds), or the
-    learned turn rate's gain on a commanded one that varies; None where the model says neither."""
+    """What says which way the learned robot turns: a differential drive's axle (on wheel speeds), or the slope
+    of the model's own turn rate over the log on a commanded turn rate that varies, whatever the action
+    model's form; None where neither is there."""
     action = model.action
     drive = as_differential_drive(action)
     if drive is not None:
         return None if drive.axle_mm is None else ("axle", drive.axle_mm)
-    if not isinstance(action, LinearActionModel) or TURN not in action.velocity_names:
+    names = [n for n in data.command_names if n in TURN_COMMANDS]
+    if TURN not in action.velocity_names or not names or data.step_commands is None:
         return None
-    names = [n for n in action.command_names if n in TURN_COMMANDS]
-    if not names or data.step_commands is None:
-        return None
-    j = action.command_names.index(names[0])
-    if np.ptp(np.asarray(data.step_commands)[:, j]) == 0.0:
+    commanded = np.asarray(data.step_commands)[:, data.command_names.index(names[0])]
+    if np.ptp(commanded) == 0.0:
         return None  # command_constant says it
-    row = 1 + j if action.basis == "affine" else None
-    if row is None or row >= action.coefficients.shape[0]:
-        return None
-    return f"turn rate's gain on {names[0]}", float(action.coefficients[row, action.velocity_names.index(TURN)])
+    learned = action.step_velocity(data)[:, action.velocity_names.index(TURN)]
+    return f"turn rate's slope on {names[0]}", float(np.polyfit(commanded, learned, 1)[0])
 
 
 def _commands(data: LandmarkLog) -> list[HealthFlag]:
