@@ -6,7 +6,7 @@ its predictive law and its placed path against the Vicon poses.
 The bar is checked on another dataset's run of the same robot, which is not in ../shared/data; the second
 half is the nearest stand-in (another stretch of the room, another start, the model never saw it).
 
-    SENSACT_DATA=../shared/data python benchmarks/consistency_halves.py [--robots 1 2 3 4 5]
+    SENSACT_DATA=../shared/data python benchmarks/consistency_halves.py [--robots 1 2 3 4 5] [--set K=V ...]
 
 Prints, per robot, the share of ranges and bearings inside the model's 90 % interval and their NIS mean,
 on the half it was learned on and on the other, and the placed path's median distance from the truth;
@@ -47,7 +47,7 @@ def _before_step(log: OpenedLog, step: int) -> OpenedLog:
     return replace(log, data=data, folder=replace(folder, data=data, groundtruth=cut))
 
 
-def robot(k: int, root: Path, scratch: Path) -> dict:
+def robot(k: int, root: Path, scratch: Path, sets: list[str]) -> dict:
     folder = scratch / f"robot{k}"  # the user's `convert mrclam`, into a folder of its own
     argv = ["convert", "mrclam", str(root / "mrclam" / "MRCLAM_Dataset6"), "--robot", str(k), "--out", str(folder)]
     subprocess.run([sys.executable, "-c", CLI, *argv], check=True, stdout=subprocess.DEVNULL)
@@ -55,7 +55,7 @@ def robot(k: int, root: Path, scratch: Path) -> dict:
     half = log.data.n_steps // 2
     first, second = _before_step(log, half), after_step(log, half)
     t0 = time.perf_counter()
-    cal = calibrate(first)
+    cal = calibrate(first, sets=sets)
     placed = localize(cal.model, second.data, cal.config)
     out = consistency(placed.model, second.data)
     path = path_offset(placed.posteriors.mean_gamma, *second.folder.truth_poses())
@@ -73,12 +73,13 @@ def robot(k: int, root: Path, scratch: Path) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--robots", type=int, nargs="+", default=[1, 2, 3, 4, 5])
+    ap.add_argument("--set", action="append", default=[], help="a learn em setting, as `learn em --set`")
     args = ap.parse_args()
     root = data_root()
     rows = []
     with tempfile.TemporaryDirectory() as d:
         for k in args.robots:
-            r = robot(k, root, Path(d))
+            r = robot(k, root, Path(d), args.set)
             rows.append(r)
             nxt, own = r["next_half"], r["learned_on"]
             print(

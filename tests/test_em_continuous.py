@@ -218,7 +218,9 @@ def test_bearing_terms_and_a_held_lateral_velocity_are_recovered():
 def test_sigma_m_and_bearing_terms_are_held_until_refine_from():
     data, _ = simulate_continuous(4, T=3000, bearing_terms=(0.01, -0.02))
     ch = ChannelConfig("range_mm", 1, 0.0, 0.8, 300.0, bearing_degree=2)
-    res = fit_em(data, None, continuous_config(channels=(ch,), refine_from=8, max_iterations=12, patience=50))
+    res = fit_em(
+        data, None, continuous_config(channels=(ch,), refine_from=8, max_iterations=12, patience=50, accelerate=False)
+    )
     sd = res.motion_sd_history[:, 0]
     np.testing.assert_array_equal(sd[:9], np.repeat(sd[:1], 9, axis=0))  # lambda_0..8: the start's
     assert np.all(sd[9] != sd[0])  # the M-step after iteration 8 learns Sigma_m
@@ -243,10 +245,12 @@ def test_robust_readings_start_gaussian_until_refine_from():
     reading has weight 1); after it the Student-t weights discount the outliers."""
     data, _ = simulate_continuous(3, T=3000, outlier_frac=0.1)
     ch = ChannelConfig("range_mm", 1, 0.0, 0.8, 300.0, robust="student_t", robust_param=4.0)
-    held = fit_em(data, None, continuous_config(channels=(ch,), refine_from=1000, max_iterations=10))
+    held = fit_em(data, None, continuous_config(channels=(ch,), refine_from=1000, max_iterations=10, accelerate=False))
     w = held.posteriors.weights[:, 0]
     assert set(np.unique(w[w > 0])) == {1.0}
-    freed = fit_em(data, None, continuous_config(channels=(ch,), refine_from=5, max_iterations=15, patience=50))
+    freed = fit_em(
+        data, None, continuous_config(channels=(ch,), refine_from=5, max_iterations=15, patience=50, accelerate=False)
+    )
     w = freed.posteriors.weights[:, 0]
     assert held.freed_at == -1 and freed.freed_at == 5
     assert freed.best_iteration > 5 and w.min() < 0.05  # the best model is one scored by the robust likelihood

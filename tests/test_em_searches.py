@@ -208,7 +208,9 @@ def test_fit_searches_the_delay_on_the_ridge_schedule_only_when_a_delay_is_learn
     iterations after, is in the summary, never lowers the likelihood, and is off with
     ``delay_search: false`` or without a delay to learn (then EM is as before, bit for bit)."""
     data, poses = simulate_continuous(3, T=1500, delay_steps=6)
-    cfg = continuous_config(refine_from=4, max_iterations=12, patience=50, search_every=3, action_delay_max_s=0.5)
+    cfg = continuous_config(
+        refine_from=4, max_iterations=12, patience=50, search_every=3, action_delay_max_s=0.5, accelerate=False
+    )
     on = fit_em(data, None, cfg)
     assert [r.iteration for r in on.delay_search] == [4, 7, 10]
     for r in on.delay_search:
@@ -248,6 +250,7 @@ def test_fit_searches_the_delay_on_the_ridge_schedule_only_when_a_delay_is_learn
         "search_every=3",
         "max_iterations=8",
         "prune_rad_per_step=0",
+        "accelerate=false",  # the schedule counts plain EM's iterations
     ]
     run = CliRunner().invoke(cli.app, ["learn", "em", str(tmp_path / "log")] + [a for x in sets for a in ("--set", x)])
     assert_written(run)
@@ -266,8 +269,10 @@ def test_fit_searches_the_ridge_when_the_held_stage_ends_and_every_so_often_afte
     from sensact.report.tables_real import real_tables
 
     data, poses = simulate_continuous(2, T=1500)
-    off = fit_em(data, None, continuous_config(refine_from=4, max_iterations=12))
-    cfg = continuous_config(refine_from=4, max_iterations=12, patience=50, ridge_search_mm=300.0, search_every=3)
+    off = fit_em(data, None, continuous_config(refine_from=4, max_iterations=12, accelerate=False))
+    cfg = continuous_config(
+        refine_from=4, max_iterations=12, patience=50, ridge_search_mm=300.0, search_every=3, accelerate=False
+    )
     on = fit_em(data, None, cfg)
     assert off.ridge is None and on.freed_at == 4
     assert [r.iteration for r in on.ridge] == [4, 7, 10]

@@ -19,6 +19,7 @@ from sensact.records import JsonObject
 
 ACTION_BASES = ("table", *BASES)
 MOTION_NOISE = ("fixed", "shared", "per_action", "turning")
+POSE_DRAWS = ("sigma_points", "random")
 
 
 @dataclass(frozen=True)
@@ -302,6 +303,12 @@ class EMConfig:
     channels: tuple[ChannelConfig, ...] = ()
     robust: RobustSettings = field(default_factory=RobustSettings)
     search: SearchSettings = field(default_factory=SearchSettings)
+    # SQUAREM on EM's map (squarem.py): its fixed point in fewer E-steps; False: plain EM, the thesis's
+    accelerate: bool = False
+    # how the M-step takes its expectations over gamma (eqs. 4.25-4.28): "sigma_points", the unscented
+    # transform's 2n points, a deterministic map as SQUAREM needs; "random", sec. 4.3.2's samples_per_frame
+    # draws; None: sigma_points when accelerated, else random (the thesis's)
+    pose_draws: str | None = None
     # where the sensor sits on the robot, (forward mm, left mm, yaw rad counterclockwise), held there; None:
     # learned by the M-step wherever the log pins it, from the robot's own point (learn/em/mount.py)
     sensor_mount: tuple[float, float, float] | None = None
@@ -314,6 +321,15 @@ class EMConfig:
             )
         if len({c.name for c in self.channels}) != len(self.channels):
             problems.append("channel names must be distinct")
+        if not isinstance(self.accelerate, bool):
+            problems.append(f"accelerate must be true or false, not {self.accelerate!r}")
+        if self.pose_draws is not None and self.pose_draws not in POSE_DRAWS:
+            problems.append(f"pose_draws must be one of {', '.join(POSE_DRAWS)}, not {self.pose_draws!r}")
+        elif self.accelerate and self.pose_draws == "random":
+            problems.append(
+                "accelerate=true needs pose_draws=sigma_points: random draws make EM's map noisy, and SQUAREM's "
+                "steps multiply the noise (set accelerate=false for the thesis's EM)"
+            )
         if self.sensor_mount is not None and (
             len(self.sensor_mount) != 3 or not all(math.isfinite(v) for v in self.sensor_mount)
         ):
@@ -372,6 +388,11 @@ class EMConfig:
                 value = replace(getattr(self, key), **value)
             changes[key] = value
         return replace(self, **changes)
+
+    @property
+    def sigma_points(self) -> bool:
+        """Whether the M-step takes its expectations at sigma points (``pose_draws``)."""
+        return (self.pose_draws or ("sigma_points" if self.accelerate else "random")) == "sigma_points"
 
     def channel_configs(self, reading_names: tuple[str, ...]) -> tuple[ChannelConfig, ...]:
         """The configured channels, or the thesis's single height channel for the log's first reading."""

@@ -8,7 +8,11 @@ that likelihood from the forward pass alone, for the searches that only compare 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -30,6 +34,43 @@ from sensact.models.landmark_sensor import LandmarkSensor
 from sensact.reprs import compact_repr
 
 ROBUST_CODES = {"none": GAUSSIAN, "student_t": STUDENT_T, "gate": GATE}
+
+
+@dataclass
+class PassCount:
+    """How many passes over the log a fit ran: E-steps (forward and backward), and the searches' forward
+    passes alone (``log_likelihood``), across the threads of a start race."""
+
+    e_steps: int = 0
+    forward_only: int = 0
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+
+    def add(self, smoothed: bool) -> None:
+        with self._lock:
+            if smoothed:
+                self.e_steps += 1
+            else:
+                self.forward_only += 1
+
+
+_COUNT: ContextVar[PassCount | None] = ContextVar("sensact_e_steps", default=None)
+
+
+@contextmanager
+def counting_passes() -> Iterator[PassCount]:
+    """Counts every E-step and likelihood run inside (threads started with the context copied included)."""
+    count = PassCount()
+    token = _COUNT.set(count)
+    try:
+        yield count
+    finally:
+        _COUNT.reset(token)
+
+
+def _counted(smoothed: bool) -> None:
+    count = _COUNT.get()
+    if count is not None:
+        count.add(smoothed)
 
 
 @dataclass(frozen=True, eq=False)
@@ -90,6 +131,7 @@ def e_step(
 
     ``motion_var`` overrides the model's Sigma_m with one shared diagonal.
     """
+    _counted(True)
     T = data.n_steps
     n = model.prior_mean.size
     use = np.ones(data.n_observations, dtype=np.bool_) if obs_use is None else np.array(obs_use, dtype=np.bool_)
@@ -108,6 +150,7 @@ def log_likelihood(model: EMModel, data: LandmarkLog, *, obs_use: np.ndarray | N
     """``log P(O | C, lambda)`` (eq. 4.14) from the forward pass alone, -inf if the filter fails: the same
     number, bit for bit, as ``e_step(...).loglik``, in a quarter of the time. For searches that compare
     models by their likelihood and smooth only the one they keep."""
+    _counted(False)
     use = np.ones(data.n_observations, dtype=np.bool_) if obs_use is None else np.array(obs_use, dtype=np.bool_)
     status, loglik, *_ = _run_passes(model, data, None, use, 0.0, None)
     return float(loglik) if status == OK and np.isfinite(loglik) else -np.inf

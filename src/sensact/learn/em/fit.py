@@ -7,6 +7,7 @@ moved metres (``searches/given_start.py``); ``face_forward`` turns a range-only 
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from dataclasses import replace as dc_replace
@@ -17,6 +18,7 @@ import numpy as np
 from sensact.errors import ConfigError, LogFormatError
 from sensact.learn.em.checks.lost_signs import LostSign, Unsettled, lost_fit_signs
 from sensact.learn.em.config import EMConfig, refuse_bearing_settings
+from sensact.learn.em.estep import counting_passes
 from sensact.learn.em.initial import initial_model
 from sensact.learn.em.loop import Progress, fit_em_once, held_trial, stage_loglik
 from sensact.learn.em.result import EMResult, HeadingRace, RestartRun, StartMoved
@@ -88,9 +90,17 @@ def fit_em(
     start = initial or initial_model(data, cfg)
     refuse_too_few_readings(start, data)
     heard = Heard(on_restart, on_race, on_start_moved)
+    began = time.perf_counter()
+    with counting_passes() as passes:
+        res = _fit(data, start, cfg, heard, progress)
+    return dc_replace(
+        res, seconds=time.perf_counter() - began, e_steps=passes.e_steps, forward_passes=passes.forward_only
+    )
 
+
+def _fit(data: LandmarkLog, start: EMModel, cfg: EMConfig, heard: Heard, progress: Progress | None) -> EMResult:
     def composed(log: LandmarkLog, settings: EMConfig) -> Fit:
-        fit: Fit = partial(fit_em_once, log, config=settings, progress=progress, on_race=on_race)
+        fit: Fit = partial(fit_em_once, log, config=settings, progress=progress, on_race=heard.on_race)
         for policy in POLICIES:
             fit = policy(fit, log, settings, heard)
         return fit

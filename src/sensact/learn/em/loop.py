@@ -30,6 +30,16 @@ from sensact.learn.em.searches.delay import DelaySearch, search_delay
 from sensact.learn.em.searches.mount_search import MountSearch, search_mount
 from sensact.learn.em.searches.ridge import RidgeSearch, search_ridge
 from sensact.learn.em.searches.start_race import OnTrial, StartSearch, race_starts, start_candidates
+from sensact.learn.em.squarem import (
+    LOGLIK_SLACK,
+    MIN_GAIN,
+    STEP_FACTOR,
+    STEP_MAX_LIMIT,
+    STEP_MAX_START,
+    Coordinates,
+    extrapolate,
+    step_length,
+)
 from sensact.learn.em.stage import HELD, NO_MOUNT, Stage, holds_anything, plan_stages
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
@@ -50,6 +60,7 @@ class _Trace:
     best_ll: float = -np.inf
     best_it: int = -1
     best_post: Posteriors | None = None
+    bests: list[float] = field(default_factory=list)  # the best likelihood after each iteration
 
     def record(self, it: int, model: EMModel, post: Posteriors) -> None:
         self.logliks.append(post.loglik)
@@ -57,6 +68,13 @@ class _Trace:
         self.sigmas.append([c.sigma for c in model.sensor.channels] + [model.sensor.sigma_bearing_rad or np.nan])
         self.motion_sds.append(model.motion_sd.copy())
         self.keep_if_best(it, model, post)
+        self.bests.append(self.best_ll)
+
+    def gained(self, it: int, since: int) -> float:
+        """How much the best likelihood rose over the iterations ``since..it`` (inf when it was reset there)."""
+        if since < 0 or since >= len(self.bests) or not np.isfinite(self.bests[since]):
+            return np.inf
+        return self.bests[it] - self.bests[since]
 
     def keep_if_best(self, it: int, model: EMModel, post: Posteriors) -> None:
         if post.loglik > self.best_ll:
@@ -88,6 +106,7 @@ class _Searches:
     ridge: list[RidgeSearch] = field(default_factory=list)
     delay: list[DelaySearch] = field(default_factory=list)
     mount: list[MountSearch] = field(default_factory=list)
+    last: int = -1  # the iteration they last ran at
 
     @classmethod
     def for_fit(
@@ -101,12 +120,14 @@ class _Searches:
 
     def due(self, it: int, stage_ends: bool, since: int | None) -> bool:
         """``since``: the iteration the last stage began at (None before it)."""
-        again = since is not None and it > since and (it - since) % self.cfg.search.every == 0
+        # every ``every`` iterations from the stage's start (an accelerated loop visits some iterations only)
+        again = since is not None and it - max(since, self.last) >= self.cfg.search.every
         return (self.ridge_on or self.delay_on or any(self.mount_free)) and (stage_ends or again)
 
     def run(
         self, it: int, model: EMModel, post: Posteriors, obs_use: np.ndarray, robust: bool
     ) -> tuple[EMModel, Posteriors]:
+        self.last = it
         evaluate = partial(_stage_e_step, data=self.data, obs_use=obs_use, robust=robust)
         score = partial(stage_loglik, data=self.data, obs_use=obs_use, robust=robust)
         if self.ridge_on:
@@ -139,6 +160,8 @@ class _Run:
     obs_use: np.ndarray | None = None
     n_late: int = 0
     began: list[tuple[str, int]] = field(default_factory=list)
+    accelerated: int = 0  # SQUAREM's steps kept
+    peaked: bool = False  # the accelerated loop's last EM step lowered the likelihood
 
     @property
     def current(self) -> Stage:
@@ -147,6 +170,17 @@ class _Run:
     @property
     def last(self) -> bool:
         return self.stage == len(self.stages) - 1
+
+    def move_to(self, model: EMModel) -> None:
+        """``model`` is lambda from here; the next E-step reads a learned map from it."""
+        self.model = model
+        if model.landmarks is not None:
+            self.data = self.searches.data = self.data.with_landmarks(model.landmarks.xy)
+
+    def loglik(self, model: EMModel) -> float:
+        """``model``'s likelihood in this stage, from the forward pass alone."""
+        data = self.data if model.landmarks is None else self.data.with_landmarks(model.landmarks.xy)
+        return stage_loglik(model, data, self.obs_use, self.current.robust)
 
     def e_step(self, it: int) -> Posteriors:
         """Sec. 4.2's E-step in this stage; in the first iteration the gate of sec. 4.4.1 (per frame)."""
@@ -169,7 +203,15 @@ class _Run:
 
     def stage_ends(self, it: int) -> bool:
         s = self.current
-        converged = self.patience is not None and it - max(self.trace.best_it, self.freed_at) >= self.patience
+        patience = self.patience or 0
+        stale = it - max(self.trace.best_it, self.freed_at) >= patience
+        if self.cfg.accelerate and it - patience > max(self.freed_at, 0):
+            # a deterministic map creeps: new bests by next to nothing do not keep it going
+            stale |= self.trace.gained(it, it - patience) < MIN_GAIN
+        converged = self.patience is not None and stale
+        # a held stage or a race's trial is scored by its best: once EM's own step lowers the likelihood,
+        # its best is behind it (accelerated; docs/em-real.md, "Start pose")
+        converged |= self.peaked and (self.patience is None or s.ends_by is not None)
         return converged or (s.ends_by is not None and it >= s.ends_by)
 
     def search_if_due(self, it: int, post: Posteriors, stage_ends: bool) -> Posteriors:
@@ -179,11 +221,12 @@ class _Run:
         self.model, post = self.searches.run(it, self.model, post, self.obs_use, robust=self.current.robust)
         self.trace.logliks[-1] = post.loglik  # lambda_it is now the moved model (its likelihood before: info)
         self.trace.keep_if_best(it, self.model, post)
+        self.trace.bests[-1] = self.trace.best_ll
         return post
 
     def next_stage(self, it: int, post: Posteriors) -> Posteriors:
         was_robust = self.current.robust
-        self.stage, self.freed_at = self.stage + 1, it
+        self.stage, self.freed_at, self.peaked = self.stage + 1, it, False
         self.began.append((self.current.name, it))
         return post if was_robust else self._robust_take_over(post)
 
@@ -198,27 +241,31 @@ class _Run:
             self.obs_use = post.obs_used
         return post
 
-    def m_step(self, post: Posteriors, floor: np.ndarray) -> EMModel:
-        """Sec. 4.3's M-step, moving what this stage frees."""
+    def m_step(
+        self, post: Posteriors, floor: np.ndarray, rng: np.random.Generator | None = None, delay_free: bool = True
+    ) -> EMModel:
+        """Sec. 4.3's M-step from lambda's posteriors, moving what this stage frees (``delay_free`` False:
+        lambda's command delay kept); the model is not yet lambda (``move_to``)."""
         s, n = self.current, self.model.prior_mean.size
-        model = m_step(
+        return m_step(
             post,
             self.data,
             self.model,
             n_samples=self.cfg.thesis.samples_per_frame,
             floor_var=floor,
-            rng=self.rng,
+            rng=self.rng if rng is None else rng,
             stage=s,
             motion_floor_sd=motion_sd_floor(self.cfg, n),
-            max_delay_steps=self.searches.max_delay,
+            max_delay_steps=self.searches.max_delay if delay_free else 0,
+            sigma_points=self.cfg.sigma_points,
         )
-        if model.landmarks is not None:  # the next E-step reads the map just learned
-            self.data = self.searches.data = self.data.with_landmarks(model.landmarks.xy)
-        return model
 
 
 def em_loop(run: _Run, iterations: int, progress: Progress | None = None) -> str:
-    """The thesis's loop (secs. 4.1, 4.4.1): E-step, M-step, until the last stage converges; why it stopped."""
+    """The thesis's loop (secs. 4.1, 4.4.1): E-step, M-step, until the last stage converges; why it stopped.
+    Accelerated (``accelerate``), ``squarem_loop``."""
+    if run.cfg.accelerate:
+        return squarem_loop(run, iterations, progress)
     floor = prior_floor_var(run.cfg, run.model.prior_mean.size)
     try:
         for it in range(iterations):
@@ -234,10 +281,108 @@ def em_loop(run: _Run, iterations: int, progress: Progress | None = None) -> str
                 post = run.next_stage(it, post)
             elif run.stage_ends(it):
                 return "converged"
-            run.model = run.m_step(post, floor)
+            run.move_to(run.m_step(post, floor))
     except KeyboardInterrupt:
         return "interrupted"
     return "max_iterations"
+
+
+def squarem_loop(run: _Run, iterations: int, progress: Progress | None = None) -> str:
+    """``em_loop`` with SQUAREM's cycles (``squarem.py``): from lambda_0, two EM steps, S3's step from the
+    three, and an EM step from there that begins the next cycle. Every E-step on EM's path is an iteration,
+    and is recorded; stages, searches and the stop are judged at each cycle's lambda_0, as ``em_loop`` judges
+    each of its own. Within a cycle the discrete choices are frozen: the M-steps keep lambda_1's command
+    delay and read the same sightings. A step whose likelihood falls more
+    than ``LOGLIK_SLACK`` below lambda_0's is refused, and EM goes on from lambda_2."""
+    floor = prior_floor_var(run.cfg, run.model.prior_mean.size)
+    step_max, it = STEP_MAX_START, 0
+
+    def evaluate(model: EMModel) -> Posteriors | None:
+        """lambda := ``model`` and its E-step (None at the iteration budget)."""
+        if it >= iterations:
+            return None
+        run.move_to(model)
+        return run.e_step(it)
+
+    def keep(model: EMModel, post: Posteriors) -> None:
+        """``model`` is lambda_it: EM's path goes through it."""
+        nonlocal it
+        if post.ok:
+            run.trace.record(it, model, post)
+            if progress is not None:
+                progress(it, post.loglik, run.trace.best_ll, it - run.trace.best_it)
+        it += 1
+
+    def visit(model: EMModel) -> Posteriors | None:
+        post = evaluate(model)
+        if post is not None:
+            keep(model, post)
+        return post
+
+    try:
+        post = visit(run.model)
+        while post is not None:
+            if not post.ok:
+                return "diverged"
+            at = it - 1
+            ending = not run.last and run.stage_ends(at)
+            post = run.search_if_due(at, post, ending)
+            if ending:
+                post = run.next_stage(at, post)
+            elif run.stage_ends(at):
+                return "converged"
+            start, post0 = run.model, post
+            m1 = run.m_step(post0, floor)
+            post1 = visit(m1)
+            if post1 is None or not post1.ok:
+                post = post1
+                continue
+            run.peaked = post1.loglik < post0.loglik
+            m2 = run.m_step(post1, floor, delay_free=False)
+            step, a = _s3_step(start, m1, m2, step_max, post0, post1, run.data)
+            if step is not m2 and not run.loglik(step) >= post0.loglik - LOGLIK_SLACK:  # a forward pass each
+                step_max = max(STEP_MAX_START, step_max / STEP_FACTOR)
+                while step is not m2 and not run.loglik(step) >= post0.loglik - LOGLIK_SLACK:
+                    step, a = _s3_step(start, m1, m2, a / STEP_FACTOR, post0, post1, run.data)  # back along S3's path
+            elif a >= step_max:
+                step_max = min(step_max * STEP_FACTOR, STEP_MAX_LIMIT)
+            post_s = visit(step)
+            if post_s is None or not post_s.ok:
+                post = post_s
+                continue
+            run.accelerated += step is not m2
+            post = visit(run.m_step(post_s, floor, delay_free=False))
+    except KeyboardInterrupt:
+        return "interrupted"
+    return "max_iterations"
+
+
+def _s3_step(
+    start: EMModel,
+    m1: EMModel,
+    m2: EMModel,
+    step_max: float,
+    post0: Posteriors,
+    post1: Posteriors,
+    data: LandmarkLog,
+) -> tuple[EMModel, float]:
+    """S3's extrapolated model and its step length (``m2`` itself at length 1); ``m2`` and 0 where the cycle
+    changed a discrete choice (the delay, the sightings read), and ``m2`` where the step leaves the valid
+    models."""
+    same = start.action.delay_steps == m1.action.delay_steps == m2.action.delay_steps and np.array_equal(
+        post0.obs_used, post1.obs_used
+    )
+    if not same:
+        return m2, 0.0
+    coords = Coordinates.about(start, data)
+    x0, x1, x2 = coords.vector(start), coords.vector(m1), coords.vector(m2)
+    a = step_length(x0, x1, x2, step_max)
+    if a <= 1.0:
+        return m2, a
+    try:
+        return coords.model(extrapolate(x0, x1, x2, a)), a
+    except (ValueError, np.linalg.LinAlgError):
+        return m2, 0.0
 
 
 def prior_floor_var(cfg: EMConfig, n: int) -> np.ndarray:
@@ -301,6 +446,7 @@ def run_stages(
         mount=freedom,
         mount_search=searches.mount or None,
         stages=tuple(run.began),
+        accelerated=run.accelerated,
     )
 
 

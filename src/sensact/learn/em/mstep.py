@@ -21,10 +21,16 @@ from sensact.models.landmark_map import LandmarkMap
 from sensact.models.landmark_sensor import MIN_SIGMA, LandmarkSensor, reading_features
 
 
-def sample_gamma(post: Posteriors, steps: np.ndarray, n_samples: int, rng: np.random.Generator) -> np.ndarray:
-    """``n_samples`` poses per step from N(mu_gamma,t, Sigma_gamma,t) as mu + L z (sec. 4.3.2).
+def sample_gamma(
+    post: Posteriors, steps: np.ndarray, n_samples: int, rng: np.random.Generator, sigma_points: bool = False
+) -> np.ndarray:
+    """``n_samples`` poses per step from N(mu_gamma,t, Sigma_gamma,t) as mu + L z (sec. 4.3.2); with
+    ``sigma_points``, instead the 2n points ``z = +-sqrt(n) e_i`` of the unscented transform, which have
+    the posterior's mean and covariance exactly: the M-step is then a deterministic map, as SQUAREM needs
+    (``squarem.py``), and its expectations are those of infinitely many samples to third order.
 
-    Returns ``(n_samples, len(steps), n)``. numpy's normal generator stands in for Box-Muller.
+    Returns ``(n_samples, len(steps), n)`` (``(2n, len(steps), n)``). numpy's normal generator stands in
+    for Box-Muller.
     Any square root L of Sigma_gamma draws the same poses in distribution. On a plane L is the
     Cholesky factor of the covariance in the robot's own frame (at the mean heading), turned into the
     map's: then a map turned together with its log draws the same poses turned, so the learned model
@@ -35,17 +41,20 @@ def sample_gamma(post: Posteriors, steps: np.ndarray, n_samples: int, rng: np.ra
     n = mu.shape[1]
     if n == 3:
         c, s = np.cos(mu[:, 2]), np.sin(mu[:, 2])
-        cov = _into_robot_frame(cov, c, s)
+        cov = into_robot_frame(cov, c, s)
     jitter = 1e-12 * np.maximum(np.trace(cov, axis1=1, axis2=2), 1e-300)[:, None, None] * np.eye(n)
     L = np.linalg.cholesky(cov + jitter)
-    z = rng.standard_normal((n_samples, len(steps), n))
+    if sigma_points:
+        z = np.broadcast_to(np.sqrt(n) * np.r_[np.eye(n), -np.eye(n)][:, None, :], (2 * n, len(steps), n))
+    else:
+        z = rng.standard_normal((n_samples, len(steps), n))
     offsets = np.einsum("kij,skj->ski", L, z)
     if n == 3:  # the robot-frame offsets, applied at the mean pose as a motion is
         return np.stack([apply_displacement(mu, d) for d in offsets])
     return mu[None] + offsets
 
 
-def _into_robot_frame(cov: np.ndarray, c: np.ndarray, s: np.ndarray) -> np.ndarray:
+def into_robot_frame(cov: np.ndarray, c: np.ndarray, s: np.ndarray) -> np.ndarray:
     """``T' Sigma T`` for each planar pose covariance, ``T`` the turn by the heading (cos ``c``, sin
     ``s``) in x-y; written out, since numpy's batched 3 x 3 products are several times slower."""
     out = cov.copy()
@@ -67,6 +76,7 @@ def sensor_and_map(
     fit_bearing_terms: bool = True,
     mount_free: tuple[bool, bool, bool] = (False, False, False),
     landmarks: LandmarkMap | None = None,
+    sigma_points: bool = False,
 ) -> tuple[LandmarkSensor, LandmarkMap | None]:
     """Eq. 4.25 (each f_i by regression on sampled distances), eq. 4.27 (each sigma_i) and eq. 4.28
     (sigma_2), over the readings the E-step used.
@@ -86,7 +96,8 @@ def sensor_and_map(
     rows = np.flatnonzero(weights.any(axis=1))
     if rows.size == 0:
         return previous, landmarks
-    poses = sample_gamma(post, data.obs_step[rows], n_samples, rng)  # (S, R, n)
+    poses = sample_gamma(post, data.obs_step[rows], n_samples, rng, sigma_points)  # (S, R, n)
+    n_samples = len(poses)
     readings = channel_inputs(previous, data)[0][rows]
     bearings = data.obs_bearing_rad[rows]
     if any(mount_free):
@@ -176,6 +187,7 @@ def m_step(
     stage: Stage,
     motion_floor_sd: np.ndarray | None = None,
     max_delay_steps: int = 0,
+    sigma_points: bool = False,
 ) -> EMModel:
     """Every update of sec. 4.3 that ``stage`` allows (its contract: Sigma_m, shared or per action as the
     model's ``motion_sd`` has one row or one per action; the channels' bearing terms; the mount's free
@@ -199,7 +211,7 @@ def m_step(
             motion_sd[0, 2] = np.sqrt(a)
     learned = model.landmarks if stage.landmarks else None
     sensor, landmarks = sensor_and_map(
-        post, data, n_samples, rng, model.sensor, stage.bearing_terms, stage.mount, learned
+        post, data, n_samples, rng, model.sensor, stage.bearing_terms, stage.mount, learned, sigma_points
     )
     mean0, cov0 = prior(post, floor_var)
     if model.landmarks is not None:

@@ -82,6 +82,10 @@ class EMResult:
     mount: MountFreedom | None = None
     mount_search: list[MountSearch] | None = None  # each mount search (mount.search_mount)
     stages: tuple[tuple[str, int], ...] = ()  # each stage EM ran (loop.Stage) and the iteration it began at
+    # the whole fit's passes over the log (estep.counting_passes): E-steps, and the searches' forward passes
+    e_steps: int = 0
+    forward_passes: int = 0
+    accelerated: int = 0  # SQUAREM's steps beyond plain EM's that were kept (squarem.py)
 
     @property
     def iterations(self) -> int:
@@ -120,6 +124,11 @@ class EMResult:
             # how far the likelihood fell on average after the best, per sighting used (checks/lost_signs.unsettled_fit)
             "fall_per_sighting": fall_per_sighting(self.loglik_history, self.best_iteration, self.n_used),
             "seconds": self.seconds,
+            # E-steps run, the searches' and the start race's included; the likelihoods that need only the
+            # forward pass (a quarter of an E-step's time: the start grid, the searches, SQUAREM's safeguard) apart
+            "e_steps": self.e_steps,
+            "forward_passes": self.forward_passes,
+            "accelerated_steps": self.accelerated,
             "start_search": to_json(self.start_search),
             "freed_at": self.freed_at,
             "stages": [{"stage": name, "from_iteration": it} for name, it in self.stages],

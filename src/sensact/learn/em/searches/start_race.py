@@ -26,6 +26,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from contextvars import copy_context
 from dataclasses import dataclass
 from typing import Any
 
@@ -216,7 +217,10 @@ def race_starts(
                 if on_trial is not None:
                     on_trial(done, planned)
             results = {}
-            for i, res in zip(to_run, pool.map(lambda i: run(data, models[i], trial), to_run), strict=True):
+            # each trial in a copy of this context: a fit's pass count (estep.counting_passes) sees its threads
+            contexts = [copy_context() for _ in to_run]
+            trials = pool.map(lambda i, ctx: ctx.run(run, data, models[i], trial), to_run, contexts)
+            for i, res in zip(to_run, trials, strict=True):
                 results[i] = res
                 done += 1
                 if on_trial is not None:
