@@ -5,7 +5,8 @@ A simulated differential drive with a camera (``DiffDriveConfig``, shortened to 
 commands, map and sighting times; the model EM learns on it is the truth. Each of ``sims`` seeded logs
 is drawn from that truth (``learn.em.simulate``), learned by EM from the thesis's poor start as `learn em`
 learns it, and given error bars by ``replicates`` bootstrap replicates (``learn.em.uncertainty``). Per
-parameter family, the share of intervals that hold the true value should be near 90 %: the bar is 80-97 %.
+parameter family, the share of intervals that hold the true value should be near 90 %: the bar is 85-95 %
+(Sigma_m's 85-97 %).
 Each log is a job of the engine (its replicates run inside it, one after another).
 """
 
@@ -27,7 +28,9 @@ from sensact.models.em_model import EMModel
 from sensact.records import JsonObject
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
-COVERAGE_BAR = (0.80, 0.97)  # issue 76: each family's 90 % intervals hold the truth 80-97 % of the time
+# issue 94: each family's 90 % intervals hold the truth 85-95 % of the time; Sigma_m's 85-97 %
+COVERAGE_BAR = (0.85, 0.95)
+FAMILY_BARS = {"Sigma_m": (0.85, 0.97)}
 
 
 @dataclass(frozen=True)
@@ -51,9 +54,10 @@ def truth_of(exp: CoverageExperiment) -> tuple[Any, EMModel, EMConfig]:
 
 def coverage_trial(
     template: Any, truth: EMModel, config: EMConfig, seed: int, replicates: int, *, progress: Any = None
-) -> tuple[Uncertainty, dict[str, float]]:
-    """One log drawn from ``truth`` (``seed``), learned from the poor start and bootstrapped: its error bars
-    and the true parameters (f read at the same distances)."""
+) -> tuple[Uncertainty, dict[str, float], list[dict[str, float]]]:
+    """One log drawn from ``truth`` (``seed``), learned from the poor start and bootstrapped: its error bars,
+    the true parameters (f read at the same distances) and the replicates' own parameters (so that any
+    other interval can be judged from the file)."""
     drawn, _ = simulate_from_model(truth, template, seed)
     res = fit_em(drawn, None, config)
     f_at = tuple(float(d) for d in f_distances(res.model, drawn, res.posteriors.mean_gamma))
@@ -66,13 +70,14 @@ def coverage_trial(
         except ValueError as exc:  # EM diverged on the replicate: left out, as `--uncertainty` leaves it
             draws.append(str(exc))
     truth_values = {name: value for name, (_, value) in model_parameters(truth, f_at).items()}
-    return summarize_draws(res.model, draws, f_at, 10_000 * seed), truth_values
+    used = [d for d in draws if not isinstance(d, str)]
+    return summarize_draws(res.model, draws, f_at, 10_000 * seed), truth_values, used
 
 
 def scorecard(out: JsonObject) -> list[BarCheck]:
-    low, high = COVERAGE_BAR
     checks = []
     for family in FAMILIES:
+        low, high = FAMILY_BARS.get(family, COVERAGE_BAR)
         c = out["coverage"][family]
         if not c["intervals"]:
             continue
@@ -110,13 +115,17 @@ def run_coverage(
     fits = (engine or InProcess()).run(jobs, on_done=on_done)
     out: JsonObject = {
         "experiment": "uncertainty",
-        "coverage": coverage(fits),
+        "coverage": coverage([(u, t) for u, t, _ in fits]),
         "bar": list(COVERAGE_BAR),
+        "bars": {family: list(FAMILY_BARS.get(family, COVERAGE_BAR)) for family in FAMILIES},
         "level": 0.9,
         "sims": exp.sims,
         "replicates": exp.replicates,
         "truth": {name: value for name, (_, value) in model_parameters(truth, fits[0][0].f_at_mm).items()},
-        "logs": [{"seed": s, "uncertainty": u.to_dict(), "truth": t} for s, (u, t) in zip(seeds, fits, strict=True)],
+        "logs": [
+            {"seed": s, "uncertainty": u.to_dict(), "truth": t, "replicates": d}
+            for s, (u, t, d) in zip(seeds, fits, strict=True)
+        ],
         "config": {"simulator": config_to_dict(exp.simulator), "learner": config_to_dict(config)},
     }
     out["scorecard"] = [c.to_dict() for c in scorecard(out)]
