@@ -392,7 +392,7 @@ def _reproduce_uncertainty(out: Path, sims: int, seed: int, engine: Any) -> None
     ]
     title = (
         f"90 % intervals holding the truth over {res['sims']} simulated logs, {res['replicates']} replicates each "
-        "(bar 80-97 %)"
+        "(bar 85-95 %, Sigma_m's 85-97 %)"
     )
     write_results(out, "uncertainty", res, [(title, ["family", "covered", "intervals", "share"], rows)])
     console.print(f"wrote {out / 'uncertainty.json'} and {out / 'uncertainty.md'} ({res['seconds']:.1f} s)")

@@ -5,9 +5,7 @@ reports point estimates).
 map and sighting times), and each is learned again as the log was: from the same start (the thesis's
 poor guess, or the learned model `--start-from` placed), with the same settings. The spread of the ``B``
 estimates is each parameter's standard error; the 90 % interval is the basic bootstrap's in its normal
-form, ``(2 theta_hat - mean*) +- z_0.95 SE``, which takes out the bias the replicates show. A standard
-deviation (``sigma``, ``Sigma_m``) gets it on its logarithm, mapped back: its error is relative, its
-replicates skewed, and its interval stays positive.
+form, ``(2 theta_hat - mean*) +- z_0.95 SE``, which takes out the bias the replicates show.
 
 Each replicate runs the whole procedure, not EM on from the learned model: EM creeps along flat
 directions of the likelihood (Sigma_m's above all) and stops by patience before it gets far, so
@@ -40,7 +38,6 @@ from sensact.records import JsonObject
 LEVEL = 0.90
 Z = 1.6448536269514722  # the standard normal's 95th percentile: a two-sided 90 % interval
 FAMILIES = ("action", "f", "sigma", "Sigma_m", "mount")
-LOG_SCALE = ("sigma", "Sigma_m")  # standard deviations: the basic bootstrap on their logarithms (issue 94)
 F_QUANTILES = (0.1, 0.5, 0.9)  # where f is read: the 10th, 50th and 90th percentile of the sightings' distances
 
 
@@ -182,13 +179,7 @@ def summarize(
         se = float(np.std(values, ddof=1))
         bias = float(np.mean(values) - value)
         center = value - bias
-        interval = (center - Z * se, center + Z * se)
-        if family in LOG_SCALE and value > 0 and np.all(values > 0):  # a scale: its error is relative
-            logs = np.log(values)
-            mid = 2.0 * np.log(value) - float(np.mean(logs))
-            half = Z * float(np.std(logs, ddof=1))
-            interval = (float(np.exp(mid - half)), float(np.exp(mid + half)))
-        params.append(Parameter(name, family, value, se, interval, bias))
+        params.append(Parameter(name, family, value, se, (center - Z * se, center + Z * se), bias))
     return Uncertainty(len(draws), len(used), seed, tuple(float(d) for d in f_at), tuple(params), failed)
 
 
