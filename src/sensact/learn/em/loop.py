@@ -37,8 +37,7 @@ from sensact.learn.em.squarem import (
     STEP_MAX_LIMIT,
     STEP_MAX_START,
     Coordinates,
-    extrapolate,
-    step_length,
+    S3Path,
 )
 from sensact.learn.em.stage import HELD, NO_MOUNT, Stage, holds_anything, plan_stages
 from sensact.logs.landmark_log import LandmarkLog
@@ -339,11 +338,14 @@ def squarem_loop(run: _Run, iterations: int, progress: Progress | None = None) -
                 continue
             run.peaked = post1.loglik < post0.loglik
             m2 = run.m_step(post1, floor, delay_free=False)
-            step, a = _s3_step(start, m1, m2, step_max, post0, post1, run.data)
+            path = _s3_path(start, m1, m2, post0, post1, run.data)
+            step, a = (m2, 0.0) if path is None else _at(path, path.length(step_max), m2)
             if step is not m2 and not run.loglik(step) >= post0.loglik - LOGLIK_SLACK:  # a forward pass each
                 step_max = max(STEP_MAX_START, step_max / STEP_FACTOR)
-                while step is not m2 and not run.loglik(step) >= post0.loglik - LOGLIK_SLACK:
-                    step, a = _s3_step(start, m1, m2, a / STEP_FACTOR, post0, post1, run.data)  # back along S3's path
+                while step is not m2:  # back along S3's path
+                    step, a = _at(path, max(a / STEP_FACTOR, 1.0), m2)
+                    if step is m2 or run.loglik(step) >= post0.loglik - LOGLIK_SLACK:
+                        break
             elif a >= step_max:
                 step_max = min(step_max * STEP_FACTOR, STEP_MAX_LIMIT)
             post_s = visit(step)
@@ -357,32 +359,22 @@ def squarem_loop(run: _Run, iterations: int, progress: Progress | None = None) -
     return "max_iterations"
 
 
-def _s3_step(
-    start: EMModel,
-    m1: EMModel,
-    m2: EMModel,
-    step_max: float,
-    post0: Posteriors,
-    post1: Posteriors,
-    data: LandmarkLog,
-) -> tuple[EMModel, float]:
-    """S3's extrapolated model and its step length (``m2`` itself at length 1); ``m2`` and 0 where the cycle
-    changed a discrete choice (the delay, the sightings read), and ``m2`` where the step leaves the valid
-    models."""
+def _s3_path(
+    start: EMModel, m1: EMModel, m2: EMModel, post0: Posteriors, post1: Posteriors, data: LandmarkLog
+) -> S3Path | None:
+    """The cycle's S3 path, or None where it changed a discrete choice (the delay, the sightings read)."""
     same = start.action.delay_steps == m1.action.delay_steps == m2.action.delay_steps and np.array_equal(
         post0.obs_used, post1.obs_used
     )
-    if not same:
-        return m2, 0.0
-    coords = Coordinates.about(start, data)
-    x0, x1, x2 = coords.vector(start), coords.vector(m1), coords.vector(m2)
-    a = step_length(x0, x1, x2, step_max)
+    return S3Path.through(Coordinates.about(start, data), (start, m1, m2)) if same else None
+
+
+def _at(path: S3Path, a: float, m2: EMModel) -> tuple[EMModel, float]:
+    """S3's model at length ``a`` (``m2`` itself at 1) and ``a``; ``m2`` and 0 where that is no model."""
     if a <= 1.0:
         return m2, a
-    try:
-        return coords.model(extrapolate(x0, x1, x2, a)), a
-    except (ValueError, np.linalg.LinAlgError):
-        return m2, 0.0
+    model = path.model_at(a)
+    return (m2, 0.0) if model is None else (model, a)
 
 
 def prior_floor_var(cfg: EMConfig, n: int) -> np.ndarray:

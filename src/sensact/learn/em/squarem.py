@@ -164,3 +164,26 @@ def extrapolate(x0: np.ndarray, x1: np.ndarray, x2: np.ndarray, a: float) -> np.
     """S3's step ``lambda_0 + 2 a r + a^2 v``."""
     r, v = x1 - x0, x2 - 2.0 * x1 + x0
     return x0 + 2.0 * a * r + a * a * v
+
+
+@dataclass(frozen=True, eq=False)
+class S3Path:
+    """One cycle's ``lambda_0``, ``lambda_1``, ``lambda_2`` on ``coords``: S3's steps along them."""
+
+    coords: Coordinates
+    x: tuple[np.ndarray, np.ndarray, np.ndarray]
+
+    @classmethod
+    def through(cls, coords: Coordinates, models: tuple[EMModel, EMModel, EMModel]) -> S3Path:
+        x0, x1, x2 = (coords.vector(m) for m in models)
+        return cls(coords, (x0, x1, x2))
+
+    def length(self, step_max: float) -> float:
+        return step_length(*self.x, step_max)
+
+    def model_at(self, a: float) -> EMModel | None:
+        """The model S3's step of length ``a`` reaches (None where it is no valid model)."""
+        try:
+            return self.coords.model(extrapolate(*self.x, a))
+        except (ValueError, np.linalg.LinAlgError):
+            return None
