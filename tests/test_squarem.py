@@ -96,7 +96,6 @@ def test_settings_refuse_squarem_on_random_draws():
     assert EMConfig.of(accelerate=True).sigma_points and EMConfig.of(pose_draws="sigma_points").sigma_points
 
 
-@pytest.mark.slow
 def test_squarem_reaches_plain_em_s_fixed_point_in_fewer_e_steps(field):
     """Seeded recovery: the same log, the same start, the same deterministic map; SQUAREM's fit is as
     likely as plain EM's (within 1.0, or above) and its model the same to well within the truth's errors."""
