@@ -29,7 +29,7 @@ def learned(field):
 
 def test_coordinates_round_trip_exactly(learned, field):
     data = field[2]
-    coords = Coordinates.about(learned, data)
+    coords = Coordinates.about(learned, data, np.ones(np.size(learned.action.parameters), bool))
     x = coords.vector(learned)
     back = coords.model(x)
     np.testing.assert_allclose(coords.vector(back), x, rtol=1e-12, atol=1e-12)
@@ -52,7 +52,7 @@ def test_f_is_a_vector_whatever_its_centre_and_scale(learned, field):
     coef = np.polynomial.polynomial.polyfit((x - f.center - 100.0) / (2 * f.scale), f(x), f.degree)
     moved = replace(f, coef=tuple(coef), center=f.center + 100.0, scale=2 * f.scale)
     other = learned.replace(sensor=replace(learned.sensor, channels=(replace(ch, function=moved),)))
-    coords = Coordinates.about(learned, data)
+    coords = Coordinates.about(learned, data, np.ones(np.size(learned.action.parameters), bool))
     np.testing.assert_allclose(coords.vector(other), coords.vector(learned), rtol=1e-9, atol=1e-9)
 
 

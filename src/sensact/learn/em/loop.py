@@ -366,7 +366,11 @@ def _s3_path(
     same = start.action.delay_steps == m1.action.delay_steps == m2.action.delay_steps and np.array_equal(
         post0.obs_used, post1.obs_used
     )
-    return S3Path.through(Coordinates.about(start, data), (start, m1, m2)) if same else None
+    if not same:
+        return None
+    p0, p1, p2 = (np.asarray(m.action.parameters, dtype=float).ravel() for m in (start, m1, m2))
+    moving = (p0 != p1) | (p1 != p2)  # a held parameter (a zero mean) stays exactly where it is
+    return S3Path.through(Coordinates.about(start, data, moving), (start, m1, m2))
 
 
 def _at(path: S3Path, a: float, m2: EMModel) -> tuple[EMModel, float]:

@@ -56,22 +56,24 @@ class Coordinates:
     # the parameters that no sampled velocity shows
     velocity_map: np.ndarray
 
+    moving: np.ndarray  # (p,) bool: the action parameters the cycle moved; the rest stay exactly as they are
+
     @classmethod
-    def about(cls, template: EMModel, data: CommandLog) -> Coordinates:
+    def about(cls, template: EMModel, data: CommandLog, moving: np.ndarray) -> Coordinates:
         a = template.action
         shape = np.shape(a.parameters)
         steps = np.unique(np.linspace(0, data.n_steps - 1, min(ACTION_STEPS, data.n_steps)).astype(int))
         zero = a.with_parameters(np.zeros(shape)).step_velocity(data)[steps]
         cols = []
-        for j in range(int(np.prod(shape))):
+        for j in np.flatnonzero(moving):
             unit = np.zeros(int(np.prod(shape)))
             unit[j] = 1.0
             cols.append((a.with_parameters(unit.reshape(shape)).step_velocity(data)[steps] - zero).ravel())
-        J = np.stack(cols, axis=1) / np.sqrt(len(steps))
+        J = np.stack(cols, axis=1).reshape(-1, len(cols)) / np.sqrt(len(steps))
         # parameters no sampled step shows (a table's rare action): their own values, beside the velocities
         _, sv, vt = np.linalg.svd(J, full_matrices=True)
         rank = int(np.sum(sv > sv.max(initial=0.0) * 1e-10))
-        return cls(template, np.vstack([J, vt[rank:]]))
+        return cls(template, np.vstack([J, vt[rank:]]), np.asarray(moving, dtype=bool))
 
     def _turn(self, cov: np.ndarray, back: bool = False) -> np.ndarray:
         if cov.shape[0] != 3:
@@ -84,7 +86,7 @@ class Coordinates:
         return None if lm is None else lm.learned & np.isfinite(lm.xy).all(axis=1)
 
     def vector(self, model: EMModel) -> np.ndarray:
-        parts = [self.velocity_map @ np.asarray(model.action.parameters, dtype=float).ravel()]
+        parts = [self.velocity_map @ np.asarray(model.action.parameters, dtype=float).ravel()[self.moving]]
         for ch, t in zip(model.sensor.channels, self.template.sensor.channels, strict=True):
             parts += [ch.function(_knots(t.function)), np.asarray(ch.bearing_terms, dtype=float), [np.log(ch.sigma)]]
         if model.sensor.sigma_bearing_rad is not None:
@@ -111,7 +113,8 @@ class Coordinates:
             return x[at - n : at]
 
         shape = np.shape(t.action.parameters)
-        beta = np.linalg.lstsq(self.velocity_map, take(self.velocity_map.shape[0]), rcond=None)[0]
+        beta = np.asarray(t.action.parameters, dtype=float).ravel().copy()
+        beta[self.moving] = np.linalg.lstsq(self.velocity_map, take(self.velocity_map.shape[0]), rcond=None)[0]
         action = t.action.with_parameters(beta.reshape(shape))
         channels = []
         for ch in t.sensor.channels:
