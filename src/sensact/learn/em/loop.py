@@ -240,9 +240,7 @@ class _Run:
             self.obs_use = post.obs_used
         return post
 
-    def m_step(
-        self, post: Posteriors, floor: np.ndarray, rng: np.random.Generator | None = None, delay_free: bool = True
-    ) -> EMModel:
+    def m_step(self, post: Posteriors, floor: np.ndarray, delay_free: bool = True) -> EMModel:
         """Sec. 4.3's M-step from lambda's posteriors, moving what this stage frees (``delay_free`` False:
         lambda's command delay kept); the model is not yet lambda (``move_to``)."""
         s, n = self.current, self.model.prior_mean.size
@@ -252,7 +250,7 @@ class _Run:
             self.model,
             n_samples=self.cfg.thesis.samples_per_frame,
             floor_var=floor,
-            rng=self.rng if rng is None else rng,
+            rng=self.rng,
             stage=s,
             motion_floor_sd=motion_sd_floor(self.cfg, n),
             max_delay_steps=self.searches.max_delay if delay_free else 0,
