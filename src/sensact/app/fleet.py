@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from sensact.app.uncertainty import ErrorBars
 from sensact.engine import Progress
 from sensact.errors import ConfigError
 from sensact.evaluate.bars import BARS, bar_checks
@@ -60,7 +61,7 @@ class LearnOptions:
     config: Path | None = None  # a settings YAML (where each worker can read it)
     sets: tuple[str, ...] = ()
     report: bool = True  # report.html beside each model
-    uncertainty: int | None = None  # `--uncertainty B`: the bootstrap's replicates, run in the log's own job
+    uncertainty: ErrorBars | None = None  # `--uncertainty`: the error bars, in the log's own job
 
 
 @dataclass(frozen=True)
@@ -102,7 +103,7 @@ class Learned:
 
 def learn_log(log: Path, out: Path, options: LearnOptions, *, progress: Progress | None = None) -> Learned:
     """``log`` calibrated and written at ``out`` exactly as `sensact learn em LOG --out OUT` writes it (with
-    ``options.uncertainty``, as `learn em --uncertainty B` does: its replicates one after another here)."""
+    ``options.uncertainty``, as `learn em --uncertainty` does: a bootstrap's replicates one after another here)."""
     import time
     from dataclasses import replace
 
@@ -140,16 +141,17 @@ def calibrate_and_save(
     out.parent.mkdir(parents=True, exist_ok=True)
     saved = save_calibration(cal, out, report=options.report)
     if options.uncertainty is not None:  # after the model is written, as `learn em --uncertainty` does
-        from sensact.app.uncertainty import bootstrap
+        from sensact.app.uncertainty import error_bars
 
         done = [0]
+        asked = options.uncertainty
 
         def replicated(i: int, outcome: Any) -> None:
             done[0] += 1
             if progress is not None:
-                progress("bootstrap: replicates learned", done[0], options.uncertainty)
+                progress("bootstrap: replicates learned", done[0], asked.replicates)
 
-        cal = bootstrap(cal, options.uncertainty, on_done=replicated)
+        cal = error_bars(cal, asked, on_done=replicated)
         saved = save_calibration(cal, out, report=options.report)
     res = cal.result
     return cal, Learned(

@@ -104,29 +104,50 @@ def si_parameter(name: str) -> tuple[str, float]:
     return (f"{head}.{shown}" if head else shown), k
 
 
+def _interval_si(interval: Any, open_ended: Any, k: float) -> str:
+    """An interval in SI (``k`` may turn it over); an end the log gives no bound for is said so."""
+    ends = [None if v is None else v * k for v in interval]
+    opened = list(open_ended)
+    if k < 0:
+        ends, opened = ends[::-1], opened[::-1]
+    text = [
+        ("no bound" if v is None else _num(v, 5)) + (" (open)" if v is not None and o else "")
+        for v, o in zip(ends, opened, strict=True)
+    ]
+    return f"{text[0]} to {text[1]}"
+
+
 def _error_bars(u: Any) -> Section:
-    """`--uncertainty B`'s table: each parameter (REP 103, SI) with its standard error and interval."""
+    """`--uncertainty`'s table: each parameter (REP 103, SI) with its standard error and interval."""
     rows = []
     for p in u.parameters:
         name, k = si_parameter(p.name)
-        lo, hi = sorted((p.interval[0] * k, p.interval[1] * k)) if p.interval is not None else (None, None)
         rows.append(
             (
                 name,
                 _num(p.value * k, 5),
-                "held" if p.held else _num(p.se * abs(k), 3),
-                "-" if p.interval is None else f"{_num(lo, 5)} to {_num(hi, 5)}",
+                "held" if p.held else ("unbounded" if p.se is None else _num(p.se * abs(k), 3)),
+                "-" if p.interval is None else _interval_si(p.interval, p.open_ended, k),
             )
         )
     rows = tuple(rows)
-    failed = f"; {len(u.failed)} failed: {u.failed[0]}" if u.failed else ""
-    lead = (
-        f"A parametric bootstrap: {u.replicates} logs drawn from the learned model with this log's commands, map "
-        f"and sighting times, each learned again from it ({u.used} learned{failed}). The standard error is the "
-        "replicates' spread; the 90 % interval is centred on the value less the replicates' bias. f is read at "
-        f"{', '.join(f'{d * MM:g}' for d in u.f_at_mm)} m, the 10th, 50th and 90th percentiles of the sightings' "
-        "distances. A parameter the fit holds has none."
+    where = (
+        f"f is read at {', '.join(f'{d * MM:g}' for d in u.f_at_mm)} m, the 10th, 50th and 90th percentiles of the "
+        "sightings' distances. A parameter the fit holds has none."
     )
+    if u.method == "observed information":
+        lead = (
+            "From the likelihood itself: the action model's, f's and the mount's intervals from its curvature at the "
+            "fit (the observed information), the noise's (sigma, Sigma_m) from their profiles on the log scale, "
+            "open where the log gives no bound. " + where
+        )
+    else:
+        failed = f"; {len(u.failed)} failed: {u.failed[0]}" if u.failed else ""
+        lead = (
+            f"A parametric bootstrap: {u.replicates} logs drawn from the learned model with this log's commands, "
+            f"map and sighting times, each learned again from it ({u.used} learned{failed}). The standard error is "
+            "the replicates' spread; the 90 % interval is centred on the value less the replicates' bias. " + where
+        )
     return Section(
         "Error bars",
         paragraphs=(lead + " Values in REP 103 axes and SI units, as the exports give them.",),

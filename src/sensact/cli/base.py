@@ -72,6 +72,17 @@ SchedulerOpt = Annotated[
         "and the same paths to the logs.",
     ),
 ]
+UncertaintyOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--uncertainty",
+        metavar="information|B",
+        help="Then give every learned parameter a 90 % interval: 'information' from the likelihood's curvature "
+        "(action, f, mount) and profiles (the sigmas and Sigma_m; open-ended where the log gives no bound), with "
+        "no refits; or B, a parametric bootstrap of B logs drawn from the learned model, each learned again. "
+        "Written into the model JSON (uncertainty) and onto the report (docs/uncertainty.md).",
+    ),
+]
 EMModelOpt = Annotated[Path, typer.Option("--model", help="A model.json written by `sensact learn em`.")]
 EMLogArg = Annotated[
     Path,

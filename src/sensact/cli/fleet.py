@@ -12,6 +12,7 @@ from sensact.cli.base import (
     ConfigOpt,
     SchedulerOpt,
     SetOpt,
+    UncertaintyOpt,
     app,
     console,
     err_console,
@@ -69,14 +70,7 @@ def fleet_learn_cmd(
     set_: SetOpt = None,
     config: ConfigOpt = None,
     report: Annotated[bool, typer.Option("--report/--no-report", help="Write a report page beside each model.")] = True,
-    uncertainty: Annotated[
-        int | None,
-        typer.Option(
-            "--uncertainty",
-            metavar="B",
-            help="As `learn em --uncertainty B`, for every log: each log's replicates run in its own job.",
-        ),
-    ] = None,
+    uncertainty: UncertaintyOpt = None,
     cross_scores: Annotated[
         bool,
         typer.Option(
@@ -112,11 +106,10 @@ def fleet_learn_cmd(
     existed = out.exists()
     names = fleet_names(logs, log_name)
     _refuse_out_over_logs(out, logs, names)
-    if uncertainty is not None:
-        from sensact.app.uncertainty import refuse_replicates
+    from sensact.app.uncertainty import ErrorBars
 
-        refuse_replicates(uncertainty)
-    options = LearnOptions(preset, config, tuple(set_ or ()), report, uncertainty)
+    asked = None if uncertainty is None else ErrorBars.parse(uncertainty)
+    options = LearnOptions(preset, config, tuple(set_ or ()), report, asked)
     with open_engine(workers, scheduler, threads_per_worker) as engine:
         console.print(f"{len(logs)} log{'s' * (len(logs) > 1)} ({', '.join(names)}) on {engine.where}")
         with progress_bar() as rows:

@@ -15,6 +15,7 @@ from sensact.cli.base import (
     ForceOpt,
     SchedulerOpt,
     SetOpt,
+    UncertaintyOpt,
     WorkersOpt,
     check_out_file,
     console,
@@ -240,16 +241,7 @@ def learn_em_cmd(
     report: Annotated[
         bool, typer.Option("--report/--no-report", help="Write OUT.report.html beside it (needs --out).")
     ] = True,
-    uncertainty: Annotated[
-        int | None,
-        typer.Option(
-            "--uncertainty",
-            metavar="B",
-            help="Then give every learned parameter a standard error and a 90 % interval by a parametric "
-            "bootstrap: B logs drawn from the learned model (this log's commands, map and sighting times), each "
-            "learned again from it; written into the model JSON (uncertainty) and onto the report.",
-        ),
-    ] = None,
+    uncertainty: UncertaintyOpt = None,
     workers: WorkersOpt = 1,
     scheduler: SchedulerOpt = None,
     force: ForceOpt = False,
@@ -271,13 +263,15 @@ def learn_em_cmd(
                  "--uncertainty": uncertainty}  # fmt: skip
         _learn_lidar2d(log, out, report, [k for k, v in given.items() if v])
         return
-    if uncertainty is not None:  # before EM: a count that cannot run is refused before the work it follows
-        from sensact.app.uncertainty import refuse_replicates
+    asked = None
+    if uncertainty is not None:  # before EM: a request that cannot run is refused before the work it follows
+        from sensact.app.uncertainty import ErrorBars
 
-        refuse_replicates(uncertainty)
-        from sensact.engine import check_engine
+        asked = ErrorBars.parse(uncertainty)
+        if asked.replicates is not None:
+            from sensact.engine import check_engine
 
-        check_engine(workers, scheduler)
+            check_engine(workers, scheduler)
     from sensact.app import calibrate, open_log
 
     opened = open_log(log, bins=bins)
@@ -309,8 +303,8 @@ def learn_em_cmd(
             )
     if res.stop_reason == "interrupted":  # the most likely model so far is written; nothing more to do with it
         finish(interrupted=True)
-    if uncertainty is not None:  # after the model is written, so that stopping the bootstrap loses nothing of it
-        cal = _error_bars(cal, uncertainty, workers, scheduler)
+    if asked is not None:  # after the model is written, so that stopping the error bars loses nothing of it
+        cal = _error_bars(cal, asked, workers, scheduler)
         doc = cal.to_json()
         if out is not None:
             from sensact.app.save import save_calibration
@@ -394,34 +388,58 @@ def lidar2d_table(doc: JsonObject) -> tuple[str, list[str], list[list[str]]]:
     return ("the wheels and the lidar (docs/lidar2d.md)", ["", "learned", "sd", "URDF"], rows)
 
 
-def _error_bars(cal: Any, replicates: int, workers: int | None, scheduler: str | None) -> Any:
-    """`--uncertainty B`: the bootstrap's replicates on the engine asked for, and their table."""
+def _error_bars(cal: Any, asked: Any, workers: int | None, scheduler: str | None) -> Any:
+    """`--uncertainty`: the error bars asked for (a bootstrap's replicates on the engine asked for), and their
+    table."""
     from rich.markup import escape
 
-    from sensact.app.uncertainty import bootstrap
-    from sensact.engine import open_engine
+    from sensact.app.uncertainty import bootstrap, information
 
-    with open_engine(workers, scheduler) as engine:
-        console.print(f"--uncertainty {replicates}: a parametric bootstrap on {engine.where}")
-        with progress_bar() as progress:
-            done = [0]
+    if asked.replicates is None:
+        console.print("--uncertainty information: the likelihood's curvature, and the noise's profiles")
+        cal = information(cal)
+        title = "error bars: 90 % intervals from the likelihood (learn/em/uses/information.py)"
+    else:
+        from sensact.engine import open_engine
 
-            def on_done(i: int, outcome: Any) -> None:
-                done[0] += 1
-                progress("bootstrap: replicates learned", done[0], replicates)
+        replicates = asked.replicates
+        with open_engine(workers, scheduler) as engine:
+            console.print(f"--uncertainty {replicates}: a parametric bootstrap on {engine.where}")
+            with progress_bar() as progress:
+                done = [0]
 
-            cal = bootstrap(cal, replicates, engine, on_progress=lambda i, d, k, n: progress(d, k, n), on_done=on_done)
+                def on_done(i: int, outcome: Any) -> None:
+                    done[0] += 1
+                    progress("bootstrap: replicates learned", done[0], replicates)
+
+                cal = bootstrap(
+                    cal, replicates, engine, on_progress=lambda i, d, k, n: progress(d, k, n), on_done=on_done
+                )
+        u = cal.uncertainty
+        title = (
+            f"error bars: {u.used} of {u.replicates} replicates learned, 90 % intervals (learn/em/uses/error_bars.py)"
+        )
     u = cal.uncertainty
-    rows = [[escape(p.name), f"{p.value:.5g}", "held" if p.held else f"{p.se:.3g}", _interval(p)] for p in u.parameters]
-    title = f"error bars: {u.used} of {u.replicates} replicates learned, 90 % intervals (learn/em/uses/error_bars.py)"
+    rows = [[escape(p.name), f"{p.value:.5g}", _se(p), _interval(p)] for p in u.parameters]
     print_tables([(title, ["parameter", "value", "standard error", "90 % interval"], rows)])
     for line in u.failed:
         console.print(f"[yellow]a replicate failed:[/] {escape(line)}", highlight=False)
     return cal
 
 
+def _se(p: Any) -> str:
+    if p.held:
+        return "held"
+    return "unbounded" if p.se is None else f"{p.se:.3g}"
+
+
 def _interval(p: Any) -> str:
-    return "" if p.interval is None else f"{p.interval[0]:.5g} to {p.interval[1]:.5g}"
+    """``lo to hi``; an open end is said so (a standard deviation's open lower end is 0)."""
+    if p.interval is None:
+        return ""
+    lo, hi = p.interval
+    low = "no bound" if lo is None else f"{lo:.5g}" + (" (open)" if p.open_ended[0] else "")
+    return f"{low} to " + ("no bound" if hi is None else f"{hi:.5g}")
 
 
 def _warn_of_the_log(opened: Any) -> None:

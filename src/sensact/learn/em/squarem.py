@@ -85,23 +85,33 @@ class Coordinates:
         lm = self.template.landmarks
         return None if lm is None else lm.learned & np.isfinite(lm.xy).all(axis=1)
 
-    def vector(self, model: EMModel) -> np.ndarray:
-        parts = [self.velocity_map @ np.asarray(model.action.parameters, dtype=float).ravel()[self.moving]]
+    def blocks(self, model: EMModel) -> list[tuple[str, np.ndarray]]:
+        """``vector``'s parts in order, each named: ``action``, ``f.<channel>`` (f at its knots),
+        ``bearing_terms.<channel>``, ``log sigma.<channel>``, ``log sigma.bearing_rad``, ``mount``,
+        ``log Sigma_m``, ``log turn_var``, ``prior.mean``, ``prior.log_diag``, ``prior.low`` and ``landmarks``."""
+        parts = [("action", self.velocity_map @ np.asarray(model.action.parameters, dtype=float).ravel()[self.moving])]
         for ch, t in zip(model.sensor.channels, self.template.sensor.channels, strict=True):
-            parts += [ch.function(_knots(t.function)), np.asarray(ch.bearing_terms, dtype=float), [np.log(ch.sigma)]]
+            parts += [
+                (f"f.{ch.name}", ch.function(_knots(t.function))),
+                (f"bearing_terms.{ch.name}", np.asarray(ch.bearing_terms, dtype=float)),
+                (f"log sigma.{ch.name}", np.log([ch.sigma])),
+            ]
         if model.sensor.sigma_bearing_rad is not None:
-            parts.append([np.log(model.sensor.sigma_bearing_rad)])
-        parts.append(model.sensor.mount.as_array())
-        parts.append(np.log(model.motion_sd).ravel())
+            parts.append(("log sigma.bearing_rad", np.log([model.sensor.sigma_bearing_rad])))
+        parts.append(("mount", model.sensor.mount.as_array()))
+        parts.append(("log Sigma_m", np.log(model.motion_sd).ravel()))
         if model.turn_var is not None:
-            parts.append([np.log(model.turn_var)])
+            parts.append(("log turn_var", np.log([model.turn_var])))
         L = np.linalg.cholesky(self._turn(model.prior_cov))
         low = np.tril_indices(L.shape[0], -1)
-        parts += [model.prior_mean, np.log(np.diag(L)), L[low]]
+        parts += [("prior.mean", model.prior_mean), ("prior.log_diag", np.log(np.diag(L))), ("prior.low", L[low])]
         free = self._free_landmarks()
         if free is not None and model.landmarks is not None:
-            parts.append(model.landmarks.xy[free].ravel())
-        return np.concatenate([np.asarray(p, dtype=float).ravel() for p in parts])
+            parts.append(("landmarks", model.landmarks.xy[free].ravel()))
+        return [(name, np.asarray(p, dtype=float).ravel()) for name, p in parts]
+
+    def vector(self, model: EMModel) -> np.ndarray:
+        return np.concatenate([p for _, p in self.blocks(model)])
 
     def model(self, x: np.ndarray) -> EMModel:
         """The model at ``x``; ValueError where ``x`` is no valid model (a sigma beyond its bound)."""

@@ -103,22 +103,28 @@ def replicate(
 
 @dataclass(frozen=True)
 class Parameter:
-    """One learned parameter with its error bar (None where the fit held it)."""
+    """One learned parameter with its error bar (no interval where the fit held it). An interval's end is
+    None where the data give no bound on that side; ``open_ended`` says which side (a standard
+    deviation's open lower end is 0)."""
 
     name: str
     family: str
     value: float
-    se: float | None
-    interval: tuple[float, float] | None
-    bias: float | None  # the replicates' mean less the value
+    se: float | None  # None: held, or nothing in the data bounds it
+    interval: tuple[float | None, float | None] | None
+    bias: float | None  # the replicates' mean less the value (None: not a bootstrap's)
+    open_ended: tuple[bool, bool] = (False, False)
 
     @property
     def held(self) -> bool:
-        return self.se is None
+        return self.interval is None
 
     def covers(self, truth: float) -> bool | None:
-        """Whether the interval holds ``truth`` (None for a held parameter)."""
-        return None if self.interval is None else bool(self.interval[0] <= truth <= self.interval[1])
+        """Whether the interval holds ``truth`` (None for a held parameter); an open end holds all beyond."""
+        if self.interval is None:
+            return None
+        lo, hi = self.interval
+        return bool((lo is None or lo <= truth) and (hi is None or truth <= hi))
 
     def to_dict(self) -> JsonObject:
         return {
@@ -126,6 +132,7 @@ class Parameter:
             "value": self.value,
             "se": self.se,
             "interval": None if self.interval is None else list(self.interval),
+            "open_ended": list(self.open_ended),
             "bias": self.bias,
             "held": self.held,
         }
@@ -142,6 +149,7 @@ class Uncertainty:
     f_at_mm: tuple[float, ...]
     parameters: tuple[Parameter, ...]
     failed: tuple[str, ...] = ()
+    method: str = "parametric bootstrap"  # or "observed information" (uses/information.py)
 
     def by_name(self) -> dict[str, Parameter]:
         return {p.name: p for p in self.parameters}
@@ -149,7 +157,7 @@ class Uncertainty:
     def to_dict(self) -> JsonObject:
         """The model JSON's ``uncertainty`` (its key names are fixed: checks read them)."""
         return {
-            "method": "parametric bootstrap",
+            "method": self.method,
             "level": LEVEL,
             "replicates": self.replicates,
             "used": self.used,
