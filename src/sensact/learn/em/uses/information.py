@@ -101,7 +101,7 @@ def _steps(space: LearnedSpace, p: np.ndarray, l0: float) -> np.ndarray:
 
 def observed_information(space: LearnedSpace, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """``(-H, steps, loglik)`` at ``p`` by central differences of the forward pass's likelihood, with each
-    entry's step (its scale, for ``covariance``)."""
+    entry's step (its scale, for ``Curvature``)."""
     l0 = space.loglik(p)
     h = _steps(space, p, l0)
     n = p.size
@@ -149,7 +149,8 @@ class Curvature:
 
 def _profile(space: Any, p: np.ndarray, C: np.ndarray, info: np.ndarray, scale: np.ndarray, j: int):
     """Log-scale interval of entry ``j`` from its profile: the rest moved with it along the covariance's
-    column (the quadratic profile), then one Newton step on the rest with the fit's information."""
+    column (the quadratic profile), then up to ``PROFILE_NEWTON`` Newton steps on the rest with the fit's
+    information; ``(low, high)``, None for an end the profile does not reach."""
     rest = np.arange(p.size) != j
     solve = np.linalg.pinv(info[np.ix_(rest, rest)])
     direction = C[:, j] / C[j, j] if C[j, j] > 0 else np.eye(p.size)[j]
