@@ -1,5 +1,5 @@
 """`learn em --uncertainty information|B`: a calibration's error bars from the likelihood's curvature and
-profiles (``learn.em.uses.information``, seconds), or by the parametric bootstrap
+profiles (``learn.em.uses.information``, no refits), or by the parametric bootstrap
 (``learn.em.uses.error_bars``), each replicate a job of an engine (``sensact.engine``)."""
 
 from __future__ import annotations
@@ -37,11 +37,6 @@ class ErrorBars:
             ) from None
         refuse_replicates(replicates)
         return cls(replicates)
-
-    def describe(self) -> str:
-        if self.replicates is None:
-            return "the likelihood's curvature and profiles"
-        return f"a parametric bootstrap of {self.replicates} replicates"
 
 
 def refuse_replicates(replicates: int) -> None:
