@@ -26,8 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sensact.app.calibrate import calibrate
-from sensact.app.logs import OpenedLog, data_root, open_log
+from sensact.app import calibrate
+from sensact.app.logs import OpenedLandmarkLog, data_root, open_landmark_log
 from sensact.app.monitor import after_step
 from sensact.evaluate.landmark_truth import path_offset
 from sensact.io.atomic import write_text
@@ -39,7 +39,7 @@ BAR = (0.85, 0.95)
 PATH_BAR_MM = 80.0
 
 
-def _before_step(log: OpenedLog, step: int) -> OpenedLog:
+def _before_step(log: OpenedLandmarkLog, step: int) -> OpenedLandmarkLog:
     data = log.data.slice_steps(0, step)
     folder = log.folder
     gt = folder.groundtruth
@@ -51,7 +51,7 @@ def robot(k: int, root: Path, scratch: Path, sets: list[str]) -> dict:
     folder = scratch / f"robot{k}"  # the user's `convert mrclam`, into a folder of its own
     argv = ["convert", "mrclam", str(root / "mrclam" / "MRCLAM_Dataset6"), "--robot", str(k), "--out", str(folder)]
     subprocess.run([sys.executable, "-c", CLI, *argv], check=True, stdout=subprocess.DEVNULL)
-    log = open_log(folder)
+    log = open_landmark_log(folder)
     half = log.data.n_steps // 2
     first, second = _before_step(log, half), after_step(log, half)
     t0 = time.perf_counter()

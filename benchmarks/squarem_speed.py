@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sensact.app.calibrate import calibrate
-from sensact.app.logs import data_root, open_log
+from sensact.app import calibrate
+from sensact.app.logs import data_root, open_landmark_log
 from sensact.io.atomic import write_text
 
 CLI = "import sys; from sensact.cli import main; sys.argv[0] = 'sensact'; main()"
@@ -29,7 +29,7 @@ RUNS = {"accelerated": ["accelerate=true"], "plain": ["pose_draws=sigma_points"]
 
 
 def fit(folder: Path, sets: list[str]) -> dict:
-    cal = calibrate(open_log(folder), sets=sets)
+    cal = calibrate(open_landmark_log(folder), sets=sets)
     s, m = cal.result.summary(), cal.model
     return {
         "seconds": s["seconds"],

@@ -120,7 +120,7 @@ def test_open_log_says_what_a_path_is(tmp_path):
     with pytest.raises(LogFormatError):
         open_log(tmp_path / "nothing.txt").data  # noqa: B018
     (tmp_path / "nothing.txt").write_text("x")
-    with pytest.raises(LogFormatError, match="EM reads a log folder or a Turtlebot CSV"):
+    with pytest.raises(LogFormatError, match=r"not a log sensact reads.*a Turtlebot CSV.*a landmark log folder"):
         open_log(tmp_path / "nothing.txt")
 
 

@@ -981,7 +981,7 @@ def test_learn_em_refuses_a_turtlebot_csv_out_of_order(tmp_path):
     assert "robot.csv" in res.output and "Traceback" not in res.output
     (tmp_path / "notes.txt").write_text("x")
     res = runner.invoke(app, ["learn", "em", str(tmp_path / "notes.txt")])
-    assert res.exit_code == 2 and "EM reads a log folder or a Turtlebot CSV file" in res.output
+    assert res.exit_code == 2 and "not a log sensact reads" in res.output and "a Turtlebot CSV" in res.output
     # a .csv that is not a Turtlebot's: a log folder's own file, or a robot's records `convert csv` reads
     folder = tmp_path / "track"
     assert runner.invoke(app, ["simulate", "track1d", "--seconds", "5", "--out", str(folder)]).exit_code == 0

@@ -65,7 +65,7 @@ def test_interrupt_returns_the_best_model_so_far(field_fit):
         if it == 3:
             raise KeyboardInterrupt
 
-    res = fit_em(data, initial_model(data, em), em, progress=stop)
+    res = fit_em(data, initial_model(data, em), em, on_iteration=stop)
     assert res.stop_reason == "interrupted" and res.iterations == 4
     assert res.best_iteration == int(np.argmax(res.loglik_history))
     from sensact.learn.em.checks.fit_health import em_health

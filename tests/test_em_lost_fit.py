@@ -251,7 +251,7 @@ def test_em_restarts_from_a_tighter_start_while_f_turns_and_keeps_the_most_likel
 
     calls.update(n=0, flagged=9)
     heard.clear()
-    res = fit_em(data, None, cfg, progress=interrupt, on_restart=lambda k, signs, sigmas: heard.append(sigmas))
+    res = fit_em(data, None, cfg, on_iteration=interrupt, on_restart=lambda k, signs, sigmas: heard.append(sigmas))
     assert res.stop_reason == "interrupted" and res.restarts is None and heard == [] and calls["n"] == 1
     # what `learn em` and `reproduce real` show of the last two-run fit
     from sensact.records import to_json

@@ -16,6 +16,7 @@ RANK = {
     "reprs": 0,
     "outputs": 0,
     "records": 0,
+    "progress": 0,
     "config": 1,
     "engine": 1,
     "core": 1,

@@ -243,7 +243,7 @@ def test_a_planar_robot_learned_on_one_run_is_flagged_when_its_motors_wear_on_an
 def test_a_tracks_commands_go_onto_the_models_actions_on_another_log(tmp_path):
     """A model learned on one 1-D log of continuous commands runs on the next (`monitor`, `localize`): that
     log's commands go into the model's own bins, not into equal bins over their own span."""
-    from sensact.app.logs import open_log, read_model_and_log
+    from sensact.app.logs import open_landmark_log, read_model_and_log
     from sensact.learn.em import EMConfig, initial_model
 
     for name, seed in (("a", 0), ("b", 1)):
@@ -251,7 +251,7 @@ def test_a_tracks_commands_go_onto_the_models_actions_on_another_log(tmp_path):
             app, ["simulate", "track1d", "--out", str(tmp_path / name), "--seconds", "240", "--seed", str(seed)]
         )
         assert res.exit_code == 0, res.output
-    a, b = open_log(tmp_path / "a"), open_log(tmp_path / "b")
+    a, b = open_landmark_log(tmp_path / "a"), open_landmark_log(tmp_path / "b")
     assert not np.array_equal(a.data.action_commands, b.data.action_commands)  # each log's own span
     model = initial_model(a.data, EMConfig())
     (tmp_path / "m.json").write_text(json.dumps({"model": model.to_dict(), "dt_s": a.data.dt_s}))

@@ -20,8 +20,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 from sensact.errors import SensactError
-
-Progress = Callable[[str, int, int | None], None]
+from sensact.progress import Progress
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 
-from sensact.app.logs import OpenedLog, learned_settings, read_model_and_log
+from sensact.app.logs import OpenedLandmarkLog, learned_settings, read_model_and_log
 from sensact.app.scores import Scores, Unscored, in_truth_frame, score_model
 from sensact.app.settings import Settings, resolve_settings
 from sensact.errors import ConfigError
@@ -20,12 +20,14 @@ from sensact.learn.em import EMConfig, EMResult, fit_em, initial_model
 from sensact.learn.em.checks.lost_signs import FunctionBends, FunctionTurns, LostSign, Unsettled
 from sensact.learn.em.config import refuse_bearing_settings
 from sensact.learn.em.estep import Posteriors
-from sensact.learn.em.fit import OnRestart, OnStartMoved, Progress
+from sensact.learn.em.fit import OnRestart, OnStartMoved
+from sensact.learn.em.loop import OnIteration
 from sensact.learn.em.searches.start_race import OnTrial
 from sensact.learn.em.uses.consistency import Consistency, consistency
 from sensact.learn.em.uses.error_bars import Uncertainty
 from sensact.learn.em.uses.place import Localized
 from sensact.models.em_model import EMModel
+from sensact.progress import Progress
 from sensact.records import JsonObject, to_json
 
 
@@ -33,11 +35,11 @@ from sensact.records import JsonObject, to_json
 class FitEvents:
     """What a calibration tells as it goes (each optional; the CLI shows them, a library user may pass none)."""
 
-    progress: Progress | None = None  # every EM iteration
+    progress: Progress | None = None  # a long step's share done: placing a start model, matching scans
+    on_iteration: OnIteration | None = None  # every EM iteration
     on_race: OnTrial | None = None  # the start race's trials
     on_restart: OnRestart | None = None  # a restart from a tighter start (turn_restarts)
     on_start_moved: OnStartMoved | None = None  # a range-only start that moved metres
-    placing: Callable[..., None] | None = None  # placing a start model on the log (localize's progress)
     on_placed: Callable[[StartFrom], None] | None = None  # ... and where it placed the robot, before EM
     on_settings: Callable[[Settings], None] | None = None  # the settings, once read, before any work
 
@@ -49,7 +51,7 @@ class StartFrom:
     path: Path
     document: JsonObject  # its model.json
     placed: Localized
-    log: OpenedLog  # the log it was placed on (a Turtlebot CSV read onto the model's step)
+    log: OpenedLandmarkLog  # the log it was placed on (a Turtlebot CSV read onto the model's step)
 
 
 @dataclass(frozen=True)
@@ -71,7 +73,7 @@ class Calibration:
     and, when the log has truth, its scores (``Unscored`` with the reason when they could not be taken).
     Learning never reads the truth: the scores are taken when first asked for (``scores``)."""
 
-    log: OpenedLog
+    log: OpenedLandmarkLog
     settings: Settings
     result: EMResult
     diagnostics: Diagnostics
@@ -107,6 +109,15 @@ class Calibration:
     @property
     def model(self) -> EMModel:
         return self.result.model
+
+    @property
+    def health(self) -> Health:
+        return self.diagnostics.health
+
+    @property
+    def interrupted(self) -> bool:
+        """Ctrl-C ended EM: the most likely model so far is the result."""
+        return self.result.stop_reason == "interrupted"
 
     @cached_property
     def consistency(self) -> Consistency:
@@ -191,7 +202,7 @@ class Calibration:
         }
 
 
-def refuse_table_on_continuous_commands(log: OpenedLog, cfg: EMConfig) -> None:
+def refuse_table_on_continuous_commands(log: OpenedLandmarkLog, cfg: EMConfig) -> None:
     """The thesis's action table needs discrete actions; a planar log of continuous commands needs a basis."""
     data = log.data
     if not (data.is_continuous and cfg.action.basis == "table" and data.geometry.has_heading):
@@ -210,7 +221,7 @@ def refuse_table_on_continuous_commands(log: OpenedLog, cfg: EMConfig) -> None:
     )
 
 
-def diagnose(result: EMResult, log: OpenedLog, cfg: EMConfig) -> Diagnostics:
+def diagnose(result: EMResult, log: OpenedLandmarkLog, cfg: EMConfig) -> Diagnostics:
     """The fit's checks without truth (``learn/em/checks/lost_signs.py``), each warning as one line."""
     from sensact.learn.em.checks.fit_health import em_health
     from sensact.learn.em.checks.lost_signs import (
@@ -244,21 +255,21 @@ def diagnose(result: EMResult, log: OpenedLog, cfg: EMConfig) -> Diagnostics:
 
 
 def _placed_start(
-    start_from: Path, doc: JsonObject, model: EMModel, log: OpenedLog, settings: Settings, events: FitEvents
+    start_from: Path, doc: JsonObject, model: EMModel, log: OpenedLandmarkLog, settings: Settings, events: FitEvents
 ) -> tuple[EMModel, Settings, StartFrom]:
     """A learned model placed on the log (``learn/em/policies/warm_start.py``): the model EM starts from, the settings
     EM runs with and the placement."""
     from sensact.learn.em.policies.warm_start import start_from_model
 
-    placed, cfg = start_from_model(model, log.data, settings.config, events.placing, source=str(start_from))
+    placed, cfg = start_from_model(model, log.data, settings.config, events.progress, source=str(start_from))
     start = StartFrom(start_from, doc, placed, log)
     if events.on_placed is not None:
         events.on_placed(start)
     return placed.model, replace(settings, config=cfg), start
 
 
-def calibrate(
-    log: OpenedLog,
+def calibrate_em(
+    log: OpenedLandmarkLog,
     preset: str | None = None,
     config: EMConfig | Path | None = None,
     *,
@@ -277,10 +288,6 @@ def calibrate(
     if start_from is not None:  # read once; a Turtlebot CSV onto the model's step
         doc, model, log = read_model_and_log(log.path, start_from, log.bins, use="start")
         base = learned_settings(doc, str(start_from))
-        if base is None and log.is_turtlebot_csv:
-            from sensact.presets import turtlebot_em_config
-
-            base = turtlebot_em_config(log.data.reading_names)
     if isinstance(config, EMConfig):
         settings = Settings(config, preset, "given")
     else:
@@ -298,7 +305,7 @@ def calibrate(
         log.data,
         start,
         settings.config,
-        progress=events.progress,
+        on_iteration=events.on_iteration,
         on_restart=events.on_restart,
         on_race=events.on_race,
         on_start_moved=events.on_start_moved,

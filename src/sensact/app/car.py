@@ -8,7 +8,6 @@ from pathlib import Path
 
 import numpy as np
 
-from sensact.engine import Progress
 from sensact.errors import ConfigError
 from sensact.evaluate.car import laser_angle_error, table_5_1, truth_motion
 from sensact.io.car_log import CarLog, write_car_log
@@ -22,6 +21,7 @@ from sensact.learn.car_dynamics import (
 )
 from sensact.models.laser_intrinsics import LaserIntrinsics
 from sensact.models.lidar_unit import OUSTER_BEAMS, UNITS
+from sensact.progress import Progress
 from sensact.records import JsonObject
 from sensact.sim.car import (
     CarConfig,

@@ -34,7 +34,6 @@ from typing import Any
 import numpy as np
 
 from sensact.app.uncertainty import ErrorBars
-from sensact.engine import Progress
 from sensact.errors import ConfigError
 from sensact.evaluate.bars import BARS, bar_checks
 from sensact.evaluate.landmark_truth import score_against_truth
@@ -49,6 +48,7 @@ from sensact.evaluate.turtlebot_em import scorecard as turtlebot_scorecard
 from sensact.health import Health
 from sensact.learn.em.config import EMConfig
 from sensact.learn.em.uses.place import Localized, localize
+from sensact.progress import Progress
 from sensact.records import JsonObject
 from sensact.reprs import compact_repr
 
@@ -107,10 +107,10 @@ def learn_log(log: Path, out: Path, options: LearnOptions, *, progress: Progress
     import time
     from dataclasses import replace
 
-    from sensact.app.logs import open_log
+    from sensact.app.log_kinds import landmark_log
 
     t0, c0 = time.perf_counter(), time.process_time()
-    learned = calibrate_and_save(open_log(log), out, options, progress=progress)[1]
+    learned = calibrate_and_save(landmark_log(log, "fleet learn"), out, options, progress=progress)[1]
     return replace(learned, job_seconds=time.perf_counter() - t0, cpu_seconds=time.process_time() - c0)
 
 
@@ -124,22 +124,24 @@ def calibrate_and_save(
 ) -> tuple[Any, Learned]:
     """``learn_log`` on a log already open; ``finish`` turns the calibration into the one written (the
     shared map's fleet attaches its map). Returns the calibration too."""
-    from sensact.app.calibrate import FitEvents, calibrate
-    from sensact.app.save import save_calibration
+    from sensact.app.calibrate import FitEvents, calibrate_em
+    from sensact.app.save import save_em_calibration
 
     events = FitEvents()
     if progress is not None:
         show = progress
         events = FitEvents(
-            progress=lambda it, ll, best, since: show(f"EM: log-likelihood {ll:.1f} (best {best:.1f})", it + 1, None),
+            progress=show,
+            on_iteration=lambda it, ll, best, since: show(
+                f"EM: log-likelihood {ll:.1f} (best {best:.1f})", it + 1, None
+            ),
             on_race=lambda done, planned: show("start race: EM from each start", done, planned),
-            placing=show,
         )
-    cal = calibrate(opened, options.preset, options.config, sets=options.sets, events=events)
+    cal = calibrate_em(opened, options.preset, options.config, sets=options.sets, events=events)
     if finish is not None:
         cal = finish(cal)
     out.parent.mkdir(parents=True, exist_ok=True)
-    saved = save_calibration(cal, out, report=options.report)
+    saved = save_em_calibration(cal, out, report=options.report)
     if options.uncertainty is not None:  # after the model is written, as `learn em --uncertainty` does
         from sensact.app.uncertainty import error_bars
 
@@ -152,7 +154,7 @@ def calibrate_and_save(
                 progress("bootstrap: replicates learned", done[0], asked.replicates)
 
         cal = error_bars(cal, asked, on_done=replicated)
-        saved = save_calibration(cal, out, report=options.report)
+        saved = save_em_calibration(cal, out, report=options.report)
     res = cal.result
     return cal, Learned(
         log=str(opened.path),
@@ -507,13 +509,13 @@ def read_fleet_log(path: Path, models: Sequence[FleetModel]) -> Any:
     read onto each model's own step (a ``RangeLog``), a track folder with a recorded distance as a
     ``RangeLog`` on its own step, any other folder as its ``LogFolder`` (a track1d folder's commands binned
     as `evaluate log` bins them)."""
-    from sensact.app.logs import is_turtlebot_csv, open_log, refuse_model_for_log
+    from sensact.app.logs import open_landmark_log, refuse_model_for_log
 
-    if is_turtlebot_csv(path):
-        on_step = {fm.name: open_log(path, dt_s=fm.document.get("dt_s")) for fm in models}
+    opened = open_landmark_log(path, bins=21)
+    if opened.folder is None:  # a CSV of timed rows: read onto each model's own step
+        on_step = {fm.name: open_landmark_log(path, dt_s=fm.document.get("dt_s")) for fm in models}
         log: Any = RangeLog({name: (o.data, o.recorded_distance_mm) for name, o in on_step.items()})
     else:
-        opened = open_log(path, bins=21)
         distance = opened.recorded_distance_mm
         log = opened.folder if distance is None else RangeLog({fm.name: (opened.data, distance) for fm in models})
     for fm in models:

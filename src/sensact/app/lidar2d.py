@@ -12,7 +12,8 @@ from typing import Any
 import numpy as np
 
 from sensact import __version__
-from sensact.engine import Progress
+from sensact.app.calibrate import FitEvents
+from sensact.app.save import Saved
 from sensact.health import Health, HealthFlag
 from sensact.learn.wheel_lidar import (
     MOUNT_SD_MM,
@@ -24,9 +25,42 @@ from sensact.learn.wheel_lidar import (
 )
 from sensact.logs.lidar2d_log import Lidar2DLog
 from sensact.outputs import EM_MODEL, OUTPUT_KEY
+from sensact.progress import Progress
 from sensact.records import JsonObject
 
 MIN_INTERVALS = 20
+
+
+@dataclass(frozen=True, eq=False)
+class OpenedLidar2DLog:
+    """A wheels-and-2-D-lidar log folder, opened (``app.log_kinds``)."""
+
+    path: Path
+    data: Lidar2DLog
+
+    @property
+    def name(self) -> str:
+        return self.path.name
+
+    @property
+    def notes(self) -> tuple[str, ...]:
+        return ()
+
+    def doubts(self) -> tuple[str, ...]:
+        return ()  # the reader refuses what it doubts
+
+    def describe(self) -> str:
+        data = self.data
+        return (
+            f"{self.path}: {data.scan_t.size} scans of {data.beams} beams over {data.scan_t[-1] - data.scan_t[0]:.1f} "
+            f"s, the robot's motion from {data.drive} ({data.drive_t.size} rows)"
+        )
+
+
+def open_lidar2d_log(path: Path) -> OpenedLidar2DLog:
+    from sensact.io.lidar2d_log import read_lidar2d_log
+
+    return OpenedLidar2DLog(Path(path), read_lidar2d_log(path))
 
 
 @dataclass(frozen=True, eq=False)
@@ -35,6 +69,10 @@ class Lidar2DCalibration:
     result: WheelLidarResult
     health: Health
     seconds: float
+
+    @property
+    def interrupted(self) -> bool:
+        return False  # a fit of seconds: Ctrl-C ends the command
 
     @property
     def params(self) -> dict[str, float]:
@@ -200,7 +238,20 @@ def calibrate_lidar2d(log: Lidar2DLog, progress: Progress | None = None) -> Lida
     return Lidar2DCalibration(log, res, health_of(res), time.monotonic() - t0)
 
 
-def save_lidar2d(cal: Lidar2DCalibration, out: Path, report: bool = True) -> tuple[list[Path], list[str]]:
+def calibrate_opened_lidar2d(
+    log: OpenedLidar2DLog,
+    preset: str | None = None,
+    config: Any = None,
+    *,
+    sets: Any = (),
+    start_from: Path | None = None,
+    events: FitEvents | None = None,
+) -> Lidar2DCalibration:
+    """The kind's learner (``app.log_kinds``): it takes no EM settings (the door refuses them)."""
+    return calibrate_lidar2d(log.data, None if events is None else events.progress)
+
+
+def save_lidar2d(cal: Lidar2DCalibration, out: Path, report: bool = True) -> Saved:
     """model.json (with the version stamp), and the report page with its figures beside it."""
     from sensact.io.atomic import write_json
 
@@ -211,7 +262,7 @@ def save_lidar2d(cal: Lidar2DCalibration, out: Path, report: bool = True) -> tup
 
         page, not_drawn = write_lidar2d_report(cal, out)
         written.append(page)
-    return written, not_drawn
+    return Saved(tuple(written), (), None, tuple(not_drawn))
 
 
 def convert_lidar_bag(

@@ -1,6 +1,7 @@
-"""What a path is, and the log EM reads from it (``open_log``): a log folder (with its settings file, its
-truth) or a Turtlebot CSV; and a learned model.json read, and refused in one line on a log it could not
-have been learned from (another geometry, other commands or readings, another step)."""
+"""The landmark logs EM reads (``open_landmark_log``; ``app.log_kinds`` is the door every path goes
+through): a log folder (planar, range-only or 1-D, with its settings file and its truth) or a Turtlebot
+CSV; and a learned model.json read, and refused in one line on a log it could not have been learned from
+(another geometry, other commands or readings, another step)."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ import numpy as np
 
 from sensact.errors import ConfigError, LogFormatError
 from sensact.io.landmark_log import LandmarkLogFile
+from sensact.learn.em.config import EMConfig
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 from sensact.records import JsonObject
@@ -24,9 +26,20 @@ RANGE_COLUMN = "range"  # a Turtlebot CSV's column
 RECORDED_DISTANCE = "the recorded distance"  # a track folder's groundtruth.csv distance_mm
 
 
+@dataclass(frozen=True)
+class KindSettings:
+    """The EM settings a log of its kind starts from when nothing else names any: a preset put on the
+    log's columns (a Turtlebot CSV's: track_1d on the channels it has)."""
+
+    config: EMConfig
+    preset: str
+    origin: str  # for the user
+
+
 @dataclass(frozen=True, eq=False)
-class OpenedLog:
-    """A log as EM reads it, and what came with it."""
+class OpenedLandmarkLog:
+    """A landmark log as EM reads it (a log folder: planar, range-only or 1-D; or a Turtlebot CSV), and what
+    came with it."""
 
     __repr__ = compact_repr  # a line, never the arrays
 
@@ -36,10 +49,9 @@ class OpenedLog:
     # a Turtlebot CSV's range column, or a track folder's recorded distance (mm per step), to score against
     recorded_distance_mm: np.ndarray | None
     bins: int  # actions continuous 1-D commands were binned into
-
-    @property
-    def is_turtlebot_csv(self) -> bool:
-        return self.folder is None
+    defaults: KindSettings | None = None  # None: a settings file beside the log, else the thesis's
+    notes: tuple[str, ...] = ()  # what to tell the user of this log before a fit
+    no_truth: str | None = None  # why the log cannot be scored, when its kind would say so
 
     @property
     def settings_file(self) -> Path | None:
@@ -50,12 +62,46 @@ class OpenedLog:
     @property
     def scored_against(self) -> str:
         """What a 1-D fit is scored against, as its score line names it."""
-        return RANGE_COLUMN if self.is_turtlebot_csv else RECORDED_DISTANCE
+        return RECORDED_DISTANCE if self.folder is not None else RANGE_COLUMN
 
     @property
     def name(self) -> str:
         """The log as figures' titles name it."""
         return self.folder.title(self.path) if self.folder is not None else Path(self.data.source).name
+
+    def doubts(self) -> tuple[str, ...]:
+        """What the log shows before a fit that may waste it: a column in the wrong unit, one command
+        throughout (a 1-D log's action model's slope then rests on the few steps at others)."""
+        from sensact.evaluate.measured import ONE_COMMAND_SHARE, dominant_command
+        from sensact.io.unit_checks import unit_doubts
+
+        out = []
+        if self.folder is not None:
+            out += [f"{doubt} (in {self.path})" for doubt in unit_doubts(self.data, self.folder.truth_poses())]
+        data = self.data
+        if data.geometry.state_is_range and data.step_commands is not None:
+            value, share = dominant_command(data.step_commands[:, 0])
+            if share >= ONE_COMMAND_SHARE:
+                out.append(
+                    f"{data.source} spends {100 * share:.0f} % of its steps at one command "
+                    f"({data.command_names[0]} {value:g}), so the action model's slope rests on the few steps at "
+                    "others and a gain against ground truth is not scored; for a model to trust, drive at two or "
+                    "more speeds, each for a few seconds."
+                )
+        return tuple(out)
+
+    def describe(self) -> str:
+        """One line: what the log holds."""
+        data, lf = self.data, self.folder
+        commands = (
+            f"continuous commands ({', '.join(data.command_names)})"
+            if data.is_continuous
+            else f"{data.n_actions} actions"
+        )
+        return (
+            f"{data.source}: {data.geometry} log, {data.n_steps} steps of {data.dt_s:.4g} s, "
+            f"{data.n_observations} observations, {commands}" + (f" ({lf.note})" if lf is not None and lf.note else "")
+        )
 
 
 def is_turtlebot_csv(log: Path) -> bool:
@@ -63,13 +109,7 @@ def is_turtlebot_csv(log: Path) -> bool:
     return log.is_file() and log.suffix.lower() == ".csv"
 
 
-def open_log(
-    path: str | Path, *, bins: int = 21, dt_s: float | None = None, command_levels: np.ndarray | None = None
-) -> OpenedLog:
-    """What ``path`` is, read as EM reads it: a log folder (continuous commands of a track1d folder binned
-    into ``bins`` actions; a track folder's recorded distance from groundtruth.csv's ``distance_mm``), or a
-    Turtlebot CSV (on ``dt_s``, or its median step; its range column kept to score against). Anything else
-    is one line."""
+def _check_bins(bins: int) -> None:
     from sensact.limits import MAX_BINS
 
     if not 2 <= bins <= MAX_BINS:
@@ -78,23 +118,64 @@ def open_log(
             field="--bins",
             fix="give 21 (the default) or another count in that range.",
         )
-    log = Path(path)
-    if is_turtlebot_csv(log):
-        from sensact.io.turtlebot import read_turtlebot_landmark_log
 
-        data, truth = read_turtlebot_landmark_log(log, dt_s)
-        return OpenedLog(log, data, None, truth, bins)
-    if log.is_file():
+
+def open_turtlebot_csv(path: Path, *, bins: int = 21, dt_s: float | None = None) -> OpenedLandmarkLog:
+    """A Turtlebot CSV read as EM reads it (on ``dt_s``, or its median step; its range column kept to score
+    against), with the Turtlebot's settings to start from."""
+    from sensact.io.turtlebot import EM_READINGS, read_turtlebot_landmark_log
+    from sensact.presets import turtlebot_em_config
+
+    _check_bins(bins)
+    data, truth = read_turtlebot_landmark_log(path, dt_s)
+    names = data.reading_names
+    absent = [r for r in EM_READINGS if r not in names]
+    defaults = KindSettings(
+        turtlebot_em_config(names),
+        "track_1d",
+        "Turtlebot CSV: the Turtlebot's EM settings (preset track_1d, on the channels it has)",
+    )
+    return OpenedLandmarkLog(
+        path,
+        data,
+        None,
+        truth,
+        bins,
+        defaults,
+        (f"Channels {', '.join(names)} ({', '.join(absent)} not in the file).",) if absent else (),
+        "no range column: nothing to score against (the model is learned from the readings alone)."
+        if np.isnan(truth).all()
+        else None,
+    )
+
+
+def open_landmark_folder(path: Path, *, bins: int = 21, command_levels: np.ndarray | None = None) -> OpenedLandmarkLog:
+    """A log folder read as EM reads it: continuous commands of a track1d folder binned into ``bins``
+    actions (or onto ``command_levels``); a track folder's recorded distance from groundtruth.csv's
+    ``distance_mm``."""
+    from sensact.io.landmark_log import read_landmark_log
+
+    _check_bins(bins)
+    if path.is_file():
         raise LogFormatError(
             "EM reads a log folder or a Turtlebot CSV file.",
-            file=log,
+            file=path,
             fix="give a folder with meta.json, actions.csv and observations.csv (sensact convert mrclam "
             "writes one), or a .csv with the Turtlebot's columns.",
         )
-    from sensact.io.landmark_log import read_landmark_log
+    lf = read_landmark_log(path, command_bins=bins, command_levels=command_levels)
+    return OpenedLandmarkLog(path, lf.data, lf, lf.truth_distance_mm(), bins)
 
-    lf = read_landmark_log(log, command_bins=bins, command_levels=command_levels)
-    return OpenedLog(log, lf.data, lf, lf.truth_distance_mm(), bins)
+
+def open_landmark_log(
+    path: str | Path, *, bins: int = 21, dt_s: float | None = None, command_levels: np.ndarray | None = None
+) -> OpenedLandmarkLog:
+    """What ``path`` is, read as EM reads it: a Turtlebot CSV (``open_turtlebot_csv``) or a log folder
+    (``open_landmark_folder``). Anything else is one line."""
+    log = Path(path)
+    if is_turtlebot_csv(log):
+        return open_turtlebot_csv(log, bins=bins, dt_s=dt_s)
+    return open_landmark_folder(log, bins=bins, command_levels=command_levels)
 
 
 MODEL_STEP_S = (1e-6, 1e6)  # a log's step: beyond these, not seconds (or a number written by hand)
@@ -232,7 +313,7 @@ def refuse_model_for_log(
         )
 
 
-def read_model_and_log(log: Path, model: Path, bins: int, use: str) -> tuple[JsonObject, EMModel, OpenedLog]:
+def read_model_and_log(log: Path, model: Path, bins: int, use: str) -> tuple[JsonObject, EMModel, OpenedLandmarkLog]:
     """``(model.json, the model, the log)``, the log read onto the model's step; a model that does not fit the
     log is refused in one line (``use``: "run", "scored" or "start")."""
     from sensact.models.action_table import ActionTable
@@ -241,7 +322,7 @@ def read_model_and_log(log: Path, model: Path, bins: int, use: str) -> tuple[Jso
     dt = doc.get("dt_s")
     # a track's continuous commands go onto the model's own actions, not the bins of this log's span
     levels = m.action.commands[:, 0] if m.geometry.state_is_range and isinstance(m.action, ActionTable) else None
-    opened = open_log(log, bins=bins, dt_s=None if dt is None else float(dt), command_levels=levels)
+    opened = open_landmark_log(log, bins=bins, dt_s=None if dt is None else float(dt), command_levels=levels)
     refuse_model_for_log(doc, m, opened.data, model, log, use=use)
     from sensact.io.unit_checks import range_unit_doubt
 

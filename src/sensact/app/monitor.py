@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sensact.app.calibrate import Calibration, FitEvents, calibrate
-from sensact.app.logs import OpenedLog, learned_settings, read_model_and_log
+from sensact.app.calibrate import Calibration, FitEvents, calibrate_em
+from sensact.app.logs import OpenedLandmarkLog, learned_settings, read_model_and_log
 from sensact.health import Health, filter_failed, learned_health
 from sensact.learn.em.uses.change_detect import MonitorConfig, MonitorResult, monitor_placed
 from sensact.learn.em.uses.place import learned_config
@@ -21,7 +21,7 @@ from sensact.reprs import compact_repr
 @dataclass(frozen=True, eq=False)
 class Monitored:
     __repr__ = compact_repr  # a line, never the arrays
-    log: OpenedLog
+    log: OpenedLandmarkLog
     model_path: Path
     model_doc: JsonObject
     model: EMModel  # placed on the log (its prior_mean: where the robot started)
@@ -62,7 +62,7 @@ def monitor_log(log: Path, model: Path, config: MonitorConfig | None = None, *, 
     return Monitored(opened, model, doc, placed, res, time.perf_counter() - t0)
 
 
-def after_step(log: OpenedLog, step: int) -> OpenedLog:
+def after_step(log: OpenedLandmarkLog, step: int) -> OpenedLandmarkLog:
     """The log from ``step`` on, its truth too, as a log of its own."""
     data = log.data.slice_steps(step, log.data.n_steps)
     folder = log.folder
@@ -82,4 +82,4 @@ def relearn(mon: Monitored, events: FitEvents | None = None) -> Calibration | No
         return None
     part = after_step(mon.log, step)
     settings = learned_settings(mon.model_doc, str(mon.model_path))
-    return calibrate(part, config=settings, events=events)
+    return calibrate_em(part, config=settings, events=events)

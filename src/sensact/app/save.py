@@ -60,8 +60,8 @@ def _page_and_figures(cal: Calibration, out: Path, written: list[Path]) -> list[
     return [*figures, page]
 
 
-def save_calibration(
-    cal: Calibration, out: str | Path, document: JsonObject | None = None, *, report: bool = True
+def save_em_calibration(
+    cal: Calibration, out: str | Path, report: bool = True, *, document: JsonObject | None = None
 ) -> Saved:
     """``cal`` at ``out`` (its JSON, or ``document`` in its place), OUT.history.npz, OUT.path.npz, OUT.png,
     the figures against the log's truth and, with ``report``, report.html beside them (``app.report``); an

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from sensact.app.logs import OpenedLog
+from sensact.app.logs import OpenedLandmarkLog
 from sensact.errors import LogFormatError
 from sensact.io.landmark_log import LandmarkLogFile
 from sensact.logs.landmark_log import LandmarkLog
@@ -46,7 +46,12 @@ class Unscored:
 
 
 def score_model(
-    log: OpenedLog, model: EMModel, *, learned_here: bool = False, path: np.ndarray | None = None, fit: Any = None
+    log: OpenedLandmarkLog,
+    model: EMModel,
+    *,
+    learned_here: bool = False,
+    path: np.ndarray | None = None,
+    fit: Any = None,
 ) -> Scores | Unscored | None:
     """``model`` against ``log``'s truth; None when the log has none. ``learned_here``: the model was just
     learned on this log, so recorded poses too broken up to score leave it ``Unscored`` (saying why)
@@ -145,7 +150,7 @@ def _on_survey(lf: LandmarkLogFile, model: EMModel, path: np.ndarray | None, fit
     return lf.data.with_landmarks(filled), mapped, None if path is None else alignment.poses(np.asarray(path))
 
 
-def _on_distance(log: OpenedLog, fit: Any) -> Scores | Unscored | None:
+def _on_distance(log: OpenedLandmarkLog, fit: Any) -> Scores | Unscored | None:
     """The Turtlebot's scaled gain and sensor errors against its range column, or a track folder's recorded
     distance; None without either."""
     from sensact.evaluate.turtlebot_em import NO_RANGE_COLUMN, range_column_problem, score_turtlebot_em

@@ -9,10 +9,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from sensact.app.logs import OpenedLog
+from sensact.app.logs import OpenedLandmarkLog
 from sensact.config import config_from_dict, config_to_dict, load_yaml_mapping, merge_fields, parse_overrides
 from sensact.learn.em.config import EMConfig
-from sensact.presets import PRESET_KEY, for_log, preset_of, turtlebot_em_config
+from sensact.presets import PRESET_KEY, for_log, preset_of
 from sensact.records import JsonObject
 
 
@@ -23,7 +23,7 @@ class Settings:
     base: str  # where the base came from, for the user: "preset NAME", the settings file's path, ...
 
 
-def _layer(log: OpenedLog, base: EMConfig, preset: str | None, path: Path) -> tuple[JsonObject, str | None]:
+def _layer(log: OpenedLandmarkLog, base: EMConfig, preset: str | None, path: Path) -> tuple[JsonObject, str | None]:
     """``base`` with the settings file at ``path`` on it (rebased on the preset the file names)."""
     mapping = load_yaml_mapping(path)
     named = preset_of(mapping, str(path))
@@ -33,18 +33,18 @@ def _layer(log: OpenedLog, base: EMConfig, preset: str | None, path: Path) -> tu
     return merge_fields(EMConfig, config_to_dict(base), rest), preset
 
 
-def read_settings_file(path: Path, log: OpenedLog | None = None) -> EMConfig:
+def read_settings_file(path: Path, log: OpenedLandmarkLog | None = None) -> EMConfig:
     """The settings in the file at ``path`` (on the preset it names, put on ``log``'s columns; by default
     the log folder the file is in), as `learn em` reads a folder's em_config.yaml."""
-    from sensact.app.logs import open_log
+    from sensact.app.logs import open_landmark_log
 
-    log = log or open_log(Path(path).parent)
+    log = log or open_landmark_log(Path(path).parent)
     fields, _ = _layer(log, EMConfig(), None, Path(path))
     return config_from_dict(EMConfig, fields, source=str(path))
 
 
 def resolve_settings(
-    log: OpenedLog,
+    log: OpenedLandmarkLog,
     *,
     preset: str | None = None,
     config: Path | None = None,
@@ -52,8 +52,9 @@ def resolve_settings(
     base: EMConfig | None = None,
 ) -> Settings:
     """What EM runs with on ``log``: ``base`` (a start model's settings), else ``preset`` put on the log's
-    columns, else the settings file beside the log (unless ``config`` replaces it), else a Turtlebot
-    CSV's preset, else the thesis's defaults; then ``config`` (a YAML file), then ``sets``."""
+    columns, else the settings file beside the log (unless ``config`` replaces it), else the settings its
+    kind starts from (a Turtlebot CSV's preset), else the thesis's defaults; then ``config`` (a YAML file),
+    then ``sets``."""
     name: str | None = None
     if base is not None:
         origin = "the start model's settings"
@@ -63,9 +64,8 @@ def resolve_settings(
         origin = str(log.settings_file)
         fields, name = _layer(log, EMConfig(), None, log.settings_file)
         base = config_from_dict(EMConfig, fields, source=origin)
-    elif log.is_turtlebot_csv:
-        base, name = turtlebot_em_config(log.data.reading_names), "track_1d"
-        origin = "Turtlebot CSV: the Turtlebot's EM settings (preset track_1d, on the channels it has)"
+    elif log.defaults is not None:
+        base, name, origin = log.defaults.config, log.defaults.preset, log.defaults.origin
     else:
         base, origin = EMConfig(), "the thesis's defaults"
     fields, sources = config_to_dict(base), []

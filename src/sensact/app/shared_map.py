@@ -123,10 +123,10 @@ def learn_on_map(
     information and gradient at the shared map from this fit."""
     from dataclasses import replace
 
-    from sensact.app.logs import open_log
+    from sensact.app.log_kinds import landmark_log
     from sensact.learn.em.mstep import map_normal_equations
 
-    opened = open_log(log)
+    opened = landmark_log(log, "fleet learn --shared-map")
     names = opened.data.landmark_names or tuple(str(j) for j in range(len(opened.data.landmarks_xy)))
     xy, sd = shared.on_log(names)
     given = np.isfinite(xy).all(axis=1)
@@ -161,7 +161,7 @@ def learn_fleet_shared_map(
     from dataclasses import replace
 
     from sensact.app.fleet import FleetRun, fleet_names, learn_fleet, log_name
-    from sensact.app.logs import open_log
+    from sensact.app.log_kinds import landmark_log
     from sensact.engine import Failed, Job
     from sensact.errors import ModelFormatError
     from sensact.io.atomic import write_json
@@ -179,7 +179,7 @@ def learn_fleet_shared_map(
     jobs = [Job(learn_on_map, (p, out / g / "model.json", options, merged), g) for (p, g, _), _ in with_map]
     outcomes = engine.run(jobs, isolate=True, on_progress=getattr(events, "learning", None))
     final = _map_step(merged, [o for o in outcomes if not isinstance(o, Failed)])
-    first = open_log(with_map[0][0][0])
+    first = landmark_log(with_map[0][0][0], "fleet learn --shared-map")
     evaluation = _against_survey(final, first)
     frame = (
         f"frame: the start of {with_map[0][0][1]}'s robot (the origin, facing +x in REP 103), the first log's; "

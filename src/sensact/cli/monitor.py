@@ -100,19 +100,19 @@ def monitor_cmd(
             return
         from sensact.app.calibrate import FitEvents
         from sensact.app.monitor import relearn as relearn_from_change
-        from sensact.app.save import save_calibration
+        from sensact.app.save import save_em_calibration
 
         began = found[1].change_s
         with progress_bar() as bar:
             events = FitEvents(
-                progress=lambda it, ll, best, since: bar(
+                on_iteration=lambda it, ll, best, since: bar(
                     f"relearning from {began:.0f} s: log-likelihood {ll:.1f} (best {best:.1f})", it + 1, None
                 ),
                 on_race=lambda done, planned: bar("relearning: start race", done, planned),
             )
             cal = relearn_from_change(mon, events)
         if cal is not None:
-            save_calibration(cal, relearn)
+            save_em_calibration(cal, relearn)
             res2 = cal.result
             console.print(
                 f"relearned from {began:.1f} s: {res2.stop_reason} after {res2.iterations} iterations; wrote {relearn}",

@@ -247,8 +247,8 @@ def print_scores(scores: Any, log: Any) -> None:
     from sensact.app.scores import RECORDED_POSES, SIMULATED_MODEL, Unscored
 
     if scores is None:
-        if log.is_turtlebot_csv:
-            console.print("no range column: nothing to score against (the model is learned from the readings alone).")
+        if log.no_truth is not None:  # a kind that would be scored, and whose log carries nothing to score with
+            console.print(log.no_truth, highlight=False)
         return
     if isinstance(scores, Unscored):
         console.print(scores.reason, highlight=False)

@@ -79,6 +79,9 @@ STUDENT_T = 1
 GATE = 2
 STUDENT_T_JOINT = 3  # a Student-t reading that shares its sighting's one weight (``_joint_weight``)
 
+# what a sighting reads, the kernel's switch as ``mode`` is the geometry's: each sensor model names its kind
+LANDMARK = 0  # range-like channels f_i(dist) of a landmark, then its bearing (eq. 4.19)
+
 
 @njit(cache=True, error_model="numpy")
 def _hph(P, H, n):
@@ -255,11 +258,13 @@ class Sightings(NamedTuple):
 
 
 class SensorInputs(NamedTuple):
-    """The sensor model: channel ``c`` predicts the polynomial ``coefs[c]`` in ``(d - centers[c]) / scales[c]``
+    """A sensor model as the passes read it (``models.sensor_model.SensorModel.kernel_inputs``), of ``kind``
+    (``LANDMARK``): channel ``c`` predicts the polynomial ``coefs[c]`` in ``(d - centers[c]) / scales[c]``
     with variance ``reading_var[c]``, read only within ``[window_lo[c], window_hi[c]]``; ``robust_kind`` and
     ``robust_param`` pick each channel's likelihood, the last entry the bearing's. ``mount`` (forward mm,
     left mm, yaw rad) is where the sensor sits on the robot (zeros: eq. 4.19 exactly)."""
 
+    kind: int
     landmarks: np.ndarray  # (L, 2)
     coefs: np.ndarray  # (C, P)
     centers: np.ndarray  # (C,)
@@ -274,24 +279,39 @@ class SensorInputs(NamedTuple):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _is_read(readings, k, c, dist, window_lo, window_hi, has_b):
+def _is_read(sight, sensor, k, c, dist, has_b):
     """Whether channel ``c`` of sighting ``k`` is read: a reading within its channel's distance window
     (``dist`` predicted), or a bearing the sighting has (``c = C``)."""
-    if c < readings.shape[1]:
-        return np.isfinite(readings[k, c]) and not (dist < window_lo[c] or dist > window_hi[c])
+    if c < sight.readings.shape[1]:
+        return np.isfinite(sight.readings[k, c]) and not (dist < sensor.window_lo[c] or dist > sensor.window_hi[c])
     return has_b
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _channel(
-    mode, k, c, w, lx, ly, readings, gain, bearing, coefs, centers, scales, reading_var, var_bearing, mount, H
-):
+def _window_distance(mode, sight, sensor, k, w):
+    """The distance sighting ``k``'s channel windows are judged at, predicted at ``w``."""
+    if sensor.kind == LANDMARK:
+        j = sight.landmark[k]
+        return landmark_range(mode, w, sensor.landmarks[j, 0], sensor.landmarks[j, 1], sensor.mount)
+    return np.nan
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _channel(mode, sight, sensor, k, c, w, H):
     """Channel ``c`` of sighting ``k`` predicted at ``w``: ``(innovation, variance)``, ``H`` its gradient;
-    ``c = C`` is the bearing (its innovation wrapped). Inlined: called per reading in every pass."""
-    if c < readings.shape[1]:
-        f_c = observe_height(mode, w, lx, ly, coefs[c], centers[c], scales[c], gain[k, c], mount, H)
-        return readings[k, c] - f_c, reading_var[c]
-    return wrap(bearing[k] - observe_bearing(w, lx, ly, mount, H)), var_bearing
+    ``c = C`` is the bearing (its innovation wrapped). Every pass reads every sensor through this one
+    function, which switches on the sensor's ``kind``. Inlined: called per reading in every pass."""
+    if sensor.kind == LANDMARK:
+        j = sight.landmark[k]
+        lx = sensor.landmarks[j, 0]
+        ly = sensor.landmarks[j, 1]
+        if c < sight.readings.shape[1]:
+            f_c = observe_height(
+                mode, w, lx, ly, sensor.coefs[c], sensor.centers[c], sensor.scales[c], sight.gain[k, c], sensor.mount, H
+            )
+            return sight.readings[k, c] - f_c, sensor.reading_var[c]
+        return wrap(sight.bearing[k] - observe_bearing(w, lx, ly, sensor.mount, H)), sensor.var_bearing
+    return np.nan, np.inf  # a kind these passes were not built with: no information
 
 
 def _passes_for(n_state: int):
@@ -331,22 +351,10 @@ def _passes_for(n_state: int):
         every observation of a step judged against the same prediction.
         """
         mode, dt, velocity, motion_var = steps
-        ptr, landmark_of, readings, gain, bearing = sight
-        (
-            landmarks,
-            coefs,
-            centers,
-            scales,
-            reading_var,
-            window_lo,
-            window_hi,
-            var_bearing,
-            mount,
-            robust_kind,
-            robust_param,
-        ) = sensor
+        ptr, bearing = sight.ptr, sight.bearing
+        robust_kind, robust_param = sensor.robust_kind, sensor.robust_param
         T = mu_a.shape[0]
-        C = readings.shape[1]
+        C = sight.readings.shape[1]
         Sv = np.zeros((n, n))  # row a: d mean / d g_a (``innov_sens``)
         m = prior_mean.copy()
         P = prior_cov.copy()
@@ -378,9 +386,7 @@ def _passes_for(n_state: int):
                 steps_since = t - last_obs if last_obs >= 0 else t + 1
                 for k in range(ptr[t], ptr[t + 1]):
                     if obs_use[k] and np.isfinite(bearing[k]):
-                        lx = landmarks[landmark_of[k], 0]
-                        ly = landmarks[landmark_of[k], 1]
-                        nu = wrap(bearing[k] - observe_bearing(m, lx, ly, mount, H))
+                        nu, _ = _channel(mode, sight, sensor, k, C, m, H)  # the bearing's innovation
                         if abs(nu) > prune_rad_per_step * steps_since:
                             obs_use[k] = False
             for k in range(ptr[t], ptr[t + 1]):
@@ -390,12 +396,10 @@ def _passes_for(n_state: int):
                         innov[k, c] = np.nan
                 if not obs_use[k]:
                     continue
-                lx = landmarks[landmark_of[k], 0]
-                ly = landmarks[landmark_of[k], 1]
                 has_b = mode == 0 and np.isfinite(bearing[k])
                 last_obs = t
                 n_used += 1
-                dist = landmark_range(mode, m, lx, ly, mount)  # the windows are judged once, at the prediction
+                dist = _window_distance(mode, sight, sensor, k, m)  # the windows are judged once, at the prediction
                 w_joint = 1.0
                 if joint_dof is not None:
                     # the sighting's joint readings are one multivariate t, judged at the prediction: a
@@ -404,26 +408,9 @@ def _passes_for(n_state: int):
                     for c in range(C + 1):
                         if robust_kind[c] != STUDENT_T_JOINT:
                             continue
-                        if not _is_read(readings, k, c, dist, window_lo, window_hi, has_b):
+                        if not _is_read(sight, sensor, k, c, dist, has_b):
                             continue
-                        ej[d], rj[d] = _channel(
-                            mode,
-                            k,
-                            c,
-                            m,
-                            lx,
-                            ly,
-                            readings,
-                            gain,
-                            bearing,
-                            coefs,
-                            centers,
-                            scales,
-                            reading_var,
-                            var_bearing,
-                            mount,
-                            H,
-                        )
+                        ej[d], rj[d] = _channel(mode, sight, sensor, k, c, m, H)
                         for i in range(n):
                             Hj[d, i] = H[i]
                         d += 1
@@ -438,26 +425,9 @@ def _passes_for(n_state: int):
                     for c in range(C + 1):
                         if (robust_kind[c] == STUDENT_T_JOINT) != joint_round:
                             continue
-                        if not _is_read(readings, k, c, dist, window_lo, window_hi, has_b):
+                        if not _is_read(sight, sensor, k, c, dist, has_b):
                             continue
-                        nu, r = _channel(
-                            mode,
-                            k,
-                            c,
-                            m,
-                            lx,
-                            ly,
-                            readings,
-                            gain,
-                            bearing,
-                            coefs,
-                            centers,
-                            scales,
-                            reading_var,
-                            var_bearing,
-                            mount,
-                            H,
-                        )
+                        nu, r = _channel(mode, sight, sensor, k, c, m, H)
                         if innov is not None:
                             _record(innov, innov_sens, k, c, nu, _hph(P, H, n) + r, H, Sv, n)
                         if joint_round:
@@ -499,10 +469,9 @@ def _passes_for(n_state: int):
         ``delta_t+1 = beta_t+1 P(o_t+1 | w_t+1)`` as ``(Yd_all[t], zd_all[t])`` for ``pairwise``. Returns
         the status."""
         mode, dt, velocity, motion_var = steps
-        ptr, landmark_of, readings, gain, bearing = sight
-        landmarks, coefs, centers, scales, reading_var, _, _, var_bearing, mount, _, _ = sensor
+        ptr = sight.ptr
         T = mu_a.shape[0]
-        C = readings.shape[1]
+        C = sight.readings.shape[1]
         H = np.zeros(n)
         F = np.zeros((n, n))
         Q = np.zeros((n, n))
@@ -543,29 +512,10 @@ def _passes_for(n_state: int):
             for k in range(ptr[t + 1], ptr[t + 2]):
                 if not obs_use[k]:
                     continue
-                lx = landmarks[landmark_of[k], 0]
-                ly = landmarks[landmark_of[k], 1]
                 for c in range(C + 1):
                     if weights[k, c] <= 0.0:
                         continue
-                    nu, r = _channel(
-                        mode,
-                        k,
-                        c,
-                        mref,
-                        lx,
-                        ly,
-                        readings,
-                        gain,
-                        bearing,
-                        coefs,
-                        centers,
-                        scales,
-                        reading_var,
-                        var_bearing,
-                        mount,
-                        H,
-                    )
+                    nu, r = _channel(mode, sight, sensor, k, c, mref, H)
                     r = r / weights[k, c]
                     for i in range(n):
                         zd[i] += H[i] * nu / r

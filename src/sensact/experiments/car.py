@@ -4,7 +4,6 @@ the files (Algorithm 3), and score it against the truth: the laser angles and Ta
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -17,12 +16,11 @@ from sensact.io.car_log import read_car_log
 from sensact.learn.car_dynamics import (
     CarLearningConfig,
 )
+from sensact.progress import Progress
 from sensact.records import JsonObject
 from sensact.sim.car import (
     CarConfig,
 )
-
-ProgressFn = Callable[[str, int, int], None]
 
 THESIS = {
     "laser_angle_rms_deg": 0.544,
@@ -86,7 +84,7 @@ class CarExperiment:
 
 
 def run_car(
-    exp: CarExperiment | None = None, log_dir: str | Path = "car_log", progress: ProgressFn | None = None
+    exp: CarExperiment | None = None, log_dir: str | Path = "car_log", progress: Progress | None = None
 ) -> tuple[JsonObject, JsonObject]:
     """Returns (``car.json`` content, artifacts for figures). The simulated log is written to ``log_dir``."""
     exp = exp or CarExperiment()

@@ -8,7 +8,6 @@ that is what its model families assume.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -22,10 +21,9 @@ from sensact.learn.em import EMConfig, EMResult, fit_em
 from sensact.learn.em.progress import iteration_progress
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.presets import simulator_settings
+from sensact.progress import Progress
 from sensact.records import JsonObject
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
-
-ProgressFn = Callable[[str, int, int | None], None]
 
 
 @dataclass(frozen=True)
@@ -60,7 +58,7 @@ def scorecard(summary: JsonObject) -> list[BarCheck]:
 
 
 def run_diffdrive(
-    exp: DiffDriveExperiment | None = None, progress: ProgressFn | None = None, engine: Engine | None = None
+    exp: DiffDriveExperiment | None = None, progress: Progress | None = None, engine: Engine | None = None
 ) -> tuple[JsonObject, JsonObject]:
     """Returns (``diffdrive.json`` content, artifacts for figures: ``robots`` {key: (SimulatedRobot, EMResult)}).
     Each seed is a job of ``engine`` (``sensact.engine``; here, one after another, by default)."""
@@ -82,7 +80,7 @@ def run_diffdrive(
 
 
 def run_seed(
-    sim: DiffDriveConfig, learner: EMConfig, *, progress: ProgressFn | None = None
+    sim: DiffDriveConfig, learner: EMConfig, *, progress: Progress | None = None
 ) -> tuple[JsonObject, SimulatedRobot, EMResult]:
     """One seed of ``run_diffdrive``: the robot simulated, learned by EM and scored (its row of
     diffdrive.json), the robot and EM's result."""
@@ -98,7 +96,7 @@ def run_seed(
         if progress:
             progress(f"diffdrive {key}: start race", done, planned)
 
-    res = fit_em(robot.data, None, learner, progress=on_iteration, on_race=on_race)
+    res = fit_em(robot.data, None, learner, on_iteration=on_iteration, on_race=on_race)
     row = {
         "em": res.summary(),
         "score": evaluate_mrclam(robot, res),  # as a real robot is scored against Vicon

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -23,10 +22,9 @@ from sensact.evaluate.track1d import DISTANCE_GRID_MM
 from sensact.learn.em import EMConfig, EMResult, fit_em, initial_model
 from sensact.learn.em.progress import iteration_progress
 from sensact.models.em_model import EMModel
+from sensact.progress import Progress
 from sensact.records import JsonObject
 from sensact.sim.track1d import Track1DConfig, TrackRun, simulate_track, to_landmark_log
-
-ProgressFn = Callable[[str, int, int], None]
 
 THESIS = {
     "sensor_rms_px": 0.83,
@@ -126,7 +124,7 @@ def _score(model: EMModel, sim: Track1DConfig, after_change: bool) -> dict[str, 
     return score_track(model, true_velocities(sim, after_change), sim.truth().height_px, DISTANCE_GRID_MM)
 
 
-def run_em1d(exp: EM1DExperiment | None = None, progress: ProgressFn | None = None) -> tuple[JsonObject, JsonObject]:
+def run_em1d(exp: EM1DExperiment | None = None, progress: Progress | None = None) -> tuple[JsonObject, JsonObject]:
     """Returns (``em1d.json`` content, artifacts for figures)."""
     exp = exp or EM1DExperiment()
     sim = dataclasses.replace(exp.simulator, seed=exp.seed)
@@ -151,7 +149,7 @@ def run_em1d(exp: EM1DExperiment | None = None, progress: ProgressFn | None = No
             exp.learner.thesis,
         )
 
-        res = fit_em(part, initial_model(part, exp.learner), exp.learner, progress=on_iteration)
+        res = fit_em(part, initial_model(part, exp.learner), exp.learner, on_iteration=on_iteration)
         halves[name] = Half(name, res, true_velocities(sim, name == "after"))
     before, after = halves["before"].result, halves["after"].result
     main = _score(before.model, sim, False)

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -16,10 +15,9 @@ from sensact.evaluate.em import component_rms, score_planar
 from sensact.learn.em import EMConfig, EMResult, fit_em, initial_model
 from sensact.learn.em.checks.lost_signs import fall_per_sighting
 from sensact.learn.em.progress import iteration_progress
+from sensact.progress import Progress
 from sensact.records import JsonObject
 from sensact.sim.field2d import Field2DConfig, Field2DRun, simulate_field, to_landmark_log
-
-ProgressFn = Callable[[str, int, int], None]
 
 # sec. 4.4.2 (simulation) and sec. 4.4.1 (the real Aibo)
 THESIS = {
@@ -86,9 +84,7 @@ class Field2DTrial:
     score: JsonObject
 
 
-def run_trial(
-    sim: Field2DConfig, learner: EMConfig, progress: ProgressFn | None = None, label: str = ""
-) -> Field2DTrial:
+def run_trial(sim: Field2DConfig, learner: EMConfig, progress: Progress | None = None, label: str = "") -> Field2DTrial:
     run = simulate_field(sim)
     data = to_landmark_log(run)
 
@@ -96,7 +92,7 @@ def run_trial(
         progress, lambda it, ll, best: f"{label} iteration {it}, log-likelihood {ll:.1f}", learner.thesis
     )
 
-    res = fit_em(data, initial_model(data, learner), learner, progress=on_iteration)
+    res = fit_em(data, initial_model(data, learner), learner, on_iteration=on_iteration)
     score = score_planar(res.model, run.true_velocities, sim.height_px, sim.sigma_height_px, sim.sigma_bearing_rad)
     score.update(
         {
@@ -168,14 +164,12 @@ def scorecard(summary: JsonObject) -> list[BarCheck]:
     return checks
 
 
-def _trial_job(
-    sim: Field2DConfig, learner: EMConfig, label: str, *, progress: ProgressFn | None = None
-) -> Field2DTrial:
+def _trial_job(sim: Field2DConfig, learner: EMConfig, label: str, *, progress: Progress | None = None) -> Field2DTrial:
     return run_trial(sim, learner, progress, label)
 
 
 def run_field2d(
-    exp: Field2DExperiment | None = None, progress: ProgressFn | None = None, engine: Engine | None = None
+    exp: Field2DExperiment | None = None, progress: Progress | None = None, engine: Engine | None = None
 ) -> tuple[JsonObject, JsonObject]:
     """Returns (``field2d.json`` content, artifacts for figures). The trials (each seed's, the real-robot
     setting's) are jobs of ``engine`` (``sensact.engine``; here, one after another, by default)."""

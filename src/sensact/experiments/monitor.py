@@ -68,7 +68,7 @@ def track_job(exp: MonitorExperiment, seed: int, *, progress: Any = None) -> tup
 
         return report
 
-    model = fit_em(before, initial_model(before, exp.learner), exp.learner, progress=on_iteration("before")).model
+    model = fit_em(before, initial_model(before, exp.learner), exp.learner, on_iteration=on_iteration("before")).model
     _, on_changed = monitor_placed(model, changed, exp.learner, exp.monitor)
     _, on_steady = monitor_placed(model, steady, exp.learner, exp.monitor)
     found = on_changed.change_dict()
@@ -83,7 +83,7 @@ def track_job(exp: MonitorExperiment, seed: int, *, progress: Any = None) -> tup
     step = on_changed.change_step()
     if exp.relearn and step is not None:
         after = changed.slice_steps(step, changed.n_steps)
-        relearned = fit_em(after, initial_model(after, exp.learner), exp.learner, progress=on_iteration("after"))
+        relearned = fit_em(after, initial_model(after, exp.learner), exp.learner, on_iteration=on_iteration("after"))
         truth_after, height = true_velocities(sim, True), sim.truth().height_px
         row["relearned_on_after"] = score_track(relearned.model, truth_after, height, DISTANCE_GRID_MM)
         row["stale_on_after"] = score_track(model, truth_after, height, DISTANCE_GRID_MM)
@@ -103,7 +103,7 @@ def planar_job(exp: MonitorExperiment, seed: int, *, progress: Any = None) -> Js
         if progress:
             progress(f"planar seed {seed}: EM iteration {it}", it + 1, None)
 
-    model = fit_em(simulate_diffdrive(learned_on).log("learned on"), None, settings, progress=on_iteration).model
+    model = fit_em(simulate_diffdrive(learned_on).log("learned on"), None, settings, on_iteration=on_iteration).model
     other = DiffDriveConfig(seed=seed + 1000)
     worn = dataclasses.replace(other, change_at_s=exp.planar_change_at_s)
     _, changed = monitor_placed(model, simulate_diffdrive(worn).log("worn"), settings, exp.monitor)
@@ -131,7 +131,7 @@ def robot_job(folder: Path, robot: int, cfg: MonitorConfig, key: str, *, progres
             progress(f"MRCLAM {key}: EM iteration {it}", it + 1, None)
 
     settings = mrclam_config()
-    model = fit_em(data, None, settings, progress=on_iteration).model
+    model = fit_em(data, None, settings, on_iteration=on_iteration).model
     _, res = monitor_placed(model, data, settings, cfg)
     return {
         "change": res.change_dict(),

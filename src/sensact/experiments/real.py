@@ -137,7 +137,7 @@ def run_mrclam_robot(
     ``restart_from_truth`` (row ``truth_restart``). ``progress`` and ``on_race`` are ``fit_em``'s."""
     cfg = config or mrclam_config()
     ml = read_mrclam(folder, robot)
-    res = fit_em(ml.data, None, cfg, progress=progress, on_race=on_race)
+    res = fit_em(ml.data, None, cfg, on_iteration=progress, on_race=on_race)
     row = {
         "summary_line": ml.summary_line(),
         "rows": ml.summary,

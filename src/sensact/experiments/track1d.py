@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -26,10 +25,9 @@ from sensact.evaluate.track1d import (
 )
 from sensact.learn.bootstrap import BootstrapConfig, BootstrapResult, learn_bootstrap, learn_sensor_from_action
 from sensact.models.polynomial import Polynomial1D
+from sensact.progress import Progress
 from sensact.records import JsonObject
 from sensact.sim.track1d import Track1DConfig, TrackRun, TrackTruth, simulate_track
-
-ProgressFn = Callable[[str, int, int], None]
 
 # Table 3.1 and the text of sec. 3.3.2-3.3.3: mean and std over the converged trials.
 THESIS = {
@@ -227,7 +225,7 @@ def run_degree_trial(sim: Track1DConfig, learner: BootstrapConfig) -> DegreeTria
 
 
 def run_track1d(
-    exp: Track1DExperiment | None = None, progress: ProgressFn | None = None, engine: Engine | None = None
+    exp: Track1DExperiment | None = None, progress: Progress | None = None, engine: Engine | None = None
 ) -> tuple[JsonObject, JsonObject]:
     """Run every row and the degree experiment. Returns (``track1d.json`` content, artifacts for figures).
     Each trial is a job of ``engine`` (``sensact.engine``; here, one after another, by default)."""

@@ -31,18 +31,6 @@ KIND = "lidar2d"
 SCANS, WHEELS, ODOM, CMD_VEL, TRUTH = "scans.csv", "wheels.csv", "odom.csv", "cmd_vel.csv", "groundtruth.csv"
 
 
-def is_lidar2d_folder(path: Path) -> bool:
-    meta = Path(path) / "meta.json"
-    if not meta.is_file():
-        return False
-    try:
-        import json
-
-        return json.loads(meta.read_text(encoding="utf-8")).get("kind") == KIND
-    except (OSError, ValueError, AttributeError, RecursionError):  # the folder's own reader says why
-        return False
-
-
 def _cells(x: np.ndarray, fmt: str) -> list[list[str]]:
     return [["" if not math.isfinite(v) else fmt % v for v in row] for row in np.asarray(x, dtype=float).tolist()]
 

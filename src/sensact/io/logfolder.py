@@ -13,6 +13,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -66,6 +67,19 @@ def write_log_folder(
         _write_csv(folder / "groundtruth.csv", groundtruth)
     write_json(folder / "meta.json", {"format": LOG_FORMAT, "version": LOG_VERSION, **meta})
     return folder
+
+
+def meta_kind(folder: str | Path) -> str | None:
+    """The ``kind`` a log folder's meta.json names (a wheels-and-lidar folder's ``lidar2d``), None where it
+    names none or cannot be read (the folder's own reader then says why)."""
+    meta = Path(folder) / "meta.json"
+    if not meta.is_file():
+        return None
+    try:
+        kind = json.loads(meta.read_text(encoding="utf-8")).get("kind")
+    except (OSError, ValueError, AttributeError, RecursionError):
+        return None
+    return kind if isinstance(kind, str) else None
 
 
 def read_meta(folder: str | Path, example: str = "`sensact simulate track1d --out DIR`") -> JsonObject:

@@ -34,6 +34,7 @@ import numpy as np
 
 from sensact.errors import LogFormatError
 from sensact.io.rosbag1_scan import ros1_version
+from sensact.progress import Progress
 
 COMMAND_TYPES = ("geometry_msgs/Twist", "geometry_msgs/TwistStamped", "nav_msgs/Odometry")
 READING_TYPES = ("sensor_msgs/Range",)
@@ -372,9 +373,6 @@ def _shortest(values: np.ndarray) -> np.ndarray:
 
 def _received(msgs: list[tuple[int, object]]) -> np.ndarray:
     return np.array([t for t, _ in msgs], dtype=np.int64)
-
-
-Progress = Callable[[str, int, "int | None"], None]
 
 
 def _read(reader, topic: str, progress: Progress | None = None) -> list[tuple[int, object]]:

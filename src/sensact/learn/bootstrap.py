@@ -74,10 +74,10 @@ from sensact.learn.bootstrap_kernel import (
     step_kernel,
 )
 from sensact.models.polynomial import Polynomial1D
+from sensact.progress import Progress
 from sensact.records import JsonObject
 
 A0Kind = Literal["linear", "sign", "constant"]
-ProgressFn = Callable[[int, int], None]
 
 
 @dataclass(frozen=True)
@@ -500,7 +500,7 @@ def _run_engine(
     c: np.ndarray,
     a0v: np.ndarray,
     o: np.ndarray,
-    progress: ProgressFn | None,
+    progress: Progress | None,
     chunk: int = 200_000,
 ) -> BootstrapResult:
     T = len(t)
@@ -532,7 +532,7 @@ def _run_engine(
             engine.config.history_interval_s,
         )
         if progress is not None:
-            progress(k1, T)
+            progress("Algorithm 1", k1, T)
         if engine.sc[STATUS] != STATUS_OK:
             break
     K = int(n_snap[0])
@@ -556,7 +556,7 @@ def learn_bootstrap(
     a0: A0Kind | Callable[[float], float] | None = None,
     normalization: Normalization | None = None,
     units: tuple[str, str, str] = ("", "", "w"),
-    progress: ProgressFn | None = None,
+    progress: Progress | None = None,
 ) -> BootstrapResult:
     """Algorithm 1 over a whole log (the compiled batch path). ``observations`` is NaN where none. Its
     clock starts at the first non-zero command (``first_command_s``); the steps before are not learned from."""
@@ -579,7 +579,7 @@ def learn_sensor_from_action(
     config: BootstrapConfig | None = None,
     *,
     units: tuple[str, str, str] = ("", "", "w"),
-    progress: ProgressFn | None = None,
+    progress: Progress | None = None,
 ) -> BootstrapResult:
     """Sec. 3.2.1: regress ``(o_t, w_a,t)`` with ``w_a`` integrated from a given action model.
 
@@ -607,7 +607,7 @@ def learn_action_from_sensor(
     config: BootstrapConfig | None = None,
     *,
     units: tuple[str, str, str] = ("", "", "w"),
-    progress: ProgressFn | None = None,
+    progress: Progress | None = None,
 ) -> BootstrapResult:
     """Sec. 3.2.2: fit ``A`` so that ``w_0 + sum_j a_j dt sum_{i<t} c_i^j`` matches ``S(o_t)`` (eq. 3.2)."""
     config = config or BootstrapConfig()

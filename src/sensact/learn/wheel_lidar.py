@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,8 +34,8 @@ from scipy.optimize import least_squares, minimize_scalar, nnls
 from sensact.errors import LogFormatError
 from sensact.learn.scan_match2d import icp, reference_of, scan_xy
 from sensact.logs.lidar2d_log import Lidar2DLog
+from sensact.progress import Progress
 
-Progress = Callable[[str, int, "int | None"], None]
 KEYFRAME_MM, KEYFRAME_RAD = 250.0, 0.35
 OUTLIER_SD = 4.0
 PARAMETERS = ("wheel_radius_left_mm", "wheel_radius_right_mm", "axle_mm", "forward_mm", "left_mm", "yaw_rad", "delay_s")

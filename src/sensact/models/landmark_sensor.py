@@ -23,16 +23,22 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
-from sensact.core.polyfit import vander
+from sensact.core.angles import wrap_angle
+from sensact.core.ekf_smoother import GATE, GAUSSIAN, LANDMARK, STUDENT_T, STUDENT_T_JOINT, SensorInputs, Sightings
+from sensact.core.geometry import Geometry
+from sensact.core.polyfit import vander, weighted_lstsq
+from sensact.core.pose_models import landmark_bearing, landmark_distance, sensor_distance, sensor_poses
 from sensact.errors import ModelFormatError
 from sensact.models.polynomial import Polynomial1D
+from sensact.models.sensor_model import SightingLog
 from sensact.records import JsonObject
 
 ROBUST_KINDS = ("none", "student_t", "gate")
+ROBUST_CODES = {"none": GAUSSIAN, "student_t": STUDENT_T, "gate": GATE}  # the compiled passes' codes
 
 
 def check_robust(kind: str, param: float, what: str) -> None:
@@ -164,12 +170,28 @@ class SensorMount:
         return cls(float(data["forward_mm"]), float(data["left_mm"]), float(data["yaw_rad"]))
 
 
-MIN_SIGMA = 1e-9  # the M-step's floor on every sigma (learn/em/mstep.py)
+@dataclass(frozen=True, eq=False)
+class SampledSightings:
+    """The sightings an M-step reads (those the E-step used), with the robot's sampled poses at each."""
+
+    poses: np.ndarray  # (S, R, n): the E-step's pose samples at the R sightings (eq. 4.25's expectation)
+    landmark: np.ndarray  # (R,) which landmark each sighting saw
+    readings: np.ndarray  # (R, C) each reading channel's input
+    weights: np.ndarray  # (R, C + 1) each channel's E-step weight, then the bearing's; 0 = not used
+    bearings: np.ndarray  # (R,) rad
+
+
+MIN_SIGMA = 1e-9  # the M-step's floor on every sigma
 MAX_SIGMA = 1e9  # limits.MAX_VALUE: beyond it in any unit
 
 
 @dataclass(frozen=True)
 class LandmarkSensor:
+    """Eq. 4.19's sensor (``models.sensor_model.SensorModel``): each reading channel ``f_i(d)`` of the
+    distance from the sensor to the landmark it sees, then the landmark's bearing (a 1-D robot's and a
+    range-only sensor's read none)."""
+
+    kind: ClassVar[int] = LANDMARK
     channels: tuple[ReadingChannel, ...]
     sigma_bearing_rad: float | None = None  # None when the sensor reports no bearing (1-D)
     bearing_robust: str = "none"
@@ -235,6 +257,181 @@ class LandmarkSensor:
         """The same sensor with every reading Gaussian (the thesis's observation model)."""
         chans = tuple(replace(c, robust="none", robust_param=0.0) for c in self.channels)
         return replace(self, channels=chans, bearing_robust="none", bearing_robust_param=0.0, joint_student_t=False)
+
+    # ------------------------------------------------------------ the sensor protocol (models/sensor_model.py)
+
+    @property
+    def noise_groups(self) -> tuple[str, ...]:
+        return (*(c.name for c in self.channels), "bearing_rad")
+
+    @property
+    def sigmas(self) -> tuple[float, ...]:
+        return (*(c.sigma for c in self.channels), np.nan if self.sigma_bearing_rad is None else self.sigma_bearing_rad)
+
+    @property
+    def parameters(self) -> np.ndarray:
+        """Per channel f's coefficients, its bearing terms and sigma; then sigma_2 (if read), then the mount."""
+        parts = [[*c.function.coef, *c.bearing_terms, c.sigma] for c in self.channels]
+        parts.append([] if self.sigma_bearing_rad is None else [self.sigma_bearing_rad])
+        parts.append(list(self.mount.as_array()))
+        return np.array([v for p in parts for v in p], dtype=float)
+
+    def with_parameters(self, values: np.ndarray) -> LandmarkSensor:
+        x, at, chans = np.asarray(values, dtype=float).ravel(), 0, []
+        for c in self.channels:
+            k, m = c.function.degree + 1, len(c.bearing_terms)
+            f = replace(c.function, coef=tuple(x[at : at + k]))
+            chans.append(
+                replace(c, function=f, bearing_terms=tuple(x[at + k : at + k + m]), sigma=float(x[at + k + m]))
+            )
+            at += k + m + 1
+        sb = None if self.sigma_bearing_rad is None else float(x[at])
+        at += sb is not None
+        return replace(self, channels=tuple(chans), sigma_bearing_rad=sb, mount=SensorMount.from_array(x[at : at + 3]))
+
+    def named_parameters(self, f_at: Sequence[float] = ()) -> dict[str, float]:
+        """f by its coefficients (``f.NAME[i]``, in its normalized distance), or by its values at the distances
+        ``f_at`` (``f.NAME(D mm)``); then its bearing terms, each sigma and the mount."""
+        out: dict[str, float] = {}
+        for ch in self.channels:
+            if f_at:
+                out.update({f"f.{ch.name}({d:g} mm)": float(ch.function(np.array([d]))[0]) for d in f_at})
+            else:
+                out.update({f"f.{ch.name}[{i}]": a for i, a in enumerate(ch.function.coef)})
+            out.update({f"f.{ch.name}.bearing_term{k}": a for k, a in enumerate(ch.bearing_terms, start=1)})
+            out[f"sigma.{ch.name}"] = ch.sigma
+        if self.reads_bearing:
+            out["sigma.bearing_rad"] = float(self.sigma_bearing_rad)
+        return out | {f"mount.{k}": v for k, v in self.mount.to_dict().items()}
+
+    def columns(self, data: SightingLog) -> list[int]:
+        """The log's reading column of each of the sensor's channels, matched by name."""
+        names = [c.name for c in self.channels]
+        if len(names) == 1 and names[0] not in data.reading_names:
+            return [0]  # a one-channel model reads the log's first reading, whatever it is called
+        missing = [x for x in names if x not in data.reading_names]
+        if missing:
+            raise ValueError(f"the log {data.source} has no reading {missing[0]!r} (it has {list(data.reading_names)})")
+        return [data.reading_names.index(x) for x in names]
+
+    def readings_of(self, data: SightingLog) -> tuple[np.ndarray, np.ndarray]:
+        """Each channel's readings ``(K, C)`` and bearing gain ``sum_k a_k b^k`` at the measured bearing.
+
+        A channel with bearing terms cannot predict a reading whose bearing is missing: that reading counts
+        as missing too.
+        """
+        readings = np.array(data.obs_readings[:, self.columns(data)], dtype=float)
+        gain = np.zeros_like(readings)
+        for c, ch in enumerate(self.channels):
+            if not ch.bearing_terms:
+                continue
+            if not data.geometry.has_heading:
+                raise ValueError(f"channel {ch.name} has bearing terms but the log {data.source} has no bearings")
+            g = ch.bearing_gain(data.obs_bearing_rad)
+            readings[~np.isfinite(g), c] = np.nan
+            gain[:, c] = np.nan_to_num(g)
+        return readings, gain
+
+    def kernel_inputs(self, data: SightingLog) -> tuple[Sightings, SensorInputs]:
+        """The log's sightings and this sensor as the compiled E-step reads them."""
+        chans = self.channels
+        C = len(chans)
+        coefs = np.zeros((C, max(c.function.degree for c in chans) + 1))
+        for i, ch in enumerate(chans):
+            coefs[i, : ch.function.degree + 1] = ch.function.coef
+        kinds = np.array([ROBUST_CODES[c.robust] for c in chans] + [ROBUST_CODES[self.bearing_robust]], dtype=np.int64)
+        if self.joint_student_t:
+            kinds[kinds == STUDENT_T] = STUDENT_T_JOINT
+        sb = self.sigma_bearing_rad
+        readings, gain = self.readings_of(data)
+        # a sensor without sigma_2 (a range-only one) reads no bearing, whatever the log holds
+        bearing = data.obs_bearing_rad if sb is not None else np.full(data.n_observations, np.nan)
+        sight = Sightings(data.obs_ptr, data.obs_landmark, readings, gain, bearing)
+        inputs = SensorInputs(
+            LANDMARK,
+            data.landmarks_xy if len(data.landmarks_xy) else np.zeros((1, 2)),
+            coefs,
+            np.array([c.function.center for c in chans], dtype=float),
+            np.array([c.function.scale for c in chans], dtype=float),
+            np.array([c.sigma**2 for c in chans], dtype=float),
+            np.array([c.valid_min for c in chans], dtype=float),
+            np.array([c.valid_max for c in chans], dtype=float),
+            float((sb if sb is not None else 1.0) ** 2),
+            self.mount.as_array(),
+            kinds,
+            np.array([c.robust_param for c in chans] + [self.bearing_robust_param], dtype=float),
+        )
+        return sight, inputs
+
+    def predict(self, poses: np.ndarray, data: SightingLog, rows: np.ndarray) -> np.ndarray:
+        """``(R, C + 1)``: each channel's mean reading, then the bearing (NaN where not read), of sightings
+        ``rows`` from the sensor at its mount on the robot at ``poses`` (eq. 4.19)."""
+        lm = data.landmarks_xy[data.obs_landmark[rows]]
+        bearings = data.obs_bearing_rad[rows]
+        at = sensor_poses(poses, self.mount.as_array()) if data.geometry.has_heading else poses
+        dist = landmark_distance(at, lm, data.geometry.mode)
+        out = np.full((len(rows), len(self.channels) + 1), np.nan)
+        for j, ch in enumerate(self.channels):
+            out[:, j] = ch.predict(dist, bearings if ch.bearing_terms else None)
+        if self.reads_bearing and data.geometry.has_heading:
+            out[:, -1] = landmark_bearing(at, lm)
+        return out
+
+    def update(
+        self,
+        seen: SampledSightings,
+        landmarks_xy: np.ndarray,
+        geometry: Geometry,
+        *,
+        fit_bearing_terms: bool = True,
+        metric: int = -1,
+    ) -> LandmarkSensor:
+        """Eq. 4.25 (each f_i by regression on the sampled distances), eq. 4.27 (each sigma_i) and eq. 4.28
+        (sigma_2), over the sightings the E-step used (``seen``), each reading with its E-step weight. Each f_i
+        keeps its degree; without ``fit_bearing_terms`` the bearing terms are held. Channel ``metric`` (a
+        map's scale from its readings) holds its slope at 1 in the middle of its distances."""
+        poses, readings, weights, bearings = seen.poses, seen.readings, seen.weights, seen.bearings
+        n_samples = len(poses)
+        lm = landmarks_xy[seen.landmark]
+        m_ = self.mount.as_array()
+        dist = np.stack([sensor_distance(poses[s], lm, m_, geometry.mode) for s in range(n_samples)])  # (S, R)
+        fits = []
+        for c, ch in enumerate(self.channels):
+            w = weights[:, c]
+            use = w > 0
+            deg, m = ch.function.degree, len(ch.bearing_terms) if fit_bearing_terms else 0
+            if use.sum() <= deg + m + 1:
+                fits.append((ch.function, ch.sigma, ch.bearing_terms))
+                continue
+            d = dist[:, use].ravel()
+            y = np.tile(readings[use, c], n_samples)
+            ww = np.tile(w[use], n_samples)
+            b = np.tile(bearings[use], n_samples)
+            held = 0.0 if m else d * ch.bearing_gain(b)  # held terms: f is fitted to what they leave
+            center, scale = float(d.mean()), float(d.std()) or 1.0
+            # eq. 4.25, with the bearing terms' columns d b^k beside f's (they enter linearly too)
+            X = reading_features(d, b, deg, m, center, scale)
+            if c == metric and deg >= 1:  # the map's scale: f = d + offset (and the bearing terms)
+                rest = np.r_[[0], deg + 1 : X.shape[1]].astype(int)
+                sol = np.zeros(X.shape[1])
+                sol[1] = scale
+                if rest.size:
+                    sol[rest] = weighted_lstsq(X[:, rest], y - held - X[:, :2] @ sol[:2], ww)
+            else:
+                sol = weighted_lstsq(X, y - held, ww)
+            fitted = ch.with_solution(sol, center, scale, m)
+            sigma = float(np.sqrt(np.sum(ww * (fitted.predict(d, b) - y) ** 2) / d.size))  # eq. 4.27
+            fits.append((fitted.function, max(sigma, MIN_SIGMA), fitted.bearing_terms))
+        sigma_b = self.sigma_bearing_rad
+        wb = weights[:, -1]
+        if geometry.has_heading and sigma_b is not None and (wb > 0).any():  # eq. 4.28
+            b = wb > 0
+            ob = bearings[b]
+            err = np.concatenate(
+                [wrap_angle(landmark_bearing(sensor_poses(poses[s][b], m_), lm[b]) - ob) for s in range(n_samples)]
+            )
+            sigma_b = max(float(np.sqrt(np.sum(np.tile(wb[b], n_samples) * err**2) / err.size)), MIN_SIGMA)
+        return self.with_fits(fits, sigma_b)
 
     def to_dict(self) -> JsonObject:
         return {

@@ -15,7 +15,6 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from sensact.core.pose_models import PLANAR, landmark_bearing, relative_displacement, sensor_distance, sensor_poses
-from sensact.learn.em.estep import channel_columns
 from sensact.report.figures1d import _save
 from sensact.report.frames import LABEL, MM, REP_ORDER, si, velocity_rep
 
@@ -31,7 +30,7 @@ def standardized_residuals(res: Any, data: Any) -> dict[str, tuple[np.ndarray, n
     mount = model.sensor.mount.as_array()
     dist = sensor_distance(poses, data.landmarks_xy[data.obs_landmark], mount, data.mode)
     out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    for j, col in enumerate(channel_columns(model.sensor, data)):
+    for j, col in enumerate(model.sensor.columns(data)):
         ch = model.sensor.channels[j]
         reading = data.obs_readings[:, col]
         pred = ch.function(dist)

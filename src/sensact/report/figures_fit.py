@@ -18,7 +18,6 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from sensact.core.pose_models import TRACK, sensor_distance
-from sensact.learn.em.estep import channel_columns
 from sensact.report.figures1d import _save
 from sensact.report.frames import MM, si
 
@@ -94,7 +93,7 @@ def figure_em_fit(res: Any, data: Any, path: Path, title: str) -> Path:
     """The fit's own evidence: the likelihood's climb, each f over its readings, the smoothed path."""
     assert res.posteriors is not None, "the fit's posteriors are needed"
     channels = res.model.sensor.channels
-    cols = channel_columns(res.model.sensor, data)
+    cols = res.model.sensor.columns(data)
     dist = sensor_distance(
         res.posteriors.mean_gamma[data.obs_step],
         data.landmarks_xy[data.obs_landmark],
@@ -151,7 +150,7 @@ def figure_localized(loc: Any, data: Any, path: Path, title: str, truth: Any = N
     over this log's readings against the smoothed distance, so that a model that does not fit the log
     shows. ``truth``: ``(poses, valid)`` on a planar log, ``(distances (T, 1), None)`` on a track."""
     channels = loc.model.sensor.channels
-    cols = channel_columns(loc.model.sensor, data)
+    cols = loc.model.sensor.columns(data)
     post = loc.posteriors
     dist = sensor_distance(
         post.mean_gamma[data.obs_step],

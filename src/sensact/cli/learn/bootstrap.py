@@ -84,7 +84,7 @@ def learn_bootstrap_cmd(
             data.observations,
             cfg,
             units=(data.command_unit, data.observation_unit, "w"),
-            progress=lambda d, n: progress("Algorithm 1", d, n),
+            progress=progress,
         )
     console.print(
         f"status: [bold]{res.status}[/]"

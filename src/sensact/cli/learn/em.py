@@ -3,6 +3,7 @@ from a learned model (``--start-from``), and on the log's halves (``--halves``).
 
 from __future__ import annotations
 
+from functools import singledispatch
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -26,7 +27,7 @@ from sensact.cli.base import (
     progress_bar,
     write_result,
 )
-from sensact.cli.scores import print_em_model, print_scores, warn_if_one_command
+from sensact.cli.scores import print_em_model, print_scores
 from sensact.outputs import EM_MODEL
 from sensact.records import JsonObject
 
@@ -182,19 +183,6 @@ def _describe_fit(res: Any, cfg: Any) -> None:
         )
 
 
-def _describe_log(data: Any, lf: Any) -> None:
-    console.print(
-        f"{data.source}: {data.geometry} log, {data.n_steps} steps of {data.dt_s:.4g} s, "
-        f"{data.n_observations} observations, "
-        + (
-            f"continuous commands ({', '.join(data.command_names)})"
-            if data.is_continuous
-            else f"{data.n_actions} actions"
-        )
-        + (f" ({lf.note})" if lf is not None and lf.note else "")
-    )
-
-
 @learn_app.command("em")
 @friendly
 def learn_em_cmd(
@@ -256,15 +244,13 @@ def learn_em_cmd(
     sensor=lidar2d`) it learns the wheels' radii, the axle, the lidar's mount and the noise instead, with error
     bars, and takes none of the EM options (docs/lidar2d.md)."""
     check_out_file(out, others={"--start-from": start_from}, kind=EM_MODEL, force=force)
-    from sensact.io.lidar2d_log import is_lidar2d_folder
+    from sensact.app.log_kinds import refuse_options
 
-    if is_lidar2d_folder(log):  # wheels and a 2-D lidar: their own learner, no EM settings
-        given = {"--start-from": start_from, "--halves": halves, "--preset": preset, "--set": set_, "--config": config,
-                 "--uncertainty": uncertainty}  # fmt: skip
-        _learn_lidar2d(log, out, report, [k for k, v in given.items() if v])
-        return
+    given = {"--start-from": start_from, "--halves": halves, "--preset": preset, "--set": set_, "--config": config,
+             "--uncertainty": uncertainty}  # fmt: skip
+    refuse_options(log, given)  # what this kind of log does not take, before any work
     asked = None
-    if uncertainty is not None:  # before EM: a request that cannot run is refused before the work it follows
+    if uncertainty is not None:  # before the fit: a request that cannot run is refused before the work it follows
         from sensact.app.uncertainty import ErrorBars
 
         asked = ErrorBars.parse(uncertainty)
@@ -272,24 +258,19 @@ def learn_em_cmd(
             from sensact.engine import check_engine
 
             check_engine(workers, scheduler)
-    from sensact.app import calibrate, open_log
+    from sensact.app import calibrate, open_log, save_calibration
 
     opened = open_log(log, bins=bins)
-    _describe_log(opened.data, opened.folder)
-    _warn_of_the_log(opened)
+    console.print(opened.describe(), highlight=False)
+    for note in opened.notes:
+        console.print(note, highlight=False)
+    for doubt in opened.doubts():
+        console.print(f"[yellow]warning:[/] {escape(doubt)}", highlight=False)
     with progress_bar() as progress:
         events = _events(opened, preset, progress)
         cal = calibrate(opened, preset, config, sets=set_ or (), start_from=start_from, events=events)
-    res, cfg = cal.result, cal.config
-    _describe_fit(res, cfg)
-    print_em_model(res.model)
-    for line in cal.diagnostics.warnings:
-        console.print(f"[yellow]warning:[/] {line}", highlight=False)
-    print_scores(cal.scores, cal.log)
-    doc = cal.to_json()
+    show_calibration(cal)
     if out is not None:
-        from sensact.app.save import save_calibration
-
         saved = save_calibration(cal, out, report=report)
         console.print("wrote " + ", ".join(str(p) for p in saved.written))
         for line in saved.not_drawn:
@@ -301,54 +282,62 @@ def learn_em_cmd(
                 "removed what an earlier run at this --out drew against a truth this log does not have: "
                 + ", ".join(str(p) for p in saved.removed)
             )
-    if res.stop_reason == "interrupted":  # the most likely model so far is written; nothing more to do with it
+    if cal.interrupted:  # the most likely model so far is written; nothing more to do with it
         finish(interrupted=True)
     if asked is not None:  # after the model is written, so that stopping the error bars loses nothing of it
         cal = _error_bars(cal, asked, workers, scheduler)
-        doc = cal.to_json()
         if out is not None:
-            from sensact.app.save import save_calibration
-
             save_calibration(cal, out, report=report)
             console.print(f"wrote {out} again, with the error bars" + (" (and the report)" if report else ""))
     if halves:  # after the model is written, so that stopping the halves loses nothing of it
-        if res.posteriors is None:
-            console.print(f"--halves: not run, EM stopped {res.stop_reason} without a smoothed path to compare on")
-            finish(cal.diagnostics.health)
-            return
-        from sensact.app.save import halves_figure
-
-        figure = None if out is None else halves_figure(out)
-        halves_doc = learn_and_compare_halves(
-            res, cal.log.data, cfg, figure, f"{cal.log.name}: halves against the whole"
-        )
-        if out is not None:
-            write_result(out, doc | {"halves": halves_doc}, EM_MODEL)
-            console.print(f"wrote {out} again, with the halves")
-    finish(cal.diagnostics.health)
+        _halves(cal, out)
+    finish(cal.health)
 
 
-def _learn_lidar2d(log: Path, out: Path | None, report: bool, refused: list[str]) -> None:
-    """`learn em` on a wheels-and-2-D-lidar folder (docs/lidar2d.md): the wheels, the mount and the noise, with
-    error bars; flagged (exit 3) where the log cannot pin them down."""
-    from sensact.errors import ConfigError
+def _halves(cal: Any, out: Path | None) -> None:
+    """`learn em --halves`: each half learned on from the whole log's model, compared, and written beside it."""
+    res = cal.result
+    if res.posteriors is None:
+        console.print(f"--halves: not run, EM stopped {res.stop_reason} without a smoothed path to compare on")
+        return
+    from sensact.app.save import halves_figure
 
-    if refused:
-        raise ConfigError(
-            f"{refused[0]} is for EM's landmark logs; {log} is a wheels-and-2-D-lidar log, learned with no settings.",
-            field=refused[0],
-            fix=f"run `sensact learn em {log}` without it.",
-        )
-    from sensact.app.lidar2d import calibrate_lidar2d, save_lidar2d
-    from sensact.io.lidar2d_log import read_lidar2d_log
+    figure = None if out is None else halves_figure(out)
+    title = f"{cal.log.name}: halves against the whole"
+    halves_doc = learn_and_compare_halves(res, cal.log.data, cal.config, figure, title)
+    if out is not None:
+        write_result(out, cal.to_json() | {"halves": halves_doc}, EM_MODEL)
+        console.print(f"wrote {out} again, with the halves")
 
-    data = read_lidar2d_log(log)
-    console.print(
-        f"{log}: {data.scan_t.size} scans of {data.beams} beams over {data.scan_t[-1] - data.scan_t[0]:.1f} s, the "
-        f"robot's motion from {data.drive} ({data.drive_t.size} rows)"
-    )
-    with progress_bar() as progress:
-        cal = calibrate_lidar2d(data, progress)
+
+def show_calibration(cal: Any) -> None:
+    """A calibration on the console, by the function registered for its type (each kind's learner returns
+    its own): registered on first use, so that the app is imported only when a command runs."""
+    if not _shown.registry.keys() - {object}:
+        from sensact.app import Calibration, Lidar2DCalibration
+
+        _shown.register(Calibration, _show_em)
+        _shown.register(Lidar2DCalibration, _show_lidar2d)
+    _shown(cal)
+
+
+@singledispatch
+def _shown(cal: Any) -> None:
+    raise TypeError(f"no way to show a {type(cal).__name__}")
+
+
+def _show_em(cal: Any) -> None:
+    """EM's fit: how it stopped, the model, its warnings and its scores."""
+    res, cfg = cal.result, cal.config
+    _describe_fit(res, cfg)
+    print_em_model(res.model)
+    for line in cal.diagnostics.warnings:
+        console.print(f"[yellow]warning:[/] {line}", highlight=False)
+    print_scores(cal.scores, cal.log)
+
+
+def _show_lidar2d(cal: Any) -> None:
+    """The wheels, the mount and the noise, with error bars (docs/lidar2d.md)."""
     doc = cal.to_json()
     print_tables([lidar2d_table(doc)])
     for note in doc["fit"]["notes"]:
@@ -360,14 +349,6 @@ def _learn_lidar2d(log: Path, out: Path | None, report: bool, refused: list[str]
             + ", ".join(f"{k} {v['error']:+.3g} ({v['error_sd']:+.2f} sd)" for k, v in ev.items() if "error" in v),
             highlight=False,
         )
-    if out is not None:
-        from sensact.app.lidar2d import save_lidar2d
-
-        written, not_drawn = save_lidar2d(cal, out, report=report)
-        console.print("wrote " + ", ".join(str(p) for p in written))
-        for line in not_drawn:
-            console.print(f"[yellow]warning: a figure was not drawn:[/] {escape(line)}", highlight=False)
-    finish(cal.health)
 
 
 def lidar2d_table(doc: JsonObject) -> tuple[str, list[str], list[list[str]]]:
@@ -442,18 +423,6 @@ def _interval(p: Any) -> str:
     return f"{low} to " + ("no bound" if hi is None else f"{hi:.5g}")
 
 
-def _warn_of_the_log(opened: Any) -> None:
-    """What a log shows before a fit that may waste it: a column in the wrong unit, one command throughout."""
-    from sensact.io.unit_checks import unit_doubts
-
-    data = opened.data
-    if opened.folder is not None:
-        for doubt in unit_doubts(data, opened.folder.truth_poses()):
-            console.print(f"[yellow]warning:[/] {doubt} (in {opened.path})")
-    if data.geometry.state_is_range and data.step_commands is not None:
-        warn_if_one_command(data.step_commands[:, 0], data.source, data.command_names[0])
-
-
 def _events(opened: Any, preset: str | None, show: Any) -> Any:
     """What the CLI shows as a calibration goes: the settings, the placement, EM's progress, restarts."""
     from sensact.app import FitEvents
@@ -474,13 +443,6 @@ def _events(opened: Any, preset: str | None, show: Any) -> Any:
             )
         elif settings.base != "the thesis's defaults":
             console.print(f"settings: {settings.base}; --config and --set override them.", highlight=False)
-        if opened.is_turtlebot_csv:
-            from sensact.io.turtlebot import EM_READINGS
-
-            names = opened.data.reading_names
-            absent = [r for r in EM_READINGS if r not in names]
-            if absent:
-                console.print(f"Channels {', '.join(names)} ({', '.join(absent)} not in the file).")
         if cfg.search.start_s is not None and opened.data.geometry.has_heading and not cfg.search.warm_start:
             console.print(
                 f"finding the start pose: a {cfg.search.start_grid_mm:g} mm grid scored on the first "
@@ -499,13 +461,14 @@ def _events(opened: Any, preset: str | None, show: Any) -> Any:
 
     eta = ConvergenceEta()
 
-    def progress(it: int, ll: float, best: float, since: int) -> None:  # its end projected from its convergence
+    def on_iteration(it: int, ll: float, best: float, since: int) -> None:  # its end projected from its convergence
         thesis = cfg_of["cfg"].thesis
         total = eta.total(it, best, since, thesis.patience, thesis.max_iterations)
         show(f"EM: log-likelihood {ll:.1f} (best {best:.1f}, {since} of {thesis.patience} since)", it + 1, total)
 
     return FitEvents(
-        progress=progress,
+        progress=show,
+        on_iteration=on_iteration,
         on_race=lambda done, planned: show(
             f"start race: EM from each start, {cfg_of['cfg'].search.start_trial_iterations} iterations a trial",
             done,
@@ -524,7 +487,6 @@ def _events(opened: Any, preset: str | None, show: Any) -> Any:
             style="yellow",
             markup=False,
         ),
-        placing=show,
         on_placed=on_placed,
         on_settings=on_settings,
     )

@@ -16,24 +16,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sensact.core.ekf_smoother import (
-    GATE,
-    GAUSSIAN,
-    OK,
-    STUDENT_T,
-    STUDENT_T_JOINT,
-    SensorInputs,
-    Sightings,
-    StepInputs,
-    passes_for,
-)
+from sensact.core.ekf_smoother import OK, STUDENT_T_JOINT, StepInputs, passes_for
 from sensact.learn.em.actions import step_motion_var
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
-from sensact.models.landmark_sensor import LandmarkSensor
 from sensact.reprs import compact_repr
-
-ROBUST_CODES = {"none": GAUSSIAN, "student_t": STUDENT_T, "gate": GATE}
 
 
 @dataclass
@@ -87,36 +74,6 @@ class Posteriors:
     obs_used: np.ndarray  # (K,) bool; False for pruned observations
     n_used: int
     weights: np.ndarray  # (K, C+1) each reading channel's weight, then the bearing's; 0 = not used
-
-
-def channel_columns(sensor: LandmarkSensor, data: LandmarkLog) -> list[int]:
-    """The log's reading column of each of the sensor's channels, matched by name."""
-    names = [c.name for c in sensor.channels]
-    if len(names) == 1 and names[0] not in data.reading_names:
-        return [0]  # a one-channel model reads the log's first reading, whatever it is called
-    missing = [x for x in names if x not in data.reading_names]
-    if missing:
-        raise ValueError(f"the log {data.source} has no reading {missing[0]!r} (it has {list(data.reading_names)})")
-    return [data.reading_names.index(x) for x in names]
-
-
-def channel_inputs(sensor: LandmarkSensor, data: LandmarkLog) -> tuple[np.ndarray, np.ndarray]:
-    """Each channel's readings ``(K, C)`` and bearing gain ``sum_k a_k b^k`` at the measured bearing.
-
-    A channel with bearing terms cannot predict a reading whose bearing is missing: that reading counts
-    as missing too.
-    """
-    readings = np.array(data.obs_readings[:, channel_columns(sensor, data)], dtype=float)
-    gain = np.zeros_like(readings)
-    for c, ch in enumerate(sensor.channels):
-        if not ch.bearing_terms:
-            continue
-        if not data.geometry.has_heading:
-            raise ValueError(f"channel {ch.name} has bearing terms but the log {data.source} has no bearings")
-        g = ch.bearing_gain(data.obs_bearing_rad)
-        readings[~np.isfinite(g), c] = np.nan
-        gain[:, c] = np.nan_to_num(g)
-    return readings, gain
 
 
 def e_step(
@@ -196,49 +153,17 @@ def _run_passes(
         raise ValueError(f"a {model.geometry} model cannot run on a {data.geometry} log")
     T = data.n_steps
     n = model.prior_mean.size
-    sensor = model.sensor
-    chans = sensor.channels
-    C = len(chans)
-    P = max(c.function.degree for c in chans) + 1
-    coefs = np.zeros((C, P))
-    for i, ch in enumerate(chans):
-        coefs[i, : ch.function.degree + 1] = ch.function.coef
-    kinds = np.array([ROBUST_CODES[c.robust] for c in chans] + [ROBUST_CODES[sensor.bearing_robust]], dtype=np.int64)
-    if sensor.joint_student_t:
-        kinds[kinds == STUDENT_T] = STUDENT_T_JOINT
-    params = np.array([c.robust_param for c in chans] + [sensor.bearing_robust_param], dtype=float)
     velocity = model.action.step_velocity(data)
     if motion_var is None:
         var_steps = step_motion_var(model, data, velocity)
     else:
         var_steps = np.repeat(np.asarray(motion_var, dtype=float).reshape(1, n), T, axis=0)
-    sb = sensor.sigma_bearing_rad
     mu_a = np.empty((T, n))
     P_a = np.empty((T, n, n))
-    weights = np.zeros((data.n_observations, C + 1))
-    readings, gain = channel_inputs(sensor, data)
     steps = StepInputs(data.mode, float(data.dt_s), np.ascontiguousarray(velocity), np.ascontiguousarray(var_steps))
-    sight = Sightings(
-        data.obs_ptr,
-        data.obs_landmark,
-        readings,
-        gain,
-        # a sensor without sigma_2 (a range-only one) reads no bearing, whatever the log holds
-        data.obs_bearing_rad if sb is not None else np.full(data.n_observations, np.nan),
-    )
-    inputs = SensorInputs(
-        data.landmarks_xy if len(data.landmarks_xy) else np.zeros((1, 2)),
-        coefs,
-        np.array([c.function.center for c in chans], dtype=float),
-        np.array([c.function.scale for c in chans], dtype=float),
-        np.array([c.sigma**2 for c in chans], dtype=float),
-        np.array([c.valid_min for c in chans], dtype=float),
-        np.array([c.valid_max for c in chans], dtype=float),
-        float((sb if sb is not None else 1.0) ** 2),
-        sensor.mount.as_array(),
-        kinds,
-        params,
-    )
+    sight, inputs = model.sensor.kernel_inputs(data)
+    weights = np.zeros((data.n_observations, sight.readings.shape[1] + 1))
+    kinds, params = inputs.robust_kind, inputs.robust_param
     joint_dof = float(params[kinds == STUDENT_T_JOINT][0]) if np.any(kinds == STUDENT_T_JOINT) else None
     forward, backward, pairwise = passes_for(n)
     innov, innov_sens = record if record is not None else (None, None)

@@ -20,7 +20,7 @@ from sensact.learn.em.checks.lost_signs import LostSign, Unsettled, lost_fit_sig
 from sensact.learn.em.config import EMConfig, refuse_bearing_settings
 from sensact.learn.em.estep import counting_passes
 from sensact.learn.em.initial import initial_model
-from sensact.learn.em.loop import Progress, fit_em_once, held_trial, stage_loglik
+from sensact.learn.em.loop import OnIteration, fit_em_once, held_trial, stage_loglik
 from sensact.learn.em.result import EMResult, HeadingRace, RestartRun, StartMoved
 from sensact.learn.em.searches.facing import FLIP, drives_backward, turned_model, turned_posteriors
 from sensact.learn.em.searches.given_start import start_moved_mm
@@ -30,7 +30,7 @@ from sensact.learn.em.unsurveyed.rounds import Fit, map_rounds
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 
-__all__ = ["EMResult", "Progress", "fit_em", "fit_em_once"]
+__all__ = ["EMResult", "OnIteration", "fit_em", "fit_em_once"]
 
 # (restart number from 1, the last fit's signs of being lost (checks/lost_signs.lost_fit_signs), the new start sigmas)
 OnRestart = Callable[[int, list[LostSign], dict[str, float]], None]
@@ -76,14 +76,14 @@ def fit_em(
     initial: EMModel | None = None,
     config: EMConfig | None = None,
     *,
-    progress: Progress | None = None,
+    on_iteration: OnIteration | None = None,
     on_restart: OnRestart | None = None,
     on_race: OnTrial | None = None,
     on_start_moved: OnStartMoved | None = None,
 ) -> EMResult:
     """Learn the action model, the sensor model and the prior from ``data`` by EM (the Algorithm of ch. 4),
     from ``initial`` (by default sec. 4.4.1's poor start): ``fit_em_once`` inside ``POLICIES``, composed.
-    ``progress`` hears of every iteration, ``on_race`` of the start race's trials, ``on_restart`` of each
+    ``on_iteration`` hears of every iteration, ``on_race`` of the start race's trials, ``on_restart`` of each
     restart before it runs, ``on_start_moved`` of a range-only start that moved metres."""
     cfg = config or EMConfig()
     refuse_settings_for_log(cfg, data, initial)
@@ -92,15 +92,15 @@ def fit_em(
     heard = Heard(on_restart, on_race, on_start_moved)
     began = time.perf_counter()
     with counting_passes() as passes:
-        res = _fit(data, start, cfg, heard, progress)
+        res = _fit(data, start, cfg, heard, on_iteration)
     return dc_replace(
         res, seconds=time.perf_counter() - began, e_steps=passes.e_steps, forward_passes=passes.forward_only
     )
 
 
-def _fit(data: LandmarkLog, start: EMModel, cfg: EMConfig, heard: Heard, progress: Progress | None) -> EMResult:
+def _fit(data: LandmarkLog, start: EMModel, cfg: EMConfig, heard: Heard, on_iteration: OnIteration | None) -> EMResult:
     def composed(log: LandmarkLog, settings: EMConfig) -> Fit:
-        fit: Fit = partial(fit_em_once, log, config=settings, progress=progress, on_race=heard.on_race)
+        fit: Fit = partial(fit_em_once, log, config=settings, on_iteration=on_iteration, on_race=heard.on_race)
         for policy in POLICIES:
             fit = policy(fit, log, settings, heard)
         return fit

@@ -44,7 +44,7 @@ from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 
 # (iteration, loglik, best loglik, iterations since the best) -> None
-Progress = Callable[[int, float, float, int], None]
+OnIteration = Callable[[int, float, float, int], None]
 
 
 @dataclass
@@ -64,7 +64,7 @@ class _Trace:
     def record(self, it: int, model: EMModel, post: Posteriors) -> None:
         self.logliks.append(post.loglik)
         self.velocities.append(_action_parameters(model).copy())
-        self.sigmas.append([c.sigma for c in model.sensor.channels] + [model.sensor.sigma_bearing_rad or np.nan])
+        self.sigmas.append(list(model.sensor.sigmas))
         self.motion_sds.append(model.motion_sd.copy())
         self.keep_if_best(it, model, post)
         self.bests.append(self.best_ll)
@@ -258,11 +258,11 @@ class _Run:
         )
 
 
-def em_loop(run: _Run, iterations: int, progress: Progress | None = None) -> str:
+def em_loop(run: _Run, iterations: int, on_iteration: OnIteration | None = None) -> str:
     """The thesis's loop (secs. 4.1, 4.4.1): E-step, M-step, until the last stage converges; why it stopped.
     Accelerated (``accelerate``), ``squarem_loop``."""
     if run.cfg.accelerate:
-        return squarem_loop(run, iterations, progress)
+        return squarem_loop(run, iterations, on_iteration)
     floor = prior_floor_var(run.cfg, run.model.prior_mean.size)
     try:
         for it in range(iterations):
@@ -270,8 +270,8 @@ def em_loop(run: _Run, iterations: int, progress: Progress | None = None) -> str
             if not post.ok:
                 return "diverged"
             run.trace.record(it, run.model, post)
-            if progress is not None:
-                progress(it, post.loglik, run.trace.best_ll, it - run.trace.best_it)
+            if on_iteration is not None:
+                on_iteration(it, post.loglik, run.trace.best_ll, it - run.trace.best_it)
             ending = not run.last and run.stage_ends(it)
             post = run.search_if_due(it, post, ending)  # the searches may move lambda_it
             if ending:
@@ -284,7 +284,7 @@ def em_loop(run: _Run, iterations: int, progress: Progress | None = None) -> str
     return "max_iterations"
 
 
-def squarem_loop(run: _Run, iterations: int, progress: Progress | None = None) -> str:
+def squarem_loop(run: _Run, iterations: int, on_iteration: OnIteration | None = None) -> str:
     """``em_loop`` with SQUAREM's cycles (``squarem.py``): from lambda_0, two EM steps, S3's step from the
     three, and an EM step from there that begins the next cycle. Every E-step on EM's path is an iteration,
     and is recorded; stages, searches and the stop are judged at each cycle's lambda_0, as ``em_loop`` judges
@@ -306,8 +306,8 @@ def squarem_loop(run: _Run, iterations: int, progress: Progress | None = None) -
         nonlocal it
         if post.ok:
             run.trace.record(it, model, post)
-            if progress is not None:
-                progress(it, post.loglik, run.trace.best_ll, it - run.trace.best_it)
+            if on_iteration is not None:
+                on_iteration(it, post.loglik, run.trace.best_ll, it - run.trace.best_it)
         it += 1
 
     def visit(model: EMModel) -> Posteriors | None:
@@ -396,7 +396,7 @@ def run_stages(
     freedom: MountFreedom,
     patience: int | None,
     prune: float | None,
-    progress: Progress | None = None,
+    on_iteration: OnIteration | None = None,
     start_search: StartSearch | None = None,
     searches_on: bool = True,
 ) -> EMResult:
@@ -415,7 +415,7 @@ def run_stages(
     run.freed_at = 0 if warm else -1
     run.began.append((run.current.name, 0))
     start = time.perf_counter()
-    reason = em_loop(run, iterations, progress)
+    reason = em_loop(run, iterations, on_iteration)
     obs_use = run.obs_use
     n_pruned = 0 if obs_use is None else int(data.n_observations - obs_use.sum())
     logliks, velocities, sigmas, motion_sds = trace.arrays(run.model)
@@ -478,7 +478,7 @@ def fit_em_once(
     initial: EMModel | None = None,
     config: EMConfig | None = None,
     *,
-    progress: Progress | None = None,
+    on_iteration: OnIteration | None = None,
     on_race: OnTrial | None = None,
 ) -> EMResult:
     """One EM run from one start (the Algorithm of ch. 4): the start searched for when configured, then
@@ -493,7 +493,7 @@ def fit_em_once(
     iterations = max(cfg.thesis.max_iterations - spent, 1)
     return run_stages(
         data, model, cfg, stages, iterations, freedom=freedom, patience=cfg.thesis.patience,
-        prune=cfg.thesis.prune_rad_per_step, progress=progress, start_search=start_info,
+        prune=cfg.thesis.prune_rad_per_step, on_iteration=on_iteration, start_search=start_info,
     )  # fmt: skip
 
 

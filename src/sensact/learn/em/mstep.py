@@ -7,18 +7,16 @@ from dataclasses import replace
 
 import numpy as np
 
-from sensact.core.angles import wrap_angle
-from sensact.core.polyfit import weighted_lstsq
-from sensact.core.pose_models import apply_displacement, landmark_bearing, sensor_poses
+from sensact.core.pose_models import apply_displacement
 from sensact.learn.em.actions import motion_noise, motion_second_moments, step_motion_var, turning_variance
-from sensact.learn.em.estep import Posteriors, channel_inputs
-from sensact.learn.em.mount import mount_update, sensor_distances
+from sensact.learn.em.estep import Posteriors
+from sensact.learn.em.mount import mount_update
 from sensact.learn.em.stage import Stage
-from sensact.learn.em.unsurveyed.landmark_step import SampledSightings, landmark_update, normal_equations
+from sensact.learn.em.unsurveyed.landmark_step import landmark_update, normal_equations
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 from sensact.models.landmark_map import LandmarkMap
-from sensact.models.landmark_sensor import MIN_SIGMA, LandmarkSensor, reading_features
+from sensact.models.landmark_sensor import LandmarkSensor, SampledSightings
 
 
 def sample_gamma(
@@ -97,60 +95,22 @@ def sensor_and_map(
     if rows.size == 0:
         return previous, landmarks
     poses = sample_gamma(post, data.obs_step[rows], n_samples, rng, sigma_points)  # (S, R, n)
-    n_samples = len(poses)
-    readings = channel_inputs(previous, data)[0][rows]
-    bearings = data.obs_bearing_rad[rows]
+    seen = SampledSightings(
+        poses, data.obs_landmark[rows], previous.readings_of(data)[0][rows], weights[rows], data.obs_bearing_rad[rows]
+    )
     if any(mount_free):
-        lm = data.landmarks_xy[data.obs_landmark[rows]]
-        mount = mount_update(poses, lm, readings, weights[rows], bearings, previous, mount_free)
+        lm = data.landmarks_xy[seen.landmark]
+        mount = mount_update(poses, lm, seen.readings, seen.weights, seen.bearings, previous, mount_free)
         previous = replace(previous, mount=mount)
     metric = -1
     if landmarks is not None:
-        seen = SampledSightings(poses, data.obs_landmark[rows], readings, weights[rows], bearings)
         xy, sd = landmark_update(seen, previous, landmarks.xy, landmarks.learned)
         landmarks = replace(landmarks, xy=xy, sd=np.where(landmarks.learned[:, None], sd, np.nan))
         if landmarks.scale == "range":
             metric = next((c for c, ch in enumerate(previous.channels) if ch.name.endswith("_mm")), -1)
-    lm = (data.landmarks_xy if landmarks is None else landmarks.xy)[data.obs_landmark[rows]]
-    dist = sensor_distances(poses, lm, previous.mount, data.mode)  # (S, R)
-    fits = []
-    for c, ch in enumerate(previous.channels):
-        w = weights[rows, c]
-        use = w > 0
-        deg, m = ch.function.degree, len(ch.bearing_terms) if fit_bearing_terms else 0
-        if use.sum() <= deg + m + 1:
-            fits.append((ch.function, ch.sigma, ch.bearing_terms))
-            continue
-        d = dist[:, use].ravel()
-        y = np.tile(readings[use, c], n_samples)
-        ww = np.tile(w[use], n_samples)
-        b = np.tile(bearings[use], n_samples)
-        held = 0.0 if m else d * ch.bearing_gain(b)  # held terms: f is fitted to what they leave
-        center, scale = float(d.mean()), float(d.std()) or 1.0
-        # eq. 4.25, with the bearing terms' columns d b^k beside f's (they enter linearly too)
-        X = reading_features(d, b, deg, m, center, scale)
-        if c == metric and deg >= 1:  # the map's scale: f = d + offset (and the bearing terms)
-            rest = np.r_[[0], deg + 1 : X.shape[1]].astype(int)
-            sol = np.zeros(X.shape[1])
-            sol[1] = scale
-            if rest.size:
-                sol[rest] = weighted_lstsq(X[:, rest], y - held - X[:, :2] @ sol[:2], ww)
-        else:
-            sol = weighted_lstsq(X, y - held, ww)
-        fitted = ch.with_solution(sol, center, scale, m)
-        sigma = float(np.sqrt(np.sum(ww * (fitted.predict(d, b) - y) ** 2) / d.size))  # eq. 4.27
-        fits.append((fitted.function, max(sigma, MIN_SIGMA), fitted.bearing_terms))
-    sigma_b = previous.sigma_bearing_rad
-    wb = weights[rows, -1]
-    if data.geometry.has_heading and sigma_b is not None and (wb > 0).any():
-        b = wb > 0
-        ob = data.obs_bearing_rad[rows][b]
-        m = previous.mount.as_array()
-        err = np.concatenate(
-            [wrap_angle(landmark_bearing(sensor_poses(poses[s][b], m), lm[b]) - ob) for s in range(n_samples)]
-        )
-        sigma_b = max(float(np.sqrt(np.sum(np.tile(wb[b], n_samples) * err**2) / err.size)), MIN_SIGMA)
-    return previous.with_fits(fits, sigma_b), landmarks
+    xy = data.landmarks_xy if landmarks is None else landmarks.xy
+    sensor = previous.update(seen, xy, data.geometry, fit_bearing_terms=fit_bearing_terms, metric=metric)
+    return sensor, landmarks
 
 
 def map_normal_equations(
@@ -164,7 +124,7 @@ def map_normal_equations(
     if rows.size == 0:
         return np.zeros((L, 2, 2)), np.zeros((L, 2))
     poses = sample_gamma(post, data.obs_step[rows], n_samples, rng)
-    readings = channel_inputs(sensor, data)[0][rows]
+    readings = sensor.readings_of(data)[0][rows]
     seen = SampledSightings(poses, data.obs_landmark[rows], readings, weights[rows], data.obs_bearing_rad[rows])
     return normal_equations(seen, sensor, data.landmarks_xy)
 

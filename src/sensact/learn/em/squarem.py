@@ -96,7 +96,7 @@ class Coordinates:
                 (f"bearing_terms.{ch.name}", np.asarray(ch.bearing_terms, dtype=float)),
                 (f"log sigma.{ch.name}", np.log([ch.sigma])),
             ]
-        if model.sensor.sigma_bearing_rad is not None:
+        if model.sensor.reads_bearing:
             parts.append(("log sigma.bearing_rad", np.log([model.sensor.sigma_bearing_rad])))
         parts.append(("mount", model.sensor.mount.as_array()))
         parts.append(("log Sigma_m", np.log(model.motion_sd).ravel()))

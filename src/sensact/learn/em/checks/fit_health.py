@@ -19,7 +19,6 @@ import numpy as np
 
 from sensact.core.pose_models import sensor_distance
 from sensact.health import MIN_EXPLAINED, MIN_READINGS, Health, HealthFlag
-from sensact.learn.em.estep import channel_columns
 from sensact.learn.em.result import EMResult
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
@@ -143,7 +142,7 @@ def _readings(result: EMResult, data: LandmarkLog) -> list[HealthFlag]:
         return []
     model, post = result.model, result.posteriors
     use = np.ones(data.n_observations, bool) if post is None else np.asarray(post.obs_used, dtype=bool)
-    cols = channel_columns(model.sensor, data)
+    cols = model.sensor.columns(data)
     dist = None
     if post is not None:
         steps = data.obs_step[use]

@@ -21,9 +21,9 @@ from typing import Any, Literal
 import numpy as np
 
 from sensact.core.angles import wrap_angle
-from sensact.core.pose_models import landmark_bearing, landmark_distance, sensor_distance, sensor_poses
+from sensact.core.pose_models import sensor_distance
 from sensact.learn.em.config import EMConfig, SearchSettings
-from sensact.learn.em.estep import Posteriors, channel_columns, channel_inputs
+from sensact.learn.em.estep import Posteriors
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 
@@ -85,7 +85,7 @@ def fitted_distances(model: EMModel, post: Posteriors, data: LandmarkLog) -> lis
         dist = sensor_distance(poses, data.landmarks_xy[data.obs_landmark[use]], model.sensor.mount.as_array())
     else:  # a track's state is the distance to the beacon
         dist = post.mean_gamma[data.obs_step[use], 0]
-    readings = data.obs_readings[use][:, channel_columns(model.sensor, data)]
+    readings = data.obs_readings[use][:, model.sensor.columns(data)]
     out = []
     for j, ch in enumerate(model.sensor.channels):
         d = dist[np.isfinite(readings[:, j])]
@@ -266,22 +266,17 @@ def residual_autocorrelation(model: EMModel, post: Posteriors, data: LandmarkLog
     out: dict[str, float | None] = {}
     if rows.size == 0:
         return out
-    poses = post.mean_gamma[data.obs_step[rows]]
-    lm = data.landmarks_xy[data.obs_landmark[rows]]
-    if data.geometry.has_heading:
-        poses = sensor_poses(poses, model.sensor.mount.as_array())
-    dist = landmark_distance(poses, lm, data.mode)
-    readings = channel_inputs(model.sensor, data)[0][rows]
+    predicted = model.sensor.predict(post.mean_gamma[data.obs_step[rows]], data, rows)
+    readings = model.sensor.readings_of(data)[0][rows]
     bearings = data.obs_bearing_rad[rows]
     for j, ch in enumerate(model.sensor.channels):
         w = post.weights[rows, j]
         use = w > 0
-        pred = ch.predict(dist[use], bearings[use] if ch.bearing_terms else None)
-        out[ch.name] = _lag1(np.sqrt(w[use]) * (readings[use, j] - pred))
+        out[ch.name] = _lag1(np.sqrt(w[use]) * (readings[use, j] - predicted[use, j]))
     if model.sensor.reads_bearing and data.geometry.has_heading:
         w = post.weights[rows, -1]
         use = w > 0
-        out["bearing"] = _lag1(np.sqrt(w[use]) * wrap_angle(bearings[use] - landmark_bearing(poses[use], lm[use])))
+        out["bearing"] = _lag1(np.sqrt(w[use]) * wrap_angle(bearings[use] - predicted[use, -1]))
     return out
 
 

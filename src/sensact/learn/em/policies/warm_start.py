@@ -19,9 +19,10 @@ from typing import Any
 from sensact.errors import ConfigError
 from sensact.learn.em.config import EMConfig
 from sensact.learn.em.initial import initial_model
-from sensact.learn.em.uses.place import Localized, Progress, localize
+from sensact.learn.em.uses.place import Localized, localize
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
+from sensact.progress import Progress
 
 
 def families(model: EMModel) -> list[tuple[str, Any]]:

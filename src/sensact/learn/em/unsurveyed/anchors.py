@@ -19,7 +19,6 @@ import numpy as np
 
 from sensact.core.pose_models import sensor_poses
 from sensact.learn.em.config import EMConfig
-from sensact.learn.em.estep import channel_inputs
 from sensact.learn.em.initial import initial_model
 from sensact.learn.em.result import EMResult
 from sensact.learn.em.unsurveyed.landmark_step import placed_landmarks
@@ -63,7 +62,7 @@ def multilaterate(model: EMModel, path: np.ndarray, data: LandmarkLog, held: np.
     the squared ranges, then Gauss-Newton on the ranges themselves; NaN where ranged fewer than
     ``MIN_RANGES`` times. Held anchors keep the log's positions."""
     ch = model.sensor.channels[0]
-    reading = channel_inputs(model.sensor, data)[0][:, 0]
+    reading = model.sensor.readings_of(data)[0][:, 0]
     grid = np.linspace(0.0, 20000.0, 2001)
     f = ch.function(grid)
     ok_f = np.all(np.diff(f) > 0)

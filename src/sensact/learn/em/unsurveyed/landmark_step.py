@@ -15,7 +15,7 @@ position is the Gauss-Newton curvature's: how far the sightings alone, on the sm
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 
@@ -23,7 +23,7 @@ from sensact.core.angles import wrap_angle
 from sensact.core.pose_models import landmark_bearing, sensor_poses
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.landmark_map import LandmarkMap
-from sensact.models.landmark_sensor import LandmarkSensor
+from sensact.models.landmark_sensor import LandmarkSensor, SampledSightings
 
 GAUSS_NEWTON_STEPS = 5
 # a learned position is reported (placed) when this many sightings were used and its sd is at most this;
@@ -46,17 +46,6 @@ def placed_landmarks(learned: LandmarkMap, data: LandmarkLog, used: np.ndarray |
     return replace(
         learned, placed=learned.held | (np.isfinite(learned.xy).all(axis=1) & (n >= MIN_SIGHTINGS_TO_PLACE) & sure)
     )
-
-
-@dataclass(frozen=True, eq=False)
-class SampledSightings:
-    """The sightings an M-step reads (those the E-step used), with the robot's sampled poses at each."""
-
-    poses: np.ndarray  # (S, R, 3): the E-step's pose samples at the R sightings (eq. 4.25's expectation)
-    landmark: np.ndarray  # (R,) which landmark each sighting saw
-    readings: np.ndarray  # (R, C) each reading channel's input
-    weights: np.ndarray  # (R, C + 1) each channel's E-step weight, then the bearing's; 0 = not used
-    bearings: np.ndarray  # (R,) rad
 
 
 def landmark_update(

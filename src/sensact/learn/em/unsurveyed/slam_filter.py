@@ -17,7 +17,6 @@ import numpy as np
 from sensact.core.angles import wrap_angle
 from sensact.core.pose_models import PLANAR, observe_bearing, observe_height
 from sensact.learn.em.actions import step_motion_var
-from sensact.learn.em.estep import channel_inputs
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 
@@ -40,7 +39,7 @@ def filtered_map(
     vel = model.action.step_velocity(data)
     var = step_motion_var(model, data, vel)
     ch = model.sensor.channels[0]
-    readings = channel_inputs(model.sensor, data)[0][:, 0]
+    readings = model.sensor.readings_of(data)[0][:, 0]
     gains = ch.bearing_gain(data.obs_bearing_rad) if ch.bearing_terms else np.zeros(data.n_observations)
     coef, mount = np.asarray(ch.function.coef, dtype=float), model.sensor.mount.as_array()
     noise = np.diag([ch.sigma**2, model.sensor.sigma_bearing_rad**2])

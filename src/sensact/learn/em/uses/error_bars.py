@@ -54,23 +54,16 @@ def model_parameters(model: EMModel, f_at: Sequence[float]) -> dict[str, tuple[s
     out: dict[str, tuple[str, float]] = {}
     a = model.action
     out.update({name: ("action", value) for name, value in a.named_parameters().items()})
-    for ch in model.sensor.channels:
-        for d in f_at:
-            out[f"f.{ch.name}({d:g} mm)"] = ("f", float(ch.function(np.array([d]))[0]))
-        for k, term in enumerate(ch.bearing_terms, start=1):
-            out[f"f.{ch.name}.bearing_term{k}"] = ("f", term)
-        out[f"sigma.{ch.name}"] = ("sigma", ch.sigma)
-    if model.sensor.reads_bearing:
-        out["sigma.bearing_rad"] = ("sigma", float(model.sensor.sigma_bearing_rad))
+    sensor = model.sensor.named_parameters(f_at)  # f's, the sigmas', then the mount's: each its family's prefix
+    out.update({name: (name.split(".")[0], value) for name, value in sensor.items() if not name.startswith("mount.")})
     names = a.velocity_names
     for g, row in enumerate(model.motion_sd):
         for j, sd in enumerate(row):
             out[f"Sigma_m[{g}].{names[j]}"] = ("Sigma_m", float(sd))
     if model.turn_var is not None:
         out["Sigma_m.turn_var"] = ("Sigma_m", model.turn_var)
-    if model.geometry.has_heading:
-        for k, value in model.sensor.mount.to_dict().items():
-            out[f"mount.{k}"] = ("mount", value)
+    if model.geometry.has_heading:  # a track's sensor has no pose of its own
+        out.update({name: ("mount", value) for name, value in sensor.items() if name.startswith("mount.")})
     return out
 
 
@@ -95,7 +88,7 @@ def replicate(
         if progress is not None:
             progress(f"replicate {seed}: EM iteration {it}, log-likelihood {ll:.1f}", it + 1, None)
 
-    res = fit_em(drawn, start, config, progress=on_iteration)
+    res = fit_em(drawn, start, config, on_iteration=on_iteration)
     if res.stop_reason == "diverged":
         raise ValueError(f"EM diverged on replicate {seed}")
     return {name: value for name, (_, value) in model_parameters(res.model, f_at).items()}

@@ -26,7 +26,7 @@ about as well as the one it was learned on (``EMResult.summary()['loglik_best']`
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,11 +35,12 @@ from sensact.config import config_from_dict
 from sensact.core.angles import wrap_angle
 from sensact.errors import ConfigError
 from sensact.learn.em.config import EMConfig, upgrade_settings
-from sensact.learn.em.estep import Posteriors, channel_columns, e_step, log_likelihood
+from sensact.learn.em.estep import Posteriors, e_step, log_likelihood
 from sensact.learn.em.fit import refuse_no_sightings
 from sensact.learn.em.searches.start_race import DISTINCT_CELLS, search_grid, search_window, start_candidates
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
+from sensact.progress import Progress
 from sensact.records import JsonObject
 from sensact.reprs import compact_repr
 
@@ -47,7 +48,6 @@ SEARCH_WINDOW_S = 30.0  # the planar start search's window when the config sets 
 TRACK_SIGHTINGS = 5  # a track's start candidates come from this many first sightings
 TRACK_MIN_SD = 1.0  # a track candidate's prior sd is at least this (a reading on a steep f pins it too well)
 # (description, done, total): where a long search is, for a progress bar
-Progress = Callable[[str, int, int | None], None]
 RANGE_HEADINGS = 12  # a range-only start search tries this many headings at each grid position (30 degrees apart)
 # the settings localize takes from the ones a model was learned with (its JSON's summary.config): the
 # start search, the start's spread and the first-iteration gate; the rest of the E-step is the model's own
@@ -90,7 +90,7 @@ def track_start_candidates(model: EMModel, data: LandmarkLog) -> list[tuple[floa
     """``(distance, sd)`` for each real root of ``f_j(x) = o`` inside channel j's window, over the first
     ``TRACK_SIGHTINGS`` sightings: where a reading of each channel puts the robot, with the spread its
     sigma implies there."""
-    cols = channel_columns(model.sensor, data)
+    cols = model.sensor.columns(data)
     out = []
     for k in range(min(TRACK_SIGHTINGS, data.n_observations)):
         for ch, col in zip(model.sensor.channels, cols, strict=True):

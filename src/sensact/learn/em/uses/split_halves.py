@@ -19,9 +19,10 @@ from sensact.errors import ConfigError
 from sensact.learn.em.config import EMConfig
 from sensact.learn.em.fit import EMResult, fit_em
 from sensact.learn.em.policies.warm_start import start_from_model
-from sensact.learn.em.uses.place import Localized, Progress
+from sensact.learn.em.uses.place import Localized
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
+from sensact.progress import Progress
 from sensact.reprs import compact_repr
 
 HALF_NAMES = ("first half", "second half")
@@ -68,7 +69,7 @@ def learn_halves(
             part,
             placed.model,
             cfg,
-            progress=None
+            on_iteration=None
             if on_iteration is None
             else lambda it, ll, best, since, n=name: on_iteration(n, it, ll, best, since),
         )

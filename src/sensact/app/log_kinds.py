@@ -1,0 +1,192 @@
+"""One door per log kind, as kiss-icp's ``dataset_factory``: ``open_log(path)`` asks each registered kind,
+in order, whether ``path`` is one of its logs and opens it with that kind's opener; ``calibrate(log, ...)``
+runs the learner of the kind that opened it. ``sensact learn em DIR`` is ``calibrate(open_log(DIR))`` and
+printing, for every kind. A new kind of log is one module with its opener and learner, and one
+``register`` here; nothing outside this module asks what kind a log is.
+
+The kinds:
+
+* ``lidar2d``: a folder of wheel encoders (or /odom, /cmd_vel) and 2-D scans (``meta.json``'s ``kind``);
+* ``turtlebot_csv``: the Turtlebot's 1-D CSV, read by EM with the Turtlebot's settings;
+* ``landmarks``: a log folder of actions and landmark sightings, EM's own: range and bearing, range-only
+  or a 1-D track, as its ``meta.json`` says (the geometry and the sensor model are types of their own).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from sensact.app.calibrate import Calibration, FitEvents, calibrate_em
+from sensact.app.lidar2d import (
+    Lidar2DCalibration,
+    OpenedLidar2DLog,
+    calibrate_opened_lidar2d,
+    open_lidar2d_log,
+    save_lidar2d,
+)
+from sensact.app.logs import OpenedLandmarkLog, is_turtlebot_csv, open_landmark_folder, open_turtlebot_csv
+from sensact.app.save import Saved, save_em_calibration
+from sensact.errors import ConfigError, LogFormatError
+from sensact.io.lidar2d_log import KIND as LIDAR2D_KIND
+from sensact.io.logfolder import meta_kind
+
+OpenedAny = OpenedLandmarkLog | OpenedLidar2DLog
+CalibratedAny = Calibration | Lidar2DCalibration
+
+# `learn em`'s options beyond the log and --out that a kind may or may not take
+EM_OPTIONS = frozenset({"--start-from", "--halves", "--preset", "--set", "--config", "--uncertainty"})
+
+
+@dataclass(frozen=True)
+class LogKind:
+    name: str
+    family: str  # the logs its learner reads, as a refusal names them ("EM's landmark logs")
+    what: str  # what such a log is, as a refusal names it
+    recognizes: Callable[[Path], bool]
+    open: Callable[[Path, int], Any]  # (path, bins) -> the opened log
+    opened: type  # what ``open`` returns
+    learn: Callable[..., Any]  # (opened, preset, config, *, sets, start_from, events) -> its calibration
+    calibrated: type  # what ``learn`` returns
+    save: Callable[..., Saved]  # (calibration, out, report) -> what `learn em --out OUT` writes
+    options: frozenset[str]  # the `learn em` options it takes
+
+
+KINDS: list[LogKind] = []
+
+
+def register(kind: LogKind) -> LogKind:
+    KINDS.append(kind)
+    return kind
+
+
+def kind_of(path: str | Path) -> LogKind:
+    """The kind of log ``path`` is: the first registered kind that recognizes it."""
+    p = Path(path)
+    for kind in KINDS:
+        if kind.recognizes(p):
+            return kind
+    raise LogFormatError(
+        "not a log sensact reads.",
+        file=p,
+        fix="give " + "; or ".join(k.what for k in KINDS) + ".",
+    )
+
+
+def _kind_opened(log: Any) -> LogKind:
+    """The kind whose opener returns ``log``'s type (kinds that share an opened type share their learner)."""
+    for kind in KINDS:
+        if isinstance(log, kind.opened):
+            return kind
+    raise TypeError(f"{type(log).__name__} is not a log that `open_log` opens")
+
+
+def save_calibration(cal: Any, out: str | Path, *, report: bool = True) -> Saved:
+    """``cal`` written at ``out`` as `learn em --out OUT` writes it, by its kind's writer."""
+    for kind in KINDS:
+        if isinstance(cal, kind.calibrated):
+            return kind.save(cal, Path(out), report)
+    raise TypeError(f"{type(cal).__name__} is not a calibration that `calibrate` returns")
+
+
+def open_log(path: str | Path, *, bins: int = 21) -> OpenedAny:
+    """``path`` opened by its kind's opener (``bins``: the actions a 1-D track's continuous commands are
+    binned into)."""
+    return kind_of(path).open(Path(path), bins)
+
+
+def refuse_options(log: Any, given: Mapping[str, Any]) -> None:
+    """One line for the first option in ``given`` (name -> value; None, False and empty are not given)
+    that the kind of ``log`` (an opened log, or a path) does not take, before any work."""
+    kind = kind_of(log) if isinstance(log, str | Path) else _kind_opened(log)
+    path = log if isinstance(log, str | Path) else log.path
+    for option, value in given.items():
+        if value is None or value is False or (isinstance(value, tuple | list) and not value) or option in kind.options:
+            continue
+        takes = dict.fromkeys(k.family for k in KINDS if option in k.options)
+        raise ConfigError(
+            f"{option} is for {' and '.join(takes) or 'no logs'}; {path} is {kind.what}, learned without it.",
+            field=option,
+            fix=f"run `sensact learn em {path}` without {option}.",
+        )
+
+
+def calibrate(
+    log: Any,
+    preset: str | None = None,
+    config: Any = None,
+    *,
+    sets: Sequence[str] = (),
+    start_from: Path | None = None,
+    events: FitEvents | None = None,
+) -> CalibratedAny:
+    """``log``'s models learned by its kind's learner, as `sensact learn em` learns them: EM (ch. 4) on a
+    landmark log (``app.calibrate.calibrate_em``), scan matching and maximum likelihood on a wheels-and-2-D-lidar
+    log (``app.lidar2d``). Settings a kind does not take are refused in one line."""
+    kind = _kind_opened(log)
+    refuse_options(log, {"--preset": preset, "--config": config, "--set": tuple(sets), "--start-from": start_from})
+    return kind.learn(log, preset, config, sets=sets, start_from=start_from, events=events)
+
+
+def landmark_log(path: str | Path, command: str, *, bins: int = 21) -> OpenedLandmarkLog:
+    """``path`` opened through the door, for a command that reads landmark logs only: another kind is refused
+    in one line naming the command that does read it."""
+    log = open_log(path, bins=bins)
+    if not isinstance(log, OpenedLandmarkLog):
+        kind = _kind_opened(log)
+        raise LogFormatError(
+            f"{command} reads landmark logs (EM's), and this is {kind.what}.",
+            file=Path(path),
+            fix=f"learn it with `sensact learn em {path}`.",
+        )
+    return log
+
+
+def _is_lidar2d_folder(path: Path) -> bool:
+    return meta_kind(path) == LIDAR2D_KIND
+
+
+register(
+    LogKind(
+        "lidar2d",
+        "wheels-and-2-D-lidar logs",
+        "a wheels-and-2-D-lidar log folder (meta.json, scans.csv and wheels.csv, odom.csv or cmd_vel.csv)",
+        _is_lidar2d_folder,
+        lambda path, bins: open_lidar2d_log(path),
+        OpenedLidar2DLog,
+        calibrate_opened_lidar2d,
+        Lidar2DCalibration,
+        save_lidar2d,
+        frozenset(),
+    )
+)
+register(
+    LogKind(
+        "turtlebot_csv",
+        "EM's landmark logs",
+        "a Turtlebot CSV (time, velocity_command and the sonar and IR columns)",
+        is_turtlebot_csv,
+        lambda path, bins: open_turtlebot_csv(path, bins=bins),
+        OpenedLandmarkLog,
+        calibrate_em,
+        Calibration,
+        save_em_calibration,
+        EM_OPTIONS,
+    )
+)
+register(
+    LogKind(
+        "landmarks",
+        "EM's landmark logs",
+        "a landmark log folder (meta.json, actions.csv and observations.csv, as `convert` and `simulate` write)",
+        lambda path: not path.is_file(),
+        lambda path, bins: open_landmark_folder(path, bins=bins),
+        OpenedLandmarkLog,
+        calibrate_em,
+        Calibration,
+        save_em_calibration,
+        EM_OPTIONS,
+    )
+)
