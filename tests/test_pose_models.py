@@ -9,7 +9,10 @@ from sensact.core.pose_models import (
     PLANAR,
     TRACK,
     apply_displacement,
+    arc_poses,
+    chords_of,
     displacement,
+    from_rep103,
     landmark_bearing,
     landmark_distance,
     observe_bearing,
@@ -17,6 +20,7 @@ from sensact.core.pose_models import (
     predict,
     relative_displacement,
     sensor_poses,
+    to_rep103,
 )
 
 COEF = np.array([14.0, -6.0, 2.0, -0.5])
@@ -108,3 +112,36 @@ def test_sensor_poses_convention():
     np.testing.assert_allclose(sensor_poses(np.array([0, 0, np.pi / 2]), mount)[0], [-100.0, -20.0, np.pi / 2 + 0.1])
     w = np.array([[1.0, 2.0, 3.0]])
     assert sensor_poses(w, np.zeros(3)) is not None and np.array_equal(sensor_poses(w, np.zeros(3)), w)
+
+
+def test_apply_and_relative_displacement_invert_each_other():
+    rng = np.random.default_rng(0)
+    a, b = rng.normal(size=(50, 3)) * (1000, 1000, 2), rng.normal(size=(50, 3)) * (1000, 1000, 2)
+    back = apply_displacement(a, relative_displacement(a, b))
+    np.testing.assert_allclose(back[:, :2], b[:, :2], atol=1e-9)
+    np.testing.assert_allclose(np.cos(back[:, 2] - b[:, 2]), 1.0)  # the same heading, wrapped
+
+
+def test_rep103_is_a_swap_and_a_sign():
+    """REP 103's forward is sensact's +y, its left sensact's -x; a yaw is the same in both, and the round
+    trip is exact."""
+    np.testing.assert_array_equal(from_rep103([[100.0, 20.0, 0.3]]), [[-20.0, 100.0, 0.3]])
+    np.testing.assert_array_equal(from_rep103([1.0, 2.0]), [-2.0, 1.0])
+    v = np.random.default_rng(1).normal(size=(20, 3))
+    np.testing.assert_array_equal(to_rep103(from_rep103(v)), v)
+
+
+def test_arcs_integrate_and_their_chords_come_back():
+    """A constant turn rate drives a circle exactly; the chords read back from the poses are each arc's
+    chord, and the turns its turns."""
+    rng = np.random.default_rng(2)
+    ds, dth = rng.uniform(0, 30, 400), rng.uniform(-0.2, 0.2, 400)
+    poses = arc_poses(ds, dth)
+    steps = np.column_stack([-ds * np.sinc(dth / (2 * np.pi)) * np.sin(dth / 2), ds * np.sinc(dth / (2 * np.pi))
+                             * np.cos(dth / 2), dth])  # fmt: skip
+    np.testing.assert_allclose(relative_displacement(poses[:-1], poses[1:]), steps, atol=1e-9)
+    chord, turn = chords_of(poses)
+    np.testing.assert_allclose(chord, ds * np.sinc(dth / (2 * np.pi)), rtol=1e-9)
+    np.testing.assert_allclose(turn, dth, atol=1e-12)
+    circle = arc_poses(np.full(100, 10.0), np.full(100, 0.01))[-1]  # radius 1000 mm, centre at (-1000, 0)
+    np.testing.assert_allclose(np.hypot(circle[0] + 1000.0, circle[1]), 1000.0, rtol=1e-12)

@@ -89,7 +89,7 @@ class Lidar2DCalibration:
             key = key or name
             return {key: p[name], f"{key}_sd": sd[name]}
 
-        noise = fit.noise
+        noise = fit.noise.rep103()  # x forward, y left
         match = {"x_mm": np.sqrt(noise.a[0]), "y_mm": np.sqrt(noise.a[1]), "yaw_rad": np.sqrt(noise.a[2])}
         n_used = int(fit.used.sum())
         m = fit.matches

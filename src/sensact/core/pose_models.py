@@ -88,6 +88,41 @@ def apply_displacement(w: np.ndarray, disp: np.ndarray, mode: int = PLANAR) -> n
     )
 
 
+def arc_poses(ds: np.ndarray, dth: np.ndarray) -> np.ndarray:
+    """``(T + 1, 3)``: the poses, from the origin, of a robot that drives each step along an arc of length
+    ``ds`` turning by ``dth`` (a differential drive's odometry, exact for a constant turn rate): each step its
+    chord, at half its turn."""
+    th = np.concatenate([[0.0], np.cumsum(dth)])
+    chord = ds * np.sinc(dth / (2 * np.pi))
+    mid = th[:-1] + dth / 2
+    x = np.concatenate([[0.0], -np.cumsum(chord * np.sin(mid))])  # heading 0 drives along +y
+    y = np.concatenate([[0.0], np.cumsum(chord * np.cos(mid))])
+    return np.column_stack([x, y, th])
+
+
+def chords_of(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each step's chord (the move between successive poses along their mid heading) and turn (unwrapped):
+    what ``arc_poses`` drove, its arcs shortened to their chords."""
+    dth = np.diff(np.unwrap(poses[:, 2]))
+    mid = poses[:-1, 2] + dth / 2
+    d = np.diff(poses[:, :2], axis=0)
+    return -d[:, 0] * np.sin(mid) + d[:, 1] * np.cos(mid), dth
+
+
+def from_rep103(v: np.ndarray) -> np.ndarray:
+    """Vectors (rows, last axis ``(x, y)`` or ``(x, y, yaw)``) from REP 103's axes (x forward, y left), as a
+    ROS message or a LaserScan's beams give them, into sensact's (x right, y forward); a yaw, a difference of
+    headings, is the same in both. Exact: a swap and a sign."""
+    v = np.asarray(v, dtype=float)
+    return np.concatenate([-v[..., 1:2], v[..., 0:1], v[..., 2:]], axis=-1)
+
+
+def to_rep103(v: np.ndarray) -> np.ndarray:
+    """``from_rep103``'s inverse: sensact's axes (x right, y forward) into REP 103's (x forward, y left)."""
+    v = np.asarray(v, dtype=float)
+    return np.concatenate([v[..., 1:2], -v[..., 0:1], v[..., 2:]], axis=-1)
+
+
 # ---------------------------------------------------------------- compiled forms
 
 

@@ -19,7 +19,11 @@ learner; the answer is the maximum-likelihood fit over the whole run (``fit``):
 The lidar's range noise comes from the scans alone: a point off the chord of its two neighbours on a flat
 surface is three beams' noise (``range_noise``).
 
-Poses are ``(x_mm, y_mm, theta)``, REP 103 (x forward, y left, counterclockwise).
+Poses and displacements are sensact's one internal frame and ``core``'s pose algebra (``core.pose_models``: x to
+the robot's right, y forward, theta counterclockwise, 0 where the log starts); the lidar's mount is
+``(forward_mm, left_mm, yaw_rad)``, as ``sensor_poses`` reads a sensor's. The scans and the scan matcher stay in
+the lidar's own frame (REP 103, as a LaserScan gives its beams): a matched displacement crosses into sensact's
+axes where it is read, a guess back where it is given.
 """
 
 from __future__ import annotations
@@ -27,10 +31,21 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares, minimize_scalar, nnls
 
+from sensact.core.angles import wrap_angle
+from sensact.core.pose_models import (
+    apply_displacement,
+    arc_poses,
+    chords_of,
+    from_rep103,
+    relative_displacement,
+    sensor_poses,
+    to_rep103,
+)
 from sensact.errors import LogFormatError
 from sensact.learn.scan_match2d import icp, reference_of, scan_xy
 from sensact.logs.lidar2d_log import Lidar2DLog
@@ -38,32 +53,13 @@ from sensact.progress import Progress
 
 KEYFRAME_MM, KEYFRAME_RAD = 250.0, 0.35
 OUTLIER_SD = 4.0
+# the fit converges to the answer its data give, not to where a loose stopping rule leaves it
+TOL = 1e-12
+STEP_OF_SCALE = 1e-6  # a finite-difference step, as a share of its parameter's scale (``fit``'s ``scale``)
 PARAMETERS = ("wheel_radius_left_mm", "wheel_radius_right_mm", "axle_mm", "forward_mm", "left_mm", "yaw_rad", "delay_s")
 # what a log must pin down for an answer: sd of the mount (mm, rad) and of the wheels (share of the radius)
 MOUNT_SD_MM, MOUNT_SD_RAD, WHEEL_SD_SHARE = 20.0, 0.0175, 0.01
 MIN_TURN_RAD = 1.0  # the closed form's turn regression needs the robot to have turned at least this much in all
-
-
-# --- planar poses, vectorized over rows ---
-def compose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    a, b = np.broadcast_arrays(np.asarray(a, float), np.asarray(b, float))
-    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
-    return np.stack(
-        [a[..., 0] + c * b[..., 0] - s * b[..., 1], a[..., 1] + s * b[..., 0] + c * b[..., 1], a[..., 2] + b[..., 2]],
-        -1,
-    )
-
-
-def between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``a^-1 (+) b``: ``b`` in ``a``'s frame."""
-    a, b = np.broadcast_arrays(np.asarray(a, float), np.asarray(b, float))
-    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
-    dx, dy = b[..., 0] - a[..., 0], b[..., 1] - a[..., 1]
-    return np.stack([c * dx + s * dy, -s * dx + c * dy, b[..., 2] - a[..., 2]], -1)
-
-
-def wrap(a: np.ndarray) -> np.ndarray:
-    return (a + np.pi) % (2 * np.pi) - np.pi
 
 
 # --- the drive ---
@@ -80,13 +76,7 @@ class WheelTrack:
 def odometry(track: WheelTrack, rl: float, rr: float, b: float) -> np.ndarray:
     """(n, 3) poses at ``track.t`` from the wheels' turns (each step an arc)."""
     d = np.diff(track.phi, axis=0) * (rl, rr)
-    ds, dth = d.mean(axis=1), (d[:, 1] - d[:, 0]) / b
-    th = np.concatenate([[0.0], np.cumsum(dth)])
-    chord = ds * np.sinc(dth / (2 * np.pi))
-    mid = th[:-1] + dth / 2
-    x = np.concatenate([[0.0], np.cumsum(chord * np.cos(mid))])
-    y = np.concatenate([[0.0], np.cumsum(chord * np.sin(mid))])
-    return np.column_stack([x, y, th])
+    return arc_poses(d.mean(axis=1), (d[:, 1] - d[:, 0]) / b)
 
 
 def poses_at(track: WheelTrack, poses: np.ndarray, times: np.ndarray, delay_s: float) -> np.ndarray:
@@ -104,10 +94,8 @@ def wheel_track(log: Lidar2DLog) -> WheelTrack:
     r0 = log.urdf.wheel_radius_mm or 1.0
     b0 = log.urdf.axle_mm or 1.0
     if log.drive == "odom":
-        dth = np.diff(np.unwrap(v[:, 2]))
-        mid = v[:-1, 2] + dth / 2
-        d = np.diff(v[:, :2], axis=0)
-        ds = (d[:, 0] * np.cos(mid) + d[:, 1] * np.sin(mid)) / np.maximum(np.sinc(dth / (2 * np.pi)), 1e-6)
+        chord, dth = chords_of(from_rep103(v))  # /odom's poses, REP 103 in its frame
+        ds = chord / np.maximum(np.sinc(dth / (2 * np.pi)), 1e-6)
     else:  # cmd_vel: each command holds until the next
         dt = np.diff(t)
         ds, dth = v[:-1, 0] * dt, v[:-1, 1] * dt
@@ -124,10 +112,7 @@ def drive_of_odometry(
     if odom_t.size < 10 or wheel_t.size < 10:
         return None
     ph = np.column_stack([np.interp(odom_t, wheel_t, phi[:, j]) for j in range(2)])
-    dth = np.diff(np.unwrap(odom_pose[:, 2]))
-    mid = odom_pose[:-1, 2] + dth / 2
-    d = np.diff(odom_pose[:, :2], axis=0)
-    ds = d[:, 0] * np.cos(mid) + d[:, 1] * np.sin(mid)
+    ds, dth = chords_of(from_rep103(odom_pose))  # /odom's poses, REP 103 in its frame
     dp = np.diff(ph, axis=0)
     (kl, kr), *_ = np.linalg.lstsq(dp, 2 * ds, rcond=None)  # ds = (r_l dphi_l + r_r dphi_r) / 2
     (jl, jr), *_ = np.linalg.lstsq(dp, dth, rcond=None)  # dth = (r_r dphi_r - r_l dphi_l) / b
@@ -139,19 +124,18 @@ def drive_of_odometry(
 
 # --- the scans ---
 def scan_points(log: Lidar2DLog, lidar_at: np.ndarray | None, mount: np.ndarray) -> list[np.ndarray]:
-    """Each scan's points ((beams, 2), NaN where no return) in the lidar's frame at its stamp; with ``lidar_at``
-    (the robot's pose at every beam's time, (scans * beams, 3)) each beam moved to where the lidar was at the
-    stamp."""
+    """Each scan's points ((beams, 2), NaN where no return) in the lidar's frame (REP 103) at its stamp; with
+    ``lidar_at`` (the robot's pose at every beam's time, (scans * beams, 3)) each beam moved to where the lidar
+    was at the stamp."""
     angles = log.scan.angles(log.beams)
     out = []
     for k in range(log.scan_t.size):
         xy = scan_xy(log.ranges_mm[k], angles)
         ok = np.isfinite(xy[:, 0])
         if lidar_at is not None:
-            at = lidar_at[k * log.beams : (k + 1) * log.beams]
-            sensor = compose(at, mount)
-            rel = between(sensor[0], sensor)
-            xy = compose(rel, np.column_stack([xy, np.zeros(len(xy))]))[:, :2]
+            sensor = sensor_poses(lidar_at[k * log.beams : (k + 1) * log.beams], mount)
+            rel = relative_displacement(sensor[0], sensor)
+            xy = to_rep103(apply_displacement(rel, from_rep103(np.column_stack([xy, np.zeros(len(xy))]))))[:, :2]
         out.append(np.where(ok[:, None], xy, np.nan))
     return out
 
@@ -167,7 +151,7 @@ def beam_poses(log: Lidar2DLog, track: WheelTrack, params: np.ndarray) -> np.nda
 
 @dataclass(frozen=True)
 class Matches:
-    """Scan-matched intervals: scan ``i[k]`` to ``j[k]``, the lidar's displacement ``s[k]``."""
+    """Scan-matched intervals: scan ``i[k]`` to ``j[k]``, the lidar's displacement ``s[k]`` (sensact's axes)."""
 
     i: np.ndarray
     j: np.ndarray
@@ -177,10 +161,10 @@ class Matches:
 
 def predicted(params: np.ndarray, track: WheelTrack, scan_t: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
     """The lidar's displacement from scan ``i`` to ``j`` the wheels predict: ``l^-1 (+) o (+) l``."""
-    rl, rr, b, fx, fy, yaw, delay = params
+    rl, rr, b, *mount, delay = params
     at = poses_at(track, odometry(track, rl, rr, b), scan_t, delay)
-    mount = np.array([fx, fy, yaw])
-    return between(mount, compose(between(at[i], at[j]), mount))
+    lidar = sensor_poses(np.zeros(3), mount)
+    return relative_displacement(lidar, sensor_poses(relative_displacement(at[i], at[j]), mount))
 
 
 def match_pairs(
@@ -203,7 +187,7 @@ def match_pairs(
         ref = refs[a]
         cur = points[c][np.isfinite(points[c][:, 0])]
         if ref is not None and len(cur) >= 40:
-            m = icp(ref, cur, last if guess is None else guess[k])
+            m = icp(ref, cur, last if guess is None else to_rep103(guess[k]))
             if m.ok:
                 keep.append(k)
                 s.append(m.pose)
@@ -211,7 +195,7 @@ def match_pairs(
         if progress is not None and (k % 50 == 0 or k == len(i) - 1):
             progress(what, k + 1, len(i))
     keep_ = np.array(keep, dtype=int)
-    return Matches(i[keep_], j[keep_], np.array(s).reshape(-1, 3), len(i))
+    return Matches(i[keep_], j[keep_], from_rep103(np.array(s).reshape(-1, 3)), len(i))
 
 
 # --- Censi et al.'s closed form ---
@@ -242,7 +226,7 @@ def closed_form(track: WheelTrack, scan_t: np.ndarray, m: Matches, delay_s: floa
     for _ in range(3):
         (j21, j22), *_ = np.linalg.lstsq(dphi[keep], m.s[keep, 2], rcond=None)
         unit = poses_at(track, odometry(track, -j21, j22, 1.0), scan_t, delay_s)
-        o = between(unit[m.i], unit[m.j])  # translation per unit of axle, rotation itself
+        o = relative_displacement(unit[m.i], unit[m.j])  # translation per unit of axle, rotation itself
 
         grid = np.linspace(-np.pi, np.pi, 73)
         o_k, s_k = o[keep], m.s[keep]
@@ -254,9 +238,10 @@ def closed_form(track: WheelTrack, scan_t: np.ndarray, m: Matches, delay_s: floa
         _, (lx, ly, b) = _mount_fit(phi, o_k, s_k)
         if b < 0:  # (l, b, phi) and (-l, -b, phi + pi) fit alike: the axle is positive (Censi et al., sec. IV)
             lx, ly, b, phi = -lx, -ly, -b, phi + np.pi
-        params = np.array([-j21 * b, j22 * b, b, lx, ly, wrap(phi), delay_s])
+        # the mount (x right, y forward on the robot) as forward and left
+        params = np.array([-j21 * b, j22 * b, b, ly, -lx, wrap_angle(phi), delay_s])
         r = predicted(params, track, scan_t, m.i, m.j) - m.s
-        r[:, 2] = wrap(r[:, 2])
+        r[:, 2] = wrap_angle(r[:, 2])
         z = np.abs(r - np.median(r[keep], axis=0)) / (
             1.4826 * np.median(np.abs(r[keep] - np.median(r[keep], axis=0)), axis=0) + 1e-12
         )
@@ -267,7 +252,8 @@ def closed_form(track: WheelTrack, scan_t: np.ndarray, m: Matches, delay_s: floa
 # --- the maximum-likelihood fit ---
 @dataclass(frozen=True)
 class NoiseModel:
-    """Per axis (x, y, theta of the lidar's displacement): variance ``a + b * distance_mm + c * turn_rad``."""
+    """Per axis (x, y, theta of the lidar's displacement, sensact's axes): variance
+    ``a + b * distance_mm + c * turn_rad``."""
 
     a: np.ndarray
     b: np.ndarray
@@ -275,6 +261,11 @@ class NoiseModel:
 
     def sd(self, dist: np.ndarray, turn: np.ndarray) -> np.ndarray:
         return np.sqrt(self.a + self.b * dist[:, None] + self.c * turn[:, None])
+
+    def rep103(self) -> NoiseModel:
+        """The same noise on REP 103's axes (forward, left, yaw), as a ROS user reads it: variances, so a swap."""
+        order = [1, 0, 2]
+        return NoiseModel(self.a[order], self.b[order], self.c[order])
 
 
 @dataclass(frozen=True)
@@ -300,7 +291,7 @@ def interval_size(
 ) -> tuple[np.ndarray, np.ndarray]:
     rl, rr, b, *_, delay = params
     at = poses_at(track, odometry(track, rl, rr, b), scan_t, delay)
-    o = between(at[m.i], at[m.j])
+    o = relative_displacement(at[m.i], at[m.j])
     return np.hypot(o[:, 0], o[:, 1]), np.abs(o[:, 2])
 
 
@@ -309,7 +300,7 @@ def fit(track: WheelTrack, scan_t: np.ndarray, m: Matches, start: np.ndarray, ro
     params = start.copy()
     dist, turn = interval_size(params, track, scan_t, m)
     r0 = predicted(params, track, scan_t, m.i, m.j) - m.s
-    r0[:, 2] = wrap(r0[:, 2])
+    r0[:, 2] = wrap_angle(r0[:, 2])
     spread = (1.4826 * np.median(np.abs(r0), axis=0)) ** 2 + 1e-12
     noise = NoiseModel(spread, np.zeros(3), np.zeros(3))
     used = np.ones(len(m.i), dtype=bool)
@@ -319,16 +310,32 @@ def fit(track: WheelTrack, scan_t: np.ndarray, m: Matches, start: np.ndarray, ro
 
     def residuals(x: np.ndarray, rows: np.ndarray, sd: np.ndarray) -> np.ndarray:
         r = predicted(x, track, scan_t, m.i[rows], m.j[rows]) - m.s[rows]
-        r[:, 2] = wrap(r[:, 2])
+        r[:, 2] = wrap_angle(r[:, 2])
         return (r / sd).ravel()
+
+    # each parameter's finite-difference step is sized to its own scale, not to its value: a step relative to a
+    # delay near 0 s (or a mount near 0 mm) is a difference of rounding errors, and the fit wandered on it
+    step = STEP_OF_SCALE * scale
+
+    def jacobian(x: np.ndarray, rows: np.ndarray, sd: np.ndarray) -> np.ndarray:
+        cols = []
+        for k, h in enumerate(step):
+            dx = np.zeros_like(x)
+            dx[k] = h
+            cols.append((residuals(x + dx, rows, sd) - residuals(x - dx, rows, sd)) / (2 * h))
+        return np.column_stack(cols)
+
+    def solve(x0: np.ndarray, rows: np.ndarray, sd: np.ndarray) -> Any:
+        return least_squares(
+            residuals, x0, jac=jacobian, args=(rows, sd), x_scale=scale, method="lm", xtol=TOL, ftol=TOL, gtol=TOL
+        )
 
     for _ in range(rounds):
         sd = noise.sd(dist, turn)
-        sol = least_squares(residuals, params, args=(used, sd[used]), x_scale=scale, diff_step=1e-6, method="lm")
-        params = sol.x
+        params = solve(params, used, sd[used]).x
         dist, turn = interval_size(params, track, scan_t, m)
         r = predicted(params, track, scan_t, m.i, m.j) - m.s
-        r[:, 2] = wrap(r[:, 2])
+        r[:, 2] = wrap_angle(r[:, 2])
         design = np.column_stack([np.ones(len(dist)), dist, turn])
         coef = np.array(
             [
@@ -343,7 +350,7 @@ def fit(track: WheelTrack, scan_t: np.ndarray, m: Matches, start: np.ndarray, ro
         noise = NoiseModel(np.maximum(coef[:, 0], floor), coef[:, 1], coef[:, 2])
         used = (np.abs(r / noise.sd(dist, turn)) < OUTLIER_SD).all(axis=1)
     sd = noise.sd(dist, turn)
-    sol = least_squares(residuals, params, args=(used, sd[used]), x_scale=scale, diff_step=1e-6, method="lm")
+    sol = solve(params, used, sd[used])
     params = sol.x
     J = sol.jac
     dof = max(1, J.shape[0] - J.shape[1])
@@ -368,7 +375,7 @@ def keyframes(
         return np.array([], int), np.array([], int)
     last = idx[0]
     for k in idx[1:]:
-        d = between(at[last], at[k])
+        d = relative_displacement(at[last], at[k])[0]
         if np.hypot(d[0], d[1]) >= KEYFRAME_MM or abs(d[2]) >= KEYFRAME_RAD:
             i.append(last)
             j.append(k)

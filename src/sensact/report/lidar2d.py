@@ -8,7 +8,9 @@ from typing import Any
 
 import numpy as np
 
-from sensact.learn.wheel_lidar import PARAMETERS, compose, odometry, poses_at, predicted, scan_points, wrap
+from sensact.core.angles import wrap_angle
+from sensact.core.pose_models import apply_displacement, from_rep103, sensor_poses, to_rep103
+from sensact.learn.wheel_lidar import PARAMETERS, odometry, poses_at, predicted, scan_points
 from sensact.report.page import Section, report_path, write_report
 
 MAX_POINTS = 80_000
@@ -32,13 +34,13 @@ def _cloud(cal: Any, params: np.ndarray, keys: np.ndarray) -> tuple[np.ndarray, 
     pts = scan_points(log, None, mount)
     clouds = []
     for k in keys.tolist():
-        xy = pts[k][np.isfinite(pts[k][:, 0])]
-        sensor = compose(at[k], mount)
-        clouds.append(compose(sensor, np.column_stack([xy, np.zeros(len(xy))]))[:, :2])
+        xy = pts[k][np.isfinite(pts[k][:, 0])]  # the lidar's frame (REP 103)
+        sensor = sensor_poses(at[k], mount)
+        clouds.append(apply_displacement(sensor, from_rep103(np.column_stack([xy, np.zeros(len(xy))])))[:, :2])
     cloud = np.vstack(clouds) if clouds else np.zeros((0, 2))
     if len(cloud) > MAX_POINTS:
         cloud = cloud[np.random.default_rng(0).choice(len(cloud), MAX_POINTS, replace=False)]
-    return cloud / 1000, at[:, :2] / 1000
+    return to_rep103(cloud) / 1000, to_rep103(at[:, :2]) / 1000  # x along the start's heading, y to its left
 
 
 def _pyplot():
@@ -119,9 +121,9 @@ def figure_residuals(cal: Any, path: Path) -> Path:
     fit, log, track = cal.result.fit, cal.log, cal.result.track
     m = fit.matches
     r = predicted(fit.params, track, log.scan_t, m.i, m.j) - m.s
-    r[:, 2] = wrap(r[:, 2])
+    r[:, 2] = wrap_angle(r[:, 2])
     dist, turn = interval_size(fit.params, track, log.scan_t, m)
-    z = r / fit.noise.sd(dist, turn)
+    z = to_rep103(r / fit.noise.sd(dist, turn))  # x forward, y left
     fig, axes = plt.subplots(1, 3, figsize=(12, 3.8))
     g = np.linspace(-5, 5, 200)
     for a, (ax, name) in enumerate(zip(axes, ("x (forward)", "y (left)", "yaw"), strict=True)):
