@@ -27,7 +27,11 @@ def omit_when(value: Any, **kwargs: Any) -> Any:
 
 
 def to_json(value: Any) -> Any:
-    """``value`` as JSON data: dataclasses as objects of their fields, tuples as lists, numpy as numbers."""
+    """``value`` as JSON data: dataclasses as objects of their fields, tuples as lists, numpy as numbers, and
+    anything with a ``json_value()`` as that (a geometry names itself)."""
+    named = getattr(value, "json_value", None)
+    if callable(named) and not isinstance(value, type):
+        return named()
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         if hasattr(value, "to_dict"):
             return value.to_dict()

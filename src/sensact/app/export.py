@@ -111,9 +111,9 @@ def twist_covariance(sigma_step: np.ndarray, dt_s: float) -> np.ndarray:
 def action_model_si(action: Any, dt_s: float) -> JsonObject:
     """The action model's coefficients in SI and REP 103 axes: each velocity (vx forward, vy left, vyaw) as a
     sum of coefficient times feature (1, a command, or a product of commands in their SI units)."""
-    from sensact.models.linear_action import LinearActionModel, monomials
+    from sensact.models.linear_action import monomials
 
-    if not isinstance(action, LinearActionModel):
+    if action.linear() is None:
         return {"table": action.to_dict(), "note": "an action table (discrete actions): no gains to convert"}
     scaled = [si(n) for n in action.command_names]
     outputs: dict[str, dict[str, float]] = {}
@@ -387,7 +387,6 @@ def refuse_to_replace(paths: list[Path | None], model: Path, force: bool) -> Non
 def export_model(model: Path, fmt: str, out: Path, truth_out: Path | None = None, *, force: bool = False) -> Exported:
     """``model`` in ``fmt`` at ``out`` (and, for tum, the truth's trajectory beside it)."""
     from sensact.errors import ConfigError
-    from sensact.io.atomic import write_text
 
     if fmt not in FORMATS:
         raise ConfigError(f"no export format {fmt!r}.", field="--format", fix=f"one of {', '.join(FORMATS)}")
@@ -400,35 +399,71 @@ def export_model(model: Path, fmt: str, out: Path, truth_out: Path | None = None
     from sensact.app.logs import refuse_newer
 
     refuse_newer(doc, model)
-    from sensact.app.export_lidar2d import is_lidar2d_model, robot_localization, urdf_snippet
-
-    if is_lidar2d_model(doc) != (fmt == "urdf") and fmt != "robot-localization":
-        what = "a wheels-and-2-D-lidar model" if is_lidar2d_model(doc) else "this model"
+    writers = _writers(doc)
+    if fmt not in writers:
+        what = "a wheels-and-2-D-lidar model" if "urdf" in writers else "this model"
         raise ConfigError(
             f"--format {fmt} does not apply to {what}.",
             field="--format",
             fix="urdf or robot-localization for a wheels-and-lidar model; "
             "robot-localization, tum, velodyne or landmarks for the others.",
         )
-    if fmt == "urdf":
-        write_text(out, urdf_snippet(doc, model))
+    return writers[fmt](doc, model, out, truth_out)
+
+
+def _text(render: Any) -> Any:
+    """A writer of one file from ``render(doc, source) -> text``."""
+
+    def write(doc: JsonObject, source: Path, out: Path, truth_out: Path | None) -> Exported:
+        from sensact.io.atomic import write_text
+
+        write_text(out, render(doc, source))
         return Exported((out,))
-    if is_lidar2d_model(doc):
-        node, extra = robot_localization(doc, model)
+
+    return write
+
+
+def _with_companion(render: Any) -> Any:
+    """A writer of the node's parameter file and sensact's own beside it, from ``render -> (node, extra)``."""
+
+    def write(doc: JsonObject, source: Path, out: Path, truth_out: Path | None) -> Exported:
+        from sensact.io.atomic import write_text
+
+        node, extra = render(doc, source)
         write_text(out, node)
         write_text(companion_path(out), extra)
         return Exported((out, companion_path(out)))
-    if fmt == "tum":
-        return export_tum(doc, model, out, truth_out)
-    if fmt == "velodyne":
-        write_text(out, velodyne_yaml(doc, model))
-        return Exported((out,))
-    if fmt == "landmarks":
-        text, left = landmarks_csv(doc, model)
-        write_text(out, text)
-        note = f"{left} landmarks were not placed (seen too rarely or from too narrow a baseline) and are left out"
-        return Exported((out,), (note,) if left else ())
-    node, extra = robot_localization_yaml(doc, model)
-    write_text(out, node)
-    write_text(companion_path(out), extra)
-    return Exported((out, companion_path(out)))
+
+    return write
+
+
+def _landmarks(doc: JsonObject, source: Path, out: Path, truth_out: Path | None) -> Exported:
+    from sensact.io.atomic import write_text
+
+    text, left = landmarks_csv(doc, source)
+    write_text(out, text)
+    note = f"{left} landmarks were not placed (seen too rarely or from too narrow a baseline) and are left out"
+    return Exported((out,), (note,) if left else ())
+
+
+def _writers(doc: JsonObject) -> dict[str, Any]:
+    """The formats a model file exports to, by what it is: its ``kind`` (a wheels-and-lidar model's
+    ``lidar2d``), else a model `learn em` or `learn car` wrote."""
+    from sensact.app import export_lidar2d
+    from sensact.io.lidar2d_log import KIND as LIDAR2D_KIND
+
+    by_kind = {
+        LIDAR2D_KIND: {
+            "urdf": _text(export_lidar2d.urdf_snippet),
+            "robot-localization": _with_companion(export_lidar2d.robot_localization),
+        }
+    }
+    return by_kind.get(doc.get("kind"), EM_WRITERS)
+
+
+EM_WRITERS = {
+    "robot-localization": _with_companion(robot_localization_yaml),
+    "tum": export_tum,
+    "velodyne": _text(velodyne_yaml),
+    "landmarks": _landmarks,
+}

@@ -16,10 +16,6 @@ from sensact.records import JsonObject
 MM = 1e-3
 
 
-def is_lidar2d_model(doc: JsonObject) -> bool:
-    return doc.get("kind") == "lidar2d"
-
-
 BOUNDS = {  # what a differential drive and a lidar on it can be, in the model's units
     "wheel_radius_left_mm": (1e-9, 1e5),
     "wheel_radius_right_mm": (1e-9, 1e5),

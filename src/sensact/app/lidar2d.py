@@ -15,6 +15,7 @@ from sensact import __version__
 from sensact.app.calibrate import FitEvents
 from sensact.app.save import Saved
 from sensact.health import Health, HealthFlag
+from sensact.io.lidar2d_log import KIND as LIDAR2D_KIND
 from sensact.learn.wheel_lidar import (
     MOUNT_SD_MM,
     MOUNT_SD_RAD,
@@ -121,7 +122,7 @@ class Lidar2DCalibration:
         doc: JsonObject = {
             "sensact_version": __version__,
             OUTPUT_KEY: EM_MODEL,  # learn em wrote it: its --out replaces it
-            "kind": "lidar2d",
+            "kind": LIDAR2D_KIND,
             "log": log.source,
             "drive": drive,
             "lidar": {

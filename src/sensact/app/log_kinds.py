@@ -27,7 +27,7 @@ from sensact.app.lidar2d import (
     open_lidar2d_log,
     save_lidar2d,
 )
-from sensact.app.logs import OpenedLandmarkLog, is_turtlebot_csv, open_landmark_folder, open_turtlebot_csv
+from sensact.app.logs import OpenedLandmarkLog, open_landmark_folder, open_turtlebot_csv
 from sensact.app.save import Saved, save_em_calibration
 from sensact.errors import ConfigError, LogFormatError
 from sensact.io.lidar2d_log import KIND as LIDAR2D_KIND
@@ -148,6 +148,10 @@ def _is_lidar2d_folder(path: Path) -> bool:
     return meta_kind(path) == LIDAR2D_KIND
 
 
+def _is_csv(path: Path) -> bool:
+    return path.is_file() and path.suffix.lower() == ".csv"
+
+
 register(
     LogKind(
         "lidar2d",
@@ -167,7 +171,7 @@ register(
         "turtlebot_csv",
         "EM's landmark logs",
         "a Turtlebot CSV (time, velocity_command and the sonar and IR columns)",
-        is_turtlebot_csv,
+        _is_csv,
         lambda path, bins: open_turtlebot_csv(path, bins=bins),
         OpenedLandmarkLog,
         calibrate_em,

@@ -104,11 +104,6 @@ class OpenedLandmarkLog:
         )
 
 
-def is_turtlebot_csv(log: Path) -> bool:
-    """Whether EM reads ``log`` as a Turtlebot CSV, not as a log folder."""
-    return log.is_file() and log.suffix.lower() == ".csv"
-
-
 def _check_bins(bins: int) -> None:
     from sensact.limits import MAX_BINS
 
@@ -127,6 +122,13 @@ def open_turtlebot_csv(path: Path, *, bins: int = 21, dt_s: float | None = None)
     from sensact.presets import turtlebot_em_config
 
     _check_bins(bins)
+    if path.suffix.lower() != ".csv":
+        raise LogFormatError(
+            "EM reads a log folder or a Turtlebot CSV file.",
+            file=path,
+            fix="give a folder with meta.json, actions.csv and observations.csv (sensact convert mrclam "
+            "writes one), or a .csv with the Turtlebot's columns.",
+        )
     data, truth = read_turtlebot_landmark_log(path, dt_s)
     names = data.reading_names
     absent = [r for r in EM_READINGS if r not in names]
@@ -156,13 +158,6 @@ def open_landmark_folder(path: Path, *, bins: int = 21, command_levels: np.ndarr
     from sensact.io.landmark_log import read_landmark_log
 
     _check_bins(bins)
-    if path.is_file():
-        raise LogFormatError(
-            "EM reads a log folder or a Turtlebot CSV file.",
-            file=path,
-            fix="give a folder with meta.json, actions.csv and observations.csv (sensact convert mrclam "
-            "writes one), or a .csv with the Turtlebot's columns.",
-        )
     lf = read_landmark_log(path, command_bins=bins, command_levels=command_levels)
     return OpenedLandmarkLog(path, lf.data, lf, lf.truth_distance_mm(), bins)
 
@@ -173,7 +168,7 @@ def open_landmark_log(
     """What ``path`` is, read as EM reads it: a Turtlebot CSV (``open_turtlebot_csv``) or a log folder
     (``open_landmark_folder``). Anything else is one line."""
     log = Path(path)
-    if is_turtlebot_csv(log):
+    if log.is_file():
         return open_turtlebot_csv(log, bins=bins, dt_s=dt_s)
     return open_landmark_folder(log, bins=bins, command_levels=command_levels)
 
@@ -262,7 +257,6 @@ def refuse_model_for_log(
     been learned from: the same geometry, commands (or number of actions), readings and step, since its delay
     is counted in steps. One line naming what differs; ``learn`` is the command that learns a model on ``log``."""
     from sensact.errors import ModelFormatError
-    from sensact.models.action_table import ActionTable
 
     cannot = "EM cannot start from it" if use == "start" else f"it cannot be {use}"
 
@@ -278,20 +272,9 @@ def refuse_model_for_log(
     )
     if m.geometry != data.geometry:
         refuse(f"the model is {m.geometry} and the log {data.geometry}", "geometry", relearn)
-    if isinstance(m.action, ActionTable):
-        if data.is_continuous or m.action.n_actions != data.n_actions:
-            has = "continuous commands" if data.is_continuous else f"{data.n_actions} actions"
-            refuse(f"the model has a table of {m.action.n_actions} actions and the log {has}", "action", relearn)
-        if not np.allclose(m.action.commands, data.action_commands, rtol=1e-9, atol=1e-9):
-            # a track log bins its own commands: the same count of actions can mean other commands
-            refuse("the model's actions are other commands than the log's", "action.commands", relearn)
-    elif tuple(m.action.command_names) != tuple(data.command_names):
-        refuse(
-            f"the model's commands are {', '.join(m.action.command_names)} and the log's "
-            f"{', '.join(data.command_names) or 'discrete actions'}",
-            "action.command_names",
-            relearn,
-        )
+    mismatch = m.action.mismatch(data)
+    if mismatch is not None:
+        refuse(*mismatch, relearn)
     missing = [ch.name for ch in m.sensor.channels if ch.name not in data.reading_names]
     if missing:
         refuse(f"the log has no reading {missing[0]} (it has {', '.join(data.reading_names)})", "sensor", relearn)
@@ -316,12 +299,11 @@ def refuse_model_for_log(
 def read_model_and_log(log: Path, model: Path, bins: int, use: str) -> tuple[JsonObject, EMModel, OpenedLandmarkLog]:
     """``(model.json, the model, the log)``, the log read onto the model's step; a model that does not fit the
     log is refused in one line (``use``: "run", "scored" or "start")."""
-    from sensact.models.action_table import ActionTable
-
     doc, m = read_em_model(model)
     dt = doc.get("dt_s")
     # a track's continuous commands go onto the model's own actions, not the bins of this log's span
-    levels = m.action.commands[:, 0] if m.geometry.state_is_range and isinstance(m.action, ActionTable) else None
+    binned = m.action.binned_commands
+    levels = binned[:, 0] if m.geometry.state_is_range and binned is not None else None
     opened = open_landmark_log(log, bins=bins, dt_s=None if dt is None else float(dt), command_levels=levels)
     refuse_model_for_log(doc, m, opened.data, model, log, use=use)
     from sensact.io.unit_checks import range_unit_doubt

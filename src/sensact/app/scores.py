@@ -82,7 +82,7 @@ def score_model(
             sc["path"] = path_offset(np.asarray(path), *recorded)
         sc["bars"] = bar_checks(sc)
         simulated = lf.meta.get("truth") or {}
-        if simulated.get("kind") == "diffdrive":
+        if "action_coefficients" in simulated:  # a simulated differential drive's true models
             from sensact.evaluate.simulated_robot import score_against_simulated
 
             sc["simulated"] = score_against_simulated(model, simulated, lf.data.dt_s)

@@ -1,16 +1,32 @@
-"""The EM settings a calibration runs with, in rising precedence: a base (the start model's own, a preset,
-the settings file `convert` wrote beside the log, a Turtlebot CSV's preset, or the thesis's defaults),
-then a settings YAML, then single ``name=value`` overrides. A settings file may name its preset on its
-first line (``preset: NAME``): its other fields override that preset, put on the log's columns."""
+"""Every command's settings, resolved here and only here, in rising precedence: a base, then a settings
+YAML (``--config``), then single ``name=value`` overrides (``--set``), then a command's own flags.
+
+EM's (``resolve_settings``): the base is the start model's own settings, a preset, the settings file
+`convert` wrote beside the log, the settings its kind starts from (a Turtlebot CSV's preset), or the
+thesis's defaults; a settings file may name its preset on its first line (``preset: NAME``), and its
+other fields override that preset, put on the log's columns. Any other config dataclass (a simulator's,
+chapter 3's, the monitor's): ``layered_config``; an experiment's fields split between its learner and
+its simulator: ``split_fields`` and ``merged``."""
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from sensact.app.logs import OpenedLandmarkLog
-from sensact.config import config_from_dict, config_to_dict, load_yaml_mapping, merge_fields, parse_overrides
+from sensact.config import (
+    build_config,
+    config_from_dict,
+    config_to_dict,
+    load_yaml_mapping,
+    merge_fields,
+    parse_overrides,
+    refuse_non_finite,
+)
+from sensact.errors import ConfigError
 from sensact.learn.em.config import EMConfig
 from sensact.presets import PRESET_KEY, for_log, preset_of
 from sensact.records import JsonObject
@@ -78,3 +94,47 @@ def resolve_settings(
     fields = merge_fields(EMConfig, fields, over)
     cfg = config_from_dict(EMConfig, fields, source=" / ".join(sources) or origin)
     return Settings(cfg, name, origin)
+
+
+def layered_config(cls: type, config: Path | None, sets: list[str] | None, base: Any = None, **flags: Any) -> Any:
+    """``base`` or defaults < ``--config`` YAML < ``--set`` < explicit flags."""
+    cfg = build_config(cls, config, sets or [], base=base)
+    flags = {k: v for k, v in flags.items() if v is not None}
+    for k, v in flags.items():
+        refuse_non_finite(v, None, f"--{k.replace('_', '-')}", "the command line")
+    try:
+        return dataclasses.replace(cfg, **flags) if flags else cfg
+    except ValueError as exc:  # the config's own checks, on what the flags gave it
+        names = [f"--{k.replace('_', '-')}" for k in flags]
+        given = ", ".join(
+            f"{n} {v:g}" if isinstance(v, float) else f"{n} {v}" for n, v in zip(names, flags.values(), strict=True)
+        )
+        raise ConfigError(
+            f"{exc} (given {given}).", field=", ".join(names), fix="see the command's --help for each option."
+        ) from None
+
+
+def settings_beside(log: Path, name: str, config: Path | None) -> Path | None:
+    """``config``, or else the settings file ``name`` that `convert` or `simulate` wrote beside the log
+    folder, if there is one."""
+    beside = log / name
+    if config is not None or not (log.is_dir() and beside.is_file()):
+        return config
+    return beside
+
+
+def split_fields(set_: list[str] | None, config: Path | None, learner_cls: type) -> tuple[dict, dict]:
+    """--set / --config fields go to the learner or the simulator, whichever has the field."""
+    fields = {**(load_yaml_mapping(config) if config else {}), **parse_overrides(set_ or [])}
+    accepts = getattr(learner_cls, "accepts", lambda k: k in learner_cls.__dataclass_fields__)
+    learner = {k: v for k, v in fields.items() if accepts(k)}
+    return learner, {k: v for k, v in fields.items() if k not in learner}
+
+
+def merged(cls: type, base: Any, fields: JsonObject) -> Any:
+    """``base`` with the given fields replaced, validated like any config."""
+    return (
+        config_from_dict(cls, merge_fields(cls, config_to_dict(base), fields), source="--set/--config")
+        if fields
+        else base
+    )

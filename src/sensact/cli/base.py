@@ -418,58 +418,15 @@ def print_verdict(name: str, checks: list[Any]) -> None:
     console.print(Text(f"{name} {verdict_line(checks)}", style="bold red" if missed else "bold"))
 
 
-def layered_config(cls: type, config: Path | None, sets: list[str] | None, base: Any = None, **flags: Any) -> Any:
-    """``base`` or defaults < ``--config`` YAML < ``--set`` < explicit flags."""
-    import dataclasses
-
-    from sensact.config import build_config, refuse_non_finite
-    from sensact.errors import ConfigError
-
-    cfg = build_config(cls, config, sets or [], base=base)
-    flags = {k: v for k, v in flags.items() if v is not None}
-    for k, v in flags.items():
-        refuse_non_finite(v, None, f"--{k.replace('_', '-')}", "the command line")
-    try:
-        return dataclasses.replace(cfg, **flags) if flags else cfg
-    except ValueError as exc:  # the config's own checks, on what the flags gave it
-        names = [f"--{k.replace('_', '-')}" for k in flags]
-        given = ", ".join(
-            f"{n} {v:g}" if isinstance(v, float) else f"{n} {v}" for n, v in zip(names, flags.values(), strict=True)
-        )
-        raise ConfigError(
-            f"{exc} (given {given}).", field=", ".join(names), fix="see the command's --help for each option."
-        ) from None
-
-
 def config_beside(log: Path, name: str, config: Path | None) -> Path | None:
     """``config``, or else the settings file ``name`` that `convert` or `simulate` wrote beside the log
     folder, said to the user."""
-    beside = log / name
-    if config is not None or not (log.is_dir() and beside.is_file()):
-        return config
-    console.print(f"settings: {beside}, written beside the log; --config replaces them, --set overrides them.")
-    return beside
+    from sensact.app.settings import settings_beside
 
-
-def split_fields(set_: list[str] | None, config: Path | None, learner_cls: type) -> tuple[dict, dict]:
-    """--set / --config fields go to the learner or the simulator, whichever has the field."""
-    from sensact.config import load_yaml_mapping, parse_overrides
-
-    fields = {**(load_yaml_mapping(config) if config else {}), **parse_overrides(set_ or [])}
-    accepts = getattr(learner_cls, "accepts", lambda k: k in learner_cls.__dataclass_fields__)
-    learner = {k: v for k, v in fields.items() if accepts(k)}
-    return learner, {k: v for k, v in fields.items() if k not in learner}
-
-
-def merged(cls: type, base: Any, fields: JsonObject) -> Any:
-    """``base`` with the given fields replaced, validated like any config."""
-    from sensact.config import config_from_dict, config_to_dict, merge_fields
-
-    return (
-        config_from_dict(cls, merge_fields(cls, config_to_dict(base), fields), source="--set/--config")
-        if fields
-        else base
-    )
+    chosen = settings_beside(log, name, config)
+    if chosen is not None and chosen != config:
+        console.print(f"settings: {chosen}, written beside the log; --config replaces them, --set overrides them.")
+    return chosen
 
 
 def _is(exc: BaseException, name: str) -> bool:

@@ -18,7 +18,6 @@ from sensact.cli.base import (
     console,
     finish,
     friendly,
-    layered_config,
     progress_bar,
     write_result,
 )
@@ -123,20 +122,16 @@ def _truth_scores(
 def place_robot(
     doc: JsonObject, m: Any, data: Any, model: Path, config: Path | None, set_: list[str] | None, start: Any
 ) -> tuple[Any, float | None]:
-    """The E-step with the model held (``learn.em.localize``), under the settings it was learned with and
-    ``config``/``set_`` over them, with a progress bar; prints the start and the log-likelihood a sighting
+    """``app.localize.place_robot`` with a progress bar; prints the start and the log-likelihood a sighting
     beside the one on the log it was learned from, which it returns with the run."""
-    from sensact.learn.em import EMConfig
-    from sensact.learn.em.uses.place import learned_config, localize
+    from sensact.app.localize import place_robot as placed
 
-    summary = doc.get("summary") or {}
-    cfg = layered_config(EMConfig, config, set_, base=learned_config(summary.get("config"), str(model)))
     console.print(
         f"{model} on {data.source}: {data.n_steps} steps of {data.dt_s:.4g} s, {data.n_observations} observations"
     )
     with progress_bar() as progress:
-        loc = localize(m, data, cfg, start, progress)
-    return loc, describe_placement(loc, summary, data)
+        loc = placed(doc, m, data, model, config, set_, start, progress)
+    return loc, describe_placement(loc, doc.get("summary") or {}, data)
 
 
 def consistency_on(placed: Any, data: Any) -> JsonObject:

@@ -7,6 +7,7 @@ from typing import Annotated
 
 import typer
 
+from sensact.app.settings import layered_config
 from sensact.cli.base import (
     ConfigOpt,
     EMLogArg,
@@ -18,7 +19,6 @@ from sensact.cli.base import (
     console,
     finish,
     friendly,
-    layered_config,
     progress_bar,
     write_result,
 )

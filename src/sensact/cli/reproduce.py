@@ -8,6 +8,7 @@ from typing import Annotated, Any
 
 import typer
 
+from sensact.app.settings import merged, split_fields
 from sensact.cli.base import (
     ConfigOpt,
     SchedulerOpt,
@@ -16,10 +17,8 @@ from sensact.cli.base import (
     app,
     console,
     friendly,
-    merged,
     print_verdict,
     progress_bar,
-    split_fields,
     write_results,
 )
 from sensact.errors import SensactError

@@ -49,10 +49,9 @@ def describe_track_velocity(a: Any) -> str:
     """A track's learned velocity in words. Sec. 4.4.3's state is the distance to the beacon, which a
     forward velocity shortens, so a robot whose commands take it away from what it ranges to learns a
     negative velocity; chapter 3's learner, whose location grows with its sensor, prints it positive."""
-    from sensact.models.linear_action import LinearActionModel
-
     head = "on a track v_mm_s is the speed toward the wall or beacon the readings range to (sec. 4.4.3)"
-    if isinstance(a, LinearActionModel) and a.basis == "affine" and len(a.command_names) == 1:
+    a = a.linear()
+    if a is not None and a.basis == "affine" and len(a.command_names) == 1:
         slope = float(a.coefficients[1, 0])
         way = "toward" if slope > 0 else "away from"
         return (
@@ -317,46 +316,6 @@ def print_range_score(sc: JsonObject, against: str) -> None:
     console.print(f"vs {against} (optimal scale and offset): action gain {gain}; command delay {sc['delay_s']:.2f} s")
     for name, s in sc["sensors"].items():
         console.print(f"  {name}: {sensor_span_cell(s)}")
-
-
-def evaluate_log(data: Any, res: Any, cfg: Any) -> JsonObject | None:
-    """Scaled errors against the log's ground truth, if it has any (never used for learning)."""
-    if "truth" in data.meta:
-        from sensact.evaluate.track1d import score_track_models
-        from sensact.sim.track1d import TrackTruth
-
-        sc = score_track_models(res.sensor, res.action, TrackTruth.from_dict(data.meta["truth"]))
-        console.print(
-            f"vs truth (measured grid of sec. 3.3.2): sensor RMS {sc.sensor_rms:.1f} mm "
-            f"(best cubic {sc.sensor_best_rms:.1f}), action RMS {sc.action_rms:.1f} mm/s "
-            f"(best quartic {sc.action_best_rms:.1f}), consistency {sc.consistency:.3f}"
-        )
-        return sc.to_dict()
-    if data.true_position is not None:
-        from sensact.evaluate.real_track import evaluate_real
-        from sensact.report.tables import NOT_TIMED
-
-        run = evaluate_real(data, res, cfg)
-        sc = run.score
-        pct = 100.0 * sc.sensor_rms / run.sensor_span
-        sensor = (
-            f"vs ground truth: sensor RMS {sc.sensor_rms:.4g} {data.position_unit} (best {sc.sensor_best_rms:.4g}; "
-            f"{pct:.2f} % of the {run.sensor_span:.4g} {data.position_unit} it is scored over)"
-        )
-        timed = run.measured_action.commands.size
-        out = {**sc.to_dict(), "sensor_rms_pct": pct, "learned_gain": run.learned_gain, "true_gain": run.true_gain}
-        if timed < 2:  # A's own optimal scale fits one timed command exactly: no action error to show
-            out |= {"action_rms": None, "action_best_rms": None}
-        if timed == 0:
-            console.print(f"{sensor}; action and gain {NOT_TIMED}")
-            return out
-        action = f"action RMS {sc.action_rms:.4g} {data.position_unit}/s" if timed >= 2 else "action RMS not scored"
-        console.print(
-            f"{sensor}, {action}, gain {run.learned_gain:.4f} (truth {run.true_gain:.4f}), "
-            f"consistency {sc.consistency:.3f}"
-        )
-        return out
-    return None
 
 
 def halves_rows(cmp: JsonObject, fits: list[Any], data: Any) -> list[list[str]]:

@@ -7,7 +7,8 @@ from typing import Annotated
 
 import typer
 
-from sensact.cli.base import ConfigOpt, SetOpt, console, friendly, layered_config, progress_bar, simulate_app
+from sensact.app.settings import layered_config
+from sensact.cli.base import ConfigOpt, SetOpt, console, friendly, progress_bar, simulate_app
 
 
 @simulate_app.command("track1d")

@@ -47,6 +47,10 @@ class Geometry:
     def __str__(self) -> str:
         return self.name
 
+    def json_value(self) -> str:
+        """How a JSON file names this geometry (``geometry_named`` reads it back)."""
+        return self.name
+
     def __repr__(self) -> str:
         return f"<geometry {self.name}>"
 

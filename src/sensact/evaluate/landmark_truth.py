@@ -609,7 +609,7 @@ def score_against_truth(
 ) -> JsonObject:
     """Learned and From-Truth errors of ``model`` on ``data`` (see the module docstring). Without
     ``fit_mount`` the sensor is taken to sit at the truth's origin."""
-    if not isinstance(model.action, LinearActionModel) or data.step_commands is None:
+    if model.action.linear() is None or data.step_commands is None:
         raise ValueError("scoring against truth needs a continuous action model and per-step commands")
     if not np.isfinite(truth_poses[np.asarray(truth_valid, dtype=bool), 2]).any():
         return score_against_positions(model, data, truth_poses, truth_valid, window=window, trim=trim)

@@ -8,7 +8,6 @@ from __future__ import annotations
 import numpy as np
 
 from sensact.models.em_model import EMModel
-from sensact.models.linear_action import LinearActionModel
 from sensact.records import JsonObject
 from sensact.sim.diffdrive import COMMAND_NAMES, from_wheel_coefficients
 
@@ -18,9 +17,10 @@ def score_against_simulated(model: EMModel, truth: JsonObject, dt_s: float) -> J
     side-steps), the command delay (which the lag lengthens: a first-order lag of time constant tau
     delays a step by tau), Sigma_m's per-step sds, the range channel's sigma and bearing terms, the
     bearing sigma (when the model reads bearings), the sensor's mount; each sigma also as a ratio."""
-    if not isinstance(model.action, LinearActionModel) or model.action.basis != "affine":
+    linear = model.action.linear()
+    if linear is None or linear.basis != "affine":
         raise ValueError("a simulated differential drive is scored with the affine action basis (em_config.yaml)")
-    beta, true_beta = model.action.coefficients, np.asarray(truth["action_coefficients"])
+    beta, true_beta = linear.coefficients, np.asarray(truth["action_coefficients"])
     if truth.get("wheel_axle_mm", 0.0) > 0:  # learned on the wheel speeds: the gains are on (v, omega)
         beta = from_wheel_coefficients(beta, truth["wheel_axle_mm"])
     if beta.shape != true_beta.shape:

@@ -13,7 +13,6 @@ from typing import IO, Any
 
 import numpy as np
 
-from sensact.core.geometry import Geometry
 from sensact.records import to_json
 
 
@@ -97,10 +96,8 @@ def write_bytes(path: str | Path, data: bytes) -> Path:
 
 
 def _jsonable(obj: Any) -> Any:
-    """What ``json`` cannot write itself: numpy values, paths and records (``records.to_json``), a geometry
-    by its name."""
-    if isinstance(obj, Geometry):
-        return obj.name
+    """What ``json`` cannot write itself: numpy values, paths and records (``records.to_json``), and what names
+    itself in JSON (a geometry, by its name)."""
     out = to_json(obj)
     if out is not obj:
         return out

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sensact.core.geometry import GEOMETRIES
 from sensact.errors import LogFormatError
 from sensact.io.atomic import write_json, write_text
 from sensact.io.csvtable import read_numeric_csv
@@ -148,7 +149,7 @@ def read_track_log(path: str | Path, sensor: str | None = None) -> TrackLog:
     meta = read_meta(path)
     refuse_a_car_log(meta, path)
     if "geometry" in meta and "action" not in meta:
-        track = meta["geometry"] == "track"
+        track = getattr(GEOMETRIES.get(meta["geometry"]), "state_is_range", False)
         raise LogFormatError(
             f"this is a log folder for EM (geometry: {meta['geometry']}) without chapter 3's action and sensor "
             "columns; chapter 3's learner reads a 1-D log with one command and one sensor.",

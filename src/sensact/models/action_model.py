@@ -17,9 +17,14 @@ class CommandLog(Protocol):
 
     dt_s: float
     actions: np.ndarray  # (T,) discrete action index, -1 = none
+    action_commands: np.ndarray  # (A, k) the command each discrete action stands for
+    command_names: tuple[str, ...]
     step_commands: np.ndarray | None  # (T, k) continuous commands
     n_actions: int
     n_steps: int
+
+    @property
+    def is_continuous(self) -> bool: ...
 
 
 class ActionModel(Protocol):
@@ -50,6 +55,18 @@ class ActionModel(Protocol):
 
     def named_parameters(self) -> dict[str, float]:
         """Every learned number by a readable name (for error bars and tables)."""
+
+    def linear(self) -> Any:
+        """The model as coefficients on features of continuous commands (a ``LinearActionModel``: its gains
+        and offsets are what exports and scores read), or None where it is not one (a table of actions)."""
+
+    @property
+    def binned_commands(self) -> np.ndarray | None:
+        """``(A, k)``: the commands a table's actions stand for, onto which another log's continuous commands
+        are binned; None for a model on continuous commands."""
+
+    def mismatch(self, data: CommandLog) -> tuple[str, str] | None:
+        """Why this model cannot run on ``data``'s commands, and the model's field that says so; None if it can."""
 
     def form(self) -> list[tuple[str, Any]]:
         """The config fields that fix this model's form (what a warm start keeps)."""

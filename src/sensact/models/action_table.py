@@ -76,6 +76,22 @@ class ActionTable:
             for j, v in enumerate(self.velocity_names)
         }
 
+    def linear(self) -> None:
+        return None  # velocities per action, no gains
+
+    @property
+    def binned_commands(self) -> np.ndarray:
+        return self.commands
+
+    def mismatch(self, data: CommandLog) -> tuple[str, str] | None:
+        if data.is_continuous or self.n_actions != data.n_actions:
+            has = "continuous commands" if data.is_continuous else f"{data.n_actions} actions"
+            return f"the model has a table of {self.n_actions} actions and the log {has}", "action"
+        if not np.allclose(self.commands, data.action_commands, rtol=1e-9, atol=1e-9):
+            # a track log bins its own commands: the same count of actions can mean other commands
+            return "the model's actions are other commands than the log's", "action.commands"
+        return None
+
     def form(self) -> list[tuple[str, Any]]:
         return [("action.basis", "table"), ("actions", self.n_actions)]
 

@@ -266,13 +266,13 @@ class LandmarkSensor:
 
     @property
     def sigmas(self) -> tuple[float, ...]:
-        return (*(c.sigma for c in self.channels), np.nan if self.sigma_bearing_rad is None else self.sigma_bearing_rad)
+        return (*(c.sigma for c in self.channels), self.sigma_bearing_rad if self.reads_bearing else np.nan)
 
     @property
     def parameters(self) -> np.ndarray:
         """Per channel f's coefficients, its bearing terms and sigma; then sigma_2 (if read), then the mount."""
         parts = [[*c.function.coef, *c.bearing_terms, c.sigma] for c in self.channels]
-        parts.append([] if self.sigma_bearing_rad is None else [self.sigma_bearing_rad])
+        parts.append([self.sigma_bearing_rad] if self.reads_bearing else [])
         parts.append(list(self.mount.as_array()))
         return np.array([v for p in parts for v in p], dtype=float)
 
@@ -285,8 +285,8 @@ class LandmarkSensor:
                 replace(c, function=f, bearing_terms=tuple(x[at + k : at + k + m]), sigma=float(x[at + k + m]))
             )
             at += k + m + 1
-        sb = None if self.sigma_bearing_rad is None else float(x[at])
-        at += sb is not None
+        sb = float(x[at]) if self.reads_bearing else None
+        at += self.reads_bearing
         return replace(self, channels=tuple(chans), sigma_bearing_rad=sb, mount=SensorMount.from_array(x[at : at + 3]))
 
     def named_parameters(self, f_at: Sequence[float] = ()) -> dict[str, float]:

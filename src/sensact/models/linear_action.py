@@ -254,6 +254,22 @@ class LinearActionModel:
             for j, v in enumerate(self.velocity_names)
         }
 
+    def linear(self) -> LinearActionModel:
+        return self
+
+    @property
+    def binned_commands(self) -> None:
+        return None  # continuous commands, read as they are
+
+    def mismatch(self, data: CommandLog) -> tuple[str, str] | None:
+        if tuple(self.command_names) == tuple(data.command_names):
+            return None
+        return (
+            f"the model's commands are {', '.join(self.command_names)} and the log's "
+            f"{', '.join(data.command_names) or 'discrete actions'}",
+            "action.command_names",
+        )
+
     def form(self) -> list[tuple[str, Any]]:
         return [
             ("action.basis", self.basis),

@@ -22,7 +22,6 @@ from dataclasses import dataclass
 from typing import Any
 
 from sensact.models.em_model import PLANAR_VELOCITY_NAMES
-from sensact.models.linear_action import LinearActionModel
 
 WHEEL_COMMAND_NAMES = ("left_mm_s", "right_mm_s")
 
@@ -59,9 +58,10 @@ def as_differential_drive(action: Any) -> DifferentialDrive | None:
     None where the turn coefficients cannot give them (a turn that does not follow the wheels'
     difference), and the ratio where ``inputs`` held the turn rate to that difference."""
     pair = wheel_pair(getattr(action, "command_names", ()))
+    action = action.linear()
     if not (
         pair is not None
-        and isinstance(action, LinearActionModel)
+        and action is not None
         and action.basis == "affine"
         and action.velocity_names == PLANAR_VELOCITY_NAMES
     ):

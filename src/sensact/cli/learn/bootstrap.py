@@ -7,6 +7,7 @@ from typing import Annotated, Any
 
 import typer
 
+from sensact.app.settings import layered_config
 from sensact.cli.base import (
     ConfigOpt,
     ForceOpt,
@@ -16,12 +17,11 @@ from sensact.cli.base import (
     console,
     finish,
     friendly,
-    layered_config,
     learn_app,
     progress_bar,
     write_result,
 )
-from sensact.cli.scores import evaluate_log, warn_if_one_command
+from sensact.cli.scores import warn_if_one_command
 from sensact.outputs import BOOTSTRAP_MODEL
 from sensact.records import JsonObject
 
@@ -94,7 +94,13 @@ def learn_bootstrap_cmd(
     )
     console.print("  " + res.sensor.describe("S"))
     console.print("  " + res.action.describe("A"))
-    evaluation = evaluate_log(data, res, cfg)
+    from sensact.app.bootstrap import score_bootstrap
+
+    scored = score_bootstrap(data, res, cfg)
+    evaluation = None
+    if scored is not None:
+        evaluation, line = scored
+        console.print(line, highlight=False)
     health = bootstrap_health(res, data.commands, data.observations, data.times_s)
     if out is not None:
         payload = {**res.to_dict(), "log": data.source, "evaluation": evaluation, "health": health.to_dict()}

@@ -7,6 +7,7 @@ from typing import Annotated, Any
 
 import typer
 
+from sensact.app.settings import layered_config
 from sensact.cli.base import (
     ConfigOpt,
     ForceOpt,
@@ -15,7 +16,6 @@ from sensact.cli.base import (
     console,
     finish,
     friendly,
-    layered_config,
     learn_app,
     progress_bar,
     write_result,
