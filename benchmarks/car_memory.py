@@ -18,8 +18,8 @@ import sys
 import tempfile
 from pathlib import Path
 
-from sensact.app.car import simulate_car_log
-from sensact.sim.car import CarConfig
+from sensact.app.velodyne_car import simulate_car_log
+from sensact.sim.velodyne_car import CarConfig
 
 GOAL_BYTES = 1 << 30
 

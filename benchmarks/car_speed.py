@@ -16,11 +16,11 @@ import tempfile
 import time
 from pathlib import Path
 
-from sensact.app.car import learn_from_log, simulate_car_log
-from sensact.io.car_log import read_car_log
-from sensact.learn.car_dynamics import CarLearningConfig
-from sensact.learn.lidar_intrinsics import IntrinsicsConfig, learn_relative_angles
-from sensact.sim.car import CarConfig
+from sensact.app.velodyne_car import learn_from_log, simulate_car_log
+from sensact.io.velodyne_car_folder import read_car_log
+from sensact.learn.spinning_lidar_intrinsics import IntrinsicsConfig, learn_relative_angles
+from sensact.learn.velodyne_car_dynamics import CarLearningConfig
+from sensact.sim.velodyne_car import CarConfig
 
 THESIS_S = {"laser_angles": 83 * 60, "laser_angles_23deg": 10.7 * 60, "per_iteration": 34 * 60}
 

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from sensact.app.lidar2d import calibrate_lidar2d, convert_lidar_bag
-from sensact.io.lidar2d_log import read_lidar2d_log, write_lidar2d_log
+from sensact.io.lidar2d_folder import read_lidar2d_log, write_lidar2d_log
 from sensact.io.rosbag import bag_topics, open_bag
 from sensact.io.rosbag_lidar2d import lidar_roles
 from sensact.io.rosbag_write import write_lidar_bag

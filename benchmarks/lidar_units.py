@@ -20,11 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
-from sensact.app.car import learn_from_log, simulate_car_log
-from sensact.evaluate.car import laser_angle_error
-from sensact.io.car_log import read_car_log
-from sensact.models.lidar_unit import UNITS
-from sensact.sim.car import CarConfig
+from sensact.app.velodyne_car import learn_from_log, simulate_car_log
+from sensact.evaluate.velodyne_car import laser_angle_error
+from sensact.io.velodyne_car_folder import read_car_log
+from sensact.models.spinning_lidar import UNITS
+from sensact.sim.velodyne_car import CarConfig
 
 BAR_DEG = 0.25
 

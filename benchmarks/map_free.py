@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from sensact.app import calibrate, open_log
-from sensact.io.landmark_log import write_landmark_log
+from sensact.io.landmark_folder import write_landmark_log
 
 HELD_OUT = {
     "mounted_at": (220.0, 0.0, 0.0),

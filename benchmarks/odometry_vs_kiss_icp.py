@@ -27,10 +27,10 @@ from pathlib import Path
 
 import numpy as np
 
-from sensact.app.car import simulate_car_log
-from sensact.io.car_log import read_car_log
+from sensact.app.velodyne_car import simulate_car_log
+from sensact.io.velodyne_car_folder import read_car_log
 from sensact.learn.scan_odometry import OdometryConfig, scan_odometry
-from sensact.sim.car import CarConfig
+from sensact.sim.velodyne_car import CarConfig
 
 BAR_ERROR_RATIO = 1.2
 # both drop the returns more than this far below the sensor, as sec. 5.2 does: the ground's rings move with

@@ -271,7 +271,7 @@ def test_a_static_transform_tree_that_loops_is_refused(tmp_path):
 
 
 def test_one_damaged_stamp_is_told_from_a_gap_of_dropped_packets():
-    from sensact.io.car_log import _isolated_jumps
+    from sensact.io.velodyne_car_folder import _isolated_jumps
 
     t = np.arange(10.0) * 0.001  # a packet a millisecond
     gap = t.copy()
@@ -286,7 +286,7 @@ def test_one_damaged_stamp_is_told_from_a_gap_of_dropped_packets():
 
 
 def test_a_scan_match_further_than_the_lidar_sees_is_flagged():
-    from sensact.learn.car_dynamics import car_health
+    from sensact.learn.velodyne_car_dynamics import car_health
 
     angles = np.radians(np.linspace(-5.0, 5.0, 64))
     motion = np.column_stack([np.full(10, 2.0), np.zeros(10), np.zeros(10)])  # 2 m a revolution

@@ -401,7 +401,7 @@ def test_simulate_car_then_learn_car_with_ros_export(tmp_path):
     model = json.loads(out.read_text())
     assert len(model["laser_angles_deg"]) == 64 and model["car_dynamics"]["kind"] == "car_dynamics"
     assert model["evaluation"]["laser_angle_rms_deg"] < 1.0  # 20 s: C rests on a few fast intervals
-    from sensact.cli.learn.car import best_matcher
+    from sensact.cli.learn.velodyne_car import best_matcher
 
     # the best matcher it has, said in one line: KISS-ICP with the kiss extra (the test extra has it)
     assert model["config"]["matcher"] == best_matcher()
@@ -729,7 +729,7 @@ def _as_track_folder(csv, folder):
     readings, the recorded distance as groundtruth.csv's distance_mm, and the Turtlebot's settings as its
     em_config.yaml (what a user with other column names writes by hand: docs/em-real.md, section 1)."""
     from sensact.config import config_to_yaml
-    from sensact.io.landmark_log import write_landmark_log
+    from sensact.io.landmark_folder import write_landmark_log
     from sensact.io.turtlebot import read_turtlebot_landmark_log
     from sensact.presets import turtlebot_em_config
 

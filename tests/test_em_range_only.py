@@ -15,7 +15,7 @@ from sensact.cli import app
 from sensact.core.angles import wrap_angle
 from sensact.evaluate.landmark_truth import path_offset, score_against_truth
 from sensact.experiments.real import bar_checks
-from sensact.io.landmark_log import read_landmark_log
+from sensact.io.landmark_folder import read_landmark_log
 from sensact.learn.em import EMConfig, fit_em, initial_model
 from sensact.learn.em.estep import e_step, log_likelihood
 from sensact.learn.em.searches.facing import drives_backward, turned_model, turned_posteriors

@@ -67,7 +67,7 @@ def test_a_robot_that_sees_no_landmark_is_refused_in_one_line_and_reproduce_goes
 
 @pytest.mark.skipif(not MRCLAM.is_dir(), reason=f"MRCLAM data not found at {MRCLAM}")
 def test_mrclam_reader_and_log_folder_round_trip(tmp_path):
-    from sensact.io.landmark_log import read_landmark_log, write_landmark_log
+    from sensact.io.landmark_folder import read_landmark_log, write_landmark_log
     from sensact.io.mrclam import read_mrclam
 
     ml = read_mrclam(MRCLAM, 1)
@@ -281,7 +281,7 @@ def test_a_short_real_log_finds_its_robot_and_a_lost_fit_says_so_and_starts_agai
 
     from sensact.config import config_to_yaml
     from sensact.evaluate.landmark_truth import path_offset
-    from sensact.io.landmark_log import write_landmark_log
+    from sensact.io.landmark_folder import write_landmark_log
     from sensact.io.mrclam import read_mrclam
     from sensact.learn.em.checks.lost_signs import range_function_turns
     from sensact.presets import mrclam_config
@@ -355,7 +355,7 @@ def test_learn_em_on_a_folder_with_recorded_poses_draws_the_figures_against_them
 
     from sensact.config import config_to_yaml
     from sensact.evaluate.landmark_truth import score_against_truth
-    from sensact.io.landmark_log import read_landmark_log, write_landmark_log
+    from sensact.io.landmark_folder import read_landmark_log, write_landmark_log
     from sensact.report import figures_real
     from sensact.report.figures_real import write_robot
 
@@ -600,7 +600,7 @@ def test_mrclam_robot1_from_an_unknown_start(tmp_path):
     # model on robot 3's log (the same kind of robot) holds the action bars (docs/em-real.md, the fleet)
     from typer.testing import CliRunner
 
-    from sensact.io.landmark_log import write_landmark_log
+    from sensact.io.landmark_folder import write_landmark_log
     from sensact.io.mrclam import read_mrclam
 
     model = tmp_path / "m1.json"

@@ -239,7 +239,7 @@ def test_fit_searches_the_delay_on_the_ridge_schedule_only_when_a_delay_is_learn
     # the CLI says where each search moved the delay
     from typer.testing import CliRunner
 
-    from sensact.io.landmark_log import write_landmark_log
+    from sensact.io.landmark_folder import write_landmark_log
 
     write_landmark_log(tmp_path / "log", data)
     sets = [

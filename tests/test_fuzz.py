@@ -71,7 +71,7 @@ CELLS = st.one_of(
 
 @pytest.fixture(scope="module")
 def small_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from sensact.io.landmark_log import write_landmark_log
+    from sensact.io.landmark_folder import write_landmark_log
     from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
     run = simulate_diffdrive(DiffDriveConfig(seconds=10.0))
@@ -88,7 +88,7 @@ def small_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
     cell=CELLS,
 )
 def test_any_cell_is_read_or_refused_by_name(small_log: Path, tmp_path_factory, file, row, col, cell):
-    from sensact.io.landmark_log import read_landmark_log
+    from sensact.io.landmark_folder import read_landmark_log
 
     work = tmp_path_factory.mktemp("cell") / "log"
     shutil.copytree(small_log, work)

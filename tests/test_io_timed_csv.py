@@ -18,7 +18,7 @@ from sensact.app import read_settings_file
 from sensact.cli import app
 from sensact.errors import LogFormatError
 from sensact.io.csvtable import read_numeric_csv
-from sensact.io.landmark_log import read_landmark_log, truth_poses_of
+from sensact.io.landmark_folder import read_landmark_log, truth_poses_of
 from sensact.io.timed_csv import in_sensact_units, read_timed_csv
 from sensact.io.unit_checks import unit_doubts
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive

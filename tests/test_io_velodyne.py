@@ -9,7 +9,7 @@ import pytest
 
 from conftest import DATA, require, rewrite_capture
 from sensact.errors import LogFormatError
-from sensact.io.lidar_packets import firings
+from sensact.io.spinning_lidar_packets import firings
 from sensact.io.velodyne import (
     LOWER,
     PACKET,
@@ -25,7 +25,7 @@ from sensact.io.velodyne import (
     write_pcap,
 )
 from sensact.io.velodyne_calibration import calibration_yaml, read_calibration, write_calibration
-from sensact.models.lidar_unit import UNITS
+from sensact.models.spinning_lidar import UNITS
 
 VELO = DATA / "velodyne"
 

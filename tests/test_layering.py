@@ -99,8 +99,8 @@ def test_numeric_layers_load_no_ui_library_at_runtime():
     code = (
         "import sys, sensact.core.recursive, sensact.core.degree, sensact.models.polynomial, "
         "sensact.learn.bootstrap, sensact.sim.track1d, sensact.learn.em, sensact.sim.field2d, "
-        "sensact.core.ekf_smoother, sensact.models.em_model, sensact.core.raycast, sensact.sim.car, "
-        "sensact.learn.car_dynamics, sensact.learn.lidar_intrinsics; "
+        "sensact.core.ekf_smoother, sensact.models.em_model, sensact.core.raycast, sensact.sim.velodyne_car, "
+        "sensact.learn.velodyne_car_dynamics, sensact.learn.spinning_lidar_intrinsics; "
         f"print(sorted(m for m in {sorted(UI_LIBS)!r} if m in sys.modules))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()

@@ -10,17 +10,17 @@ import pytest
 import yaml
 
 from conftest import require
-from sensact.app.car import learn_angles_from_log, simulate_car_log
 from sensact.app.logs import data_root
-from sensact.io.car_log import read_car_log
-from sensact.io.lidar_packets import encode_packets, packet_fields
+from sensact.app.velodyne_car import learn_angles_from_log, simulate_car_log
 from sensact.io.logfolder import LOG_FORMAT, LOG_VERSION
+from sensact.io.spinning_lidar_packets import encode_packets, packet_fields
 from sensact.io.velodyne import decode_packets
 from sensact.io.velodyne_calibration import read_calibration
-from sensact.learn.car_dynamics import laser_angles
-from sensact.learn.lidar_intrinsics import learn_relative_angles
-from sensact.models.lidar_unit import UNITS, ouster_unit
-from sensact.sim.car import CarConfig
+from sensact.io.velodyne_car_folder import read_car_log
+from sensact.learn.spinning_lidar_intrinsics import learn_relative_angles
+from sensact.learn.velodyne_car_dynamics import laser_angles
+from sensact.models.spinning_lidar import UNITS, ouster_unit
+from sensact.sim.velodyne_car import CarConfig
 
 VELO = data_root() / "velodyne"
 SHORT = {"seconds": 12.0, "seed": 3, "turn_times_s": (6.0,), "stop_times_s": (30.0,)}

@@ -21,7 +21,7 @@ from sensact.app.shared_map import _map_step, merge_maps
 from sensact.cli import app
 from sensact.errors import ConfigError, LogFormatError
 from sensact.evaluate.map_truth import map_scores, rigid_alignment
-from sensact.io.landmark_log import read_landmark_log, write_landmark_log
+from sensact.io.landmark_folder import read_landmark_log, write_landmark_log
 from sensact.io.timed_csv import MIN_SIGHTINGS_TO_LEARN, read_landmarks, read_timed_csv
 from sensact.learn.em import fit_em, initial_model
 from sensact.learn.em.unsurveyed.landmark_step import landmark_update, normal_equations

@@ -162,7 +162,7 @@ def test_cli_monitor_writes_the_change_and_relearns_from_it(slowdown, tmp_path):
     from sensact.evaluate.em import score_track
     from sensact.evaluate.track1d import DISTANCE_GRID_MM
     from sensact.experiments.em1d import true_velocities
-    from sensact.io.landmark_log import write_landmark_log
+    from sensact.io.landmark_folder import write_landmark_log
 
     sim, changed, _, model, learner = slowdown
     log = write_landmark_log(tmp_path / "log", changed)

@@ -22,7 +22,7 @@ from sensact.evaluate.simulated_robot import score_against_simulated
 from sensact.experiments import diffdrive
 from sensact.experiments.real import bar_checks, evaluate_mrclam
 from sensact.io.csvtable import read_numeric_csv
-from sensact.io.landmark_log import read_landmark_log
+from sensact.io.landmark_folder import read_landmark_log
 from sensact.learn.em import fit_em
 from sensact.learn.em.checks.lost_signs import describe_held_sideways, held_sideways_noise
 from sensact.models.em_model import EMModel

@@ -2,7 +2,7 @@
 (``health``), and ends the command with exit code 3 (``errors.EXIT_FLAGGED``), never reported as a success.
 
 Each learner names its own checks (``learn/em/checks/fit_health.py``, ``learn/bootstrap.py``,
-``learn/car_dynamics.py``); a flag is a code a script can test and one line a person can read.
+``learn/velodyne_car_dynamics.py``); a flag is a code a script can test and one line a person can read.
 """
 
 from __future__ import annotations

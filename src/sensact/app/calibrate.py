@@ -15,7 +15,7 @@ from sensact.app.scores import Scores, Unscored, in_truth_frame, score_model
 from sensact.app.settings import Settings, resolve_settings
 from sensact.errors import ConfigError
 from sensact.health import Health
-from sensact.io.landmark_log import LandmarkLogFile
+from sensact.io.landmark_folder import LandmarkLogFile
 from sensact.learn.em import EMConfig, EMResult, fit_em, initial_model
 from sensact.learn.em.checks.lost_signs import FunctionBends, FunctionTurns, LostSign, Unsettled
 from sensact.learn.em.config import refuse_bearing_settings

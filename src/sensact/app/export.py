@@ -450,7 +450,7 @@ def _writers(doc: JsonObject) -> dict[str, Any]:
     """The formats a model file exports to, by what it is: its ``kind`` (a wheels-and-lidar model's
     ``lidar2d``), else a model `learn em` or `learn car` wrote."""
     from sensact.app import export_lidar2d
-    from sensact.io.lidar2d_log import KIND as LIDAR2D_KIND
+    from sensact.io.lidar2d_folder import KIND as LIDAR2D_KIND
 
     by_kind = {
         LIDAR2D_KIND: {

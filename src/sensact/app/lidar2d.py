@@ -15,7 +15,7 @@ from sensact import __version__
 from sensact.app.calibrate import FitEvents
 from sensact.app.save import Saved
 from sensact.health import Health, HealthFlag
-from sensact.io.lidar2d_log import KIND as LIDAR2D_KIND
+from sensact.io.lidar2d_folder import KIND as LIDAR2D_KIND
 from sensact.learn.wheel_lidar import (
     MOUNT_SD_MM,
     MOUNT_SD_RAD,
@@ -59,7 +59,7 @@ class OpenedLidar2DLog:
 
 
 def open_lidar2d_log(path: Path) -> OpenedLidar2DLog:
-    from sensact.io.lidar2d_log import read_lidar2d_log
+    from sensact.io.lidar2d_folder import read_lidar2d_log
 
     return OpenedLidar2DLog(Path(path), read_lidar2d_log(path))
 
@@ -282,7 +282,7 @@ def convert_lidar_bag(
     import dataclasses
 
     from sensact.io.atomic import nothing_half_written
-    from sensact.io.lidar2d_log import write_lidar2d_log
+    from sensact.io.lidar2d_folder import write_lidar2d_log
     from sensact.io.rosbag_lidar2d import read_lidar2d_bag
     from sensact.learn.wheel_lidar import drive_of_odometry
 

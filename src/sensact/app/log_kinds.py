@@ -30,7 +30,7 @@ from sensact.app.lidar2d import (
 from sensact.app.logs import OpenedLandmarkLog, open_landmark_folder, open_turtlebot_csv
 from sensact.app.save import Saved, save_em_calibration
 from sensact.errors import ConfigError, LogFormatError
-from sensact.io.lidar2d_log import KIND as LIDAR2D_KIND
+from sensact.io.lidar2d_folder import KIND as LIDAR2D_KIND
 from sensact.io.logfolder import meta_kind
 
 OpenedAny = OpenedLandmarkLog | OpenedLidar2DLog

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from sensact.errors import ConfigError, LogFormatError
-from sensact.io.landmark_log import LandmarkLogFile
+from sensact.io.landmark_folder import LandmarkLogFile
 from sensact.learn.em.config import EMConfig
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
@@ -155,7 +155,7 @@ def open_landmark_folder(path: Path, *, bins: int = 21, command_levels: np.ndarr
     """A log folder read as EM reads it: continuous commands of a track1d folder binned into ``bins``
     actions (or onto ``command_levels``); a track folder's recorded distance from groundtruth.csv's
     ``distance_mm``."""
-    from sensact.io.landmark_log import read_landmark_log
+    from sensact.io.landmark_folder import read_landmark_log
 
     _check_bins(bins)
     lf = read_landmark_log(path, command_bins=bins, command_levels=command_levels)

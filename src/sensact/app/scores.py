@@ -12,7 +12,7 @@ import numpy as np
 
 from sensact.app.logs import OpenedLandmarkLog
 from sensact.errors import LogFormatError
-from sensact.io.landmark_log import LandmarkLogFile
+from sensact.io.landmark_folder import LandmarkLogFile
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 from sensact.records import JsonObject

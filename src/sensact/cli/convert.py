@@ -75,7 +75,7 @@ def convert_mrclam(
     import numpy as np
 
     from sensact.io.atomic import write_text
-    from sensact.io.landmark_log import write_landmark_log
+    from sensact.io.landmark_folder import write_landmark_log
     from sensact.io.mrclam import read_mrclam
     from sensact.presets import mrclam_config, settings_yaml
 
@@ -186,7 +186,7 @@ def convert_csv(
     set where it starts. See docs/em-real.md."""
     import numpy as np
 
-    from sensact.io.landmark_log import truth_poses_of, write_landmark_log
+    from sensact.io.landmark_folder import truth_poses_of, write_landmark_log
     from sensact.io.timed_csv import read_timed_csv
     from sensact.io.unit_checks import unit_doubts
 
@@ -375,7 +375,7 @@ def convert_track(
 
     from sensact.config import config_to_yaml
     from sensact.io.atomic import write_text
-    from sensact.io.landmark_log import write_landmark_log
+    from sensact.io.landmark_folder import write_landmark_log
     from sensact.io.track_csv import named_columns, read_track_csv
     from sensact.presets import settings_yaml, track_em_config, track_learner
     from sensact.report.figures_log import figure_track_overview

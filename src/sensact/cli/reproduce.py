@@ -402,11 +402,11 @@ def _reproduce_uncertainty(out: Path, sims: int, seed: int, engine: Any) -> None
 def _reproduce_car(out: Path, seed: int, set_: list[str] | None, config: Path | None) -> None:
     import numpy as np
 
-    from sensact.experiments.car import CarExperiment, run_car
-    from sensact.learn.car_dynamics import CarLearningConfig
-    from sensact.report import figures_car
+    from sensact.experiments.velodyne_car import CarExperiment, run_car
+    from sensact.learn.velodyne_car_dynamics import CarLearningConfig
+    from sensact.report import figures_velodyne_car
     from sensact.report.tables import car_tables
-    from sensact.sim.car import CarConfig
+    from sensact.sim.velodyne_car import CarConfig
 
     learner_f, sim_f = split_fields(set_, config, CarLearningConfig)
     base = CarExperiment()
@@ -418,8 +418,8 @@ def _reproduce_car(out: Path, seed: int, set_: list[str] | None, config: Path | 
         res, art = run_car(exp, out / "car_log", progress)
     write_results(out, "car", res, car_tables(res))
     log, r = art["log"], art["result"]
-    figures_car.figure_5_2(log, r.intrinsics.relative_rad, 40.0, 0.5, out / "fig5_2_scans.png")
-    figures_car.figure_5_3(
+    figures_velodyne_car.figure_5_2(log, r.intrinsics.relative_rad, 40.0, 0.5, out / "fig5_2_scans.png")
+    figures_velodyne_car.figure_5_3(
         r.laser_angles_rad,
         np.asarray(log.meta["truth"]["laser_angles_rad"]),
         log.vertical_rad,
@@ -429,7 +429,7 @@ def _reproduce_car(out: Path, seed: int, set_: list[str] | None, config: Path | 
     pred = r.model.predict(r.actions[:K], r.speed_m_s[0], exp.learner.odometry.dt_s)
     v, w, a = art["truth"]
     t = r.interval_times_s[:K]
-    figures_car.figure_5_4_5(t, (v[:K], w[:K], a[:K]), pred, out / "fig5_4_5_dynamics.png", (85.0, 110.0))
+    figures_velodyne_car.figure_5_4_5(t, (v[:K], w[:K], a[:K]), pred, out / "fig5_4_5_dynamics.png", (85.0, 110.0))
     console.print(
         f"wrote {out / 'car.json'}, {out / 'car.md'}, figures and the log in {out / 'car_log'} ({res['seconds']:.1f} s)"
     )

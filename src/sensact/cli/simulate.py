@@ -73,8 +73,8 @@ def simulate_car(
 ) -> None:
     """Simulate the chapter-5 car with a spinning lidar driving through a town (secs. 2.5.2, 5.4): the thesis's
     Velodyne HDL-64E, or --set lidar=HDL-32E, VLP-32C, VLP-16, "Puck Hi-Res" or OS-1."""
-    from sensact.app.car import simulate_car_log
-    from sensact.sim.car import CarConfig, log_summary
+    from sensact.app.velodyne_car import simulate_car_log
+    from sensact.sim.velodyne_car import CarConfig, log_summary
 
     cfg = layered_config(CarConfig, config, set_, seconds=seconds, seed=seed)
     with progress_bar() as progress:
@@ -133,7 +133,7 @@ def simulate_diffdrive_cmd(
         return
     from sensact.cli.convert import config_header
     from sensact.io.atomic import write_text
-    from sensact.io.landmark_log import write_landmark_log
+    from sensact.io.landmark_folder import write_landmark_log
     from sensact.presets import settings_yaml, simulator_settings
     from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
@@ -183,7 +183,7 @@ def _simulate_lidar2d(
     bag: Path | None,
     bag_format: str,
 ) -> None:
-    from sensact.io.lidar2d_log import write_lidar2d_log
+    from sensact.io.lidar2d_folder import write_lidar2d_log
     from sensact.sim.lidar2d import Lidar2DConfig, simulate_lidar2d
 
     cfg = layered_config(Lidar2DConfig, config, set_, seconds=seconds, seed=seed)

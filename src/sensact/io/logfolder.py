@@ -24,7 +24,7 @@ from sensact.io.atomic import write_json, write_text
 from sensact.io.csvtable import read_numeric_csv
 from sensact.io.jsonfile import read_json_object
 from sensact.io.resample import step_count
-from sensact.io.track_log import TrackLog
+from sensact.logs.track_log import TrackLog
 from sensact.records import JsonObject
 
 LOG_FORMAT = "sensact-log"

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from sensact.errors import LogFormatError
-from sensact.io.lidar2d_log import check_drive, check_scans
+from sensact.io.lidar2d_folder import check_drive, check_scans
 from sensact.io.rosbag import (
     MOCAP_NAME,
     TF_TYPES,

@@ -14,9 +14,9 @@ from sensact.errors import LogFormatError
 from sensact.io.csvtable import read_csv_rows, read_numeric_csv
 from sensact.io.resample import step_count
 from sensact.io.timed_csv import MAX_DEFAULT_STEP_S
-from sensact.io.track_log import TrackLog
 from sensact.io.unit_checks import refuse_scrambled_path
 from sensact.logs.landmark_log import LandmarkLog
+from sensact.logs.track_log import TrackLog
 from sensact.records import JsonObject
 
 # a gap this many median steps long (and over a second) is a recording paused: the command held across it

@@ -27,7 +27,7 @@ import numpy as np
 
 from sensact.errors import LogFormatError
 from sensact.io.atomic import write_bytes
-from sensact.models.lidar_unit import UNITS, VELODYNE_PAYLOAD_BYTES, VELODYNE_PORT
+from sensact.models.spinning_lidar import UNITS, VELODYNE_PAYLOAD_BYTES, VELODYNE_PORT
 
 PAYLOAD_BYTES = VELODYNE_PAYLOAD_BYTES
 DATA_PORT = VELODYNE_PORT
@@ -324,7 +324,7 @@ def spin_from_clock(timestamp_us: np.ndarray, first_rotation: np.ndarray, firing
 
 def decode_packets(times_s: np.ndarray, payloads: np.ndarray, model: str = "auto", firing_rate_hz: float | None = None):
     """Per-return arrays from raw payloads. ``firing_rate_hz`` spaces the firings inside a packet in time
-    (default: the unit's own, ``sensact.models.lidar_unit.UNITS``; the HDL-64E's is the thesis's 7800 Hz)."""
+    (default: the unit's own, ``sensact.models.spinning_lidar.UNITS``; the HDL-64E's is the thesis's 7800 Hz)."""
     packets = np.ascontiguousarray(payloads).view(PACKET).reshape(-1)
     bad = ~np.isin(packets["blocks"]["id"], (UPPER, LOWER))
     if bad.any():

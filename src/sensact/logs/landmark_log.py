@@ -3,7 +3,7 @@
 ``actions[t]`` is the discrete action in force from step ``t`` to ``t+1``; a robot driven by continuous
 commands has ``step_commands[t]`` instead (and ``actions`` all -1). Each observation row names its step,
 its landmark, one value per reading channel (the thesis's single channel is the beacon height; NaN when
-a channel did not read) and, planar only, the bearing. ``sensact.io.landmark_log`` reads
+a channel did not read) and, planar only, the bearing. ``sensact.io.landmark_folder`` reads
 it from a log folder; simulators and experiments build it directly.
 """
 

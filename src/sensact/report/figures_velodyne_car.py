@@ -12,8 +12,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from sensact.learn.car_dynamics import motion_to_velocities
 from sensact.learn.scan_odometry import scan_points
+from sensact.learn.velodyne_car_dynamics import motion_to_velocities
 from sensact.report.figures1d import _save
 
 

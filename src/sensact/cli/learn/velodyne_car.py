@@ -30,7 +30,7 @@ def _learn(data: Any, cfg: Any, simulated: bool) -> tuple[Any, dict | None, list
     evaluation)``."""
     import numpy as np
 
-    from sensact.app.car import learn_angles_from_log, learn_from_log
+    from sensact.app.velodyne_car import learn_angles_from_log, learn_from_log
 
     evaluation = None
     if data.actions is None:
@@ -39,7 +39,7 @@ def _learn(data: Any, cfg: Any, simulated: bool) -> tuple[Any, dict | None, list
             res = learn_angles_from_log(data, cfg, progress)
         console.print(f"laser angles from the scans alone; C = {np.degrees(res.offset_rad):.3f}°")
         if simulated:
-            from sensact.evaluate.car import laser_angle_error
+            from sensact.evaluate.velodyne_car import laser_angle_error
 
             evaluation = laser_angle_error(res.laser_angles_rad, np.asarray(data.meta["truth"]["laser_angles_rad"]))
             console.print(f"vs truth: laser angles {evaluation['laser_angle_rms_deg']:.3f}° RMS")
@@ -54,7 +54,7 @@ def _learn(data: Any, cfg: Any, simulated: bool) -> tuple[Any, dict | None, list
         console.print(f"  a = {m.C5:.4g} + {m.C6:.4g} g + {m.C7:.4g} v + {m.C8:.4g} v b   (eq. 5.3)")
         console.print(f"  omega = {m.C9:.4g} v + {m.C10:.4g} v s   (eq. 5.4)")
         if simulated:
-            from sensact.app.car import evaluate_run
+            from sensact.app.velodyne_car import evaluate_run
 
             evaluation, _ = evaluate_run(data.meta["truth"], data.groundtruth, res, cfg.odometry.dt_s)
             console.print(
@@ -74,7 +74,7 @@ def _angle_reference(data: Any, res: Any, simulated: bool) -> tuple[tuple[Any, s
 
     reference, comparison = None, None
     if data.factory is not None:
-        from sensact.evaluate.car import factory_comparison
+        from sensact.evaluate.velodyne_car import factory_comparison
 
         comparison = factory_comparison(res.laser_angles_rad, data.factory.horizontal_rad)
         console.print(
@@ -173,8 +173,8 @@ def learn_car_cmd(
     import numpy as np
 
     from sensact.config import config_to_dict
-    from sensact.io.car_log import read_car_log
-    from sensact.learn.car_dynamics import CarLearningConfig
+    from sensact.io.velodyne_car_folder import read_car_log
+    from sensact.learn.velodyne_car_dynamics import CarLearningConfig
 
     matcher = best_matcher()
     cfg = layered_config(CarLearningConfig, config, set_, base=CarLearningConfig(matcher=matcher))
@@ -202,7 +202,7 @@ def learn_car_cmd(
     simulated = "truth" in data.meta and data.groundtruth is not None  # scored against what it was made with
     res, model, history, evaluation = _learn(data, cfg, simulated)
     reference, comparison = _angle_reference(data, res, simulated)
-    from sensact.learn.car_dynamics import car_health
+    from sensact.learn.velodyne_car_dynamics import car_health
 
     odometry = getattr(res, "odometry", None)
     health = car_health(
@@ -232,7 +232,7 @@ def learn_car_cmd(
             },
             CAR_MODEL,
         )
-        from sensact.report.figures_car import figure_car_fit
+        from sensact.report.figures_velodyne_car import figure_car_fit
 
         png = figure_car_fit(
             res, data, out.with_suffix(".png"), f"Algorithm 3 on {log.name}", reference, cfg.odometry.dt_s

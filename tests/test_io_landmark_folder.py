@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from sensact.errors import LogFormatError
-from sensact.io.landmark_log import read_landmark_log
+from sensact.io.landmark_folder import read_landmark_log
 from sensact.io.logfolder import write_log_folder
 from sensact.sim import field2d, track1d
 
@@ -146,7 +146,7 @@ def test_landmarks_named_in_the_folder_read_as_numbered_ones_do(field_log, tmp_p
 
 def test_a_track_log_written_by_write_landmark_log_reads_back(tmp_path):
     """Exact reduction for a 1-D track (one landmark, id 0, written ``0.0`` in observations.csv)."""
-    from sensact.io.landmark_log import write_landmark_log
+    from sensact.io.landmark_folder import write_landmark_log
 
     run = track1d.simulate_track(track1d.Track1DConfig(seconds=30.0, seed=1, command_levels=21))
     data = track1d.to_landmark_log(run)

@@ -1,6 +1,6 @@
 """``sensact simulate car`` and ``sensact learn car`` as functions (chapter 5): a simulated drive written as a
 log folder, Algorithm 3 (or the laser angles alone) on a car log, and a learned drive scored against the
-simulator's truth. ``experiments/car.py`` runs the thesis's experiment with them."""
+simulator's truth. ``experiments/velodyne_car.py`` runs the thesis's experiment with them."""
 
 from __future__ import annotations
 
@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 
 from sensact.errors import ConfigError
-from sensact.evaluate.car import laser_angle_error, table_5_1, truth_motion
-from sensact.io.car_log import CarLog, write_car_log
+from sensact.evaluate.velodyne_car import laser_angle_error, table_5_1, truth_motion
 from sensact.io.velodyne_calibration import read_calibration
-from sensact.learn.car_dynamics import (
+from sensact.io.velodyne_car_folder import CarLog, write_car_log
+from sensact.learn.velodyne_car_dynamics import (
     CarLearningConfig,
     CarLearningResult,
     LaserAnglesResult,
@@ -20,10 +20,10 @@ from sensact.learn.car_dynamics import (
     learn_laser_angles,
 )
 from sensact.models.laser_intrinsics import LaserIntrinsics
-from sensact.models.lidar_unit import OUSTER_BEAMS, UNITS
+from sensact.models.spinning_lidar import OUSTER_BEAMS, UNITS
 from sensact.progress import Progress
 from sensact.records import JsonObject
-from sensact.sim.car import (
+from sensact.sim.velodyne_car import (
     CarConfig,
     CarRun,
     log_tables,
@@ -82,7 +82,7 @@ def simulate_car_log(cfg: CarConfig, folder: str | Path, progress: Progress | No
 def learn_from_log(
     log: CarLog, config: CarLearningConfig | None = None, progress: Progress | None = None
 ) -> CarLearningResult:
-    """Algorithm 3 on a car log read by ``sensact.io.car_log.read_car_log``."""
+    """Algorithm 3 on a car log read by ``sensact.io.velodyne_car_folder.read_car_log``."""
     if log.actions is None or log.action_times_s is None:
         raise ValueError("Algorithm 3 needs the log's actions; learn_angles_from_log needs none")
     fields = (log.rotation_rad, log.distance_m, log.vertical_rad, log.firing_hz, log.omega_rad_s)

@@ -1,4 +1,4 @@
-"""The packets of each spinning lidar in ``sensact.models.lidar_unit``, as chapter 5 reads them: each
+"""The packets of each spinning lidar in ``sensact.models.spinning_lidar``, as chapter 5 reads them: each
 firing's rotation (clockwise, 0.01°, as the packets count) and one distance per laser; and written, for the
 simulator, the way the units send them."""
 
@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sensact.io.velodyne import LOWER, PACKET, PAYLOAD_BYTES, UPPER, _model_of, encode_hdl64e, firings_in_place
-from sensact.models.lidar_unit import (
+from sensact.models.spinning_lidar import (
     OUSTER_COLUMNS_PER_PACKET,
     OUSTER_ENCODER_COUNTS,
     OUSTER_VALID,

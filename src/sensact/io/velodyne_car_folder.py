@@ -26,8 +26,8 @@ import numpy as np
 from sensact.errors import LogFormatError
 from sensact.io.atomic import write_json, write_stream
 from sensact.io.csvtable import read_numeric_csv, refuse_apart, refuse_unordered
-from sensact.io.lidar_packets import encode_packets, packet_fields, velodyne_unit
 from sensact.io.logfolder import LOG_FORMAT, LOG_VERSION, _write_csv, read_meta
+from sensact.io.spinning_lidar_packets import encode_packets, packet_fields, velodyne_unit
 from sensact.io.velodyne import (
     DATA_PORT,
     DUAL_RETURN,
@@ -46,7 +46,7 @@ from sensact.io.velodyne import (
 )
 from sensact.io.velodyne_calibration import ouster_metadata, write_calibration
 from sensact.models.laser_intrinsics import LaserIntrinsics
-from sensact.models.lidar_unit import (
+from sensact.models.spinning_lidar import (
     MODEL_NAMES,
     OUSTER_BEAMS,
     OUSTER_PORT,
@@ -115,7 +115,7 @@ class CarLog:
     notes: tuple[str, ...] = ()  # what the reader measured, for the user to see
     warnings: tuple[str, ...] = ()  # what in the folder contradicts itself
     factory: LaserIntrinsics | None = None  # the calibration file the vertical angles came from, if one
-    model: str = "HDL-64E"  # a name of sensact.models.lidar_unit.UNITS
+    model: str = "HDL-64E"  # a name of sensact.models.spinning_lidar.UNITS
     delay_s: np.ndarray | None = None  # (lasers,) when each laser fires after its firing's start; None: at once
 
 

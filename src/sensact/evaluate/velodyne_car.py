@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from sensact.core.angles import wrap_angle
-from sensact.models.car_dynamics import CarDynamics, fit_car_dynamics
+from sensact.models.velodyne_car_dynamics import CarDynamics, fit_car_dynamics
 
 
 def laser_angle_error(learned_rad: np.ndarray, true_rad: np.ndarray) -> dict[str, float | None]:

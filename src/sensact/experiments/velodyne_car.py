@@ -9,16 +9,16 @@ from pathlib import Path
 
 import numpy as np
 
-from sensact.app.car import evaluate_run, learn_from_log, simulate_car_log
+from sensact.app.velodyne_car import evaluate_run, learn_from_log, simulate_car_log
 from sensact.config import config_to_dict
 from sensact.evaluate.bars import BarCheck, at_most
-from sensact.io.car_log import read_car_log
-from sensact.learn.car_dynamics import (
+from sensact.io.velodyne_car_folder import read_car_log
+from sensact.learn.velodyne_car_dynamics import (
     CarLearningConfig,
 )
 from sensact.progress import Progress
 from sensact.records import JsonObject
-from sensact.sim.car import (
+from sensact.sim.velodyne_car import (
     CarConfig,
 )
 

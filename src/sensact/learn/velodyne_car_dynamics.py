@@ -18,9 +18,9 @@ import numpy as np
 
 from sensact.core.angles import wrap_angle
 from sensact.health import Health, HealthFlag
-from sensact.learn.lidar_intrinsics import IntrinsicsConfig, IntrinsicsResult, learn_relative_angles
 from sensact.learn.scan_odometry import Odometry, OdometryConfig, offset_from_motion, scan_odometry
-from sensact.models.car_dynamics import CarDynamics, fit_car_dynamics
+from sensact.learn.spinning_lidar_intrinsics import IntrinsicsConfig, IntrinsicsResult, learn_relative_angles
+from sensact.models.velodyne_car_dynamics import CarDynamics, fit_car_dynamics
 
 
 @dataclass(frozen=True)

@@ -11,18 +11,18 @@ import numpy as np
 import pytest
 
 from conftest import rewrite_capture
-from sensact.app.car import learn_angles_from_log, learn_from_log, simulate_car_log
+from sensact.app.velodyne_car import learn_angles_from_log, learn_from_log, simulate_car_log
 from sensact.core.raycast import BOX, CYLINDER, _hit_box, _hit_cylinder, build_grid, cast_firings
 from sensact.errors import LogFormatError
-from sensact.io.car_log import read_car_log
 from sensact.io.velodyne import PACKET, UPPER, encode_hdl64e, read_pcap_payloads, write_pcap
 from sensact.io.velodyne_calibration import write_calibration
-from sensact.learn.car_dynamics import CarLearningConfig, regression_actions
-from sensact.learn.lidar_intrinsics import learn_relative_angles, masked_ncc
+from sensact.io.velodyne_car_folder import read_car_log
 from sensact.learn.scan_odometry import OdometryConfig, angle_median, icp, invert, offset_from_motion
-from sensact.models.car_dynamics import CarDynamics, fit_car_dynamics
+from sensact.learn.spinning_lidar_intrinsics import learn_relative_angles, masked_ncc
+from sensact.learn.velodyne_car_dynamics import CarLearningConfig, regression_actions
 from sensact.models.laser_intrinsics import LaserIntrinsics
-from sensact.sim.car import CarConfig, nominal_intrinsics
+from sensact.models.velodyne_car_dynamics import CarDynamics, fit_car_dynamics
+from sensact.sim.velodyne_car import CarConfig, nominal_intrinsics
 
 
 def test_grid_ray_casting_equals_brute_force():
@@ -133,7 +133,7 @@ def test_reading_a_capture_holds_little_beyond_the_distances(short_drive_folder,
     _, folder = short_drive_folder
     script = (
         "import sys, threading, time\n"
-        "from sensact.io.car_log import read_car_log\n"
+        "from sensact.io.velodyne_car_folder import read_car_log\n"
         "def rss():\n"
         "    return int(open('/proc/self/status').read().split('VmRSS:')[1].split()[0]) * 1024\n"
         "before, peak, reading = rss(), [0], [True]\n"
@@ -264,7 +264,7 @@ def test_both_matchers_follow_the_true_motion(short_drive):
     Algorithm 2 (0.037 against 0.133 m/s RMS in speed), and the true motion as its guess (as the learned
     dynamics seed it in Algorithm 3) leaves it as close."""
     pytest.importorskip("kiss_icp")
-    from sensact.evaluate.car import truth_motion
+    from sensact.evaluate.velodyne_car import truth_motion
     from sensact.learn.scan_odometry import scan_odometry
 
     _, log = short_drive
@@ -346,7 +346,7 @@ def test_angle_median_and_offset():
 
 
 def test_factory_comparison_takes_out_one_mount_yaw():
-    from sensact.evaluate.car import factory_comparison
+    from sensact.evaluate.velodyne_car import factory_comparison
 
     factory = np.radians(np.linspace(-8.0, 10.0, 64))
     yaw = np.radians(179.0)  # the learned angles wrap past pi: the comparison must not see a 360° jump
@@ -387,7 +387,7 @@ def test_algorithm_3_on_a_short_drive(short_drive):
     np.testing.assert_array_equal(scans_only.intrinsics.relative_rad, res.intrinsics.relative_rad)
     with pytest.raises(ValueError, match="needs the log's actions"):
         learn_from_log(dataclasses.replace(log, actions=None), CarLearningConfig())
-    from sensact.evaluate.car import laser_angle_error
+    from sensact.evaluate.velodyne_car import laser_angle_error
 
     assert laser_angle_error(res.laser_angles_rad, run.true_laser_angles_rad)["laser_angle_rms_deg"] < 0.3
     assert 1 <= res.iterations < 10 and res.converged  # 3 iterations on this drive
@@ -414,8 +414,8 @@ def test_a_standard_decoder_reads_the_simulated_pcap(short_drive_folder, short_d
 def test_learn_car_takes_kiss_icp_where_installed_else_the_thesis_matcher(monkeypatch):
     import importlib.util
 
-    from sensact.cli.learn.car import best_matcher
-    from sensact.learn.car_dynamics import CarLearningConfig
+    from sensact.cli.learn.velodyne_car import best_matcher
+    from sensact.learn.velodyne_car_dynamics import CarLearningConfig
 
     real = importlib.util.find_spec
     monkeypatch.setattr(importlib.util, "find_spec", lambda name: None if name == "kiss_icp" else real(name))

@@ -1,5 +1,5 @@
-"""A 1-D log on one time grid (``TrackLog``), as the native log folder (``logfolder.py``) and a Turtlebot CSV
-(``turtlebot.py``) both read it: its own module, so that neither reader imports the other's."""
+"""A 1-D log on one time grid (``TrackLog``), as the native log folder (``io/logfolder.py``) and a Turtlebot CSV
+(``io/turtlebot.py``) both read it: its own module, so that neither reader imports the other's."""
 
 from __future__ import annotations
 

@@ -9,7 +9,7 @@
 * **Town**: a ground plane, buildings along both sides of the streets the car drives, poles, trees and
   parked cars; all vertical prisms, ray-cast through a uniform grid (``sensact.core.raycast``).
 * **HDL-64E** (sec. 2.5.2): 64 lasers firing together at ``f = 7800`` Hz while the unit turns clockwise (seen
-  from above, as every Velodyne does) at 600 rpm; or another unit of ``sensact.models.lidar_unit`` (``lidar``),
+  from above, as every Velodyne does) at 600 rpm; or another unit of ``sensact.models.spinning_lidar`` (``lidar``),
   each laser fired at its own delay into the firing;
   vertical angles and true horizontal angles from a ROS calibration file (``64e_utexas.yaml`` when the
   shared data is present, else the thesis's nominal geometry), a mounting yaw ``theta_b``, range noise,
@@ -26,7 +26,7 @@ import numpy as np
 from sensact.core.raycast import BOX, CYLINDER, build_grid, cast_firings
 from sensact.limits import steps_problem
 from sensact.models.laser_intrinsics import LaserIntrinsics
-from sensact.models.lidar_unit import UNITS, LidarUnit
+from sensact.models.spinning_lidar import UNITS, LidarUnit
 from sensact.records import JsonObject
 
 TWO_PI = 2.0 * np.pi
@@ -94,7 +94,7 @@ class CarConfig:
     lidar: str = "HDL-64E"
     calibration_yaml: str | None = None  # true angles (ROS YAML, or an OS-1's metadata JSON); None: the
     # model's file in the shared data (64e_utexas.yaml, 32db.yaml, VLP16db.yaml, ouster_example.json), else its
-    # nominal geometry (read by sensact.app.car.true_intrinsics)
+    # nominal geometry (read by sensact.app.velodyne_car.true_intrinsics)
     firing_hz: float | None = None  # f; None: the model's (HDL-64E: the thesis's 7800 Hz)
     rpm: float = 600.0  # |omega| = 20 pi rad/s
     clockwise: bool = True  # seen from above, as every Velodyne turns (theta_r, counterclockwise, falls)
@@ -373,7 +373,7 @@ def scan_chunks(run: CarRun, progress=None):
 
 
 def log_tables(run: CarRun) -> JsonObject:
-    """The log folder's tables (meta, actions, ground truth); ``sensact.io.car_log.write_car_log`` writes
+    """The log folder's tables (meta, actions, ground truth); ``sensact.io.velodyne_car_folder.write_car_log`` writes
     them with the scans."""
     cfg = run.config
     d = run.drive
