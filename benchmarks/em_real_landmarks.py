@@ -13,7 +13,7 @@ log-likelihood, the kept one marked), the kept fit's mean fall of the likelihood
 sighting used (``fall/sighting``; learn/em/checks/lost_signs.py calls a fit unsettled over 0.1), the
 log-likelihood and which bars failed; then each map's bars cleared. With ``--start-from-robot N``, robot
 N learns first, from the poor start, and every other robot from N's model (``learn em --start-from``:
-learn/em/policies/warm_start.py), as a fleet on that map would.
+learn/em/uses/warm_start.py), as a fleet on that map would.
 Needs ../shared/data/mrclam (or $SENSACT_DATA). About 1.5 minutes a map on 2 cores.
 """
 
@@ -31,8 +31,8 @@ from sensact.errors import LogFormatError
 from sensact.experiments.real import evaluate_mrclam, mrclam_folder, run_mrclam_robot
 from sensact.io.mrclam import MrclamLog, read_mrclam
 from sensact.learn.em import EMConfig, EMResult, fit_em
-from sensact.learn.em.checks.lost_signs import fall_per_sighting
-from sensact.learn.em.policies.warm_start import start_from_model
+from sensact.learn.em.result import fall_per_sighting
+from sensact.learn.em.uses.warm_start import start_from_model
 from sensact.models.em_model import EMModel
 from sensact.presets import mrclam_config
 from sensact.report.tables_real import kept_run_cell, restart_runs_cell

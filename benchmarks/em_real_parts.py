@@ -30,7 +30,8 @@ from sensact.evaluate.landmark_truth import path_offset
 from sensact.experiments.real import mrclam_folder
 from sensact.io.mrclam import read_mrclam
 from sensact.learn.em import fit_em
-from sensact.learn.em.checks.lost_signs import fall_per_sighting, lost_fit_signs
+from sensact.learn.em.checks.lost_signs import lost_fit_signs
+from sensact.learn.em.result import fall_per_sighting
 from sensact.presets import mrclam_config
 
 LOST_MM = 500.0  # a path this far from Vicon (median) has lost the robot: a start-search cell

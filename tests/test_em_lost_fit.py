@@ -199,7 +199,7 @@ def test_em_restarts_from_a_tighter_start_while_f_turns_and_keeps_the_most_likel
     none once f does not turn, and the fit kept is the most likely one, scored on the sightings every run
     used (each run's own likelihood here: nothing is pruned)."""
     import sensact.learn.em.fit as fit_module
-    from sensact.learn.em.checks.lost_signs import FunctionTurns, Unsettled
+    from sensact.learn.em.result import FunctionTurns, Unsettled
 
     data, _ = simulate_continuous(3, T=2400)
     calls = {"n": 0, "flagged": 0}

@@ -1,4 +1,4 @@
-"""Sec. 4.4.1's outlier gate again when the robust readings take over (learn/em/policies/late_outliers.py,
+"""Sec. 4.4.1's outlier gate again when the robust readings take over (learn/em/late_outliers.py,
 EMConfig.prune_when_freed): misread barcodes that the first iteration's gate lets through."""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from sensact.core.pose_models import landmark_bearing
 from sensact.evaluate.simulated_robot import score_against_simulated
 from sensact.learn.em import EMConfig, fit_em
 from sensact.learn.em.estep import e_step
-from sensact.learn.em.policies.late_outliers import bearing_outliers
+from sensact.learn.em.late_outliers import bearing_outliers
 from sensact.presets import mrclam_config
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
@@ -104,12 +104,12 @@ def test_the_gate_again_drops_exactly_the_bearings_off_the_smoothed_path_by_more
 
 
 def test_from_a_learned_model_the_gate_again_runs_on_the_first_e_step(misread, fits):
-    """`learn em --start-from` (learn/em/policies/warm_start.py): nothing is held, so the gate again runs on the
+    """`learn em --start-from` (learn/em/uses/warm_start.py): nothing is held, so the gate again runs on the
     first E-step's smoothed path. Seeded recovery: started from the model learned without the gate again
     (its bearing sigma inflated by the misreads), EM drops those 20 sightings at once (and one other) and learns the
     simulated bearing sigma. A warm start without a model to start from is refused."""
     from sensact.errors import ConfigError
-    from sensact.learn.em.policies.warm_start import start_from_model
+    from sensact.learn.em.uses.warm_start import start_from_model
 
     sim, data, rows = misread
     placed, cfg = start_from_model(fits[1].model, data, mrclam_config())

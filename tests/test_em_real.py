@@ -248,11 +248,11 @@ def test_a_robot_lost_from_the_poor_start_is_found_from_another_robots_model(tmp
     """Real data: Dataset 6 with 6 of its 15 landmarks (``benchmarks/em_real_landmarks.py --maps 6:1``),
     where robot 4 stays lost from the poor start (1169 mm off Vicon; docs/em-real.md, "Fewer
     landmarks"). Robot 1's model, learned on the same map from the poor start, places robot 4 on its log,
-    and EM learned on from there (learn/em/policies/warm_start.py) finds it (measured 90 mm; 107 mm before
+    and EM learned on from there (learn/em/uses/warm_start.py) finds it (measured 90 mm; 107 mm before
     every sighting of a frame counted)."""
     from sensact.experiments.real import evaluate_mrclam
     from sensact.io.mrclam import read_mrclam
-    from sensact.learn.em.policies.warm_start import start_from_model
+    from sensact.learn.em.uses.warm_start import start_from_model
     from sensact.presets import mrclam_config
 
     copy = dataset_with_landmarks(tmp_path, {6, 8, 10, 11, 15, 18})  # the benchmark's map 6:1

@@ -12,7 +12,7 @@ import pytest
 
 from sensact.core import pose_models as pm
 from sensact.core.geometry import GEOMETRIES, PLANAR, TRACK, geometry_named
-from sensact.learn.em.checks.lost_signs import FunctionTurns, Unsettled
+from sensact.learn.em.result import FunctionTurns, Unsettled
 from sensact.learn.em.searches.ridge import RidgeSearch
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.action_table import ActionTable

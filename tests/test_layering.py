@@ -170,3 +170,48 @@ def test_no_import_cycles(tmp_path):
     (pkg / "a" / "x.py").write_text("def f():\n    from sensact.a.y import g\n")
     (pkg / "a" / "y.py").write_text("from sensact.a import x\n")
     assert import_cycles(pkg) == [["sensact.a.x", "sensact.a.y"]]
+
+
+def test_every_package_map_names_its_modules():
+    """Each package's docstring is its map: it names every module and subpackage in it (``name``)."""
+    bad = []
+    for init in SRC.rglob("__init__.py"):
+        pkg = init.parent
+        doc = ast.get_docstring(ast.parse(init.read_text())) or ""
+        names = [p.stem for p in pkg.glob("*.py") if p.name != "__init__.py"]
+        names += [d.name for d in pkg.iterdir() if (d / "__init__.py").is_file()]
+        bad += [f"{pkg.relative_to(SRC)}: {n}" for n in names if f"``{n}" not in doc]
+    assert not bad, "package maps that leave out a module:\n" + "\n".join(sorted(bad))
+
+
+def _room(path: Path, home: Path) -> str:
+    rel = path.relative_to(home)
+    return rel.parts[0] if len(rel.parts) > 1 else rel.stem
+
+
+def test_learn_em_rooms_import_only_downward():
+    """learn/em's rooms (each module of its core, each role folder) import one another without a circle, so that
+    each sits above all it imports."""
+    home = SRC / "learn" / "em"
+    edges: dict[str, set[str]] = {}
+    for path in home.rglob("*.py"):
+        if path.name == "__init__.py":
+            continue
+        me = _room(path, home)
+        for mod in _imports(path):
+            if mod.startswith("sensact.learn.em."):
+                other = mod.split(".")[3]
+                if other != me:
+                    edges.setdefault(me, set()).add(other)
+    done: set[str] = set()
+
+    def visit(room: str, trail: tuple[str, ...]) -> None:
+        assert room not in trail, " -> ".join((*trail, room))
+        if room in done:
+            return
+        for other in edges.get(room, ()):
+            visit(other, (*trail, room))
+        done.add(room)
+
+    for room in list(edges):
+        visit(room, ())

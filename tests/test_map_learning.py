@@ -24,7 +24,7 @@ from sensact.evaluate.map_truth import map_scores, rigid_alignment
 from sensact.io.landmark_folder import read_landmark_log, write_landmark_log
 from sensact.io.timed_csv import MIN_SIGHTINGS_TO_LEARN, read_landmarks, read_timed_csv
 from sensact.learn.em import fit_em, initial_model
-from sensact.learn.em.unsurveyed.landmark_step import landmark_update, normal_equations
+from sensact.learn.em.landmark_step import landmark_update, normal_equations
 from sensact.models.em_model import EMModel
 from sensact.models.landmark_map import LandmarkMap
 from sensact.models.landmark_sensor import SampledSightings

@@ -1,4 +1,4 @@
-"""Where a command's independent jobs run (issue 76): here, one after another, or on a Dask cluster
+"""Where a command's independent jobs run (docs/howto-fleet.md): here, one after another, or on a Dask cluster
 (``dask.distributed``, the ``fleet`` extra), a LocalCluster on this machine's cores or a running
 scheduler's workers. A job is a module-level function called with its arguments and ``progress``, a
 ``progress(description, done, total)`` callback that reaches the caller from whichever worker runs it.

@@ -1,4 +1,4 @@
-"""Fit health (issue 74): a result that is degenerate or unfinished is written, flagged in its JSON
+"""Fit health (docs/errors.md): a result that is degenerate or unfinished is written, flagged in its JSON
 (``health``), and ends the command with exit code 3 (``errors.EXIT_FLAGGED``), never reported as a success.
 
 Each learner names its own checks (``learn/em/checks/fit_health.py``, ``learn/bootstrap.py``,

@@ -1,4 +1,4 @@
-"""Bounds checked before anything is allocated (issue 74): a bogus time, step or size in an input must be
+"""Bounds checked before anything is allocated (docs/errors.md): a bogus time, step or size in an input must be
 refused by name, not turned into an array the machine cannot hold.
 
 Each limit is settable by an environment variable, which the error names, for the rare real input beyond it.
@@ -62,6 +62,6 @@ MAX_BINS = _env_int("SENSACT_MAX_BINS", 1_000)
 
 def thread_budget() -> int:
     """Threads one process keeps busy (a start race's trials): ``SENSACT_THREADS``, which the engine sets to
-    a Dask worker's allocation (issue 94: two one-thread workers on two cores must not run four threads), else
+    a Dask worker's allocation (two one-thread workers on two cores must not run four threads), else
     this machine's cores."""
     return max(_env_int("SENSACT_THREADS", os.cpu_count() or 1), 1)

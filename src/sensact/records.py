@@ -1,4 +1,4 @@
-"""Typed records across layers, JSON only at the edge (DESIGN.md, 2).
+"""Typed records across layers, JSON only at the edge (typed results, docs/design.md).
 
 What a fit, a search or a score reports travels between packages as a frozen dataclass; ``to_json`` is the
 one writer that turns any of them (nested, in lists and tuples, with numpy values) into the JSON object a

@@ -5,6 +5,16 @@
 log a ``Calibration``: the model, typed diagnostics, the scores when the log has truth);
 ``save_calibration`` writes it as `learn em --out` does. ``sensact learn em DIR`` is
 ``calibrate(open_log(DIR))`` and printing, for every kind.
+
+* ``log_kinds``: the registry, one door per log kind: its opener, learner and writer;
+* ``logs`` with ``calibrate``, ``save``, ``scores`` and ``report``: a landmark log learned by EM, written,
+  scored against its truth and reported; ``uncertainty``: its error bars;
+* ``lidar2d``: a wheels-and-2-D-lidar log learned and written; ``velodyne_car``: chapter 5's car;
+  ``bootstrap``: chapter 3's Algorithm 1 scored;
+* ``settings``: every command's settings, resolved in one place;
+* ``localize`` and ``monitor``: a learned model placed on, and run over, another log;
+* ``fleet`` and ``shared_map``: many robots' logs learned and cross-scored, on a Dask cluster;
+* ``export``, ``export_lidar2d`` and ``ros_params``: learned models as ROS reads them.
 """
 
 from sensact.app.calibrate import Calibration, Diagnostics, FitEvents, StartFrom

@@ -17,11 +17,11 @@ from sensact.errors import ConfigError
 from sensact.health import Health
 from sensact.io.landmark_folder import LandmarkLogFile
 from sensact.learn.em import EMConfig, EMResult, fit_em, initial_model
-from sensact.learn.em.checks.lost_signs import FunctionBends, FunctionTurns, LostSign, Unsettled
 from sensact.learn.em.config import refuse_bearing_settings
 from sensact.learn.em.estep import Posteriors
 from sensact.learn.em.fit import OnRestart, OnStartMoved
 from sensact.learn.em.loop import OnIteration
+from sensact.learn.em.result import FunctionBends, FunctionTurns, LostSign, Unsettled
 from sensact.learn.em.searches.start_race import OnTrial
 from sensact.learn.em.uses.consistency import Consistency, consistency
 from sensact.learn.em.uses.error_bars import Uncertainty
@@ -121,7 +121,7 @@ class Calibration:
 
     @cached_property
     def consistency(self) -> Consistency:
-        """The model's one-step-ahead innovations on its own log, against its predictive law (issue 94: on
+        """The model's one-step-ahead innovations on its own log, against its predictive law (on
         another run, `evaluate log` and `localize` give the same numbers, which decide whether a sigma holds)."""
         return consistency(self.model, self.log.data)
 
@@ -140,9 +140,9 @@ class Calibration:
 
     @property
     def landmark_map(self) -> JsonObject | None:
-        """model.json's ``map`` when EM learned the landmarks' positions (issue 92): ``landmarks`` (id, x_mm,
+        """model.json's ``map`` when EM learned the landmarks' positions (docs/map.md): ``landmarks`` (id, x_mm,
         y_mm, sd_x_mm, sd_y_mm, held, placed, sightings) in the log's frame and ``frame``; None on a surveyed map."""
-        from sensact.learn.em.unsurveyed.landmark_step import sightings_per_landmark
+        from sensact.learn.em.landmark_step import sightings_per_landmark
 
         learned, data = self.model.landmarks, self.log.data
         if learned is None:
@@ -187,7 +187,7 @@ class Calibration:
             "consistency": self.consistency.to_dict(),
             # on wheel speeds: gain, axle, ratio
             "differential_drive": to_json(as_differential_drive(self.model.action)),
-            # a learned model EM started from, and where it placed the robot (learn/em/policies/warm_start.py)
+            # a learned model EM started from, and where it placed the robot (learn/em/uses/warm_start.py)
             "start_from": None
             if self.start_from is None
             else {
@@ -257,9 +257,9 @@ def diagnose(result: EMResult, log: OpenedLandmarkLog, cfg: EMConfig) -> Diagnos
 def _placed_start(
     start_from: Path, doc: JsonObject, model: EMModel, log: OpenedLandmarkLog, settings: Settings, events: FitEvents
 ) -> tuple[EMModel, Settings, StartFrom]:
-    """A learned model placed on the log (``learn/em/policies/warm_start.py``): the model EM starts from, the settings
+    """A learned model placed on the log (``learn/em/uses/warm_start.py``): the model EM starts from, the settings
     EM runs with and the placement."""
-    from sensact.learn.em.policies.warm_start import start_from_model
+    from sensact.learn.em.uses.warm_start import start_from_model
 
     placed, cfg = start_from_model(model, log.data, settings.config, events.progress, source=str(start_from))
     start = StartFrom(start_from, doc, placed, log)

@@ -1,4 +1,4 @@
-"""A wheels-and-2-D-lidar model (``learn em`` on a lidar2d log) handed to ROS (issue 93): ``urdf`` prints the
+"""A wheels-and-2-D-lidar model (``learn em`` on a lidar2d log) handed to ROS (docs/lidar2d.md): ``urdf`` prints the
 lidar joint's ``<origin>`` and the wheels as xacro properties, ``robot-localization`` the drive's noise as
 robot_localization's process noise; metres, radians, REP 103 axes."""
 

@@ -1,5 +1,5 @@
 """A fleet of robots (`sensact fleet learn`, `sensact evaluate fleet`): each log calibrated as a job of an
-engine (``sensact.engine``, issue 76), what `sensact learn em LOG --out OUT` does, where a worker runs it
+engine (``sensact.engine``), what `sensact learn em LOG --out OUT` does, where a worker runs it
 (``learn_fleet``); and every model scored on every robot's log (beyond the thesis, whose robots had one
 log each): does one robot's learned model serve another robot of its kind?
 
@@ -16,7 +16,7 @@ Two scores, each a grid of (model, log) pairs:
 A Turtlebot CSV (``RangeLog``, read onto each model's step) has no recorded poses but a ``range``
 column: each model placed on it is also scored against the range, as `evaluate log` scores it
 (``range_cell``: the action gain and the best sensor through the optimal scale and offset of sec. 4.4.3,
-against issue 5's Turtlebot bars).
+against the Turtlebot's bars (docs/em-real.md)).
 
 A pair is the robot's *own* when the model was learned on that log; it has a small edge there, having
 been fitted to those very sightings. MRCLAM's five robots are one kind of robot: their action models
@@ -349,7 +349,7 @@ def likelihood_grid(columns: Mapping[str, JsonObject], models: list[str], own: M
 def range_cell(loc: Localized | str, data: Any, range_mm: np.ndarray) -> JsonObject:
     """A placed model scored against a Turtlebot CSV's range as `evaluate log` scores it
     (``score_turtlebot_em``): the action gain's error (None on a log that holds one command) and each
-    sensor's error in % of its span, with issue 5's two Turtlebot bars (``gain`` None where not scored)."""
+    sensor's error in % of its span, with the Turtlebot's two bars (docs/em-real.md; ``gain`` None where not scored)."""
     if isinstance(loc, str):
         return {"failed": loc, "gain_error_pct": None, "best_sensor": None, "best_sensor_pct": None, "bars": {}}
     sc = score_turtlebot_em(loc, data, range_mm)

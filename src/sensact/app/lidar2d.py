@@ -1,4 +1,4 @@
-"""``sensact learn em`` on a wheels-and-2-D-lidar log folder (issue 93): the calibration, its health, its
+"""``sensact learn em`` on a wheels-and-2-D-lidar log folder (docs/lidar2d.md): the calibration, its health, its
 JSON (``lidar.mount.*``, ``drive.wheel_radius_*``, ``drive.axle_mm``, ``lidar.range_sigma_mm``, each with its
 ``_sd``), scored against a simulator's truth, and saved with its report page."""
 

@@ -140,7 +140,7 @@ def _on_survey(lf: LandmarkLogFile, model: EMModel, path: np.ndarray | None, fit
             alignment = rigid_alignment(np.asarray(path)[valid, :2], poses[valid, :2])
         survey = np.full_like(learned.xy, np.nan)
     else:
-        from sensact.learn.em.unsurveyed.landmark_step import sightings_per_landmark
+        from sensact.learn.em.landmark_step import sightings_per_landmark
 
         used = getattr(getattr(fit, "posteriors", None), "obs_used", None)
         mapped, alignment = map_scores(learned.placed_xy(), survey, sightings_per_landmark(lf.data, used))

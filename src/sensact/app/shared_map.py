@@ -1,4 +1,4 @@
-"""`fleet learn --shared-map`: one landmark map from every robot's log, with each robot's own models (issue 92).
+"""`fleet learn --shared-map`: one landmark map from every robot's log, with each robot's own models (docs/map.md).
 
 Robots in one room see the same landmarks, so the map couples their fits; everything else (each robot's
 path, action model, sensor and mount) is its own. The work splits as EM's steps do:
@@ -29,7 +29,7 @@ import numpy as np
 
 from sensact.app.fleet import Learned, LearnOptions, calibrate_and_save
 from sensact.evaluate.map_truth import RigidAlignment, rigid_alignment
-from sensact.learn.em.unsurveyed.landmark_step import gauss_newton_step, position_sd
+from sensact.learn.em.landmark_step import gauss_newton_step, position_sd
 from sensact.models.landmark_map import LandmarkMap
 from sensact.records import JsonObject
 

@@ -1,4 +1,4 @@
-"""``sensact fleet``: a fleet's logs calibrated at once on a Dask cluster (issue 76)."""
+"""``sensact fleet``: a fleet's logs calibrated at once on a Dask cluster (docs/howto-fleet.md)."""
 
 from __future__ import annotations
 
@@ -157,7 +157,7 @@ def fleet_learn_cmd(
     if (out / "map.json").is_file() and shared_map:
         written.append(out / "map.json")
     console.print("wrote " + ", ".join(str(p) for p in written) + f" and each log's model under {out}")
-    if run.speedup_at_most is not None:  # issue 94: what the cluster bought, measured in this run
+    if run.speedup_at_most is not None:  # what the cluster bought, measured in this run
         console.print(
             f"wall {run.seconds:.1f} s, CPU {run.cpu_seconds:.1f} s in the jobs, whose own times sum to "
             f"{run.jobs_seconds:.1f} s: at most {run.speedup_at_most:.2f} times the same logs one after another at "

@@ -135,7 +135,7 @@ def place_robot(
 
 
 def consistency_on(placed: Any, data: Any) -> JsonObject:
-    """The placed model's innovations on ``data`` against its predictive law (issue 94), printed a line per
+    """The placed model's innovations on ``data`` against its predictive law (docs/uncertainty.md), printed a line per
     reading type, as the JSON's ``consistency``."""
     from sensact.learn.em.uses.consistency import INTERVAL, consistency
 

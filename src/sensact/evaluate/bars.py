@@ -87,7 +87,7 @@ def verdict_line(checks: Sequence[BarCheck]) -> str:
     return line
 
 
-# The real-data bars (issue 5, issue 73, docs/em-real.md): here, beside the checks they are made of, so
+# The real-data bars (docs/em-real.md): here, beside the checks they are made of, so
 # that every experiment that scores a robot against its truth reads them from one place
 BARS = {
     "action_ratio_max": 1.5,
@@ -99,7 +99,7 @@ BARS = {
 
 
 def robot_checks(sc: JsonObject, who: str = "") -> list[BarCheck]:
-    """The real-data bars (issue 5, docs/em-real.md) on a ``score_against_truth`` result: each learned action
+    """The real-data bars (docs/em-real.md) on a ``score_against_truth`` result: each learned action
     RMS at most 1.5 times From-Truth's (translation at most 50 mm/s), each sigma within a factor of 1.5
     of the truth's (no bearing bar for a sensor that reads none). ``who`` ("robot1") prefixes each key and
     quantity."""
@@ -135,7 +135,7 @@ def robot_checks(sc: JsonObject, who: str = "") -> list[BarCheck]:
             )
         )
     if b is not None:
-        # the truth's own heading error is noise in the reference, not in the camera (issue 73)
+        # the truth's own heading error is noise in the reference, not in the camera
         ratio = b.get("sigma_ratio_truth_heading_removed", b["sigma_ratio"])
         checks.append(
             within_factor(

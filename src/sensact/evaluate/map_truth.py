@@ -1,4 +1,4 @@
-"""A learned landmark map scored against a survey (issue 92; evaluation only, never learned from).
+"""A learned landmark map scored against a survey (docs/map.md; evaluation only, never learned from).
 
 The learned map and path share one rigid frame, which the robot's start fixes; the survey has its own.
 ``rigid_alignment`` finds the rotation and translation (no scale: the scale must come out right) that
@@ -14,7 +14,7 @@ import numpy as np
 
 from sensact.records import JsonObject
 
-SEEN_ENOUGH = 20  # sightings: a landmark seen this often must be placed (issue 92's bar)
+SEEN_ENOUGH = 20  # sightings: a landmark seen this often must be placed (docs/map.md's bar)
 
 
 @dataclass(frozen=True)

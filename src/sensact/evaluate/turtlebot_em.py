@@ -156,7 +156,7 @@ class TurtlebotEMRun:
     result: EMResult | Localized  # what is read: its model and posteriors
 
 
-# issue 5's Turtlebot bars: the gain within 5 % of the truth's, one sensor within 3 % of the range
+# the Turtlebot's bars (docs/em-real.md): the gain within 5 % of the truth's, one sensor within 3 % of the range
 GAIN_BAR_PCT = 5.0
 
 

@@ -1,4 +1,4 @@
-"""Are `--uncertainty`'s 90 % intervals honest? (issues 76 and 94's calibration check; `sensact reproduce
+"""Are `--uncertainty`'s 90 % intervals honest? (docs/uncertainty.md; `sensact reproduce
 uncertainty`)
 
 A simulated differential drive with a camera (``DiffDriveConfig``, shortened to ``seconds``) gives the
@@ -7,7 +7,7 @@ is drawn from that truth (``learn.em.uses.draw_log``), learned by EM from the th
 learns it, and given error bars both ways: from the likelihood (``uses/information.py``) and by
 ``replicates`` bootstrap replicates (``uses/error_bars.py``; none with 0). Per method and parameter family,
 the share of intervals that hold the true value should be near 90 %: the bar is 85-95 % (Sigma_m's
-85-97 %). The method with more families inside their bars is ``chosen`` (issue 94: choose by coverage), and
+85-97 %). The method with more families inside their bars is ``chosen`` (by coverage, docs/uncertainty.md), and
 ``coverage`` is its.
 Each log is a job of the engine (its replicates run inside it, one after another).
 """
@@ -31,7 +31,7 @@ from sensact.models.em_model import EMModel
 from sensact.records import JsonObject
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 
-# issue 94: each family's 90 % intervals hold the truth 85-95 % of the time; Sigma_m's 85-97 %
+# each family's 90 % intervals hold the truth 85-95 % of the time; Sigma_m's 85-97 %
 COVERAGE_BAR = (0.85, 0.95)
 FAMILY_BARS = {"Sigma_m": (0.85, 0.97)}
 INFORMATION, BOOTSTRAP = "observed information", "parametric bootstrap"

@@ -1,7 +1,7 @@
 """EM on real robots, in simulation: the MRCLAM settings (``experiments.real.mrclam_config``, or
 ``planar_config``'s for a side-stepper's commands) on simulated differential drives (``sim.diffdrive``)
 whose true model is known, scored by the very code and bars that score the MRCLAM robots against Vicon
-(issue 5). Where a real robot misses a bar, this says whether the learner would clear it on a robot
+(docs/em-real.md). Where a real robot misses a bar, this says whether the learner would clear it on a robot
 that is what its model families assume.
 """
 

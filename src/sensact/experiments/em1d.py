@@ -68,7 +68,7 @@ EM1D_TRACK = Track1DConfig(
     change_factor=0.75,
 )
 
-# sec. 4.4.3's bars (issue 3): errors in percent of the range, and the scale ratio within 0.09 of 1
+# sec. 4.4.3's bars: errors in percent of the range, and the scale ratio within 0.09 of 1
 SCALE_RATIO_BAR = 0.09
 
 

@@ -13,8 +13,8 @@ from sensact.engine import Engine, InProcess, Job, untagged
 from sensact.evaluate.bars import BarCheck, at_most, miss_text
 from sensact.evaluate.em import component_rms, score_planar
 from sensact.learn.em import EMConfig, EMResult, fit_em, initial_model
-from sensact.learn.em.checks.lost_signs import fall_per_sighting
 from sensact.learn.em.progress import iteration_progress
+from sensact.learn.em.result import fall_per_sighting
 from sensact.progress import Progress
 from sensact.records import JsonObject
 from sensact.sim.field2d import Field2DConfig, Field2DRun, simulate_field, to_landmark_log
@@ -122,7 +122,7 @@ def velocity_rms_history(trial: Field2DTrial) -> np.ndarray:
     return np.array([component_rms(v, tv) for v in trial.result.velocity_history])
 
 
-# sec. 4.4.2's bars (issue 3; the thesis's one trial): each velocity RMS at most the thesis's, each sigma
+# sec. 4.4.2's bars (the thesis's one trial): each velocity RMS at most the thesis's, each sigma
 # within 5 % of the truth
 SIGMA_BAR_PCT = 5.0
 VELOCITY_BARS = (

@@ -1,4 +1,4 @@
-"""Does `sensact monitor` notice when a robot changes, and only then? (issue 76; `sensact reproduce monitor`)
+"""Does `sensact monitor` notice when a robot changes, and only then? (`sensact reproduce monitor`; docs/monitor.md)
 
 * **Sec. 4.4.3's experiment**, per seed: em1d's 16-minute track run whose robot slows to 3/4 at 8
   minutes (``EM1D_TRACK``). The model is learned on the first 8 minutes, as the thesis learns its "before"
@@ -33,7 +33,7 @@ from sensact.learn.em.uses.change_detect import MonitorConfig, MonitorResult, mo
 from sensact.records import JsonObject
 from sensact.sim.track1d import Track1DConfig, simulate_track, to_landmark_log
 
-WITHIN_S = 30.0  # issue 76: sec. 4.4.3's slowdown flagged within 30 s
+WITHIN_S = 30.0  # sec. 4.4.3's slowdown flagged within 30 s (docs/monitor.md)
 
 
 @dataclass(frozen=True)

@@ -39,7 +39,7 @@ THESIS = {
     "seconds_by_stage": {"laser_angles": 83 * 60, "laser_angles_with_23deg_bound": 10.7 * 60, "per_iteration": 34 * 60},
 }
 
-# Table 5.1's bars (issue 4): each error at most the thesis's, and within 1.6 times its From-Truth value
+# Table 5.1's bars: each error at most the thesis's, and within 1.6 times its From-Truth value
 FROM_TRUTH_FACTOR = 1.6
 DYNAMICS = (
     ("accel_rms", "acceleration", "m/s²", 3),

@@ -216,7 +216,7 @@ def _meta_parts(mpath: Path, meta: JsonObject, geometry: Geometry) -> _MetaParts
         beacon = [{"id": 0, "x_mm": 0, "y_mm": 0}]
         marks = meta.get("landmarks", beacon) if geometry.state_is_range else meta["landmarks"]
         raw_ids = [str(m["id"]).strip() if m["id"] is not None else "" for m in marks]
-        # a position nobody surveyed is null: EM learns it (issue 92)
+        # a position nobody surveyed is null: EM learns it (docs/map.md)
         xy = np.array([[_mm_or_nan(m["x_mm"]), _mm_or_nan(m["y_mm"])] for m in marks])
         part = "observations"
         cols = meta.get("observations", {})

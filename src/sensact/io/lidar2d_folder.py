@@ -1,4 +1,4 @@
-"""The log folder of a robot with wheel encoders and a 2-D lidar (issue 93): what ``convert bag`` writes from
+"""The log folder of a robot with wheel encoders and a 2-D lidar (docs/lidar2d.md): what ``convert bag`` writes from
 a bag's ``/scan``, ``/joint_states``, ``/odom``, ``/cmd_vel`` and ``/tf_static``, what ``simulate diffdrive
 --set sensor=lidar2d`` writes, and the CSV route for a robot without ROS (docs/lidar2d.md)::
 

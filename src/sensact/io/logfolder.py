@@ -1,4 +1,4 @@
-"""The native log folder (DESIGN.md, "Data layout of a log") for one-dimensional logs.
+"""The native log folder (docs/formats.md) for one-dimensional logs.
 
 ::
 

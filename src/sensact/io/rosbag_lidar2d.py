@@ -1,6 +1,6 @@
-"""A wheels-and-2-D-lidar robot's bag (issue 93): ``sensor_msgs/LaserScan`` (the lidar), ``sensor_msgs/JointState``
-(the wheels' positions), ``nav_msgs/Odometry`` (/odom), a Twist (/cmd_vel) and /tf_static (where the URDF puts
-the lidar), read into a ``Lidar2DLog`` in sensact's units (mm, REP 103 axes).
+"""A wheels-and-2-D-lidar robot's bag (docs/lidar2d.md): ``sensor_msgs/LaserScan`` (the lidar),
+``sensor_msgs/JointState`` (the wheels' positions), ``nav_msgs/Odometry`` (/odom), a Twist (/cmd_vel) and
+/tf_static (where the URDF puts the lidar), read into a ``Lidar2DLog`` in sensact's units (mm, REP 103 axes).
 
 A scan is stamped at its first beam (ROS's LaserScan convention) and its beams are ``time_increment`` apart; a
 range outside ``[range_min, range_max]`` (or inf, NaN) is no return. A lidar mounted upside down (its z axis

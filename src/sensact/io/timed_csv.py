@@ -266,7 +266,7 @@ def read_landmarks(path: Path) -> tuple[np.ndarray, np.ndarray]:
     return np.column_stack([lm["x_mm"], lm["y_mm"]]), ids
 
 
-MIN_SIGHTINGS_TO_LEARN = 20  # an unlisted landmark seen this often is one EM places (issue 92's bar: 20)
+MIN_SIGHTINGS_TO_LEARN = 20  # an unlisted landmark seen this often is one EM places (the map's bar)
 
 
 def _map_with_unlisted(
@@ -321,7 +321,7 @@ def read_timed_csv(
     """The four files (see the module docstring) as a planar, continuous-command ``LandmarkLog`` on a step
     of ``dt_s`` (None: the commands' median interval, the rate the robot's controller ran at).
 
-    Without ``landmarks`` every landmark seen is one whose position EM learns (issue 92). With a map,
+    Without ``landmarks`` every landmark seen is one whose position EM learns (docs/map.md). With a map,
     sightings of landmarks it does not list (another robot, a false detection) are dropped and counted;
     with ``learn_unlisted`` (a partial map) an unlisted landmark seen ``MIN_SIGHTINGS_TO_LEARN`` times or
     more is learned instead, one seen fewer times still dropped."""

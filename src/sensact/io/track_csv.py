@@ -1,7 +1,7 @@
 """A 1-D robot's own CSV as an EM track log (``sensact convert track``).
 
 A robot that drives along one line toward a wall or a beacon (sec. 4.4.3's track; the Turtlebot of
-issue 5) logs, in one file with a header row, a time column (``t_s``, or ``t_ms``, ``t_us``, ``t_ns``),
+docs/em-real.md) logs, in one file with a header row, a time column (``t_s``, or ``t_ms``, ``t_us``, ``t_ns``),
 its velocity command, one column per sensor reading and, to score against, the recorded distance. A
 row may hold any of them (an empty cell where a value was not logged):
 

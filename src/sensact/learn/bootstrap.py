@@ -627,7 +627,7 @@ def learn_action_from_sensor(
 def bootstrap_health(
     res: BootstrapResult, commands: np.ndarray, observations: np.ndarray, t: np.ndarray | None = None
 ) -> Health:
-    """Algorithm 1's result as EM's are flagged (issues 74, 95): diverged, learned from a command or a reading
+    """Algorithm 1's result as EM's are flagged (docs/errors.md): diverged, learned from a command or a reading
     that never varies (A's slope or S's shape is then whatever the start said); given ``t``, a first ramp-up as
     long as the log, in which A never left A0 (sec. 3.3.2); and S and A that do not explain each other."""
     c = np.asarray(commands, dtype=float)

@@ -1,5 +1,5 @@
 """Point-to-line ICP between two planar scans (Censi's PLICP, 2008, in its plainest form), for the 2-D
-lidar's calibration (issue 93).
+lidar's calibration (docs/lidar2d.md).
 
 Why not KISS-ICP (the ``kiss`` extra): it registers 3-D points point to point against a voxel map; a
 planar scan leaves its z, roll and pitch unconstrained, and point to point on beams a degree apart is

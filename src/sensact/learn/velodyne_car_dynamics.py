@@ -248,7 +248,7 @@ def car_health(
     motion: np.ndarray | None = None,
     reach_m: float | None = None,
 ) -> Health:
-    """Algorithm 3's result as issue 74 flags it: laser angles scattered around the circle (sec. 5.1's
+    """Algorithm 3's result as a fit is flagged (docs/errors.md): laser angles scattered around the circle (sec. 5.1's
     cross-correlation found no common scene: a capture too short, or of a lidar standing still), dynamics
     all zero or not numbers, which are controls that explained nothing of the scans' motion, as controls on
     another clock do, and a scan match that moved the car further between two revolutions than the lidar

@@ -1,5 +1,5 @@
 """A differential drive's wheels and its 2-D lidar's mount, learned together from encoders and scan matching,
-with no ground truth and no map (issue 93).
+with no ground truth and no map (docs/lidar2d.md).
 
 The thesis's chapter 5 learns a car's motion from scan matching; Censi, Franchi, Marchionni and Oriolo (IEEE
 T-RO 2013) calibrate wheel radii, axle and the lidar's pose from encoders and scan matching: the robot's

@@ -1,0 +1,6 @@
+"""Typed logs, as the learners read them (``io/`` reads them from bytes).
+
+* ``landmark_log``: a robot among landmarks, EM's input (ch. 4);
+* ``lidar2d_log``: wheels (or /odom, /cmd_vel) and a 2-D lidar's scans;
+* ``track_log``: a 1-D log on one time grid, chapter 3's input.
+"""

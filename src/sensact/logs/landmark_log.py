@@ -127,7 +127,7 @@ class LandmarkLog:
         reading_names: tuple[str, ...],
         source: str = "",
     ) -> LandmarkLog:
-        """A 1-D robot's log of continuous commands (issue 5's Turtlebot): one wall it ranges to, and
+        """A 1-D robot's log of continuous commands (the Turtlebot, docs/em-real.md): one wall it ranges to, and
         each observation's readings of its several sensors (NaN where one did not read)."""
         k = len(obs_step)
         return cls(

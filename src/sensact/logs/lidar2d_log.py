@@ -1,4 +1,4 @@
-"""A wheels-and-2-D-lidar log as the learner reads it (issue 93): the scans, what drives the robot, the URDF's
+"""A wheels-and-2-D-lidar log as the learner reads it (docs/lidar2d.md): the scans, what drives the robot, the URDF's
 guess and, when simulated, the truth; ``sensact.io.lidar2d_folder`` reads and writes its folder."""
 
 from __future__ import annotations

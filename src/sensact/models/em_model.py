@@ -49,7 +49,7 @@ class EMModel:
     # heading variance per step added per rad/s of the model's own turn rate |A(c_t)_theta|, on top of
     # motion_sd's (planar, shared Sigma_m); None = Sigma_m does not depend on turning (the thesis)
     turn_var: float | None = None
-    # the landmarks' positions EM learns with the models (issue 92); None = the log's surveyed map
+    # the landmarks' positions EM learns with the models (docs/map.md); None = the log's surveyed map
     landmarks: LandmarkMap | None = None
 
     def __post_init__(self) -> None:

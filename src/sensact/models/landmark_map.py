@@ -1,4 +1,4 @@
-"""The landmark map as a parameter of the model (issue 92): where each landmark is, which positions were
+"""The landmark map as a parameter of the model (docs/map.md): where each landmark is, which positions were
 given (held) and which EM learned, how sure it is of each, and what fixes the map's frame and scale.
 
 A log with no surveyed map learns one: the path and the map share one rigid frame, fixed by the robot's

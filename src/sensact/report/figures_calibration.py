@@ -174,7 +174,7 @@ def figure_landmark_map(
     out: Path,
     title: str,
 ) -> Path:
-    """The map EM learned (issue 92): each placed landmark with its 2-sd ellipse and name, EM's path, and
+    """The map EM learned (docs/map.md): each placed landmark with its 2-sd ellipse and name, EM's path, and
     the survey when the log has one, the learned map laid on it by the best rigid alignment (no scale)."""
     from matplotlib.patches import Ellipse
 

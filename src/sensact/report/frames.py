@@ -1,6 +1,6 @@
 """sensact's frame and units (the thesis's: robot x right, y forward, heading 0 facing the map's +y,
 millimetres) turned into what a ROS user reads (REP 103: x forward, y left; SI units), once, for every
-figure, page and export a user sees (DESIGN.md, convention 13). The map's own x and y are the same axes in
+figure, page and export a user sees (one internal frame, docs/design.md). The map's own x and y are the same axes in
 both; only the robot's axes, the heading's zero and the units differ."""
 
 from __future__ import annotations

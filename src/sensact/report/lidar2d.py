@@ -1,4 +1,4 @@
-"""The report page of a wheels-and-2-D-lidar calibration (issue 93): the scans laid on the wheels' path before
+"""The report page of a wheels-and-2-D-lidar calibration (docs/lidar2d.md): the scans laid on the wheels' path before
 and after (a map that sharpens), the learned mount beside the URDF's, and the residuals."""
 
 from __future__ import annotations

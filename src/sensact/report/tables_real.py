@@ -1,4 +1,4 @@
-"""The real robots' tables (issue 5): MRCLAM's robots against Vicon and the simulated differential drive
+"""The real robots' tables (docs/em-real.md): MRCLAM's robots against Vicon and the simulated differential drive
 against its truth, each learned model beside From-Truth, with the cells the console's scores share."""
 
 from __future__ import annotations

@@ -1,0 +1,7 @@
+"""Simulated robots and worlds, each keeping the truth that evaluation needs.
+
+* ``track1d``: chapter 3's Aibo on a track; ``field2d``: chapter 4's field;
+* ``diffdrive``: a differential drive among landmarks, as MRCLAM's robots (or with radio anchors);
+* ``lidar2d``: a differential drive with encoders and a 2-D lidar in a furnished room;
+* ``velodyne_car``: chapter 5's car with its spinning lidar in a town.
+"""

@@ -1,5 +1,5 @@
 """A differential-drive robot among barcoded landmarks: the conditions of the MRCLAM logs that EM on real
-robots learns from (issue 5, docs/em-real.md), with a known model to recover.
+robots learns from (docs/em-real.md), with a known model to recover.
 
 * The robot drives to random waypoints in a room ringed by landmarks, as MRCLAM's robots did: it turns
   in place towards a waypoint far off its heading, drives at up to 80 mm/s (MRCLAM's: 67-86) while

@@ -221,7 +221,7 @@ COMMAND_NAMES = ("a_x", "a_y", "a_theta")
 
 
 def log_tables(run: Field2DRun) -> JsonObject:
-    """The log-folder tables of a run (DESIGN.md layout), ready for ``sensact.io.write_log_folder``."""
+    """The log-folder tables of a run (docs/formats.md), ready for ``sensact.io.write_log_folder``."""
     cfg = run.config
     lm = np.asarray(cfg.landmarks_xy_mm, dtype=float)
     return {

@@ -1,4 +1,4 @@
-"""A differential drive with wheel encoders and a mounted 2-D lidar in a furnished room (issue 93): what a
+"""A differential drive with wheel encoders and a mounted 2-D lidar in a furnished room (docs/lidar2d.md): what a
 TurtleBot records, with the truth it does not know.
 
 The robot's wheels turn as ``/cmd_vel`` asks through the URDF's nominal radius and axle, after

@@ -253,7 +253,7 @@ def simulate_track(config: Track1DConfig | None = None) -> TrackRun:
 
 
 def log_tables(run: TrackRun) -> JsonObject:
-    """The log-folder tables of a run (DESIGN.md layout), ready for ``sensact.io.write_log_folder``."""
+    """The log-folder tables of a run (docs/formats.md), ready for ``sensact.io.write_log_folder``."""
     from dataclasses import asdict
 
     return {

@@ -162,7 +162,7 @@ class RobustSettings:
     # alone happens to fit (a misread barcode; docs/em-real.md). Every student_t reading needs the same nu
     joint_student_t: bool = False
     # when the robust readings take over from the Gaussian ones, apply prune_rad_per_step's gate again to
-    # every sighting's bearing about the smoothed pose of its own step (k = 1; learn/em/policies/late_outliers.py); a
+    # every sighting's bearing about the smoothed pose of its own step (k = 1; learn/em/late_outliers.py); a
     # config without robust readings (or without a held stage, unless from a learned model: warm_start)
     # has no such moment, and this does nothing
     prune_when_freed: bool = False
@@ -189,7 +189,7 @@ class SearchSettings:
     # iteration, or until EM has converged without them: learned from a poor start, they let EM settle on a
     # trajectory shifted behind the robot, so the thesis's fixed-Sigma_m model pins the trajectory first
     refine_from: int = 100
-    # the starting model is a learned one (`learn em --start-from`; learn/em/policies/warm_start.py), placed on
+    # the starting model is a learned one (`learn em --start-from`; learn/em/uses/warm_start.py), placed on
     # the log already: nothing is held (it has settled), the start is not searched for, and
     # prune_when_freed's gate runs on the first E-step
     warm_start: bool = False

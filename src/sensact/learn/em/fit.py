@@ -1,6 +1,6 @@
 """EM as a calibration runs it: the loop of secs. 4.1 and 4.4.1 (``loop.py``) inside policies that all
-take and give a fit, composed (DESIGN.md, 10). Beyond the thesis: ``restart_while_lost`` runs EM again
-from a tighter start when a range function turned over or bent or EM did not settle (``turn_restarts``);
+take and give a fit, composed, so that the loop reads like the paper. Beyond the thesis: ``restart_while_lost``
+runs EM again from a tighter start when a range function turned over or bent or EM did not settle (``turn_restarts``);
 ``rerun_moved_start`` runs it again, on a range-only log, from the start EM learned when the given one
 moved metres (``searches/given_start.py``); ``face_forward`` turns a range-only fit that drives backward by pi.
 """
@@ -16,12 +16,12 @@ from functools import partial
 import numpy as np
 
 from sensact.errors import ConfigError, LogFormatError
-from sensact.learn.em.checks.lost_signs import LostSign, Unsettled, lost_fit_signs
+from sensact.learn.em.checks.lost_signs import lost_fit_signs
 from sensact.learn.em.config import EMConfig, refuse_bearing_settings
 from sensact.learn.em.estep import counting_passes
 from sensact.learn.em.initial import initial_model
 from sensact.learn.em.loop import OnIteration, fit_em_once, held_trial, stage_loglik
-from sensact.learn.em.result import EMResult, HeadingRace, RestartRun, StartMoved
+from sensact.learn.em.result import EMResult, HeadingRace, LostSign, RestartRun, StartMoved, Unsettled
 from sensact.learn.em.searches.facing import FLIP, drives_backward, turned_model, turned_posteriors
 from sensact.learn.em.searches.given_start import start_moved_mm
 from sensact.learn.em.searches.start_race import OnTrial, race_starts

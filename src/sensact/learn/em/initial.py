@@ -1,7 +1,7 @@
 """The starting model of sec. 4.4.1: every action has no effect, each sensor function is a poor straight
 line, the sigmas are wide, and Sigma_m is the configured constant (learned from it, beyond the thesis,
 when ``motion_noise`` says so). EM (``fit.py``) starts here unless a learned model is given
-(``policies/warm_start.py``)."""
+(``uses/warm_start.py``)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 
 from sensact.errors import ConfigError
 from sensact.learn.em.config import EMConfig
-from sensact.learn.em.unsurveyed.slam_start import starting_map
+from sensact.learn.em.slam_start import starting_map
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.action_table import ActionTable
 from sensact.models.em_model import EMModel

@@ -22,9 +22,9 @@ from sensact.errors import ConfigError
 from sensact.learn.em.config import EMConfig
 from sensact.learn.em.estep import Posteriors, e_step, log_likelihood
 from sensact.learn.em.initial import initial_model, motion_sd_floor, motion_sd_start
+from sensact.learn.em.late_outliers import bearing_outliers
 from sensact.learn.em.mount import MountFreedom, mount_freedom
 from sensact.learn.em.mstep import m_step
-from sensact.learn.em.policies.late_outliers import bearing_outliers
 from sensact.learn.em.result import EMResult
 from sensact.learn.em.searches.delay import DelaySearch, search_delay
 from sensact.learn.em.searches.mount_search import MountSearch, search_mount
@@ -231,7 +231,7 @@ class _Run:
 
     def _robust_take_over(self, post: Posteriors) -> Posteriors:
         """The robust readings take over: their likelihood is another function, with its own best from here;
-        with prune_when_freed, the first iteration's gate again on the smoothed path (``policies/late_outliers.py``)."""
+        with prune_when_freed, the first iteration's gate again on the smoothed path (``late_outliers.py``)."""
         if not self.model.sensor.is_robust:
             return post
         self.trace.best_ll = -np.inf
@@ -500,7 +500,7 @@ def fit_em_once(
 def drop_late_outliers(
     post: Posteriors, data: LandmarkLog, gate_rad_per_step: float, model: EMModel
 ) -> tuple[Posteriors, int]:
-    """``prune_when_freed``: the first iteration's gate again, on the smoothed path (``policies/late_outliers.py``); the
+    """``prune_when_freed``: the first iteration's gate again, on the smoothed path (``late_outliers.py``); the
     posteriors with those sightings no longer used (so that this M-step leaves them out already), and
     how many."""
     late = bearing_outliers(post, data, gate_rad_per_step, model.sensor.mount.as_array())

@@ -10,9 +10,9 @@ import numpy as np
 from sensact.core.pose_models import apply_displacement
 from sensact.learn.em.actions import motion_noise, motion_second_moments, step_motion_var, turning_variance
 from sensact.learn.em.estep import Posteriors
+from sensact.learn.em.landmark_step import landmark_update, normal_equations
 from sensact.learn.em.mount import mount_update
 from sensact.learn.em.stage import Stage
-from sensact.learn.em.unsurveyed.landmark_step import landmark_update, normal_equations
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 from sensact.models.landmark_map import LandmarkMap
@@ -87,7 +87,7 @@ def sensor_and_map(
     (``mount.py``); every distance and bearing is then measured from the sensor at its mount.
 
     With a learned map (``landmarks``), its free positions are updated next on the same samples
-    (``unsurveyed/landmark_step.py``), then f on the distances to them; a map whose scale comes from the range readings
+    (``landmark_step.py``), then f on the distances to them; a map whose scale comes from the range readings
     holds the first length-reading channel's slope at 1 in the middle of its distances.
     """
     weights = post.weights * post.obs_used[:, None]

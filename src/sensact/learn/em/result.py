@@ -1,13 +1,13 @@
-"""What one EM fit returns (DESIGN.md, 2): the most likely model, its history, why EM stopped and what
+"""What one EM fit returns (typed results, docs/design.md): the most likely model, its history, why EM stopped and what
 its searches, gates and restarts did."""
 
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
+from typing import Literal
 
 import numpy as np
 
-from sensact.learn.em.checks.lost_signs import LostSign, fall_per_sighting
 from sensact.learn.em.config import EMConfig
 from sensact.learn.em.estep import Posteriors
 from sensact.learn.em.mount import MountFreedom
@@ -18,6 +18,57 @@ from sensact.learn.em.searches.start_race import StartSearch
 from sensact.models.em_model import EMModel
 from sensact.records import JsonObject, to_json
 from sensact.reprs import compact_repr
+
+# the signs, without ground truth, that EM lost the robot (checks/lost_signs.py finds them)
+
+
+@dataclass(frozen=True)
+class FunctionTurns:
+    """A channel's f turns over at ``turns_at_mm`` inside the ``distances_mm`` it was fitted on."""
+
+    channel: str
+    sign: Literal["turns"] = field(default="turns", init=False)
+    turns_at_mm: tuple[float, ...] = ()
+    distances_mm: tuple[float, float] = (0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class FunctionBends:
+    """A length-reading channel's f whose slope goes from ``slopes[0]`` to ``slopes[1]`` without turning."""
+
+    channel: str
+    sign: Literal["bends"] = field(default="bends", init=False)
+    slopes: tuple[float, float] = (0.0, 0.0)
+    distances_mm: tuple[float, float] = (0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class Unsettled:
+    """The iterations after the best fell far below it: EM did not settle (it names no channel)."""
+
+    sign: Literal["unsettled"] = field(default="unsettled", init=False)
+    best_iteration: int = 0
+    iterations_after: int = 0
+    mean_fall: float = 0.0
+    per_sighting: float = 0.0
+
+
+LostSign = FunctionTurns | FunctionBends | Unsettled
+
+
+def mean_fall_after_best(loglik_history: np.ndarray, best_iteration: int) -> float | None:
+    """How far, on average, the log-likelihoods of the iterations after the best fell below the best's;
+    None when no iteration followed it (a fit stopped at ``max_iterations`` while climbing)."""
+    history = np.asarray(loglik_history, dtype=float)
+    after = history[best_iteration + 1 :]
+    return float(np.mean(history[best_iteration] - after)) if after.size else None
+
+
+def fall_per_sighting(loglik_history: np.ndarray, best_iteration: int, n_used: int) -> float | None:
+    """``mean_fall_after_best`` per sighting used: what ``unsettled_fit`` holds against
+    ``SearchSettings.lost_fall_per_sighting`` (None with no iteration after the best or no sighting)."""
+    fall = mean_fall_after_best(loglik_history, best_iteration)
+    return None if fall is None or n_used <= 0 else fall / n_used
 
 
 @dataclass(frozen=True)

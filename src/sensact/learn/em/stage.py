@@ -1,5 +1,6 @@
 """The stages of EM: what the M-step may move in each (its contract, as dynamax's ``props`` say which
-parameters a fit may change), and the plan of stages for a fit (DESIGN.md, 10)."""
+parameters a fit may change), and the plan of stages for a fit: what may move is data, not flags threaded
+through the loop."""
 
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ NO_MOUNT = (False, False, False)
 
 @dataclass(frozen=True)
 class Stage:
-    """What the M-step may move in one stage of EM, and how the E-step reads the readings (DESIGN.md, 10).
+    """What the M-step may move in one stage of EM, and how the E-step reads the readings.
     A stage ends when EM has converged in it, or at iteration ``ends_by``; EM ends with its last."""
 
     name: str
@@ -24,7 +25,7 @@ class Stage:
     mount: tuple[bool, bool, bool]  # the sensor mount's components moved (forward, left, yaw)
     robust: bool  # the configured robust readings; False: Gaussian ones
     ends_by: int | None = None  # the iteration it ends at, converged or not (None: when converged)
-    landmarks: bool = True  # a learned map's free positions moved (issue 92; the log's own map never is)
+    landmarks: bool = True  # a learned map's free positions moved (docs/map.md; the log's own map never is)
 
     def with_end(self, ends_by: int) -> Stage:
         return dc_replace(self, ends_by=ends_by)

@@ -1,4 +1,4 @@
-"""Is an EM fit a result or a degenerate one? (issue 74; beyond the thesis, whose fits all converge on
+"""Is an EM fit a result or a degenerate one? (docs/errors.md; beyond the thesis, whose fits all converge on
 sensors that read something.)
 
 Each check looks at what the fit cannot recover from by itself, on the log it was learned on:
@@ -25,7 +25,7 @@ from sensact.models.em_model import EMModel
 from sensact.models.wheel_drive import as_differential_drive
 
 SIGMA_COLLAPSED = 1e-6  # a reading's sigma this small, relative to its readings' size, has collapsed
-MAX_LAG1 = 0.5  # issue 94: residuals' lag-1 autocorrelation beyond this and sigma is not the sensor's noise
+MAX_LAG1 = 0.5  # residuals' lag-1 autocorrelation beyond this and sigma is not the sensor's noise
 TURN = "v_theta_rad_s"  # the planar state's turn rate (core.geometry's velocity names)
 TURN_COMMANDS = ("omega_rad_s",)  # commanded turn rates, counterclockwise positive (REP 103)
 MIN_HALF_SIGHTINGS = 10  # sightings in each half before their gains' signs are compared

@@ -15,8 +15,7 @@ has not settled anywhere (``unsettled_fit``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 
@@ -24,6 +23,7 @@ from sensact.core.angles import wrap_angle
 from sensact.core.pose_models import sensor_distance
 from sensact.learn.em.config import EMConfig, SearchSettings
 from sensact.learn.em.estep import Posteriors
+from sensact.learn.em.result import FunctionBends, FunctionTurns, LostSign, Unsettled, fall_per_sighting
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 
@@ -33,40 +33,6 @@ LENGTH_SUFFIX = "_mm"  # a reading in the map's unit, as sensact names one (io/t
 # five robots and 1.1 on simulated ones; 3.2 on a simulated side-stepper held to no sideways mean
 # (docs/em-real.md, "A robot that can side-step")
 SIDEWAYS_NOISE_RATIO = 2.0
-
-
-@dataclass(frozen=True)
-class FunctionTurns:
-    """A channel's f turns over at ``turns_at_mm`` inside the ``distances_mm`` it was fitted on."""
-
-    channel: str
-    sign: Literal["turns"] = field(default="turns", init=False)
-    turns_at_mm: tuple[float, ...] = ()
-    distances_mm: tuple[float, float] = (0.0, 0.0)
-
-
-@dataclass(frozen=True)
-class FunctionBends:
-    """A length-reading channel's f whose slope goes from ``slopes[0]`` to ``slopes[1]`` without turning."""
-
-    channel: str
-    sign: Literal["bends"] = field(default="bends", init=False)
-    slopes: tuple[float, float] = (0.0, 0.0)
-    distances_mm: tuple[float, float] = (0.0, 0.0)
-
-
-@dataclass(frozen=True)
-class Unsettled:
-    """The iterations after the best fell far below it: EM did not settle (it names no channel)."""
-
-    sign: Literal["unsettled"] = field(default="unsettled", init=False)
-    best_iteration: int = 0
-    iterations_after: int = 0
-    mean_fall: float = 0.0
-    per_sighting: float = 0.0
-
-
-LostSign = FunctionTurns | FunctionBends | Unsettled
 
 
 def _fitted_distances(model: EMModel, post: Posteriors, data: LandmarkLog) -> list[tuple[Any, tuple[float, float]]]:
@@ -133,21 +99,6 @@ def range_function_bends(
     least and greatest slope and the distances' span. A sensor off by a scale has one slope; one that turns is
     ``range_function_turns``'s."""
     return _bends(_fitted_distances(model, post, data), bend_ratio)
-
-
-def mean_fall_after_best(loglik_history: np.ndarray, best_iteration: int) -> float | None:
-    """How far, on average, the log-likelihoods of the iterations after the best fell below the best's;
-    None when no iteration followed it (a fit stopped at ``max_iterations`` while climbing)."""
-    history = np.asarray(loglik_history, dtype=float)
-    after = history[best_iteration + 1 :]
-    return float(np.mean(history[best_iteration] - after)) if after.size else None
-
-
-def fall_per_sighting(loglik_history: np.ndarray, best_iteration: int, n_used: int) -> float | None:
-    """``mean_fall_after_best`` per sighting used: what ``unsettled_fit`` holds against
-    ``SearchSettings.lost_fall_per_sighting`` (None with no iteration after the best or no sighting)."""
-    fall = mean_fall_after_best(loglik_history, best_iteration)
-    return None if fall is None or n_used <= 0 else fall / n_used
 
 
 def unsettled_fit(
@@ -248,9 +199,9 @@ def describe_held_sideways(held: dict[str, float]) -> str:
 
 # beyond this lag-1 autocorrelation (either sign) of a channel's smoothed residuals, its errors are not
 # independent from one reading to the next as eq. 4.19 assumes. Above it EM reads the shared part as motion
-# and the sigma it learns is a lower bound (issue 73: a real 1-D robot's laser at 0.97 learned a sigma 10x
+# and the sigma it learns is a lower bound (a real 1-D robot's laser at 0.97 learned a sigma 10x
 # too small); below minus it the path follows the readings, each error undone by the next (a real robot's
-# bearings at -0.38 raised no warning at 0.5, issue 90).
+# bearings at -0.38 raised no warning at 0.5).
 AUTOCORRELATION_WARN = 0.3
 # above this share of the sightings pruned by the gates, the gate is doing more than dropping outliers
 PRUNED_WARN = 0.2

@@ -1,5 +1,5 @@
 """Range-only anchors (UWB, sonar beacons) whose positions nobody gave, learned when the log can fix them
-(issue 92): ranges alone cannot say where the robot is facing or where an anchor is from a start nobody
+(docs/map.md): ranges alone cannot say where the robot is facing or where an anchor is from a start nobody
 knows, so at least ``slam_start.MIN_ANCHORS_GIVEN`` anchors must be given. Those fix the robot's path:
 
 1. EM on the sightings of the given anchors alone, as on a survey (the range-only fit of
@@ -20,8 +20,8 @@ import numpy as np
 from sensact.core.pose_models import sensor_poses
 from sensact.learn.em.config import EMConfig
 from sensact.learn.em.initial import initial_model
+from sensact.learn.em.landmark_step import placed_landmarks
 from sensact.learn.em.result import EMResult
-from sensact.learn.em.unsurveyed.landmark_step import placed_landmarks
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 

@@ -1,4 +1,4 @@
-"""A map nobody surveyed, learned in rounds (issue 92): each round a filter carries the map
+"""A map nobody surveyed, learned in rounds (docs/map.md): each round a filter carries the map
 (``slam_filter.py``) and EM learns the models on it as on a survey; the rounds end when the likelihood
 stops rising, the most likely kept, and one last EM whose M-step moves the map (``landmark_step.py``)
 finishes the climb. docs/map.md says why rounds and not the M-step alone."""
@@ -12,9 +12,9 @@ import numpy as np
 
 from sensact.learn.em.config import EMConfig
 from sensact.learn.em.initial import initial_model
+from sensact.learn.em.landmark_step import placed_landmarks
 from sensact.learn.em.loop import stage_loglik
 from sensact.learn.em.result import EMResult
-from sensact.learn.em.unsurveyed.landmark_step import placed_landmarks
 from sensact.learn.em.unsurveyed.slam_filter import filtered_map
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel

@@ -1,4 +1,4 @@
-"""The landmark map carried by a filter (issue 92): where EM learns a map nobody surveyed.
+"""The landmark map carried by a filter (docs/map.md): where EM learns a map nobody surveyed.
 
 Learned as a parameter of the M-step, the map and the path trade along a ridge: moving both together
 barely changes the likelihood, so EM's alternating steps move them a little at a time and stop far from

@@ -1,4 +1,4 @@
-"""Is a learned model's noise honest on a run it was not learned on? (issue 94)
+"""Is a learned model's noise honest on a run it was not learned on? (docs/uncertainty.md)
 
 The filter of sec. 2.4 runs with the model held over a log (``estep.innovations``: one step ahead, the
 forward pass, not the smoother, so that no reading is scored by a path it helped place). Under the model,

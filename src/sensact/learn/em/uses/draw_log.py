@@ -1,4 +1,4 @@
-"""A log drawn from a learned model (issue 76's parametric bootstrap): the log's own commands, steps, map,
+"""A log drawn from a learned model (a parametric bootstrap, docs/uncertainty.md): the log's own commands, steps, map,
 sighting times and landmarks, with the path and every reading drawn from the model EM assumes.
 
 The path follows the time update of the filter (``core/ekf_smoother.py``): ``w_t+1 = w_t + R(theta_t)

@@ -1,4 +1,4 @@
-"""Error bars on every learned parameter by a parametric bootstrap (issue 76; beyond the thesis, which
+"""Error bars on every learned parameter by a parametric bootstrap (docs/uncertainty.md; beyond the thesis, which
 reports point estimates).
 
 ``B`` logs are drawn from the learned model (``uses/draw_log.simulate_from_model``: the log's own commands,

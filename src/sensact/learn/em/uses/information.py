@@ -1,4 +1,4 @@
-"""Error bars from the likelihood itself (issue 94; beyond the thesis, which reports point estimates).
+"""Error bars from the likelihood itself (docs/uncertainty.md; beyond the thesis, which reports point estimates).
 
 The learned parameters are one vector (``LearnedSpace``): the action model's free coefficients, each f
 at its knots and its bearing terms, the sigmas and Sigma_m on the log scale, the mount's learned

@@ -18,8 +18,8 @@ from typing import Any
 from sensact.errors import ConfigError
 from sensact.learn.em.config import EMConfig
 from sensact.learn.em.fit import EMResult, fit_em
-from sensact.learn.em.policies.warm_start import start_from_model
 from sensact.learn.em.uses.place import Localized
+from sensact.learn.em.uses.warm_start import start_from_model
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 from sensact.progress import Progress

@@ -1,4 +1,4 @@
-"""Where EM's map starts when nobody surveyed it (issue 92): one pass of EKF-SLAM (sec. 2.4's filter with
+"""Where EM's map starts when nobody surveyed it (docs/map.md): one pass of EKF-SLAM (sec. 2.4's filter with
 the landmarks in its state, as the SLAM literature the thesis cites runs it) under the starting model,
 each landmark placed where it is first seen and moved by every later sighting; and ``starting_map``, what
 ``initial.py``'s starting model takes from it (the frame, the scale, the map). EM then learns the models
@@ -139,7 +139,7 @@ def starting_map(
     data: LandmarkLog, sensor: LandmarkSensor, motion_sd: np.ndarray, config: EMConfig
 ) -> tuple[np.ndarray, np.ndarray, LandmarkMap]:
     """The start pose, its covariance and the map EM learns from when the log gives no (or a partial) map
-    (issue 92): the robot's start fixes the frame unless two or more positions are given; the map starts
+    (docs/map.md): the robot's start fixes the frame unless two or more positions are given; the map starts
     from EKF-SLAM on the commands at face value (``slam_map``); its scale comes from the range
     readings in mm, or from the given positions."""
     held = data.map_given

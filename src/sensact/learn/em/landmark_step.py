@@ -1,4 +1,4 @@
-"""The landmarks' positions, learned in the M-step when nobody surveyed them (issue 92; beyond the thesis,
+"""The landmarks' positions, learned in the M-step when nobody surveyed them (docs/map.md; beyond the thesis,
 whose map is given, and the map-as-parameter EM of the SLAM literature its ch. 5 cites).
 
 **M-step.** As sec. 4.3 derives each update, only the observation terms of the expected complete-data
@@ -27,7 +27,7 @@ from sensact.models.landmark_sensor import LandmarkSensor, SampledSightings
 
 GAUSS_NEWTON_STEPS = 5
 # a learned position is reported (placed) when this many sightings were used and its sd is at most this;
-# the rest are reported as not placed, not guessed (issue 92)
+# the rest are reported as not placed, not guessed (docs/map.md)
 MIN_SIGHTINGS_TO_PLACE = 5
 MAX_PLACED_SD_MM = 250.0
 
