@@ -7,8 +7,9 @@ log a ``Calibration``: the model, typed diagnostics, the scores when the log has
 ``calibrate(open_log(DIR))`` and printing, for every kind.
 
 * ``log_kinds``: the registry, one door per log kind: its opener, learner and writer;
-* ``logs`` with ``calibrate``, ``save``, ``scores`` and ``report``: a landmark log learned by EM, written,
-  scored against its truth and reported; ``uncertainty``: its error bars;
+* ``calibrate``: ``calibrate(log)``, by the learner of the log's kind;
+* ``logs`` with ``em``, ``save``, ``scores`` and ``report``: a landmark log learned by EM, written, scored
+  against its truth and reported; ``uncertainty``: its error bars;
 * ``lidar2d``: a wheels-and-2-D-lidar log learned and written; ``velodyne_car``: chapter 5's car;
   ``bootstrap``: chapter 3's Algorithm 1 scored;
 * ``settings``: every command's settings, resolved in one place;
@@ -17,9 +18,10 @@ log a ``Calibration``: the model, typed diagnostics, the scores when the log has
 * ``export``, ``export_lidar2d`` and ``ros_params``: learned models as ROS reads them.
 """
 
-from sensact.app.calibrate import Calibration, Diagnostics, FitEvents, StartFrom
+from sensact.app.calibrate import calibrate
+from sensact.app.em import Calibration, Diagnostics, FitEvents, StartFrom
 from sensact.app.lidar2d import Lidar2DCalibration, OpenedLidar2DLog
-from sensact.app.log_kinds import KINDS, LogKind, calibrate, open_log, save_calibration
+from sensact.app.log_kinds import KINDS, LogKind, open_log, save_calibration
 from sensact.app.logs import OpenedLandmarkLog
 from sensact.app.scores import Scores, Unscored
 from sensact.app.settings import Settings, read_settings_file, resolve_settings

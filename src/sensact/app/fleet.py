@@ -124,7 +124,7 @@ def calibrate_and_save(
 ) -> tuple[Any, Learned]:
     """``learn_log`` on a log already open; ``finish`` turns the calibration into the one written (the
     shared map's fleet attaches its map). Returns the calibration too."""
-    from sensact.app.calibrate import FitEvents, calibrate_em
+    from sensact.app.em import FitEvents, calibrate_em
     from sensact.app.save import save_em_calibration
 
     events = FitEvents()

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from sensact import __version__
-from sensact.app.calibrate import FitEvents
+from sensact.app.em import FitEvents
 from sensact.app.save import Saved
 from sensact.health import Health, HealthFlag
 from sensact.io.lidar2d_folder import KIND as LIDAR2D_KIND

@@ -14,12 +14,12 @@ The kinds:
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from sensact.app.calibrate import Calibration, FitEvents, calibrate_em
+from sensact.app.em import Calibration, calibrate_em
 from sensact.app.lidar2d import (
     Lidar2DCalibration,
     OpenedLidar2DLog,
@@ -113,21 +113,9 @@ def refuse_options(log: Any, given: Mapping[str, Any]) -> None:
         )
 
 
-def calibrate(
-    log: Any,
-    preset: str | None = None,
-    config: Any = None,
-    *,
-    sets: Sequence[str] = (),
-    start_from: Path | None = None,
-    events: FitEvents | None = None,
-) -> CalibratedAny:
-    """``log``'s models learned by its kind's learner, as `sensact learn em` learns them: EM (ch. 4) on a
-    landmark log (``app.calibrate.calibrate_em``), scan matching and maximum likelihood on a wheels-and-2-D-lidar
-    log (``app.lidar2d``). Settings a kind does not take are refused in one line."""
-    kind = _kind_opened(log)
-    refuse_options(log, {"--preset": preset, "--config": config, "--set": tuple(sets), "--start-from": start_from})
-    return kind.learn(log, preset, config, sets=sets, start_from=start_from, events=events)
+def learner(log: Any) -> Callable[..., Any]:
+    """The learner of the kind that opened ``log``, options it does not take refused in one line first."""
+    return _kind_opened(log).learn
 
 
 def landmark_log(path: str | Path, command: str, *, bins: int = 21) -> OpenedLandmarkLog:

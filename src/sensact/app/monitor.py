@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sensact.app.calibrate import Calibration, FitEvents, calibrate_em
+from sensact.app.em import Calibration, FitEvents, calibrate_em
 from sensact.app.logs import OpenedLandmarkLog, learned_settings, read_model_and_log
 from sensact.health import Health, filter_failed, learned_health
 from sensact.learn.em.uses.change_detect import MonitorConfig, MonitorResult, monitor_placed

@@ -13,7 +13,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from sensact.app.calibrate import Calibration
+from sensact.app.em import Calibration
 from sensact.app.scores import Scores, Unscored
 from sensact.records import JsonObject
 from sensact.report.frames import MM, si, velocity_rep

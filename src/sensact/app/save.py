@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from sensact.app.calibrate import Calibration
+from sensact.app.em import Calibration
 from sensact.app.scores import Scores
 from sensact.io.atomic import write_json, write_npz
 from sensact.records import JsonObject

@@ -7,7 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Any
 
-from sensact.app.calibrate import Calibration
+from sensact.app.em import Calibration
 from sensact.engine import Engine, Failed, InProcess, Job, OnDone, OnProgress
 from sensact.errors import ConfigError
 from sensact.learn.em.uses.error_bars import Uncertainty, f_distances, replicate, summarize

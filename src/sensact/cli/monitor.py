@@ -98,7 +98,7 @@ def monitor_cmd(
             console.print("nothing changed: nothing relearned")
             finish(health)
             return
-        from sensact.app.calibrate import FitEvents
+        from sensact.app.em import FitEvents
         from sensact.app.monitor import relearn as relearn_from_change
         from sensact.app.save import save_em_calibration
 

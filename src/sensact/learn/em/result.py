@@ -8,6 +8,7 @@ from typing import Literal
 
 import numpy as np
 
+from sensact.core.pose_models import sensor_distance
 from sensact.learn.em.config import EMConfig
 from sensact.learn.em.estep import Posteriors
 from sensact.learn.em.mount import MountFreedom
@@ -15,9 +16,22 @@ from sensact.learn.em.searches.delay import DelaySearch
 from sensact.learn.em.searches.mount_search import MountSearch
 from sensact.learn.em.searches.ridge import RidgeSearch
 from sensact.learn.em.searches.start_race import StartSearch
+from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 from sensact.records import JsonObject, to_json
 from sensact.reprs import compact_repr
+
+
+def smoothed_distances(model: EMModel, post: Posteriors, data: LandmarkLog) -> np.ndarray:
+    """Each sighting the E-step used (``post.obs_used``): its distance from the sensor, at its mount on the
+    smoothed path, to its landmark; on a track the state itself."""
+    use = np.asarray(post.obs_used, dtype=bool)
+    steps = data.obs_step[use]
+    if data.geometry.has_heading:
+        lm = data.landmarks_xy[data.obs_landmark[use]]
+        return sensor_distance(post.mean_gamma[steps], lm, model.sensor.mount.as_array())
+    return post.mean_gamma[steps, 0]
+
 
 # the signs, without ground truth, that EM lost the robot (checks/lost_signs.py finds them)
 

@@ -17,9 +17,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from sensact.core.pose_models import sensor_distance
 from sensact.health import MIN_EXPLAINED, MIN_READINGS, Health, HealthFlag
-from sensact.learn.em.result import EMResult
+from sensact.learn.em.result import EMResult, smoothed_distances
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 from sensact.models.wheel_drive import as_differential_drive
@@ -31,9 +30,16 @@ TURN_COMMANDS = ("omega_rad_s",)  # commanded turn rates, counterclockwise posit
 MIN_HALF_SIGHTINGS = 10  # sightings in each half before their gains' signs are compared
 
 
-def em_health(result: EMResult, data: LandmarkLog, autocorrelation: Mapping[str, float | None] | None = None) -> Health:
+def em_health(
+    result: EMResult,
+    data: LandmarkLog,
+    autocorrelation: Mapping[str, float | None] | None = None,
+    *,
+    dist: np.ndarray | None = None,
+) -> Health:
     """The flags of one fit on ``data`` (none: a result to report as one); ``autocorrelation``: each channel's
-    residuals' lag-1 autocorrelation about the smoothed path (``lost_signs.residual_autocorrelation``)."""
+    residuals' lag-1 autocorrelation about the smoothed path (``lost_signs.residual_autocorrelation``);
+    ``dist``: the used sightings' smoothed distances (``result.smoothed_distances``), when already taken."""
     flags: list[HealthFlag] = []
     if result.stop_reason == "max_iterations":
         flags.append(
@@ -55,13 +61,13 @@ def em_health(result: EMResult, data: LandmarkLog, autocorrelation: Mapping[str,
     if not np.isfinite(result.loglik_best):
         flags.append(HealthFlag("loglik_not_finite", "the log-likelihood is not finite."))
     flags += _commands(data)
-    flags += _readings(result, data)
+    flags += _readings(result, data, dist)
     flags += _implausible(result, data, autocorrelation or {})
     return Health(tuple(flags))
 
 
 def _implausible(result: EMResult, data: LandmarkLog, autocorrelation: Mapping[str, float | None]) -> list[HealthFlag]:
-    """Issue 94's fits that converge to the wrong robot: turning against its commands, a mount the path
+    """Fits that converge to the wrong robot: turning against its commands, a mount the path
     cannot tell apart from the path itself, or residuals so correlated that sigma is not what it says."""
     model, post = result.model, result.posteriors
     flags = []
@@ -137,20 +143,14 @@ def _commands(data: LandmarkLog) -> list[HealthFlag]:
     return []
 
 
-def _readings(result: EMResult, data: LandmarkLog) -> list[HealthFlag]:
+def _readings(result: EMResult, data: LandmarkLog, dist: np.ndarray | None) -> list[HealthFlag]:
     if not data.n_observations:
         return []
     model, post = result.model, result.posteriors
     use = np.ones(data.n_observations, bool) if post is None else np.asarray(post.obs_used, dtype=bool)
     cols = model.sensor.columns(data)
-    dist = None
-    if post is not None:
-        steps = data.obs_step[use]
-        if data.geometry.has_heading:
-            poses = post.mean_gamma[steps]
-            dist = sensor_distance(poses, data.landmarks_xy[data.obs_landmark[use]], model.sensor.mount.as_array())
-        else:
-            dist = post.mean_gamma[steps, 0]
+    if post is not None and dist is None:
+        dist = smoothed_distances(model, post, data)
     flags = []
     for j, ch in enumerate(model.sensor.channels):
         y = data.obs_readings[use, cols[j]]

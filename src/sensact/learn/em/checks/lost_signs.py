@@ -20,10 +20,16 @@ from typing import Any
 import numpy as np
 
 from sensact.core.angles import wrap_angle
-from sensact.core.pose_models import sensor_distance
 from sensact.learn.em.config import EMConfig, SearchSettings
 from sensact.learn.em.estep import Posteriors
-from sensact.learn.em.result import FunctionBends, FunctionTurns, LostSign, Unsettled, fall_per_sighting
+from sensact.learn.em.result import (
+    FunctionBends,
+    FunctionTurns,
+    LostSign,
+    Unsettled,
+    fall_per_sighting,
+    smoothed_distances,
+)
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 
@@ -35,22 +41,23 @@ LENGTH_SUFFIX = "_mm"  # a reading in the map's unit, as sensact names one (io/t
 SIDEWAYS_NOISE_RATIO = 2.0
 
 
-def _fitted_distances(model: EMModel, post: Posteriors, data: LandmarkLog) -> list[tuple[Any, tuple[float, float]]]:
+def _fitted_distances(
+    model: EMModel, post: Posteriors, data: LandmarkLog, dist: np.ndarray | None = None
+) -> list[tuple[Any, tuple[float, float]]]:
     """``fitted_distances`` on a planar log (the lost-fit signs); none on a track."""
-    return fitted_distances(model, post, data) if data.geometry.has_heading else []
+    return fitted_distances(model, post, data, dist) if data.geometry.has_heading else []
 
 
-def fitted_distances(model: EMModel, post: Posteriors, data: LandmarkLog) -> list[tuple[Any, tuple[float, float]]]:
+def fitted_distances(
+    model: EMModel, post: Posteriors, data: LandmarkLog, dist: np.ndarray | None = None
+) -> list[tuple[Any, tuple[float, float]]]:
     """Each channel with the span (``DISTANCE_PERCENTILES``) of the distances, from the smoothed path, of
-    the sightings it used within its window; channels with fewer than two are left out."""
+    the sightings it used within its window (``dist``: ``result.smoothed_distances``, when already taken);
+    channels with fewer than two are left out."""
     if not data.n_observations:
         return []
     use = np.asarray(post.obs_used, dtype=bool)
-    if data.geometry.has_heading:
-        poses = post.mean_gamma[data.obs_step[use]]
-        dist = sensor_distance(poses, data.landmarks_xy[data.obs_landmark[use]], model.sensor.mount.as_array())
-    else:  # a track's state is the distance to the beacon
-        dist = post.mean_gamma[data.obs_step[use], 0]
+    dist = smoothed_distances(model, post, data) if dist is None else dist
     readings = data.obs_readings[use][:, model.sensor.columns(data)]
     out = []
     for j, ch in enumerate(model.sensor.channels):
@@ -124,13 +131,16 @@ def lost_fit_signs(
     loglik_history: np.ndarray | None = None,
     best_iteration: int = 0,
     config: EMConfig | None = None,
+    *,
+    dist: np.ndarray | None = None,
 ) -> list[LostSign]:
     """Every channel whose f turns over (``sign`` "turns") or bends ("bends") within its fitted
     distances, and with the fit's ``loglik_history`` on a planar log, ``unsettled_fit``'s sign (it names
     no channel): the signs, without ground truth, that EM lost the robot, by ``config``'s thresholds
-    (``lost_bend_ratio``, ``lost_fall_per_sighting``; by default EMConfig's)."""
+    (``lost_bend_ratio``, ``lost_fall_per_sighting``; by default EMConfig's); ``dist``: the sightings'
+    smoothed distances, when already taken."""
     cfg = config or EMConfig()
-    fitted = _fitted_distances(model, post, data)
+    fitted = _fitted_distances(model, post, data, dist)
     signs = _turns(fitted) + _bends(fitted, cfg.search.lost_bend_ratio)
     if loglik_history is not None and data.geometry.has_heading:
         used = int(np.count_nonzero(post.obs_used))
