@@ -12,6 +12,7 @@ import pytest
 from continuous_robot import TruthLog, continuous_config, simulate_continuous
 from sensact.cli.base import console
 from sensact.cli.scores import print_truth_score
+from sensact.core import pose_models
 from sensact.core.pose_models import apply_displacement, landmark_bearing, landmark_distance
 from sensact.learn.em import initial_model
 from sensact.logs.landmark_log import LandmarkLog
@@ -75,13 +76,16 @@ def _seen_from(data: LandmarkLog, sensor_poses: np.ndarray, seed: int) -> Landma
 def test_sensor_mount_is_fitted_from_the_bearings():
     """Exact reduction and seeded recovery: bearings read exactly at the truth's poses give no mount;
     a camera 120 mm ahead, 30 mm aside and yawed 0.02 rad, with 0.01-rad noise, is found."""
-    from sensact.evaluate.landmark_truth import at_sensor, fit_sensor_mount
+    from sensact.evaluate.landmark_truth import as_mount, fit_sensor_mount
 
     data, poses = simulate_continuous(2, T=6000)
     at, lm = poses[data.obs_step], data.landmarks_xy[data.obs_landmark]
     assert np.allclose(fit_sensor_mount(at, lm, landmark_bearing(at, lm)), 0.0, atol=1e-6)
     mount = np.array([30.0, 120.0, 0.02])
-    noisy = landmark_bearing(at_sensor(at, mount), lm) + np.random.default_rng(3).normal(size=len(at)) * 0.01
+    noisy = (
+        landmark_bearing(pose_models.sensor_poses(at, as_mount(mount)), lm)
+        + np.random.default_rng(3).normal(size=len(at)) * 0.01
+    )
     noisy[::50] += 0.5  # outliers the trimming drops
     got = fit_sensor_mount(at, lm, noisy)
     assert got[:2] == pytest.approx(mount[:2], abs=8.0)
@@ -143,11 +147,11 @@ def test_truth_residuals_are_taken_at_the_sensor():
     and 30-mm ranges from where it is; the score finds its mount and those sigmas, while at the truth's
     origin the bearing residual is several times larger. Exact reduction: without the fit, the sensor's
     residuals are the origin's."""
-    from sensact.evaluate.landmark_truth import at_sensor, score_against_truth
+    from sensact.evaluate.landmark_truth import as_mount, score_against_truth
 
     data, poses = simulate_continuous(2, T=6000)
     mount = np.array([-20.0, 150.0, 0.03])
-    data = _seen_from(data, at_sensor(poses, mount), seed=4)
+    data = _seen_from(data, pose_models.sensor_poses(poses, as_mount(mount)), seed=4)
     model = initial_model(data, continuous_config())
     valid = np.ones(len(poses), dtype=bool)
     sc = score_against_truth(model, data, poses, valid)
@@ -282,7 +286,7 @@ def test_heading_drift_of_windows_that_dead_reckon_to_the_truth_is_zero():
 
 
 def dead_reckon_windows(v: np.ndarray, dt: float) -> np.ndarray:
-    from sensact.evaluate.landmark_truth import dead_reckon
+    from sensact.core.pose_models import dead_reckon
 
     return dead_reckon(v, dt)
 

@@ -5,6 +5,7 @@ distance_mm). The scores are the JSON the model file keeps as ``evaluation``; th
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -53,62 +54,97 @@ def score_model(
     path: np.ndarray | None = None,
     fit: Any = None,
 ) -> Scores | Unscored | None:
-    """``model`` against ``log``'s truth; None when the log has none. ``learned_here``: the model was just
-    learned on this log, so recorded poses too broken up to score leave it ``Unscored`` (saying why)
-    instead of failing. ``path``: EM's smoothed poses, scored against the recorded poses as ``path``.
-    ``fit``: what placed the model on a 1-D log (an ``EMResult`` or a ``Localized``), for its
-    recorded distance."""
+    """``model`` against ``log``'s truth; None when it carries none. A 1-D robot's recorded distance scores
+    it (``_on_distance``); else the first of ``SCORERS`` that applies to the truth the log folder carries.
+    ``learned_here``: the model was just learned on this log, so recorded poses too broken up to score leave it
+    ``Unscored`` (saying why) instead of failing. ``path``: EM's smoothed poses, scored against the recorded
+    poses as ``path``. ``fit``: what placed the model on a 1-D log (an ``EMResult`` or a ``Localized``), for
+    its recorded distance, or on a learned map, which sightings it used."""
     if log.recorded_distance_mm is not None or log.folder is None:
         return _on_distance(log, fit)
+    for scorer in SCORERS:
+        scores = scorer(log, model, learned_here, path, fit)
+        if scores is not None:
+            return scores
+    return None
+
+
+def _on_recorded_poses(
+    log: OpenedLandmarkLog, model: EMModel, learned_here: bool, path: np.ndarray | None, fit: Any
+) -> Scores | Unscored | None:
+    """Against recorded poses (``evaluate/landmark_truth.py``; a learned map against the log's survey first,
+    and a simulated differential drive's true models beside them)."""
     lf = log.folder
     recorded = lf.truth_poses()
     data, mapped = lf.data, None
     if model.landmarks is not None:  # a learned map: scored against the survey, the path in its frame
         view = in_truth_frame(lf, model, path, fit)
         data, mapped, path = view.data, view.mapped, view.path
-    if recorded is not None and data.is_continuous and data.map_given.all():
-        from sensact.evaluate.bars import bar_checks
-        from sensact.evaluate.landmark_truth import path_offset, score_against_truth
+    if recorded is None or not data.is_continuous or not data.map_given.all():
+        return None  # not scored against them: a simulator's truth may score it
+    from sensact.evaluate.bars import bar_checks
+    from sensact.evaluate.landmark_truth import path_offset, score_against_truth
 
-        try:
-            sc = score_against_truth(model, data, *recorded)
-        except LogFormatError as exc:
-            if not learned_here:
-                raise
-            return Unscored(f"not scored against the recorded poses: {exc}")
-        if mapped is not None:
-            sc["map"] = mapped
-        if path is not None:
-            sc["path"] = path_offset(np.asarray(path), *recorded)
-        sc["bars"] = bar_checks(sc)
-        simulated = lf.meta.get("truth") or {}
-        if "action_coefficients" in simulated:  # a simulated differential drive's true models
-            from sensact.evaluate.simulated_robot import score_against_simulated
+    try:
+        sc = score_against_truth(model, data, *recorded)
+    except LogFormatError as exc:
+        if not learned_here:
+            raise
+        return Unscored(f"not scored against the recorded poses: {exc}")
+    if mapped is not None:
+        sc["map"] = mapped
+    if path is not None:
+        sc["path"] = path_offset(np.asarray(path), *recorded)
+    sc["bars"] = bar_checks(sc)
+    simulated = lf.meta.get("truth") or {}
+    if "action_coefficients" in simulated:  # a simulated differential drive's true models
+        from sensact.evaluate.simulated_robot import score_against_simulated
 
-            sc["simulated"] = score_against_simulated(model, simulated, lf.data.dt_s)
-        return Scores(RECORDED_POSES, sc)
-    truth = lf.meta.get("truth")
-    if not truth:
+        sc["simulated"] = score_against_simulated(model, simulated, lf.data.dt_s)
+    return Scores(RECORDED_POSES, sc)
+
+
+def _on_simulated_planar(
+    log: OpenedLandmarkLog, model: EMModel, learned_here: bool, path: np.ndarray | None, fit: Any
+) -> Scores | None:
+    """Against the true velocities and sensor a simulated planar log's meta.json carries (sec. 4.4.2)."""
+    truth = log.folder.meta.get("truth") or {}
+    if not (log.folder.data.geometry.has_heading and "velocities" in truth):
         return None
-    if lf.data.geometry.has_heading and "velocities" in truth:
-        from sensact.evaluate.em import score_planar
-        from sensact.sim.track1d import TrackTruth
+    from sensact.evaluate.em import score_planar
+    from sensact.sim.track1d import TrackTruth
 
-        s = truth["sensor"]
-        height = TrackTruth(sensor_k_px_mm=s["k_px_mm"], sensor_d0_mm=s["d0_mm"], sensor_h0_px=s["h0_px"]).height_px
-        sc = score_planar(
-            model, np.asarray(truth["velocities"]), height, truth["sigma_height_px"], truth["sigma_bearing_rad"]
-        )
-        return Scores(SIMULATED_MODEL, sc)
-    if lf.data.geometry.state_is_range and "action" in truth:
-        from sensact.evaluate.em import score_track
-        from sensact.evaluate.track1d import DISTANCE_GRID_MM
-        from sensact.sim.track1d import TrackTruth
+    s = truth["sensor"]
+    height = TrackTruth(sensor_k_px_mm=s["k_px_mm"], sensor_d0_mm=s["d0_mm"], sensor_h0_px=s["h0_px"]).height_px
+    sc = score_planar(
+        model, np.asarray(truth["velocities"]), height, truth["sigma_height_px"], truth["sigma_bearing_rad"]
+    )
+    return Scores(SIMULATED_MODEL, sc)
 
-        tt = TrackTruth.from_dict(truth)
-        sc = score_track(model, tt.velocity_mm_s(lf.data.action_commands[:, 0]), tt.height_px, DISTANCE_GRID_MM)
-        return Scores(SIMULATED_MODEL, sc)
-    return None
+
+def _on_simulated_track(
+    log: OpenedLandmarkLog, model: EMModel, learned_here: bool, path: np.ndarray | None, fit: Any
+) -> Scores | None:
+    """Against the true models a simulated track's meta.json carries (sec. 4.4.3)."""
+    lf = log.folder
+    truth = lf.meta.get("truth") or {}
+    if not (lf.data.geometry.state_is_range and "action" in truth):
+        return None
+    from sensact.evaluate.em import score_track
+    from sensact.evaluate.track1d import DISTANCE_GRID_MM
+    from sensact.sim.track1d import TrackTruth
+
+    tt = TrackTruth.from_dict(truth)
+    sc = score_track(model, tt.velocity_mm_s(lf.data.action_commands[:, 0]), tt.height_px, DISTANCE_GRID_MM)
+    return Scores(SIMULATED_MODEL, sc)
+
+
+# the scorers of a log folder's truth, in the order tried: recorded poses first, then a simulator's models
+SCORERS: tuple[Callable[..., Scores | Unscored | None], ...] = (
+    _on_recorded_poses,
+    _on_simulated_planar,
+    _on_simulated_track,
+)
 
 
 @dataclass(frozen=True, eq=False)

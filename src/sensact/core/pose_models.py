@@ -100,6 +100,17 @@ def arc_poses(ds: np.ndarray, dth: np.ndarray) -> np.ndarray:
     return np.column_stack([x, y, th])
 
 
+def dead_reckon(velocities: np.ndarray, dt: float) -> np.ndarray:
+    """``D(w_start, w_end)`` after integrating eq. 2.28 (no noise) over each row of ``(N, W, 3)`` robot-frame
+    velocities held for ``dt`` each: a window's displacement, dead-reckoned from its start."""
+    theta = np.cumsum(velocities[:, :, 2] * dt, axis=1)
+    before = np.concatenate([np.zeros((len(theta), 1)), theta[:, :-1]], axis=1)  # heading during each step
+    c, s = np.cos(before), np.sin(before)
+    dx = np.sum((c * velocities[:, :, 0] - s * velocities[:, :, 1]) * dt, axis=1)
+    dy = np.sum((s * velocities[:, :, 0] + c * velocities[:, :, 1]) * dt, axis=1)
+    return np.column_stack([dx, dy, theta[:, -1]])
+
+
 def chords_of(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each step's chord (the move between successive poses along their mid heading) and turn (unwrapped):
     what ``arc_poses`` drove, its arcs shortened to their chords."""

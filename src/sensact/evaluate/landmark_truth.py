@@ -46,6 +46,7 @@ do on that data; the learned model is judged next to it:
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -53,7 +54,13 @@ from scipy.optimize import least_squares
 
 from sensact.core.angles import wrap_angle
 from sensact.core.polyfit import weighted_lstsq
-from sensact.core.pose_models import apply_displacement, landmark_bearing, landmark_distance, relative_displacement
+from sensact.core.pose_models import (
+    dead_reckon,
+    landmark_bearing,
+    landmark_distance,
+    relative_displacement,
+    sensor_poses,
+)
 from sensact.errors import LogFormatError
 from sensact.io.unit_checks import groundtruth_heading_doubt
 from sensact.learn.em.actions import turning_variance
@@ -84,16 +91,6 @@ def frame_means(residuals: np.ndarray, frames: np.ndarray) -> tuple[np.ndarray, 
     return uniq, np.bincount(inv, weights=residuals) / np.bincount(inv)
 
 
-def dead_reckon(velocities: np.ndarray, dt: float) -> np.ndarray:
-    """``D(w_start, w_end)`` after integrating eq. 2.28 (no noise) over each row of ``(N, W, 3)`` velocities."""
-    theta = np.cumsum(velocities[:, :, 2] * dt, axis=1)
-    before = np.concatenate([np.zeros((len(theta), 1)), theta[:, :-1]], axis=1)  # heading during each step
-    c, s = np.cos(before), np.sin(before)
-    dx = np.sum((c * velocities[:, :, 0] - s * velocities[:, :, 1]) * dt, axis=1)
-    dy = np.sum((s * velocities[:, :, 0] + c * velocities[:, :, 1]) * dt, axis=1)
-    return np.column_stack([dx, dy, theta[:, -1]])
-
-
 def trimmed(residuals: np.ndarray, trim: float = 3.0) -> np.ndarray:
     """A mask of the residuals within ``trim`` robust sigmas of their median (iterated)."""
     keep = np.isfinite(residuals)
@@ -108,10 +105,11 @@ def trimmed(residuals: np.ndarray, trim: float = 3.0) -> np.ndarray:
     return keep
 
 
-def at_sensor(poses: np.ndarray, mount: np.ndarray) -> np.ndarray:
-    """The sensor's poses when it sits at ``mount`` (lateral mm, forward mm, yaw rad) on robots at ``poses``."""
-    poses = np.atleast_2d(poses)
-    return apply_displacement(poses, np.broadcast_to(np.asarray(mount, dtype=float), poses.shape))
+def as_mount(lateral_forward_yaw: np.ndarray) -> tuple[float, float, float]:
+    """A mount fitted as ``(lateral mm, forward mm, yaw rad)`` (sec. 2.5.1's robot frame, x to the right) as
+    ``core.pose_models.sensor_poses`` reads one: ``(forward mm, left mm, yaw rad)``."""
+    lateral, forward, yaw = (float(v) for v in lateral_forward_yaw)
+    return forward, -lateral, yaw
 
 
 def path_offset(path: np.ndarray, truth_poses: np.ndarray, truth_valid: np.ndarray) -> JsonObject:
@@ -167,7 +165,7 @@ def fit_sensor_mount(
     poses, lm, b = poses[ok], np.asarray(landmarks_xy, dtype=float)[ok], np.asarray(bearings)[ok]
 
     def residuals(m: np.ndarray) -> np.ndarray:
-        return wrap_angle(b - landmark_bearing(at_sensor(poses, m), lm))
+        return wrap_angle(b - landmark_bearing(sensor_poses(poses, as_mount(m)), lm))
 
     keep = trimmed(residuals(mount), trim)
     for _ in range(20):
@@ -476,15 +474,30 @@ def _score_range(chan: Any, reading: np.ndarray, d: np.ndarray, bearing: np.ndar
     }
 
 
+@dataclass(frozen=True, eq=False)
+class SeenFromTruth:
+    """Each sighting as the truth sees it: the landmark's distance from the sensor (at ``mount`` on the truth's
+    poses) and its bearing from there, and from the truth's own point."""
+
+    distance: np.ndarray
+    bearing: np.ndarray
+    bearing_at_origin: np.ndarray
+
+    @classmethod
+    def of(cls, at_origin: np.ndarray, lm: np.ndarray, mount: np.ndarray) -> SeenFromTruth:
+        poses = sensor_poses(at_origin, as_mount(mount))
+        return cls(landmark_distance(poses, lm), landmark_bearing(poses, lm), landmark_bearing(at_origin, lm))
+
+
 def _score_bearing(
-    sigma: float, bearing: np.ndarray, poses: np.ndarray, at_origin: np.ndarray, lm: np.ndarray, trim: float
+    sigma: float, bearing: np.ndarray, seen: SeenFromTruth, trim: float
 ) -> tuple[JsonObject, np.ndarray, np.ndarray]:
     """The bearing sigma against the trimmed truth residuals at the sensor's pose (and, beside them, at
     the truth's origin); returns the score, the residuals and which were kept."""
-    b_res = wrap_angle(bearing - landmark_bearing(poses, lm))
+    b_res = wrap_angle(bearing - seen.bearing)
     b_keep = trimmed(b_res, trim)
     sb_true = _rms(b_res[b_keep])
-    b_res0 = wrap_angle(bearing - landmark_bearing(at_origin, lm))
+    b_res0 = wrap_angle(bearing - seen.bearing_at_origin)
     b_keep0 = trimmed(b_res0, trim)
     sb_origin = _rms(b_res0[b_keep0])
     score = {
@@ -623,16 +636,12 @@ def score_against_truth(
     # a range-only sensor (radio beacons) has no bearing to score, nor to fit its pose on the robot by
     reads_bearing = model.sensor.reads_bearing and bool(np.isfinite(bearing).any())
     mount = fit_sensor_mount(at_origin, lm, bearing, trim) if fit_mount and reads_bearing else np.zeros(3)
-    poses = at_sensor(at_origin, mount)
-    range_score = _score_range(
-        model.sensor.channels[0], data.obs_readings[rows, 0], landmark_distance(poses, lm), bearing, trim
-    )
+    seen = SeenFromTruth.of(at_origin, lm, mount)
+    range_score = _score_range(model.sensor.channels[0], data.obs_readings[rows, 0], seen.distance, bearing, trim)
     b_res, b_keep = np.empty(0), np.zeros(0, dtype=bool)
     bearing_score = None
     if reads_bearing:
-        bearing_score, b_res, b_keep = _score_bearing(
-            model.sensor.sigma_bearing_rad, bearing, poses, at_origin, lm, trim
-        )
+        bearing_score, b_res, b_keep = _score_bearing(model.sensor.sigma_bearing_rad, bearing, seen, trim)
     b_steps = data.obs_step[rows][b_keep]
     structure = truth_noise_structure(
         v_ft,

@@ -25,15 +25,14 @@ from sensact.report.frames import MM, si, velocity_rep
 def _truth_at_sensor(ml: Any, score: JsonObject) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The sightings with valid truth (a mask), Vicon's pose moved to the sensor mount the score fitted
     at each, and each one's landmark: what the sensor bars score against."""
-    from sensact.evaluate.landmark_truth import at_sensor
+    from sensact.core.pose_models import sensor_poses
 
     d = ml.data
     poses, valid = ml.truth_poses()
     ok = valid[d.obs_step] > 0
     m = score["sensor_mount"]["fitted_to_truth"] or {}  # None: no bearings to fit it by, the truth's origin
-    # at_sensor's displacement is in sec. 2.5.1's robot frame: x to the right
-    mount = [-m.get("left_mm", 0.0), m.get("forward_mm", 0.0), m.get("yaw_rad", 0.0)]
-    return ok, at_sensor(poses[d.obs_step[ok]], mount), d.landmarks_xy[d.obs_landmark[ok]]
+    mount = (m.get("forward_mm", 0.0), m.get("left_mm", 0.0), m.get("yaw_rad", 0.0))
+    return ok, sensor_poses(poses[d.obs_step[ok]], mount), d.landmarks_xy[d.obs_landmark[ok]]
 
 
 _VELOCITY_LABELS = {  # the panel's title word and its axis, in REP 103 and SI (report.frames)
