@@ -204,10 +204,8 @@ def _sensitivity_update(Sv, H, K, n):
 def _sensitivity_predict(mode, m, velocity, dt, F, Sv, n):
     """The time update's: ``F s + d g(m, disp) / d g_a`` (eq. 2.28 differentiated), where the gain ``g_a``
     scales the displacement's component ``a``; ``F`` is the step's Jacobian at ``m``."""
-    one = np.zeros(n)
-    out = np.zeros(n)
+    one, out, old = np.zeros(n), np.zeros(n), np.zeros(n)
     Fa = np.zeros((n, n))
-    old = np.zeros(n)
     for a in range(n):
         for i in range(n):
             one[i] = 0.0
@@ -358,23 +356,11 @@ def _passes_for(n_state: int):
         Sv = np.zeros((n, n))  # row a: d mean / d g_a (``innov_sens``)
         m = prior_mean.copy()
         P = prior_cov.copy()
-        H = np.zeros(n)
-        PH = np.zeros(n)
-        K = np.zeros(n)
-        A = np.zeros((n, n))
-        tmp = np.zeros((n, n))
-        tmp2 = np.zeros((n, n))
-        F = np.zeros((n, n))
-        Q = np.zeros((n, n))
-        gm = np.zeros(n)
-        disp = np.zeros(n)
-        var = np.zeros(n)
+        H, PH, K, gm, disp, var = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
+        A, tmp, tmp2, F, Q = np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, n))
         Hj = np.zeros((C + 1, n))
-        ej = np.zeros(C + 1)
-        rj = np.zeros(C + 1)
-        Sj = np.zeros((C + 1, C + 1))
-        Lj = np.zeros((C + 1, C + 1))
-        yj = np.zeros(C + 1)
+        ej, rj, yj = np.zeros(C + 1), np.zeros(C + 1), np.zeros(C + 1)
+        Sj, Lj = np.zeros((C + 1, C + 1)), np.zeros((C + 1, C + 1))
         loglik = 0.0
         n_used = 0
         last_obs = -1
@@ -472,29 +458,16 @@ def _passes_for(n_state: int):
         ptr = sight.ptr
         T = mu_a.shape[0]
         C = sight.readings.shape[1]
-        H = np.zeros(n)
-        F = np.zeros((n, n))
-        Q = np.zeros((n, n))
-        gm = np.zeros(n)
-        disp = np.zeros(n)
-        tmp = np.zeros((n, n))
+        H, gm, disp = np.zeros(n), np.zeros(n), np.zeros(n)
+        F, Q, tmp = np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, n))
         Y = np.zeros((n, n))  # Y = 0: the thesis's "infinite covariance", exactly
-        Ft = np.zeros((n, n))
-        z = np.zeros(n)
-        Mx = np.zeros((n, n))
+        Ft, Mx, J = np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, n))
+        z, jv, b, colp = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
         RHS = np.zeros((n, n + 1))
-        J = np.zeros((n, n))
-        jv = np.zeros(n)
-        b = np.zeros(n)
-        colp = np.zeros(n)
         # the step's rows are copied into these, not taken as views: a view costs two atomic reference
         # counts, which perf put at 7 % of an E-step loop's samples when taken every step
-        Yd = np.zeros((n, n))
-        zd = np.zeros(n)
-        mref = np.zeros(n)
-        mt = np.zeros(n)
-        var = np.zeros(n)
-        Pa = np.zeros((n, n))
+        Yd, Pa = np.zeros((n, n)), np.zeros((n, n))
+        zd, mref, mt, var = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
         for i in range(n):
             mu_g[T - 1, i] = mu_a[T - 1, i]
             for j in range(n):
@@ -583,25 +556,16 @@ def _passes_for(n_state: int):
         covariance of ``D`` under it into ``d_mu, d_P``. Returns the status."""
         mode, dt, velocity, motion_var = steps
         T = mu_a.shape[0]
-        disp = np.zeros(n)
-        Lam = np.zeros((n2, n2))
-        L2 = np.zeros((n2, n2))
+        disp, colp, D, rv, mx1, mx2 = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
+        Dm = np.zeros(n)
+        Lam, L2 = np.zeros((n2, n2)), np.zeros((n2, n2))
         Wt = np.zeros((n2, n))
         eta = np.zeros(n2)
-        Lp = np.zeros((n, n))
-        Pinv = np.zeros((n, n))
-        colp = np.zeros(n)
-        D = np.zeros(n)
-        G = np.zeros((n, n2))
-        rv = np.zeros(n)
-        mx1 = np.zeros(n)
-        mx2 = np.zeros(n)
-        Dm = np.zeros(n)
-        Gm = np.zeros((n, n2))
+        Lp, Pinv = np.zeros((n, n)), np.zeros((n, n))
+        G, Gm = np.zeros((n, n2)), np.zeros((n, n2))
         var = np.zeros(n)  # the step's rows, copied rather than viewed (see ``backward``)
         Pa = np.zeros((n, n))
-        w1 = np.zeros(n)
-        w2 = np.zeros(n)
+        w1, w2 = np.zeros(n), np.zeros(n)
         for t in range(T - 2, -1, -1):
             for i in range(n):
                 disp[i] = velocity[t, i] * dt
