@@ -7,7 +7,8 @@ import json
 import math
 
 from sensact.evaluate.bars import at_most, checks_from_json, counts, not_scored, verdict_line, within_factor
-from sensact.experiments import car, em1d, field2d, real, track1d, turtlebot_em
+from sensact.experiments import em1d, field2d, real, track1d, turtlebot_em
+from sensact.experiments import velodyne_car as car
 
 
 def test_a_bar_holds_at_its_edge_and_an_unmeasured_value_misses():

@@ -379,7 +379,7 @@ def test_a_turned_and_moved_map_learns_the_same_model():
         data,
         None,
         cfg,
-        progress=lambda it, *_: heard.append(("iteration", it)),
+        on_iteration=lambda it, *_: heard.append(("iteration", it)),
         on_race=lambda done, planned: heard.append(("race", done, planned)),
     )
     there = fit_em(moved, None, cfg)
