@@ -102,3 +102,14 @@ def test_a_path_no_kind_reads_is_one_line_naming_every_kind(tmp_path):
     with pytest.raises(LogFormatError) as err:
         open_log(tmp_path / "notes.txt")
     assert all(k.what in str(err.value) for k in KINDS)
+
+
+@pytest.mark.parametrize("command", [["localize"], ["monitor"], ["evaluate", "log"]])
+def test_the_commands_that_read_landmark_logs_refuse_another_kind_in_one_line(logs, tmp_path, command):
+    lidar, _ = logs["lidar2d"]
+    model = tmp_path / "m.json"
+    model.write_text("{}")
+    res = runner.invoke(app, [*command, str(lidar), "--model", str(model)])
+    line = " ".join(res.output.split())
+    assert res.exit_code == 2 and "reads landmark logs (EM's), and this is a wheels-and-2-D-lidar log" in line
+    assert f"learn it with `sensact learn em {lidar}`" in line and "Traceback" not in res.output

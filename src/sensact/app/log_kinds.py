@@ -118,18 +118,22 @@ def learner(log: Any) -> Callable[..., Any]:
     return _kind_opened(log).learn
 
 
-def landmark_log(path: str | Path, command: str, *, bins: int = 21) -> OpenedLandmarkLog:
-    """``path`` opened through the door, for a command that reads landmark logs only: another kind is refused
-    in one line naming the command that does read it."""
-    log = open_log(path, bins=bins)
-    if not isinstance(log, OpenedLandmarkLog):
-        kind = _kind_opened(log)
+def refuse_other_kinds(path: str | Path, command: str) -> None:
+    """``path`` must be a landmark log for ``command`` (it reads no other kind): one line naming the command
+    that reads this one otherwise, before anything is read."""
+    kind = kind_of(path)
+    if not issubclass(kind.opened, OpenedLandmarkLog):
         raise LogFormatError(
             f"{command} reads landmark logs (EM's), and this is {kind.what}.",
             file=Path(path),
             fix=f"learn it with `sensact learn em {path}`.",
         )
-    return log
+
+
+def landmark_log(path: str | Path, command: str, *, bins: int = 21) -> OpenedLandmarkLog:
+    """``path`` opened through the door, for a command that reads landmark logs only (``refuse_other_kinds``)."""
+    refuse_other_kinds(path, command)
+    return open_log(path, bins=bins)
 
 
 def _is_lidar2d_folder(path: Path) -> bool:

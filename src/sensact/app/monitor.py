@@ -55,6 +55,9 @@ class Monitored:
 
 def monitor_log(log: Path, model: Path, config: MonitorConfig | None = None, *, bins: int = 21) -> Monitored:
     """``model`` (a model.json of `learn em`) over ``log``: has the robot changed since it was learned?"""
+    from sensact.app.log_kinds import refuse_other_kinds
+
+    refuse_other_kinds(log, "monitor")
     doc, m, opened = read_model_and_log(log, model, bins, use="run")
     t0 = time.perf_counter()
     settings = learned_config((doc.get("summary") or {}).get("config"), str(model))

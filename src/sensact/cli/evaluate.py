@@ -99,11 +99,13 @@ def evaluate_log_cmd(
     90 % interval (consistency.range.coverage90, .bearing; 0.90 when its sigma is honest) and their mean
     normalized square (nis_mean, 1 when honest)."""
     check_out_file(out, others={"--model": model}, kind=EVALUATION, force=force)
+    # a track folder's continuous commands are binned as `learn em`'s default bins them (a Turtlebot
+    # CSV's are read as they are)
+    from sensact.app.log_kinds import refuse_other_kinds
     from sensact.app.logs import read_model_and_log
     from sensact.errors import LogFormatError
 
-    # a track folder's continuous commands are binned as `learn em`'s default bins them (a Turtlebot
-    # CSV's are read as they are)
+    refuse_other_kinds(log, "evaluate log")
     doc, m, opened = read_model_and_log(log, model, bins=21, use="scored")
     lf, truth_mm = opened.folder, opened.recorded_distance_mm
     if truth_mm is not None:  # a Turtlebot CSV, or a track folder with a recorded distance

@@ -209,10 +209,12 @@ def localize_cmd(
     check_out_file(out, others={"--model": model}, kind=LOCALIZATION, force=force)
     import numpy as np
 
+    from sensact.app.log_kinds import refuse_other_kinds
     from sensact.app.logs import read_model_and_log
     from sensact.app.save import write_smoothed_path
     from sensact.health import Health, filter_failed, learned_health
 
+    refuse_other_kinds(log, "localize")
     doc, m, opened = read_model_and_log(log, model, bins, use="run")
     data, lf, truth_mm = opened.data, opened.folder, opened.recorded_distance_mm
     poses = lf.truth_poses() if lf is not None else None
