@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 import zipfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -411,7 +412,11 @@ def export_model(model: Path, fmt: str, out: Path, truth_out: Path | None = None
     return writers[fmt](doc, model, out, truth_out)
 
 
-def _text(render: Any) -> Any:
+# a format's writer: (model.json, its path, --out, --truth-out) -> what it wrote
+Writer = Callable[[JsonObject, Path, Path, "Path | None"], "Exported"]
+
+
+def _text(render: Callable[[JsonObject, Path], str]) -> Writer:
     """A writer of one file from ``render(doc, source) -> text``."""
 
     def write(doc: JsonObject, source: Path, out: Path, truth_out: Path | None) -> Exported:
@@ -423,7 +428,7 @@ def _text(render: Any) -> Any:
     return write
 
 
-def _with_companion(render: Any) -> Any:
+def _with_companion(render: Callable[[JsonObject, Path], tuple[str, str]]) -> Writer:
     """A writer of the node's parameter file and sensact's own beside it, from ``render -> (node, extra)``."""
 
     def write(doc: JsonObject, source: Path, out: Path, truth_out: Path | None) -> Exported:
@@ -446,7 +451,7 @@ def _landmarks(doc: JsonObject, source: Path, out: Path, truth_out: Path | None)
     return Exported((out,), (note,) if left else ())
 
 
-def _writers(doc: JsonObject) -> dict[str, Any]:
+def _writers(doc: JsonObject) -> dict[str, Writer]:
     """The formats a model file exports to, by what it is: its ``kind`` (a wheels-and-lidar model's
     ``lidar2d``), else a model `learn em` or `learn car` wrote."""
     from sensact.app import export_lidar2d
@@ -461,7 +466,7 @@ def _writers(doc: JsonObject) -> dict[str, Any]:
     return by_kind.get(doc.get("kind"), EM_WRITERS)
 
 
-EM_WRITERS = {
+EM_WRITERS: dict[str, Writer] = {
     "robot-localization": _with_companion(robot_localization_yaml),
     "tum": export_tum,
     "velodyne": _text(velodyne_yaml),

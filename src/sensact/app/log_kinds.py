@@ -114,7 +114,7 @@ def refuse_options(log: Any, given: Mapping[str, Any]) -> None:
 
 
 def learner(log: Any) -> Callable[..., Any]:
-    """The learner of the kind that opened ``log``, options it does not take refused in one line first."""
+    """The learner of the kind that opened ``log`` (``refuse_options`` says which options it takes)."""
     return _kind_opened(log).learn
 
 

@@ -72,7 +72,7 @@ class OpenedLandmarkLog:
     def doubts(self) -> tuple[str, ...]:
         """What the log shows before a fit that may waste it: a column in the wrong unit, one command
         throughout (a 1-D log's action model's slope then rests on the few steps at others)."""
-        from sensact.evaluate.measured import ONE_COMMAND_SHARE, dominant_command
+        from sensact.evaluate.measured import one_command_doubt
         from sensact.io.unit_checks import unit_doubts
 
         out = []
@@ -80,15 +80,8 @@ class OpenedLandmarkLog:
             out += [f"{doubt} (in {self.path})" for doubt in unit_doubts(self.data, self.folder.truth_poses())]
         data = self.data
         if data.geometry.state_is_range and data.step_commands is not None:
-            value, share = dominant_command(data.step_commands[:, 0])
-            if share >= ONE_COMMAND_SHARE:
-                out.append(
-                    f"{data.source} spends {100 * share:.0f} % of its steps at one command "
-                    f"({data.command_names[0]} {value:g}), so the action model's slope rests on the few steps at "
-                    "others and a gain against ground truth is not scored; for a model to trust, drive at two or "
-                    "more speeds, each for a few seconds."
-                )
-        return tuple(out)
+            out.append(one_command_doubt(data.step_commands[:, 0], data.source, data.command_names[0]))
+        return tuple(d for d in out if d is not None)
 
     def describe(self) -> str:
         """One line: what the log holds."""

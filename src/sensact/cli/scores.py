@@ -370,16 +370,9 @@ def halves_rows(cmp: JsonObject, fits: list[Any], data: Any) -> list[list[str]]:
 
 
 def warn_if_one_command(commands: np.ndarray, source: str, name: str, unit: str = "") -> None:
-    """Say so when a 1-D log spends nearly all its steps at one command: the action model's slope then
-    rests on the few steps at others."""
-    from sensact.evaluate.measured import ONE_COMMAND_SHARE, dominant_command
+    """Say so when a 1-D log spends nearly all its steps at one command (``evaluate.measured.one_command_doubt``)."""
+    from sensact.evaluate.measured import one_command_doubt
 
-    value, share = dominant_command(commands)
-    if share < ONE_COMMAND_SHARE:
-        return
-    command = f"{name} {value:g} {unit}".rstrip()
-    console.print(
-        f"[yellow]warning[/]: {source} spends {100 * share:.0f} % of its steps at one command ({command}), "
-        "so the action model's slope rests on the few steps at others and a gain against ground truth is not "
-        "scored; for a model to trust, drive at two or more speeds, each for a few seconds."
-    )
+    doubt = one_command_doubt(commands, source, name, unit)
+    if doubt is not None:
+        console.print(f"[yellow]warning:[/] {doubt}", highlight=False)

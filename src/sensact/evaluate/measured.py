@@ -103,6 +103,20 @@ def dominant_command(commands: np.ndarray, tolerance: float = 0.02) -> tuple[flo
     return med, float(np.mean(np.abs(c - med) <= tolerance * np.abs(c).max()))
 
 
+def one_command_doubt(commands: np.ndarray, source: str, name: str, unit: str = "") -> str | None:
+    """A line for a 1-D log that spends nearly all its steps at one command (``ONE_COMMAND_SHARE``): the action
+    model's slope then rests on the few steps at others; None otherwise."""
+    value, share = dominant_command(commands)
+    if share < ONE_COMMAND_SHARE:
+        return None
+    command = f"{name} {value:g} {unit}".rstrip()
+    return (
+        f"{source} spends {100 * share:.0f} % of its steps at one command ({command}), so the action model's "
+        "slope rests on the few steps at others and a gain against ground truth is not scored; for a model to "
+        "trust, drive at two or more speeds, each for a few seconds."
+    )
+
+
 def first_reversal_s(times_s: np.ndarray, commands: np.ndarray, tolerance: float = 0.02) -> float | None:
     """Seconds into the log of the first command against the direction of the first one that moves (each
     beyond ``tolerance`` of the largest command's size), or None if the log never reverses. Needs no

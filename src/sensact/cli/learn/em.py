@@ -3,7 +3,7 @@ from a learned model (``--start-from``), and on the log's halves (``--halves``).
 
 from __future__ import annotations
 
-from functools import singledispatch
+from functools import cache, singledispatch
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -312,18 +312,23 @@ def _halves(cal: Any, out: Path | None) -> None:
 
 def show_calibration(cal: Any) -> None:
     """A calibration on the console, by the function registered for its type (each kind's learner returns
-    its own): registered on first use, so that the app is imported only when a command runs."""
-    if not _shown.registry.keys() - {object}:
-        from sensact.app import Calibration, Lidar2DCalibration
-
-        _shown.register(Calibration, _show_em)
-        _shown.register(Lidar2DCalibration, _show_lidar2d)
+    its own)."""
+    _register_shows()
     _shown(cal)
 
 
 @singledispatch
 def _shown(cal: Any) -> None:
     raise TypeError(f"no way to show a {type(cal).__name__}")
+
+
+@cache
+def _register_shows() -> None:
+    """Registered when first used, so that the app is imported only when a command runs (``--help`` stays quick)."""
+    from sensact.app import Calibration, Lidar2DCalibration
+
+    _shown.register(Calibration, _show_em)
+    _shown.register(Lidar2DCalibration, _show_lidar2d)
 
 
 def _show_em(cal: Any) -> None:
