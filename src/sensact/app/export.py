@@ -28,7 +28,16 @@ from sensact.records import JsonObject
 from sensact.report.frames import MM, REP_ORDER, VELOCITY_REP, si
 from sensact.reprs import compact_repr
 
-FORMATS = ("robot-localization", "tum", "velodyne", "landmarks", "urdf")
+FORMATS = (
+    "robot-localization",
+    "tum",
+    "velodyne",
+    "landmarks",
+    "urdf",
+    "diff-drive-controller",
+    "navsat-transform",
+    "kalibr",
+)
 LANDMARKS_HEADER = "id,x_m,y_m"  # the map file `convert csv --landmarks` reads
 UNMEASURED_VAR = 1e6  # a twist's dimensions a planar robot does not measure (z, roll, pitch), as ROS drivers set
 
@@ -341,6 +350,9 @@ def default_out(model: Path, fmt: str) -> Path:
         "velodyne": ".velodyne.yaml",
         "landmarks": ".landmarks.csv",
         "urdf": ".urdf.xacro",
+        "diff-drive-controller": ".diff_drive_controller.yaml",
+        "navsat-transform": ".navsat_transform.yaml",
+        "kalibr": ".imu.yaml",
     }
     return model.with_suffix(suffix.get(fmt, f".{fmt}"))
 
@@ -402,12 +414,10 @@ def export_model(model: Path, fmt: str, out: Path, truth_out: Path | None = None
     refuse_newer(doc, model)
     writers = _writers(doc)
     if fmt not in writers:
-        what = "a wheels-and-2-D-lidar model" if "urdf" in writers else "this model"
         raise ConfigError(
-            f"--format {fmt} does not apply to {what}.",
+            f"--format {fmt} does not apply to this model (a {doc.get('kind') or 'landmark EM'} model).",
             field="--format",
-            fix="urdf or robot-localization for a wheels-and-lidar model; "
-            "robot-localization, tum, velodyne or landmarks for the others.",
+            fix=f"one of {', '.join(writers)} for this model.",
         )
     return writers[fmt](doc, model, out, truth_out)
 
@@ -454,14 +464,22 @@ def _landmarks(doc: JsonObject, source: Path, out: Path, truth_out: Path | None)
 def _writers(doc: JsonObject) -> dict[str, Writer]:
     """The formats a model file exports to, by what it is: its ``kind`` (a wheels-and-lidar model's
     ``lidar2d``), else a model `learn em` or `learn car` wrote."""
-    from sensact.app import export_lidar2d
+    from sensact.app import export_inertial, export_lidar2d
+    from sensact.io.inertial_folder import KIND as INERTIAL_KIND
     from sensact.io.lidar2d_folder import KIND as LIDAR2D_KIND
 
     by_kind = {
         LIDAR2D_KIND: {
             "urdf": _text(export_lidar2d.urdf_snippet),
             "robot-localization": _with_companion(export_lidar2d.robot_localization),
-        }
+        },
+        INERTIAL_KIND: {
+            "diff-drive-controller": _text(export_inertial.diff_drive_controller),
+            "robot-localization": _text(export_inertial.robot_localization_ekf),
+            "navsat-transform": _text(export_inertial.navsat_transform),
+            "urdf": _text(export_inertial.urdf_joints),
+            "kalibr": _text(export_inertial.kalibr_imu),
+        },
     }
     return by_kind.get(doc.get("kind"), EM_WRITERS)
 

@@ -7,6 +7,7 @@ printing, for every kind. A new kind of log is one module with its opener and le
 The kinds:
 
 * ``lidar2d``: a folder of wheel encoders (or /odom, /cmd_vel) and 2-D scans (``meta.json``'s ``kind``);
+* ``imu_gnss``: a folder of wheel odometry, an IMU and optionally GNSS (``meta.json``'s ``kind``);
 * ``turtlebot_csv``: the Turtlebot's 1-D CSV, read by EM with the Turtlebot's settings;
 * ``landmarks``: a log folder of actions and landmark sightings, EM's own: range and bearing, range-only
   or a 1-D track, as its ``meta.json`` says (the geometry and the sensor model are types of their own).
@@ -20,6 +21,14 @@ from pathlib import Path
 from typing import Any
 
 from sensact.app.em import Calibration, calibrate_em
+from sensact.app.inertial import (
+    InertialCalibration,
+    OpenedInertialLog,
+    calibrate_opened_inertial,
+    evaluate_inertial,
+    open_inertial_log,
+    save_inertial,
+)
 from sensact.app.lidar2d import (
     Lidar2DCalibration,
     OpenedLidar2DLog,
@@ -30,11 +39,12 @@ from sensact.app.lidar2d import (
 from sensact.app.logs import OpenedLandmarkLog, open_landmark_folder, open_turtlebot_csv
 from sensact.app.save import Saved, save_em_calibration
 from sensact.errors import ConfigError, LogFormatError
+from sensact.io.inertial_folder import KIND as INERTIAL_KIND
 from sensact.io.lidar2d_folder import KIND as LIDAR2D_KIND
 from sensact.io.logfolder import meta_kind
 
-OpenedAny = OpenedLandmarkLog | OpenedLidar2DLog
-CalibratedAny = Calibration | Lidar2DCalibration
+OpenedAny = OpenedLandmarkLog | OpenedLidar2DLog | OpenedInertialLog
+CalibratedAny = Calibration | Lidar2DCalibration | InertialCalibration
 
 # `learn em`'s options beyond the log and --out that a kind may or may not take
 EM_OPTIONS = frozenset({"--start-from", "--halves", "--preset", "--set", "--config", "--uncertainty"})
@@ -52,6 +62,9 @@ class LogKind:
     calibrated: type  # what ``learn`` returns
     save: Callable[..., Saved]  # (calibration, out, report) -> what `learn em --out OUT` writes
     options: frozenset[str]  # the `learn em` options it takes
+    # `evaluate log`'s scoring of a model on such a log: (opened log, model doc, model path) -> JSON; None where
+    # the command's own (EM's landmark scoring) does it
+    evaluate: Callable[[Any, Any, Path], Any] | None = None
 
 
 KINDS: list[LogKind] = []
@@ -156,6 +169,21 @@ register(
         Lidar2DCalibration,
         save_lidar2d,
         frozenset(),
+    )
+)
+register(
+    LogKind(
+        "imu_gnss",
+        "wheel-odometry-IMU-GNSS logs",
+        "an odometry-IMU-GNSS log folder (meta.json, odometry.csv, imu.csv and gnss.csv)",
+        lambda path: meta_kind(path) == INERTIAL_KIND,
+        lambda path, bins: open_inertial_log(path),
+        OpenedInertialLog,
+        calibrate_opened_inertial,
+        InertialCalibration,
+        save_inertial,
+        frozenset(),
+        lambda opened, doc, model: evaluate_inertial(opened.data, doc, model),
     )
 )
 register(

@@ -100,6 +100,15 @@ def convert_bag(
         str | None,
         typer.Option(metavar="LEFT,RIGHT", help="The wheels' joint names in the JointState, when not told by name."),
     ] = None,
+    odom: Annotated[
+        str | None, typer.Option(metavar="TOPIC", help="With an IMU: the wheel odometry's nav_msgs/Odometry.")
+    ] = None,
+    imu: Annotated[
+        str | None, typer.Option(metavar="TOPIC", help="The IMU's sensor_msgs/Imu (docs/inertial.md).")
+    ] = None,
+    gnss: Annotated[
+        str | None, typer.Option(metavar="TOPIC", help="With an IMU: the GNSS's sensor_msgs/NavSatFix, or none.")
+    ] = None,
 ) -> None:
     """Write a ROS bag as a log folder for `sensact learn em` (and `learn bootstrap` for a 1-D robot).
 
@@ -118,7 +127,12 @@ def convert_bag(
     A bag with a sensor_msgs/LaserScan (/scan) is a robot with wheel encoders and a 2-D lidar: its
     /joint_states (the wheels' positions), /odom, /cmd_vel and /tf_static's lidar mount become a lidar2d log
     folder, and `sensact learn em OUT` learns the wheels' radii, the axle and the lidar's mount
-    (docs/lidar2d.md)."""
+    (docs/lidar2d.md).
+
+    A bag with a sensor_msgs/Imu is an outdoor robot: its wheel odometry (nav_msgs/Odometry's twist), the
+    IMU, GNSS fixes (sensor_msgs/NavSatFix, in east-north-up metres around the first fix, the datum kept in
+    meta.json) and /tf_static's IMU and antenna become an odometry-IMU-GNSS log folder, and `sensact learn em
+    OUT` learns the odometry's gains, the gyro, the IMU's mount and the antenna (docs/inertial.md)."""
     from sensact.errors import LogFormatError
     from sensact.io.rosbag import (
         Roles,
@@ -155,6 +169,11 @@ def convert_bag(
 
         if (scan or has_laser_scan(topics)) and not (readings or sightings):
             _convert_lidar(bag, out, reader, topics, scan, wheels, wheel_joints, commands, truth, receive_times)
+            return
+        from sensact.io.rosbag_inertial import has_imu
+
+        if (imu or has_imu(topics)) and not (readings or sightings):
+            _convert_inertial(bag, out, reader, topics, {"odom": odom, "imu": imu, "gnss": gnss}, receive_times)
             return
         proposal, open_roles, unfilled = propose_roles(reader, topics)
     finally:
@@ -278,6 +297,34 @@ def _convert_lidar(
         f"wrote {out}: {log.scan_t.size} scans of {log.beams} beams, the robot's motion from {log.drive}"
         + ("" if lb.wheel_joints is None else f" ({', '.join(lb.wheel_joints)})")
         + f"; learn with `sensact learn em {out}`"
+    )
+
+
+def _convert_inertial(bag: Path, out: Path, reader, topics, named: dict, receive_times: bool) -> None:
+    """The odometry-IMU-GNSS route (docs/inertial.md): an imu_gnss log folder at ``out``."""
+    import dataclasses
+
+    from sensact.cli.base import progress_bar
+    from sensact.io.atomic import nothing_half_written
+    from sensact.io.inertial_folder import write_inertial_log
+    from sensact.io.rosbag import topic_lines
+    from sensact.io.rosbag_inertial import inertial_roles, read_inertial_bag
+
+    no_gnss = named.get("gnss") == "none"
+    roles = inertial_roles(bag, topics, {**named, "gnss": None if no_gnss else named.get("gnss")})
+    if no_gnss:
+        roles = dataclasses.replace(roles, gnss=None)
+    console.print(f"{bag}:\n  " + "\n  ".join(topic_lines(topics)), highlight=False, soft_wrap=True)
+    console.print("roles:\n  " + "\n  ".join(roles.lines()), highlight=False, soft_wrap=True)
+    with progress_bar() as progress:
+        log, notes = read_inertial_bag(bag, reader, topics, roles, receive_times=receive_times, progress=progress)
+    for note in notes:
+        console.print(f"[yellow]note:[/] {note}", highlight=False)
+    with nothing_half_written(out):
+        write_inertial_log(out, log)
+    console.print(
+        f"wrote {out}: {log.odom_t.size} odometry rows, {log.imu_t.size} IMU readings, {log.gnss_t.size} GNSS fixes"
+        f" over {log.seconds:.1f} s; learn with `sensact learn em {out}`"
     )
 
 

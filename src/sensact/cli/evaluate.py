@@ -101,10 +101,24 @@ def evaluate_log_cmd(
     check_out_file(out, others={"--model": model}, kind=EVALUATION, force=force)
     # a track folder's continuous commands are binned as `learn em`'s default bins them (a Turtlebot
     # CSV's are read as they are)
-    from sensact.app.log_kinds import refuse_other_kinds
+    from sensact.app.log_kinds import kind_of, open_log, refuse_other_kinds
     from sensact.app.logs import read_model_and_log
     from sensact.errors import LogFormatError
 
+    kind = kind_of(log)
+    if kind.evaluate is not None:  # a kind that scores its own models (an odometry-IMU-GNSS log's consistency)
+        from sensact.app.export import read_model_doc
+
+        result = kind.evaluate(open_log(log), read_model_doc(model), model)
+        for sensor, c in result["consistency"].items():
+            console.print(
+                f"{sensor}: coverage90 {c['coverage90']:.3f}, nis_mean {c['nis_mean']:.3f} ({c['n']} innovations)",
+                highlight=False,
+            )
+        if out is not None:
+            write_result(out, result, EVALUATION)
+            console.print(f"wrote {out}")
+        return
     refuse_other_kinds(log, "evaluate log")
     doc, m, opened = read_model_and_log(log, model, bins=21, use="scored")
     lf, truth_mm = opened.folder, opened.recorded_distance_mm

@@ -18,8 +18,9 @@ def export_cmd(
         str,
         typer.Option(
             "--format",
-            help="robot-localization (YAML), tum (trajectory for evo), velodyne (YAML), landmarks (CSV) or urdf "
-            "(a URDF/xacro snippet of a wheels-and-lidar model).",
+            help="robot-localization (YAML), tum (trajectory for evo), velodyne (YAML), landmarks (CSV), urdf "
+            "(a URDF/xacro snippet), and for an odometry-IMU-GNSS model diff-drive-controller, navsat-transform "
+            "and kalibr (YAML).",
         ),
     ],
     out: Annotated[
@@ -48,7 +49,12 @@ def export_cmd(
     (id,x_m,y_m in the map's frame, placed landmarks only), the file `convert csv --landmarks` reads, so
     that one robot's learned map serves the next robot's calibration. urdf: a wheels-and-2-D-lidar model's
     lidar joint (<origin xyz rpy>) and wheel radii and separation as xacro properties, in metres and radians;
-    its robot-localization is the process noise from the drive's learned noise (docs/lidar2d.md)."""
+    its robot-localization is the process noise from the drive's learned noise (docs/lidar2d.md).
+
+    An odometry-IMU-GNSS model (docs/inertial.md): diff-drive-controller (the wheel multipliers and
+    twist_covariance_diagonal), robot-localization (an ekf with odom0 and imu0 blocks, the process noise
+    and rejection thresholds), navsat-transform (yaw_offset; only its sum with the declination is learned),
+    urdf (the IMU's and the antenna's joints in a <robot>) and kalibr (imu.yaml, in-motion values)."""
     from sensact.app.export import default_out, export_model
 
     done = export_model(model, format_, out or default_out(model, format_), truth_out, force=force)

@@ -235,3 +235,46 @@ def _write_bag(run, bag: Path, fmt: str) -> None:
     console.print(
         f"wrote {path} ({fmt}) and its map {grid}; convert with `sensact convert bag {path} --landmarks {grid}`"
     )
+
+
+@simulate_app.command("outdoor")
+@friendly
+def simulate_outdoor(
+    out: Annotated[Path, typer.Option("--out", help="Log folder to write.")],
+    seconds: Annotated[float | None, typer.Option(help="Length of the log (default 600).")] = None,
+    seed: Annotated[int | None, typer.Option(help="Random seed (default 0).")] = None,
+    set_: SetOpt = None,
+    config: ConfigOpt = None,
+    bag: Annotated[
+        Path | None,
+        typer.Option(
+            help="Also write the run as a ROS bag here: a .bag path is ROS 1, else a ROS 2 bag folder (--bag-format).",
+            show_default=False,
+        ),
+    ] = None,
+    bag_format: Annotated[str, typer.Option(help="A ROS 2 bag's storage: mcap or sqlite3.")] = "mcap",
+) -> None:
+    """Simulate a skid-steer robot driving over a field with wheel odometry, an IMU and GNSS (docs/inertial.md).
+
+    A Husky's log: /odom's gains off, a gyro with a wandering bias, a scale and a clock offset, mounted in an
+    odd orientation, and a GNSS antenna on a lever arm with noise, outliers and a covariance it misreports.
+    `--set gnss_hz=0` leaves the receiver out, `--set gnss_sigma_m=1.0` makes it metre-grade, `--set
+    tf_imu=none` (or wrong) leaves /tf_static's IMU out (or wrong), `--set turns=left` never turns right.
+    `sensact learn em OUT` then scores what it learns against the truth in meta.json."""
+    from sensact.io.inertial_folder import write_inertial_log
+    from sensact.sim.inertial import InertialConfig, simulate_inertial
+
+    cfg = layered_config(InertialConfig, config, set_, seconds=seconds, seed=seed)
+    fmt = _bag_format(bag, bag_format) if bag is not None else None
+    run = simulate_inertial(cfg)
+    write_inertial_log(out, run.log(str(out)))
+    log = run.log_
+    console.print(
+        f"wrote {out}: {log.odom_t.size} odometry rows, {log.imu_t.size} IMU readings, {log.gnss_t.size} GNSS fixes "
+        f"over {cfg.seconds:g} s (seed {cfg.seed}); learn with `sensact learn em {out}`"
+    )
+    if bag is not None:
+        from sensact.io.rosbag_write import write_inertial_bag
+
+        path = write_inertial_bag(bag, fmt, run)
+        console.print(f"wrote {path} ({fmt}); convert with `sensact convert bag {path} --out DIR`")

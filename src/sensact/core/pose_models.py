@@ -134,6 +134,19 @@ def to_rep103(v: np.ndarray) -> np.ndarray:
     return np.concatenate([v[..., 1:2], -v[..., 0:1], v[..., 2:]], axis=-1)
 
 
+def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """URDF's rpy: Rz(yaw) Ry(pitch) Rx(roll), the child's axes in the parent's (a sensor's 3-D mount, REP
+    103 axes: x forward, y left, z up)."""
+    cr, sr, cp, sp, cy, sy = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
+
+
 # ---------------------------------------------------------------- compiled forms
 
 

@@ -346,3 +346,92 @@ def write_lidar_bag(path: Path, fmt: str, run) -> Path:
     )
     msgs.append(("/tf_static", "tf2_msgs/msg/TFMessage", ns(0), static))
     return write_bag(path, fmt, msgs, m)
+
+
+IMU_FRAME, GNSS_FRAME = "imu_link", "gps_link"
+
+
+def _imu(m: Msgs, t_ns: int, gyro: np.ndarray, accel: np.ndarray, gyro_var: float):
+    cov = np.zeros(9)
+    cov[[0, 4, 8]] = gyro_var
+    unknown = np.zeros(9)
+    unknown[0] = -1.0  # no orientation: a 6-axis IMU's, as REP 145 says
+    return m.T["sensor_msgs/msg/Imu"](
+        header=m.header(t_ns, IMU_FRAME),
+        orientation=m.quat(0, 0, 0, 1),
+        orientation_covariance=unknown,
+        angular_velocity=m.vec(*gyro),
+        angular_velocity_covariance=cov,
+        linear_acceleration=m.vec(*accel),
+        linear_acceleration_covariance=np.eye(3).ravel() * 0.01,
+    )
+
+
+def _navsat(m: Msgs, t_ns: int, lla: tuple[float, float, float], var_en: np.ndarray, status: int):
+    st = m.T["sensor_msgs/msg/NavSatStatus"](status=status, service=1)
+    cov = np.zeros(9)
+    cov[0], cov[4], cov[8] = var_en[0], var_en[1], 4 * var_en[0]
+    return m.T["sensor_msgs/msg/NavSatFix"](
+        header=m.header(t_ns, GNSS_FRAME),
+        status=st,
+        latitude=float(lla[0]),
+        longitude=float(lla[1]),
+        altitude=float(lla[2]),
+        position_covariance=cov,
+        position_covariance_type=2,  # COVARIANCE_TYPE_DIAGONAL_KNOWN
+    )
+
+
+def write_inertial_bag(path: Path, fmt: str, run) -> Path:
+    """A simulated outdoor robot (``sim.inertial``) as a Husky records it: /odometry/wheel (nav_msgs/Odometry from
+    the wheels), /imu/data (sensor_msgs/Imu, no orientation), /gps/fix (sensor_msgs/NavSatFix, WGS 84 around
+    the simulator's datum) and /tf_static (base_link -> imu_link, base_link -> gps_link, as the simulator's
+    ``tf_imu`` says)."""
+    import pymap3d
+
+    log = run.log_
+    m = Msgs(fmt)
+    ns = lambda t: BAG_EPOCH_NS + round(float(t) * 1e9)  # noqa: E731
+    msgs: list[tuple[str, str, int, object]] = []
+    dt = np.diff(log.odom_t, prepend=log.odom_t[0])
+    yaw = log.odom_yaw0_rad + np.cumsum(log.odom_omega_rad_s * dt)
+    x = np.cumsum(log.odom_v_m_s * np.cos(yaw) * dt)
+    y = np.cumsum(log.odom_v_m_s * np.sin(yaw) * dt)
+    for k, t in enumerate(log.odom_t):
+        msgs.append(
+            (
+                "/odometry/wheel",
+                "nav_msgs/msg/Odometry",
+                ns(t) + 1_000_000,
+                _odom_pose(m, ns(t), (x[k], y[k], yaw[k]), (log.odom_v_m_s[k], log.odom_omega_rad_s[k]), "base_link"),
+            )
+        )
+    for t, g, a in zip(log.imu_t, log.gyro_rad_s, log.accel_m_s2, strict=True):
+        msgs.append(("/imu/data", "sensor_msgs/msg/Imu", ns(t) + 500_000, _imu(m, ns(t), g, a, log.gyro_var_reported)))
+    if log.has_gnss:
+        d = log.datum
+        lat, lon, alt = pymap3d.enu2geodetic(
+            log.gnss_enu_m[:, 0], log.gnss_enu_m[:, 1], log.gnss_enu_m[:, 2], d.lat_deg, d.lon_deg, d.alt_m
+        )
+        for k, t in enumerate(log.gnss_t):
+            msgs.append(
+                (
+                    "/gps/fix",
+                    "sensor_msgs/msg/NavSatFix",
+                    ns(t) + 2_000_000,
+                    _navsat(m, ns(t), (lat[k], lon[k], alt[k]), log.gnss_var_reported_m2[k], 2),
+                )
+            )
+    transforms = []
+    im = log.imu_mount
+    if im.rpy_rad is not None and im.xyz_m is not None:
+        from scipy.spatial.transform import Rotation
+
+        q = Rotation.from_euler("xyz", im.rpy_rad).as_quat()  # extrinsic x, y, z: URDF's rpy
+        transforms.append(m.transform(ns(0), "base_link", IMU_FRAME, im.xyz_m, tuple(q)))
+    gm = log.gnss_mount
+    if gm.xyz_m is not None:
+        transforms.append(m.transform(ns(0), "base_link", GNSS_FRAME, gm.xyz_m, (0.0, 0.0, 0.0, 1.0)))
+    if transforms:
+        msgs.append(("/tf_static", "tf2_msgs/msg/TFMessage", ns(0), m.tf(transforms)))
+    return write_bag(path, fmt, msgs, m)

@@ -4,6 +4,7 @@
 * ``em/``: chapter 4's EM, in rooms by role;
 * ``spinning_lidar_intrinsics`` (sec. 5.1), ``scan_odometry`` (sec. 5.2) and ``velodyne_car_dynamics``
   (sec. 5.3): chapter 5's car;
+* ``inertial``: wheel odometry's gains, the gyro, the IMU's mount and GNSS, by EM over the path;
 * ``scan_match2d`` and ``wheel_lidar``: a differential drive's wheels and its 2-D lidar's mount, from
   scan matching (beyond the thesis).
 """

@@ -2,5 +2,6 @@
 
 * ``landmark_log``: a robot among landmarks, EM's input (ch. 4);
 * ``lidar2d_log``: wheels (or /odom, /cmd_vel) and a 2-D lidar's scans;
+* ``inertial_log``: wheel odometry, an IMU and GNSS fixes (an outdoor robot's);
 * ``track_log``: a 1-D log on one time grid, chapter 3's input.
 """

@@ -242,7 +242,11 @@ def learn_em_cmd(
 
     On a wheels-and-2-D-lidar folder (`convert bag` of a bag with /scan, or `simulate diffdrive --set
     sensor=lidar2d`) it learns the wheels' radii, the axle, the lidar's mount and the noise instead, with error
-    bars, and takes none of the EM options (docs/lidar2d.md)."""
+    bars, and takes none of the EM options (docs/lidar2d.md).
+
+    On an odometry-IMU-GNSS folder (`convert bag` of a bag with nav_msgs/Odometry and sensor_msgs/Imu, or
+    `simulate imu_gnss`) it learns the odometry's gains, the gyro's bias, scale, noise and clock, the IMU's
+    mount, and GNSS's lever arm, noise and heading, with error bars (docs/inertial.md)."""
     check_out_file(out, others={"--start-from": start_from}, kind=EM_MODEL, force=force)
     from sensact.app.log_kinds import refuse_options
 
@@ -326,9 +330,11 @@ def _shown(cal: Any) -> None:
 def _register_shows() -> None:
     """Registered when first used, so that the app is imported only when a command runs (``--help`` stays quick)."""
     from sensact.app import Calibration, Lidar2DCalibration
+    from sensact.app.inertial import InertialCalibration
 
     _shown.register(Calibration, _show_em)
     _shown.register(Lidar2DCalibration, _show_lidar2d)
+    _shown.register(InertialCalibration, _show_inertial)
 
 
 def _show_em(cal: Any) -> None:
@@ -352,6 +358,29 @@ def _show_lidar2d(cal: Any) -> None:
         console.print(
             "against the simulator's truth: "
             + ", ".join(f"{k} {v['error']:+.3g} ({v['error_sd']:+.2f} sd)" for k, v in ev.items() if "error" in v),
+            highlight=False,
+        )
+
+
+def _show_inertial(cal: Any) -> None:
+    """Every learned number with its sd, the flags aside (docs/inertial.md)."""
+    rows = [
+        [key, f"{e.value:.6g}", "" if e.sd is None else f"{e.sd:.2g}"]
+        for key, e in cal.result.estimates.items()
+        if e.value is not None
+    ]
+    print_tables([("wheel odometry, IMU and GNSS (docs/inertial.md)", ["", "learned", "sd"], rows)])
+    not_learned = [key for key, e in cal.result.estimates.items() if e.value is None]
+    if not_learned:
+        console.print(f"[yellow]note:[/] the log has no GNSS: not learned: {', '.join(not_learned)}", highlight=False)
+    ev = cal.evaluation()
+    if ev:
+        console.print(
+            "against the simulator's truth: "
+            + ", ".join(
+                f"{k} {v['error']:+.3g}" + ("" if v["error_sd"] is None else f" ({v['error_sd']:+.2f} sd)")
+                for k, v in ev.items()
+            ),
             highlight=False,
         )
 
