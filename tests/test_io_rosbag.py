@@ -587,12 +587,9 @@ IMAGE = ("/camera/image_raw", "sensor_msgs/msg/Image")
 @pytest.mark.parametrize(
     "topics, missing, planned",
     [
-        ([ODOM, IMU], "readings or sightings", False),
-        ([ODOM, IMU, GPS], "readings or sightings", False),
         ([CMD, JOINTS, ODOM], "readings or sightings", True),
         ([CMD, FIDS, TF], "readings or sightings", False),
         ([CMD, IMAGE], "readings or sightings", False),
-        ([IMU, GPS], "commands or the readings or sightings", False),
     ],
 )
 def test_a_bag_with_no_type_sensact_reads_names_what_it_found_and_what_it_reads(tmp_path, topics, missing, planned):
@@ -609,6 +606,25 @@ def test_a_bag_with_no_type_sensact_reads_names_what_it_found_and_what_it_reads(
     assert "commands from geometry_msgs/Twist" in text and "readings from sensor_msgs/Range" in text
     assert ("read with a 2-D lidar's sensor_msgs/LaserScan" in text) == planned
     assert lines[0].startswith("error:") and "Fix:" in text and "cannot tell" not in text
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize(
+    "topics, said",
+    [
+        ([ODOM, IMU], "stamp is not after"),  # blank messages carry no stamps: it reached them
+        ([ODOM, IMU, GPS], "stamp is not after"),
+        ([IMU, GPS], "it has no nav_msgs/Odometry topic"),
+    ],
+)
+def test_a_bag_with_an_imu_goes_the_inertial_route(tmp_path, topics, said):
+    """An IMU's bag is an outdoor robot's (docs/inertial.md): the inertial reader opens it and reaches its
+    messages, or names the wheel odometry it lacks, in one line with the fix."""
+    bag = _robot_bag(tmp_path / "robot", topics)
+    res = runner.invoke(app, ["convert", "bag", str(bag), "--out", str(tmp_path / "o")])
+    text = " ".join(res.output.split())
+    assert res.exit_code == 2 and "Traceback" not in text, text
+    assert said in text and "Fix:" in text
     assert not (tmp_path / "o").exists()
 
 

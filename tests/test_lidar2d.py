@@ -314,7 +314,7 @@ def test_a_broken_folder_is_refused_in_one_line(short_log, tmp_path, edit, fragm
 
 def test_em_options_are_refused_on_a_lidar_log(short_log):
     res = _run(["learn", "em", short_log, "--halves"], code=2)
-    assert "--halves is for EM's landmark logs" in " ".join(res.output.split())
+    assert "--halves is for wheel-odometry-IMU-GNSS logs and EM's landmark logs" in " ".join(res.output.split())
 
 
 def test_the_bag_roles_come_from_the_types_and_two_of_one_must_be_named(tmp_path):

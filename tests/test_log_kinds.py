@@ -34,6 +34,7 @@ def logs(tmp_path_factory) -> dict[str, tuple[Path, tuple[str, ...]]]:
     _simulate("diffdrive", "--out", str(root / "radio"), "--seconds", "30", "--set", "sensor=radio")
     _simulate("track1d", "--out", str(root / "track"), "--seconds", "40")
     _simulate("diffdrive", "--out", str(root / "lidar"), "--seconds", "60", "--set", "sensor=lidar2d", "--seed", "7")
+    _simulate("outdoor", "--out", str(root / "outdoor"), "--seconds", "120")
     write_turtlebot_csv(root / "robot.csv", with_range=True)
     return {
         "planar": (root / "planar", SHORT),
@@ -41,6 +42,7 @@ def logs(tmp_path_factory) -> dict[str, tuple[Path, tuple[str, ...]]]:
         "track": (root / "track", SHORT),
         "turtlebot": (root / "robot.csv", SHORT),
         "lidar2d": (root / "lidar", ()),
+        "outdoor": (root / "outdoor", ()),
     }
 
 
@@ -60,11 +62,12 @@ def test_each_kind_is_recognized(logs):
         "track": "landmarks",
         "turtlebot": "turtlebot_csv",
         "lidar2d": "lidar2d",
+        "outdoor": "imu_gnss",
     }
-    assert [k.name for k in KINDS] == ["lidar2d", "turtlebot_csv", "landmarks"]
+    assert [k.name for k in KINDS] == ["lidar2d", "imu_gnss", "turtlebot_csv", "landmarks"]
 
 
-@pytest.mark.parametrize("case", ["planar", "radio", "track", "turtlebot", "lidar2d"])
+@pytest.mark.parametrize("case", ["planar", "radio", "track", "turtlebot", "lidar2d", "outdoor"])
 def test_calibrate_open_log_is_learn_em(logs, case, tmp_path):
     """The library's two calls write the command's model, value for value but timings."""
     path, sets = logs[case]

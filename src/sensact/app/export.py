@@ -415,11 +415,20 @@ def export_model(model: Path, fmt: str, out: Path, truth_out: Path | None = None
     writers = _writers(doc)
     if fmt not in writers:
         raise ConfigError(
-            f"--format {fmt} does not apply to this model (a {doc.get('kind') or 'landmark EM'} model).",
+            f"--format {fmt} does not apply to {_what(doc)}.",
             field="--format",
             fix=f"one of {', '.join(writers)} for this model.",
         )
     return writers[fmt](doc, model, out, truth_out)
+
+
+def _what(doc: JsonObject) -> str:
+    """A model file's family in a user's words, for a refusal."""
+    from sensact.io.inertial_folder import KIND as INERTIAL_KIND
+    from sensact.io.lidar2d_folder import KIND as LIDAR2D_KIND
+
+    words = {LIDAR2D_KIND: "a wheels-and-2-D-lidar model", INERTIAL_KIND: "a wheels, IMU and GNSS model"}
+    return words.get(str(doc.get("kind")), "this model")
 
 
 # a format's writer: (model.json, its path, --out, --truth-out) -> what it wrote

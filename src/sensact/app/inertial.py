@@ -18,7 +18,15 @@ from sensact.app.save import Saved
 from sensact.core import inertial_smoother as ks
 from sensact.health import Health, HealthFlag
 from sensact.io.inertial_folder import KIND
-from sensact.learn.inertial import MAX_ITERATIONS, InertialResult, gyro_follows_odometry, learn_inertial
+from sensact.learn.inertial import (
+    MAX_ITERATIONS,
+    InertialResult,
+    MountFit,
+    carries_gravity,
+    gyro_follows_odometry,
+    learn_inertial,
+    tilt_sd,
+)
 from sensact.logs.inertial_log import InertialLog
 from sensact.outputs import EM_MODEL, OUTPUT_KEY
 from sensact.progress import Progress
@@ -248,13 +256,17 @@ def health_of(res: InertialResult) -> Health:
                     "the heading to east-north-up is not pinned down: drive straight for tens of metres early on.",
                 )
             )
-    if sd("imu.mount.yaw_rad") > YAW_SD_RAD:
+    # the yaw the robot's motion tells: what the accelerometer's bias adds through the URDF angles near a pitch
+    # of 90 degrees (roll and yaw about nearly one axis) is no manoeuvre's to fix, and is in the sd, not a flag
+    e = res.estimates
+    tilt = tilt_sd(MountFit(*(float(e[f"imu.mount.{a}_rad"].value) for a in ("roll", "pitch", "yaw")), 0.0))[2]
+    yaw_sd = float(np.sqrt(max(sd("imu.mount.yaw_rad") ** 2 - tilt**2, 0.0)))
+    if yaw_sd > YAW_SD_RAD:
         flags.append(
             HealthFlag(
                 "imu_yaw_not_observable",
-                f"the IMU's yaw on the robot is known only to {np.degrees(sd('imu.mount.yaw_rad')):.3g} deg: it shows "
-                "in "
-                "the robot's accelerations; speed up, brake and turn while driving.",
+                f"the IMU's yaw on the robot is known only to {np.degrees(yaw_sd):.3g} deg: it shows in the robot's "
+                "accelerations; speed up, brake and turn while driving.",
             )
         )
     if not res.converged and res.filter_ok:
@@ -282,8 +294,32 @@ def calibrate_inertial(log: InertialLog, progress: Progress | None = None) -> In
             field="imu",
             fix="record the IMU on the robot's base (name it with convert bag's --imu).",
         )
+    _refuse_gravity_free(log)
     res = learn_inertial(log, progress)
     return InertialCalibration(log, res, health_of(res), time.monotonic() - t0)
+
+
+def _refuse_gravity_free(log: InertialLog) -> None:
+    """The IMU's roll and pitch come from gravity: in its accelerations (REP 145) or, where a driver took it
+    out, in the orientation it reports."""
+    from sensact.errors import LogFormatError
+
+    if carries_gravity(log):
+        return
+    q = log.imu_orientation_xyzw
+    if q is not None and np.isfinite(q).all(axis=1).mean() > 0.5:
+        return
+    size = float(np.linalg.norm(np.nanmean(log.accel_m_s2, axis=0)))
+    in_g = 0.8 < size < 1.2
+    raise LogFormatError(
+        f"the IMU's accelerations average {size:.3g}"
+        + (" (gravity in g, not m/s^2)" if in_g else ", not gravity's 9.81 m/s^2 (the driver took gravity out)")
+        + " and it reports no orientation: its roll and pitch on the robot cannot be told.",
+        file=Path(log.source),
+        field="imu",
+        fix="record the IMU's raw accelerations in m/s^2 (REP 145), e.g. its driver's imu/data_raw"
+        + (", or scale them by 9.80665." if in_g else ", or a topic that carries its orientation."),
+    )
 
 
 def calibrate_opened_inertial(
@@ -415,3 +451,50 @@ def evaluate_inertial(log: InertialLog, doc: JsonObject, model: Path) -> JsonObj
         ok = np.isfinite(nis)
         cons["gnss"] = summary(nis, 2) | {"coverage90": float(np.mean(inside[ok])) if ok.any() else None}
     return {"log": log.source, "model": str(model), "consistency": cons, "filter_ok": bool(out[10])}
+
+
+# what a run, not the robot, sets: the bias walks, and the odometry frame's heading is its first pose's
+RUN_KEYS = ("imu.gyro.bias_rad_s", "gnss.heading_offset_rad")
+AGREE_SD = 3.0
+
+
+def halves_inertial(cal: InertialCalibration, progress: Progress | None = None) -> JsonObject:
+    """`learn em --halves` on an odometry-IMU-GNSS log: each half of the log learned alone, every learned
+    number compared in the two halves' combined sd (the robot's constants must agree within 3; the bias's mean
+    and the heading offset belong to each run and are shown, not held to it), and the first half's model scored
+    on the second half (``evaluate log``'s consistency): no ground truth needed."""
+    log = cal.log
+    t0, t1 = log.odom_t[0], log.odom_t[-1]
+    mid = (t0 + t1) / 2
+    parts = [
+        calibrate_inertial(log.between(t0, mid, f"{log.source} (first half)"), progress),
+        calibrate_inertial(log.between(mid, t1 + 1.0, f"{log.source} (second half)"), progress),
+    ]
+    differ: JsonObject = {}
+    for key in cal.result.estimates:
+        a, b = (p.result.estimates[key] for p in parts)
+        if None in (a.value, b.value, a.sd, b.sd):
+            continue
+        d = b.value - a.value
+        if key.endswith("_rad"):
+            d = float(np.angle(np.exp(1j * d)))
+        combined = float(np.hypot(a.sd, b.sd))
+        differ[key] = d / combined if combined > 0 else None
+    held = {k: z for k, z in differ.items() if k not in RUN_KEYS and z is not None}
+    worst = max(held, key=lambda k: abs(held[k]), default=None)
+    first_doc = parts[0].to_json()
+    return {
+        "cut_s": float(mid - t0),
+        "first_half": _estimates_json(parts[0]),
+        "second_half": _estimates_json(parts[1]),
+        "differ_sd": differ,
+        "run_keys": list(RUN_KEYS),
+        "agree_within_3sd": bool(worst is None or abs(held[worst]) <= AGREE_SD),
+        "worst": worst,
+        "first_on_second": evaluate_inertial(parts[1].log, first_doc, Path(log.source)),
+        "flags": [[f.code for f in p.health.flags] for p in parts],
+    }
+
+
+def _estimates_json(cal: InertialCalibration) -> JsonObject:
+    return {k: {"value": e.value, "sd": e.sd} for k, e in cal.result.estimates.items()}

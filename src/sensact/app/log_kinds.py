@@ -26,6 +26,7 @@ from sensact.app.inertial import (
     OpenedInertialLog,
     calibrate_opened_inertial,
     evaluate_inertial,
+    halves_inertial,
     open_inertial_log,
     save_inertial,
 )
@@ -65,6 +66,8 @@ class LogKind:
     # `evaluate log`'s scoring of a model on such a log: (opened log, model doc, model path) -> JSON; None where
     # the command's own (EM's landmark scoring) does it
     evaluate: Callable[[Any, Any, Path], Any] | None = None
+    # `learn em --halves`: (calibration, progress) -> the halves' JSON; None where the command's own (EM's) does it
+    halves: Callable[[Any, Any], Any] | None = None
 
 
 KINDS: list[LogKind] = []
@@ -102,6 +105,14 @@ def save_calibration(cal: Any, out: str | Path, *, report: bool = True) -> Saved
         if isinstance(cal, kind.calibrated):
             return kind.save(cal, Path(out), report)
     raise TypeError(f"{type(cal).__name__} is not a calibration that `calibrate` returns")
+
+
+def halves_of(cal: Any) -> Callable[[Any, Any], Any] | None:
+    """The ``--halves`` of the kind whose learner returned ``cal``; None where it is EM's own."""
+    for kind in KINDS:
+        if isinstance(cal, kind.calibrated):
+            return kind.halves
+    return None
 
 
 def open_log(path: str | Path, *, bins: int = 21) -> OpenedAny:
@@ -182,8 +193,9 @@ register(
         calibrate_opened_inertial,
         InertialCalibration,
         save_inertial,
-        frozenset(),
+        frozenset({"--halves"}),
         lambda opened, doc, model: evaluate_inertial(opened.data, doc, model),
+        halves_inertial,
     )
 )
 register(

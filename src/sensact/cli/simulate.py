@@ -259,8 +259,9 @@ def simulate_outdoor(
     A Husky's log: /odom's gains off, a gyro with a wandering bias, a scale and a clock offset, mounted in an
     odd orientation, and a GNSS antenna on a lever arm with noise, outliers and a covariance it misreports.
     `--set gnss_hz=0` leaves the receiver out, `--set gnss_sigma_m=1.0` makes it metre-grade, `--set
-    tf_imu=none` (or wrong) leaves /tf_static's IMU out (or wrong), `--set turns=left` never turns right.
-    `sensact learn em OUT` then scores what it learns against the truth in meta.json."""
+    tf_imu=none` (or wrong) leaves /tf_static's IMU out (or wrong), `--set turns=left` never turns right,
+    `--set accel=no_gravity` (or g) publishes accelerations as some drivers do, `--set imu_orientation=true`
+    adds the IMU's orientation. `sensact learn em OUT` then scores what it learns against the truth in meta.json."""
     from sensact.io.inertial_folder import write_inertial_log
     from sensact.sim.inertial import InertialConfig, simulate_inertial
 

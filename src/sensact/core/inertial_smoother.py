@@ -107,14 +107,17 @@ def _transition(m, dt, d, a, sub_d, sub_a, q, out, F, Q):
 
 @njit(cache=True, error_model="numpy")
 def gyro_model(m, dt, H):
-    """The gyro's turn over a step, about base_link's z: its scale times the turn plus its bias (rad)."""
+    """The gyro's turn over a step, about base_link's z: its scale times the turn plus the bias's integral,
+    the trapezoid between its values at the step's ends (a bias held over each step would make the walk's
+    increments those of step means, 2/3 of its variance)."""
     H[:] = 0.0
     turn = m[TH] - m[CTH]
     H[TH] = m[S]
     H[CTH] = -m[S]
-    H[CB] = dt
+    H[CB] = dt / 2
+    H[B] = dt / 2
     H[S] = turn
-    return m[S] * turn + m[CB] * dt
+    return m[S] * turn + (m[CB] + m[B]) * dt / 2
 
 
 @njit(cache=True, error_model="numpy")

@@ -1,6 +1,6 @@
 """The log folder of an outdoor robot with wheel odometry, an IMU and (optionally) GNSS (docs/inertial.md): what
 ``convert bag`` writes from a bag's ``nav_msgs/Odometry``, ``sensor_msgs/Imu``, ``sensor_msgs/NavSatFix`` and
-``/tf_static``, and what ``simulate imu_gnss`` writes::
+``/tf_static``, and what ``simulate outdoor`` writes::
 
     run/
       meta.json      "kind": "imu_gnss", the datum, the odometry's first yaw, what /tf_static said of the
@@ -31,6 +31,7 @@ KIND = "imu_gnss"
 ODOMETRY, IMU, GNSS, TRUTH = "odometry.csv", "imu.csv", "gnss.csv", "groundtruth.csv"
 ODOMETRY_COLUMNS = ["v_m_s", "omega_rad_s"]
 IMU_COLUMNS = [f"gyro_{a}_rad_s" for a in "xyz"] + [f"accel_{a}_m_s2" for a in "xyz"]
+ORIENTATION_COLUMNS = [f"orientation_{a}" for a in "xyzw"]  # optional: empty where the IMU reported none
 GNSS_COLUMNS = ["east_m", "north_m", "up_m", "var_east_m2", "var_north_m2"]
 MAX_RATE_RAD_S = 50.0  # beyond any gyro a ground robot carries (2,900 deg/s)
 MAX_ACCEL_M_S2 = 500.0
@@ -48,7 +49,13 @@ def write_inertial_log(folder: Path, log: InertialLog) -> Path:
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     _write(folder / ODOMETRY, ODOMETRY_COLUMNS, log.odom_t, np.column_stack([log.odom_v_m_s, log.odom_omega_rad_s]))
-    _write(folder / IMU, IMU_COLUMNS, log.imu_t, np.column_stack([log.gyro_rad_s, log.accel_m_s2]))
+    q = log.imu_orientation_xyzw
+    _write(
+        folder / IMU,
+        IMU_COLUMNS + (ORIENTATION_COLUMNS if q is not None else []),
+        log.imu_t,
+        np.column_stack([log.gyro_rad_s, log.accel_m_s2, *([q] if q is not None else [])]),
+    )
     if log.has_gnss:
         _write(folder / GNSS, GNSS_COLUMNS, log.gnss_t, np.column_stack([log.gnss_enu_m, log.gnss_var_reported_m2]))
     if log.truth_t is not None and log.truth_xy_m is not None:
@@ -129,6 +136,22 @@ def _mount(node: object, path: Path, field: str) -> MountGuess:
     )
 
 
+def _orientation(path: Path) -> np.ndarray | None:
+    """imu.csv's orientation columns where it has them (all four, empty cells where a message had none)."""
+    with open(path / IMU, newline="") as f:
+        header = f.readline().strip().split(",")
+    if not any(c in header for c in ORIENTATION_COLUMNS):
+        return None
+    if not all(c in header for c in ORIENTATION_COLUMNS):
+        raise LogFormatError(
+            f"{IMU} has some of {', '.join(ORIENTATION_COLUMNS)}, not all four.",
+            file=path / IMU,
+            fix="give the quaternion's four columns, or none.",
+        )
+    _, q = _table(path, IMU, ORIENTATION_COLUMNS, empty_ok=tuple(ORIENTATION_COLUMNS))
+    return q
+
+
 def read_inertial_log(path: Path) -> InertialLog:
     path = Path(path)
     meta = read_json_object(path / "meta.json", LogFormatError, "write it as `sensact convert bag` does.")
@@ -136,6 +159,7 @@ def read_inertial_log(path: Path) -> InertialLog:
     _refuse_beyond(path, ODOMETRY, ov[:, :1], MAX_SPEED_M_S, "ground robot's speed (m/s)", ODOMETRY_COLUMNS[:1])
     _refuse_beyond(path, ODOMETRY, ov[:, 1:], MAX_RATE_RAD_S, "turn rate (rad/s)", ODOMETRY_COLUMNS[1:])
     it, iv = _table(path, IMU, IMU_COLUMNS)
+    orientation = _orientation(path)
     _refuse_beyond(path, IMU, iv[:, :3], MAX_RATE_RAD_S, "gyro's rate (rad/s)", IMU_COLUMNS[:3])
     _refuse_beyond(path, IMU, iv[:, 3:], MAX_ACCEL_M_S2, "accelerometer's reading (m/s^2)", IMU_COLUMNS[3:])
     if (path / GNSS).is_file():
@@ -171,6 +195,7 @@ def read_inertial_log(path: Path) -> InertialLog:
         imu_mount=_mount(tf.get("imu"), path, "tf_static.imu"),
         gnss_mount=_mount(tf.get("gnss"), path, "tf_static.gnss"),
         topics=tuple((str(k), str(v)) for k, v in topics.items() if isinstance(v, str)),
+        imu_orientation_xyzw=orientation,
         truth=truth if isinstance(truth, dict) else None,
         truth_t=truth_t,
         truth_xy_m=truth_xy,

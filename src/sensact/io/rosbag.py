@@ -303,6 +303,7 @@ def propose_roles(reader, topics: list[Topic]) -> tuple[Roles, list[tuple[frozen
 # types a landmark robot's bag often holds that its route does not read, and what reads them
 NOT_READ = {
     "sensor_msgs/JointState": "wheel encoders: read with a 2-D lidar's sensor_msgs/LaserScan (docs/lidar2d.md)",
+    "sensor_msgs/NavSatFix": "GNSS fixes: read with an IMU's sensor_msgs/Imu and wheel odometry (docs/inertial.md)",
 }
 
 

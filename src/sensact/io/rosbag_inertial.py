@@ -10,6 +10,7 @@ refused; a covariance reported as NaN is ignored, and said so.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -33,25 +34,49 @@ class InertialRoles:
     odom: str
     imu: str
     gnss: str | None
+    gnss_named: bool = False  # --gnss TOPIC: a receiver without fixes is then refused, not left out
 
     def lines(self) -> list[str]:
-        return [f"{k}: {v}" for k, v in self.__dict__.items() if v]
+        return [f"{k}: {v}" for k, v in (("odom", self.odom), ("imu", self.imu), ("gnss", self.gnss)) if v]
 
 
 def has_imu(topics: list[Topic]) -> bool:
     return any(t.msgtype == IMU_TYPE and t.count for t in topics)
 
 
+# robot_localization's and navsat_transform's outputs share the sensors' types; a Husky's bag records both
+FUSED_NAME = re.compile(r"filtered|ekf|fuse", re.IGNORECASE)
+NOT_WHEELS = re.compile(r"gps|navsat|visual|vio|icp|lidar|laser", re.IGNORECASE)
+WHEELS = re.compile(r"wheel|controller|^/?odom$", re.IGNORECASE)
+RAW = re.compile(r"raw", re.IGNORECASE)  # imu_tools' filters publish imu/data from imu/data_raw, rates unchanged
+
+
+def _sensor_topics(
+    topics: list[Topic], msgtype: str, drop: re.Pattern | None, prefer: re.Pattern | None
+) -> list[Topic]:
+    """The topics of ``msgtype`` a sensor itself published: a fusion's output is dropped and, of several
+    left, the one whose name says it is the sensor's is kept (else all stay, and the user names one)."""
+    found = [t for t in topics if t.msgtype == msgtype and t.count and not MOCAP_NAME.search(t.name)]
+    if len(found) > 1:
+        sensors = [t for t in found if not FUSED_NAME.search(t.name) and not (drop and drop.search(t.name))]
+        found = sensors or found
+    if len(found) > 1 and prefer is not None:
+        said = [t for t in found if prefer.search(t.name)]
+        found = said if len(said) == 1 else found
+    return found
+
+
 def inertial_roles(path: Path, topics: list[Topic], named: dict[str, str | None]) -> InertialRoles:
-    """Which topic plays which part: each by its type unless named (two of one type must be named)."""
-    odoms = [t for t in topics if t.msgtype == ODOM_TYPE and not MOCAP_NAME.search(t.name)]
-    if named.get("odom") is None and len(odoms) > 1:  # robot_localization's own output is not the wheels'
-        wheel = [t for t in odoms if "wheel" in t.name or t.name in ("/odom", "odom")]
-        odoms = wheel if len(wheel) == 1 else odoms
-    odom = _one(path, odoms if named.get("odom") is None else topics, (ODOM_TYPE,), named.get("odom"), "--odom",
-                "the wheel odometry (nav_msgs/Odometry)")  # fmt: skip
-    imu = _one(path, topics, (IMU_TYPE,), named.get("imu"), "--imu", "the IMU (sensor_msgs/Imu)")
-    gnss = _one(path, topics, (FIX_TYPE,), named.get("gnss"), "--gnss", "the GNSS fixes (sensor_msgs/NavSatFix)")
+    """Which topic plays which part: each by its type unless named (two sensors of one type must be named)."""
+
+    def one(role: str, msgtype: str, drop: re.Pattern | None, prefer: re.Pattern | None, what: str) -> str | None:
+        given = named.get(role)
+        pool = topics if given is not None else _sensor_topics(topics, msgtype, drop, prefer)
+        return _one(path, pool, (msgtype,), given, f"--{role}", what)
+
+    odom = one("odom", ODOM_TYPE, NOT_WHEELS, WHEELS, "the wheel odometry (nav_msgs/Odometry)")
+    imu = one("imu", IMU_TYPE, None, RAW, "the IMU (sensor_msgs/Imu)")
+    gnss = one("gnss", FIX_TYPE, None, None, "the GNSS fixes (sensor_msgs/NavSatFix)")
     if odom is None or imu is None:
         raise LogFormatError(
             "an IMU's bag needs the wheel odometry and the IMU; it has no "
@@ -60,7 +85,11 @@ def inertial_roles(path: Path, topics: list[Topic], named: dict[str, str | None]
             file=path,
             fix="record the robot's /odom (diff_drive_controller's) with /imu/data.",
         )
-    return InertialRoles(odom, imu, gnss)
+    return InertialRoles(odom, imu, gnss, named.get("gnss") is not None)
+
+
+class NoFixes(LogFormatError):
+    """A receiver that recorded (almost) no fix: indoors, or before it found the sky."""
 
 
 def _sec(ns: np.ndarray, t0: int) -> np.ndarray:
@@ -103,7 +132,11 @@ def _imu(path: Path, reader, topic: str, receive_times: bool, progress: Progress
         path, topic, np.array([np.asarray(m.angular_velocity_covariance) for _, m in msgs]), notes, "angular velocity"
     )
     var = float(np.nanmean(cov)) if np.isfinite(cov).any() else float("nan")
-    return ns, gyro, acc, var, msgs[0][1].header.frame_id.lstrip("/")
+    q = np.array([[m.orientation.x, m.orientation.y, m.orientation.z, m.orientation.w] for _, m in msgs], float)
+    said = np.array([m.orientation_covariance[0] != -1 for _, m in msgs])  # REP 145: -1, no orientation
+    q[~said | ~(np.abs(np.linalg.norm(q, axis=1) - 1) < 0.01)] = np.nan
+    orientation = q if np.isfinite(q).all(axis=1).any() else None
+    return ns, gyro, acc, var, msgs[0][1].header.frame_id.lstrip("/"), orientation
 
 
 def _fixes(path: Path, reader, topic: str, receive_times: bool, progress: Progress | None, notes: list[str]):
@@ -119,7 +152,7 @@ def _fixes(path: Path, reader, topic: str, receive_times: bool, progress: Progre
     if (~good).any():
         notes.append(f"{topic}: {int((~good).sum())} of {len(msgs)} messages have no fix (status -1 or NaN): dropped")
     if good.sum() < MIN_FIXES:
-        raise LogFormatError(
+        raise NoFixes(
             f"{topic}: only {int(good.sum())} fixes (status >= 0) of {len(msgs)} messages.",
             file=path,
             field="--gnss",
@@ -185,12 +218,18 @@ def read_inertial_bag(
 ) -> tuple[InertialLog, tuple[str, ...]]:
     notes: list[str] = []
     o_ns, tw, yaw0, child = _odom(path, reader, roles.odom, receive_times, progress)
-    i_ns, gyro, acc, gvar, imu_frame = _imu(path, reader, roles.imu, receive_times, progress, notes)
+    i_ns, gyro, acc, gvar, imu_frame, orientation = _imu(path, reader, roles.imu, receive_times, progress, notes)
     t0 = int(min(o_ns[0], i_ns[0]))
     gnss_t, enu, var, datum, gnss_frame = np.zeros(0), np.zeros((0, 3)), np.zeros((0, 2)), None, None
     if roles.gnss:
-        g_ns, enu, var, datum, gnss_frame = _fixes(path, reader, roles.gnss, receive_times, progress, notes)
-        gnss_t = _sec(g_ns, t0)
+        try:
+            g_ns, enu, var, datum, gnss_frame = _fixes(path, reader, roles.gnss, receive_times, progress, notes)
+            gnss_t = _sec(g_ns, t0)
+        except NoFixes as e:
+            if roles.gnss_named:
+                raise
+            notes.append(f"{e.problem.rstrip('.')}: learned without GNSS")
+            roles = InertialRoles(roles.odom, roles.imu, None)
     imu_mount, gnss_mount = _mounts(path, reader, topics, child or "base_link", imu_frame, gnss_frame)
     if imu_mount.rpy_rad is None:
         notes.append(
@@ -212,6 +251,7 @@ def read_inertial_bag(
         datum=datum,
         imu_mount=imu_mount,
         gnss_mount=gnss_mount,
-        topics=tuple((k, v) for k, v in roles.__dict__.items() if v),
+        imu_orientation_xyzw=orientation,
+        topics=tuple((k, v) for k, v in (("odom", roles.odom), ("imu", roles.imu), ("gnss", roles.gnss)) if v),
     )
     return log, tuple(notes)

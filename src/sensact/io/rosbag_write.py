@@ -351,15 +351,18 @@ def write_lidar_bag(path: Path, fmt: str, run) -> Path:
 IMU_FRAME, GNSS_FRAME = "imu_link", "gps_link"
 
 
-def _imu(m: Msgs, t_ns: int, gyro: np.ndarray, accel: np.ndarray, gyro_var: float):
+def _imu(m: Msgs, t_ns: int, gyro: np.ndarray, accel: np.ndarray, gyro_var: float, q: np.ndarray | None):
     cov = np.zeros(9)
     cov[[0, 4, 8]] = gyro_var
-    unknown = np.zeros(9)
-    unknown[0] = -1.0  # no orientation: a 6-axis IMU's, as REP 145 says
+    q_cov = np.eye(3).ravel() * 1e-3
+    if q is None or not np.isfinite(q).all():
+        q = np.array([0.0, 0.0, 0.0, 1.0])
+        q_cov = np.zeros(9)
+        q_cov[0] = -1.0  # no orientation: a 6-axis IMU's, as REP 145 says
     return m.T["sensor_msgs/msg/Imu"](
         header=m.header(t_ns, IMU_FRAME),
-        orientation=m.quat(0, 0, 0, 1),
-        orientation_covariance=unknown,
+        orientation=m.quat(*q),
+        orientation_covariance=q_cov,
         angular_velocity=m.vec(*gyro),
         angular_velocity_covariance=cov,
         linear_acceleration=m.vec(*accel),
@@ -406,8 +409,10 @@ def write_inertial_bag(path: Path, fmt: str, run) -> Path:
                 _odom_pose(m, ns(t), (x[k], y[k], yaw[k]), (log.odom_v_m_s[k], log.odom_omega_rad_s[k]), "base_link"),
             )
         )
-    for t, g, a in zip(log.imu_t, log.gyro_rad_s, log.accel_m_s2, strict=True):
-        msgs.append(("/imu/data", "sensor_msgs/msg/Imu", ns(t) + 500_000, _imu(m, ns(t), g, a, log.gyro_var_reported)))
+    qs = log.imu_orientation_xyzw if log.imu_orientation_xyzw is not None else [None] * log.imu_t.size
+    for t, g, a, q in zip(log.imu_t, log.gyro_rad_s, log.accel_m_s2, qs, strict=True):
+        imu = _imu(m, ns(t), g, a, log.gyro_var_reported, q)
+        msgs.append(("/imu/data", "sensor_msgs/msg/Imu", ns(t) + 500_000, imu))
     if log.has_gnss:
         d = log.datum
         lat, lon, alt = pymap3d.enu2geodetic(

@@ -107,14 +107,24 @@ class MountFit:
     explained: float  # share of the horizontal accelerations' variance the regression explains
 
 
-def _mount_on(acc: np.ndarray, gyro: np.ndarray, v: np.ndarray, w_odom: np.ndarray, dt: float) -> MountFit | None:
+def _mount_on(
+    acc: np.ndarray,
+    gyro: np.ndarray,
+    gyro_dot: np.ndarray,
+    v: np.ndarray,
+    v_dot: np.ndarray,
+    w_odom: np.ndarray,
+    up: np.ndarray | None = None,
+) -> MountFit | None:
     """The mount from binned accelerations, gyro rates and odometry speeds and turn rates (rows: bins, all
-    finite). The regression's columns: the odometry's acceleration forward plus i times the turn's pull (with
+    finite; the derivatives taken on the whole run, so that a jackknife's deleted span leaves no false jump).
+    The regression's columns: the odometry's acceleration forward plus i times the turn's pull (with
     the gyro's rate, its bias taken where the robot stands still), the IMU's offset from the centre of turning
-    (w^2 and dw/dt), the accelerometer's bias, and v (what is left of the gyro's bias in the pull)."""
+    (w^2 and dw/dt), the accelerometer's bias, and v (what is left of the gyro's bias in the pull). ``up``
+    (rows: bins), the IMU's own say of which way is up, where its accelerations carry no gravity."""
     if len(acc) < 20:
         return None
-    u = acc.mean(axis=0)
+    u = acc.mean(axis=0) if up is None else up.mean(axis=0)
     roll, pitch, yaw = *tilt_rpy(u), 0.0
     explained = 0.0
     for _ in range(3):
@@ -123,9 +133,9 @@ def _mount_on(acc: np.ndarray, gyro: np.ndarray, v: np.ndarray, w_odom: np.ndarr
         w = gyro @ L[2]
         still = (np.abs(v) < 1e-3) & (np.abs(w_odom) < 1e-3)
         w = w - (np.median(w[still]) if still.sum() >= 5 else np.polyfit(w_odom, w, 1)[1])
-        f = np.gradient(v, dt) + 1j * v * w  # the base's horizontal acceleration, forward + i left
+        f = v_dot + 1j * v * w  # the base's horizontal acceleration, forward + i left
         h = lev[:, 0] + 1j * lev[:, 1]
-        A = np.column_stack([f, w * w, np.gradient(w, dt), np.ones(len(f)), 1j * v])
+        A = np.column_stack([f, w * w, gyro_dot @ L[2], np.ones(len(f)), 1j * v])
         coef, *_ = np.linalg.lstsq(A, h, rcond=None)
         yaw = float(-np.angle(coef[0]))
         resid = h - A @ coef
@@ -139,8 +149,9 @@ def _mount_on(acc: np.ndarray, gyro: np.ndarray, v: np.ndarray, w_odom: np.ndarr
                 np.zeros(len(f)),
             ]
         )
-        u = (acc - motion @ R).mean(axis=0)
-        roll, pitch = tilt_rpy(u)
+        if up is None:
+            u = (acc - motion @ R).mean(axis=0)
+            roll, pitch = tilt_rpy(u)
     return MountFit(roll, pitch, yaw, explained)
 
 
@@ -156,6 +167,23 @@ def _angle_jackknife(full: float, parts: list[float]) -> float:
     return float(np.sqrt((n - 1) / n * ((d - d.mean()) ** 2).sum()))
 
 
+def carries_gravity(log: InertialLog) -> bool:
+    """Whether the accelerations average gravity's size (REP 145's specific force, in m/s^2)."""
+    return 0.5 * G < float(np.linalg.norm(np.nanmean(log.accel_m_s2, axis=0))) < 1.5 * G
+
+
+def _up_from_orientation(log: InertialLog) -> np.ndarray:
+    """Up in the IMU's axes at each reading, from the orientation it reports (NaN where none)."""
+    from scipy.spatial.transform import Rotation
+
+    q = log.imu_orientation_xyzw
+    up = np.full((log.imu_t.size, 3), np.nan)
+    if q is not None:
+        said = np.isfinite(q).all(axis=1)
+        up[said] = Rotation.from_quat(q[said]).as_matrix()[:, 2, :]  # the levelled frame's z in the IMU's axes
+    return up
+
+
 def fit_mount(log: InertialLog, time_offset_s: float = 0.0) -> tuple[MountFit | None, np.ndarray]:
     """The IMU's orientation on the robot and its sd (roll, pitch, yaw), a segment jackknife with the
     accelerometer's bias (a tilt in disguise) added to roll and pitch. The IMU's readings are put on the
@@ -168,30 +196,47 @@ def fit_mount(log: InertialLog, time_offset_s: float = 0.0) -> tuple[MountFit | 
     gyr = _bin_means(imu_t, log.gyro_rad_s, edges)
     v = _bin_means(log.odom_t, log.odom_v_m_s, edges)
     wo = _bin_means(log.odom_t, log.odom_omega_rad_s, edges)
-    ok = np.isfinite(acc).all(axis=1) & np.isfinite(gyr).all(axis=1) & np.isfinite(v) & np.isfinite(wo)
-    acc, gyr, v, wo = acc[ok], gyr[ok], v[ok], wo[ok]
-    full = _mount_on(acc, gyr, v, wo, BIN_S)
+    gyr_dot, v_dot = np.gradient(gyr, BIN_S, axis=0), np.gradient(v, BIN_S)
+    ok = np.isfinite(acc).all(axis=1) & np.isfinite(gyr_dot).all(axis=1) & np.isfinite(v_dot) & np.isfinite(wo)
+    cols = [acc[ok], gyr[ok], gyr_dot[ok], v[ok], v_dot[ok], wo[ok]]
+    if not carries_gravity(log):  # the driver took gravity out: up from the IMU's orientation
+        up = _bin_means(imu_t, _up_from_orientation(log), edges)
+        ok_up = np.isfinite(up).all(axis=1)[ok]
+        cols = [c[ok_up] for c in cols] + [up[ok][ok_up]]
+    full = _mount_on(*cols)
     if full is None:
         return None, np.full(3, np.nan)
     parts = []
-    for seg in np.array_split(np.arange(len(v)), SEGMENTS):
-        keep = np.ones(len(v), bool)
+    for seg in np.array_split(np.arange(len(cols[0])), SEGMENTS):
+        keep = np.ones(len(cols[0]), bool)
         keep[seg] = False
-        m = _mount_on(acc[keep], gyr[keep], v[keep], wo[keep], BIN_S)
+        m = _mount_on(*(c[keep] for c in cols))
         if m is not None:
             parts.append(m)
-    tilt = ACCEL_BIAS_M_S2 / G
-    sd = np.array(
-        [
-            np.hypot(_angle_jackknife(full.roll, [p.roll for p in parts]), tilt),
-            np.hypot(_angle_jackknife(full.pitch, [p.pitch for p in parts]), tilt),
-            _angle_jackknife(full.yaw, [p.yaw for p in parts]),
-        ]
+    jack = np.array(
+        [_angle_jackknife(getattr(full, a), [getattr(p, a) for p in parts]) for a in ("roll", "pitch", "yaw")]
     )
-    return full, sd
+    return full, np.hypot(jack, tilt_sd(full))
+
+
+def tilt_sd(m: MountFit) -> np.ndarray:
+    """Roll's, pitch's and yaw's sd from the accelerometer's bias (a tilt in disguise: up off by ACCEL_BIAS_M_S2
+    / G about either of the base's level axes), through the URDF angles: near a pitch of 90 degrees roll and
+    yaw turn about nearly one axis, and a small tilt moves each by far more than itself."""
+    from scipy.spatial.transform import Rotation
+
+    R = Rotation.from_matrix(rpy_matrix(m.roll, m.pitch, m.yaw))
+    rpy = np.array([m.roll, m.pitch, m.yaw])
+    h = 1e-4
+    var = np.zeros(3)
+    for axis in np.eye(3)[:2]:
+        moved = (Rotation.from_rotvec(h * axis) * R).as_euler("xyz")  # the base's axes: URDF's extrinsic rpy
+        var += (np.angle(np.exp(1j * (moved - rpy))) / h) ** 2
+    return ACCEL_BIAS_M_S2 / G * np.sqrt(var)
 
 
 LAG_WINDOW_S = 0.05
+GOLDEN = (np.sqrt(5) - 1) / 2
 
 
 def _lag(t: np.ndarray, ao: np.ndarray, gt: np.ndarray, gc: np.ndarray) -> float:
@@ -217,17 +262,40 @@ def _lag(t: np.ndarray, ao: np.ndarray, gt: np.ndarray, gc: np.ndarray) -> float
 
 
 def fit_time_offset(log: InertialLog, u: np.ndarray) -> tuple[float, float]:
-    """t_imu - t_odom for one instant (add it to the odometry's stamps to read the IMU's clock), and its sd
-    (a segment jackknife)."""
+    """t_imu - t_odom for one instant (add it to the odometry's stamps to read the IMU's clock), and its sd."""
     t0, t1 = max(log.odom_t[0], log.imu_t[0]) + MAX_LAG_S, min(log.odom_t[-1], log.imu_t[-1]) - MAX_LAG_S
-    t = np.arange(t0, t1, LAG_WINDOW_S)
+    # windows start at every phase of the IMU's and the odometry's samples (a golden-ratio sequence): a turn
+    # read between samples is interpolated, hence less noisy, and windows all in one phase would pull the
+    # fit half a sample off the truth
+    k = np.arange(int((t1 - t0) / LAG_WINDOW_S))
+    t = t0 + LAG_WINDOW_S * (k + np.modf(k * GOLDEN)[0])
     co = _cumulative(log.odom_t, log.odom_omega_rad_s)
     ao = np.interp(t + LAG_WINDOW_S, log.odom_t, co) - np.interp(t, log.odom_t, co)
     gc = _cumulative(log.imu_t, log.gyro_rad_s @ u)
-    full = _lag(t, ao, log.imu_t, gc)
+    lag = _lag(t, ao, log.imu_t, gc)
     segments = np.array_split(np.arange(t.size), SEGMENTS)
     parts = [_lag(np.delete(t, seg), np.delete(ao, seg), log.imu_t, gc) for seg in segments]
-    return full, float(_jackknife(parts))
+    return lag, max(float(_jackknife(parts)), _lag_profile_sd(t, ao, log.imu_t, gc, lag))
+
+
+def _lag_profile_sd(t: np.ndarray, ao: np.ndarray, gt: np.ndarray, gc: np.ndarray, lag: float) -> float:
+    """The lag's sd from the least squares' rise around it (a parabola over +-15 ms), the noise taken from the
+    residuals with their correlation between neighbouring windows. A floor under the jackknife, whose
+    replicates on a short log all stop at one end of the flat bottom. (The slope of each window's turn in the
+    lag is no use here: over a few ms it is the gyro's noise, not the robot's turning.)"""
+    A = np.column_stack([ao, np.ones_like(ao)])
+
+    def residual(shift: float) -> np.ndarray:
+        y = np.interp(t + shift + LAG_WINDOW_S, gt, gc) - np.interp(t + shift, gt, gc)
+        return y - A @ np.linalg.lstsq(A, y, rcond=None)[0]
+
+    shifts = lag + np.linspace(-0.015, 0.015, 7)
+    curvature = 2 * np.polyfit(shifts - lag, [np.sum(residual(s) ** 2) for s in shifts], 2)[0]
+    r = residual(lag)
+    var = np.mean(r**2)
+    rho = [np.mean(r[k:] * r[:-k]) / var for k in range(1, 6)]
+    long_run = var * max(1.0, 1 + 2 * float(np.sum(rho)))
+    return float(np.sqrt(2 * long_run / curvature)) if curvature > 0 else float("inf")
 
 
 def gyro_follows_odometry(log: InertialLog) -> float | None:
@@ -781,17 +849,19 @@ def _learned_noise(has_gnss: bool) -> list[int]:
     )
 
 
+# the noises EM walks to slowly: the travel's, which the fixes see only in sum, and the bias's walk, which a
+# pass moves by half a per cent (the gyro's white noise hides each step's share of it)
+TRAVEL_NOISE = [ks.Q_ALONG, ks.Q_ALONG_T, ks.Q_ACROSS]
+POLISHED = [ks.Q_BIAS]
+
+
 def polish_noise(steps: Steps, q: np.ndarray, m0: np.ndarray, P0: np.ndarray, has_gnss: bool) -> np.ndarray:
     """The path's noise at the maximum of the filter's log-likelihood (the path and the parameters integrated
     out), by quasi-Newton on the logs of the variances from EM's: EM moves a process noise the fixes see only
     in sum by a few per cent a pass, and would take hundreds of passes to reach where this goes in one."""
     from scipy.optimize import minimize
 
-    if not has_gnss:
-        return q
-    # the travel's noise only: EM's M-step sets the turn's and the bias's well (the gyro sees every step), and a
-    # free search may trade the bias's walk against the turn's noise, which the log tells apart only slowly
-    idx = [ks.Q_ALONG, ks.Q_ALONG_T, ks.Q_ACROSS]
+    idx = [*POLISHED, *(TRAVEL_NOISE if has_gnss else [])]
     x0 = np.log(q[idx])
 
     def nll(x: np.ndarray) -> float:

@@ -63,6 +63,9 @@ class InertialLog:
     imu_mount: MountGuess
     gnss_mount: MountGuess
     topics: tuple[tuple[str, str], ...] = ()  # role -> the bag's topic (odom, imu, gnss), for the exports
+    # the IMU's orientation where it reports one (x, y, z, w: its axes in a gravity-levelled frame); NaN rows
+    # where a message said none (REP 145's -1), None where no message did
+    imu_orientation_xyzw: np.ndarray | None = None
     truth: JsonObject | None = None  # the simulator's true parameters (scoring only)
     truth_t: np.ndarray | None = None  # the simulator's true path (scoring and figures only)
     truth_xy_m: np.ndarray | None = None
@@ -78,3 +81,30 @@ class InertialLog:
     @property
     def seconds(self) -> float:
         return float(self.odom_t[-1] - self.odom_t[0])
+
+    def between(self, t0: float, t1: float, source: str) -> InertialLog:
+        """The part of the log recorded in [t0, t1) (the odometry's clock), as if the recording had started at
+        t0: the odometry's first yaw is what its own twist had turned it to by then."""
+        from dataclasses import replace
+
+        o = (self.odom_t >= t0) & (self.odom_t < t1)
+        i = (self.imu_t >= t0) & (self.imu_t < t1)
+        g = (self.gnss_t >= t0) & (self.gnss_t < t1)
+        w, t = self.odom_omega_rad_s, self.odom_t
+        turned = float(np.sum((w[1:] + w[:-1]) / 2 * np.diff(t), where=t[1:] <= t[o][0]))
+        q = self.imu_orientation_xyzw
+        return replace(
+            self,
+            source=source,
+            odom_t=t[o],
+            odom_v_m_s=self.odom_v_m_s[o],
+            odom_omega_rad_s=w[o],
+            odom_yaw0_rad=self.odom_yaw0_rad + turned,
+            imu_t=self.imu_t[i],
+            gyro_rad_s=self.gyro_rad_s[i],
+            accel_m_s2=self.accel_m_s2[i],
+            imu_orientation_xyzw=None if q is None else q[i],
+            gnss_t=self.gnss_t[g],
+            gnss_enu_m=self.gnss_enu_m[g],
+            gnss_var_reported_m2=self.gnss_var_reported_m2[g],
+        )

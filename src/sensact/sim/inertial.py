@@ -57,6 +57,8 @@ class InertialConfig:
     imu_hz: float = 100.0
     gnss_hz: float = 5.0  # 0: no receiver
     tf_imu: str = "true"  # what /tf_static says of the IMU: "true", "none" or "wrong"
+    imu_orientation: bool = False  # the IMU reports its orientation (a 9-axis IMU's, or a filter's output)
+    accel: str = "m_s2"  # the driver's accelerations: "m_s2" (REP 145), "no_gravity" (gravity taken out) or "g"
     # the driving
     speed_m_s: float = 1.2
     turn_rad_s: float = 0.6
@@ -76,6 +78,8 @@ class InertialConfig:
             problems.append("gnss_outliers must be in [0, 0.5), gnss_reported_factor > 0")
         if self.tf_imu not in ("true", "none", "wrong") or self.turns not in ("both", "left", "none"):
             problems.append("tf_imu is true, none or wrong; turns is both, left or none")
+        if self.accel not in ("m_s2", "no_gravity", "g"):
+            problems.append("accel is m_s2, no_gravity or g")
         if problems:
             raise ValueError("; ".join(problems))
 
@@ -176,6 +180,15 @@ def simulate_inertial(cfg: InertialConfig) -> InertialRun:
         + cfg.accel_bias_m_s2 * rng.uniform(-1, 1, 3)
         + cfg.accel_noise * np.sqrt(cfg.imu_hz) * rng.standard_normal((k_i.size, 3))
     )
+    if cfg.accel == "no_gravity":
+        accel = accel - G * R[2]  # as some drivers publish it: the robot's own acceleration only
+    elif cfg.accel == "g":
+        accel = accel / G
+    orientation = None
+    if cfg.imu_orientation:  # the IMU's axes in a levelled frame, heading from the robot's (its reference is moot)
+        from scipy.spatial.transform import Rotation
+
+        orientation = (Rotation.from_euler("z", yaw[k_i, None]) * Rotation.from_matrix(R)).as_quat()
     imu_t = t[k_i] + cfg.imu_time_offset_s
     # GNSS at the antenna
     if cfg.gnss_hz > 0:
@@ -209,6 +222,7 @@ def simulate_inertial(cfg: InertialConfig) -> InertialRun:
         datum=Datum(30.2849, -97.7341, 150.0) if cfg.gnss_hz > 0 else None,
         imu_mount=MountGuess("imu_link", None if tf_rpy is None else tuple(r), tf_rpy),
         gnss_mount=MountGuess("gps_link", (*cfg.gnss_lever_m, 0.5), None) if cfg.gnss_hz > 0 else MountGuess(),
+        imu_orientation_xyzw=orientation,
         topics=(
             ("odom", "/odometry/wheel"),
             ("imu", "/imu/data"),

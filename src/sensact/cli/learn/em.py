@@ -212,7 +212,9 @@ def learn_em_cmd(
         typer.Option(
             "--halves",
             help="Then learn each half of the log on from the whole log's model and compare the three: parameters "
-            "the log pins down come out alike from both halves (no ground truth needed; about as long again).",
+            "the log pins down come out alike from both halves (no ground truth needed; about as long again). On "
+            "an odometry-IMU-GNSS log each half is learned alone, compared in combined sd, and the first half's "
+            "model is scored on the second.",
         ),
     ] = False,
     preset: Annotated[
@@ -245,7 +247,7 @@ def learn_em_cmd(
     bars, and takes none of the EM options (docs/lidar2d.md).
 
     On an odometry-IMU-GNSS folder (`convert bag` of a bag with nav_msgs/Odometry and sensor_msgs/Imu, or
-    `simulate imu_gnss`) it learns the odometry's gains, the gyro's bias, scale, noise and clock, the IMU's
+    `simulate outdoor`) it learns the odometry's gains, the gyro's bias, scale, noise and clock, the IMU's
     mount, and GNSS's lever arm, noise and heading, with error bars (docs/inertial.md)."""
     check_out_file(out, others={"--start-from": start_from}, kind=EM_MODEL, force=force)
     from sensact.app.log_kinds import refuse_options
@@ -294,7 +296,18 @@ def learn_em_cmd(
             save_calibration(cal, out, report=report)
             console.print(f"wrote {out} again, with the error bars" + (" (and the report)" if report else ""))
     if halves:  # after the model is written, so that stopping the halves loses nothing of it
-        _halves(cal, out)
+        from sensact.app.log_kinds import halves_of
+
+        kind_halves = halves_of(cal)
+        if kind_halves is None:
+            _halves(cal, out)
+        else:
+            with progress_bar() as progress:
+                doc = kind_halves(cal, progress)
+            _show_inertial_halves(doc)
+            if out is not None:
+                write_result(out, cal.to_json() | {"halves": doc}, EM_MODEL)
+                console.print(f"wrote {out} again, with the halves")
     finish(cal.health)
 
 
@@ -383,6 +396,29 @@ def _show_inertial(cal: Any) -> None:
             ),
             highlight=False,
         )
+
+
+def _show_inertial_halves(doc: JsonObject) -> None:
+    """Each half's numbers, their difference in combined sd, and the first half's model on the second."""
+    first, second, z = doc["first_half"], doc["second_half"], doc["differ_sd"]
+    rows = [
+        [
+            key + (" (the run's)" if key in doc["run_keys"] else ""),
+            *(f"{h[key]['value']:.6g} +- {h[key]['sd']:.2g}" for h in (first, second)),
+            f"{z[key]:+.2f}" if z[key] is not None else "",
+        ]
+        for key in z
+    ]
+    title = f"the log's halves, each learned alone (cut at {doc['cut_s']:.0f} s)"
+    print_tables([(title, ["", "first half", "second half", "differ (sd)"], rows)])
+    verdict = "agree" if doc["agree_within_3sd"] else f"disagree most in {doc['worst']}"
+    cons = doc["first_on_second"]["consistency"]
+    console.print(
+        f"the robot's constants {verdict} within {3:g} combined sd; the first half's model on the second: "
+        + ", ".join(f"{s} coverage90 {c['coverage90']:.3f}" for s, c in cons.items() if c["coverage90"] is not None)
+        + " (0.90 when its noise is honest)",
+        highlight=False,
+    )
 
 
 def lidar2d_table(doc: JsonObject) -> tuple[str, list[str], list[list[str]]]:
