@@ -236,3 +236,21 @@ def test_an_export_refuses_a_model_missing_or_wild_in_what_it_writes(learned, tm
     res = runner.invoke(app, ["export", str(bad), "--format", "robot-localization", "--out", str(tmp_path / "rl.yaml")])
     assert res.exit_code == 2 and f"error: {bad}: {field}:" in res.output.replace("\n", ""), res.output
     assert not (tmp_path / "rl.yaml").exists()
+
+
+@pytest.mark.parametrize("fmt", ["robot-localization", "tum"])
+def test_a_flagged_models_export_is_written_with_one_warning_and_exit_3(learned, tmp_path, fmt):
+    """A model flagged when it was learned is exported as asked, but not as a success: one warning line names
+    its flags and the command exits 3; the same model unflagged exits 0."""
+    root, doc = learned
+    flagged = tmp_path / "flagged.json"
+    flags = [{"code": "not_converged", "message": "EM did not settle."}, {"code": "sigma_collapsed", "message": "x"}]
+    flagged.write_text(json.dumps(doc | {"health": {"ok": False, "flags": flags}}))
+    for beside in root.glob("model.*.npz"):  # the path and the like, as learn em wrote them
+        (tmp_path / beside.name.replace("model.", "flagged.", 1)).write_bytes(beside.read_bytes())
+    res = runner.invoke(app, ["export", str(flagged), "--format", fmt, "--out", str(tmp_path / "f.out")])
+    assert res.exit_code == 3, res.output
+    assert (tmp_path / "f.out").exists()
+    warnings = [ln for ln in res.output.splitlines() if ln.startswith("warning:")]
+    assert len(warnings) == 1 and "not_converged, sigma_collapsed" in " ".join(res.output.split())
+    _ok(["export", root / "model.json", "--format", fmt, "--out", tmp_path / "ok.out"])

@@ -482,6 +482,7 @@ def test_the_halves_agree_and_the_first_holds_on_the_second(husky):
     assert doc["cut_s"] == pytest.approx(150, abs=1)
 
 
+@pytest.mark.slow
 def test_halves_through_the_cli_are_written_into_the_model(tmp_path):
     _run(["simulate", "outdoor", "--out", tmp_path / "run", "--seconds", 90])
     _run(["learn", "em", tmp_path / "run", "--out", tmp_path / "m.json", "--no-report", "--halves"])

@@ -566,15 +566,16 @@ def _blank(ts, name):
     return ts.types[name](**{f: value(int(k), d) for f, (k, d) in fields})
 
 
-def _robot_bag(path, topics):
-    """A sqlite3 bag of ten blank messages on each (topic, type): what a real robot's recording holds."""
+def _robot_bag(path, topics, empty=()):
+    """A sqlite3 bag of ten blank messages on each (topic, type), and ``empty`` (topic, type) recorded with none:
+    what a real robot's recording holds."""
     from rosbags.typesys import get_types_from_msg
 
     m = Msgs("sqlite3")
     for name, text in FIDUCIALS.items():
         m.ts.register(get_types_from_msg(text, name))
     msgs = [(t, kind, T0_NS + k * 10**8, _blank(m.ts, kind)) for t, kind in topics for k in range(10)]
-    return write_bag(path, "sqlite3", msgs, m)
+    return write_bag(path, "sqlite3", msgs, m, empty=empty)
 
 
 ODOM, IMU = ("/odom", "nav_msgs/msg/Odometry"), ("/imu/data", "sensor_msgs/msg/Imu")
@@ -626,6 +627,35 @@ def test_a_bag_with_an_imu_goes_the_inertial_route(tmp_path, topics, said):
     assert res.exit_code == 2 and "Traceback" not in text, text
     assert said in text and "Fix:" in text
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("named", [[], ["--scan", "/scan"]])
+def test_an_empty_scan_is_named_as_empty_and_every_route_is_named(tmp_path, named):
+    """A TurtleBot3's bag with its lidar off: /scan recorded with no message. The cause comes first (not "LaserScan
+    is not read", not "the index lists 0"), and the refusal names every route and what it needs."""
+    bag = _robot_bag(tmp_path / "robot", [CMD, JOINTS, ODOM], empty=[SCAN])
+    res = runner.invoke(app, ["convert", "bag", str(bag), *named, "--out", str(tmp_path / "o")])
+    text = " ".join(res.output.split())
+    assert res.exit_code == 2 and "Traceback" not in text, text
+    assert "/scan has no messages" in text
+    assert "is not read by sensact" not in text and "index lists" not in text
+    if not named:
+        assert "wheels and a 2-D lidar (sensor_msgs/LaserScan" in text and "an IMU and GNSS" in text
+    assert not (tmp_path / "o").exists()
+
+
+def test_odometry_given_as_commands_or_odom_drives_the_lidar_route(tmp_path):
+    """`--commands /odom` takes an Odometry, as `convert bag --help` says, and of /odom and robot_localization's
+    /odometry/filtered the wheels' is taken, or the one --odom names."""
+    from sensact.io.rosbag import Topic
+    from sensact.io.rosbag_lidar2d import lidar_roles
+
+    topics = [Topic(n, t.replace("/msg/", "/"), 10) for n, t in (SCAN, ODOM, ("/odometry/filtered", ODOM[1]))]
+    assert lidar_roles(tmp_path, topics, {}).odom == "/odom"
+    assert lidar_roles(tmp_path, topics, {"commands": "/odom"}).odom == "/odom"
+    assert lidar_roles(tmp_path, topics, {"odom": "/odometry/filtered"}).odom == "/odometry/filtered"
+    res = runner.invoke(app, ["convert", "bag", "--help"])
+    assert "--odom" in res.output
 
 
 def test_a_bag_with_a_laser_scan_goes_the_lidar_route_and_an_empty_scan_is_one_line(tmp_path):

@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import math
 import shutil
+import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
@@ -179,6 +180,8 @@ def test_urdf_and_robot_localization_exports_carry_the_learned_numbers_in_si(bag
     model = root / "log" / "model.json"
     _run(["export", model, "--format", "urdf"])
     text = (root / "log" / "model.urdf.xacro").read_text()
+    tree = ET.fromstring(text)  # a document of its own: one <robot>, the xacro namespace declared
+    assert tree.tag == "robot" and tree.find("joint").get("type") == "fixed"
     origin = text.split('<origin xyz="')[1].split('"')
     xyz = [float(v) for v in origin[0].split()]
     rpy = [float(v) for v in origin[2].split()]
@@ -277,6 +280,20 @@ def test_cmd_vel_alone_gives_the_commands_gains_and_delay(short_log, tmp_path):
     assert d["gain_turn"] == pytest.approx(r / 33.0 * 160.0 / truth["axle_mm"], rel=5e-3)
     for key, want in (("gain_forward", r / 33.0), ("gain_turn", r / 33.0 * 160.0 / truth["axle_mm"])):
         assert 0 < d[f"{key}_sd"] and abs(d[key] - want) <= 3 * d[f"{key}_sd"], (key, d[key], want)
+    # its URDF export: a well-formed <robot> with the multipliers diff_drive_controller takes, never a radius
+    _run(["export", tmp_path / "cmd.json", "--format", "urdf", "--out", tmp_path / "cmd.urdf.xacro"])
+    root = ET.parse(tmp_path / "cmd.urdf.xacro").getroot()
+    props = {p.get("name"): float(p.get("value")) for p in root if p.tag.endswith("property")}
+    assert set(props) == {"wheel_radius_multiplier", "wheel_separation_multiplier"}
+    assert props["wheel_radius_multiplier"] == pytest.approx(d["gain_forward"], rel=1e-5)
+    assert props["wheel_radius_multiplier"] / props["wheel_separation_multiplier"] == pytest.approx(
+        d["gain_turn"], rel=1e-5
+    )
+    assert root.find("joint/origin") is not None
+    from sensact.cli.learn.em import lidar2d_table
+
+    labels = [row[0] for row in lidar2d_table(doc)[2]]
+    assert "forward gain (on cmd_vel)" in labels and not any("radius" in label for label in labels)
 
 
 def test_a_log_that_never_turns_is_flagged_not_answered(tmp_path):
@@ -340,3 +357,39 @@ def test_the_bag_roles_come_from_the_types_and_two_of_one_must_be_named(tmp_path
         lidar_roles(tmp_path, topics, {"scan": "/odom"})
     with pytest.raises(LogFormatError, match="nothing says how the robot moved"):
         lidar_roles(tmp_path, topics[:2], {"scan": "/scan"})
+
+
+def test_unix_epoch_times_give_the_model_times_from_zero_give_exactly(short_log, tmp_path):
+    """The same log with every time 1.7e9 s later (a CSV of Unix times): read exactly from its first whole
+    second and fitted from its start, it gives the same model, every sd finite; the delay's finite difference
+    is no longer lost below float64's resolution at 1.7e9 s."""
+    from decimal import Decimal
+
+    epoch = tmp_path / "epoch"
+    shutil.copytree(short_log, epoch)
+    for table in epoch.glob("*.csv"):
+        head, *rows = table.read_text().splitlines()
+        shifted = [f"{Decimal(r.split(',', 1)[0]) + 1_700_000_000:.9f},{r.split(',', 1)[1]}" for r in rows]
+        table.write_text("\n".join([head, *shifted]) + "\n")
+    a = json.loads(_learn(short_log, tmp_path / "zero.json"))
+    b = json.loads(_learn(epoch, tmp_path / "epoch.json"))
+    for part, keys in (("drive", ("wheel_radius_left_mm", "wheel_radius_right_mm", "axle_mm", "delay_s")),
+                       ("lidar", ())):  # fmt: skip
+        for key in keys:
+            assert b[part][key] == pytest.approx(a[part][key], rel=1e-5, abs=1e-12), key
+            assert math.isfinite(b[part][f"{key}_sd"])
+    for key in ("forward_mm", "left_mm", "yaw_rad"):
+        assert b["lidar"]["mount"][key] == pytest.approx(a["lidar"]["mount"][key], rel=1e-5)
+        assert math.isfinite(b["lidar"]["mount"][f"{key}_sd"])
+
+
+def test_a_library_warning_reaches_the_user_as_one_line_without_a_source_path(tmp_path):
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, warnings; from sensact.cli import base; warnings.showwarning = base._warning_line; "
+        "warnings.warn('overflow encountered in divide', RuntimeWarning)"
+    )
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert "warning: overflow encountered in divide" in res.stderr and ".py" not in res.stderr, res.stderr

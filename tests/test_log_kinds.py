@@ -64,7 +64,7 @@ def test_each_kind_is_recognized(logs):
         "lidar2d": "lidar2d",
         "outdoor": "imu_gnss",
     }
-    assert [k.name for k in KINDS] == ["lidar2d", "imu_gnss", "turtlebot_csv", "landmarks"]
+    assert [k.name for k in KINDS] == ["lidar2d", "intervals", "imu_gnss", "turtlebot_csv", "landmarks"]
 
 
 @pytest.mark.parametrize("case", ["planar", "radio", "track", "turtlebot", "lidar2d", "outdoor"])

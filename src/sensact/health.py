@@ -38,13 +38,20 @@ class Health:
         return cls(tuple(f for f in flags if f is not None))
 
 
+def _learned_flags(doc: JsonObject) -> list[JsonObject]:
+    node = doc.get("health")
+    flags = node.get("flags") if isinstance(node, dict) else None
+    return [f for f in flags if isinstance(f, dict)] if isinstance(flags, list) else []
+
+
+def learned_flag_codes(doc: JsonObject) -> tuple[str, ...]:
+    """The codes of the flags a model.json was written with (none in a file that predates them)."""
+    return tuple(str(f.get("code")) for f in _learned_flags(doc))
+
+
 def learned_health(doc: JsonObject) -> Health:
     """What a model.json says of its own fit (``health``, as the learner wrote it; none in a file that predates
     it), kept as flags: a path placed or a change tested with a flagged model is as doubtful as the model."""
-    node = doc.get("health")
-    flags = node.get("flags") if isinstance(node, dict) else None
-    if not isinstance(flags, list):
-        return Health()
     return Health.of(
         *(
             HealthFlag(
@@ -52,8 +59,7 @@ def learned_health(doc: JsonObject) -> Health:
                 f"the model was flagged when it was learned ({f.get('code')}: "
                 f"{str(f.get('message')).rstrip('.')}); what it gives here is as doubtful.",
             )
-            for f in flags
-            if isinstance(f, dict)
+            for f in _learned_flags(doc)
         )
     )
 

@@ -6,12 +6,14 @@ log a ``Calibration``: the model, typed diagnostics, the scores when the log has
 ``save_calibration`` writes it as `learn em --out` does. ``sensact learn em DIR`` is
 ``calibrate(open_log(DIR))`` and printing, for every kind.
 
-* ``log_kinds``: the registry, one door per log kind: its opener, learner and writer;
+* ``log_kinds``: the registry, one door per log kind: its opener, learner and writer (``opened``: what the
+  kinds whose readers refuse what they doubt share once opened);
 * ``calibrate``: ``calibrate(log)``, by the learner of the log's kind;
 * ``logs`` with ``em``, ``save``, ``scores`` and ``report``: a landmark log learned by EM, written, scored
   against its truth and reported; ``uncertainty``: its error bars;
 * ``lidar2d``: a wheels-and-2-D-lidar log learned and written;
-  ``inertial``: an odometry-IMU-GNSS log's; ``velodyne_car``: chapter 5's car;
+  ``intervals``: Censi et al.'s scan-matched intervals'; ``inertial``: an odometry-IMU-GNSS log's;
+  ``velodyne_car``: chapter 5's car;
   ``bootstrap``: chapter 3's Algorithm 1 scored;
 * ``settings``: every command's settings, resolved in one place;
 * ``localize`` and ``monitor``: a learned model placed on, and run over, another log;

@@ -47,6 +47,7 @@ class Exported:
     __repr__ = compact_repr  # a line, never the arrays
     written: tuple[Path, ...]
     notes: tuple[str, ...] = ()
+    flags: tuple[str, ...] = ()  # the model's own health flags (codes): what was exported is as doubtful
 
 
 def read_model_doc(path: Path) -> JsonObject:
@@ -419,7 +420,11 @@ def export_model(model: Path, fmt: str, out: Path, truth_out: Path | None = None
             field="--format",
             fix=f"one of {', '.join(writers)} for this model.",
         )
-    return writers[fmt](doc, model, out, truth_out)
+    from dataclasses import replace
+
+    from sensact.health import learned_flag_codes
+
+    return replace(writers[fmt](doc, model, out, truth_out), flags=learned_flag_codes(doc))
 
 
 def _what(doc: JsonObject) -> str:
@@ -475,6 +480,7 @@ def _writers(doc: JsonObject) -> dict[str, Writer]:
     ``lidar2d``), else a model `learn em` or `learn car` wrote."""
     from sensact.app import export_inertial, export_lidar2d
     from sensact.io.inertial_folder import KIND as INERTIAL_KIND
+    from sensact.io.intervals import KIND as INTERVALS_KIND
     from sensact.io.lidar2d_folder import KIND as LIDAR2D_KIND
 
     by_kind = {
@@ -482,6 +488,7 @@ def _writers(doc: JsonObject) -> dict[str, Writer]:
             "urdf": _text(export_lidar2d.urdf_snippet),
             "robot-localization": _with_companion(export_lidar2d.robot_localization),
         },
+        INTERVALS_KIND: {"urdf": _text(export_lidar2d.urdf_snippet)},
         INERTIAL_KIND: {
             "diff-drive-controller": _text(export_inertial.diff_drive_controller),
             "robot-localization": _text(export_inertial.robot_localization_ekf),

@@ -45,38 +45,61 @@ def _number(doc: JsonObject, source: Path, *keys: str) -> float:
     return float(node)
 
 
+def drive_values(doc: JsonObject, source: Path) -> dict[str, float]:
+    """The drive as ROS takes it: the wheels' radii and separation (m) when learned from encoders; from /odom's
+    or /cmd_vel's motion, diff_drive_controller's two multipliers on the robot's nominal wheels (the learned
+    numbers are gains there, and pasted as radii they would break the drive)."""
+    if doc.get("drive", {}).get("source") == "wheels":
+        left = _number(doc, source, "drive", "wheel_radius_left_mm") * MM
+        right = _number(doc, source, "drive", "wheel_radius_right_mm") * MM
+        return {
+            "wheel_radius_left": left,
+            "wheel_radius_right": right,
+            "wheel_radius": (left + right) / 2,
+            "wheel_separation": _number(doc, source, "drive", "axle_mm") * MM,
+        }
+    forward = _number(doc, source, "drive", "gain_forward")
+    turn = _number(doc, source, "drive", "gain_turn")
+    # diff_drive_controller: v = m_r r (wR + wL) / 2, w = m_r r (wR - wL) / (m_s b); turn gain m_r / m_s
+    return {"wheel_radius_multiplier": forward, "wheel_separation_multiplier": forward / turn}
+
+
 def urdf_snippet(doc: JsonObject, source: Path) -> str:
-    """The lidar's fixed joint and the wheels' radii and separation, as a URDF/xacro snippet to paste."""
+    """The lidar's fixed joint and the drive (radii and separation, or multipliers), as a xacro file: a
+    ``<robot>`` with the xacro namespace, for ``<xacro:include>`` into the robot's description."""
     f = _number(doc, source, "lidar", "mount", "forward_mm") * MM
     y = _number(doc, source, "lidar", "mount", "left_mm") * MM
     yaw = _number(doc, source, "lidar", "mount", "yaw_rad")
-    rl = _number(doc, source, "drive", "wheel_radius_left_mm") * MM
-    rr = _number(doc, source, "drive", "wheel_radius_right_mm") * MM
-    b = _number(doc, source, "drive", "axle_mm") * MM
+    drive = drive_values(doc, source)
     urdf = doc.get("urdf") if isinstance(doc.get("urdf"), dict) else {}
     mount = urdf.get("lidar_mount") if isinstance(urdf.get("lidar_mount"), dict) else {}
     z = mount.get("up_mm")
     z = float(z) * MM if isinstance(z, int | float) and math.isfinite(z) else 0.0
     lidar = urdf.get("lidar_frame") or "base_scan"
     base = urdf.get("base_frame") or "base_link"
-    unit = (
-        ""
-        if doc.get("drive", {}).get("source") == "wheels"
-        else " (per nominal wheel: read as gains on /odom or /cmd_vel)"
-    )
     note = "" if z else " z is 0: /tf_static gave no height; put the lidar's own."
+    what = (
+        "the wheels' radii and separation"
+        if "wheel_separation" in drive
+        else "diff_drive_controller's wheel_radius_multiplier and wheel_separation_multiplier (learned from the "
+        "odometry's motion: gains on the robot's nominal wheels, not radii)"
+    )
+    props = "".join(f'  <xacro:property name="{k}" value="{v:.6f}"/>\n' for k, v in drive.items())
     return (
+        '<?xml version="1.0"?>\n'
         f"<!-- sensact: learned from {doc.get('log', source.name)} (metres, radians; REP 103: x forward, y left)."
-        f"{note} -->\n"
-        f'<xacro:property name="wheel_radius_left" value="{rl:.6f}"/>{unit and "  <!--" + unit + " -->"}\n'
-        f'<xacro:property name="wheel_radius_right" value="{rr:.6f}"/>\n'
-        f'<xacro:property name="wheel_radius" value="{(rl + rr) / 2:.6f}"/>\n'
-        f'<xacro:property name="wheel_separation" value="{b:.6f}"/>\n'
-        f'<joint name="{lidar}_joint" type="fixed">\n'
-        f'  <parent link="{base}"/>\n'
-        f'  <child link="{lidar}"/>\n'
-        f'  <origin xyz="{f:.6f} {y:.6f} {z:.6f}" rpy="0 0 {yaw:.6f}"/>\n'
-        "</joint>\n"
+        f"{note}\n"
+        f'     Include it in the robot\'s xacro: <xacro:include filename="{source.with_suffix(".urdf.xacro").name}"/>;'
+        f"\n     it adds the lidar's joint ({base} to {lidar}, both links the robot's own) and, as properties, {what}."
+        " -->\n"
+        f'<robot name="sensact_calibration" xmlns:xacro="http://www.ros.org/wiki/xacro">\n'
+        f"{props}"
+        f'  <joint name="{lidar}_joint" type="fixed">\n'
+        f'    <parent link="{base}"/>\n'
+        f'    <child link="{lidar}"/>\n'
+        f'    <origin xyz="{f:.6f} {y:.6f} {z:.6f}" rpy="0 0 {yaw:.6f}"/>\n'
+        "  </joint>\n"
+        "</robot>\n"
     )
 
 
@@ -105,9 +128,7 @@ def robot_localization(doc: JsonObject, source: Path) -> tuple[str, str]:
     q = process_noise(per_s, 1.0)
     extra = {
         "source": str(source),
-        "wheel_radius_left_m": _number(doc, source, "drive", "wheel_radius_left_mm") * MM,
-        "wheel_radius_right_m": _number(doc, source, "drive", "wheel_radius_right_mm") * MM,
-        "wheel_separation_m": _number(doc, source, "drive", "axle_mm") * MM,
+        **{k + ("_m" if "multiplier" not in k else ""): v for k, v in drive_values(doc, source).items()},
         "delay_s": _number(doc, source, "drive", "delay_s"),
         # m^2, m^2, rad^2 per metre travelled, and per radian turned
         "drive_variance_per_m": [float(per_mm[0] * MM), float(per_mm[1] * MM), float(per_mm[2] / MM)],

@@ -14,6 +14,7 @@ import numpy as np
 
 from sensact import __version__
 from sensact.app.em import FitEvents
+from sensact.app.opened import OpenedFolder
 from sensact.app.save import Saved
 from sensact.core import inertial_smoother as ks
 from sensact.health import Health, HealthFlag
@@ -58,22 +59,10 @@ MIN_GYRO_CORRELATION = 0.3  # a gyro on the robot follows its turns far closer (
 
 
 @dataclass(frozen=True, eq=False)
-class OpenedInertialLog:
+class OpenedInertialLog(OpenedFolder):
     """An outdoor robot's log folder, opened (``app.log_kinds``)."""
 
-    path: Path
     data: InertialLog
-
-    @property
-    def name(self) -> str:
-        return self.path.name
-
-    @property
-    def notes(self) -> tuple[str, ...]:
-        return ()
-
-    def doubts(self) -> tuple[str, ...]:
-        return ()
 
     def describe(self) -> str:
         d = self.data

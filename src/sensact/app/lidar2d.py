@@ -13,6 +13,7 @@ import numpy as np
 
 from sensact import __version__
 from sensact.app.em import FitEvents
+from sensact.app.opened import OpenedFolder
 from sensact.app.save import Saved
 from sensact.health import Health, HealthFlag
 from sensact.io.lidar2d_folder import KIND as LIDAR2D_KIND
@@ -21,6 +22,7 @@ from sensact.learn.wheel_lidar import (
     MOUNT_SD_RAD,
     PARAMETERS,
     WHEEL_SD_SHARE,
+    WheelLidarFit,
     WheelLidarResult,
     learn_wheel_lidar,
 )
@@ -33,22 +35,10 @@ MIN_INTERVALS = 20
 
 
 @dataclass(frozen=True, eq=False)
-class OpenedLidar2DLog:
+class OpenedLidar2DLog(OpenedFolder):
     """A wheels-and-2-D-lidar log folder, opened (``app.log_kinds``)."""
 
-    path: Path
     data: Lidar2DLog
-
-    @property
-    def name(self) -> str:
-        return self.path.name
-
-    @property
-    def notes(self) -> tuple[str, ...]:
-        return ()
-
-    def doubts(self) -> tuple[str, ...]:
-        return ()  # the reader refuses what it doubts
 
     def describe(self) -> str:
         data = self.data
@@ -192,7 +182,14 @@ class Lidar2DCalibration:
 def health_of(res: WheelLidarResult) -> Health:
     """A fit the log cannot pin down is flagged, not answered: the mount shows only in turns, the wheels only
     in driving."""
-    fit = res.fit
+    flags = fit_flags(res.fit)
+    if not np.isfinite(res.range.sigma_mm):
+        flags.append(HealthFlag("range_noise_unknown", "too few flat surfaces in the scans to learn the range noise."))
+    return Health.of(*flags)
+
+
+def fit_flags(fit: WheelLidarFit) -> list[HealthFlag]:
+    """The wheels-and-mount fit's own flags (the scan route's and the intervals')."""
     sd = dict(zip(PARAMETERS, fit.sd, strict=True))
     p = dict(zip(PARAMETERS, fit.params, strict=True))
     flags = []
@@ -228,9 +225,7 @@ def health_of(res: WheelLidarResult) -> Health:
                 "turning for longer.",
             )
         )
-    if not np.isfinite(res.range.sigma_mm):
-        flags.append(HealthFlag("range_noise_unknown", "too few flat surfaces in the scans to learn the range noise."))
-    return Health.of(*flags)
+    return flags
 
 
 def calibrate_lidar2d(log: Lidar2DLog, progress: Progress | None = None) -> Lidar2DCalibration:

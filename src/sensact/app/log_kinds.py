@@ -7,6 +7,7 @@ printing, for every kind. A new kind of log is one module with its opener and le
 The kinds:
 
 * ``lidar2d``: a folder of wheel encoders (or /odom, /cmd_vel) and 2-D scans (``meta.json``'s ``kind``);
+* ``intervals``: a folder of scan-matched intervals (``convert intervals``; ``meta.json``'s ``kind``);
 * ``imu_gnss``: a folder of wheel odometry, an IMU and optionally GNSS (``meta.json``'s ``kind``);
 * ``turtlebot_csv``: the Turtlebot's 1-D CSV, read by EM with the Turtlebot's settings;
 * ``landmarks``: a log folder of actions and landmark sightings, EM's own: range and bearing, range-only
@@ -30,6 +31,13 @@ from sensact.app.inertial import (
     open_inertial_log,
     save_inertial,
 )
+from sensact.app.intervals import (
+    IntervalsCalibration,
+    OpenedIntervalsLog,
+    calibrate_opened_intervals,
+    open_intervals_log,
+    save_intervals,
+)
 from sensact.app.lidar2d import (
     Lidar2DCalibration,
     OpenedLidar2DLog,
@@ -41,11 +49,12 @@ from sensact.app.logs import OpenedLandmarkLog, open_landmark_folder, open_turtl
 from sensact.app.save import Saved, save_em_calibration
 from sensact.errors import ConfigError, LogFormatError
 from sensact.io.inertial_folder import KIND as INERTIAL_KIND
+from sensact.io.intervals import KIND as INTERVALS_KIND
 from sensact.io.lidar2d_folder import KIND as LIDAR2D_KIND
 from sensact.io.logfolder import meta_kind
 
-OpenedAny = OpenedLandmarkLog | OpenedLidar2DLog | OpenedInertialLog
-CalibratedAny = Calibration | Lidar2DCalibration | InertialCalibration
+OpenedAny = OpenedLandmarkLog | OpenedLidar2DLog | OpenedIntervalsLog | OpenedInertialLog
+CalibratedAny = Calibration | Lidar2DCalibration | IntervalsCalibration | InertialCalibration
 
 # `learn em`'s options beyond the log and --out that a kind may or may not take
 EM_OPTIONS = frozenset({"--start-from", "--halves", "--preset", "--set", "--config", "--uncertainty"})
@@ -179,6 +188,20 @@ register(
         calibrate_opened_lidar2d,
         Lidar2DCalibration,
         save_lidar2d,
+        frozenset(),
+    )
+)
+register(
+    LogKind(
+        "intervals",
+        "scan-matched intervals",
+        "a folder of scan-matched intervals (meta.json and intervals.csv, as `convert intervals` writes)",
+        lambda path: meta_kind(path) == INTERVALS_KIND,
+        lambda path, bins: open_intervals_log(path),
+        OpenedIntervalsLog,
+        calibrate_opened_intervals,
+        IntervalsCalibration,
+        save_intervals,
         frozenset(),
     )
 )

@@ -124,7 +124,7 @@ def _on_simulated_planar(
 
 def _on_simulated_track(
     log: OpenedLandmarkLog, model: EMModel, learned_here: bool, path: np.ndarray | None, fit: Any
-) -> Scores | None:
+) -> Scores | Unscored | None:
     """Against the true models a simulated track's meta.json carries (sec. 4.4.3)."""
     lf = log.folder
     truth = lf.meta.get("truth") or {}
@@ -134,7 +134,10 @@ def _on_simulated_track(
     from sensact.evaluate.track1d import DISTANCE_GRID_MM
     from sensact.sim.track1d import TrackTruth
 
-    tt = TrackTruth.from_dict(truth)
+    try:  # scoring only: a truth block that is not the simulator's numbers leaves the fit unscored, not failed
+        tt = TrackTruth.from_dict(truth)
+    except (TypeError, ValueError, KeyError, AttributeError) as exc:
+        return Unscored(f"meta.json's truth is not a simulated track's models ({type(exc).__name__}): not scored.")
     sc = score_track(model, tt.velocity_mm_s(lf.data.action_commands[:, 0]), tt.height_px, DISTANCE_GRID_MM)
     return Scores(SIMULATED_MODEL, sc)
 

@@ -9,6 +9,7 @@ import inspect
 import logging
 import os
 import sys
+import warnings
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -443,8 +444,21 @@ def usage_error_line(exc: Any) -> str:
     return f"error: {exc.format_message().rstrip('.')}. Fix: see `{where} --help`."
 
 
+def _warning_line(message, category, filename, lineno, file=None, line=None) -> None:
+    """A library's warning as one line of the user's, without the source path it was raised at (--debug: as
+    Python shows it)."""
+    if _state["debug"]:
+        _python_warning(message, category, filename, lineno, file, line)
+        return
+    err_console.print(f"[yellow]warning:[/] {escape(' '.join(str(message).split()))}", highlight=False, soft_wrap=True)
+
+
+_python_warning = warnings.showwarning
+
+
 def main() -> None:
     """Console-script entry point."""
+    warnings.showwarning = _warning_line
     try:
         try:
             code = app(standalone_mode=False, prog_name="sensact")  # click's errors come here, to end in one line

@@ -417,3 +417,35 @@ def convert_track(
         f"wrote {out}, its EM settings {cfg} and {overview}; {learners}"
         + ("" if truth is None else "; each is scored against the recorded distance")
     )
+
+
+@convert_app.command("intervals")
+@friendly
+def convert_intervals(
+    intervals: Annotated[
+        Path,
+        typer.Argument(
+            help="Censi et al.'s tuples (one JSON object a line: T, phi_l, phi_r, sm), or a CSV of T_s, "
+            "phi_l_rad_s, phi_r_rad_s, sm_x_m, sm_y_m, sm_theta_rad."
+        ),
+    ],
+    out: Annotated[Path, typer.Option("--out", help="The intervals log folder to write.")] = Path("intervals_log"),
+) -> None:
+    """Write the scan-matched intervals Censi et al.'s calibration tool or OdomLaserCalibraTool holds as a log
+    folder, for `sensact learn em OUT`: the wheels' radii, the axle and the lidar's mount, with error bars,
+    as the scan route learns them after its own matching (docs/lidar2d.md).
+
+    Each interval: its length T (s), the left and right wheels' angular velocities over it (rad/s, constant
+    within it; the radii come out in mm per rad), and the scan matcher's displacement of the lidar over it, in
+    the lidar's own frame at the interval's start (x forward, y left; metres and radians). A file ending in
+    .csv is read as the CSV, any other as the JSON lines."""
+    from sensact.io.atomic import nothing_half_written
+    from sensact.io.intervals import read_intervals_file, write_intervals_log
+
+    log = read_intervals_file(intervals)
+    with nothing_half_written(out):
+        write_intervals_log(out, log)
+    console.print(
+        f"wrote {out}: {log.n} intervals over {float(log.t_s.sum()):.1f} s; learn with `sensact learn em {out}`",
+        highlight=False,
+    )

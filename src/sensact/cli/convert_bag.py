@@ -101,7 +101,11 @@ def convert_bag(
         typer.Option(metavar="LEFT,RIGHT", help="The wheels' joint names in the JointState, when not told by name."),
     ] = None,
     odom: Annotated[
-        str | None, typer.Option(metavar="TOPIC", help="With an IMU: the wheel odometry's nav_msgs/Odometry.")
+        str | None,
+        typer.Option(
+            metavar="TOPIC",
+            help="The wheel odometry's nav_msgs/Odometry, where the bag has several (an IMU's or a 2-D lidar's route).",
+        ),
     ] = None,
     imu: Annotated[
         str | None, typer.Option(metavar="TOPIC", help="The IMU's sensor_msgs/Imu (docs/inertial.md).")
@@ -168,7 +172,8 @@ def convert_bag(
         from sensact.io.rosbag_lidar2d import has_laser_scan
 
         if (scan or has_laser_scan(topics)) and not (readings or sightings):
-            _convert_lidar(bag, out, reader, topics, scan, wheels, wheel_joints, commands, truth, receive_times)
+            named_lidar = {"scan": scan, "joints": wheels, "odom": odom, "commands": commands, "truth": truth}
+            _convert_lidar(bag, out, reader, topics, named_lidar, wheel_joints, receive_times)
             return
         from sensact.io.rosbag_inertial import has_imu
 
@@ -262,11 +267,8 @@ def _convert_lidar(
     out: Path,
     reader,
     topics,
-    scan: str | None,
-    wheels: str | None,
+    named: dict[str, str | None],
     wheel_joints: str | None,
-    commands: str | None,
-    truth: str | None,
     receive_times: bool,
 ) -> None:
     """The wheels-and-2-D-lidar route (docs/lidar2d.md): a lidar2d log folder at ``out``."""
@@ -283,7 +285,7 @@ def _convert_lidar(
             raise ConfigError(
                 f"--wheel-joints {wheel_joints!r} is not two names.", field="--wheel-joints", fix="give LEFT,RIGHT."
             )
-    roles = lidar_roles(bag, topics, {"scan": scan, "joints": wheels, "commands": commands, "truth": truth})
+    roles = lidar_roles(bag, topics, named)
     console.print(f"{bag}:\n  " + "\n  ".join(topic_lines(topics)), highlight=False, soft_wrap=True)
     console.print("roles:\n  " + "\n  ".join(roles.lines()), highlight=False, soft_wrap=True)
     with progress_bar() as progress:

@@ -7,7 +7,8 @@ from typing import Annotated
 
 import typer
 
-from sensact.cli.base import ForceOpt, app, console, friendly
+from sensact.cli.base import ForceOpt, app, console, err_console, friendly
+from sensact.errors import EXIT_FLAGGED
 
 
 @app.command("export")
@@ -19,7 +20,7 @@ def export_cmd(
         typer.Option(
             "--format",
             help="robot-localization (YAML), tum (trajectory for evo), velodyne (YAML), landmarks (CSV), urdf "
-            "(a URDF/xacro snippet), and for an odometry-IMU-GNSS model diff-drive-controller, navsat-transform "
+            "(a xacro <robot> to include), and for an odometry-IMU-GNSS model diff-drive-controller, navsat-transform "
             "and kalibr (YAML).",
         ),
     ],
@@ -48,13 +49,17 @@ def export_cmd(
     velodyne: a car model's learned laser angles as a ROS velodyne calibration. landmarks: a map EM learned
     (id,x_m,y_m in the map's frame, placed landmarks only), the file `convert csv --landmarks` reads, so
     that one robot's learned map serves the next robot's calibration. urdf: a wheels-and-2-D-lidar model's
-    lidar joint (<origin xyz rpy>) and wheel radii and separation as xacro properties, in metres and radians;
+    lidar joint (<origin xyz rpy>) and wheel radii and separation (or, learned from /odom or /cmd_vel,
+    diff_drive_controller's two multipliers) as xacro properties in a <robot> to include, metres and radians;
     its robot-localization is the process noise from the drive's learned noise (docs/lidar2d.md).
 
     An odometry-IMU-GNSS model (docs/inertial.md): diff-drive-controller (the wheel multipliers and
     twist_covariance_diagonal), robot-localization (an ekf with odom0 and imu0 blocks, the process noise
     and rejection thresholds), navsat-transform (yaw_offset; only its sum with the declination is learned),
-    urdf (the IMU's and the antenna's joints in a <robot>) and kalibr (imu.yaml, in-motion values)."""
+    urdf (the IMU's and the antenna's joints in a <robot>) and kalibr (imu.yaml, in-motion values).
+
+    A model that was flagged when it was learned is exported all the same, with one warning line naming its
+    flags, and the command exits 3."""
     from sensact.app.export import default_out, export_model
 
     done = export_model(model, format_, out or default_out(model, format_), truth_out, force=force)
@@ -63,3 +68,11 @@ def export_cmd(
     console.print("wrote " + ", ".join(str(p) for p in done.written), highlight=False)
     if format_ == "tum" and len(done.written) == 2:
         console.print(f"compare with evo: `evo_ape tum {done.written[1]} {done.written[0]}`", highlight=False)
+    if done.flags:  # written, as asked; but the model's doubt goes with it
+        err_console.print(
+            f"[bold yellow]warning:[/] {model} was flagged when it was learned ({', '.join(done.flags)}): what was "
+            "exported is as doubtful; its health in the model says why.",
+            highlight=False,
+            soft_wrap=True,
+        )
+        raise typer.Exit(EXIT_FLAGGED)

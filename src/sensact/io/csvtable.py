@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import csv
 import io
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +35,37 @@ def read_csv_rows(path: Path) -> tuple[list[list[str]], bool]:
     return rows, delimiter == ";"
 
 
+def _shifted(cell: str, origin: int) -> float:
+    from decimal import Decimal, InvalidOperation
+
+    try:
+        return float(Decimal(cell) - origin)
+    except InvalidOperation:
+        raise ValueError(cell) from None
+
+
+def time_origin(path: str | Path, column: str = "t_s") -> int:
+    """The whole second a table's first ``column`` cell lies in, where it is an epoch's (beyond 1e5 s), else 0:
+    the origin its log's times are read from (``read_numeric_csv``'s ``origin``)."""
+    from decimal import Decimal, InvalidOperation
+
+    try:
+        with open(path, encoding="utf-8-sig", errors="replace") as f:
+            lines = [f.readline(), f.readline()]
+    except OSError:
+        return 0
+    sep = ";" if ";" in lines[0] else ","  # a semicolon table writes decimal commas
+    header, row = ([c.strip() for c in line.split(sep)] for line in lines)
+    if column not in header or len(row) != len(header):
+        return 0
+    cell = row[header.index(column)].replace(",", ".")
+    try:
+        first = Decimal(cell)
+    except InvalidOperation:
+        return 0
+    return int(first.to_integral_value(rounding="ROUND_FLOOR")) if first.is_finite() and abs(first) > 100_000 else 0
+
+
 def read_numeric_csv(
     path: str | Path,
     required: Sequence[str] = (),
@@ -42,6 +73,7 @@ def read_numeric_csv(
     what: str = "table",
     labels: Sequence[str] = (),
     missing_fix: str = "rename the column or choose one that exists.",
+    origin: Mapping[str, int] | None = None,
 ) -> dict[str, np.ndarray]:
     """All columns of a CSV with a header row, as float arrays keyed by column name.
 
@@ -73,6 +105,9 @@ def read_numeric_csv(
         raise LogFormatError("no data rows.", file=path, fix="the file must have at least one row after the header.")
     out = np.full((len(body), len(header)), np.nan)
     text = [j for j, name in enumerate(header) if name and name in labels]
+    # columns read as exact decimals less an integer (a Unix time less its log's first second): float64 holds
+    # 1.7e9 s only to 2.4e-7 s, and a fit's differences in time would carry that
+    shift = {j: origin[name] for j, name in enumerate(header) if origin and name in origin}
     for i, row in enumerate(body):
         if len(row) != len(header):
             raise LogFormatError(
@@ -91,7 +126,8 @@ def read_numeric_csv(
             if cell == "" or j in text:
                 continue
             try:
-                out[i, j] = value = float(cell.replace(",", ".") if decimal_comma else cell)
+                number = cell.replace(",", ".") if decimal_comma else cell
+                out[i, j] = value = float(number) if j not in shift else _shifted(number, shift[j])
                 if not np.isfinite(value):
                     raise LogFormatError(
                         f"row {i + 2}: {cell!r} is not a finite number.",

@@ -320,7 +320,7 @@ def _sightings(
             fix="add the landmark's position to meta.json or drop its rows.",
         )
     for r in readings:
-        if r.startswith("range"):
+        if r.startswith("range") or r.endswith("height_px"):
             refuse_negative_ranges(path / "observations.csv", obs[r][keep], r)
     if b_col:
         refuse_degrees_as_radians(

@@ -22,7 +22,7 @@ import numpy as np
 
 from sensact.errors import LogFormatError
 from sensact.io.atomic import write_json, write_text
-from sensact.io.csvtable import read_numeric_csv, refuse_unordered
+from sensact.io.csvtable import read_numeric_csv, refuse_unordered, time_origin
 from sensact.io.jsonfile import read_json_object
 from sensact.logs.lidar2d_log import Lidar2DLog, Pose2, ScanGeometry, UrdfGuess
 from sensact.records import JsonObject
@@ -114,7 +114,8 @@ def _urdf(meta: JsonObject, path: Path) -> UrdfGuess:
 
 
 def _table(path: Path, name: str, columns: list[str]) -> tuple[np.ndarray, np.ndarray]:
-    table = read_numeric_csv(path / name, ["t_s", *columns], what=name)
+    # times from the scans' first whole second, exactly: a fit differences them (docs/lidar2d.md)
+    table = read_numeric_csv(path / name, ["t_s", *columns], what=name, origin={"t_s": time_origin(path / SCANS)})
     t = table["t_s"]
     refuse_unordered(path / name, t, strict=True)
     values = np.column_stack([table[c] for c in columns])

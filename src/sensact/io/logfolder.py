@@ -187,6 +187,10 @@ def read_track_log(path: str | Path, sensor: str | None = None) -> TrackLog:
             fix="every action row needs a command value.",
         )
     t_o, o = obs["t_s"], obs[obs_col]
+    if obs_col.startswith("range") or obs_col.endswith("height_px"):
+        from sensact.io.unit_checks import refuse_negative_ranges
+
+        refuse_negative_ranges(path / "observations.csv", o, obs_col)
     ok = np.isfinite(t_o) & np.isfinite(o) & (t_o >= t_a[0])
     t_o, o = t_o[ok], o[ok]
     if t_o.size == 0:

@@ -27,6 +27,7 @@ import numpy as np
 
 from sensact.errors import LogFormatError
 from sensact.io.resample import HEADING_OFFSET_RAD, held_on_grid, nearest_steps, pose_truth_on_grid
+from sensact.io.unit_checks import refuse_degrees_as_radians
 from sensact.logs.landmark_log import LandmarkLog
 
 ROBOT_SUBJECTS = range(1, 6)
@@ -53,6 +54,9 @@ class MrclamLog:
             f"{s['dropped_robot']} of other robots, {s['dropped_unknown_barcode']} with unknown barcodes, "
             f"{s['dropped_outside_time']} outside the odometry span"
         )
+
+
+MAX_SPEED_M_S, MAX_TURN_RAD_S = 50.0, 50.0  # beyond any ground robot's (MRCLAM's iRobot Creates: 0.3 m/s)
 
 
 def _table(path: Path, columns: int) -> np.ndarray:
@@ -116,6 +120,19 @@ def read_mrclam(folder: str | Path, robot: int, *, dt_s: float = 1.0 / 30.0) -> 
             field="range",
             fix="drop the row, or give the dataset's own file.",
         )
+    odo_file = folder / f"Robot{robot}_Odometry.dat"
+    for col, (name, limit, unit) in enumerate((("v", MAX_SPEED_M_S, "m/s"), ("omega", MAX_TURN_RAD_S, "rad/s")), 1):
+        over = np.flatnonzero(~(np.abs(odo[:, col]) <= limit))
+        if over.size:
+            raise LogFormatError(
+                f"row {over[0] + 1}'s {name} is {odo[over[0], col]:g} {unit}: beyond any ground robot's ({limit:g}).",
+                file=odo_file,
+                field=name,
+                fix="give the dataset's own file (v in m/s, omega in rad/s).",
+            )
+    refuse_degrees_as_radians(
+        folder / f"Robot{robot}_Measurement.dat", meas[:, 3], "bearing", "give the dataset's bearings, in radians."
+    )
     odo = odo[np.argsort(odo[:, 0], kind="stable")]
     truth = truth[np.argsort(truth[:, 0], kind="stable")]  # interpolated below, which needs its times in order
     t0, held = held_on_grid(odo[:, 0], odo[:, 1:3], dt_s, str(folder / f"Robot{robot}_Odometry.dat"))

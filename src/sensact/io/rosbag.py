@@ -307,6 +307,46 @@ NOT_READ = {
 }
 
 
+# robot_localization's and navsat_transform's outputs share the sensors' types (a Husky's bag records both): a
+# role taken by type passes them over for the sensor's own topic
+FUSED_NAME = re.compile(r"filtered|ekf|fuse", re.IGNORECASE)
+NOT_WHEELS = re.compile(r"gps|navsat|visual|vio|icp|lidar|laser", re.IGNORECASE)
+WHEELS = re.compile(r"wheel|controller|^/?odom$", re.IGNORECASE)
+
+
+def sensor_topics(topics: list[Topic], msgtype: str, drop: re.Pattern | None, prefer: re.Pattern | None) -> list[Topic]:
+    """The topics of ``msgtype`` a sensor itself published: a fusion's output (and a name ``drop`` matches) is
+    passed over and, of several left, the one whose name ``prefer`` matches is kept (else all stay, and the user
+    names one)."""
+    found = [t for t in topics if t.msgtype == msgtype and t.count and not MOCAP_NAME.search(t.name)]
+    if len(found) > 1:
+        sensors = [t for t in found if not FUSED_NAME.search(t.name) and not (drop and drop.search(t.name))]
+        found = sensors or found
+    if len(found) > 1 and prefer is not None:
+        said = [t for t in found if prefer.search(t.name)]
+        found = said if len(said) == 1 else found
+    return found
+
+
+# every route `convert bag` takes, and what each needs: a refusal names them all
+ROUTES = (
+    "landmarks (commands from Twist or Odometry, and sensor_msgs/Range readings or AprilTag sightings)",
+    "wheels and a 2-D lidar (sensor_msgs/LaserScan, with JointState, Odometry or Twist; docs/lidar2d.md)",
+    "wheel odometry, an IMU and GNSS (nav_msgs/Odometry and sensor_msgs/Imu, NavSatFix optional; docs/inertial.md)",
+)
+# the types that choose a route other than the landmarks'
+ROUTE_TYPES = ("sensor_msgs/LaserScan", "sensor_msgs/Imu")
+
+
+def routes_line() -> str:
+    return "sensact's routes: " + "; ".join(ROUTES)
+
+
+def empty_route_topics(topics: list[Topic]) -> list[str]:
+    """The topics of a route's own type that hold no message (a TurtleBot3's /scan recorded with its lidar off)."""
+    return [t.name for t in topics if t.msgtype in ROUTE_TYPES and not t.count]
+
+
 def no_supported_line(missing: list[tuple[str, ...]], topics: list[Topic]) -> str:
     """Why no topic can play ``missing`` (each: roles any one of which would do; no naming can fill them): the
     types the bag has, the types sensact reads for each role, and what would add the others."""
@@ -328,10 +368,13 @@ def no_supported_line(missing: list[tuple[str, ...]], topics: list[Topic]) -> st
     line += f". sensact reads {reads}"
     if planned:
         line += "; " + "; ".join(f"{t} is {NOT_READ[t]}" for t in planned)
-    others = [t for t in found if not any(t in types for types in SUPPORTED.values())]
+    others = [t for t in found if not any(t in types for types in SUPPORTED.values()) and t not in ROUTE_TYPES]
     if others:
         line += f"; {', '.join(others)} {'is' if len(others) == 1 else 'are'} not read by sensact"
-    return line + "."
+    empty = empty_route_topics(topics)
+    if empty:  # the route the bag was recorded for, had its topic held anything: the cause comes first
+        line = f"{', '.join(empty)} {'has' if len(empty) == 1 else 'have'} no messages; " + line
+    return line + ". " + routes_line() + "."
 
 
 def check_roles(path: Path, roles: Roles, topics: list[Topic]) -> None:
@@ -386,6 +429,12 @@ def _read(reader, topic: str, progress: Progress | None = None) -> list[tuple[in
             progress(f"reading {topic}", len(out), total)
     if progress is not None:
         progress(f"reading {topic}", len(out), total)
+    if not out and not total:
+        raise LogFormatError(
+            f"{topic} has no messages.",
+            file=(getattr(reader, "paths", None) or [None])[0],
+            fix="record it with its driver running, or name another topic for its role.",
+        )
     if not out:  # the index (a ROS 2 bag's metadata.yaml) counts messages the storage does not hold
         raise LogFormatError(
             f"{topic}: no message could be read, though the bag's index lists {total}.",

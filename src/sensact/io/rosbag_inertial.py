@@ -17,7 +17,19 @@ from pathlib import Path
 import numpy as np
 
 from sensact.errors import LogFormatError
-from sensact.io.rosbag import MOCAP_NAME, TF_TYPES, Progress, Topic, _read, _refuse_non_finite, _static_tree, _yaw
+from sensact.io.rosbag import (
+    NOT_WHEELS,
+    TF_TYPES,
+    WHEELS,
+    Progress,
+    Topic,
+    _read,
+    _refuse_non_finite,
+    _static_tree,
+    _yaw,
+    routes_line,
+    sensor_topics,
+)
 from sensact.io.rosbag_lidar2d import _one, _ordered, _pose_in, _times
 from sensact.logs.inertial_log import Datum, InertialLog, MountGuess
 
@@ -44,26 +56,7 @@ def has_imu(topics: list[Topic]) -> bool:
     return any(t.msgtype == IMU_TYPE and t.count for t in topics)
 
 
-# robot_localization's and navsat_transform's outputs share the sensors' types; a Husky's bag records both
-FUSED_NAME = re.compile(r"filtered|ekf|fuse", re.IGNORECASE)
-NOT_WHEELS = re.compile(r"gps|navsat|visual|vio|icp|lidar|laser", re.IGNORECASE)
-WHEELS = re.compile(r"wheel|controller|^/?odom$", re.IGNORECASE)
 RAW = re.compile(r"raw", re.IGNORECASE)  # imu_tools' filters publish imu/data from imu/data_raw, rates unchanged
-
-
-def _sensor_topics(
-    topics: list[Topic], msgtype: str, drop: re.Pattern | None, prefer: re.Pattern | None
-) -> list[Topic]:
-    """The topics of ``msgtype`` a sensor itself published: a fusion's output is dropped and, of several
-    left, the one whose name says it is the sensor's is kept (else all stay, and the user names one)."""
-    found = [t for t in topics if t.msgtype == msgtype and t.count and not MOCAP_NAME.search(t.name)]
-    if len(found) > 1:
-        sensors = [t for t in found if not FUSED_NAME.search(t.name) and not (drop and drop.search(t.name))]
-        found = sensors or found
-    if len(found) > 1 and prefer is not None:
-        said = [t for t in found if prefer.search(t.name)]
-        found = said if len(said) == 1 else found
-    return found
 
 
 def inertial_roles(path: Path, topics: list[Topic], named: dict[str, str | None]) -> InertialRoles:
@@ -71,7 +64,7 @@ def inertial_roles(path: Path, topics: list[Topic], named: dict[str, str | None]
 
     def one(role: str, msgtype: str, drop: re.Pattern | None, prefer: re.Pattern | None, what: str) -> str | None:
         given = named.get(role)
-        pool = topics if given is not None else _sensor_topics(topics, msgtype, drop, prefer)
+        pool = topics if given is not None else sensor_topics(topics, msgtype, drop, prefer)
         return _one(path, pool, (msgtype,), given, f"--{role}", what)
 
     odom = one("odom", ODOM_TYPE, NOT_WHEELS, WHEELS, "the wheel odometry (nav_msgs/Odometry)")
@@ -81,7 +74,9 @@ def inertial_roles(path: Path, topics: list[Topic], named: dict[str, str | None]
         raise LogFormatError(
             "an IMU's bag needs the wheel odometry and the IMU; it has no "
             + ("nav_msgs/Odometry" if odom is None else "sensor_msgs/Imu")
-            + " topic.",
+            + " topic. "
+            + routes_line()
+            + ".",
             file=path,
             fix="record the robot's /odom (diff_drive_controller's) with /imu/data.",
         )

@@ -19,13 +19,16 @@ from sensact.errors import LogFormatError
 from sensact.io.lidar2d_folder import check_drive, check_scans
 from sensact.io.rosbag import (
     MOCAP_NAME,
+    NOT_WHEELS,
     TF_TYPES,
+    WHEELS,
     Progress,
     Topic,
     _read,
     _stamp_ns,
     _static_tree,
     _yaw,
+    sensor_topics,
 )
 from sensact.logs.lidar2d_log import Lidar2DLog, Pose2, ScanGeometry, UrdfGuess
 
@@ -86,7 +89,11 @@ def lidar_roles(path: Path, topics: list[Topic], named: dict[str, str | None]) -
     """Which topic plays which part: each by its type unless named (two of one type must be named)."""
     scan = _one(path, topics, (SCAN_TYPE,), named.get("scan"), "--scan", "the 2-D lidar's LaserScan")
     truth_named = named.get("truth")
-    odoms = [t for t in topics if t.msgtype == ODOM_TYPE and t.name != truth_named and not MOCAP_NAME.search(t.name)]
+    commands = named.get("commands")
+    if commands is not None and next((t.msgtype for t in topics if t.name == commands), None) == ODOM_TYPE:
+        named = {**named, "odom": named.get("odom") or commands, "commands": None}  # --help: Odometry's twist
+    others = [t for t in topics if t.name != truth_named]
+    odoms = others if named.get("odom") else sensor_topics(others, ODOM_TYPE, NOT_WHEELS, WHEELS)
     odom = _one(path, odoms, (ODOM_TYPE,), named.get("odom"), "--odom", "the wheel odometry")
     truths = [
         t

@@ -49,17 +49,18 @@ NEGATIVE_SHARE = 0.05  # a range finder's readings this often below zero are not
 
 
 def refuse_negative_ranges(path: Path, values: np.ndarray, column: str) -> None:
-    """A column named as a range is a distance: a few readings below zero are noise about a near surface,
-    more (or a median below zero) are another quantity, or a sign flipped."""
+    """A column named as a range is a distance (and one in pixels, a landmark's size in the image): a few
+    readings below zero are noise about a near surface, more (or a median below zero) are another quantity, or
+    a sign flipped."""
+    what = "a height in pixels is not negative" if column.endswith("height_px") else "a range is a distance"
     v = np.asarray(values, dtype=float)
     v = v[np.isfinite(v)]
     if v.size and (np.median(v) < 0.0 or np.mean(v < 0.0) > NEGATIVE_SHARE):
         raise LogFormatError(
-            f"{np.mean(v < 0.0):.0%} of its readings are below zero (median {np.median(v):.4g}): a range is a "
-            "distance.",
+            f"{np.mean(v < 0.0):.0%} of its readings are below zero (median {np.median(v):.4g}): {what}.",
             file=path,
             field=column,
-            fix="write the range as the distance read (no sign), an empty cell where it read nothing.",
+            fix="write what the sensor read (no sign), an empty cell where it read nothing.",
         )
 
 

@@ -119,20 +119,25 @@ class CarLog:
     delay_s: np.ndarray | None = None  # (lasers,) when each laser fires after its firing's start; None: at once
 
 
+# what a spinning lidar's rate can be: a Velodyne or an Ouster turns 300-1200 rpm and fires at most ~100 kHz
+SPIN_LIMITS = {"rpm": (1.0, 6000.0), "firing_hz": (1.0, 1e6)}
+
+
 def _lidar_number(lidar: JsonObject, name: str, meta_file: Path) -> float | None:
     if name not in lidar:
         return None
+    lo, hi = SPIN_LIMITS.get(name, (-np.inf, np.inf))
     try:
         value = float(lidar[name])
-        if not np.isfinite(value):
+        if not (np.isfinite(value) and lo <= value <= hi):
             raise ValueError
         return value
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise LogFormatError(
-            f"lidar.{name} is not a finite number.",
+            f"lidar.{name} is {lidar[name]!r}, not a number in [{lo:g}, {hi:g}].",
             file=meta_file,
             field=f"lidar.{name}",
-            fix="give a number, or leave it out to measure it from the packets.",
+            fix="give the lidar's own (its datasheet's), or leave it out to measure it from the packets.",
         ) from None
 
 

@@ -48,6 +48,7 @@ from sensact.core.pose_models import (
 )
 from sensact.errors import LogFormatError
 from sensact.learn.scan_match2d import icp, reference_of, scan_xy
+from sensact.logs.intervals_log import IntervalsLog
 from sensact.logs.lidar2d_log import Lidar2DLog
 from sensact.progress import Progress
 
@@ -295,8 +296,17 @@ def interval_size(
     return np.hypot(o[:, 0], o[:, 1]), np.abs(o[:, 2])
 
 
-def fit(track: WheelTrack, scan_t: np.ndarray, m: Matches, start: np.ndarray, rounds: int = 5) -> WheelLidarFit:
-    """The maximum-likelihood wheels, mount and delay on the matched intervals, from ``start``."""
+def fit(
+    track: WheelTrack, scan_t: np.ndarray, m: Matches, start: np.ndarray, rounds: int = 5, *, hold_delay: bool = False
+) -> WheelLidarFit:
+    """The maximum-likelihood wheels, mount and delay on the matched intervals, from ``start`` (``hold_delay``:
+    the delay held at ``start``'s, for intervals that come without a clock to shift)."""
+    free = 6 if hold_delay else 7
+    held = start[free:].copy()
+
+    def full(x: np.ndarray) -> np.ndarray:
+        return np.concatenate([x, held])
+
     params = start.copy()
     dist, turn = interval_size(params, track, scan_t, m)
     r0 = predicted(params, track, scan_t, m.i, m.j) - m.s
@@ -308,8 +318,10 @@ def fit(track: WheelTrack, scan_t: np.ndarray, m: Matches, start: np.ndarray, ro
         [max(abs(start[0]), 1e-9) / 30, max(abs(start[1]), 1e-9) / 30, max(abs(start[2]), 1e-9) / 150, 1, 1, 1, 1]
     )
 
+    scale = scale[:free]
+
     def residuals(x: np.ndarray, rows: np.ndarray, sd: np.ndarray) -> np.ndarray:
-        r = predicted(x, track, scan_t, m.i[rows], m.j[rows]) - m.s[rows]
+        r = predicted(full(x), track, scan_t, m.i[rows], m.j[rows]) - m.s[rows]
         r[:, 2] = wrap_angle(r[:, 2])
         return (r / sd).ravel()
 
@@ -327,12 +339,20 @@ def fit(track: WheelTrack, scan_t: np.ndarray, m: Matches, start: np.ndarray, ro
 
     def solve(x0: np.ndarray, rows: np.ndarray, sd: np.ndarray) -> Any:
         return least_squares(
-            residuals, x0, jac=jacobian, args=(rows, sd), x_scale=scale, method="lm", xtol=TOL, ftol=TOL, gtol=TOL
+            residuals,
+            x0[:free],
+            jac=jacobian,
+            args=(rows, sd),
+            x_scale=scale,
+            method="lm",
+            xtol=TOL,
+            ftol=TOL,
+            gtol=TOL,
         )
 
     for _ in range(rounds):
         sd = noise.sd(dist, turn)
-        params = solve(params, used, sd[used]).x
+        params = full(solve(params, used, sd[used]).x)
         dist, turn = interval_size(params, track, scan_t, m)
         r = predicted(params, track, scan_t, m.i, m.j) - m.s
         r[:, 2] = wrap_angle(r[:, 2])
@@ -351,14 +371,15 @@ def fit(track: WheelTrack, scan_t: np.ndarray, m: Matches, start: np.ndarray, ro
         used = (np.abs(r / noise.sd(dist, turn)) < OUTLIER_SD).all(axis=1)
     sd = noise.sd(dist, turn)
     sol = solve(params, used, sd[used])
-    params = sol.x
+    params = full(sol.x)
     J = sol.jac
     dof = max(1, J.shape[0] - J.shape[1])
     chi2 = float(np.sum(sol.fun**2)) / dof
+    cov = np.zeros((7, 7))  # a held delay: no variance
     try:
-        cov = np.linalg.inv(J.T @ J) * chi2
+        cov[:free, :free] = np.linalg.inv(J.T @ J) * chi2
     except np.linalg.LinAlgError:
-        cov = np.full((7, 7), np.inf)
+        cov[:free, :free] = np.inf
     dist, turn = interval_size(params, track, scan_t, m)
     return WheelLidarFit(params, cov, noise, used, chi2, m, start, float(dist[used].sum()), float(turn[used].sum()))
 
@@ -475,6 +496,7 @@ def learn_wheel_lidar(log: Lidar2DLog, progress: Progress | None = None, rounds:
     """The whole calibration from no guess: consecutive scans matched from a constant velocity (or, when the
     URDF gives the wheels, from their odometry), Censi et al.'s closed form on them, then keyframes matched
     from that odometry and the maximum-likelihood fit, rounds of deskewing by the fit and matching again."""
+    log = log.from_its_start()
     track = wheel_track(log)
     inc = abs(log.scan.angle_increment_rad)
     n = log.scan_t.size
@@ -570,3 +592,46 @@ def raise_too_few(log: Lidar2DLog, matched: int, tried: int) -> None:
         fix="record in a room with walls and furniture within the lidar's range, at its full rate, while the "
         "robot moves slowly.",
     )
+
+
+# --- intervals given, as Censi et al.'s tool holds them ---
+@dataclass(frozen=True, eq=False)
+class IntervalsResult:
+    fit: WheelLidarFit  # the delay held at 0: intervals come without a clock to shift
+    closed_form: np.ndarray  # Censi et al.'s answer on the same intervals
+    notes: tuple[str, ...]
+
+
+def intervals_track(log: IntervalsLog) -> tuple[WheelTrack, np.ndarray, Matches]:
+    """The intervals laid end to end: each wheel turns its velocity times T within its own interval (an arc, as
+    Censi et al. model it), and the scan matcher's displacement links the interval's two ends."""
+    t = np.concatenate([[0.0], np.cumsum(log.t_s)])
+    phi = np.vstack([[0.0, 0.0], np.cumsum(log.phi_rad_s * log.t_s[:, None], axis=0)])
+    k = np.arange(log.n)
+    s = from_rep103(log.sm_m * np.array([1000.0, 1000.0, 1.0]))  # REP 103 metres -> sensact's mm
+    return WheelTrack(t, phi, False), t, Matches(k, k + 1, s, log.n)
+
+
+def learn_intervals(log: IntervalsLog) -> IntervalsResult:
+    """Censi et al.'s closed form on the given intervals, then the maximum-likelihood fit from it (the same as
+    the scan route's after its matching: the noise's growth with distance and turn, outliers set aside)."""
+    track, t, m = intervals_track(log)
+    turned = float(np.abs(m.s[:, 2]).sum())
+    start = None
+    if turned >= MIN_TURN_RAD:
+        with np.errstate(invalid="ignore", divide="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # a degenerate set's closed form: judged below
+            start = closed_form(track, t, m)
+    if start is None or not (np.isfinite(start).all() and start[2] > 0 and abs(start[0]) > 0 and abs(start[1]) > 0):
+        raise LogFormatError(
+            f"the scan matcher turned {turned:.2g} rad in all and the wheels do not say how: the radii and the axle "
+            "show only in turns.",
+            file=log.source,
+            field="phi_l, phi_r",
+            fix="give intervals of the robot turning both ways as well as driving (and phi_l, phi_r in rad/s).",
+        )
+    track, start, notes = _oriented(track, start)
+    if notes:
+        start = closed_form(track, t, m)
+    censi = start.copy()
+    return IntervalsResult(fit(track, t, m, start, hold_delay=True), censi, tuple(notes))

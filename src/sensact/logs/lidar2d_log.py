@@ -81,3 +81,18 @@ class Lidar2DLog:
     @property
     def beams(self) -> int:
         return int(self.ranges_mm.shape[1])
+
+    def from_its_start(self) -> Lidar2DLog:
+        """The log on a clock that starts with it: a fit's finite differences in time (the delay's) are then
+        sized to seconds, not lost below float64's resolution at a Unix epoch's 1.7e9 s (2.4e-7 s)."""
+        from dataclasses import replace
+
+        t0 = float(min(self.scan_t[0], self.drive_t[0]))
+        if t0 == 0.0:
+            return self
+        return replace(
+            self,
+            scan_t=self.scan_t - t0,
+            drive_t=self.drive_t - t0,
+            truth_t=None if self.truth_t is None else self.truth_t - t0,
+        )

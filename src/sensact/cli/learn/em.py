@@ -344,10 +344,12 @@ def _register_shows() -> None:
     """Registered when first used, so that the app is imported only when a command runs (``--help`` stays quick)."""
     from sensact.app import Calibration, Lidar2DCalibration
     from sensact.app.inertial import InertialCalibration
+    from sensact.app.intervals import IntervalsCalibration
 
     _shown.register(Calibration, _show_em)
     _shown.register(Lidar2DCalibration, _show_lidar2d)
     _shown.register(InertialCalibration, _show_inertial)
+    _shown.register(IntervalsCalibration, _show_intervals)
 
 
 def _show_em(cal: Any) -> None:
@@ -358,6 +360,23 @@ def _show_em(cal: Any) -> None:
     for line in cal.diagnostics.warnings:
         console.print(f"[yellow]warning:[/] {line}", highlight=False)
     print_scores(cal.scores, cal.log)
+
+
+def _show_intervals(cal: Any) -> None:
+    """The wheels and the mount from given intervals, with error bars, beside Censi et al.'s closed form."""
+    from sensact.app.intervals import rows
+
+    title = f"the wheels and the lidar from {cal.log.n} intervals (docs/lidar2d.md)"
+    print_tables([(title, ["", "learned", "sd", "Censi et al."], rows(cal))])
+    for note in cal.result.notes:
+        console.print(f"[yellow]note:[/] {note}", highlight=False)
+    ev = cal.evaluation()
+    if ev:
+        console.print(
+            "against the simulator's truth: "
+            + ", ".join(f"{k} {v['error']:+.3g} ({v['error_sd']:+.2f} sd)" for k, v in ev.items()),
+            highlight=False,
+        )
 
 
 def _show_lidar2d(cal: Any) -> None:
@@ -425,10 +444,19 @@ def lidar2d_table(doc: JsonObject) -> tuple[str, list[str], list[list[str]]]:
     d, li, u = doc["drive"], doc["lidar"], doc["urdf"]
     um = u.get("lidar_mount") or {}
     rows = []
+    if d.get("source") == "wheels":
+        drive = [
+            ("left wheel radius (mm)", d, "wheel_radius_left_mm", u.get("wheel_radius_mm")),
+            ("right wheel radius (mm)", d, "wheel_radius_right_mm", u.get("wheel_radius_mm")),
+            ("axle (mm)", d, "axle_mm", u.get("axle_mm")),
+        ]
+    else:  # /odom's or /cmd_vel's motion: the learned numbers are gains on its nominal wheels, not radii
+        drive = [
+            (f"forward gain (on {d['source']})", d, "gain_forward", None),
+            (f"turn gain (on {d['source']})", d, "gain_turn", None),
+        ]
     for label, node, key, guess in (
-        ("left wheel radius (mm)", d, "wheel_radius_left_mm", u.get("wheel_radius_mm")),
-        ("right wheel radius (mm)", d, "wheel_radius_right_mm", u.get("wheel_radius_mm")),
-        ("axle (mm)", d, "axle_mm", u.get("axle_mm")),
+        *drive,
         ("lidar forward (mm)", li["mount"], "forward_mm", um.get("forward_mm")),
         ("lidar left (mm)", li["mount"], "left_mm", um.get("left_mm")),
         ("lidar yaw (rad)", li["mount"], "yaw_rad", um.get("yaw_rad")),
