@@ -11,6 +11,7 @@ refused or flagged in one line."""
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import json
 import math
 import xml.etree.ElementTree as ET
@@ -489,3 +490,24 @@ def test_halves_through_the_cli_are_written_into_the_model(tmp_path):
     doc = json.loads((tmp_path / "m.json").read_text())
     assert set(doc["halves"]) >= {"first_half", "second_half", "differ_sd", "agree_within_3sd", "first_on_second"}
     assert doc["halves"]["first_half"]["odometry.gain_turn"]["sd"] > 0
+
+
+@pytest.mark.parametrize("every, code", [(250, 0), (20, 2)])
+def test_a_stamp_repeated_now_and_then_is_dropped_and_often_is_refused(tmp_path, every, code):
+    """A driver that repeats an IMU stamp now and then (a serial link's hiccup): those messages are dropped and
+    counted; one that does it every 20th message has a clock to fix, refused naming the message."""
+
+    def repeat_stamps(msgs, m):
+        imu = [msg for topic, _, _, msg in msgs if topic == "/imu/data"]
+        for prev, msg in list(itertools.pairwise(imu))[::every]:
+            msg.header.stamp = prev.header.stamp
+        return msgs
+
+    res = _run(["convert", "bag", _bag_with(tmp_path, repeat_stamps), "--out", tmp_path / "o"], code=code)
+    text = " ".join(res.output.split())
+    if code == 0:
+        assert "repeat or precede an earlier stamp: dropped" in text
+        learned = runner.invoke(app, ["learn", "em", str(tmp_path / "o"), "--no-report"])
+        assert learned.exit_code in (0, 3), learned.output  # a minute's log may be flagged; never refused
+    else:
+        assert "stamp is not after" in text and "--receive-times" in text

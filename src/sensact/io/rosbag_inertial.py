@@ -106,9 +106,29 @@ def _cov_diag(path: Path, topic: str, covs: np.ndarray, notes: list[str], what: 
     return diag
 
 
-def _odom(path: Path, reader, topic: str, receive_times: bool, progress: Progress | None):
-    msgs = _read(reader, topic, progress)
-    ns = _ordered(path, topic, _times(msgs, receive_times))
+MAX_OUT_OF_ORDER = 0.01  # a driver's repeated or late stamps this rare are dropped (said); more is a clock to fix
+
+
+def _in_order(path: Path, topic: str, msgs: list, receive_times: bool, notes: list[str]) -> tuple[np.ndarray, list]:
+    """The messages whose stamps move forward, each after the last one kept: a stamp repeated or a message late
+    now and then (a driver's, a serial link's) is dropped and counted; more often, the clock is refused in one
+    line with its fix."""
+    ns = _times(msgs, receive_times)
+    keep = np.zeros(ns.size, dtype=bool)
+    last = None
+    for k, t in enumerate(ns.tolist()):
+        if last is None or t > last:
+            keep[k], last = True, t
+    dropped = int((~keep).sum())
+    if dropped > MAX_OUT_OF_ORDER * ns.size:
+        _ordered(path, topic, ns)  # refuses, naming the first message out of order
+    if dropped:
+        notes.append(f"{topic}: {dropped} of {ns.size} messages repeat or precede an earlier stamp: dropped")
+    return ns[keep], [m for m, k in zip(msgs, keep.tolist(), strict=True) if k]
+
+
+def _odom(path: Path, reader, topic: str, receive_times: bool, progress: Progress | None, notes: list[str]):
+    ns, msgs = _in_order(path, topic, _read(reader, topic, progress), receive_times, notes)
     tw = np.array([[m.twist.twist.linear.x, m.twist.twist.angular.z] for _, m in msgs])
     _refuse_non_finite(path, topic, "twist", tw)
     q = msgs[0][1].pose.pose.orientation
@@ -117,8 +137,7 @@ def _odom(path: Path, reader, topic: str, receive_times: bool, progress: Progres
 
 
 def _imu(path: Path, reader, topic: str, receive_times: bool, progress: Progress | None, notes: list[str]):
-    msgs = _read(reader, topic, progress)
-    ns = _ordered(path, topic, _times(msgs, receive_times))
+    ns, msgs = _in_order(path, topic, _read(reader, topic, progress), receive_times, notes)
     gyro = np.array([[m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z] for _, m in msgs])
     acc = np.array([[m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z] for _, m in msgs])
     _refuse_non_finite(path, topic, "angular velocity", gyro)
@@ -137,8 +156,7 @@ def _imu(path: Path, reader, topic: str, receive_times: bool, progress: Progress
 def _fixes(path: Path, reader, topic: str, receive_times: bool, progress: Progress | None, notes: list[str]):
     import pymap3d
 
-    msgs = _read(reader, topic, progress)
-    ns = _ordered(path, topic, _times(msgs, receive_times))
+    ns, msgs = _in_order(path, topic, _read(reader, topic, progress), receive_times, notes)
     lla = np.array([[m.latitude, m.longitude, m.altitude] for _, m in msgs], dtype=float)
     status = np.array([m.status.status for _, m in msgs])
     covs = np.array([np.asarray(m.position_covariance) for _, m in msgs])
@@ -212,7 +230,7 @@ def read_inertial_bag(
     progress: Progress | None = None,
 ) -> tuple[InertialLog, tuple[str, ...]]:
     notes: list[str] = []
-    o_ns, tw, yaw0, child = _odom(path, reader, roles.odom, receive_times, progress)
+    o_ns, tw, yaw0, child = _odom(path, reader, roles.odom, receive_times, progress, notes)
     i_ns, gyro, acc, gvar, imu_frame, orientation = _imu(path, reader, roles.imu, receive_times, progress, notes)
     t0 = int(min(o_ns[0], i_ns[0]))
     gnss_t, enu, var, datum, gnss_frame = np.zeros(0), np.zeros((0, 3)), np.zeros((0, 2)), None, None
