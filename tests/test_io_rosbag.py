@@ -766,3 +766,26 @@ def test_tags_at_or_behind_the_camera_are_dropped_or_the_frame_refused(diffdrive
     bag = write_robot_bag(tmp_path / "most", "ros1", dataclasses.replace(rec, tag_xyz_optical_m=most))
     res = runner.invoke(app, ["convert", "bag", str(bag), "--out", str(tmp_path / "most_log")])
     assert res.exit_code == 2 and "behind the camera" in res.output and not (tmp_path / "most_log").exists()
+
+
+def test_a_conversion_its_own_reader_would_refuse_is_refused_and_leaves_nothing(
+    diffdrive_source, tmp_path, monkeypatch
+):
+    """convert writes only what `learn em` reads: the folder is read back before the conversion ends, and a
+    refusal there (here forced) is convert's own, in one line, with nothing left behind."""
+    import sensact.app
+    from sensact.errors import LogFormatError
+
+    csv, rec = diffdrive_source
+    bag = write_robot_bag(tmp_path / "run", "sqlite3", rec)
+
+    def refuse(path, **_):
+        raise LogFormatError("2 of 9 rows repeat an earlier row exactly.", file=path, fix="drop them.")
+
+    monkeypatch.setattr(sensact.app, "open_log", refuse)
+    res = runner.invoke(
+        app, ["convert", "bag", str(bag), "--landmarks", str(csv["landmarks"]), "--out", str(tmp_path / "o")]
+    )
+    text = " ".join(res.output.split())
+    assert res.exit_code == 2 and "would not be read: 2 of 9 rows repeat" in text, text
+    assert not (tmp_path / "o").exists()

@@ -15,6 +15,23 @@ from sensact.cli.convert import convert_csv, convert_track
 TABLES = "bag_tables"  # the CSVs read from the bag, kept in the log folder to check by eye
 
 
+def _reads_back(out: Path) -> None:
+    """What convert wrote is what `learn em` reads: a folder its own reader would refuse is refused here, with
+    the reader's reason, and nothing is left behind (the caller's ``nothing_half_written``)."""
+    from sensact.app import open_log
+    from sensact.errors import LogFormatError
+
+    try:
+        open_log(out)
+    except LogFormatError as exc:
+        raise LogFormatError(
+            f"the log this bag converts to would not be read: {exc.problem}",
+            file=exc.file,
+            field=exc.field,
+            fix=exc.fix,
+        ) from None
+
+
 def _mapping(path: Path | None):
     """The roles a YAML mapping file names (``commands``, ``readings``, ``sightings``, ``truth``)."""
     from sensact.config import safe_yaml
@@ -260,6 +277,7 @@ def convert_bag(
                 dt=dt,
             )
         _record_source(out, bag, roles, tables, receive_times)
+        _reads_back(out)
 
 
 def _convert_lidar(
