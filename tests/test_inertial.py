@@ -511,3 +511,28 @@ def test_a_stamp_repeated_now_and_then_is_dropped_and_often_is_refused(tmp_path,
         assert learned.exit_code in (0, 3), learned.output  # a minute's log may be flagged; never refused
     else:
         assert "stamp is not after" in text and "--receive-times" in text
+
+
+def test_a_folder_of_unix_times_learns_what_the_same_from_zero_learns(tmp_path):
+    """Every table 1.7e9 s later (a robot's own CSVs in Unix time): read exactly from the odometry's first
+    whole second, the same model comes out."""
+    from decimal import Decimal
+
+    _run(["simulate", "outdoor", "--out", tmp_path / "zero", "--seconds", 60, "--set", "gnss_hz=0"])
+    epoch = tmp_path / "epoch"
+    epoch.mkdir()
+    for f in (tmp_path / "zero").iterdir():
+        text = f.read_text()
+        if f.suffix == ".csv":
+            head, *rows = text.splitlines()
+            rows = [f"{Decimal(r.split(',', 1)[0]) + 1_700_000_000},{r.split(',', 1)[1]}" for r in rows]
+            text = "\n".join([head, *rows]) + "\n"
+        (epoch / f.name).write_text(text)
+    docs = []
+    for name in ("zero", "epoch"):
+        res = runner.invoke(app, ["learn", "em", str(tmp_path / name), "--out", str(tmp_path / f"{name}.json"),
+                                  "--no-report"])  # fmt: skip
+        assert res.exit_code in (0, 3), res.output
+        docs.append(json.loads((tmp_path / f"{name}.json").read_text()))
+    for part in ("odometry", "imu"):
+        assert json.dumps(docs[0][part], sort_keys=True) == json.dumps(docs[1][part], sort_keys=True)
