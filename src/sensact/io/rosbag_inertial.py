@@ -48,8 +48,12 @@ class InertialRoles:
     gnss: str | None
     gnss_named: bool = False  # --gnss TOPIC: a receiver without fixes is then refused, not left out
 
+    def pairs(self) -> tuple[tuple[str, str], ...]:
+        """(role, topic) of each role a topic plays."""
+        return tuple((k, v) for k, v in (("odom", self.odom), ("imu", self.imu), ("gnss", self.gnss)) if v)
+
     def lines(self) -> list[str]:
-        return [f"{k}: {v}" for k, v in (("odom", self.odom), ("imu", self.imu), ("gnss", self.gnss)) if v]
+        return [f"{k}: {v}" for k, v in self.pairs()]
 
 
 def has_imu(topics: list[Topic]) -> bool:
@@ -114,11 +118,8 @@ def _in_order(path: Path, topic: str, msgs: list, receive_times: bool, notes: li
     now and then (a driver's, a serial link's) is dropped and counted; more often, the clock is refused in one
     line with its fix."""
     ns = _times(msgs, receive_times)
-    keep = np.zeros(ns.size, dtype=bool)
-    last = None
-    for k, t in enumerate(ns.tolist()):
-        if last is None or t > last:
-            keep[k], last = True, t
+    before = np.maximum.accumulate(np.concatenate([[np.iinfo(np.int64).min], ns[:-1]]))
+    keep = ns > before  # after every stamp before it: the last one kept is the largest of them
     dropped = int((~keep).sum())
     if dropped > MAX_OUT_OF_ORDER * ns.size:
         _ordered(path, topic, ns)  # refuses, naming the first message out of order
@@ -265,6 +266,6 @@ def read_inertial_bag(
         imu_mount=imu_mount,
         gnss_mount=gnss_mount,
         imu_orientation_xyzw=orientation,
-        topics=tuple((k, v) for k, v in (("odom", roles.odom), ("imu", roles.imu), ("gnss", roles.gnss)) if v),
+        topics=roles.pairs(),
     )
     return log, tuple(notes)

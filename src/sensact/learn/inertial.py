@@ -186,9 +186,9 @@ def _up_from_orientation(log: InertialLog) -> np.ndarray:
 
 def fit_mount(log: InertialLog, time_offset_s: float = 0.0) -> tuple[MountFit | None, np.ndarray]:
     """The IMU's orientation on the robot and its sd (roll, pitch, yaw), a segment jackknife with the
-    accelerometer's bias (a tilt in disguise) added to roll and pitch. The IMU's readings are put on the
-    odometry's clock first (``time_offset_s``): the yaw comes from lining their accelerations up with the
-    odometry's, and a lag between them turns the fit."""
+    accelerometer's bias (a tilt in disguise) carried through the URDF angles (``tilt_sd``). The IMU's
+    readings are put on the odometry's clock first (``time_offset_s``): the yaw comes from lining their
+    accelerations up with the odometry's, and a lag between them turns the fit."""
     imu_t = log.imu_t - time_offset_s
     t0, t1 = max(log.odom_t[0], imu_t[0]), min(log.odom_t[-1], imu_t[-1])
     edges = np.arange(t0, t1 + BIN_S, BIN_S)
@@ -852,7 +852,6 @@ def _learned_noise(has_gnss: bool) -> list[int]:
 # the noises EM walks to slowly: the travel's, which the fixes see only in sum, and the bias's walk, which a
 # pass moves by half a per cent (the gyro's white noise hides each step's share of it)
 TRAVEL_NOISE = [ks.Q_ALONG, ks.Q_ALONG_T, ks.Q_ACROSS]
-POLISHED = [ks.Q_BIAS]
 
 
 def polish_noise(steps: Steps, q: np.ndarray, m0: np.ndarray, P0: np.ndarray, has_gnss: bool) -> np.ndarray:
@@ -861,7 +860,7 @@ def polish_noise(steps: Steps, q: np.ndarray, m0: np.ndarray, P0: np.ndarray, ha
     in sum by a few per cent a pass, and would take hundreds of passes to reach where this goes in one."""
     from scipy.optimize import minimize
 
-    idx = [*POLISHED, *(TRAVEL_NOISE if has_gnss else [])]
+    idx = [ks.Q_BIAS, *(TRAVEL_NOISE if has_gnss else [])]
     x0 = np.log(q[idx])
 
     def nll(x: np.ndarray) -> float:

@@ -468,6 +468,24 @@ class WheelLidarResult:
     notes: tuple[str, ...]
 
 
+def _closed_form_start(
+    track: WheelTrack, scan_t: np.ndarray, m: Matches
+) -> tuple[WheelTrack, np.ndarray | None, list[str]]:
+    """Censi et al.'s closed form to start the fit, its wheels read the right way round (``_oriented``); None
+    where the matches hardly turn or the wheels did not turn as the scans did."""
+    if np.abs(m.s[:, 2]).sum() < MIN_TURN_RAD:
+        return track, None, []
+    with np.errstate(invalid="ignore", divide="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # a degenerate log's closed form: judged below
+        start = closed_form(track, scan_t, m)
+    if not (np.isfinite(start).all() and start[2] > 0 and abs(start[0]) > 0 and abs(start[1]) > 0):
+        return track, None, []
+    track, start, notes = _oriented(track, start)
+    if notes:
+        start = closed_form(track, scan_t, m)
+    return track, start, notes
+
+
 def _oriented(track: WheelTrack, params: np.ndarray) -> tuple[WheelTrack, np.ndarray, list[str]]:
     """A wheel whose position counts down as it drives forward (its joint's axis the other way) shows as a
     negative radius in the closed form, and wheels whose names are swapped as two: read them the right way."""
@@ -520,18 +538,7 @@ def learn_wheel_lidar(log: Lidar2DLog, progress: Progress | None = None, rounds:
     first = match_pairs(points, inc, i, j, guess, progress, "matching consecutive scans")
     if len(first.i) < 10:
         raise_too_few(log, len(first.i), first.tried)
-    notes: list[str] = []
-    start = None
-    if np.abs(first.s[:, 2]).sum() >= MIN_TURN_RAD:
-        with np.errstate(invalid="ignore", divide="ignore"), warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)  # a degenerate log's closed form: judged below
-            start = closed_form(track, log.scan_t, first)
-        if np.isfinite(start).all() and start[2] > 0 and abs(start[0]) > 0 and abs(start[1]) > 0:
-            track, start, notes = _oriented(track, start)
-            if notes:
-                start = closed_form(track, log.scan_t, first)
-        else:  # the wheels did not turn as the scans did: no closed form
-            start = None
+    track, start, notes = _closed_form_start(track, log.scan_t, first)
     if start is not None:
         pass
     elif nominal is not None:  # the closed form needs turns: the URDF starts the fit, which will flag the mount
@@ -616,13 +623,9 @@ def learn_intervals(log: IntervalsLog) -> IntervalsResult:
     """Censi et al.'s closed form on the given intervals, then the maximum-likelihood fit from it (the same as
     the scan route's after its matching: the noise's growth with distance and turn, outliers set aside)."""
     track, t, m = intervals_track(log)
-    turned = float(np.abs(m.s[:, 2]).sum())
-    start = None
-    if turned >= MIN_TURN_RAD:
-        with np.errstate(invalid="ignore", divide="ignore"), warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)  # a degenerate set's closed form: judged below
-            start = closed_form(track, t, m)
-    if start is None or not (np.isfinite(start).all() and start[2] > 0 and abs(start[0]) > 0 and abs(start[1]) > 0):
+    track, start, notes = _closed_form_start(track, t, m)
+    if start is None:
+        turned = float(np.abs(m.s[:, 2]).sum())
         raise LogFormatError(
             f"the scan matcher turned {turned:.2g} rad in all and the wheels do not say how: the radii and the axle "
             "show only in turns.",
@@ -630,8 +633,4 @@ def learn_intervals(log: IntervalsLog) -> IntervalsResult:
             field="phi_l, phi_r",
             fix="give intervals of the robot turning both ways as well as driving (and phi_l, phi_r in rad/s).",
         )
-    track, start, notes = _oriented(track, start)
-    if notes:
-        start = closed_form(track, t, m)
-    censi = start.copy()
-    return IntervalsResult(fit(track, t, m, start, hold_delay=True), censi, tuple(notes))
+    return IntervalsResult(fit(track, t, m, start, hold_delay=True), start, tuple(notes))

@@ -433,7 +433,7 @@ def _show_inertial_halves(doc: JsonObject) -> None:
     verdict = "agree" if doc["agree_within_3sd"] else f"disagree most in {doc['worst']}"
     cons = doc["first_on_second"]["consistency"]
     console.print(
-        f"the robot's constants {verdict} within {3:g} combined sd; the first half's model on the second: "
+        f"the robot's constants {verdict} within 3 combined sd; the first half's model on the second: "
         + ", ".join(f"{s} coverage90 {c['coverage90']:.3f}" for s, c in cons.items() if c["coverage90"] is not None)
         + " (0.90 when its noise is honest)",
         highlight=False,
