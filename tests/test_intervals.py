@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 
 from sensact.cli import app
 from sensact.core.pose_models import to_rep103
-from sensact.io.intervals import COLUMNS
+from sensact.io.intervals import COLUMNS, read_censi
 from sensact.learn import wheel_lidar as wl
 from sensact.logs.intervals_log import IntervalsLog
 
@@ -82,6 +82,17 @@ def test_the_csv_and_the_json_lines_are_one_log(tmp_path):
     assert a["drive"] == b["drive"] and a["lidar"] == b["lidar"]
 
 
+def test_tuples_run_together_read_as_one_a_line(tmp_path):
+    """The authors' whole-set files append each third's tuples to the last without a line break (their
+    `l90.tuple`, line 1082): two objects on one line, and `#` comments, read as the same tuples."""
+    log = _intervals(4, n=30)
+    lines = _censi_file(tmp_path / "t.json", log).read_text().splitlines()
+    joined = tmp_path / "joined.tuple"
+    joined.write_text("# a comment\n" + "\n".join(lines[:10]) + "".join(lines[10:12]) + "\n" + "\n".join(lines[12:]))
+    a, b = read_censi(tmp_path / "t.json"), read_censi(joined)
+    assert np.array_equal(a.sm_m, b.sm_m) and np.array_equal(a.t_s, b.t_s) and len(b.t_s) == 30
+
+
 def test_the_held_delay_leaves_the_scan_routes_fit_as_it_was():
     """`fit(hold_delay=True)` solves for six parameters; with the delay free it is the scan route's fit."""
     log = _intervals(5, n=120)
@@ -96,6 +107,7 @@ def test_the_held_delay_leaves_the_scan_routes_fit_as_it_was():
     [
         ('{"T": 0.3, "phi_l": 1.0}\n', "is not a tuple"),
         ("not json\n", "line 1 is not a tuple"),
+        ('{"T": 0.3, "phi_l": 1, "phi_r": 1, "sm": [0, 0, 0]}\n{"T": 0.3,\n', "line 2 is not a tuple"),
         ('{"T": -1, "phi_l": 1, "phi_r": 1, "sm": [0, 0, 0]}\n' * 12, "T_s is -1.0: not a length"),
         ('{"T": 0.3, "phi_l": 1, "phi_r": 1, "sm": [0, 0, 0]}\n' * 3, "only 3 intervals"),
         ('{"T": 0.3, "phi_l": 1e9, "phi_r": 1, "sm": [0, 0, 0]}\n' * 12, "phi_l_rad_s"),

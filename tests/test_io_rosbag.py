@@ -789,3 +789,41 @@ def test_a_conversion_its_own_reader_would_refuse_is_refused_and_leaves_nothing(
     text = " ".join(res.output.split())
     assert res.exit_code == 2 and "would not be read: 2 of 9 rows repeat" in text, text
     assert not (tmp_path / "o").exists()
+
+
+def test_ranges_that_are_nan_or_infinite_are_no_readings_and_the_log_learns(tmp_path):
+    """REP 117: a Range of NaN or +-inf holds no distance. Two sonars stamped alike, every third message of
+    each empty: convert once wrote those as rows with nothing in them, which repeated each other, and its own
+    reader refused the folder. They are no rows; the folder learns."""
+    m = Msgs("ros1")
+    msgs, x = [], 0.0
+    rng = np.random.default_rng(1)
+    for k in range(300):
+        t = T0_NS + k * 10**8
+        v = 0.2 if (k // 75) % 2 == 0 else -0.2
+        x += 0.9 * v * 0.1
+        r = 3.0 - x + rng.normal(0, 0.01) if k % 3 else (np.nan if k % 2 else np.inf)
+        msgs += [
+            ("/cmd_vel", "geometry_msgs/msg/Twist", t, m.twist(v, 0.0)),
+            ("/sonar", "sensor_msgs/msg/Range", t + 1, m.range(t, r, 0.02, 6.0)),
+            ("/sonar2", "sensor_msgs/msg/Range", t + 2, m.range(t, r + 0.1, 0.02, 6.0)),
+        ]
+    bag = write_bag(tmp_path / "b", "ros1", msgs, m)
+    _ok(["convert", "bag", bag, "--out", tmp_path / "o"])
+    rows = np.genfromtxt(tmp_path / "o" / "bag_tables" / "track.csv", delimiter=",", names=True)
+    assert np.isfinite(rows["sonar_m"]).sum() == np.isfinite(rows["sonar2_m"]).sum() == 200
+    assert rows.size == 300 + 2 * 200  # the commands' rows, and a row per reading: none empty
+    _ok(
+        [
+            "learn",
+            "em",
+            tmp_path / "o",
+            "--out",
+            tmp_path / "m.json",
+            "--no-report",
+            "--set",
+            "thesis.max_iterations=40",
+        ]
+    )
+    channels = json.loads((tmp_path / "m.json").read_text())["model"]["sensor"]["channels"]
+    assert [c["name"] for c in channels] == ["sonar_mm", "sonar2_mm"]

@@ -53,30 +53,48 @@ def _checked(path: Path, values: np.ndarray, rows: list[int]) -> np.ndarray:
     return values
 
 
+def _objects(text: str) -> list[tuple[int, object]]:
+    """The JSON values of ``text`` in order, each with its line: one a line, or run together as the authors' own
+    whole-set files are (each third's tuples appended to the last without a line break); blank lines and
+    ``#`` comments skipped. ValueError names the line where a value does not parse."""
+    decoder, out, at = json.JSONDecoder(), [], 0
+    while True:
+        while at < len(text) and (text[at].isspace() or text[at] == "#"):
+            if text[at] == "#":  # a comment runs to the line's end
+                end = text.find("\n", at)
+                at = len(text) if end < 0 else end
+            else:
+                at += 1
+        if at >= len(text):
+            return out
+        line = text.count("\n", 0, at) + 1
+        try:
+            doc, at = decoder.raw_decode(text, at)
+        except (ValueError, RecursionError):
+            raise ValueError(line) from None
+        out.append((line, doc))
+
+
 def read_censi(path: Path) -> IntervalsLog:
-    """Censi et al.'s tuples, one JSON object a line (blank lines and ``#`` comments skipped); a tuple their
-    tool marked ``mark_as_outlier`` is kept (sensact finds its own outliers)."""
-    rows, values = [], []
+    """Censi et al.'s tuples, JSON objects one a line or run together (``_objects``); a tuple their tool marked
+    ``mark_as_outlier`` is kept (sensact finds its own outliers)."""
+    fix = "one JSON object a line, as Censi et al.'s tool writes them, or a CSV of " + ", ".join(COLUMNS) + "."
     with open(path, encoding="utf-8", errors="replace") as f:
-        for k, line in enumerate(f, start=1):
-            line = line.strip()
-            if not line or line.startswith("#"):
-                continue
-            try:
-                doc = json.loads(line)
-                sm = doc["sm"]
-                values.append([float(doc["T"]), float(doc["phi_l"]), float(doc["phi_r"]), *map(float, sm[:3])])
-                if len(sm) < 3:
-                    raise ValueError
-            except (ValueError, KeyError, TypeError, IndexError, RecursionError):
-                raise LogFormatError(
-                    f"line {k} is not a tuple {{T, phi_l, phi_r, sm: [x, y, theta]}}.",
-                    file=path,
-                    fix="one JSON object a line, as Censi et al.'s tool writes them, or a CSV of "
-                    + ", ".join(COLUMNS)
-                    + ".",
-                ) from None
-            rows.append(k)
+        text = f.read()
+    rows, values, not_tuple = [], [], "is not a tuple {T, phi_l, phi_r, sm: [x, y, theta]}."
+    try:
+        docs = _objects(text)
+    except ValueError as e:
+        raise LogFormatError(f"line {e.args[0]} {not_tuple}", file=path, fix=fix) from None
+    for k, doc in docs:
+        try:
+            sm = doc["sm"]  # type: ignore[index]
+            if len(sm) < 3:
+                raise ValueError
+            values.append([float(doc["T"]), float(doc["phi_l"]), float(doc["phi_r"]), *map(float, sm[:3])])  # type: ignore[index]
+        except (ValueError, KeyError, TypeError, IndexError):
+            raise LogFormatError(f"line {k} {not_tuple}", file=path, fix=fix) from None
+        rows.append(k)
     arr = _checked(path, np.array(values, dtype=float).reshape(-1, 6), rows)
     return IntervalsLog(str(path), arr[:, 0], arr[:, 1:3], arr[:, 3:6])
 

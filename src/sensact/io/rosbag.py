@@ -519,7 +519,8 @@ def _column_of(topic: str) -> str:
 def _ranges(
     path: Path, reader, topics: tuple[str, ...], receive_times: bool, clocks: dict, progress: Progress | None = None
 ) -> dict[str, np.ndarray]:
-    """Every Range topic's readings, one row per message, the other columns empty (NaN) on it."""
+    """Every Range topic's readings, one row per message that holds one (REP 117: NaN, +-inf or a range outside
+    the message's span is none), the other columns empty (NaN) on it."""
     times, cols = [], {}
     for topic in topics:
         msgs = _read(reader, topic, progress)
@@ -536,8 +537,9 @@ def _ranges(
                 file=path,
                 fix="check the sensor's min_range and max_range, or give another --readings TOPIC.",
             )
-        times.append(ns)
-        cols[topic] = r
+        seen = np.isfinite(r)  # a message with no reading is no row: two sensors' empty rows would repeat
+        times.append(ns[seen])
+        cols[topic] = r[seen]
     ns_all = np.concatenate(times)
     table: dict[str, np.ndarray] = {"t_s": _seconds(ns_all)}
     at = 0
