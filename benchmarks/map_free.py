@@ -51,9 +51,13 @@ def row(name: str, free: dict, fs: float, given: dict, gs: float) -> dict:
         "map_rms_mm": m.get("rms_mm"),
         "placed": f"{m.get('landmarks_placed')}/{m.get('landmarks_total')}",
         "seen_enough_not_placed": m.get("seen_enough_not_placed"),
+        "map_scale": m.get("scale"),
         "path_median_mm": p_free,
         "path_median_with_map_mm": p_given,
         "path_ratio": p_free / p_given,
+        # issue 106: the map-free path after a similarity alignment, against the surveyed fit's
+        "path_similarity_median_mm": free["path"]["similarity"]["median_mm"],
+        "path_similarity_ratio": free["path"]["similarity"]["median_mm"] / p_given,
         "ratio_translation": free["action"]["ratio_translation"],
         "ratio_rotation": free["action"]["ratio_rotation"],
         "range_sigma_ratio": free["range"]["sigma_ratio"],
@@ -125,9 +129,11 @@ def main() -> None:
     out.write_text(json.dumps(rows, indent=1) + "\n")
     keys = (
         "map_rms_mm",
+        "map_scale",
         "path_median_mm",
         "path_median_with_map_mm",
         "path_ratio",
+        "path_similarity_ratio",
         "ratio_translation",
         "ratio_rotation",
         "range_sigma_ratio",

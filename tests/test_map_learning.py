@@ -20,7 +20,7 @@ from conftest import write_csv
 from sensact.app.shared_map import _map_step, merge_maps
 from sensact.cli import app
 from sensact.errors import ConfigError, LogFormatError
-from sensact.evaluate.map_truth import map_scores, rigid_alignment
+from sensact.evaluate.map_truth import map_scores, rigid_alignment, similarity_alignment
 from sensact.io.landmark_folder import read_landmark_log, write_landmark_log
 from sensact.io.timed_csv import MIN_SIGHTINGS_TO_LEARN, read_landmarks, read_timed_csv
 from sensact.learn.em import fit_em, initial_model
@@ -60,6 +60,19 @@ def test_a_scaled_map_is_not_aligned_away():
     survey = np.array([[0.0, 0.0], [4000.0, 0.0], [4000.0, 9000.0], [0.0, 9000.0]])
     scores, _ = map_scores(survey * 1.03, survey, np.full(4, 100))
     assert scores["rms_mm"] > 100.0
+    # ... and the scale is said beside it: the map's size over the survey's, its shape exact once taken out
+    assert scores["scale"] == pytest.approx(1.03, rel=1e-12) and scores["similarity_rms_mm"] < 1e-9
+
+
+def test_similarity_alignment_recovers_a_known_rotation_translation_and_scale_exactly():
+    rng = np.random.default_rng(1)
+    survey = rng.uniform(-4000, 4000, (9, 2))
+    learned = (survey - [300.0, -50.0]) @ _rot(-1.1) / 0.96  # survey = 0.96 R(-1.1) learned + t
+    fit = similarity_alignment(learned, survey)
+    assert fit.rotation_rad == pytest.approx(-1.1, abs=1e-12) and fit.scale == pytest.approx(0.96, rel=1e-12)
+    np.testing.assert_allclose(fit.points(learned), survey, atol=1e-9)
+    poses = fit.poses(np.array([[0.0, 0.0, 0.2]]))
+    assert poses[0, 2] == pytest.approx(0.2 - 1.1) and similarity_alignment(learned[:1], survey[:1]) is None
 
 
 def test_the_landmark_m_step_on_the_true_poses_finds_the_true_positions():
@@ -220,6 +233,8 @@ def test_em_learns_an_unsurveyed_map_with_the_models_on_a_simulated_robot(tmp_pa
     assert ev["map"]["rms_mm"] < 100.0 and ev["map"]["seen_enough_not_placed"] == 0
     assert ev["map"]["landmarks_total"] == 14 and ev["map"]["landmarks_placed"] >= 13
     assert ev["path"]["median_mm"] < 150.0
+    assert ev["path"]["similarity"]["median_mm"] <= ev["path"]["median_mm"] * 1.05
+    assert abs(ev["map"]["scale"] - 1.0) < 0.03 and ev["map"]["similarity_rms_mm"] <= ev["map"]["rms_mm"]
     assert ev["action"]["ratio_translation"] < 1.5 and ev["action"]["ratio_rotation"] < 1.5
     assert 1 / 1.5 < ev["range"]["sigma_ratio"] < 1.5
     assert (sim / "model_map.png").is_file()

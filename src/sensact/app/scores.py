@@ -77,9 +77,10 @@ def _on_recorded_poses(
     lf = log.folder
     recorded = lf.truth_poses()
     data, mapped = lf.data, None
+    similar = None
     if model.landmarks is not None:  # a learned map: scored against the survey, the path in its frame
         view = in_truth_frame(lf, model, path, fit)
-        data, mapped, path = view.data, view.mapped, view.path
+        data, mapped, path, similar = view.data, view.mapped, view.path, view.similar_path
     if recorded is None or not data.is_continuous or not data.map_given.all():
         return None  # not scored against them: a simulator's truth may score it
     from sensact.evaluate.bars import bar_checks
@@ -95,6 +96,8 @@ def _on_recorded_poses(
         sc["map"] = mapped
     if path is not None:
         sc["path"] = path_offset(np.asarray(path), *recorded)
+        if similar is not None:  # a learned map's path, its size taken out as well (docs/map.md)
+            sc["path"]["similarity"] = {"median_mm": path_offset(similar, *recorded)["median_mm"]}
     sc["bars"] = bar_checks(sc)
     simulated = lf.meta.get("truth") or {}
     if "action_coefficients" in simulated:  # a simulated differential drive's true models
@@ -157,6 +160,7 @@ class TruthFrame:
     data: LandmarkLog  # the log on the surveyed map (the learned map, aligned, where the survey lacks one)
     mapped: JsonObject | None  # evaluation.map; None without a survey
     path: np.ndarray | None  # EM's smoothed path, aligned; None when nothing aligns the frames
+    similar_path: np.ndarray | None = None  # the path after the alignment with the scale free as well
 
 
 def in_truth_frame(lf: LandmarkLogFile, model: EMModel, path: np.ndarray | None, fit: Any = None) -> TruthFrame:
@@ -167,26 +171,35 @@ def in_truth_frame(lf: LandmarkLogFile, model: EMModel, path: np.ndarray | None,
     return TruthFrame(*_on_survey(lf, model, path, fit))
 
 
-def _on_survey(lf: LandmarkLogFile, model: EMModel, path: np.ndarray | None, fit: Any) -> tuple[Any, Any, Any]:
-    from sensact.evaluate.map_truth import map_scores, rigid_alignment
+def _on_survey(lf: LandmarkLogFile, model: EMModel, path: np.ndarray | None, fit: Any) -> tuple[Any, ...]:
+    from sensact.evaluate.map_truth import map_scores, rigid_alignment, similarity_alignment
 
     learned, survey, mapped = model.landmarks, lf.survey_xy, None
     if survey is None:
         recorded = lf.truth_poses()
-        alignment = None
+        alignment = similar = None
         if recorded is not None and path is not None:
             poses, valid = recorded
             alignment = rigid_alignment(np.asarray(path)[valid, :2], poses[valid, :2])
+            similar = similarity_alignment(np.asarray(path)[valid, :2], poses[valid, :2])
         survey = np.full_like(learned.xy, np.nan)
     else:
         from sensact.learn.em.landmark_step import sightings_per_landmark
 
         used = getattr(getattr(fit, "posteriors", None), "obs_used", None)
         mapped, alignment = map_scores(learned.placed_xy(), survey, sightings_per_landmark(lf.data, used))
+        similar = similarity_alignment(learned.placed_xy(), survey)
     if alignment is None:
-        return lf.data.with_landmarks(learned.xy), mapped, None
+        return lf.data.with_landmarks(learned.xy), mapped, None, None
     filled = np.where(np.isfinite(survey), survey, alignment.points(learned.xy))
-    return lf.data.with_landmarks(filled), mapped, None if path is None else alignment.poses(np.asarray(path))
+    if path is None:
+        return lf.data.with_landmarks(filled), mapped, None, None
+    return (
+        lf.data.with_landmarks(filled),
+        mapped,
+        alignment.poses(np.asarray(path)),
+        None if similar is None else similar.poses(np.asarray(path)),
+    )
 
 
 def _on_distance(log: OpenedLandmarkLog, fit: Any) -> Scores | Unscored | None:

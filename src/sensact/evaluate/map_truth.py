@@ -4,7 +4,8 @@ The learned map and path share one rigid frame, which the robot's start fixes; t
 ``rigid_alignment`` finds the rotation and translation (no scale: the scale must come out right) that
 best lay the placed learned positions on the surveyed ones (least squares, Kabsch/Umeyama without the
 scale), and ``map_scores`` reports the RMS distance after it; the path is scored after the same
-alignment (``aligned_path``)."""
+alignment. ``similarity_alignment`` frees the scale too: the map's ``scale`` against the survey, its RMS
+and the path's median after it say how much of the error is the map's size alone."""
 
 from __future__ import annotations
 
@@ -38,6 +39,34 @@ class RigidAlignment:
         return out
 
 
+@dataclass(frozen=True)
+class SimilarityAlignment(RigidAlignment):
+    """A rigid alignment that also scales: ``surveyed = scale R learned + t``."""
+
+    scale: float = 1.0
+
+    @property
+    def matrix(self) -> np.ndarray:
+        return self.scale * super().matrix
+
+
+def similarity_alignment(learned: np.ndarray, surveyed: np.ndarray) -> SimilarityAlignment | None:
+    """``rigid_alignment`` with the scale free as well (Umeyama 1991): what the learned map's shape is
+    worth apart from its size, and that size against the survey's; None as ``rigid_alignment``."""
+    fit = rigid_alignment(learned, surveyed)
+    if fit is None:
+        return None
+    ok = np.isfinite(learned).all(axis=1) & np.isfinite(surveyed).all(axis=1)
+    a, b = learned[ok], surveyed[ok]
+    ca, cb = a.mean(axis=0), b.mean(axis=0)
+    turned = (a - ca) @ fit.matrix.T
+    spread = float(np.sum(turned**2))
+    if not spread > 0:
+        return None
+    scale = float(np.sum(turned * (b - cb)) / spread)  # the least-squares scale once turned
+    return SimilarityAlignment(fit.rotation_rad, cb - scale * fit.matrix @ ca, scale)
+
+
 def rigid_alignment(learned: np.ndarray, surveyed: np.ndarray) -> RigidAlignment | None:
     """The rotation and translation laying ``learned`` on ``surveyed`` ((L, 2) each, NaN rows skipped)
     in least squares; None with fewer than two landmarks in both."""
@@ -66,8 +95,16 @@ def map_scores(
         err = fit.points(learned_xy[placed]) - surveyed[placed]
         rms = float(np.sqrt(np.mean(np.sum(err**2, axis=1))))
     seen = np.asarray(sightings) >= SEEN_ENOUGH
+    similar = similarity_alignment(learned_xy, surveyed)
+    similar_rms, scale = float("nan"), float("nan")
+    if similar is not None:
+        err = similar.points(learned_xy[placed]) - surveyed[placed]
+        similar_rms, scale = float(np.sqrt(np.mean(np.sum(err**2, axis=1)))), 1.0 / similar.scale
     return {
         "rms_mm": rms,
+        # the learned map's size over the survey's (1.02: 2 % too large), and its RMS with that taken out
+        "scale": scale,
+        "similarity_rms_mm": similar_rms,
         "landmarks_placed": int(placed.sum()),
         "landmarks_total": int(surveyed_rows.sum()),
         "seen_enough_not_placed": int((seen & surveyed_rows & ~placed).sum()),
