@@ -113,3 +113,57 @@ def test_uncertainty_is_information_or_a_count(tmp_path):
     for bad in ("banana", "2.5"):
         res = runner.invoke(app, ["learn", "em", str(log), "--uncertainty", bad])
         assert res.exit_code == 2 and "neither 'information' nor a number" in res.output
+
+
+def test_the_sandwich_reduces_to_the_information_when_the_scores_spread_as_it_says(gaussian):
+    """Exact reduction: with the meat equal to the information (a correct model's scores), I^-1 B I^-1 is
+    I^-1; and the meat sums each block's scores before their outer product."""
+    from types import SimpleNamespace
+
+    from sensact.learn.em.uses.information import sandwich_meat
+
+    info, scale, _ = observed_information(gaussian, gaussian.mu)
+    curve = Curvature.of(info, scale)
+    np.testing.assert_allclose(curve.sandwiched(info).cov, curve.cov, rtol=1e-8, atol=1e-12)
+    scores = np.array([[1.0, 0.0], [2.0, 1.0], [0.0, -1.0], [3.0, 3.0]])
+    log = SimpleNamespace(dt_s=0.5, obs_step=np.array([0, 1, 2, 5]))  # blocks of 1 s: two steps each
+    summed = np.array([[3.0, 1.0], [0.0, -1.0], [3.0, 3.0]])
+    np.testing.assert_allclose(sandwich_meat(scores, log), summed.T @ summed)
+
+
+def test_the_sightings_shares_sum_to_the_likelihood():
+    """Invariant: the per-sighting shares the sandwich differentiates add up to the forward pass's total."""
+    from sensact.learn.em import EMConfig, fit_em, initial_model
+    from sensact.learn.em.estep import log_likelihood, sighting_logliks
+    from sensact.sim.field2d import Field2DConfig, simulate_field, to_landmark_log
+
+    data = to_landmark_log(simulate_field(Field2DConfig(seconds=60.0, seed=2)))
+    em = EMConfig.of(max_iterations=10, prune_rad_per_step=0.0)
+    model = fit_em(data, initial_model(data, em), em).model
+    shares = sighting_logliks(model, data)
+    assert shares is not None and np.count_nonzero(shares) > 0.9 * data.n_observations
+    assert shares.sum() == pytest.approx(log_likelihood(model, data), rel=1e-12)
+
+
+@pytest.mark.slow
+def test_a_coverage_trial_gives_the_sandwich_beside_the_information():
+    """`reproduce uncertainty`'s trial: both likelihood methods give every action, f and mount parameter a
+    finite interval about the same value, the profiled sigmas the same interval both ways."""
+    from dataclasses import replace
+
+    from sensact.experiments.coverage import CoverageExperiment, coverage_trial, truth_of
+    from sensact.sim.diffdrive import DiffDriveConfig
+
+    exp = replace(CoverageExperiment(), simulator=DiffDriveConfig(seconds=45.0))
+    template, truth, config = truth_of(exp)
+    trial = coverage_trial(template, truth, config, 1, 0)
+    assert trial.sandwich is not None and trial.sandwich.method == "sandwich"
+    info, sand = trial.information.by_name(), trial.sandwich.by_name()
+    assert info.keys() == sand.keys()
+    for name, p in info.items():
+        s = sand[name]
+        assert s.value == p.value
+        if p.family == "sigma":
+            assert s.interval == p.interval
+        elif p.se is not None and p.family in ("action", "f", "mount"):
+            assert s.se is not None and 0 < s.se < 10 * p.se and p.se < 10 * s.se, name

@@ -111,3 +111,67 @@ def test_squarem_reaches_plain_em_s_fixed_point_in_fewer_e_steps(field):
     err = np.abs(v_plain - run.true_velocities).max(axis=0)
     assert np.all(np.abs(v_fast - v_plain).max(axis=0) <= np.maximum(err, 1e-3))
     assert fast.model.sensor.channels[0].sigma == pytest.approx(plain.model.sensor.channels[0].sigma, rel=0.05)
+
+
+def test_a_step_s_length_in_the_observed_information_is_exact_on_a_quadratic():
+    """Exact reduction: on l(p) = -1/2 (p - m)' A (p - m), a step d's length about any p is sqrt(d' A d)."""
+    from types import SimpleNamespace
+
+    from sensact.learn.em.fixed_point import Information
+
+    A, m = np.array([[4.0, 1.0, 0.0], [1.0, 2.0, 0.3], [0.0, 0.3, 1e4]]), np.array([1.0, -5.0, 0.2])
+
+    def loglik(p):
+        return -0.5 * float((p - m) @ A @ (p - m))
+
+    p0 = m + np.array([0.3, -2.0, 0.01])  # not at the top: the gradient cancels
+    info = Information(SimpleNamespace(p0=p0, loglik=loglik), loglik(p0))
+    for d in (np.array([1.0, 0.0, 0.0]), np.array([0.2, -0.7, 1e-3])):
+        assert info.length(d) == pytest.approx(np.sqrt(d @ A @ d), rel=1e-9)
+    assert info.length(np.zeros(3)) == 0.0
+
+
+def test_the_rest_of_the_way_is_exact_on_a_linear_contraction():
+    """Exact reduction: x_k = r^k x_0 converges to 0; from x_1, its step and the one before give -x_1."""
+    from sensact.learn.em.fixed_point import rest_of_the_way
+
+    x0, r = np.array([3.0, -1.0, 0.5]), 0.97
+    x1, x2 = r * x0, r * r * x0
+    np.testing.assert_allclose(rest_of_the_way(x1 - x0, x2 - x1), -x1, rtol=1e-12)
+    assert rest_of_the_way(x1 - x0, 1.01 * (x1 - x0)) is None  # not contracting: not stopped
+    assert not np.any(rest_of_the_way(x1 - x0, np.zeros(3)))
+
+
+@pytest.mark.parametrize("accelerate", [False, True])
+def test_the_deterministic_em_stops_at_its_fixed_point(field, accelerate):
+    """Invariant: a deterministic EM stopped by the fixed-point rule returns a model that one more EM step
+    moves by less than STOP_SD standard errors (its length in the observed information); the summary
+    names the rule; the E-step's likelihood is the forward pass's the rule measures with."""
+    from functools import partial
+
+    from sensact.learn.em.estep import e_step
+    from sensact.learn.em.fixed_point import STOP_SD, Information
+    from sensact.learn.em.loop import prior_floor_var, stage_loglik
+    from sensact.learn.em.mount import mount_freedom
+    from sensact.learn.em.mstep import m_step
+    from sensact.learn.em.space import LearnedSpace
+    from sensact.learn.em.stage import plan_stages
+
+    _cfg, _run, data = field
+    em = EMConfig.of(
+        accelerate=accelerate, pose_draws="sigma_points", prune_rad_per_step=0.0, max_iterations=1500, patience=300
+    )  # patience only the backstop: the likelihood of EM with an EKF E-step need not climb to the fixed point
+    res = fit_em(data, initial_model(data, em), em)
+    assert res.stopped_because == "fixed_point" and res.summary()["stopped_because"] == "fixed_point"
+    model, used = res.model, res.posteriors.obs_used
+    freedom = mount_freedom(model, em.sensor_mount is not None, model.sensor.reads_bearing)
+    stage = plan_stages(em, model, freedom)[-1]
+    post = e_step(model, data, obs_use=used)
+    score = partial(stage_loglik, data=data, obs_use=used, robust=True)
+    assert post.loglik == pytest.approx(score(model), abs=1e-9)
+    moved = m_step(
+        post, data, model, n_samples=1, floor_var=prior_floor_var(em, 3), rng=np.random.default_rng(0),
+        stage=stage, sigma_points=True,
+    )  # fmt: skip
+    info = Information(LearnedSpace.about(model, data, stage.mount, score), post.loglik)
+    assert 0 < info.length(info.step(model, moved)) < STOP_SD

@@ -338,12 +338,14 @@ def _passes_for(n_state: int):
         P_a,
         innov,
         innov_sens,
+        obs_loglik,
     ):
         """alpha_t (eq. 4.3) into ``mu_a, P_a`` and the likelihood (eq. 4.14); returns ``(status, loglik,
         n_used)``. Decides each reading's weight into ``weights[k, c]`` (0 = not used) for the later passes.
 
         ``joint_dof`` is the joint Student-t's degrees of freedom, None when no reading is joint.
-        ``innov, innov_sens`` receive the standardized innovations and their sensitivities, or are None.
+        ``innov, innov_sens`` receive the standardized innovations and their sensitivities, or are None;
+        ``obs_loglik`` (zeros, or None) each sighting's share of the likelihood (the sandwich's scores).
         With ``prune_rad_per_step > 0`` an observation whose bearing innovation exceeds that times the
         steps since the last step with a kept observation is marked unused in ``obs_use`` (sec. 4.4.1),
         every observation of a step judged against the same prediction.
@@ -405,6 +407,8 @@ def _passes_for(n_state: int):
                         if not ok:
                             return NOT_POSITIVE_DEFINITE, loglik, n_used
                         loglik += ld
+                        if obs_loglik is not None:
+                            obs_loglik[k] += ld
                 # the joint readings update first, so that the others' densities are conditional on them
                 # (the chain rule); without joint readings the second round is the whole
                 for joint_round in (True, False):
@@ -421,6 +425,8 @@ def _passes_for(n_state: int):
                         else:
                             w, ld = _reading_weight(robust_kind[c], robust_param[c], nu, _hph(P, H, n) + r)
                             loglik += ld
+                            if obs_loglik is not None:
+                                obs_loglik[k] += ld
                         if w > 0.0:
                             weights[k, c] = w
                             _scalar_update(m, P, H, nu, r / w, n, PH, K, A, tmp, tmp2)

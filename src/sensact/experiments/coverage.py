@@ -2,13 +2,13 @@
 uncertainty`)
 
 A simulated differential drive with a camera (``DiffDriveConfig``, shortened to ``seconds``) gives the
-commands, map and sighting times; the model EM learns on it is the truth. Each of ``sims`` seeded logs
-is drawn from that truth (``learn.em.uses.draw_log``), learned by EM from the thesis's poor start as `learn em`
-learns it, and given error bars both ways: from the likelihood (``uses/information.py``) and by
-``replicates`` bootstrap replicates (``uses/error_bars.py``; none with 0). Per method and parameter family,
-the share of intervals that hold the true value should be near 90 %: the bar is 85-95 % (Sigma_m's
-85-97 %). The method with more families inside their bars is ``chosen`` (by coverage, docs/uncertainty.md), and
-``coverage`` is its.
+commands, map and sighting times; the model EM learns on it is the truth. Each of ``sims`` seeded logs is
+drawn from that truth (``learn.em.uses.draw_log``), learned by EM from the thesis's poor start as `learn em`
+learns it, and given error bars three ways: from the likelihood's curvature, from the sandwich around it
+(``uses/information.py``), and by ``replicates`` bootstrap replicates (``uses/error_bars.py``; none with 0).
+Per method and parameter family, the share of intervals that hold the true value should be near 90 %: the
+bar is 85-95 % (Sigma_m's 85-97 %). The method with more families inside their bars is ``chosen`` (by
+coverage, docs/uncertainty.md), and ``coverage`` is its.
 Each log is a job of the engine (its replicates run inside it, one after another).
 """
 
@@ -26,7 +26,7 @@ from sensact.learn.em import EMConfig, fit_em
 from sensact.learn.em.uses.draw_log import simulate_from_model
 from sensact.learn.em.uses.error_bars import FAMILIES, Uncertainty, coverage, f_distances, model_parameters, replicate
 from sensact.learn.em.uses.error_bars import summarize as summarize_draws
-from sensact.learn.em.uses.information import information_intervals
+from sensact.learn.em.uses.information import likelihood_intervals
 from sensact.models.em_model import EMModel
 from sensact.records import JsonObject
 from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
@@ -34,7 +34,7 @@ from sensact.sim.diffdrive import DiffDriveConfig, simulate_diffdrive
 # each family's 90 % intervals hold the truth 85-95 % of the time; Sigma_m's 85-97 %
 COVERAGE_BAR = (0.85, 0.95)
 FAMILY_BARS = {"Sigma_m": (0.85, 0.97)}
-INFORMATION, BOOTSTRAP = "observed information", "parametric bootstrap"
+INFORMATION, SANDWICH, BOOTSTRAP = "observed information", "sandwich", "parametric bootstrap"
 
 
 @dataclass(frozen=True)
@@ -63,6 +63,7 @@ class Trial:
 
     bootstrap: Uncertainty | None  # None: no replicates asked
     information: Uncertainty
+    sandwich: Uncertainty | None  # None: a filter failed on a score's difference
     truth: dict[str, float]
     replicates: list[dict[str, float]]
 
@@ -74,7 +75,9 @@ def coverage_trial(
     drawn, _ = simulate_from_model(truth, template, seed)
     res = fit_em(drawn, None, config)
     f_at = tuple(float(d) for d in f_distances(res.model, drawn, res.posteriors.mean_gamma))
-    information = information_intervals(res.model, drawn, f_at, None if res.mount is None else res.mount.free)
+    information, sandwich = likelihood_intervals(
+        res.model, drawn, f_at, None if res.mount is None else res.mount.free, sandwich=True
+    )
     draws: list[Any] = []
     for b in range(replicates):
         if progress is not None:
@@ -86,7 +89,7 @@ def coverage_trial(
     truth_values = {name: value for name, (_, value) in model_parameters(truth, f_at).items()}
     used = [d for d in draws if not isinstance(d, str)]
     boot = summarize_draws(res.model, draws, f_at, 10_000 * seed) if replicates else None
-    return Trial(boot, information, truth_values, used)
+    return Trial(boot, information, sandwich, truth_values, used)
 
 
 def _families_in_bar(cov: JsonObject) -> tuple[int, float]:
@@ -142,6 +145,7 @@ def run_coverage(
 
     fits: list[Trial] = (engine or InProcess()).run(jobs, on_done=on_done)
     by_method = {INFORMATION: coverage([(t.information, t.truth) for t in fits])}
+    by_method[SANDWICH] = coverage([(t.sandwich, t.truth) for t in fits if t.sandwich is not None])
     if exp.replicates:
         by_method[BOOTSTRAP] = coverage([(t.bootstrap, t.truth) for t in fits if t.bootstrap is not None])
     chosen = max(by_method, key=lambda m: _families_in_bar(by_method[m]))  # ties: the likelihood's, seconds a log
@@ -160,6 +164,7 @@ def run_coverage(
             {
                 "seed": s,
                 "information": t.information.to_dict(),
+                "sandwich": None if t.sandwich is None else t.sandwich.to_dict(),
                 "uncertainty": None if t.bootstrap is None else t.bootstrap.to_dict(),
                 "truth": t.truth,
                 "replicates": t.replicates,

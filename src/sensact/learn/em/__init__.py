@@ -11,6 +11,9 @@ The thesis's core, here:
 * ``initial``: sec. 4.4.1's poor start, and on a map nobody surveyed its frame and first map (``slam_start``);
 * ``late_outliers``: sec. 4.4.1's gate again, when the robust readings take over;
 * ``squarem``: EM's map extrapolated (SQUAREM), on coordinates where every point is a model;
+* ``space``: the learned parameters as one vector, where the curvature is taken and steps are measured;
+* ``fixed_point``: the deterministic EM's stop at its fixed point, its steps measured in the observed
+  information;
 * ``result``: what a fit returns, and the signs that it lost the robot;
 * ``loop`` (secs. 4.1 and 4.4.1): E- and M-steps in stages, the searches between them;
 * ``fit``: a whole fit, from the start race or a given start, with its restarts and map rounds;

@@ -113,6 +113,16 @@ def log_likelihood(model: EMModel, data: LandmarkLog, *, obs_use: np.ndarray | N
     return float(loglik) if status == OK and np.isfinite(loglik) else -np.inf
 
 
+def sighting_logliks(model: EMModel, data: LandmarkLog, *, obs_use: np.ndarray | None = None) -> np.ndarray | None:
+    """Each sighting's share of ``log_likelihood`` (its readings' predictive densities, eq. 4.14's terms;
+    0 where unused), from one forward pass; they sum to it. None if the filter fails."""
+    _counted(False)
+    use = np.ones(data.n_observations, dtype=np.bool_) if obs_use is None else np.array(obs_use, dtype=np.bool_)
+    out = np.zeros(data.n_observations)
+    status, loglik, *_ = _run_passes(model, data, None, use, 0.0, None, None, out)
+    return out if status == OK and np.isfinite(loglik) else None
+
+
 @dataclass(frozen=True, eq=False)
 class Innovations:
     """The forward pass's standardized innovations: under a correct linear-Gaussian model, independent
@@ -145,10 +155,12 @@ def _run_passes(
     prune_rad_per_step: float,
     smoothed: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None,
     record: tuple[np.ndarray, np.ndarray] | None = None,
+    obs_loglik: np.ndarray | None = None,
 ) -> tuple[int, float, int, np.ndarray, np.ndarray, np.ndarray]:
     """The compiled passes on ``model`` and ``data``: ``(status, loglik, n_used, mu_a, P_a, weights)``.
     ``smoothed`` is ``(mu_g, P_g, d_mu, d_P)`` to fill, or None for the forward pass only; ``record`` is
-    ``(innov, innov_sens)`` to fill with the standardized innovations and their sensitivities."""
+    ``(innov, innov_sens)`` to fill with the standardized innovations and their sensitivities;
+    ``obs_loglik`` (zeros) each sighting's share of the likelihood."""
     if model.geometry != data.geometry:
         raise ValueError(f"a {model.geometry} model cannot run on a {data.geometry} log")
     T = data.n_steps
@@ -181,6 +193,7 @@ def _run_passes(
         P_a,
         innov,
         innov_sens,
+        obs_loglik,
     )
     if smoothed is not None and status == OK:
         mu_g, P_g, d_mu, d_P = smoothed

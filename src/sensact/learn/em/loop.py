@@ -21,6 +21,7 @@ import numpy as np
 from sensact.errors import ConfigError
 from sensact.learn.em.config import EMConfig
 from sensact.learn.em.estep import Posteriors, e_step, log_likelihood
+from sensact.learn.em.fixed_point import STEP_BOUND_SD, STOP_SD, Information, rest_of_the_way
 from sensact.learn.em.initial import initial_model, motion_sd_floor, motion_sd_start
 from sensact.learn.em.late_outliers import bearing_outliers
 from sensact.learn.em.mount import MountFreedom, mount_freedom
@@ -30,6 +31,7 @@ from sensact.learn.em.searches.delay import DelaySearch, search_delay
 from sensact.learn.em.searches.mount_search import MountSearch, search_mount
 from sensact.learn.em.searches.ridge import RidgeSearch, search_ridge
 from sensact.learn.em.searches.start_race import OnTrial, StartSearch, race_starts, start_candidates
+from sensact.learn.em.space import LearnedSpace
 from sensact.learn.em.squarem import (
     LOGLIK_SLACK,
     MIN_GAIN,
@@ -161,6 +163,10 @@ class _Run:
     began: list[tuple[str, int]] = field(default_factory=list)
     accelerated: int = 0  # SQUAREM's steps kept
     peaked: bool = False  # the accelerated loop's last EM step lowered the likelihood
+    # the deterministic EM's last stage measures its steps in the observed information about its latest
+    # model (fixed_point.py); None before
+    info: Information | None = None
+    stopped_because: str = ""  # the rule that ended the fit (EMResult.stopped_because)
 
     @property
     def current(self) -> Stage:
@@ -213,6 +219,24 @@ class _Run:
         converged |= self.peaked and (self.patience is None or s.ends_by is not None)
         return converged or (s.ends_by is not None and it >= s.ends_by)
 
+    def at_fixed_point(self, it: int, model: EMModel, post: Posteriors, moved: EMModel, before: EMModel | None) -> bool:
+        """Whether ``model`` (its E-step ``post``) is within ``STOP_SD`` standard errors of EM's fixed point
+        in every parameter (``fixed_point.py``), judged by its EM step to ``moved`` and the one that led to
+        it from ``before``: the deterministic EM's stop, in its last stage. Keeps the observed information
+        about ``model`` (``info``) for the accelerated step's bound. At the fixed point ``model`` is the fit,
+        not the best of the path."""
+        if not (self.last and self.cfg.sigma_points and self.patience is not None) or before is None:
+            return False
+        score = partial(stage_loglik, data=self.data, obs_use=self.obs_use, robust=self.current.robust)
+        self.info = info = Information(LearnedSpace.about(model, self.data, self.current.mount, score), post.loglik)
+        rest = rest_of_the_way(info.step(before, model), info.step(model, moved))
+        if rest is None or not info.length(rest) < STOP_SD:
+            return False
+        t = self.trace
+        t.best_ll, t.best_it, t.best_model, t.best_post = post.loglik, it, model, post
+        self.stopped_because = "fixed_point"
+        return True
+
     def search_if_due(self, it: int, post: Posteriors, stage_ends: bool) -> Posteriors:
         since = (self.freed_at if self.freed_at >= 0 else 0) if self.last else None
         if not self.searches.due(it, stage_ends, since):
@@ -264,6 +288,7 @@ def em_loop(run: _Run, iterations: int, on_iteration: OnIteration | None = None)
     if run.cfg.accelerate:
         return squarem_loop(run, iterations, on_iteration)
     floor = prior_floor_var(run.cfg, run.model.prior_mean.size)
+    before: EMModel | None = None  # the model EM's last step left
     try:
         for it in range(iterations):
             post = run.e_step(it)
@@ -277,8 +302,13 @@ def em_loop(run: _Run, iterations: int, on_iteration: OnIteration | None = None)
             if ending:
                 post = run.next_stage(it, post)
             elif run.stage_ends(it):
+                run.stopped_because = "patience"
                 return "converged"
-            run.move_to(run.m_step(post, floor))
+            moved = run.m_step(post, floor)
+            if run.at_fixed_point(it, run.model, post, moved, before):
+                return "converged"
+            before = run.model
+            run.move_to(moved)
     except KeyboardInterrupt:
         return "interrupted"
     return "max_iterations"
@@ -327,6 +357,7 @@ def squarem_loop(run: _Run, iterations: int, on_iteration: OnIteration | None = 
             if ending:
                 post = run.next_stage(at, post)
             elif run.stage_ends(at):
+                run.stopped_because = "patience"
                 return "converged"
             start, post0 = run.model, post
             m1 = run.m_step(post0, floor)
@@ -336,9 +367,20 @@ def squarem_loop(run: _Run, iterations: int, on_iteration: OnIteration | None = 
                 continue
             run.peaked = post1.loglik < post0.loglik
             m2 = run.m_step(post1, floor, delay_free=False)
+            if run.at_fixed_point(it - 1, m1, post1, m2, start):
+                return "converged"
             path = _s3_path(start, m1, m2, post0, post1, run.data)
             step, a = (m2, 0.0) if path is None else _at(path, path.length(step_max), m2)
-            if step is not m2 and not run.loglik(step) >= post0.loglik - LOGLIK_SLACK:  # a forward pass each
+            if run.info is not None:  # bounded in the parameters (fixed_point.py), judged by nothing else
+                info, clipped = run.info, False
+                while step is not m2 and not info.length(info.step(m2, step)) <= STEP_BOUND_SD:
+                    step, a = _at(path, max(a / STEP_FACTOR, 1.0), m2)  # type: ignore[arg-type]
+                    clipped = True
+                if clipped:
+                    step_max = max(STEP_MAX_START, step_max / STEP_FACTOR)
+                elif a >= step_max:
+                    step_max = min(step_max * STEP_FACTOR, STEP_MAX_LIMIT)
+            elif step is not m2 and not run.loglik(step) >= post0.loglik - LOGLIK_SLACK:  # a forward pass each
                 step_max = max(STEP_MAX_START, step_max / STEP_FACTOR)
                 while step is not m2:  # back along S3's path
                     step, a = _at(path, max(a / STEP_FACTOR, 1.0), m2)
@@ -441,6 +483,7 @@ def run_stages(
         mount_search=searches.mount or None,
         stages=tuple(run.began),
         accelerated=run.accelerated,
+        stopped_because=run.stopped_because or reason,
     )
 
 

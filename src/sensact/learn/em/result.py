@@ -151,6 +151,9 @@ class EMResult:
     e_steps: int = 0
     forward_passes: int = 0
     accelerated: int = 0  # SQUAREM's steps beyond plain EM's that were kept (squarem.py)
+    # the rule that ended the fit: "fixed_point" (every step below fixed_point.STOP_SD of its standard error),
+    # "patience" (sec. 4.4.1's), "max_iterations", "diverged" or "interrupted"
+    stopped_because: str = ""
 
     @property
     def iterations(self) -> int:
@@ -177,6 +180,7 @@ class EMResult:
             "iterations": self.iterations,
             "best_iteration": self.best_iteration,
             "stop_reason": self.stop_reason,
+            "stopped_because": self.stopped_because or self.stop_reason,
             "loglik_start": float(self.loglik_history[0]),
             "loglik_best": self.loglik_best,
             "n_observations": self.n_observations,

@@ -71,7 +71,7 @@ class Coordinates:
             cols.append((a.with_parameters(unit.reshape(shape)).step_velocity(data)[steps] - zero).ravel())
         J = np.stack(cols, axis=1).reshape(-1, len(cols)) / np.sqrt(len(steps))
         # parameters no sampled step shows (a table's rare action): their own values, beside the velocities
-        _, sv, vt = np.linalg.svd(J, full_matrices=True)
+        _, sv, vt = np.linalg.svd(J, full_matrices=J.shape[0] < J.shape[1])  # vt whole either way; U not needed
         rank = int(np.sum(sv > sv.max(initial=0.0) * 1e-10))
         return cls(template, np.vstack([J, vt[rank:]]), np.asarray(moving, dtype=bool))
 

@@ -27,65 +27,16 @@ from typing import Any
 
 import numpy as np
 
-from sensact.learn.em.estep import log_likelihood
-from sensact.learn.em.squarem import Coordinates
+from sensact.learn.em.space import LearnedSpace
 from sensact.learn.em.uses.error_bars import Parameter, Uncertainty, Z, model_parameters
 from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 
 # chi^2_1's 90th percentile over 2: a profile within this of its maximum is inside the 90 % interval
 PROFILE_DROP = Z * Z / 2  # chi^2_1(0.90) = z_0.95^2
-OPEN_FACTOR = 1000.0  # a profile still this flat a factor 1,000 from the fit: no bound on that side
-HELD_BLOCKS = ("prior.log_diag", "prior.low")  # the start's covariance, at its floor
 STEP_LOGLIK = 0.02  # each central difference moves the log-likelihood by about this much
+OPEN_FACTOR = 1000.0  # a profile still this flat a factor 1,000 from the fit: no bound on that side
 PROFILE_NEWTON = 3  # Newton steps re-maximizing the rest at each point of a profile
-
-
-@dataclass(frozen=True, eq=False)
-class LearnedSpace:
-    """The model's learned parameters as one vector ``p`` about ``model`` (``Coordinates``'s layout, the
-    action model by its free coefficients, the held entries left out); ``labels`` names each entry's
-    block."""
-
-    coords: Coordinates
-    base: np.ndarray  # the model's whole coordinate vector
-    free: np.ndarray  # (len(base),) bool: the entries ``p`` holds (the action block replaced by beta)
-    labels: tuple[str, ...]  # each entry of ``p``: its block's name
-    n_beta: int
-    data: LandmarkLog
-
-    @classmethod
-    def about(cls, model: EMModel, data: LandmarkLog, mount_free: tuple[bool, bool, bool] | None) -> LearnedSpace:
-        beta = np.asarray(model.action.parameters, dtype=float).ravel()
-        moving = beta != 0.0  # a coefficient the action model holds is exactly zero (zero_mean, inputs)
-        coords = Coordinates.about(model, data, moving)
-        free, labels = [], [f"action.{k}" for k in np.flatnonzero(moving)]
-        for name, part in coords.blocks(model):
-            keep = np.full(part.size, name not in HELD_BLOCKS and name != "action")
-            if name == "mount":
-                keep[:] = (False, False, False) if mount_free is None else mount_free
-            free.append(keep if name != "action" else np.zeros(part.size, dtype=bool))
-            labels += [name] * int(keep.sum())
-        return cls(coords, coords.vector(model), np.concatenate(free), tuple(labels), int(moving.sum()), data)
-
-    @property
-    def p0(self) -> np.ndarray:
-        return np.concatenate([self.beta(self.coords.template), self.base[self.free]])
-
-    def beta(self, model: EMModel) -> np.ndarray:
-        return np.asarray(model.action.parameters, dtype=float).ravel()[self.coords.moving]
-
-    def model(self, p: np.ndarray) -> EMModel:
-        x = self.base.copy()
-        x[self.free] = p[self.n_beta :]
-        x[: self.coords.velocity_map.shape[0]] = self.coords.velocity_map @ p[: self.n_beta]
-        return self.coords.model(x)
-
-    def loglik(self, p: np.ndarray) -> float:
-        try:
-            return log_likelihood(self.model(p), self.data)
-        except ValueError:  # no valid model there
-            return -math.inf
 
 
 def _steps(space: LearnedSpace, p: np.ndarray, l0: float) -> np.ndarray:
@@ -137,6 +88,11 @@ class Curvature:
         flat = w <= 1e-8 * max(w.max(initial=0.0), 1e-300)
         inv = np.where(flat, 0.0, 1.0 / np.where(flat, 1.0, w))
         return cls((V * inv) @ V.T * np.outer(scale, scale), scale, V[:, flat])
+
+    def sandwiched(self, meat: np.ndarray) -> Curvature:
+        """``I^-1 B I^-1`` with ``B = meat`` (the scores' outer products), over the same bounded directions:
+        the estimate's covariance where the model is only an approximation (Huber 1967, White 1982)."""
+        return Curvature(self.cov @ meat @ self.cov, self.scale, self.unbounded)
 
     def variance(self, gradient: np.ndarray) -> float:
         """The variance of a function with ``gradient`` in the entries: infinite where a hundredth of its
@@ -222,15 +178,61 @@ def _crossing(value, start: float, sign: float, level: float, width: float, cent
     return None
 
 
+SANDWICH_BLOCK_S = 1.0  # the scores are summed over a second of sightings before their outer products
+
+
+def sighting_scores(space: LearnedSpace, p: np.ndarray, h: np.ndarray) -> np.ndarray | None:
+    """``(K, len(p))``: each sighting's share of the likelihood differentiated in each entry (central
+    differences with the curvature's steps ``h``; 2 forward passes an entry); None where a pass fails."""
+    out = np.zeros((space.data.n_observations, p.size))
+    for i in range(p.size):
+        e = np.zeros(p.size)
+        e[i] = h[i]
+        up, down = space.contributions(p + e), space.contributions(p - e)
+        if up is None or down is None:
+            return None
+        out[:, i] = (up - down) / (2 * h[i])
+    return out
+
+
+def sandwich_meat(scores: np.ndarray, data: LandmarkLog) -> np.ndarray:
+    """``B = sum_b s_b s_b'`` over blocks of ``SANDWICH_BLOCK_S`` of sightings (``s_b`` their summed
+    scores): the scores' spread as the log shows it, blocked so that neighbouring sightings that err
+    together (a path the linearization bends alike) count as one."""
+    per_block = max(1, round(SANDWICH_BLOCK_S / data.dt_s))
+    block = np.asarray(data.obs_step) // per_block
+    _, which = np.unique(block, return_inverse=True)
+    summed = np.zeros((which.max(initial=-1) + 1, scores.shape[1]))
+    np.add.at(summed, which, scores)
+    return summed.T @ summed
+
+
 def information_intervals(
     model: EMModel, data: LandmarkLog, f_at: tuple[float, ...], mount_free: tuple[bool, bool, bool] | None
 ) -> Uncertainty:
     """Every learned parameter's 90 % interval from the likelihood's curvature (action, f, mount) or its
     profile (sigma, Sigma_m), at ``model``."""
+    return likelihood_intervals(model, data, f_at, mount_free)[0]
+
+
+def likelihood_intervals(
+    model: EMModel,
+    data: LandmarkLog,
+    f_at: tuple[float, ...],
+    mount_free: tuple[bool, bool, bool] | None,
+    sandwich: bool = False,
+) -> tuple[Uncertainty, Uncertainty | None]:
+    """``information_intervals``, and with ``sandwich`` the same with the action, f and mount intervals from
+    the sandwich covariance (``Curvature.sandwiched``: the curvature around the sightings' scores'
+    spread) instead; the profiles (sigma, Sigma_m) are the likelihood's either way."""
     space = LearnedSpace.about(model, data, mount_free)
     p = space.p0
     info, scale, _ = observed_information(space, p)
     curve = Curvature.of(info, scale)
+    sandwiched = None
+    if sandwich:
+        scores = sighting_scores(space, p, scale)
+        sandwiched = None if scores is None else curve.sandwiched(sandwich_meat(scores, data))
     named = {name: value for name, (_, value) in model_parameters(model, f_at).items()}
     families = {name: fam for name, (fam, _) in model_parameters(model, f_at).items()}
     names = list(named)
@@ -243,26 +245,38 @@ def information_intervals(
         down = model_parameters(space.model(p - e), f_at)
         J[:, i] = [(up[n][1] - down[n][1]) / (2 * h) for n in names]
     profiled = _profiled_entries(space, names, model)
-    params = []
+    params: dict[str, list[Parameter]] = {"information": [], "sandwich": []}
     for k, name in enumerate(names):
         value, family = named[name], families[name]
         if not np.any(J[k]):  # held by the fit
-            params.append(Parameter(name, family, value, None, None, None))
+            held = Parameter(name, family, value, None, None, None)
+            params["information"].append(held)
+            params["sandwich"].append(held)
             continue
-        se = math.sqrt(curve.variance(J[k]))
         if name in profiled:
             lo, hi = _profile(space, p, curve.cov, info, scale, profiled[name])
             interval: tuple[float | None, float | None] = (
                 0.0 if lo is None else math.exp(lo),
                 None if hi is None else math.exp(hi),
             )
+            se = math.sqrt(curve.variance(J[k]))
             opened = (lo is None, hi is None)
-        elif math.isfinite(se):
-            interval, opened = (value - Z * se, value + Z * se), (False, False)
-        else:
-            interval, opened = (None, None), (True, True)
-        params.append(Parameter(name, family, value, se if math.isfinite(se) else None, interval, None, opened))
-    return Uncertainty(0, 0, 0, f_at, tuple(params), method="observed information")
+            one = Parameter(name, family, value, se if math.isfinite(se) else None, interval, None, opened)
+            params["information"].append(one)
+            params["sandwich"].append(one)
+            continue
+        for method, c in (("information", curve), ("sandwich", sandwiched)):
+            if c is None:
+                continue
+            se = math.sqrt(c.variance(J[k]))
+            if math.isfinite(se):
+                params[method].append(Parameter(name, family, value, se, (value - Z * se, value + Z * se), None))
+            else:
+                params[method].append(Parameter(name, family, value, None, (None, None), None, (True, True)))
+    plain = Uncertainty(0, 0, 0, f_at, tuple(params["information"]), method="observed information")
+    if sandwiched is None:
+        return plain, None
+    return plain, Uncertainty(0, 0, 0, f_at, tuple(params["sandwich"]), method="sandwich")
 
 
 def _profiled_entries(space: LearnedSpace, names: list[str], model: EMModel) -> dict[str, int]:
