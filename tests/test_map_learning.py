@@ -262,6 +262,7 @@ def test_convert_mrclam_no_map_keeps_the_survey_for_scoring_only(tmp_path):
     np.testing.assert_allclose(lf.survey_xy, read_mrclam(folder, 1).data.landmarks_xy)
 
 
+@pytest.mark.slow  # 36 s (`python -m pytest -m slow`)
 def test_range_only_anchors_are_learned_when_three_or_more_are_given():
     """Seeded recovery: four of fourteen radio anchors hidden; the others fix the path, which places them."""
     from sensact.presets import range_only_config

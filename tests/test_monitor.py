@@ -142,6 +142,7 @@ def slowdown():
     return sim, changed, steady, fit_em(before, initial_model(before, learner), learner).model, learner
 
 
+@pytest.mark.slow  # 45 s with its fixture (an 8-minute fit): `python -m pytest -m slow`
 def test_monitor_flags_sec_4_4_3s_slowdown_within_30_s_and_nothing_without_it(slowdown):
     from sensact.learn.em.uses.change_detect import monitor_placed
 
