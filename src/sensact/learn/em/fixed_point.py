@@ -13,13 +13,11 @@ with an EKF E-step does not climb.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from sensact.learn.em.space import LearnedSpace
-from sensact.logs.landmark_log import LandmarkLog
 from sensact.models.em_model import EMModel
 
 STOP_SD = 0.05  # the rest of the way below this many standard errors in every parameter: the fixed point
@@ -34,14 +32,7 @@ class Information:
     ``space``'s likelihood."""
 
     space: LearnedSpace
-    loglik0: float
-
-    @classmethod
-    def at(
-        cls, model: EMModel, data: LandmarkLog, mount_free: tuple[bool, bool, bool], score: Callable[[EMModel], float]
-    ) -> Information:
-        space = LearnedSpace.about(model, data, mount_free, score)
-        return cls(space, space.loglik(space.p0))
+    loglik0: float  # the likelihood at ``space``'s model (its E-step's: the forward pass's, bit for bit)
 
     def step(self, a: EMModel, b: EMModel) -> np.ndarray:
         """The step from ``a`` to ``b`` in the learned parameters."""
