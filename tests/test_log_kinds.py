@@ -35,6 +35,7 @@ def logs(tmp_path_factory) -> dict[str, tuple[Path, tuple[str, ...]]]:
     _simulate("track1d", "--out", str(root / "track"), "--seconds", "40")
     _simulate("diffdrive", "--out", str(root / "lidar"), "--seconds", "60", "--set", "sensor=lidar2d", "--seed", "7")
     _simulate("outdoor", "--out", str(root / "outdoor"), "--seconds", "120")
+    _simulate("ackermann", "--out", str(root / "car"), "--seconds", "20")
     write_turtlebot_csv(root / "robot.csv", with_range=True)
     return {
         "planar": (root / "planar", SHORT),
@@ -43,6 +44,7 @@ def logs(tmp_path_factory) -> dict[str, tuple[Path, tuple[str, ...]]]:
         "turtlebot": (root / "robot.csv", SHORT),
         "lidar2d": (root / "lidar", ()),
         "outdoor": (root / "outdoor", ()),
+        "car": (root / "car", ()),
     }
 
 
@@ -63,11 +65,12 @@ def test_each_kind_is_recognized(logs):
         "turtlebot": "turtlebot_csv",
         "lidar2d": "lidar2d",
         "outdoor": "imu_gnss",
+        "car": "car",
     }
-    assert [k.name for k in KINDS] == ["lidar2d", "intervals", "imu_gnss", "turtlebot_csv", "landmarks"]
+    assert [k.name for k in KINDS] == ["lidar2d", "car", "intervals", "imu_gnss", "turtlebot_csv", "landmarks"]
 
 
-@pytest.mark.parametrize("case", ["planar", "radio", "track", "turtlebot", "lidar2d", "outdoor"])
+@pytest.mark.parametrize("case", ["planar", "radio", "track", "turtlebot", "lidar2d", "outdoor", "car"])
 def test_calibrate_open_log_is_learn_em(logs, case, tmp_path):
     """The library's two calls write the command's model, value for value but timings."""
     path, sets = logs[case]

@@ -11,14 +11,15 @@ log a ``Calibration``: the model, typed diagnostics, the scores when the log has
 * ``calibrate``: ``calibrate(log)``, by the learner of the log's kind;
 * ``logs`` with ``em``, ``save``, ``scores`` and ``report``: a landmark log learned by EM, written, scored
   against its truth and reported; ``uncertainty``: its error bars;
-* ``lidar2d``: a wheels-and-2-D-lidar log learned and written;
+* ``lidar2d``: a wheels-and-2-D-lidar log learned and written; ``car``: a car-like robot's (VESC and lidar);
   ``intervals``: Censi et al.'s scan-matched intervals'; ``inertial``: an odometry-IMU-GNSS log's;
   ``velodyne_car``: chapter 5's car;
   ``bootstrap``: chapter 3's Algorithm 1 scored;
 * ``settings``: every command's settings, resolved in one place;
 * ``localize`` and ``monitor``: a learned model placed on, and run over, another log;
 * ``fleet`` and ``shared_map``: many robots' logs learned and cross-scored, on a Dask cluster;
-* ``export``, ``export_lidar2d``, ``export_inertial`` and ``ros_params``: learned models as ROS reads them.
+* ``export``, ``export_lidar2d``, ``export_inertial``, ``export_car`` and ``ros_params``: learned models as ROS
+  reads them.
 """
 
 from sensact.app.calibrate import calibrate

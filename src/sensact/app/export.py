@@ -37,6 +37,7 @@ FORMATS = (
     "diff-drive-controller",
     "navsat-transform",
     "kalibr",
+    "vesc",
 )
 LANDMARKS_HEADER = "id,x_m,y_m"  # the map file `convert csv --landmarks` reads
 UNMEASURED_VAR = 1e6  # a twist's dimensions a planar robot does not measure (z, roll, pitch), as ROS drivers set
@@ -354,6 +355,7 @@ def default_out(model: Path, fmt: str) -> Path:
         "diff-drive-controller": ".diff_drive_controller.yaml",
         "navsat-transform": ".navsat_transform.yaml",
         "kalibr": ".imu.yaml",
+        "vesc": ".vesc.yaml",
     }
     return model.with_suffix(suffix.get(fmt, f".{fmt}"))
 
@@ -429,10 +431,15 @@ def export_model(model: Path, fmt: str, out: Path, truth_out: Path | None = None
 
 def _what(doc: JsonObject) -> str:
     """A model file's family in a user's words, for a refusal."""
+    from sensact.io.car_folder import KIND as CAR_KIND
     from sensact.io.inertial_folder import KIND as INERTIAL_KIND
     from sensact.io.lidar2d_folder import KIND as LIDAR2D_KIND
 
-    words = {LIDAR2D_KIND: "a wheels-and-2-D-lidar model", INERTIAL_KIND: "a wheels, IMU and GNSS model"}
+    words = {
+        LIDAR2D_KIND: "a wheels-and-2-D-lidar model",
+        INERTIAL_KIND: "a wheels, IMU and GNSS model",
+        CAR_KIND: "a car model",
+    }
     return words.get(str(doc.get("kind")), "this model")
 
 
@@ -478,7 +485,8 @@ def _landmarks(doc: JsonObject, source: Path, out: Path, truth_out: Path | None)
 def _writers(doc: JsonObject) -> dict[str, Writer]:
     """The formats a model file exports to, by what it is: its ``kind`` (a wheels-and-lidar model's
     ``lidar2d``), else a model `learn em` or `learn car` wrote."""
-    from sensact.app import export_inertial, export_lidar2d
+    from sensact.app import export_car, export_inertial, export_lidar2d
+    from sensact.io.car_folder import KIND as CAR_KIND
     from sensact.io.inertial_folder import KIND as INERTIAL_KIND
     from sensact.io.intervals import KIND as INTERVALS_KIND
     from sensact.io.lidar2d_folder import KIND as LIDAR2D_KIND
@@ -489,6 +497,7 @@ def _writers(doc: JsonObject) -> dict[str, Writer]:
             "robot-localization": _with_companion(export_lidar2d.robot_localization),
         },
         INTERVALS_KIND: {"urdf": _text(export_lidar2d.urdf_snippet)},
+        CAR_KIND: {"vesc": _text(export_car.vesc_yaml), "urdf": _text(export_car.urdf_snippet)},
         INERTIAL_KIND: {
             "diff-drive-controller": _text(export_inertial.diff_drive_controller),
             "robot-localization": _text(export_inertial.robot_localization_ekf),

@@ -7,6 +7,7 @@ printing, for every kind. A new kind of log is one module with its opener and le
 The kinds:
 
 * ``lidar2d``: a folder of wheel encoders (or /odom, /cmd_vel) and 2-D scans (``meta.json``'s ``kind``);
+* ``car``: a folder of a car-like robot's VESC ERPM, servo commands and 2-D scans (``meta.json``'s ``kind``);
 * ``intervals``: a folder of scan-matched intervals (``convert intervals``; ``meta.json``'s ``kind``);
 * ``imu_gnss``: a folder of wheel odometry, an IMU and optionally GNSS (``meta.json``'s ``kind``);
 * ``turtlebot_csv``: the Turtlebot's 1-D CSV, read by EM with the Turtlebot's settings;
@@ -21,6 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from sensact.app.car import CarCalibration, OpenedCarLog, calibrate_opened_car, open_car_log, save_car
 from sensact.app.em import Calibration, calibrate_em
 from sensact.app.inertial import (
     InertialCalibration,
@@ -48,13 +50,14 @@ from sensact.app.lidar2d import (
 from sensact.app.logs import OpenedLandmarkLog, open_landmark_folder, open_turtlebot_csv
 from sensact.app.save import Saved, save_em_calibration
 from sensact.errors import ConfigError, LogFormatError
+from sensact.io.car_folder import KIND as CAR_KIND
 from sensact.io.inertial_folder import KIND as INERTIAL_KIND
 from sensact.io.intervals import KIND as INTERVALS_KIND
 from sensact.io.lidar2d_folder import KIND as LIDAR2D_KIND
 from sensact.io.logfolder import meta_kind
 
-OpenedAny = OpenedLandmarkLog | OpenedLidar2DLog | OpenedIntervalsLog | OpenedInertialLog
-CalibratedAny = Calibration | Lidar2DCalibration | IntervalsCalibration | InertialCalibration
+OpenedAny = OpenedLandmarkLog | OpenedLidar2DLog | OpenedCarLog | OpenedIntervalsLog | OpenedInertialLog
+CalibratedAny = Calibration | Lidar2DCalibration | CarCalibration | IntervalsCalibration | InertialCalibration
 
 # `learn em`'s options beyond the log and --out that a kind may or may not take
 EM_OPTIONS = frozenset({"--start-from", "--halves", "--preset", "--set", "--config", "--uncertainty"})
@@ -188,6 +191,20 @@ register(
         calibrate_opened_lidar2d,
         Lidar2DCalibration,
         save_lidar2d,
+        frozenset(),
+    )
+)
+register(
+    LogKind(
+        "car",
+        "car logs",
+        "a car's log folder (meta.json, scans.csv, vesc.csv and servo.csv, as `convert bag` writes)",
+        lambda path: meta_kind(path) == CAR_KIND,
+        lambda path, bins: open_car_log(path),
+        OpenedCarLog,
+        calibrate_opened_car,
+        CarCalibration,
+        save_car,
         frozenset(),
     )
 )

@@ -130,6 +130,15 @@ def convert_bag(
     gnss: Annotated[
         str | None, typer.Option(metavar="TOPIC", help="With an IMU: the GNSS's sensor_msgs/NavSatFix, or none.")
     ] = None,
+    vesc: Annotated[
+        str | None, typer.Option(metavar="TOPIC", help="A car's vesc_msgs/VescStateStamped (docs/ackermann.md).")
+    ] = None,
+    servo: Annotated[
+        str | None, typer.Option(metavar="TOPIC", help="A car's servo commands, std_msgs/Float64.")
+    ] = None,
+    drive: Annotated[
+        str | None, typer.Option(metavar="TOPIC", help="A car's ackermann_msgs/AckermannDriveStamped.")
+    ] = None,
 ) -> None:
     """Write a ROS bag as a log folder for `sensact learn em` (and `learn bootstrap` for a 1-D robot).
 
@@ -153,7 +162,13 @@ def convert_bag(
     A bag with a sensor_msgs/Imu is an outdoor robot: its wheel odometry (nav_msgs/Odometry's twist), the
     IMU, GNSS fixes (sensor_msgs/NavSatFix, in east-north-up metres around the first fix, the datum kept in
     meta.json) and /tf_static's IMU and antenna become an odometry-IMU-GNSS log folder, and `sensact learn em
-    OUT` learns the odometry's gains, the gyro, the IMU's mount and the antenna (docs/inertial.md)."""
+    OUT` learns the odometry's gains, the gyro, the IMU's mount and the antenna (docs/inertial.md).
+
+    A bag with a VESC's vesc_msgs/VescStateStamped or ackermann_msgs/AckermannDriveStamped is a car-like robot
+    (F1TENTH, MuSHR): its /scan, /sensors/core (the motor's ERPM), /sensors/servo_position_command, /drive and
+    /tf_static become a car log folder, and `sensact learn em OUT` learns vesc.yaml's four numbers, the
+    wheelbase, the steering delay and the lidar's mount (docs/ackermann.md). The message definitions come from the
+    bag."""
     from sensact.errors import LogFormatError
     from sensact.io.rosbag import (
         Roles,
@@ -186,6 +201,12 @@ def convert_bag(
         if not topics:
             raise LogFormatError("the bag holds no topic.", file=bag, fix="record the robot's topics into it.")
         check_roles(bag, Roles(**named), topics)  # a named topic of the wrong type first: naming both types
+        from sensact.io.rosbag_car import is_car_bag
+
+        if (vesc or servo or drive or is_car_bag(topics)) and not (readings or sightings):
+            named_car = {"scan": scan, "vesc": vesc, "servo": servo, "drive": drive, "truth": truth}
+            _convert_car(bag, out, reader, topics, named_car, receive_times)
+            return
         from sensact.io.rosbag_lidar2d import has_laser_scan
 
         if (scan or has_laser_scan(topics)) and not (readings or sightings):
@@ -317,6 +338,30 @@ def _convert_lidar(
         f"wrote {out}: {log.scan_t.size} scans of {log.beams} beams, the robot's motion from {log.drive}"
         + ("" if lb.wheel_joints is None else f" ({', '.join(lb.wheel_joints)})")
         + f"; learn with `sensact learn em {out}`"
+    )
+
+
+def _convert_car(bag: Path, out: Path, reader, topics, named: dict, receive_times: bool) -> None:
+    """The car's route (docs/ackermann.md): a car log folder at ``out``, read back as `learn em` reads it."""
+    from sensact.cli.base import progress_bar
+    from sensact.io.atomic import nothing_half_written
+    from sensact.io.car_folder import write_car_log
+    from sensact.io.rosbag import topic_lines
+    from sensact.io.rosbag_car import car_roles, read_car_bag
+
+    roles = car_roles(bag, topics, named)
+    console.print(f"{bag}:\n  " + "\n  ".join(topic_lines(topics)), highlight=False, soft_wrap=True)
+    console.print("roles:\n  " + "\n  ".join(roles.lines()), highlight=False, soft_wrap=True)
+    with progress_bar() as progress:
+        log, notes = read_car_bag(bag, reader, topics, roles, receive_times=receive_times, progress=progress)
+    for note in notes:
+        console.print(f"[yellow]note:[/] {note}", highlight=False)
+    with nothing_half_written(out):
+        write_car_log(out, log)
+        _reads_back(out)
+    console.print(
+        f"wrote {out}: {log.scan_t.size} scans of {log.beams} beams, {log.erpm_t.size} VESC reports, "
+        f"{log.servo_t.size} servo commands, {log.drive_t.size} /drive commands; learn with `sensact learn em {out}`"
     )
 
 

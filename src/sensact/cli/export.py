@@ -20,8 +20,8 @@ def export_cmd(
         typer.Option(
             "--format",
             help="robot-localization (YAML), tum (trajectory for evo), velodyne (YAML), landmarks (CSV), urdf "
-            "(a xacro <robot> to include), and for an odometry-IMU-GNSS model diff-drive-controller, navsat-transform "
-            "and kalibr (YAML).",
+            "(a xacro <robot> to include), for an odometry-IMU-GNSS model diff-drive-controller, navsat-transform "
+            "and kalibr (YAML), and for a car model vesc (YAML).",
         ),
     ],
     out: Annotated[
@@ -57,6 +57,10 @@ def export_cmd(
     twist_covariance_diagonal), robot-localization (an ekf with odom0 and imu0 blocks, the process noise
     and rejection thresholds), navsat-transform (yaw_offset; only its sum with the declination is learned),
     urdf (the IMU's and the antenna's joints in a <robot>) and kalibr (imu.yaml, in-motion values).
+
+    A car model (docs/ackermann.md): vesc (vesc.yaml's speed_to_erpm_gain, speed_to_erpm_offset,
+    steering_angle_to_servo_gain, steering_angle_to_servo_offset and wheelbase, as the F1TENTH stack reads them)
+    and urdf (the lidar's joint on base_link, the rear axle's middle).
 
     A model that was flagged when it was learned is exported all the same, with one warning line naming its
     flags, and the command exits 3."""

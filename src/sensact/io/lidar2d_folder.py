@@ -35,7 +35,7 @@ def _cells(x: np.ndarray, fmt: str) -> list[list[str]]:
     return [["" if not math.isfinite(v) else fmt % v for v in row] for row in np.asarray(x, dtype=float).tolist()]
 
 
-def _write_table(path: Path, names: list[str], t: np.ndarray, values: np.ndarray, fmt: str = "%.10g") -> None:
+def write_table(path: Path, names: list[str], t: np.ndarray, values: np.ndarray, fmt: str = "%.10g") -> None:
     rows = [",".join([f"{tt:.9f}", *cells]) for tt, cells in zip(t.tolist(), _cells(values, fmt), strict=True)]
     write_text(path, "\n".join([",".join(["t_s", *names]), *rows]) + "\n")
 
@@ -46,16 +46,16 @@ def write_lidar2d_log(folder: Path, log: Lidar2DLog, tables: dict[str, tuple[np.
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     beams = log.beams
-    _write_table(folder / SCANS, [f"r{i}_mm" for i in range(beams)], log.scan_t, log.ranges_mm, "%.1f")
+    write_table(folder / SCANS, [f"r{i}_mm" for i in range(beams)], log.scan_t, log.ranges_mm, "%.1f")
     names = {
         "wheels": ["left_rad", "right_rad"],
         "odom": ["x_mm", "y_mm", "yaw_rad"],
         "cmd_vel": ["v_mm_s", "omega_rad_s"],
     }
     for name, (t, values) in tables.items():
-        _write_table(folder / f"{name}.csv", names[name], t, values)
+        write_table(folder / f"{name}.csv", names[name], t, values)
     if log.truth_pose is not None:
-        _write_table(folder / TRUTH, ["x_mm", "y_mm", "yaw_rad"], log.truth_t, log.truth_pose)
+        write_table(folder / TRUTH, ["x_mm", "y_mm", "yaw_rad"], log.truth_t, log.truth_pose)
     meta = {
         "format": "sensact-log",
         "version": 1,
@@ -85,7 +85,7 @@ def _number(node: object, path: Path, field: str, lo: float, hi: float, *, optio
     return float(node)
 
 
-def _urdf(meta: JsonObject, path: Path) -> UrdfGuess:
+def read_urdf(meta: JsonObject, path: Path) -> UrdfGuess:
     node = meta.get("urdf") or {}
     if not isinstance(node, dict):
         raise LogFormatError("urdf is not an object.", file=path / "meta.json", field="urdf", fix="write null or {}.")
@@ -113,7 +113,7 @@ def _urdf(meta: JsonObject, path: Path) -> UrdfGuess:
     )
 
 
-def _table(path: Path, name: str, columns: list[str]) -> tuple[np.ndarray, np.ndarray]:
+def read_table(path: Path, name: str, columns: list[str]) -> tuple[np.ndarray, np.ndarray]:
     # times from the scans' first whole second, exactly: a fit differences them (docs/lidar2d.md)
     table = read_numeric_csv(path / name, ["t_s", *columns], what=name, origin={"t_s": time_origin(path / SCANS)})
     t = table["t_s"]
@@ -210,10 +210,9 @@ def _refuse_absurd_ranges(path: Path, ranges_mm: np.ndarray) -> None:
         )
 
 
-def read_lidar2d_log(folder: Path) -> Lidar2DLog:
-    """A lidar2d log folder, checked: the scan's geometry in meta.json, ordered times, ranges in mm."""
-    path = Path(folder)
-    meta = read_json_object(path / "meta.json", LogFormatError, "write it as convert bag does (docs/lidar2d.md).")
+def read_scans(path: Path, meta: JsonObject) -> tuple[ScanGeometry, np.ndarray, np.ndarray]:
+    """The scan's geometry (meta.json) and scans.csv, checked: ordered times, ranges in mm, NaN where no return
+    (a car's folder holds its scans the same way)."""
     node = meta.get("scan")
     if not isinstance(node, dict):
         raise LogFormatError("no scan geometry.", file=path / "meta.json", field="scan", fix="see docs/lidar2d.md.")
@@ -240,7 +239,7 @@ def read_lidar2d_log(folder: Path) -> Lidar2DLog:
         raise LogFormatError(
             "no scans (a header t_s, r0_mm, r1_mm, ...).", file=path / SCANS, fix="see docs/lidar2d.md."
         )
-    scan_t, ranges = _table(path, SCANS, beams)
+    scan_t, ranges = read_table(path, SCANS, beams)
     if not 1e-5 <= abs(geom.angle_increment_rad) * (len(beams) - 1) <= 2 * np.pi + 1e-6:
         raise LogFormatError(
             f"{len(beams)} beams of {geom.angle_increment_rad:g} rad span no angle, or more than a turn.",
@@ -250,6 +249,27 @@ def read_lidar2d_log(folder: Path) -> Lidar2DLog:
         )
     _refuse_absurd_ranges(path / SCANS, ranges)
     ranges = np.where((ranges >= geom.range_min_mm) & (ranges <= geom.range_max_mm), ranges, np.nan)
+    return geom, scan_t, ranges
+
+
+def read_truth(path: Path, meta: JsonObject) -> tuple[np.ndarray | None, np.ndarray | None, JsonObject | None]:
+    """groundtruth.csv and meta.json's truth, for scoring only (None where absent)."""
+    truth_t = truth_pose = None
+    if (path / TRUTH).is_file():
+        truth_t, truth_pose = read_table(path, TRUTH, ["x_mm", "y_mm", "yaw_rad"])
+    truth = meta.get("truth")
+    if truth is not None and not (isinstance(truth, dict) and all(isinstance(v, dict) for v in truth.values())):
+        raise LogFormatError(
+            "truth is not an object of objects.", file=path / "meta.json", field="truth", fix="drop it (scoring only)."
+        )
+    return truth_t, truth_pose, truth if isinstance(truth, dict) else None
+
+
+def read_lidar2d_log(folder: Path) -> Lidar2DLog:
+    """A lidar2d log folder, checked: the scan's geometry in meta.json, ordered times, ranges in mm."""
+    path = Path(folder)
+    meta = read_json_object(path / "meta.json", LogFormatError, "write it as convert bag does (docs/lidar2d.md).")
+    geom, scan_t, ranges = read_scans(path, meta)
     sources = [
         (drive, name, columns)
         for drive, name, columns in (
@@ -266,17 +286,10 @@ def read_lidar2d_log(folder: Path) -> Lidar2DLog:
             fix="convert a bag with /joint_states, /odom or /cmd_vel, or write wheels.csv (docs/lidar2d.md).",
         )
     drive, name, columns = sources[0]
-    drive_t, values = _table(path, name, columns)
+    drive_t, values = read_table(path, name, columns)
     check_drive(path / name, drive, drive_t, values)
     check_scans(path / SCANS, scan_t, ranges, drive_t)
-    truth_t = truth_pose = None
-    if (path / TRUTH).is_file():
-        truth_t, truth_pose = _table(path, TRUTH, ["x_mm", "y_mm", "yaw_rad"])
-    truth = meta.get("truth")
-    if truth is not None and not (isinstance(truth, dict) and all(isinstance(v, dict) for v in truth.values())):
-        raise LogFormatError(
-            "truth is not an object of objects.", file=path / "meta.json", field="truth", fix="drop it (scoring only)."
-        )
+    truth_t, truth_pose, truth = read_truth(path, meta)
     return Lidar2DLog(
         source=str(path),
         scan_t=scan_t,
@@ -285,8 +298,8 @@ def read_lidar2d_log(folder: Path) -> Lidar2DLog:
         drive=drive,
         drive_t=drive_t,
         drive_values=values,
-        urdf=_urdf(meta, path),
+        urdf=read_urdf(meta, path),
         truth_t=truth_t,
         truth_pose=truth_pose,
-        truth=truth if isinstance(truth, dict) else None,
+        truth=truth,
     )

@@ -22,15 +22,26 @@ ROS1_EXTRA = {
 }
 
 
+# an F1TENTH car's messages (ackermann_msgs, and ROS 1's vesc_msgs), in neither distribution's standard set
+CAR_TYPES = {
+    "ackermann_msgs/msg/AckermannDrive": "float32 steering_angle\nfloat32 steering_angle_velocity\nfloat32 speed\n"
+    "float32 acceleration\nfloat32 jerk",
+    "ackermann_msgs/msg/AckermannDriveStamped": "std_msgs/Header header\nAckermannDrive drive",
+    "vesc_msgs/msg/VescState": "float64 voltage_input\nfloat64 temperature_pcb\nfloat64 current_motor\n"
+    "float64 current_input\nfloat64 speed\nfloat64 duty_cycle\nfloat64 charge_drawn\nfloat64 charge_regen\n"
+    "float64 energy_drawn\nfloat64 energy_regen\nfloat64 displacement\nfloat64 distance_traveled\nint32 fault_code",
+    "vesc_msgs/msg/VescStateStamped": "std_msgs/Header header\nVescState state",
+}
+
+
 def typestore(fmt: str):
-    """ROS 2 Humble's types, or ROS 1 Noetic's with tf2_msgs and apriltag_ros registered (their definitions
-    go into the bag, as a ROS 1 recorder writes them)."""
+    """ROS 2 Humble's types, or ROS 1 Noetic's with tf2_msgs and apriltag_ros registered, and a car's
+    (their definitions go into the bag, as a recorder writes them)."""
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-    if fmt != "ros1":
-        return get_typestore(Stores.ROS2_HUMBLE)
-    ts = get_typestore(Stores.ROS1_NOETIC)
-    for name, text in ROS1_EXTRA.items():
+    ts = get_typestore(Stores.ROS1_NOETIC if fmt == "ros1" else Stores.ROS2_HUMBLE)
+    extra = {**ROS1_EXTRA, **CAR_TYPES} if fmt == "ros1" else CAR_TYPES
+    for name, text in extra.items():
         ts.register(get_types_from_msg(text, name))
     return ts
 
@@ -439,4 +450,69 @@ def write_inertial_bag(path: Path, fmt: str, run) -> Path:
         transforms.append(m.transform(ns(0), "base_link", GNSS_FRAME, gm.xyz_m, (0.0, 0.0, 0.0, 1.0)))
     if transforms:
         msgs.append(("/tf_static", "tf2_msgs/msg/TFMessage", ns(0), m.tf(transforms)))
+    return write_bag(path, fmt, msgs, m)
+
+
+CAR_LIDAR_FRAME = "laser"
+
+
+def write_car_bag(path: Path, fmt: str, run) -> Path:
+    """A simulated car (``sim.car``) as an F1TENTH car records it: /scan, /sensors/core (VescStateStamped, the
+    measured ERPM in ``state.speed``), /sensors/servo_position_command (Float64, no header), /drive
+    (AckermannDriveStamped), /odom (vesc_to_odom through the yaml) and /tf_static (base_link -> laser where the
+    URDF says)."""
+    m = Msgs(fmt)
+    T = m.T
+    ns = lambda t: BAG_EPOCH_NS + round(float(t) * 1e9)  # noqa: E731
+    msgs: list[tuple[str, str, int, object]] = []
+    cfg = run.config
+    for t, r in zip(run.scan_t, run.ranges_m, strict=True):
+        msgs.append(
+            ("/scan", "sensor_msgs/msg/LaserScan", ns(t) + 2_000_000, _laser_scan(m, ns(t), CAR_LIDAR_FRAME, run, r))
+        )
+    zeros = dict.fromkeys(
+        ("voltage_input", "temperature_pcb", "current_motor", "current_input", "duty_cycle", "charge_drawn",
+         "charge_regen", "energy_drawn", "energy_regen", "displacement", "distance_traveled"), 0.0
+    )  # fmt: skip
+    for t, e in zip(run.vesc_t, run.erpm, strict=True):
+        state = T["vesc_msgs/msg/VescState"](speed=float(e), fault_code=0, **zeros)
+        msgs.append(
+            (
+                "/sensors/core",
+                "vesc_msgs/msg/VescStateStamped",
+                ns(t) + 500_000,
+                T["vesc_msgs/msg/VescStateStamped"](header=m.header(ns(t), ""), state=state),
+            )
+        )
+    for t, s in zip(run.servo_t, run.servo, strict=True):
+        msgs.append(
+            ("/sensors/servo_position_command", "std_msgs/msg/Float64", ns(t), T["std_msgs/msg/Float64"](data=float(s)))
+        )
+    for t, v, a in zip(run.drive_t, run.drive_speed_m_s, run.drive_angle_rad, strict=True):
+        drive = T["ackermann_msgs/msg/AckermannDrive"](
+            steering_angle=float(a), steering_angle_velocity=0.0, speed=float(v), acceleration=0.0, jerk=0.0
+        )
+        msgs.append(
+            (
+                "/drive",
+                "ackermann_msgs/msg/AckermannDriveStamped",
+                ns(t) + 100_000,
+                T["ackermann_msgs/msg/AckermannDriveStamped"](header=m.header(ns(t), "base_link"), drive=drive),
+            )
+        )
+    for t, pose, tw in zip(run.odom_t, run.odom_pose, run.odom_twist, strict=True):
+        msgs.append(("/odom", "nav_msgs/msg/Odometry", ns(t) + 1_000_000, _odom_pose(m, ns(t), pose, tw, "base_link")))
+    f, left, yaw = cfg.urdf_mount
+    static = m.tf(
+        [
+            m.transform(
+                ns(0),
+                "base_link",
+                CAR_LIDAR_FRAME,
+                (f / 1000, left / 1000, 0.1),
+                (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)),
+            )
+        ]
+    )
+    msgs.append(("/tf_static", "tf2_msgs/msg/TFMessage", ns(0), static))
     return write_bag(path, fmt, msgs, m)

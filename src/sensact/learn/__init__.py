@@ -6,5 +6,5 @@
   (sec. 5.3): chapter 5's car;
 * ``inertial``: wheel odometry's gains, the gyro, the IMU's mount and GNSS, by EM over the path;
 * ``scan_match2d`` and ``wheel_lidar``: a differential drive's wheels and its 2-D lidar's mount, from
-  scan matching (beyond the thesis).
+  scan matching (beyond the thesis); ``car_lidar``: a car's VESC numbers, wheelbase and lidar mount the same way.
 """

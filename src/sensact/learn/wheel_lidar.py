@@ -301,27 +301,43 @@ def fit(
 ) -> WheelLidarFit:
     """The maximum-likelihood wheels, mount and delay on the matched intervals, from ``start`` (``hold_delay``:
     the delay held at ``start``'s, for intervals that come without a clock to shift)."""
-    free = 6 if hold_delay else 7
+    scale = np.array([1.0, 1.0, 10.0, 10.0, 10.0, 0.01, 0.01]) * np.array(
+        [max(abs(start[0]), 1e-9) / 30, max(abs(start[1]), 1e-9) / 30, max(abs(start[2]), 1e-9) / 150, 1, 1, 1, 1]
+    )
+
+    def predict(params: np.ndarray, rows: np.ndarray | slice) -> np.ndarray:
+        return predicted(params, track, scan_t, m.i[rows], m.j[rows])
+
+    def size(params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return interval_size(params, track, scan_t, m)
+
+    return fit_intervals(predict, size, m, start, scale, 6 if hold_delay else 7, rounds)
+
+
+def fit_intervals(
+    predict: Any, size: Any, m: Matches, start: np.ndarray, scale: np.ndarray, free: int, rounds: int = 5
+) -> WheelLidarFit:
+    """The maximum-likelihood parameters of a drive and a lidar's mount on matched intervals, from ``start``:
+    ``predict(params, rows)`` is the lidar's displacement over intervals ``rows`` (sensact's axes),
+    ``size(params)`` every interval's distance (mm) and turn (rad) by the drive; the first ``free`` parameters
+    are fitted (each finite-difference step sized to ``scale``), the rest held at ``start``'s."""
     held = start[free:].copy()
 
     def full(x: np.ndarray) -> np.ndarray:
         return np.concatenate([x, held])
 
     params = start.copy()
-    dist, turn = interval_size(params, track, scan_t, m)
-    r0 = predicted(params, track, scan_t, m.i, m.j) - m.s
+    dist, turn = size(params)
+    every = slice(None)
+    r0 = predict(params, every) - m.s
     r0[:, 2] = wrap_angle(r0[:, 2])
     spread = (1.4826 * np.median(np.abs(r0), axis=0)) ** 2 + 1e-12
     noise = NoiseModel(spread, np.zeros(3), np.zeros(3))
     used = np.ones(len(m.i), dtype=bool)
-    scale = np.array([1.0, 1.0, 10.0, 10.0, 10.0, 0.01, 0.01]) * np.array(
-        [max(abs(start[0]), 1e-9) / 30, max(abs(start[1]), 1e-9) / 30, max(abs(start[2]), 1e-9) / 150, 1, 1, 1, 1]
-    )
-
     scale = scale[:free]
 
     def residuals(x: np.ndarray, rows: np.ndarray, sd: np.ndarray) -> np.ndarray:
-        r = predicted(full(x), track, scan_t, m.i[rows], m.j[rows]) - m.s[rows]
+        r = predict(full(x), rows) - m.s[rows]
         r[:, 2] = wrap_angle(r[:, 2])
         return (r / sd).ravel()
 
@@ -353,8 +369,8 @@ def fit(
     for _ in range(rounds):
         sd = noise.sd(dist, turn)
         params = full(solve(params, used, sd[used]).x)
-        dist, turn = interval_size(params, track, scan_t, m)
-        r = predicted(params, track, scan_t, m.i, m.j) - m.s
+        dist, turn = size(params)
+        r = predict(params, every) - m.s
         r[:, 2] = wrap_angle(r[:, 2])
         design = np.column_stack([np.ones(len(dist)), dist, turn])
         coef = np.array(
@@ -375,12 +391,13 @@ def fit(
     J = sol.jac
     dof = max(1, J.shape[0] - J.shape[1])
     chi2 = float(np.sum(sol.fun**2)) / dof
-    cov = np.zeros((7, 7))  # a held delay: no variance
+    n = len(start)
+    cov = np.zeros((n, n))  # a held parameter: no variance
     try:
         cov[:free, :free] = np.linalg.inv(J.T @ J) * chi2
     except np.linalg.LinAlgError:
         cov[:free, :free] = np.inf
-    dist, turn = interval_size(params, track, scan_t, m)
+    dist, turn = size(params)
     return WheelLidarFit(params, cov, noise, used, chi2, m, start, float(dist[used].sum()), float(turn[used].sum()))
 
 
@@ -389,7 +406,13 @@ def keyframes(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Pairs of usable scans a quarter metre or 20 degrees apart by the odometry, each from the last."""
     rl, rr, b, *_, delay = params
-    at = poses_at(track, odometry(track, rl, rr, b), scan_t, delay)
+    return keyframes_of(poses_at(track, odometry(track, rl, rr, b), scan_t, delay), usable, KEYFRAME_MM, KEYFRAME_RAD)
+
+
+def keyframes_of(
+    at: np.ndarray, usable: np.ndarray, apart_mm: float, apart_rad: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs of usable scans (poses ``at``) ``apart_mm`` or ``apart_rad`` apart, each from the last."""
     idx = np.flatnonzero(usable)
     i, j = [], []
     if idx.size == 0:
@@ -397,7 +420,7 @@ def keyframes(
     last = idx[0]
     for k in idx[1:]:
         d = relative_displacement(at[last], at[k])[0]
-        if np.hypot(d[0], d[1]) >= KEYFRAME_MM or abs(d[2]) >= KEYFRAME_RAD:
+        if np.hypot(d[0], d[1]) >= apart_mm or abs(d[2]) >= apart_rad:
             i.append(last)
             j.append(k)
             last = k

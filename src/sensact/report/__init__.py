@@ -5,5 +5,5 @@
   the thesis's figures and their real-data kin;
 * ``figures_bootstrap``, ``figures_fit``, ``figures_calibration``, ``figures_halves``, ``figures_log``,
   ``figures_monitor`` and ``figures_fleet``: one run's figures, drawn from the run alone;
-* ``page``, ``lidar2d`` and ``inertial``: a calibration's report page; ``html_report``: ``RESULTS/index.html``.
+* ``page``, ``lidar2d``, ``car`` and ``inertial``: a calibration's report page; ``html_report``: ``RESULTS/index.html``.
 """

@@ -61,20 +61,27 @@ def _save(fig, path: Path) -> Path:
 
 
 def figure_scans(cal: Any, path: Path) -> Path:
-    plt = _pyplot()
-
     before, said = _before(cal)
     keys = np.unique(np.concatenate([cal.result.fit.matches.i, cal.result.fit.matches.j]))
-    fig, axes = plt.subplots(1, 2, figsize=(12, 6), sharex=True, sharey=True)
-    for ax, params, title in ((axes[0], before, f"before: {said}"), (axes[1], cal.result.fit.params, "after: learned")):
-        cloud, path_xy = _cloud(cal, params, keys)
+    panels = [(*_cloud(cal, params, keys), title) for params, title in
+              ((before, f"before: {said}"), (cal.result.fit.params, "after: learned"))]  # fmt: skip
+    return draw_scans(
+        panels, "Every keyframe's scan laid on the wheels' path: a map that sharpens is a calibration that holds", path
+    )
+
+
+def draw_scans(panels: list[tuple[np.ndarray, np.ndarray, str]], suptitle: str, path: Path) -> Path:
+    """Side by side, each panel's scans (a cloud, m) on its path (m), titled."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, len(panels), figsize=(12, 6), sharex=True, sharey=True)
+    for ax, (cloud, path_xy, title) in zip(axes, panels, strict=True):
         ax.scatter(cloud[:, 0], cloud[:, 1], s=0.2, c="k", alpha=0.25, linewidths=0)
         ax.plot(path_xy[:, 0], path_xy[:, 1], color="tab:red", lw=0.8)
         ax.set_title(title, fontsize=10)
         ax.set_aspect("equal")
         ax.set_xlabel("x (m, where the log starts)")
     axes[0].set_ylabel("y (m)")
-    fig.suptitle("Every keyframe's scan laid on the wheels' path: a map that sharpens is a calibration that holds")
+    fig.suptitle(suptitle)
     return _save(fig, path)
 
 
@@ -114,8 +121,6 @@ def figure_mount(cal: Any, path: Path) -> Path:
 
 
 def figure_residuals(cal: Any, path: Path) -> Path:
-    plt = _pyplot()
-
     from sensact.learn.wheel_lidar import interval_size
 
     fit, log, track = cal.result.fit, cal.log, cal.result.track
@@ -124,6 +129,13 @@ def figure_residuals(cal: Any, path: Path) -> Path:
     r[:, 2] = wrap_angle(r[:, 2])
     dist, turn = interval_size(fit.params, track, log.scan_t, m)
     z = to_rep103(r / fit.noise.sd(dist, turn))  # x forward, y left
+    title = f"Residuals: wheels' prediction minus scan match, {int(fit.used.sum())} of {len(m.i)} intervals kept"
+    return draw_residuals(z, title, path)
+
+
+def draw_residuals(z: np.ndarray, suptitle: str, path: Path) -> Path:
+    """Each axis's residuals in their own sd (x forward, y left, yaw) against N(0, 1)."""
+    plt = _pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(12, 3.8))
     g = np.linspace(-5, 5, 200)
     for a, (ax, name) in enumerate(zip(axes, ("x (forward)", "y (left)", "yaw"), strict=True)):
@@ -131,7 +143,7 @@ def figure_residuals(cal: Any, path: Path) -> Path:
         ax.plot(g, np.exp(-0.5 * g**2) / np.sqrt(2 * np.pi), color="tab:red", label="N(0, 1)")
         ax.set_title(f"lidar displacement {name}, in sd", fontsize=10)
     axes[0].legend(fontsize=8)
-    fig.suptitle(f"Residuals: wheels' prediction minus scan match, {int(fit.used.sum())} of {len(m.i)} intervals kept")
+    fig.suptitle(suptitle)
     return _save(fig, path)
 
 

@@ -152,7 +152,7 @@ WAYPOINTS = np.array(
 
 
 @njit(cache=True, parallel=True)
-def _cast(px, py, heading, max_range, kind, params, origin, cell, nx, ny, start, items, out):
+def cast_beams(px, py, heading, max_range, kind, params, origin, cell, nx, ny, start, items, out):
     for k in prange(px.size):
         out[k] = raycast.cast_ray(
             px[k], py[k], LIDAR_HEIGHT_M, np.cos(heading[k]), np.sin(heading[k]), 0.0, max_range,
@@ -304,7 +304,7 @@ def simulate_lidar2d(cfg: Lidar2DConfig | None = None) -> Lidar2DRun:
     origin, cell, shape, start, items = grid
     hits = np.zeros(beam_t.size)
     max_m = cfg.range_max_mm / 1000 * 1.5
-    _cast(lx, ly, heading, max_m, kind, params, origin, cell, int(shape[0]), int(shape[1]), start, items, hits)
+    cast_beams(lx, ly, heading, max_m, kind, params, origin, cell, int(shape[0]), int(shape[1]), start, items, hits)
     hits = np.where(hits > 0, hits + rng.standard_normal(hits.size) * cfg.range_sd_mm / 1000, np.inf)
     hits[(hits < cfg.range_min_mm / 1000) | (hits > cfg.range_max_mm / 1000)] = np.inf
     return Lidar2DRun(

@@ -343,11 +343,13 @@ def _shown(cal: Any) -> None:
 def _register_shows() -> None:
     """Registered when first used, so that the app is imported only when a command runs (``--help`` stays quick)."""
     from sensact.app import Calibration, Lidar2DCalibration
+    from sensact.app.car import CarCalibration
     from sensact.app.inertial import InertialCalibration
     from sensact.app.intervals import IntervalsCalibration
 
     _shown.register(Calibration, _show_em)
     _shown.register(Lidar2DCalibration, _show_lidar2d)
+    _shown.register(CarCalibration, _show_car)
     _shown.register(InertialCalibration, _show_inertial)
     _shown.register(IntervalsCalibration, _show_intervals)
 
@@ -383,15 +385,44 @@ def _show_lidar2d(cal: Any) -> None:
     """The wheels, the mount and the noise, with error bars (docs/lidar2d.md)."""
     doc = cal.to_json()
     print_tables([lidar2d_table(doc)])
+    _notes_and_truth(doc)
+
+
+def _notes_and_truth(doc: JsonObject) -> None:
+    """A scan route's notes, and each learned number against the simulator's truth (its error, in sd where known)."""
     for note in doc["fit"]["notes"]:
         console.print(f"[yellow]note:[/] {note}", highlight=False)
     ev = doc.get("evaluation")
     if ev:
         console.print(
             "against the simulator's truth: "
-            + ", ".join(f"{k} {v['error']:+.3g} ({v['error_sd']:+.2f} sd)" for k, v in ev.items() if "error" in v),
+            + ", ".join(
+                f"{k} {v['error']:+.3g}" + (f" ({v['error_sd']:+.2f} sd)" if "error_sd" in v else "")
+                for k, v in ev.items()
+                if "error" in v
+            ),
             highlight=False,
         )
+
+
+def _show_car(cal: Any) -> None:
+    """The VESC's numbers, the wheelbase, the delays and the mount, with error bars (docs/ackermann.md)."""
+    doc = cal.to_json()
+    rows = [
+        [f"{group}.{key}", f"{node[key]:.6g}" if node[key] is not None else "", f"{node[key + '_sd']:.2g}"]
+        for group, node in (("vesc", doc["vesc"]), ("car", doc["car"]), ("lidar.mount", doc["lidar"]["mount"]))
+        for key in node
+        if f"{key}_sd" in node
+    ]
+    print_tables([("the car and its lidar (docs/ackermann.md)", ["", "learned", "sd"], rows)])
+    ahead = doc["car"]["straight_ahead"]
+    if ahead is not None:
+        console.print(
+            f"the log's yaml commands straight ahead, and the wheels point {ahead['wheel_angle_deg']:+.2f} deg "
+            f"(sd {ahead['wheel_angle_deg_sd']:.2f}; positive: left)",
+            highlight=False,
+        )
+    _notes_and_truth(doc)
 
 
 def _show_inertial(cal: Any) -> None:
