@@ -241,3 +241,31 @@ def test_a_car_bag_without_a_servo_topic_is_refused_naming_it(tmp_path):
     assert (roles.scan, roles.vesc, roles.servo, roles.drive) == (
         "/scan", "/sensors/core", "/sensors/servo_position_command", "/drive"
     )  # fmt: skip
+
+
+def test_a_full_f1tenth_stack_gets_its_roles_without_naming_them(tmp_path):
+    """Two servo topics (the command and the driver's echo), the mux's inputs and output, a particle filter's odometry
+    beside vesc_to_odom's: the ones the VESC driver used, or none for an optional role nothing decides."""
+    from sensact.io.rosbag import Topic
+    from sensact.io.rosbag_car import car_roles
+
+    topics = [
+        Topic("/scan", "sensor_msgs/LaserScan", 10),
+        Topic("/vesc/sensors/core", "vesc_msgs/VescStateStamped", 10),
+        Topic("/vesc/commands/servo/position", "std_msgs/Float64", 10),
+        Topic("/vesc/sensors/servo_position_command", "std_msgs/Float64", 10),
+        Topic("/vesc/high_level/ackermann_cmd_mux/input/nav_0", "ackermann_msgs/AckermannDriveStamped", 10),
+        Topic("/vesc/low_level/ackermann_cmd", "ackermann_msgs/AckermannDriveStamped", 10),
+        Topic("/vesc/odom", "nav_msgs/Odometry", 10),
+        Topic("/pf/pose/odom", "nav_msgs/Odometry", 10),
+    ]
+    roles = car_roles(tmp_path / "x.bag", topics, {})
+    assert (roles.servo, roles.drive, roles.odom) == (
+        "/vesc/sensors/servo_position_command", "/vesc/low_level/ackermann_cmd", "/vesc/odom"
+    )  # fmt: skip
+    two = [t for t in topics if "ackermann" not in t.name and "odom" not in t.name]
+    two += [
+        Topic("/a", "ackermann_msgs/AckermannDriveStamped", 5),
+        Topic("/b", "ackermann_msgs/AckermannDriveStamped", 5),
+    ]
+    assert car_roles(tmp_path / "x.bag", two, {}).drive is None

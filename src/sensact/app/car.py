@@ -78,7 +78,26 @@ class CarCalibration:
 
     @property
     def steering(self) -> Steering:
-        return steering(self.result.fit.params, self.result.fit.cov)
+        """The steering gain and the wheelbase; where the log's curves do not part them (``1 / gain^2`` not known
+        to be positive), their product split by the wheelbase the log's own yaml gives (/odom's), the wheelbase's
+        sd infinite: it is the yaml's, not learned. Flagged either way (``health_of``)."""
+        st = steering(self.result.fit.params, self.result.fit.cov)
+        old = yaml_before(self.log)["wheelbase_mm"]
+        if math.isfinite(st.gain) or old is None:
+            return st
+        length = old / 1000
+        return Steering(st.product / length, st.product_sd / length, length, math.inf, st.product, st.product_sd)
+
+    def notes(self) -> list[str]:
+        notes = list(self.result.first.notes)
+        if not math.isfinite(steering(self.result.fit.params, self.result.fit.cov).gain) and math.isfinite(
+            self.steering.gain
+        ):
+            notes.append(
+                "the curves did not part the steering gain from the wheelbase: their product is split by the "
+                "wheelbase of the log's own yaml (from /odom)"
+            )
+        return notes
 
     def straight_ahead(self) -> JsonObject | None:
         """The wheels' angle while the log's own yaml commands straight ahead: its servo offset through the
@@ -155,7 +174,7 @@ class CarCalibration:
                 "inverse_gain_squared": p["inverse_gain_squared"],
                 "inverse_gain_squared_sd": sd["inverse_gain_squared"],
                 "seconds": self.seconds,
-                "notes": list(self.result.first.notes),
+                "notes": self.notes(),
             },
             "health": self.health.to_dict(),
         }

@@ -121,7 +121,8 @@ def convert_bag(
         str | None,
         typer.Option(
             metavar="TOPIC",
-            help="The wheel odometry's nav_msgs/Odometry, where the bag has several (an IMU's or a 2-D lidar's route).",
+            help="The wheel odometry's nav_msgs/Odometry, where the bag has several (an IMU's, a 2-D lidar's or a "
+            "car's route).",
         ),
     ] = None,
     imu: Annotated[
@@ -204,7 +205,7 @@ def convert_bag(
         from sensact.io.rosbag_car import is_car_bag
 
         if (vesc or servo or drive or is_car_bag(topics)) and not (readings or sightings):
-            named_car = {"scan": scan, "vesc": vesc, "servo": servo, "drive": drive, "truth": truth}
+            named_car = {"scan": scan, "vesc": vesc, "servo": servo, "drive": drive, "odom": odom, "truth": truth}
             _convert_car(bag, out, reader, topics, named_car, receive_times)
             return
         from sensact.io.rosbag_lidar2d import has_laser_scan

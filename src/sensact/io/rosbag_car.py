@@ -26,6 +26,12 @@ VESC_TYPE = "vesc_msgs/VescStateStamped"
 SERVO_TYPE = "std_msgs/Float64"
 DRIVE_TYPE = "ackermann_msgs/AckermannDriveStamped"
 SERVO_NAME = re.compile(r"servo", re.IGNORECASE)
+# where a car's stack has several of a type, the one the VESC driver used: its echo of the servo command it sent
+# (beside the command it was given), the Ackermann mux's output (beside its inputs), vesc_to_odom's /odom (beside
+# a particle filter's); /drive and /odom serve only to read the old yaml, so an undecided one is left out
+SERVO_ECHO = re.compile(r"sensors/servo_position_command$")
+DRIVE_NAME = re.compile(r"(^|/)(ackermann_cmd|drive)$")
+ODOM_NAME = re.compile(r"^/?(vesc/)?odom$")
 ODOM_TYPE = "nav_msgs/Odometry"
 POSE_TYPES = ("geometry_msgs/PoseStamped", ODOM_TYPE)
 TRUTH_NAME = re.compile(r"ground_?truth|mocap|vicon|optitrack", re.IGNORECASE)
@@ -50,16 +56,30 @@ def is_car_bag(topics: list[Topic]) -> bool:
     return any(t.msgtype in (VESC_TYPE, DRIVE_TYPE) and t.count for t in topics)
 
 
+def _preferred(topics: list[Topic], name: re.Pattern, msgtype: str = SERVO_TYPE) -> list[Topic]:
+    """``topics``, or where several of ``msgtype`` have messages, the first of them whose name is ``name``'s (by
+    the order of the patterns' alternatives, then by name); none of them where no name is."""
+    typed = [t for t in topics if t.msgtype == msgtype and t.count]
+    if len(typed) <= 1:
+        return topics
+    chosen = sorted(
+        (t for t in typed if name.search(t.name)), key=lambda t: (not t.name.endswith("ackermann_cmd"), t.name)
+    )
+    return [t for t in topics if t.msgtype != msgtype] + chosen[:1]
+
+
 def car_roles(path: Path, topics: list[Topic], named: dict[str, str | None]) -> CarRoles:
     """Which topic plays which part: each by its type (the servo's Float64 by a name with "servo") unless named."""
     scan = _one(path, topics, (SCAN_TYPE,), named.get("scan"), "--scan", "the 2-D lidar's LaserScan")
     vesc = _one(path, topics, (VESC_TYPE,), named.get("vesc"), "--vesc", "the VESC's state (VescStateStamped)")
-    servos = topics if named.get("servo") else [t for t in topics if SERVO_NAME.search(t.name)]
+    servos = topics if named.get("servo") else _preferred([t for t in topics if SERVO_NAME.search(t.name)], SERVO_ECHO)
     servo = _one(path, servos, (SERVO_TYPE,), named.get("servo"), "--servo", "the servo's commands (Float64)")
-    drive = _one(path, topics, (DRIVE_TYPE,), named.get("drive"), "--drive", "the Ackermann commands")
+    drives = topics if named.get("drive") else _preferred(topics, DRIVE_NAME, DRIVE_TYPE)
+    drive = _one(path, drives, (DRIVE_TYPE,), named.get("drive"), "--drive", "the Ackermann commands")
     truths = [t for t in topics if t.msgtype in POSE_TYPES and TRUTH_NAME.search(t.name)]
     truth = _one(path, truths, POSE_TYPES, named.get("truth"), "--truth", "the truth")
     odoms = [t for t in topics if t.msgtype == ODOM_TYPE and not TRUTH_NAME.search(t.name) and t.name != truth]
+    odoms = topics if named.get("odom") else _preferred(odoms, ODOM_NAME, ODOM_TYPE)
     odom = _one(path, odoms, (ODOM_TYPE,), named.get("odom"), "--odom", "the car's odometry (vesc_to_odom's)")
     missing = [
         what

@@ -413,8 +413,9 @@ def yaml_before(log: CarLog) -> JsonObject:
     erpm = np.interp(log.odom_t, log.erpm_t, log.erpm)
     (k, o), *_ = np.linalg.lstsq(np.column_stack([v, np.ones(v.size)]), erpm, rcond=None)
     out["speed_to_erpm_gain"], out["speed_to_erpm_offset"] = float(k), float(o)
-    if steer is not None:
-        x = v * np.tan((np.interp(log.odom_t, log.servo_t, log.servo) - steer[1]) / steer[0])
+    if steer is not None:  # vesc_to_odom turns by the last servo command it was told of
+        last = np.clip(np.searchsorted(log.servo_t, log.odom_t, side="right") - 1, 0, log.servo_t.size - 1)
+        x = v * np.tan((log.servo[last] - steer[1]) / steer[0])
         turning = np.abs(w) > 0.05
         if turning.sum() >= 10 and np.sum(x[turning] * w[turning]) > 0:
             out["wheelbase_mm"] = float(np.sum(x[turning] ** 2) / np.sum(x[turning] * w[turning]) * 1000)

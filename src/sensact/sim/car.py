@@ -270,12 +270,15 @@ def simulate_car(cfg: CarConfig | None = None) -> CarRun:
         dth = ds * math.tan(delta) / cfg.wheelbase_m * (1 + cfg.slip_sd * rng.standard_normal())
         mid = pose[k, 2] + dth / 2
         pose[k + 1] = pose[k] + (ds * math.cos(mid), ds * math.sin(mid), dth)
+    servo_cmd[n], drive[n] = servo_cmd[n - 1], drive[n - 1]  # the last command holds to the end
     vesc_idx = np.unique(np.round(np.arange(0, cfg.seconds, 1 / cfg.vesc_hz) / dt).astype(int))
     drive_idx = np.arange(0, n + 1, k_drive)
     erpm_read = erpm[vesc_idx] + cfg.erpm_sd * rng.standard_normal(vesc_idx.size)
-    # vesc_to_odom: the yaml's numbers, and its wheelbase (the owner's, right here)
+    # vesc_to_odom, as each report arrives: the yaml's numbers, the last servo command sent, and its wheelbase (the
+    # owner's, right here)
     v_o = (erpm_read - cfg.yaml_speed_offset) / cfg.yaml_speed_gain
-    s_at = np.interp(t[vesc_idx], t[drive_idx], servo_cmd[drive_idx])
+    sent = np.searchsorted(t[drive_idx], t[vesc_idx] + cfg.erpm_delay_s, side="right") - 1
+    s_at = servo_cmd[drive_idx][np.clip(sent, 0, drive_idx.size - 1)]
     w_o = v_o * np.tan((s_at - cfg.yaml_servo_offset) / cfg.yaml_servo_gain) / cfg.wheelbase_m
     odt = np.diff(t[vesc_idx], prepend=t[vesc_idx][0])
     th_o = np.cumsum(w_o * odt)
