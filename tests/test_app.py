@@ -95,7 +95,7 @@ def test_settings_precedence(diffdrive_log, tmp_path):
 def test_calibrate_is_learn_em(diffdrive_log, tmp_path):
     """``calibrate(open_log(DIR))`` gives what `sensact learn em DIR` writes: the same model and scores, with
     typed diagnostics; the fit itself is ``fit_em`` with the folder's settings."""
-    sets = ["max_iterations=60", "start_search_s=null", "turn_restarts=0"]
+    sets = ["max_iterations=20", "start_search_s=null", "turn_restarts=0"]
     cal = calibrate(open_log(diffdrive_log), sets=sets)
     assert isinstance(cal, Calibration) and isinstance(cal.scores, Scores)
     assert cal.settings.preset == "differential_drive_camera"

@@ -101,8 +101,9 @@ def test_a_cluster_isolates_failures_and_raises_them_when_asked(cluster):
         cluster.run(jobs[:2])
 
 
-def test_an_address_no_scheduler_answers_at_is_one_line():
+def test_an_address_no_scheduler_answers_at_is_one_line(monkeypatch):
     pytest.importorskip("distributed")
+    monkeypatch.setattr("sensact.engine.SCHEDULER_WAIT_S", 1)  # nothing listens there: no need to wait 10 s
     with (
         pytest.raises(Exception, match=r"no Dask scheduler answered at tcp://127\.0\.0\.1:9"),
         open_engine(scheduler="tcp://127.0.0.1:9"),

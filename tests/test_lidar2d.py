@@ -242,10 +242,17 @@ def short_log(tmp_path_factory):
     return root / "log"
 
 
-def test_wheels_read_backwards_or_swapped_are_put_right(short_log, tmp_path):
+@pytest.fixture(scope="module")
+def short_model(short_log, tmp_path_factory) -> dict:
+    """``short_log`` learned as it is: what the edited copies of it are held to."""
+    return json.loads(_learn(short_log, tmp_path_factory.mktemp("short_model") / "model.json"))
+
+
+@pytest.mark.slow  # 14 s (`python -m pytest -m slow`)
+def test_wheels_read_backwards_or_swapped_are_put_right(short_log, short_model, tmp_path):
     """Joint names swapped, or one wheel's axis the other way in the URDF: the fit reads them the right way
     round (with a note) and learns what it learns from the log as it should have been."""
-    base = json.loads(_learn(short_log, tmp_path / "base.json"))
+    base = short_model
     for name, edit in (("swapped", lambda t: t[:, [0, 2, 1]]), ("left_backwards", lambda t: t * [1, -1, 1])):
         log = tmp_path / name
         shutil.copytree(short_log, log)
@@ -359,7 +366,7 @@ def test_the_bag_roles_come_from_the_types_and_two_of_one_must_be_named(tmp_path
         lidar_roles(tmp_path, topics[:2], {"scan": "/scan"})
 
 
-def test_unix_epoch_times_give_the_model_times_from_zero_give_exactly(short_log, tmp_path):
+def test_unix_epoch_times_give_the_model_times_from_zero_give_exactly(short_log, short_model, tmp_path):
     """The same log with every time 1.7e9 s later (a CSV of Unix times): read exactly from its first whole
     second and fitted from its start, it gives the same model, every sd finite; the delay's finite difference
     is no longer lost below float64's resolution at 1.7e9 s."""
@@ -371,7 +378,7 @@ def test_unix_epoch_times_give_the_model_times_from_zero_give_exactly(short_log,
         head, *rows = table.read_text().splitlines()
         shifted = [f"{Decimal(r.split(',', 1)[0]) + 1_700_000_000:.9f},{r.split(',', 1)[1]}" for r in rows]
         table.write_text("\n".join([head, *shifted]) + "\n")
-    a = json.loads(_learn(short_log, tmp_path / "zero.json"))
+    a = short_model
     b = json.loads(_learn(epoch, tmp_path / "epoch.json"))
     for part, keys in (("drive", ("wheel_radius_left_mm", "wheel_radius_right_mm", "axle_mm", "delay_s")),
                        ("lidar", ())):  # fmt: skip

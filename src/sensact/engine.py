@@ -301,6 +301,9 @@ def _restored(saved: dict[str, str | None]) -> Iterator[None]:
                 os.environ[k] = v
 
 
+SCHEDULER_WAIT_S = 10  # how long a --scheduler address may take to answer before it is refused
+
+
 @contextmanager
 def open_engine(
     workers: int | None = None, scheduler: str | None = None, threads_per_worker: int | None = None
@@ -322,7 +325,7 @@ def open_engine(
 
     if scheduler is not None:
         try:
-            client = Client(scheduler, timeout="10s")
+            client = Client(scheduler, timeout=f"{SCHEDULER_WAIT_S}s")
         except ValueError as exc:  # not an address at all: no port, an unknown protocol
             raise SensactError(
                 f"--scheduler {scheduler!r} is not a scheduler's address ({exc}).",

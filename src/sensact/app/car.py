@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -14,7 +15,7 @@ import numpy as np
 
 from sensact import __version__
 from sensact.app.em import FitEvents
-from sensact.app.opened import OpenedFolder
+from sensact.app.opened import FittedInSeconds, OpenedFolder
 from sensact.app.save import Saved
 from sensact.health import Health, HealthFlag
 from sensact.io.car_folder import KIND as CAR_KIND
@@ -58,31 +59,21 @@ def open_car_log(path: Path) -> OpenedCarLog:
 
 
 @dataclass(frozen=True, eq=False)
-class CarCalibration:
-    log: CarLog
-    result: CarLidarResult
-    health: Health
-    seconds: float
+class CarCalibration(FittedInSeconds[CarLog, CarLidarResult]):
+    PARAMETERS = PARAMETERS
 
-    @property
-    def interrupted(self) -> bool:
-        return False  # a fit of seconds: Ctrl-C ends the command
+    @cached_property
+    def old_yaml(self) -> JsonObject:
+        """The yaml the log was driven with (``yaml_before``: a least squares over /odom's rows)."""
+        return yaml_before(self.log)
 
-    @property
-    def params(self) -> dict[str, float]:
-        return dict(zip(PARAMETERS, map(float, self.result.fit.params), strict=True))
-
-    @property
-    def sds(self) -> dict[str, float]:
-        return dict(zip(PARAMETERS, map(float, self.result.fit.sd), strict=True))
-
-    @property
+    @cached_property
     def steering(self) -> Steering:
         """The steering gain and the wheelbase; where the log's curves do not part them (``1 / gain^2`` not known
         to be positive), their product split by the wheelbase the log's own yaml gives (/odom's), the wheelbase's
         sd infinite: it is the yaml's, not learned. Flagged either way (``health_of``)."""
         st = steering(self.result.fit.params, self.result.fit.cov)
-        old = yaml_before(self.log)["wheelbase_mm"]
+        old = self.old_yaml["wheelbase_mm"]
         if math.isfinite(st.gain) or old is None:
             return st
         length = old / 1000
@@ -148,7 +139,7 @@ class CarCalibration:
                 **pair("steering_delay_s", p["steering_delay_s"], sd["steering_delay_s"]),
                 **pair("speed_delay_s", p["speed_delay_s"], sd["speed_delay_s"]),
                 "straight_ahead": self.straight_ahead(),
-                "yaml_before": yaml_before(log),
+                "yaml_before": self.old_yaml,
                 # the drive's noise beyond the scan matcher's: variance of the lidar's displacement (x forward,
                 # y left in mm^2, yaw in rad^2) per mm travelled and per rad turned
                 "noise": {"variance_per_mm": noise.b.tolist(), "variance_per_rad": noise.c.tolist()},

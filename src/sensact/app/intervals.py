@@ -12,7 +12,7 @@ from typing import Any
 from sensact import __version__
 from sensact.app.em import FitEvents
 from sensact.app.lidar2d import fit_flags
-from sensact.app.opened import OpenedFolder
+from sensact.app.opened import FittedInSeconds, OpenedFolder
 from sensact.app.save import Saved
 from sensact.health import Health
 from sensact.io.intervals import KIND
@@ -46,20 +46,11 @@ def open_intervals_log(path: Path) -> OpenedIntervalsLog:
 
 
 @dataclass(frozen=True, eq=False)
-class IntervalsCalibration:
-    log: IntervalsLog
-    result: IntervalsResult
-    health: Health
-    seconds: float
-
-    @property
-    def interrupted(self) -> bool:
-        return False  # a fit of seconds: Ctrl-C ends the command
+class IntervalsCalibration(FittedInSeconds[IntervalsLog, IntervalsResult]):
+    PARAMETERS = PARAMETERS
 
     def to_json(self) -> JsonObject:
-        fit = self.result.fit
-        p = dict(zip(PARAMETERS, map(float, fit.params), strict=True))
-        sd = dict(zip(PARAMETERS, map(float, fit.sd), strict=True))
+        fit, p, sd = self.result.fit, self.params, self.sds
 
         def pair(key: str) -> JsonObject:
             return {key: p[key], f"{key}_sd": sd[key]}

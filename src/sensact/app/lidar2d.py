@@ -13,7 +13,7 @@ import numpy as np
 
 from sensact import __version__
 from sensact.app.em import FitEvents
-from sensact.app.opened import OpenedFolder
+from sensact.app.opened import FittedInSeconds, OpenedFolder
 from sensact.app.save import Saved
 from sensact.health import Health, HealthFlag
 from sensact.io.lidar2d_folder import KIND as LIDAR2D_KIND
@@ -55,23 +55,8 @@ def open_lidar2d_log(path: Path) -> OpenedLidar2DLog:
 
 
 @dataclass(frozen=True, eq=False)
-class Lidar2DCalibration:
-    log: Lidar2DLog
-    result: WheelLidarResult
-    health: Health
-    seconds: float
-
-    @property
-    def interrupted(self) -> bool:
-        return False  # a fit of seconds: Ctrl-C ends the command
-
-    @property
-    def params(self) -> dict[str, float]:
-        return dict(zip(PARAMETERS, map(float, self.result.fit.params), strict=True))
-
-    @property
-    def sds(self) -> dict[str, float]:
-        return dict(zip(PARAMETERS, map(float, self.result.fit.sd), strict=True))
+class Lidar2DCalibration(FittedInSeconds[Lidar2DLog, WheelLidarResult]):
+    PARAMETERS = PARAMETERS
 
     def to_json(self) -> JsonObject:
         p, sd, fit, log = self.params, self.sds, self.result.fit, self.log

@@ -10,6 +10,15 @@ import typer
 from sensact.app.settings import layered_config
 from sensact.cli.base import ConfigOpt, SetOpt, console, friendly, progress_bar, simulate_app
 
+BagOpt = Annotated[
+    Path | None,
+    typer.Option(
+        help="Also write the run as a ROS bag here: a .bag path is ROS 1, else a ROS 2 bag folder (--bag-format).",
+        show_default=False,
+    ),
+]
+BagFormatOpt = Annotated[str, typer.Option(help="A ROS 2 bag's storage: mcap or sqlite3.")]
+
 
 @simulate_app.command("track1d")
 @friendly
@@ -103,7 +112,7 @@ def simulate_diffdrive_cmd(
             show_default=False,
         ),
     ] = None,
-    bag_format: Annotated[str, typer.Option(help="A ROS 2 bag's storage: mcap or sqlite3.")] = "mcap",
+    bag_format: BagFormatOpt = "mcap",
     no_map: Annotated[
         bool,
         typer.Option("--no-map", help="Leave the landmarks' positions out of the log: EM learns them (scored only)."),
@@ -245,14 +254,8 @@ def simulate_ackermann(
     seed: Annotated[int | None, typer.Option(help="Random seed (default 0).")] = None,
     set_: SetOpt = None,
     config: ConfigOpt = None,
-    bag: Annotated[
-        Path | None,
-        typer.Option(
-            help="Also write the run as a ROS bag here: a .bag path is ROS 1, else a ROS 2 bag folder (--bag-format).",
-            show_default=False,
-        ),
-    ] = None,
-    bag_format: Annotated[str, typer.Option(help="A ROS 2 bag's storage: mcap or sqlite3.")] = "mcap",
+    bag: BagOpt = None,
+    bag_format: BagFormatOpt = "mcap",
 ) -> None:
     """Simulate a 1/10-scale car-like robot (F1TENTH, MuSHR) lapping a corridor track with a 270-degree lidar
     (docs/ackermann.md).
@@ -289,14 +292,8 @@ def simulate_outdoor(
     seed: Annotated[int | None, typer.Option(help="Random seed (default 0).")] = None,
     set_: SetOpt = None,
     config: ConfigOpt = None,
-    bag: Annotated[
-        Path | None,
-        typer.Option(
-            help="Also write the run as a ROS bag here: a .bag path is ROS 1, else a ROS 2 bag folder (--bag-format).",
-            show_default=False,
-        ),
-    ] = None,
-    bag_format: Annotated[str, typer.Option(help="A ROS 2 bag's storage: mcap or sqlite3.")] = "mcap",
+    bag: BagOpt = None,
+    bag_format: BagFormatOpt = "mcap",
 ) -> None:
     """Simulate a skid-steer robot driving over a field with wheel odometry, an IMU and GNSS (docs/inertial.md).
 
