@@ -7,7 +7,7 @@ log a ``Calibration``: the model, typed diagnostics, the scores when the log has
 ``calibrate(open_log(DIR))`` and printing, for every kind.
 
 * ``log_kinds``: the registry, one door per log kind: its opener, learner and writer (``opened``: what the
-  kinds whose readers refuse what they doubt share once opened);
+  kinds whose readers refuse what they doubt share once opened, and those fitted in seconds once fitted);
 * ``calibrate``: ``calibrate(log)``, by the learner of the log's kind;
 * ``logs`` with ``em``, ``save``, ``scores`` and ``report``: a landmark log learned by EM, written, scored
   against its truth and reported; ``uncertainty``: its error bars;
