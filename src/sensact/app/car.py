@@ -16,7 +16,7 @@ import numpy as np
 from sensact import __version__
 from sensact.app.em import FitEvents
 from sensact.app.opened import FittedInSeconds, OpenedFolder
-from sensact.app.save import Saved
+from sensact.app.save import Saved, save_model
 from sensact.health import Health, HealthFlag
 from sensact.io.car_folder import KIND as CAR_KIND
 from sensact.learn.car_lidar import (
@@ -281,13 +281,10 @@ def calibrate_opened_car(
 
 def save_car(cal: CarCalibration, out: Path, report: bool = True) -> Saved:
     """model.json (with the version stamp), and the report page with its figures beside it."""
-    from sensact.io.atomic import write_json
 
-    written = [write_json(out, cal.to_json())]
-    not_drawn: list[str] = []
-    if report:
+    def page() -> tuple[Path, list[str]]:
         from sensact.report.car import write_car_report
 
-        page, not_drawn = write_car_report(cal, out)
-        written.append(page)
-    return Saved(tuple(written), (), None, tuple(not_drawn))
+        return write_car_report(cal, out)
+
+    return save_model(out, cal.to_json(), page if report else None)

@@ -15,7 +15,7 @@ import numpy as np
 from sensact import __version__
 from sensact.app.em import FitEvents
 from sensact.app.opened import OpenedFolder
-from sensact.app.save import Saved
+from sensact.app.save import Saved, save_model
 from sensact.core import inertial_smoother as ks
 from sensact.health import Health, HealthFlag
 from sensact.io.inertial_folder import KIND
@@ -326,7 +326,7 @@ def calibrate_opened_inertial(
 
 def save_inertial(cal: InertialCalibration, out: Path, report: bool = True) -> Saved:
     """model.json, the bias's path (``bias.npz`` beside it), and the report page with its figures."""
-    from sensact.io.atomic import write_json, write_npz
+    from sensact.io.atomic import write_npz
 
     res = cal.result
     npz = write_npz(
@@ -336,14 +336,13 @@ def save_inertial(cal: InertialCalibration, out: Path, report: bool = True) -> S
         bias_sd_rad_s=res.bias_sd_rad_s,
         path_enu_m=res.path_enu_m,
     )
-    written = [write_json(out, cal.to_json()), npz]
-    not_drawn: list[str] = []
-    if report:
+
+    def page() -> tuple[Path, list[str]]:
         from sensact.report.inertial import write_inertial_report
 
-        page, not_drawn = write_inertial_report(cal, out)
-        written.append(page)
-    return Saved(tuple(written), (), None, tuple(not_drawn))
+        return write_inertial_report(cal, out)
+
+    return save_model(out, cal.to_json(), page if report else None, (npz,))
 
 
 CHI2_90 = {1: 2.705543454095404, 2: 4.605170185988091}  # scipy.stats.chi2.ppf(0.9, dof)

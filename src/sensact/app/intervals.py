@@ -13,7 +13,7 @@ from sensact import __version__
 from sensact.app.em import FitEvents
 from sensact.app.lidar2d import fit_flags
 from sensact.app.opened import FittedInSeconds, OpenedFolder
-from sensact.app.save import Saved
+from sensact.app.save import Saved, save_model
 from sensact.health import Health
 from sensact.io.intervals import KIND
 from sensact.learn.wheel_lidar import PARAMETERS, IntervalsResult, learn_intervals
@@ -124,9 +124,7 @@ def calibrate_opened_intervals(
 
 def save_intervals(cal: IntervalsCalibration, out: Path, report: bool = True) -> Saved:
     """model.json (no report page: intervals carry no scans or path to draw)."""
-    from sensact.io.atomic import write_json
-
-    return Saved((write_json(out, cal.to_json()),), (), None, ())
+    return save_model(out, cal.to_json(), None)
 
 
 def rows(cal: IntervalsCalibration) -> list[list[str]]:

@@ -14,7 +14,7 @@ import numpy as np
 from sensact import __version__
 from sensact.app.em import FitEvents
 from sensact.app.opened import FittedInSeconds, OpenedFolder
-from sensact.app.save import Saved
+from sensact.app.save import Saved, save_model
 from sensact.health import Health, HealthFlag
 from sensact.io.lidar2d_folder import KIND as LIDAR2D_KIND
 from sensact.learn.wheel_lidar import (
@@ -234,16 +234,13 @@ def calibrate_opened_lidar2d(
 
 def save_lidar2d(cal: Lidar2DCalibration, out: Path, report: bool = True) -> Saved:
     """model.json (with the version stamp), and the report page with its figures beside it."""
-    from sensact.io.atomic import write_json
 
-    written = [write_json(out, cal.to_json())]
-    not_drawn: list[str] = []
-    if report:
+    def page() -> tuple[Path, list[str]]:
         from sensact.report.lidar2d import write_lidar2d_report
 
-        page, not_drawn = write_lidar2d_report(cal, out)
-        written.append(page)
-    return Saved(tuple(written), (), None, tuple(not_drawn))
+        return write_lidar2d_report(cal, out)
+
+    return save_model(out, cal.to_json(), page if report else None)
 
 
 def convert_lidar_bag(

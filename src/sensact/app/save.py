@@ -35,6 +35,19 @@ class Saved:
         return head + (f"; not drawn: {'; '.join(self.not_drawn)})" if self.not_drawn else ")")
 
 
+def save_model(
+    out: Path, doc: JsonObject, page: Callable[[], tuple[Path, list[str]]] | None, beside: tuple[Path, ...] = ()
+) -> Saved:
+    """A kind's model JSON at ``out``, the files already written ``beside`` it, and its report page (``page``
+    draws it; None: no page), as the kinds learned in one fit save them."""
+    written = [write_json(out, doc), *beside]
+    not_drawn: list[str] = []
+    if page is not None:
+        drawn, not_drawn = page()
+        written.append(drawn)
+    return Saved(tuple(written), (), None, tuple(not_drawn))
+
+
 def halves_figure(out: Path) -> Path:
     """Where `learn em --halves --out OUT.json` draws the halves: OUT_halves.png."""
     return out.with_name(f"{out.stem}_halves.png")
